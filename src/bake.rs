@@ -1,0 +1,419 @@
+//! The bake: for every pixel of the fixed view, its transport row over all 6 N² cube texel lights
+//! (visibility x BRDF x cosine integrated over each texel), the SH projection of the same row,
+//! then per-face Haar, thresholding and quantisation into the tiled layout of
+//! [`crate::transport`]. Parallel over pixel tiles with rayon; each tile is finished and compressed
+//! before the next is taken, so memory stays bounded by the output.
+
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::time::Instant;
+
+use glam::Vec3;
+use half::f16;
+use rayon::prelude::*;
+
+use crate::cubemap::{texel_count, validate_n};
+use crate::error::{PrtError, Result};
+use crate::haar;
+use crate::light::{TexelShBasis, rgb_magnitude};
+use crate::sampling::{TexelSamples, pixel_samples};
+use crate::scene::Scene;
+use crate::trace::{Hit, Tracer};
+use crate::transport::{
+    BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, tile_grid,
+};
+
+/// Settings of a bake; the defaults are the command line's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakeSettings {
+    /// Cube face size N of the texel lights.
+    pub cube_n: usize,
+    /// SH order of the SH transport (n² coefficients).
+    pub sh_order: usize,
+    /// Sub-pixel samples per pixel.
+    pub spp: u32,
+    /// Shadow-ray directions per texel (rounded up to a square).
+    pub texel_samples: u32,
+    /// Relative L2 error allowed per row when dropping small Haar coefficients (0 keeps all).
+    pub threshold: f32,
+    /// Keep every coefficient in 32-bit floats (for checks against the reference).
+    pub lossless: bool,
+    /// Ignore visibility (no shadows).
+    pub unshadowed: bool,
+    /// Seed of every random choice.
+    pub seed: u64,
+}
+
+impl Default for BakeSettings {
+    fn default() -> Self {
+        BakeSettings {
+            cube_n: 32,
+            sh_order: 6,
+            spp: 1,
+            texel_samples: 1,
+            threshold: 0.01,
+            lossless: false,
+            unshadowed: false,
+            seed: 1,
+        }
+    }
+}
+
+impl BakeSettings {
+    /// Checks ranges before any work.
+    pub fn validate(&self) -> Result<()> {
+        validate_n(self.cube_n)?;
+        if self.cube_n > 128 {
+            return Err(PrtError::invalid(
+                "cube size",
+                format!(
+                    "N = {}: per-pixel rows above N = 128 are not supported",
+                    self.cube_n
+                ),
+            ));
+        }
+        if !(1..=10).contains(&self.sh_order) {
+            return Err(PrtError::invalid(
+                "SH order",
+                format!("{}; it must be from 1 to 10", self.sh_order),
+            ));
+        }
+        if self.spp == 0 || self.spp > 4096 {
+            return Err(PrtError::invalid(
+                "spp",
+                format!("{}; it must be from 1 to 4096", self.spp),
+            ));
+        }
+        if self.texel_samples == 0 || self.texel_samples > 256 {
+            return Err(PrtError::invalid(
+                "texel samples",
+                format!("{}; it must be from 1 to 256", self.texel_samples),
+            ));
+        }
+        if !(0.0..1.0).contains(&self.threshold) {
+            return Err(PrtError::invalid(
+                "threshold",
+                format!("{}; it must be in [0, 1)", self.threshold),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The quantisation the settings imply.
+    pub fn quantization(&self) -> Quantization {
+        if self.lossless {
+            Quantization::F32
+        } else {
+            Quantization::F16
+        }
+    }
+}
+
+/// Progress of a running bake.
+#[derive(Clone, Copy, Debug)]
+pub struct BakeProgress {
+    pub pixels_done: usize,
+    pub pixels_total: usize,
+    pub shadow_rays: u64,
+}
+
+/// Where the shading of one camera sub-sample happens: a hit point and its diffuse material.
+pub struct ShadingPoint {
+    /// Origin for shadow rays, offset off the surface.
+    pub origin: Vec3,
+    /// Shading normal, facing the camera ray.
+    pub normal: Vec3,
+    /// Material index.
+    pub material: u32,
+}
+
+/// Shades a camera hit: the offset origin for shadow rays and the normal.
+pub fn shading_point(tracer: &Tracer, hit: &Hit) -> ShadingPoint {
+    ShadingPoint {
+        origin: tracer.offset_origin(hit, hit.normal),
+        normal: hit.normal,
+        material: hit.material,
+    }
+}
+
+/// Diffuse albedo of a material.
+pub fn albedo(scene: &Scene, material: u32) -> [f32; 3] {
+    scene.materials[material as usize].albedo().to_array()
+}
+
+/// Adds `scale · visibility · max(0, n·ω) · Ω_ω` for every texel sample to `row` (texel order).
+/// Returns the shadow rays traced.
+pub fn accumulate_direct_row(
+    tracer: &Tracer,
+    samples: &TexelSamples,
+    sp: &ShadingPoint,
+    unshadowed: bool,
+    scale: f32,
+    row: &mut [f32],
+) -> u64 {
+    let m = samples.per_texel;
+    let mut rays = 0u64;
+    for (j, out) in row.iter_mut().enumerate() {
+        let dirs = &samples.dirs[j * m..(j + 1) * m];
+        let weights = &samples.weights[j * m..(j + 1) * m];
+        let mut acc = 0.0f32;
+        for (d, w) in dirs.iter().zip(weights) {
+            let cos = sp.normal.dot(*d);
+            if cos <= 0.0 {
+                continue;
+            }
+            if !unshadowed {
+                rays += 1;
+                if tracer.occluded(sp.origin, *d, f32::INFINITY) {
+                    continue;
+                }
+            }
+            acc += cos * w;
+        }
+        *out += acc * scale;
+    }
+    rays
+}
+
+/// What one tile of the bake produces.
+struct TileOutput {
+    rows: Vec<RowData>,
+    /// (pixel, mean albedo over hit sub-samples, coverage).
+    pixels: Vec<(u32, [f32; 3], f32)>,
+    dropped_energy: f64,
+    total_energy: f64,
+    rays: u64,
+}
+
+/// Bakes `scene` with `settings`, calling `progress` after each tile.
+pub fn bake(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &(dyn Fn(BakeProgress) + Sync),
+) -> Result<Transport> {
+    settings.validate()?;
+    let start = Instant::now();
+    let tracer = Tracer::new(scene);
+    let cam = &scene.camera;
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let n = settings.cube_n;
+    let c = texel_count(n);
+    let samples = TexelSamples::new(n, settings.texel_samples as usize, settings.seed);
+    let basis = TexelShBasis::new(n, settings.sh_order)?;
+    let (tx, ty) = tile_grid(w, h);
+    let done = AtomicUsize::new(0);
+    let rays = AtomicU64::new(0);
+    let outputs: Vec<TileOutput> = (0..tx * ty)
+        .into_par_iter()
+        .map(|t| {
+            let out = bake_tile(scene, &tracer, settings, &samples, &basis, t % tx, t / tx);
+            let px = out.pixels.len();
+            progress(BakeProgress {
+                pixels_done: done.fetch_add(px, Ordering::Relaxed) + px,
+                pixels_total: w * h,
+                shadow_rays: rays.fetch_add(out.rays, Ordering::Relaxed) + out.rays,
+            });
+            out
+        })
+        .collect();
+    let mut albedo = vec![[0.0f32; 3]; w * h];
+    let mut coverage = vec![0.0f32; w * h];
+    let mut magnitude = vec![0.0f64; c];
+    let (mut dropped, mut total, mut shadow_rays, mut rows) = (0.0, 0.0, 0u64, 0usize);
+    let mut tiles = Vec::with_capacity(outputs.len());
+    for out in outputs {
+        for (p, a, cov) in out.pixels {
+            albedo[p as usize] = a;
+            coverage[p as usize] = cov;
+        }
+        for row in &out.rows {
+            let lum = rgb_magnitude(row.weight) as f64;
+            for &(j, v) in &row.entries {
+                magnitude[j as usize] += v.abs() as f64 * lum;
+            }
+        }
+        dropped += out.dropped_energy;
+        total += out.total_energy;
+        shadow_rays += out.rays;
+        rows += out.rows.len();
+        tiles.push(out.rows);
+    }
+    let transport_magnitude = magnitude
+        .iter()
+        .map(|m| (m / rows.max(1) as f64) as f32)
+        .collect();
+    let meta = TransportMeta {
+        width: w as u32,
+        height: h as u32,
+        tile: TILE as u32,
+        cube_n: n as u32,
+        sh_order: settings.sh_order as u32,
+        scene_hash: format!("{:016x}", scene.content_hash()),
+        scene_path: scene.source_path.display().to_string(),
+        camera: CameraMeta {
+            eye: cam.eye.to_array(),
+            target: cam.target.to_array(),
+            up: cam.up.to_array(),
+            fov_y_deg: cam.fov_y_deg,
+        },
+        spp: settings.spp,
+        texel_samples: samples.per_texel as u32,
+        unshadowed: settings.unshadowed,
+        seed: settings.seed,
+        threshold: if settings.lossless {
+            0.0
+        } else {
+            settings.threshold
+        },
+        quantization: settings.quantization(),
+        stats: BakeStats::default(),
+    };
+    let mut t = Transport::assemble(meta, tiles, albedo, coverage, transport_magnitude)?;
+    t.meta.stats = BakeStats {
+        rows: rows as u64,
+        nonzeros: t.entry_row.len() as u64,
+        dense_entries: (rows * c) as u64,
+        dropped_energy_fraction: if total > 0.0 { dropped / total } else { 0.0 },
+        shadow_rays,
+        bake_seconds: start.elapsed().as_secs_f64(),
+    };
+    Ok(t)
+}
+
+/// Bakes one tile: dense rows per (pixel, material), SH projection, Haar and thresholding.
+fn bake_tile(
+    scene: &Scene,
+    tracer: &Tracer,
+    settings: &BakeSettings,
+    samples: &TexelSamples,
+    basis: &TexelShBasis,
+    tile_x: usize,
+    tile_y: usize,
+) -> TileOutput {
+    let cam = &scene.camera;
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let n = settings.cube_n;
+    let c = texel_count(n);
+    let shc = settings.sh_order * settings.sh_order;
+    let mut out = TileOutput {
+        rows: Vec::new(),
+        pixels: Vec::new(),
+        dropped_energy: 0.0,
+        total_energy: 0.0,
+        rays: 0,
+    };
+    let mut order: Vec<(f32, u32)> = Vec::with_capacity(c);
+    let mut scratch = Vec::new();
+    for y in tile_y * TILE..((tile_y + 1) * TILE).min(h) {
+        for x in tile_x * TILE..((tile_x + 1) * TILE).min(w) {
+            let subs = pixel_samples(x as u32, y as u32, w as u32, settings.spp, settings.seed);
+            let inv_spp = 1.0 / subs.len() as f32;
+            // Dense rows of this pixel, one per material seen.
+            let mut dense: Vec<(u32, Vec<f32>)> = Vec::new();
+            let mut hits = 0usize;
+            let mut albedo_sum = [0.0f32; 3];
+            for (fx, fy) in subs {
+                let ray = cam.ray(fx, fy);
+                let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
+                    continue;
+                };
+                hits += 1;
+                let sp = shading_point(tracer, &hit);
+                let a = albedo(scene, sp.material);
+                for k in 0..3 {
+                    albedo_sum[k] += a[k];
+                }
+                let slot = match dense.iter().position(|(m, _)| *m == sp.material) {
+                    Some(i) => i,
+                    None => {
+                        dense.push((sp.material, vec![0.0; c]));
+                        dense.len() - 1
+                    }
+                };
+                out.rays += accumulate_direct_row(
+                    tracer,
+                    samples,
+                    &sp,
+                    settings.unshadowed,
+                    inv_spp * std::f32::consts::FRAC_1_PI,
+                    &mut dense[slot].1,
+                );
+            }
+            let pixel = (y * w + x) as u32;
+            let mean_albedo = if hits > 0 {
+                albedo_sum.map(|v| v / hits as f32)
+            } else {
+                [0.0; 3]
+            };
+            out.pixels.push((pixel, mean_albedo, hits as f32 * inv_spp));
+            for (material, mut row) in dense {
+                let mut sh = vec![0.0f32; shc];
+                basis.project_row(&row, &mut sh);
+                haar::forward_face_all(&mut row, n, &mut scratch);
+                let (entries, dropped, total) = sparsify(&row, settings, &mut order);
+                out.dropped_energy += dropped;
+                out.total_energy += total;
+                out.rows.push(RowData {
+                    pixel,
+                    weight: albedo(scene, material),
+                    entries,
+                    sh,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// Drops the smallest Haar coefficients of a row while the dropped energy stays within
+/// `threshold²` of the row's energy (so the row's relative L2 error is at most `threshold`), then
+/// quantises what is kept. Returns the kept (coefficient, value) pairs ascending by coefficient,
+/// the dropped energy and the row's energy (including quantisation error in the dropped part).
+fn sparsify(
+    row: &[f32],
+    settings: &BakeSettings,
+    order: &mut Vec<(f32, u32)>,
+) -> (Vec<(u32, f32)>, f64, f64) {
+    let total: f64 = row.iter().map(|&v| (v as f64) * (v as f64)).sum();
+    order.clear();
+    order.extend(
+        row.iter()
+            .enumerate()
+            .filter(|(_, v)| **v != 0.0)
+            .map(|(j, v)| (v.abs(), j as u32)),
+    );
+    let mut dropped = 0.0f64;
+    let mut first_kept = 0;
+    if !settings.lossless && settings.threshold > 0.0 {
+        order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let budget = (settings.threshold as f64).powi(2) * total;
+        while first_kept < order.len() {
+            let e = (order[first_kept].0 as f64).powi(2);
+            if dropped + e > budget {
+                break;
+            }
+            dropped += e;
+            first_kept += 1;
+        }
+    }
+    let mut kept: Vec<(u32, f32)> = order[first_kept..]
+        .iter()
+        .map(|&(_, j)| (j, row[j as usize]))
+        .collect();
+    kept.sort_unstable_by_key(|&(j, _)| j);
+    if !settings.lossless {
+        for (_, v) in kept.iter_mut() {
+            let q = f16::from_f32(*v).to_f32();
+            dropped += ((*v - q) as f64).powi(2);
+            *v = q;
+        }
+        kept.retain(|&(_, v)| v != 0.0);
+    }
+    (kept, dropped, total)
+}
+
+/// Bytes a bake's output will take at most (every coefficient kept), to warn or refuse up front.
+pub fn worst_case_bytes(width: usize, height: usize, settings: &BakeSettings) -> u64 {
+    let c = texel_count(settings.cube_n) as u64;
+    let value = if settings.lossless { 4 } else { 2 };
+    (width * height) as u64 * c * (2 + value)
+}

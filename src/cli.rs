@@ -1,0 +1,528 @@
+//! The `prt` command line: argument parsing, progress bars and printing. Everything else is the
+//! library; this module is the only place that writes to the terminal.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::bake::{BakeProgress, BakeSettings, bake, worst_case_bytes};
+use crate::envmap::{EnvMap, EnvRotation};
+use crate::error::{PrtError, Result};
+use crate::film::ToneMap;
+use crate::light::{WaveletLight, Weighting};
+use crate::relight::{LightContext, Method, RelightRequest, relight};
+use crate::scene::Scene;
+use crate::transport::Transport;
+
+/// All-frequency relighting: bake a view, relight it under any HDR environment with Haar wavelets
+/// or spherical harmonics.
+#[derive(Parser, Debug)]
+#[command(name = "prt", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Bake the demo scene and relight it under every bundled environment (the main job).
+    Demo {
+        /// Output directory (the bake is cached there).
+        #[arg(long, default_value = "prt-demo")]
+        out: PathBuf,
+    },
+    /// Bake a scene's per-pixel transport into a file.
+    Bake(BakeArgs),
+    /// Print a transport file's metadata and statistics.
+    Info {
+        /// Transport file.
+        file: PathBuf,
+    },
+    /// Relight a baked view under an environment.
+    Relight(RelightArgs),
+    /// Render the brute-force reference (no matrix) under an environment's cube map.
+    Reference(ReferenceArgs),
+    /// Describe an environment map: size, power, SH coefficients, Haar energy compaction.
+    Env(EnvArgs),
+}
+
+/// Options shared by the bake and the reference: how the transport is sampled.
+#[derive(Args, Debug, Clone)]
+pub struct SamplingArgs {
+    /// Cube face size N of the texel lights (power of two).
+    #[arg(long, default_value_t = 32)]
+    pub cube: usize,
+    /// Sub-pixel samples per pixel.
+    #[arg(long, default_value_t = 1)]
+    pub spp: u32,
+    /// Shadow-ray directions per texel (rounded up to a square).
+    #[arg(long, default_value_t = 1)]
+    pub texel_samples: u32,
+    /// Ignore visibility (no shadows).
+    #[arg(long)]
+    pub unshadowed: bool,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+#[derive(Args, Debug)]
+pub struct BakeArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Output transport file.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub sampling: SamplingArgs,
+    /// SH order of the SH transport (n² coefficients, 1 to 10).
+    #[arg(long, default_value_t = 6)]
+    pub sh_order: usize,
+    /// Relative L2 error allowed per transport row when dropping small Haar coefficients.
+    #[arg(long, default_value_t = 0.01, conflicts_with = "lossless")]
+    pub threshold: f32,
+    /// Keep every coefficient in 32-bit floats.
+    #[arg(long)]
+    pub lossless: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct RelightArgs {
+    /// Transport file.
+    pub file: PathBuf,
+    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    #[arg(long)]
+    pub env: String,
+    /// Output image (.exr linear, .png tone-mapped).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// wavelet, sh or full.
+    #[arg(long, default_value = "wavelet")]
+    pub method: String,
+    /// Kept wavelet terms K.
+    #[arg(long, default_value_t = 200)]
+    pub terms: usize,
+    /// Wavelet term selection: none, area or transport.
+    #[arg(long, default_value = "area")]
+    pub weighting: String,
+    /// SH order (at most the baked order; default: the baked order).
+    #[arg(long)]
+    pub sh_order: Option<usize>,
+    /// Turn the environment about +Y, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub yaw: f64,
+    /// Turn the environment about +X after the yaw, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub pitch: f64,
+    /// cpu (gpu comes with the GPU back-end).
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
+    /// PNG exposure in stops (default: automatic).
+    #[arg(long, allow_negative_numbers = true)]
+    pub exposure: Option<f32>,
+}
+
+#[derive(Args, Debug)]
+pub struct ReferenceArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    #[arg(long)]
+    pub env: String,
+    /// Output image (.exr linear, .png tone-mapped).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub sampling: SamplingArgs,
+    /// Turn the environment about +Y, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub yaw: f64,
+    /// Turn the environment about +X after the yaw, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub pitch: f64,
+}
+
+#[derive(Args, Debug)]
+pub struct EnvArgs {
+    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    pub env: String,
+    /// Cube face size for the Haar statistics.
+    #[arg(long, default_value_t = 32)]
+    pub cube: usize,
+    /// SH order of the printed coefficients.
+    #[arg(long, default_value_t = 3)]
+    pub sh: usize,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs the command line; returns the process exit code.
+pub fn main() -> i32 {
+    let cli = Cli::parse();
+    match run(cli.command) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e}");
+            1
+        }
+    }
+}
+
+fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Demo { out } => demo(out),
+        Command::Bake(a) => bake_cmd(a),
+        Command::Info { file } => info(file),
+        Command::Relight(a) => relight_cmd(a),
+        Command::Reference(a) => reference_cmd(a),
+        Command::Env(a) => env_cmd(a),
+    }
+}
+
+fn load_env(spec: &str) -> Result<EnvMap> {
+    let env = EnvMap::from_spec(spec)?;
+    if env.negatives_clamped > 0 {
+        eprintln!(
+            "warning: {}: {} negative samples clamped to 0",
+            env.source, env.negatives_clamped
+        );
+    }
+    Ok(env)
+}
+
+fn progress_bar(total: usize) -> ProgressBar {
+    let bar = ProgressBar::new(total as u64);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} px  {per_sec}  {msg}  ETA {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+fn bake_with_progress(scene: &Scene, settings: &BakeSettings) -> Result<Transport> {
+    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
+    let bar = progress_bar(w * h);
+    let start = Instant::now();
+    let t = bake(scene, settings, &|p: BakeProgress| {
+        bar.set_position(p.pixels_done as u64);
+        let secs = start.elapsed().as_secs_f64().max(1e-3);
+        bar.set_message(format!(
+            "{:.2} M shadow rays/s",
+            p.shadow_rays as f64 / secs / 1e6
+        ));
+    })?;
+    bar.finish_and_clear();
+    Ok(t)
+}
+
+fn settings_from(
+    s: &SamplingArgs,
+    sh_order: usize,
+    threshold: f32,
+    lossless: bool,
+) -> BakeSettings {
+    BakeSettings {
+        cube_n: s.cube,
+        sh_order,
+        spp: s.spp,
+        texel_samples: s.texel_samples,
+        threshold,
+        lossless,
+        unshadowed: s.unshadowed,
+        seed: s.seed,
+    }
+}
+
+fn available_memory_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+fn bake_cmd(a: BakeArgs) -> Result<()> {
+    let settings = settings_from(&a.sampling, a.sh_order, a.threshold, a.lossless);
+    settings.validate()?;
+    let scene = Scene::load(&a.scene)?;
+    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
+    let worst = worst_case_bytes(w, h, &settings);
+    eprintln!(
+        "baking {} ({} triangles, {} spheres) at {w}x{h}, N = {}, SH order {}, {} spp, {} samples/texel",
+        a.scene.display(),
+        scene.triangle_count(),
+        scene.spheres.len(),
+        settings.cube_n,
+        settings.sh_order,
+        settings.spp,
+        settings.texel_samples
+    );
+    eprintln!(
+        "memory: at most {:.1} MiB if every coefficient were kept{}",
+        worst as f64 / 1048576.0,
+        if settings.lossless {
+            " (lossless keeps them all)"
+        } else {
+            ""
+        }
+    );
+    if let Some(avail) = available_memory_bytes() {
+        // Lossless bakes keep everything; thresholded ones typically keep a few percent.
+        let expected = if settings.lossless { worst } else { worst / 5 };
+        if expected > avail {
+            return Err(PrtError::invalid(
+                "bake",
+                format!(
+                    "it needs about {:.1} GiB but {:.1} GiB are available: lower the resolution, --cube or raise --threshold",
+                    expected as f64 / (1u64 << 30) as f64,
+                    avail as f64 / (1u64 << 30) as f64
+                ),
+            ));
+        }
+    }
+    let t = bake_with_progress(&scene, &settings)?;
+    t.save(&a.output)?;
+    print_info(&a.output, &t);
+    Ok(())
+}
+
+fn print_info(path: &std::path::Path, t: &Transport) {
+    let m = &t.meta;
+    let s = &m.stats;
+    let bytes = std::fs::metadata(path).map(|x| x.len()).unwrap_or(0);
+    let dense_bytes = s.dense_entries as f64 * 4.0;
+    println!("file          {}", path.display());
+    println!("scene         {} (hash {})", m.scene_path, m.scene_hash);
+    println!(
+        "image         {} x {} ({} tiles of {}²)",
+        m.width,
+        m.height,
+        t.tile_count(),
+        m.tile
+    );
+    println!(
+        "cube          N = {} ({} coefficients per row)",
+        m.cube_n,
+        t.coeff_count()
+    );
+    println!(
+        "SH order      {} ({} coefficients per row)",
+        m.sh_order,
+        t.sh_count()
+    );
+    println!(
+        "sampling      {} spp, {} samples/texel, seed {}{}",
+        m.spp,
+        m.texel_samples,
+        m.seed,
+        if m.unshadowed { ", unshadowed" } else { "" }
+    );
+    println!(
+        "sparsify      threshold {} ({:?} values)",
+        m.threshold, m.quantization
+    );
+    println!("rows          {}", s.rows);
+    println!(
+        "nonzeros      {} ({:.2}% of dense)",
+        s.nonzeros,
+        100.0 * s.nonzeros as f64 / s.dense_entries.max(1) as f64
+    );
+    println!(
+        "size          {:.2} MiB file, {:.2}% of the dense f32 matrix, {:.1} bytes/pixel",
+        bytes as f64 / 1048576.0,
+        100.0 * bytes as f64 / dense_bytes.max(1.0),
+        bytes as f64 / t.pixel_count().max(1) as f64
+    );
+    println!(
+        "dropped       {:.3}% of transport energy (relative L2 {:.3}%)",
+        100.0 * s.dropped_energy_fraction,
+        100.0 * s.dropped_energy_fraction.sqrt()
+    );
+    println!(
+        "bake          {:.1} s, {} shadow rays ({:.2} M/s)",
+        s.bake_seconds,
+        s.shadow_rays,
+        s.shadow_rays as f64 / s.bake_seconds.max(1e-9) / 1e6
+    );
+}
+
+fn info(file: PathBuf) -> Result<()> {
+    let t = Transport::load(&file)?;
+    print_info(&file, &t);
+    Ok(())
+}
+
+fn relight_cmd(a: RelightArgs) -> Result<()> {
+    let method: Method = a.method.parse()?;
+    let weighting: Weighting = a.weighting.parse()?;
+    if a.device != "cpu" {
+        return Err(PrtError::invalid(
+            "device",
+            format!("`{}`; this build relights on the cpu only", a.device),
+        ));
+    }
+    let t = Transport::load(&a.file)?;
+    let env = load_env(&a.env)?;
+    let ctx = LightContext::new(&t)?;
+    let start = Instant::now();
+    let light = ctx.prepare(
+        &env,
+        EnvRotation {
+            yaw_deg: a.yaw,
+            pitch_deg: a.pitch,
+        },
+    )?;
+    let light_ms = start.elapsed().as_secs_f64() * 1e3;
+    let req = RelightRequest {
+        method,
+        terms: a.terms,
+        weighting,
+        sh_order: a.sh_order.unwrap_or(t.meta.sh_order as usize),
+    };
+    let (img, stats) = relight(&t, &ctx, &light, &req)?;
+    let tone = match a.exposure {
+        Some(e) => ToneMap { exposure: e },
+        None => ToneMap::auto(&img, Some(&t.coverage)),
+    };
+    img.save(&a.output, tone)?;
+    println!(
+        "{method}: {} terms{}, {} nonzeros touched ({:.1} MiB), light {:.1} ms, kernel {:.2} ms on the cpu -> {}",
+        stats.terms,
+        if method == Method::Wavelet {
+            format!(" ({weighting} weighting)")
+        } else {
+            String::new()
+        },
+        stats.nonzeros_touched,
+        stats.bytes_touched as f64 / 1048576.0,
+        light_ms,
+        stats.kernel_seconds * 1e3,
+        a.output.display()
+    );
+    Ok(())
+}
+
+fn reference_cmd(a: ReferenceArgs) -> Result<()> {
+    let settings = settings_from(&a.sampling, 1, 0.0, true);
+    settings.validate()?;
+    let scene = Scene::load(&a.scene)?;
+    let env = load_env(&a.env)?;
+    let cube = env.to_cube(
+        settings.cube_n,
+        EnvRotation {
+            yaw_deg: a.yaw,
+            pitch_deg: a.pitch,
+        },
+    )?;
+    let start = Instant::now();
+    let img = crate::reference::render_reference(&scene, &cube, &settings)?;
+    let mask: Vec<f32> = img
+        .pixels
+        .iter()
+        .map(|p| (p.iter().sum::<f32>() > 0.0) as u8 as f32)
+        .collect();
+    img.save(&a.output, ToneMap::auto(&img, Some(&mask)))?;
+    println!(
+        "reference: {}x{}, N = {}, {:.1} s -> {}",
+        img.width,
+        img.height,
+        settings.cube_n,
+        start.elapsed().as_secs_f64(),
+        a.output.display()
+    );
+    Ok(())
+}
+
+fn env_cmd(a: EnvArgs) -> Result<()> {
+    let env = load_env(&a.env)?;
+    let power = env.power();
+    let sh = env.project_sh(a.sh, EnvRotation::default())?;
+    let cube = env.to_cube(a.cube, EnvRotation::default())?;
+    let light = WaveletLight::from_cube(&cube)?;
+    let energy: Vec<f64> = light
+        .coeffs
+        .iter()
+        .map(|c| c.iter().map(|v| (*v as f64).powi(2)).sum())
+        .collect();
+    let total: f64 = energy.iter().sum();
+    let mut sorted = energy.clone();
+    sorted.sort_by(|a, b| b.total_cmp(a));
+    let ks: Vec<usize> = [1, 10, 50, 200, 1000]
+        .into_iter()
+        .filter(|&k| k <= sorted.len())
+        .collect();
+    let captured: Vec<(usize, f64)> = ks
+        .iter()
+        .map(|&k| {
+            (
+                k,
+                sorted[..k].iter().sum::<f64>() / total.max(f64::MIN_POSITIVE),
+            )
+        })
+        .collect();
+    if a.json {
+        let obj = serde_json::json!({
+            "source": env.source,
+            "width": env.width,
+            "height": env.height,
+            "negatives_clamped": env.negatives_clamped,
+            "power": power,
+            "sh_order": a.sh,
+            "sh": sh,
+            "cube_n": a.cube,
+            "haar_energy_captured": captured.iter().map(|(k, f)| serde_json::json!({"k": k, "fraction": f})).collect::<Vec<_>>(),
+        });
+        println!("{obj}");
+        return Ok(());
+    }
+    println!("environment   {}", env.source);
+    println!("size          {} x {}", env.width, env.height);
+    println!(
+        "power         R {:.4}  G {:.4}  B {:.4}  (Σ L Ω)",
+        power[0], power[1], power[2]
+    );
+    println!("SH order {}    L_i = ∫ L Y_i dω, index l(l+1)+m:", a.sh);
+    for (i, c) in sh.iter().enumerate() {
+        let l = (i as f64).sqrt() as usize;
+        let m = i as i64 - (l * (l + 1)) as i64;
+        println!(
+            "  l={l} m={m:+}  {:>12.5} {:>12.5} {:>12.5}",
+            c[0], c[1], c[2]
+        );
+    }
+    println!("Haar energy captured by the best K terms (N = {}):", a.cube);
+    for (k, f) in captured {
+        println!("  K = {k:>5}  {:.4}%", 100.0 * f);
+    }
+    Ok(())
+}
+
+fn demo(out: PathBuf) -> Result<()> {
+    let start = Instant::now();
+    let bar = std::sync::Mutex::new(None::<ProgressBar>);
+    let report =
+        crate::demo::run_demo(&out, &mut |line| eprintln!("{line}"), &|p: BakeProgress| {
+            let mut guard = bar.lock().unwrap_or_else(|e| e.into_inner());
+            let b = guard.get_or_insert_with(|| progress_bar(p.pixels_total));
+            b.set_position(p.pixels_done as u64);
+            if p.pixels_done == p.pixels_total {
+                b.finish_and_clear();
+            }
+        })?;
+    println!("{}", crate::demo::markdown_table(&report.rows));
+    println!(
+        "bake {} ({:.1} s); everything in {:.1} s",
+        if report.reused_bake { "reused" } else { "done" },
+        report.bake_seconds,
+        start.elapsed().as_secs_f64()
+    );
+    println!("contact sheet  {}", report.sheet_path.display());
+    println!("table          {}", report.table_path.display());
+    println!("transport      {}", report.transport_path.display());
+    Ok(())
+}

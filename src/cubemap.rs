@@ -1,0 +1,275 @@
+//! Cube maps: texel <-> direction, exact texel solid angles, lookup, and the texel-average radiance
+//! of a lat-long environment (area resampling). Face order, texel directions and indexing follow
+//! [`crate::conventions`].
+
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
+
+use crate::error::{PrtError, Result};
+
+/// Largest supported face resolution: 6·256² texels are 393 216 lights per pixel row.
+pub const MAX_CUBE_N: usize = 256;
+
+/// Checks that `n` is a supported face resolution (a power of two, 1..=[`MAX_CUBE_N`]).
+pub fn validate_n(n: usize) -> Result<()> {
+    if n == 0 || !n.is_power_of_two() || n > MAX_CUBE_N {
+        return Err(PrtError::invalid(
+            "cube size",
+            format!("N = {n}; it must be a power of two from 1 to {MAX_CUBE_N}"),
+        ));
+    }
+    Ok(())
+}
+
+/// Number of texels of a cube with N x N faces.
+pub fn texel_count(n: usize) -> usize {
+    6 * n * n
+}
+
+/// Linear texel index `face·N² + row·N + col`.
+#[inline]
+pub fn texel_index(n: usize, face: usize, row: usize, col: usize) -> usize {
+    face * n * n + row * n + col
+}
+
+/// Unnormalised direction of face coordinates (s, t) in [-1, 1]².
+#[inline]
+pub fn face_st_to_dir(face: usize, s: f64, t: f64) -> DVec3 {
+    match face {
+        0 => DVec3::new(1.0, -t, -s),
+        1 => DVec3::new(-1.0, -t, s),
+        2 => DVec3::new(s, 1.0, t),
+        3 => DVec3::new(s, -1.0, -t),
+        4 => DVec3::new(s, -t, 1.0),
+        _ => DVec3::new(-s, -t, -1.0),
+    }
+}
+
+/// Face and face coordinates (s, t) in [-1, 1]² of a (not necessarily unit) direction; the inverse
+/// of [`face_st_to_dir`]. Ties between faces go to the first face in order.
+#[inline]
+pub fn dir_to_face_st(d: DVec3) -> (usize, f64, f64) {
+    let a = d.abs();
+    if a.x >= a.y && a.x >= a.z {
+        if d.x >= 0.0 {
+            (0, -d.z / a.x, -d.y / a.x)
+        } else {
+            (1, d.z / a.x, -d.y / a.x)
+        }
+    } else if a.y >= a.z {
+        if d.y >= 0.0 {
+            (2, d.x / a.y, d.z / a.y)
+        } else {
+            (3, d.x / a.y, -d.z / a.y)
+        }
+    } else if d.z >= 0.0 {
+        (4, d.x / a.z, -d.y / a.z)
+    } else {
+        (5, -d.x / a.z, -d.y / a.z)
+    }
+}
+
+/// Unit direction through the centre of texel (face, row, col).
+pub fn texel_dir(n: usize, face: usize, row: usize, col: usize) -> DVec3 {
+    let s = (2 * col + 1) as f64 / n as f64 - 1.0;
+    let t = (2 * row + 1) as f64 / n as f64 - 1.0;
+    face_st_to_dir(face, s, t).normalize()
+}
+
+/// Linear index of the texel containing direction `d`.
+#[inline]
+pub fn dir_to_texel(n: usize, d: DVec3) -> usize {
+    let (face, s, t) = dir_to_face_st(d);
+    let to_cell = |x: f64| (((x + 1.0) * 0.5 * n as f64) as usize).min(n - 1);
+    texel_index(n, face, to_cell(t), to_cell(s))
+}
+
+/// Solid angle of the face region [0, s] x [0, t] as seen from the cube centre (cube of half-size 1).
+fn area_element(s: f64, t: f64) -> f64 {
+    (s * t).atan2((s * s + t * t + 1.0).sqrt())
+}
+
+/// Exact solid angle of a texel, from the area element at its four corners. The same for every face.
+pub fn texel_solid_angle(n: usize, row: usize, col: usize) -> f64 {
+    let inv = 2.0 / n as f64;
+    let (s0, s1) = (col as f64 * inv - 1.0, (col + 1) as f64 * inv - 1.0);
+    let (t0, t1) = (row as f64 * inv - 1.0, (row + 1) as f64 * inv - 1.0);
+    area_element(s1, t1) - area_element(s0, t1) - area_element(s1, t0) + area_element(s0, t0)
+}
+
+/// Solid angles of all 6 N² texels in linear order.
+pub fn solid_angles(n: usize) -> Vec<f64> {
+    let face: Vec<f64> = (0..n * n)
+        .map(|i| texel_solid_angle(n, i / n, i % n))
+        .collect();
+    (0..6).flat_map(|_| face.iter().copied()).collect()
+}
+
+/// Unit directions of all 6 N² texel centres in linear order.
+pub fn texel_dirs(n: usize) -> Vec<DVec3> {
+    (0..texel_count(n))
+        .map(|i| texel_dir(n, i / (n * n), (i / n) % n, i % n))
+        .collect()
+}
+
+/// An RGB cube map of texel-average radiance.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CubeMap {
+    /// Face resolution N.
+    pub n: usize,
+    /// 6 N² texels in linear order.
+    pub texels: Vec<[f32; 3]>,
+}
+
+impl CubeMap {
+    /// A cube map with every texel set to `value`.
+    pub fn constant(n: usize, value: [f32; 3]) -> Result<Self> {
+        validate_n(n)?;
+        Ok(CubeMap {
+            n,
+            texels: vec![value; texel_count(n)],
+        })
+    }
+
+    /// Radiance of the texel containing `d` (nearest texel: the map is piecewise constant).
+    pub fn lookup(&self, d: DVec3) -> [f32; 3] {
+        self.texels[dir_to_texel(self.n, d)]
+    }
+
+    /// Radiant power per channel, Σ L_j Ω_j (W/m² per unit radiance scale).
+    pub fn power(&self) -> [f64; 3] {
+        let omega = solid_angles(self.n);
+        let mut p = [0.0f64; 3];
+        for (l, w) in self.texels.iter().zip(&omega) {
+            for c in 0..3 {
+                p[c] += l[c] as f64 * w;
+            }
+        }
+        p
+    }
+}
+
+/// Sub-cells per lat-long cell side used when splatting a lat-long map into a cube. Each lat-long
+/// cell's power is split over `k x k` equal-angle sub-cells, each sent whole to the texel containing
+/// its centre. Total power is kept exactly whatever `k`; `k` only sets how finely a cell that
+/// straddles texel borders is divided. Chosen so a sub-cell is at most 1/8 of a texel across.
+fn splat_subdivision(map_width: usize, n: usize) -> usize {
+    // Lat-long cell width along the equator over the texel width at a face centre.
+    let cell = 2.0 * std::f64::consts::PI / map_width as f64;
+    let texel = 2.0 / n as f64;
+    ((8.0 * cell / texel).ceil() as usize).clamp(2, 16)
+}
+
+/// Resamples a lat-long radiance map (`width` x `height`, rows from the zenith) into a cube map of
+/// texel-average radiance, with the environment turned by `world_from_map` (a rotation).
+///
+/// Each lat-long cell's power (radiance x exact cell solid angle) is split over sub-cells of exact
+/// solid angle and added to the texel that contains each sub-cell; a texel's radiance is its power
+/// over its exact solid angle. The total power is kept to rounding error; the split of a cell over
+/// the texels it straddles is exact up to the sub-cell size (see [`splat_subdivision`]).
+pub fn resample_latlong(
+    width: usize,
+    height: usize,
+    pixels: &[[f32; 3]],
+    n: usize,
+    world_from_map: DMat3,
+) -> Result<CubeMap> {
+    validate_n(n)?;
+    if width == 0 || height == 0 || pixels.len() != width * height {
+        return Err(PrtError::invalid(
+            "environment map",
+            format!(
+                "{width} x {height} needs {} pixels, got {}",
+                width * height,
+                pixels.len()
+            ),
+        ));
+    }
+    let k = splat_subdivision(width, n);
+    let count = texel_count(n);
+    use std::f64::consts::PI;
+    // Per-row power accumulation in parallel; each worker owns a cube of power sums.
+    let power = (0..height)
+        .into_par_iter()
+        .fold(
+            || vec![[0.0f64; 3]; count],
+            |mut acc, y| {
+                for sy in 0..k {
+                    let v0 = (y as f64 + sy as f64 / k as f64) / height as f64;
+                    let v1 = (y as f64 + (sy + 1) as f64 / k as f64) / height as f64;
+                    let vm = 0.5 * (v0 + v1);
+                    // Exact solid angle of one sub-cell of this sub-row.
+                    let omega =
+                        (2.0 * PI / (width * k) as f64) * ((PI * v0).cos() - (PI * v1).cos());
+                    let (sin_v, cos_v) = (PI * vm).sin_cos();
+                    for x in 0..width {
+                        let l = pixels[y * width + x];
+                        if l == [0.0; 3] {
+                            continue;
+                        }
+                        for sx in 0..k {
+                            let u = (x as f64 + (sx as f64 + 0.5) / k as f64) / width as f64;
+                            let (sin_u, cos_u) = (2.0 * PI * u).sin_cos();
+                            let d =
+                                world_from_map * DVec3::new(sin_u * sin_v, cos_v, -cos_u * sin_v);
+                            let j = dir_to_texel(n, d);
+                            for c in 0..3 {
+                                acc[j][c] += l[c] as f64 * omega;
+                            }
+                        }
+                    }
+                }
+                acc
+            },
+        )
+        .reduce(
+            || vec![[0.0f64; 3]; count],
+            |mut a, b| {
+                for (x, y) in a.iter_mut().zip(&b) {
+                    for c in 0..3 {
+                        x[c] += y[c];
+                    }
+                }
+                a
+            },
+        );
+    let omega = solid_angles(n);
+    let texels = power
+        .iter()
+        .zip(&omega)
+        .map(|(p, w)| [(p[0] / w) as f32, (p[1] / w) as f32, (p[2] / w) as f32])
+        .collect();
+    Ok(CubeMap { n, texels })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    #[test]
+    fn solid_angles_sum_to_four_pi() {
+        for n in [1, 2, 4, 16, 64, 256] {
+            let total: f64 = solid_angles(n).iter().sum();
+            assert!((total - 4.0 * PI).abs() < 1e-10, "n = {n}: {total}");
+        }
+    }
+
+    #[test]
+    fn face_coordinates_round_trip() {
+        for n in [1, 2, 8, 32] {
+            for i in 0..texel_count(n) {
+                let d = texel_dir(n, i / (n * n), (i / n) % n, i % n);
+                assert_eq!(dir_to_texel(n, d), i, "n = {n}, texel {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn invalid_sizes_are_errors() {
+        for n in [0, 3, 12, 512] {
+            let e = validate_n(n).unwrap_err().to_string();
+            assert!(e.contains("power of two"), "{e}");
+        }
+    }
+}

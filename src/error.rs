@@ -1,0 +1,60 @@
+//! The one error type of the library. Every message names what it is about: the file and the
+//! field, or the argument and the value. Library code returns these; only the CLI prints them.
+
+use std::path::{Path, PathBuf};
+
+/// Everything that can go wrong on user input or I/O.
+#[derive(Debug, thiserror::Error)]
+pub enum PrtError {
+    /// The operating system refused to read or write a file.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A file was read but its content is not what it should be.
+    #[error("{}: {message}", path.display())]
+    File { path: PathBuf, message: String },
+    /// A scene file names something wrong: the file, the line (when known) and the field.
+    #[error("{}{}: field `{field}`: {message}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
+    Scene {
+        path: PathBuf,
+        line: Option<usize>,
+        field: String,
+        message: String,
+    },
+    /// An argument or a combination of inputs that cannot work.
+    #[error("invalid {what}: {message}")]
+    Invalid { what: String, message: String },
+    /// The GPU back-end is unavailable or failed.
+    #[error("GPU: {0}")]
+    Gpu(String),
+}
+
+/// Result with [`PrtError`].
+pub type Result<T> = std::result::Result<T, PrtError>;
+
+impl PrtError {
+    /// An I/O error on `path`.
+    pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
+        PrtError::Io {
+            path: path.as_ref().to_path_buf(),
+            source,
+        }
+    }
+    /// A content error in the file `path`.
+    pub fn file(path: impl AsRef<Path>, message: impl Into<String>) -> Self {
+        PrtError::File {
+            path: path.as_ref().to_path_buf(),
+            message: message.into(),
+        }
+    }
+    /// An invalid argument or input named `what`.
+    pub fn invalid(what: impl Into<String>, message: impl Into<String>) -> Self {
+        PrtError::Invalid {
+            what: what.into(),
+            message: message.into(),
+        }
+    }
+}

@@ -1,0 +1,167 @@
+//! Images the engine produces: linear RGB float pixels, written as OpenEXR (linear) or PNG
+//! (exposure, then the sRGB curve), atomically. Also the tone mapping shared by PNG output, the
+//! contact sheet and the viewer.
+
+use std::path::Path;
+
+use crate::error::{PrtError, Result};
+
+/// A linear RGB image, row-major, y growing downwards.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: usize,
+    pub height: usize,
+    pub pixels: Vec<[f32; 3]>,
+}
+
+/// How linear radiance becomes display values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToneMap {
+    /// Exposure in stops: values are multiplied by 2^exposure before the sRGB curve.
+    pub exposure: f32,
+}
+
+impl Default for ToneMap {
+    fn default() -> Self {
+        ToneMap { exposure: 0.0 }
+    }
+}
+
+/// The sRGB transfer curve of a linear value in [0, 1].
+#[inline]
+pub fn srgb_encode(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+impl ToneMap {
+    /// 8-bit sRGB of a linear pixel.
+    #[inline]
+    pub fn apply(&self, p: [f32; 3]) -> [u8; 3] {
+        let s = self.exposure.exp2();
+        p.map(|v| (srgb_encode(v * s) * 255.0 + 0.5) as u8)
+    }
+
+    /// An exposure that maps the 99th percentile of luminance over `mask`ed pixels to 0.9, so a
+    /// few very bright pixels do not darken the rest.
+    pub fn auto(image: &Image, mask: Option<&[f32]>) -> ToneMap {
+        let mut lum: Vec<f32> = image
+            .pixels
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| mask.is_none_or(|m| m[*i] > 0.0))
+            .map(|(_, p)| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2])
+            .filter(|l| l.is_finite() && *l > 0.0)
+            .collect();
+        if lum.is_empty() {
+            return ToneMap::default();
+        }
+        let k = ((lum.len() as f32 * 0.99) as usize).min(lum.len() - 1);
+        let (_, v, _) = lum.select_nth_unstable_by(k, f32::total_cmp);
+        ToneMap {
+            exposure: (0.9 / *v).log2(),
+        }
+    }
+}
+
+impl Image {
+    /// A black image.
+    pub fn new(width: usize, height: usize) -> Self {
+        Image {
+            width,
+            height,
+            pixels: vec![[0.0; 3]; width * height],
+        }
+    }
+
+    /// 8-bit sRGB bytes, RGB interleaved.
+    pub fn to_srgb8(&self, tone: ToneMap) -> Vec<u8> {
+        self.pixels.iter().flat_map(|p| tone.apply(*p)).collect()
+    }
+
+    /// Writes `.exr` (linear float) or `.png` (tone-mapped sRGB), chosen by the extension.
+    pub fn save(&self, path: &Path, tone: ToneMap) -> Result<()> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("exr") => write_atomically(path, |tmp| self.write_exr(tmp)),
+            Some("png") => write_atomically(path, |tmp| {
+                write_png(tmp, self.width, self.height, &self.to_srgb8(tone))
+            }),
+            _ => Err(PrtError::file(
+                path,
+                "unknown image type: use a .exr (linear) or .png (tone-mapped) file name",
+            )),
+        }
+    }
+
+    fn write_exr(&self, path: &Path) -> Result<()> {
+        let w = self.width;
+        exr::prelude::write_rgb_file(path, self.width, self.height, |x, y| {
+            let p = self.pixels[y * w + x];
+            (p[0], p[1], p[2])
+        })
+        .map_err(|e| PrtError::file(path, format!("writing OpenEXR: {e}")))
+    }
+
+    /// Reads a linear image written by [`Image::save`] (EXR only).
+    pub fn load_exr(path: &Path) -> Result<Image> {
+        let img = exr::prelude::read_first_rgba_layer_from_file(
+            path,
+            |res, _| Image::new(res.width(), res.height()),
+            |img: &mut Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                let w = img.width;
+                img.pixels[pos.y() * w + pos.x()] = [r, g, b];
+            },
+        )
+        .map_err(|e| PrtError::file(path, format!("OpenEXR: {e}")))?;
+        Ok(img.layer_data.channel_data.pixels)
+    }
+}
+
+/// Writes 8-bit RGB bytes as a PNG (not atomic: callers go through [`write_atomically`]).
+pub fn write_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<()> {
+    image::save_buffer_with_format(
+        path,
+        rgb,
+        width as u32,
+        height as u32,
+        image::ColorType::Rgb8,
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| PrtError::file(path, format!("writing PNG: {e}")))
+}
+
+/// Runs `write` on a temporary path beside `path`, then renames it into place, so an interrupted
+/// write never leaves a half file under the final name.
+pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let mut name = path
+        .file_name()
+        .map(|n| n.to_os_string())
+        .unwrap_or_default();
+    name.push(format!(".partial-{}", std::process::id()));
+    let tmp = path.with_file_name(name);
+    // Keep the real extension last so format detection by extension still works.
+    let tmp = match path.extension() {
+        Some(ext) => tmp.with_extension(format!(
+            "{}.{}",
+            tmp.extension().and_then(|e| e.to_str()).unwrap_or(""),
+            ext.to_string_lossy()
+        )),
+        None => tmp,
+    };
+    if let Err(e) = write(&tmp) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e);
+    }
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        PrtError::io(path, e)
+    })
+}

@@ -1,0 +1,40 @@
+//! # wavelet-prt
+//!
+//! All-frequency precomputed radiance transfer: a scene is baked once, for a fixed view, into each
+//! pixel's light transport against the texels of a cube map; at run time any HDR environment
+//! relights it. Following Ng, Ramamoorthi & Hanrahan (SIGGRAPH 2003), transport rows are
+//! Haar-transformed per cube face and sparsified, the light is Haar-transformed and only its K most
+//! important terms are kept, and relighting is a sparse product. Beside it runs the low-order
+//! spherical-harmonics path (Sloan, Kautz & Snyder 2002), so the two can be compared on the same
+//! pixels.
+//!
+//! ```text
+//! scene.toml ──bake──▶ transport file (sparse Haar rows, SH rows, metadata)
+//! env.exr/.hdr ──▶ cube map (6·N², area-averaged) ──▶ Haar ──▶ K-term selection ──▶ sparse light
+//!                                                 └──▶ SH projection (order n)
+//! transport × light ──relight──▶ linear RGB image ──▶ EXR / PNG, metrics against a reference
+//! ```
+//!
+//! Every numeric convention (axes, lat-long, cube faces, SH, Haar) is fixed in [`conventions`].
+
+pub mod bake;
+pub mod cli;
+pub mod conventions;
+pub mod cubemap;
+pub mod demo;
+pub mod envmap;
+pub mod error;
+pub mod film;
+pub mod haar;
+pub mod light;
+pub mod metrics;
+pub mod reference;
+pub mod relight;
+pub mod sampling;
+pub mod scene;
+pub mod sh;
+pub mod sheet;
+pub mod trace;
+pub mod transport;
+
+pub use error::{PrtError, Result};

@@ -1,0 +1,283 @@
+//! Light approximation: the Haar coefficients of a cube map and the K best of them by one of three
+//! weightings (Ng et al. 2003), and the SH light vector of the same cube map.
+//!
+//! RGB shares one index set, chosen on a luminance-like magnitude, so the relight kernel reads each
+//! kept transport column once for all three channels.
+
+use std::str::FromStr;
+
+use crate::cubemap::{CubeMap, solid_angles, texel_count, texel_dirs};
+use crate::error::{PrtError, Result};
+use crate::haar;
+
+/// How light coefficients are ranked before the K largest are kept.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Weighting {
+    /// By magnitude alone: the best K-term approximation of the light in L2.
+    Unweighted,
+    /// By magnitude times the solid angle of the coefficient's support: favours coarse, bright
+    /// features (Ng et al. 2003, "area-weighted").
+    Area,
+    /// By magnitude times the average magnitude of the matching transport coefficient over the
+    /// image: favours what the scene can actually show (Ng et al. 2003, "transport-weighted").
+    Transport,
+}
+
+impl Weighting {
+    /// All weightings, in the order they are reported.
+    pub const ALL: [Weighting; 3] = [Weighting::Unweighted, Weighting::Area, Weighting::Transport];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Weighting::Unweighted => "none",
+            Weighting::Area => "area",
+            Weighting::Transport => "transport",
+        }
+    }
+}
+
+impl FromStr for Weighting {
+    type Err = PrtError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "none" | "unweighted" => Ok(Weighting::Unweighted),
+            "area" => Ok(Weighting::Area),
+            "transport" => Ok(Weighting::Transport),
+            _ => Err(PrtError::invalid(
+                "weighting",
+                format!("`{s}`; expected none, area or transport"),
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for Weighting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Magnitude used to rank an RGB coefficient: Rec. 709 luminance weights on absolute values, so
+/// channels of opposite sign do not cancel.
+#[inline]
+pub fn rgb_magnitude(c: [f32; 3]) -> f32 {
+    0.2126 * c[0].abs() + 0.7152 * c[1].abs() + 0.0722 * c[2].abs()
+}
+
+/// Indices of the `k` largest priorities, ascending. Ties go to the lower index, so the choice is
+/// deterministic.
+pub fn select_top_k(priority: &[f32], k: usize) -> Vec<u32> {
+    let k = k.min(priority.len());
+    let mut order: Vec<u32> = (0..priority.len() as u32).collect();
+    if k < order.len() && k > 0 {
+        let by_priority = |a: &u32, b: &u32| {
+            priority[*b as usize]
+                .total_cmp(&priority[*a as usize])
+                .then(a.cmp(b))
+        };
+        order.select_nth_unstable_by(k - 1, by_priority);
+    }
+    order.truncate(k);
+    order.sort_unstable();
+    order
+}
+
+/// A sparse RGB light vector in the Haar basis: the kept terms, ascending by coefficient index.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SparseLight {
+    /// Coefficient indices, ascending.
+    pub indices: Vec<u32>,
+    /// Their RGB values.
+    pub values: Vec<[f32; 3]>,
+}
+
+impl SparseLight {
+    /// Number of kept terms.
+    pub fn len(&self) -> usize {
+        self.indices.len()
+    }
+
+    /// True when no term is kept.
+    pub fn is_empty(&self) -> bool {
+        self.indices.is_empty()
+    }
+}
+
+/// The Haar coefficients of a cube map, with the per-coefficient support areas cached for
+/// area-weighted selection.
+#[derive(Clone, Debug)]
+pub struct WaveletLight {
+    /// Face size N.
+    pub n: usize,
+    /// All 6 N² coefficients, layout of [`crate::haar`].
+    pub coeffs: Vec<[f32; 3]>,
+}
+
+impl WaveletLight {
+    /// Transforms a cube map.
+    pub fn from_cube(cube: &CubeMap) -> Result<Self> {
+        let mut coeffs = cube.texels.clone();
+        haar::forward_cube(&mut coeffs, cube.n)?;
+        Ok(WaveletLight { n: cube.n, coeffs })
+    }
+
+    /// Keeps the `k` best terms by `weighting`. `transport_magnitude` (one value per coefficient)
+    /// is needed for [`Weighting::Transport`]; `support_area` (see
+    /// [`haar::support_solid_angles`]) for [`Weighting::Area`].
+    pub fn select(
+        &self,
+        k: usize,
+        weighting: Weighting,
+        support_area: &[f32],
+        transport_magnitude: Option<&[f32]>,
+    ) -> Result<SparseLight> {
+        let total = self.coeffs.len();
+        if k == 0 || k > total {
+            return Err(PrtError::invalid(
+                "term count",
+                format!(
+                    "K = {k}; it must be from 1 to 6·N² = {total} for N = {}",
+                    self.n
+                ),
+            ));
+        }
+        let weights: Option<&[f32]> = match weighting {
+            Weighting::Unweighted => None,
+            Weighting::Area => Some(support_area),
+            Weighting::Transport => Some(transport_magnitude.ok_or_else(|| {
+                PrtError::invalid(
+                    "weighting",
+                    "transport weighting needs per-coefficient transport magnitudes",
+                )
+            })?),
+        };
+        if let Some(w) = weights
+            && w.len() != total
+        {
+            return Err(PrtError::invalid(
+                "weights",
+                format!("{} weights for {total} coefficients", w.len()),
+            ));
+        }
+        let priority: Vec<f32> = match weights {
+            None => self.coeffs.iter().map(|c| rgb_magnitude(*c)).collect(),
+            Some(w) => self
+                .coeffs
+                .iter()
+                .zip(w)
+                .map(|(c, w)| rgb_magnitude(*c) * w)
+                .collect(),
+        };
+        let indices = select_top_k(&priority, k);
+        let values = indices.iter().map(|&i| self.coeffs[i as usize]).collect();
+        Ok(SparseLight { indices, values })
+    }
+}
+
+/// Real SH evaluated at every texel centre of a cube: `values[j·n² + i] = Y_i(d_j)`. Projects cube
+/// lights and transport rows consistently (the same texel directions on both sides).
+#[derive(Clone, Debug)]
+pub struct TexelShBasis {
+    /// SH order.
+    pub order: usize,
+    /// Cube face size.
+    pub n: usize,
+    /// Texel-major values.
+    pub values: Vec<f32>,
+}
+
+impl TexelShBasis {
+    /// Tabulates the basis.
+    pub fn new(n: usize, order: usize) -> Result<Self> {
+        crate::cubemap::validate_n(n)?;
+        crate::sh::check_order(order)?;
+        let count = order * order;
+        let mut values = vec![0.0f32; texel_count(n) * count];
+        let mut y = vec![0.0f64; count];
+        for (j, d) in texel_dirs(n).into_iter().enumerate() {
+            crate::sh::eval(order, d, &mut y);
+            for (o, v) in values[j * count..(j + 1) * count].iter_mut().zip(&y) {
+                *o = *v as f32;
+            }
+        }
+        Ok(TexelShBasis { order, n, values })
+    }
+
+    /// SH light vector of a cube map, `L_i = Σ_j L_j Ω_j Y_i(d_j)`.
+    pub fn project_light(&self, cube: &CubeMap) -> Result<Vec<[f64; 3]>> {
+        if cube.n != self.n {
+            return Err(PrtError::invalid(
+                "cube map",
+                format!(
+                    "N = {} but the SH basis was made for N = {}",
+                    cube.n, self.n
+                ),
+            ));
+        }
+        let count = self.order * self.order;
+        let omega = solid_angles(self.n);
+        let mut out = vec![[0.0f64; 3]; count];
+        for (j, l) in cube.texels.iter().enumerate() {
+            if *l == [0.0; 3] {
+                continue;
+            }
+            let row = &self.values[j * count..(j + 1) * count];
+            for (o, y) in out.iter_mut().zip(row) {
+                let w = *y as f64 * omega[j];
+                for c in 0..3 {
+                    o[c] += l[c] as f64 * w;
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// SH transport of one row of texel transport `t` (already containing solid angles):
+    /// `t_i = Σ_j t_j Y_i(d_j)`, accumulated into `out` (n² values).
+    pub fn project_row(&self, row: &[f32], out: &mut [f32]) {
+        let count = self.order * self.order;
+        debug_assert_eq!(row.len() * count, self.values.len());
+        out.fill(0.0);
+        for (j, &t) in row.iter().enumerate() {
+            if t == 0.0 {
+                continue;
+            }
+            for (o, y) in out.iter_mut().zip(&self.values[j * count..(j + 1) * count]) {
+                *o += t * y;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn top_k_is_deterministic_and_sorted() {
+        let p = [1.0, 5.0, 5.0, 0.5, 3.0, 5.0];
+        assert_eq!(select_top_k(&p, 2), vec![1, 2]);
+        assert_eq!(select_top_k(&p, 4), vec![1, 2, 4, 5]);
+        assert_eq!(select_top_k(&p, 6), vec![0, 1, 2, 3, 4, 5]);
+    }
+
+    #[test]
+    fn k_out_of_range_is_an_error() {
+        let cube = CubeMap::constant(2, [1.0; 3]).unwrap();
+        let light = WaveletLight::from_cube(&cube).unwrap();
+        let area = vec![1.0; 24];
+        for k in [0, 25] {
+            let e = light
+                .select(k, Weighting::Unweighted, &area, None)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("K = "), "{e}");
+        }
+        let e = light
+            .select(3, Weighting::Transport, &area, None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("transport"), "{e}");
+    }
+}

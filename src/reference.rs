@@ -1,0 +1,69 @@
+//! The brute-force reference: the scene ray traced under a cube map whose texels are
+//! piecewise-constant lights, with no transport matrix. It is the ground truth for tests and
+//! benchmarks, so it is written to be obviously right: for every camera sub-sample and every texel
+//! sample direction, visibility x (albedo / π) x cos x solid angle x radiance, summed.
+
+use rayon::prelude::*;
+
+use crate::bake::{BakeSettings, shading_point};
+use crate::cubemap::CubeMap;
+use crate::error::{PrtError, Result};
+use crate::film::Image;
+use crate::sampling::{TexelSamples, pixel_samples};
+use crate::scene::Scene;
+use crate::trace::Tracer;
+
+/// Renders `scene` lit by `cube` with the sampling of `settings` (spp, texel samples, seed,
+/// unshadowed); the cube's N is the texel-light resolution.
+pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) -> Result<Image> {
+    if cube.n != settings.cube_n {
+        return Err(PrtError::invalid(
+            "cube map",
+            format!(
+                "N = {} but the settings ask for N = {}",
+                cube.n, settings.cube_n
+            ),
+        ));
+    }
+    settings.validate()?;
+    let tracer = Tracer::new(scene);
+    let cam = &scene.camera;
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let samples = TexelSamples::new(cube.n, settings.texel_samples as usize, settings.seed);
+    let mut image = Image::new(w, h);
+    image
+        .pixels
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(y, line)| {
+            for (x, px) in line.iter_mut().enumerate() {
+                let subs = pixel_samples(x as u32, y as u32, w as u32, settings.spp, settings.seed);
+                let inv_spp = 1.0 / subs.len() as f64;
+                let mut sum = [0.0f64; 3];
+                for (fx, fy) in subs {
+                    let ray = cam.ray(fx, fy);
+                    let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
+                        continue;
+                    };
+                    let sp = shading_point(&tracer, &hit);
+                    let albedo = scene.materials[sp.material as usize].albedo();
+                    for (d, w) in samples.dirs.iter().zip(&samples.weights) {
+                        let cos = sp.normal.dot(*d);
+                        if cos <= 0.0 {
+                            continue;
+                        }
+                        if !settings.unshadowed && tracer.occluded(sp.origin, *d, f32::INFINITY) {
+                            continue;
+                        }
+                        let l = cube.lookup(d.as_dvec3());
+                        let f = cos as f64 * *w as f64 * std::f64::consts::FRAC_1_PI * inv_spp;
+                        for k in 0..3 {
+                            sum[k] += albedo[k] as f64 * f * l[k] as f64;
+                        }
+                    }
+                }
+                *px = sum.map(|v| v as f32);
+            }
+        });
+    Ok(image)
+}

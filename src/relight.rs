@@ -1,0 +1,347 @@
+//! Relighting a baked view: the light pipeline (environment -> cube map -> Haar -> K best terms, or
+//! SH projection) and the CPU kernels (rayon over tile rows): the tiled sparse wavelet product, the
+//! SH dot product and `full` (every term). The GPU kernels live in [`crate::gpu`] behind the same
+//! inputs.
+
+use std::str::FromStr;
+use std::time::Instant;
+
+use half::f16;
+use rayon::prelude::*;
+
+use crate::envmap::{EnvMap, EnvRotation};
+use crate::error::{PrtError, Result};
+use crate::film::Image;
+use crate::haar::support_solid_angles;
+use crate::light::{SparseLight, TexelShBasis, WaveletLight, Weighting};
+use crate::transport::{TILE, Transport, Values, tile_grid};
+
+/// Which approximation of the light relights the image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// K Haar terms of the light (Ng et al. 2003).
+    Wavelet,
+    /// SH light of order n against the SH transport.
+    Sh,
+    /// Every Haar term: the stored transport times the whole cube-map light.
+    Full,
+}
+
+impl FromStr for Method {
+    type Err = PrtError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "wavelet" => Ok(Method::Wavelet),
+            "sh" => Ok(Method::Sh),
+            "full" => Ok(Method::Full),
+            _ => Err(PrtError::invalid(
+                "method",
+                format!("`{s}`; expected wavelet, sh or full"),
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Method::Wavelet => "wavelet",
+            Method::Sh => "sh",
+            Method::Full => "full",
+        })
+    }
+}
+
+/// What a relight did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RelightStats {
+    /// Light terms used (K, n², or 6 N²).
+    pub terms: usize,
+    /// Transport values read.
+    pub nonzeros_touched: u64,
+    /// Transport bytes read (entries, column pointers or SH rows).
+    pub bytes_touched: u64,
+    /// Wall time of the kernel alone, seconds.
+    pub kernel_seconds: f64,
+}
+
+/// A light prepared for one transport: the Haar coefficients of the cube map at the file's N and
+/// its SH projection, ready for any K, weighting or order.
+#[derive(Clone, Debug)]
+pub struct PreparedLight {
+    /// All Haar coefficients.
+    pub wavelet: WaveletLight,
+    /// SH coefficients at the transport's order.
+    pub sh: Vec<[f64; 3]>,
+}
+
+/// What the light side needs from a transport, computed once per file: support areas, the SH
+/// basis at the file's N.
+#[derive(Clone, Debug)]
+pub struct LightContext {
+    /// Cube face size.
+    pub n: usize,
+    /// SH order of the file.
+    pub sh_order: usize,
+    /// Support solid angle of every Haar coefficient.
+    pub support_area: Vec<f32>,
+    /// Tabulated SH basis at the texel centres.
+    pub basis: TexelShBasis,
+}
+
+impl LightContext {
+    /// For a transport.
+    pub fn new(t: &Transport) -> Result<Self> {
+        let n = t.meta.cube_n as usize;
+        Ok(LightContext {
+            n,
+            sh_order: t.meta.sh_order as usize,
+            support_area: support_solid_angles(n).iter().map(|&a| a as f32).collect(),
+            basis: TexelShBasis::new(n, t.meta.sh_order as usize)?,
+        })
+    }
+
+    /// Resamples `env` turned by `rotation` to the file's cube and transforms it both ways.
+    pub fn prepare(&self, env: &EnvMap, rotation: EnvRotation) -> Result<PreparedLight> {
+        let cube = env.to_cube(self.n, rotation)?;
+        Ok(PreparedLight {
+            wavelet: WaveletLight::from_cube(&cube)?,
+            sh: self.basis.project_light(&cube)?,
+        })
+    }
+}
+
+/// What to relight with.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RelightRequest {
+    pub method: Method,
+    /// Kept terms for [`Method::Wavelet`].
+    pub terms: usize,
+    pub weighting: Weighting,
+    /// SH order for [`Method::Sh`] (at most the baked order).
+    pub sh_order: usize,
+}
+
+/// Relights on the CPU.
+pub fn relight(
+    t: &Transport,
+    ctx: &LightContext,
+    light: &PreparedLight,
+    req: &RelightRequest,
+) -> Result<(Image, RelightStats)> {
+    match req.method {
+        Method::Wavelet => {
+            let sparse = light.wavelet.select(
+                req.terms,
+                req.weighting,
+                &ctx.support_area,
+                Some(&t.transport_magnitude),
+            )?;
+            relight_wavelet(t, &sparse)
+        }
+        Method::Full => {
+            let sparse = SparseLight {
+                indices: (0..light.wavelet.coeffs.len() as u32).collect(),
+                values: light.wavelet.coeffs.clone(),
+            };
+            relight_wavelet(t, &sparse)
+        }
+        Method::Sh => {
+            let sh = light_sh_order(&light.sh, req.sh_order, t.meta.sh_order as usize)?;
+            relight_sh(t, &sh)
+        }
+    }
+}
+
+/// The first `order²` SH coefficients, checked against the baked order.
+pub fn light_sh_order(sh: &[[f64; 3]], order: usize, baked: usize) -> Result<Vec<[f64; 3]>> {
+    if order == 0 || order > baked {
+        return Err(PrtError::invalid(
+            "SH order",
+            format!("{order}; this transport was baked up to order {baked}"),
+        ));
+    }
+    Ok(sh[..order * order].to_vec())
+}
+
+/// Reads a stored value as f32, whatever the quantisation.
+trait StoredValue: Copy + Send + Sync {
+    fn f32(self) -> f32;
+}
+impl StoredValue for f32 {
+    #[inline(always)]
+    fn f32(self) -> f32 {
+        self
+    }
+}
+impl StoredValue for f16 {
+    #[inline(always)]
+    fn f32(self) -> f32 {
+        self.to_f32()
+    }
+}
+
+/// The tiled sparse product: for every tile, every kept light term's column adds `value · L` to
+/// its rows; the rows then add `weight ⊙ sum` to their pixels. Checks that the light fits the
+/// transport (N, index range).
+pub fn relight_wavelet(t: &Transport, light: &SparseLight) -> Result<(Image, RelightStats)> {
+    let c = t.coeff_count();
+    if light.indices.iter().any(|&j| j as usize >= c) || light.indices.len() != light.values.len() {
+        return Err(PrtError::invalid(
+            "light",
+            format!("its coefficients do not fit a transport with 6·N² = {c} coefficients"),
+        ));
+    }
+    let start = Instant::now();
+    let (image, touched) = match &t.values {
+        Values::F16(v) => wavelet_kernel(t, light, v),
+        Values::F32(v) => wavelet_kernel(t, light, v),
+    };
+    let tiles = t.tile_count() as u64;
+    let stats = RelightStats {
+        terms: light.len(),
+        nonzeros_touched: touched,
+        bytes_touched: touched * (2 + t.values.value_bytes() as u64)
+            + tiles * light.len() as u64 * 8,
+        kernel_seconds: start.elapsed().as_secs_f64(),
+    };
+    Ok((image, stats))
+}
+
+fn wavelet_kernel<V: StoredValue>(
+    t: &Transport,
+    light: &SparseLight,
+    values: &[V],
+) -> (Image, u64) {
+    let (w, h) = (t.meta.width as usize, t.meta.height as usize);
+    let (tx, _) = tile_grid(w, h);
+    let c = t.coeff_count();
+    let mut image = Image::new(w, h);
+    let touched: u64 = image
+        .pixels
+        .par_chunks_mut(w * TILE)
+        .enumerate()
+        .map_init(Vec::new, |acc: &mut Vec<[f32; 3]>, (ty, band)| {
+            let mut touched = 0u64;
+            for tile in ty * tx..(ty + 1) * tx {
+                let (r0, r1) = (
+                    t.tile_row_start[tile] as usize,
+                    t.tile_row_start[tile + 1] as usize,
+                );
+                acc.clear();
+                acc.resize(r1 - r0, [0.0; 3]);
+                let base = t.tile_entry_start[tile] as usize;
+                let ptr = &t.col_ptr[tile * (c + 1)..(tile + 1) * (c + 1)];
+                for (&j, l) in light.indices.iter().zip(&light.values) {
+                    let (e0, e1) = (
+                        base + ptr[j as usize] as usize,
+                        base + ptr[j as usize + 1] as usize,
+                    );
+                    touched += (e1 - e0) as u64;
+                    for (&r, &v) in t.entry_row[e0..e1].iter().zip(&values[e0..e1]) {
+                        let v = v.f32();
+                        let a = &mut acc[r as usize];
+                        a[0] += v * l[0];
+                        a[1] += v * l[1];
+                        a[2] += v * l[2];
+                    }
+                }
+                let y0 = ty * TILE * w;
+                for (r, a) in acc.iter().enumerate() {
+                    let p = t.row_pixel[r0 + r] as usize - y0;
+                    let wgt = t.row_weight[r0 + r];
+                    let px = &mut band[p];
+                    for k in 0..3 {
+                        px[k] += wgt[k] * a[k];
+                    }
+                }
+            }
+            touched
+        })
+        .sum();
+    (image, touched)
+}
+
+/// SH relighting: every row's SH transport (its first `sh.len()` coefficients) dotted with the SH
+/// light.
+pub fn relight_sh(t: &Transport, sh: &[[f64; 3]]) -> Result<(Image, RelightStats)> {
+    let stride = t.sh_count();
+    let count = sh.len();
+    if count == 0 || count > stride {
+        return Err(PrtError::invalid(
+            "SH light",
+            format!("{count} coefficients for a transport baked with {stride}"),
+        ));
+    }
+    let start = Instant::now();
+    let light: Vec<[f32; 3]> = sh.iter().map(|c| c.map(|v| v as f32)).collect();
+    let (w, h) = (t.meta.width as usize, t.meta.height as usize);
+    let (tx, _) = tile_grid(w, h);
+    let mut image = Image::new(w, h);
+    image
+        .pixels
+        .par_chunks_mut(w * TILE)
+        .enumerate()
+        .for_each(|(ty, band)| {
+            let rows = t.tile_row_start[ty * tx] as usize..t.tile_row_start[(ty + 1) * tx] as usize;
+            let y0 = ty * TILE * w;
+            for r in rows {
+                let coeffs = &t.sh[r * stride..r * stride + count];
+                let mut a = [0.0f32; 3];
+                for (tc, l) in coeffs.iter().zip(&light) {
+                    a[0] += tc * l[0];
+                    a[1] += tc * l[1];
+                    a[2] += tc * l[2];
+                }
+                let wgt = t.row_weight[r];
+                let px = &mut band[t.row_pixel[r] as usize - y0];
+                for k in 0..3 {
+                    px[k] += wgt[k] * a[k];
+                }
+            }
+        });
+    let rows = t.row_pixel.len() as u64;
+    let stats = RelightStats {
+        terms: count,
+        nonzeros_touched: rows * count as u64,
+        bytes_touched: rows * count as u64 * 4,
+        kernel_seconds: start.elapsed().as_secs_f64(),
+    };
+    Ok((image, stats))
+}
+
+/// The slow twin of the wavelet kernel: rebuilds every row densely and takes plain dot products.
+/// For tests and checks only.
+pub fn relight_dense_reference(t: &Transport, light: &SparseLight) -> Image {
+    let (w, h) = (t.meta.width as usize, t.meta.height as usize);
+    let c = t.coeff_count();
+    let mut dense_light = vec![[0.0f64; 3]; c];
+    for (&j, l) in light.indices.iter().zip(&light.values) {
+        dense_light[j as usize] = l.map(|v| v as f64);
+    }
+    let mut image = Image::new(w, h);
+    for tile in 0..t.tile_count() {
+        let r0 = t.tile_row_start[tile] as usize;
+        let rows = t.tile_row_start[tile + 1] as usize - r0;
+        let mut dense = vec![vec![0.0f64; c]; rows];
+        for (j, col) in (0..c).map(|j| (j, t.column(tile, j))) {
+            for e in col {
+                dense[t.entry_row[e] as usize][j] = t.values.get(e) as f64;
+            }
+        }
+        for (r, row) in dense.iter().enumerate() {
+            let mut a = [0.0f64; 3];
+            for (v, l) in row.iter().zip(&dense_light) {
+                for k in 0..3 {
+                    a[k] += v * l[k];
+                }
+            }
+            let wgt = t.row_weight[r0 + r];
+            let px = &mut image.pixels[t.row_pixel[r0 + r] as usize];
+            for k in 0..3 {
+                px[k] += (wgt[k] as f64 * a[k]) as f32;
+            }
+        }
+    }
+    image
+}
