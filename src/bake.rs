@@ -33,7 +33,9 @@ pub struct BakeSettings {
     pub spp: u32,
     /// Shadow-ray directions per texel (rounded up to a square).
     pub texel_samples: u32,
-    /// Relative L2 error allowed per row when dropping small Haar coefficients (0 keeps all).
+    /// Error allowed per row when dropping small Haar coefficients, relative to the L2 norm of
+    /// an unshadowed row (0 keeps all). One absolute budget for every row spends it where the
+    /// image is bright: shadowed rows become sparser than lit ones.
     pub threshold: f32,
     /// Keep every coefficient in 32-bit floats (for checks against the reference).
     pub lossless: bool,
@@ -50,7 +52,7 @@ impl Default for BakeSettings {
             sh_order: 6,
             spp: 1,
             texel_samples: 1,
-            threshold: 0.01,
+            threshold: 0.03,
             lossless: false,
             unshadowed: false,
             seed: 1,
@@ -200,12 +202,22 @@ pub fn bake(
     let samples = TexelSamples::new(n, settings.texel_samples as usize, settings.seed);
     let basis = TexelShBasis::new(n, settings.sh_order)?;
     let (tx, ty) = tile_grid(w, h);
+    let reference_energy = unoccluded_row_energy(&samples);
     let done = AtomicUsize::new(0);
     let rays = AtomicU64::new(0);
     let outputs: Vec<TileOutput> = (0..tx * ty)
         .into_par_iter()
         .map(|t| {
-            let out = bake_tile(scene, &tracer, settings, &samples, &basis, t % tx, t / tx);
+            let out = bake_tile(
+                scene,
+                &tracer,
+                settings,
+                &samples,
+                &basis,
+                reference_energy,
+                t % tx,
+                t / tx,
+            );
             let px = out.pixels.len();
             progress(BakeProgress {
                 pixels_done: done.fetch_add(px, Ordering::Relaxed) + px,
@@ -286,6 +298,7 @@ fn bake_tile(
     settings: &BakeSettings,
     samples: &TexelSamples,
     basis: &TexelShBasis,
+    reference_energy: f64,
     tile_x: usize,
     tile_y: usize,
 ) -> TileOutput {
@@ -349,7 +362,8 @@ fn bake_tile(
                 let mut sh = vec![0.0f32; shc];
                 basis.project_row(&row, &mut sh);
                 haar::forward_face_all(&mut row, n, &mut scratch);
-                let (entries, dropped, total) = sparsify(&row, settings, &mut order);
+                let (entries, dropped, total) =
+                    sparsify(&row, settings, reference_energy, &mut order);
                 out.dropped_energy += dropped;
                 out.total_energy += total;
                 out.rows.push(RowData {
@@ -364,13 +378,30 @@ fn bake_tile(
     out
 }
 
+/// Squared L2 norm of the row of an unshadowed surface facing +Y with unit albedo: the scale the
+/// thresholding budget is relative to (the same for every normal up to texel discretisation).
+fn unoccluded_row_energy(samples: &TexelSamples) -> f64 {
+    let m = samples.per_texel;
+    (0..samples.dirs.len() / m)
+        .map(|j| {
+            let v: f64 = (j * m..(j + 1) * m)
+                .map(|k| samples.dirs[k].y.max(0.0) as f64 * samples.weights[k] as f64)
+                .sum::<f64>()
+                * std::f64::consts::FRAC_1_PI;
+            v * v
+        })
+        .sum()
+}
+
 /// Drops the smallest Haar coefficients of a row while the dropped energy stays within
-/// `threshold²` of the row's energy (so the row's relative L2 error is at most `threshold`), then
+/// `threshold² · reference_energy` (so the row's L2 error is at most `threshold` times the norm of
+/// an unshadowed row), then
 /// quantises what is kept. Returns the kept (coefficient, value) pairs ascending by coefficient,
 /// the dropped energy and the row's energy (including quantisation error in the dropped part).
 fn sparsify(
     row: &[f32],
     settings: &BakeSettings,
+    reference_energy: f64,
     order: &mut Vec<(f32, u32)>,
 ) -> (Vec<(u32, f32)>, f64, f64) {
     let total: f64 = row.iter().map(|&v| (v as f64) * (v as f64)).sum();
@@ -385,7 +416,7 @@ fn sparsify(
     let mut first_kept = 0;
     if !settings.lossless && settings.threshold > 0.0 {
         order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let budget = (settings.threshold as f64).powi(2) * total;
+        let budget = (settings.threshold as f64).powi(2) * reference_energy;
         while first_kept < order.len() {
             let e = (order[first_kept].0 as f64).powi(2);
             if dropped + e > budget {

@@ -46,6 +46,16 @@ pub enum Command {
     Reference(ReferenceArgs),
     /// Describe an environment map: size, power, SH coefficients, Haar energy compaction.
     Env(EnvArgs),
+    /// Compare two linear EXR images: relative L2, RMSE, PSNR, gradient error, 1 - SSIM.
+    Compare {
+        /// Image to judge (.exr).
+        image: PathBuf,
+        /// Reference image (.exr).
+        reference: PathBuf,
+        /// Only count the pixels a transport file's view covers.
+        #[arg(long)]
+        mask: Option<PathBuf>,
+    },
 }
 
 /// Options shared by the bake and the reference: how the transport is sampled.
@@ -80,8 +90,9 @@ pub struct BakeArgs {
     /// SH order of the SH transport (n² coefficients, 1 to 10).
     #[arg(long, default_value_t = 6)]
     pub sh_order: usize,
-    /// Relative L2 error allowed per transport row when dropping small Haar coefficients.
-    #[arg(long, default_value_t = 0.01, conflicts_with = "lossless")]
+    /// L2 error allowed per transport row when dropping small Haar coefficients, relative to an
+    /// unshadowed row's norm.
+    #[arg(long, default_value_t = 0.03, conflicts_with = "lossless")]
     pub threshold: f32,
     /// Keep every coefficient in 32-bit floats.
     #[arg(long)]
@@ -179,6 +190,11 @@ fn run(command: Command) -> Result<()> {
         Command::Relight(a) => relight_cmd(a),
         Command::Reference(a) => reference_cmd(a),
         Command::Env(a) => env_cmd(a),
+        Command::Compare {
+            image,
+            reference,
+            mask,
+        } => compare_cmd(image, reference, mask),
     }
 }
 
@@ -499,6 +515,21 @@ fn env_cmd(a: EnvArgs) -> Result<()> {
     for (k, f) in captured {
         println!("  K = {k:>5}  {:.4}%", 100.0 * f);
     }
+    Ok(())
+}
+
+fn compare_cmd(image: PathBuf, reference: PathBuf, mask: Option<PathBuf>) -> Result<()> {
+    let a = crate::film::Image::load_exr(&image)?;
+    let r = crate::film::Image::load_exr(&reference)?;
+    let mask = match mask {
+        Some(p) => Some(Transport::load(&p)?.coverage),
+        None => None,
+    };
+    let e = crate::metrics::compare(&a, &r, mask.as_deref())?;
+    println!(
+        "rel_l2 {:.6}  rmse {:.6}  psnr {:.2} dB  rel_h1 {:.6}  dssim {:.6}",
+        e.rel_l2, e.rmse, e.psnr_db, e.rel_h1, e.dssim
+    );
     Ok(())
 }
 

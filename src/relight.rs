@@ -129,6 +129,15 @@ pub fn relight(
     light: &PreparedLight,
     req: &RelightRequest,
 ) -> Result<(Image, RelightStats)> {
+    if ctx.n != t.meta.cube_n as usize || light.wavelet.n != ctx.n {
+        return Err(PrtError::invalid(
+            "light",
+            format!(
+                "prepared for a cube of N = {} but the transport was baked with N = {}",
+                light.wavelet.n, t.meta.cube_n
+            ),
+        ));
+    }
     match req.method {
         Method::Wavelet => {
             let sparse = light.wavelet.select(

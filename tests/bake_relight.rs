@@ -1,0 +1,664 @@
+//! The bake and the CPU relight against known answers: white furnaces, the analytic shadow of a
+//! sphere under one texel light, the brute-force reference, analytic SH irradiance, rotations, the
+//! slow twins of the sparse kernel, file round trips and corruption.
+
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::cubemap::{CubeMap, texel_count, texel_dirs, texel_index};
+use wavelet_prt::envmap::{EnvMap, EnvRotation, SunSky};
+use wavelet_prt::film::Image;
+use wavelet_prt::light::{SparseLight, WaveletLight, Weighting};
+use wavelet_prt::metrics::relative_l2;
+use wavelet_prt::reference::render_reference;
+use wavelet_prt::relight::{
+    LightContext, Method, RelightRequest, relight, relight_dense_reference, relight_sh,
+    relight_wavelet,
+};
+use wavelet_prt::sampling::Rng;
+use wavelet_prt::scene::Scene;
+use wavelet_prt::sh;
+use wavelet_prt::transport::{
+    BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, tile_grid,
+};
+
+/// Float sums over a few thousand texels in a different order: the same value to ~1e-6.
+const SAME_SUM: f64 = 1e-5;
+/// The brute-force reference and the relight of a lossless bake agree to float rounding.
+const REFERENCE_MATCH: f64 = 1e-4;
+
+fn assert_close(what: &str, got: f64, want: f64, rel: f64) {
+    let diff = (got - want).abs();
+    assert!(
+        diff <= rel * want.abs().max(1e-12),
+        "{what}: got {got}, want {want}, difference {diff} (relative {})",
+        diff / want.abs().max(1e-30)
+    );
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("prt-test-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn scene_from(text: &str, name: &str) -> Scene {
+    let dir = temp_dir(name);
+    let p = dir.join("scene.toml");
+    std::fs::write(&p, text).unwrap();
+    Scene::load(&p).unwrap()
+}
+
+fn assets() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets")
+}
+
+const SPHERE_ON_PLANE: &str = r#"
+[camera]
+eye = [0.0, 1.5, 4.0]
+target = [0.0, 0.5, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 40.0
+width = 37
+height = 21
+
+[material.ground]
+type = "diffuse"
+albedo = [0.8, 0.7, 0.6]
+
+[material.clay]
+type = "diffuse"
+albedo = [0.8, 0.3, 0.2]
+
+[[shape]]
+type = "quad"
+corners = [[-2.0, 0.0, -2.0], [-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]]
+material = "ground"
+
+[[shape]]
+type = "sphere"
+center = [0.0, 0.6, 0.0]
+radius = 0.6
+material = "clay"
+"#;
+
+fn lossless(n: usize, sh_order: usize) -> BakeSettings {
+    BakeSettings {
+        cube_n: n,
+        sh_order,
+        lossless: true,
+        ..BakeSettings::default()
+    }
+}
+
+fn full_light(cube: &CubeMap) -> SparseLight {
+    let w = WaveletLight::from_cube(cube).unwrap();
+    SparseLight {
+        indices: (0..w.coeffs.len() as u32).collect(),
+        values: w.coeffs,
+    }
+}
+
+#[test]
+fn white_furnace_plane_and_convex_sphere() {
+    // A plane seen from above and a lone sphere, both unoccluded by anything else, shadows on:
+    // under constant radiance c every visible point has radiance albedo x c.
+    let plane = r#"
+[camera]
+eye = [0.0, 3.0, 0.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 0.0, -1.0]
+fov_y_deg = 30.0
+width = 9
+height = 7
+[material.m]
+type = "diffuse"
+albedo = [0.5, 0.25, 1.0]
+[[shape]]
+type = "quad"
+corners = [[-50.0, 0.0, -50.0], [-50.0, 0.0, 50.0], [50.0, 0.0, 50.0], [50.0, 0.0, -50.0]]
+material = "m"
+"#;
+    let sphere = r#"
+[camera]
+eye = [0.0, 0.0, 4.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 30.0
+width = 19
+height = 17
+[material.m]
+type = "diffuse"
+albedo = [0.5, 0.25, 1.0]
+[[shape]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 0.9
+material = "m"
+"#;
+    // Texel-sampled cosine integrals converge as O(h²): 16 samples per texel at N = 16 leave
+    // about 2e-4 of relative error for arbitrary normals.
+    const QUADRATURE: f64 = 1e-3;
+    let c = [2.0f32, 1.0, 0.5];
+    for (name, text) in [("furnace-plane", plane), ("furnace-sphere", sphere)] {
+        let scene = scene_from(text, name);
+        let settings = BakeSettings {
+            texel_samples: 16,
+            ..lossless(16, 2)
+        };
+        let t = bake(&scene, &settings, &|_| {}).unwrap();
+        let cube = CubeMap::constant(16, c).unwrap();
+        let (img, _) = relight_wavelet(&t, &full_light(&cube)).unwrap();
+        let mut covered = 0;
+        for (p, cov) in img.pixels.iter().zip(&t.coverage) {
+            if *cov < 1.0 {
+                continue;
+            }
+            covered += 1;
+            let albedo = [0.5, 0.25, 1.0];
+            for k in 0..3 {
+                assert_close(
+                    &format!("{name} channel {k}"),
+                    p[k] as f64,
+                    albedo[k] * c[k] as f64,
+                    QUADRATURE,
+                );
+            }
+        }
+        assert!(covered > 20, "{name}: only {covered} covered pixels");
+    }
+}
+
+/// Ray from `o` along unit `d`: does it meet the sphere (c, r), and by how much does it clear or
+/// miss the surface (distance of closest approach minus r)?
+fn sphere_clearance(o: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<f64> {
+    let t = (c - o).dot(d);
+    if t <= 0.0 {
+        return None;
+    }
+    Some((o + d * t - c).length() - r)
+}
+
+#[test]
+fn one_texel_light_casts_the_analytic_sphere_shadow() {
+    let scene = scene_from(SPHERE_ON_PLANE, "one-texel");
+    let n = 8;
+    let t = bake(&scene, &lossless(n, 2), &|_| {}).unwrap();
+    let reference_settings = lossless(n, 2);
+    // One texel of the +Y face, off-centre, so the shadow falls sideways.
+    let j = texel_index(n, 2, 2, 5);
+    let d = texel_dirs(n)[j];
+    let omega = wavelet_prt::cubemap::solid_angles(n)[j];
+    let mut cube = CubeMap::constant(n, [0.0; 3]).unwrap();
+    cube.texels[j] = [10.0, 10.0, 10.0];
+    let (img, _) = relight_wavelet(&t, &full_light(&cube)).unwrap();
+    let brute = render_reference(&scene, &cube, &reference_settings).unwrap();
+    let cam = &scene.camera;
+    let (center, radius) = (DVec3::new(0.0, 0.6, 0.0), 0.6);
+    let (mut lit, mut shadowed) = (0, 0);
+    for y in 0..cam.height {
+        for x in 0..cam.width {
+            let ray = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+            let (o, dir) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+            if dir.y >= 0.0 {
+                continue;
+            }
+            let t_ground = -o.y / dir.y;
+            let p = o + dir * t_ground;
+            // Skip pixels that see the sphere or lie off the ground quad.
+            if sphere_clearance(o, dir, center, radius).is_some_and(|c| c < 0.0)
+                || p.x.abs() > 2.0
+                || p.z.abs() > 2.0
+            {
+                continue;
+            }
+            let clearance = sphere_clearance(p, d, center, radius);
+            // Stay away from the penumbra-free but numerically delicate boundary.
+            if clearance.is_some_and(|c| c.abs() < 1e-3) {
+                continue;
+            }
+            let in_shadow = clearance.is_some_and(|c| c < 0.0);
+            let i = (y * cam.width + x) as usize;
+            let albedo = [0.8, 0.7, 0.6];
+            for k in 0..3 {
+                let lit_value = albedo[k] * 10.0 * d.y * omega / PI;
+                let want = if in_shadow { 0.0 } else { lit_value };
+                // Float rounding of the Haar round trip, relative to the light's contribution.
+                let tol = 1e-5 * lit_value;
+                let got = img.pixels[i][k] as f64;
+                assert!(
+                    (got - want).abs() <= tol,
+                    "pixel ({x}, {y}) channel {k}: got {got}, want {want} (shadow {in_shadow})"
+                );
+                assert!((brute.pixels[i][k] as f64 - want).abs() <= tol);
+            }
+            if in_shadow {
+                shadowed += 1;
+            } else {
+                lit += 1;
+            }
+        }
+    }
+    assert!(lit > 50 && shadowed > 5, "lit {lit}, shadowed {shadowed}");
+}
+
+#[test]
+fn lossless_relight_equals_the_brute_force_reference() {
+    let scene = scene_from(SPHERE_ON_PLANE, "reference");
+    let settings = BakeSettings {
+        spp: 4,
+        texel_samples: 4,
+        ..lossless(8, 3)
+    };
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
+    let ctx = LightContext::new(&t).unwrap();
+    let rotation = EnvRotation {
+        yaw_deg: 75.0,
+        pitch_deg: 0.0,
+    };
+    let light = ctx.prepare(&env, rotation).unwrap();
+    let req = RelightRequest {
+        method: Method::Full,
+        terms: 0,
+        weighting: Weighting::Unweighted,
+        sh_order: 3,
+    };
+    let (full, _) = relight(&t, &ctx, &light, &req).unwrap();
+    let cube = env.to_cube(8, rotation).unwrap();
+    let brute = render_reference(&scene, &cube, &settings).unwrap();
+    let err = relative_l2(&full, &brute, None).unwrap();
+    assert!(err < REFERENCE_MATCH, "full vs reference: {err}");
+    // Wavelet relighting with every term is the same product as full.
+    let all = RelightRequest {
+        method: Method::Wavelet,
+        terms: texel_count(8),
+        ..req
+    };
+    for w in Weighting::ALL {
+        let (img, stats) = relight(
+            &t,
+            &ctx,
+            &light,
+            &RelightRequest {
+                weighting: w,
+                ..all
+            },
+        )
+        .unwrap();
+        assert_eq!(stats.terms, texel_count(8));
+        let e = relative_l2(&img, &full, None).unwrap();
+        assert!(e < 1e-6, "{w}: all terms vs full {e}");
+    }
+    // Fewer terms: error decreases as K grows (unweighted selection is the best K-term light).
+    let mut last = f64::INFINITY;
+    for k in [4, 16, 64, 256, 384] {
+        let (img, _) = relight(
+            &t,
+            &ctx,
+            &light,
+            &RelightRequest {
+                terms: k,
+                weighting: Weighting::Unweighted,
+                ..all
+            },
+        )
+        .unwrap();
+        let e = relative_l2(&img, &full, Some(&t.coverage)).unwrap();
+        assert!(e <= last * (1.0 + 1e-6), "K = {k}: {e} after {last}");
+        last = e;
+    }
+}
+
+#[test]
+fn sh_relight_of_an_unshadowed_plane_is_the_analytic_irradiance() {
+    let plane = r#"
+[camera]
+eye = [0.0, 3.0, 0.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 0.0, -1.0]
+fov_y_deg = 30.0
+width = 5
+height = 5
+[material.m]
+type = "diffuse"
+albedo = [1.0, 1.0, 1.0]
+[[shape]]
+type = "quad"
+corners = [[-5.0, 0.0, -5.0], [-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0]]
+material = "m"
+"#;
+    let scene = scene_from(plane, "sh-plane");
+    let settings = BakeSettings {
+        unshadowed: true,
+        texel_samples: 16,
+        ..lossless(32, 3)
+    };
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    // A smooth light with a strong directional part.
+    let sky = SunSky::new(40.0, 120.0, 25.0, 5.0).to_latlong(256, 128, 2);
+    let light_sh = sky.project_sh(3, EnvRotation::default()).unwrap();
+    let (img, _) = relight_sh(&t, &light_sh).unwrap();
+    // Analytic: radiance = (albedo / π) E(n), E = clamped cosine ⊛ L, n = +Y.
+    let mut irradiance = light_sh.clone();
+    sh::convolve_rgb(&mut irradiance, &sh::clamped_cosine_zonal(3));
+    let e = sh::reconstruct_rgb(&irradiance, DVec3::Y);
+    // The SH transport is the texel-quadrature projection of max(cos, 0) at N = 32 with 16
+    // samples per texel: within 1e-3 of the exact lobe coefficients.
+    const SH_QUADRATURE: f64 = 2e-3;
+    for p in &img.pixels {
+        for k in 0..3 {
+            assert_close("SH irradiance", p[k] as f64, e[k] / PI, SH_QUADRATURE);
+        }
+    }
+}
+
+#[test]
+fn rotations_full_turn_and_sh_rotation() {
+    let scene = scene_from(SPHERE_ON_PLANE, "rotation");
+    let t = bake(&scene, &lossless(8, 4), &|_| {}).unwrap();
+    let ctx = LightContext::new(&t).unwrap();
+    let env = EnvMap::load(&assets().join("envmaps/pmndrs_city_overcast.exr")).unwrap();
+    let req = RelightRequest {
+        method: Method::Wavelet,
+        terms: 100,
+        weighting: Weighting::Area,
+        sh_order: 4,
+    };
+    let a = ctx.prepare(&env, EnvRotation::default()).unwrap();
+    let b = ctx.prepare(&env, EnvRotation::yaw(360.0)).unwrap();
+    for method in [Method::Wavelet, Method::Sh, Method::Full] {
+        let r = RelightRequest { method, ..req };
+        let (ia, _) = relight(&t, &ctx, &a, &r).unwrap();
+        let (ib, _) = relight(&t, &ctx, &b, &r).unwrap();
+        let e = relative_l2(&ib, &ia, None).unwrap();
+        assert!(e < 1e-5, "{method}: 360 degrees changed the image by {e}");
+    }
+    // Rotating the SH light vector equals projecting the rotated environment (same order), up to
+    // the cube-map discretisation of the rotated map.
+    let rotation = EnvRotation {
+        yaw_deg: 50.0,
+        pitch_deg: 30.0,
+    };
+    let turned = ctx.prepare(&env, rotation).unwrap();
+    let rot = sh::Rotation::new(4, rotation.world_from_map()).unwrap();
+    let rotated_sh = rot.apply_rgb(&a.sh[..16]);
+    let (by_rotation, _) = relight_sh(&t, &rotated_sh).unwrap();
+    let (by_projection, _) = relight_sh(&t, &turned.sh[..16]).unwrap();
+    let e = relative_l2(&by_rotation, &by_projection, Some(&t.coverage)).unwrap();
+    assert!(e < 1e-2, "SH rotation vs rotated projection: {e}");
+}
+
+/// A random transport with several rows per pixel, empty pixels and an image size that tiles do
+/// not divide.
+fn random_transport(
+    w: usize,
+    h: usize,
+    n: usize,
+    quantization: Quantization,
+    seed: u64,
+) -> Transport {
+    let mut rng = Rng::new(seed, 0);
+    let c = texel_count(n);
+    let (tx, ty) = tile_grid(w, h);
+    let mut tiles = Vec::new();
+    for t in 0..tx * ty {
+        let mut rows = Vec::new();
+        for y in (t / tx) * TILE..((t / tx + 1) * TILE).min(h) {
+            for x in (t % tx) * TILE..((t % tx + 1) * TILE).min(w) {
+                let count = (rng.next_u64() % 3) as usize; // 0, 1 or 2 rows
+                for _ in 0..count {
+                    let mut entries = Vec::new();
+                    for j in 0..c {
+                        if rng.next_f32() < 0.1 {
+                            entries.push((j as u32, rng.next_f32() * 2.0 - 1.0));
+                        }
+                    }
+                    rows.push(RowData {
+                        pixel: (y * w + x) as u32,
+                        weight: [rng.next_f32(), rng.next_f32(), rng.next_f32()],
+                        entries,
+                        sh: vec![rng.next_f32(); 4],
+                    });
+                }
+            }
+        }
+        tiles.push(rows);
+    }
+    let meta = TransportMeta {
+        width: w as u32,
+        height: h as u32,
+        tile: TILE as u32,
+        cube_n: n as u32,
+        sh_order: 2,
+        scene_hash: "0".into(),
+        scene_path: "random".into(),
+        camera: CameraMeta {
+            eye: [0.0; 3],
+            target: [0.0, 0.0, -1.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y_deg: 40.0,
+        },
+        spp: 1,
+        texel_samples: 1,
+        unshadowed: false,
+        seed,
+        threshold: 0.0,
+        quantization,
+        stats: BakeStats::default(),
+    };
+    Transport::assemble(
+        meta,
+        tiles,
+        vec![[0.5; 3]; w * h],
+        vec![1.0; w * h],
+        vec![1.0; c],
+    )
+    .unwrap()
+}
+
+#[test]
+fn tiled_kernel_equals_the_dense_and_sprs_twins() {
+    for (w, h, n, q) in [
+        (37, 21, 4, Quantization::F32),
+        (16, 16, 2, Quantization::F16),
+        (1, 45, 4, Quantization::F16),
+    ] {
+        let t = random_transport(w, h, n, q, (w * h) as u64);
+        let c = texel_count(n);
+        let mut rng = Rng::new(9, 1);
+        for k in [1, 7, c] {
+            let mut idx: Vec<u32> = (0..c as u32).collect();
+            for i in (1..idx.len()).rev() {
+                idx.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
+            }
+            idx.truncate(k);
+            idx.sort_unstable();
+            let light = SparseLight {
+                values: idx
+                    .iter()
+                    .map(|_| [rng.next_f32(), rng.next_f32() - 0.5, 2.0 * rng.next_f32()])
+                    .collect(),
+                indices: idx,
+            };
+            let (fast, stats) = relight_wavelet(&t, &light).unwrap();
+            let dense = relight_dense_reference(&t, &light);
+            let e = relative_l2(&fast, &dense, None).unwrap();
+            assert!(e < 1e-5, "{w}x{h} N={n} K={k}: tiled vs dense {e}");
+            let via_sprs = sprs_product(&t, &light);
+            let e = relative_l2(&fast, &via_sprs, None).unwrap();
+            assert!(e < 1e-5, "{w}x{h} N={n} K={k}: tiled vs sprs {e}");
+            if k == c {
+                assert_eq!(stats.nonzeros_touched as usize, t.entry_row.len());
+            }
+        }
+    }
+}
+
+/// The product through a plain sprs CSR matrix of every row, then the row weights.
+fn sprs_product(t: &Transport, light: &SparseLight) -> Image {
+    let c = t.coeff_count();
+    let rows = t.row_pixel.len();
+    let mut tri = sprs::TriMat::new((rows, c));
+    for tile in 0..t.tile_count() {
+        let r0 = t.tile_row_start[tile] as usize;
+        for j in 0..c {
+            for e in t.column(tile, j) {
+                tri.add_triplet(r0 + t.entry_row[e] as usize, j, t.values.get(e) as f64);
+            }
+        }
+    }
+    let m: sprs::CsMat<f64> = tri.to_csr();
+    let mut out = Image::new(t.meta.width as usize, t.meta.height as usize);
+    for ch in 0..3 {
+        let mut l = vec![0.0f64; c];
+        for (&j, v) in light.indices.iter().zip(&light.values) {
+            l[j as usize] = v[ch] as f64;
+        }
+        let y = &m * &sparse_vector(&l);
+        for (r, v) in y.iter() {
+            out.pixels[t.row_pixel[r] as usize][ch] += (t.row_weight[r][ch] as f64 * v) as f32;
+        }
+    }
+    out
+}
+
+/// The light as a sprs sparse vector.
+fn sparse_vector(l: &[f64]) -> sprs::CsVec<f64> {
+    let (idx, val): (Vec<usize>, Vec<f64>) = l
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| **v != 0.0)
+        .map(|(i, v)| (i, *v))
+        .unzip();
+    sprs::CsVec::new(l.len(), idx, val)
+}
+
+#[test]
+fn file_round_trip_and_corruption() {
+    let dir = temp_dir("file");
+    let t = random_transport(20, 18, 4, Quantization::F16, 5);
+    let p = dir.join("t.prt");
+    t.save(&p).unwrap();
+    let back = Transport::load(&p).unwrap();
+    assert_eq!(back, t);
+    // No temporary file is left beside it.
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains("partial"))
+        .collect();
+    assert!(leftovers.is_empty());
+    let bytes = std::fs::read(&p).unwrap();
+    let bad = dir.join("bad.prt");
+    // Truncated anywhere: an error that says so, never a panic.
+    for cut in [0, 4, 8, 100, bytes.len() / 2, bytes.len() - 1] {
+        std::fs::write(&bad, &bytes[..cut]).unwrap();
+        let e = Transport::load(&bad).unwrap_err().to_string();
+        assert!(e.contains("bad.prt"), "cut {cut}: {e}");
+    }
+    // A flipped bit anywhere: header or data.
+    let mut rng = Rng::new(3, 3);
+    for _ in 0..40 {
+        let mut b = bytes.clone();
+        let i = (rng.next_u64() % b.len() as u64) as usize;
+        b[i] ^= 1 << (rng.next_u64() % 8);
+        std::fs::write(&bad, &b).unwrap();
+        assert!(
+            Transport::load(&bad).is_err(),
+            "bit flip at byte {i} went unnoticed"
+        );
+    }
+    // An absurd header length is refused before anything is allocated.
+    let mut b = bytes.clone();
+    b[..8].copy_from_slice(&(1u64 << 60).to_le_bytes());
+    std::fs::write(&bad, &b).unwrap();
+    let e = Transport::load(&bad).unwrap_err().to_string();
+    assert!(e.contains("header length"), "{e}");
+    // Not a transport file at all.
+    std::fs::write(&bad, b"hello, world, this is not a transport").unwrap();
+    assert!(Transport::load(&bad).is_err());
+}
+
+#[test]
+fn bad_relight_requests_are_clear_errors() {
+    let scene = scene_from(SPHERE_ON_PLANE, "bad-requests");
+    let t = bake(&scene, &lossless(4, 2), &|_| {}).unwrap();
+    let ctx = LightContext::new(&t).unwrap();
+    let env = EnvMap::constant(16, 8, [1.0; 3]);
+    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
+    let base = RelightRequest {
+        method: Method::Wavelet,
+        terms: 10,
+        weighting: Weighting::Area,
+        sh_order: 2,
+    };
+    for (req, needle) in [
+        (RelightRequest { terms: 0, ..base }, "K = 0"),
+        (RelightRequest { terms: 97, ..base }, "K = 97"),
+        (
+            RelightRequest {
+                method: Method::Sh,
+                sh_order: 3,
+                ..base
+            },
+            "baked up to order 2",
+        ),
+    ] {
+        let e = relight(&t, &ctx, &light, &req).unwrap_err().to_string();
+        assert!(e.contains(needle), "{e}");
+    }
+    let e = "shiny".parse::<Method>().unwrap_err().to_string();
+    assert!(e.contains("shiny") && e.contains("wavelet"), "{e}");
+    let e = "heavy".parse::<Weighting>().unwrap_err().to_string();
+    assert!(e.contains("heavy"), "{e}");
+    // A light prepared for another cube size does not fit this transport.
+    let other = random_transport(8, 8, 8, Quantization::F32, 1);
+    let other_ctx = LightContext::new(&other).unwrap();
+    let other_light = other_ctx.prepare(&env, EnvRotation::default()).unwrap();
+    let e = relight(&t, &ctx, &other_light, &base)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("N = 8"), "{e}");
+}
+
+#[test]
+fn thresholded_bake_is_sparser_and_close_to_lossless() {
+    let scene = scene_from(SPHERE_ON_PLANE, "threshold");
+    let exact = bake(&scene, &lossless(8, 2), &|_| {}).unwrap();
+    let sparse = bake(
+        &scene,
+        &BakeSettings {
+            threshold: 0.05,
+            ..BakeSettings {
+                cube_n: 8,
+                sh_order: 2,
+                ..BakeSettings::default()
+            }
+        },
+        &|_| {},
+    )
+    .unwrap();
+    assert!(
+        sparse.entry_row.len() < exact.entry_row.len(),
+        "{} entries thresholded, {} lossless",
+        sparse.entry_row.len(),
+        exact.entry_row.len()
+    );
+    assert_eq!(sparse.meta.quantization, Quantization::F16);
+    let cube = CubeMap::constant(8, [1.0; 3]).unwrap();
+    let (a, _) = relight_wavelet(&exact, &full_light(&cube)).unwrap();
+    let (b, _) = relight_wavelet(&sparse, &full_light(&cube)).unwrap();
+    // Under constant light only the scaling coefficients matter, and thresholding keeps the
+    // largest first: the error stays far below the per-row budget.
+    let e = relative_l2(&b, &a, Some(&exact.coverage)).unwrap();
+    assert!(e < 0.05, "{e}");
+    assert_close(
+        "same rows",
+        sparse.row_pixel.len() as f64,
+        exact.row_pixel.len() as f64,
+        SAME_SUM,
+    );
+}
