@@ -181,8 +181,8 @@ pub fn run_demo(
                 tone,
                 [
                     match req.method {
-                        Method::Sh => format!("SH ORDER {}", req.sh_order),
-                        _ => format!("WAVELET K={}", req.terms),
+                        Method::Sh => format!("SH N={}", req.sh_order),
+                        _ => format!("WAV K={}", req.terms),
                     },
                     format!("ERR {:.1}%", 100.0 * err),
                 ],
@@ -200,10 +200,7 @@ pub fn run_demo(
         thumbs.push((
             downsample(&full, 2),
             tone,
-            [
-                "FULL".into(),
-                name.to_uppercase().chars().take(16).collect(),
-            ],
+            ["FULL".into(), short_name(&name).to_uppercase()],
         ));
         rows.push(DemoRow {
             env: name.clone(),
@@ -229,7 +226,7 @@ pub fn run_demo(
         columns,
         &cells,
         &format!(
-            "DEMO SCENE, N={}: SH VS WAVELET ({} WEIGHTING), ERROR VS FULL",
+            "N={}: SH ORDER N VS K WAVELET TERMS ({} WEIGHTING), REL. L2 ERROR VS FULL",
             transport.meta.cube_n, DEMO_WEIGHTING
         ),
     )?;
@@ -246,6 +243,14 @@ pub fn run_demo(
         reused_bake: reused,
         bake_seconds,
     })
+}
+
+/// A name that fits under a thumbnail: `blender_sunrise` -> `sunrise`.
+fn short_name(name: &str) -> String {
+    let s = name
+        .trim_start_matches("blender_")
+        .trim_start_matches("pmndrs_city_");
+    s.chars().take(10).collect()
 }
 
 /// The cached bake, when it exists, loads, and was made from this scene with these settings.
