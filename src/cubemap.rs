@@ -149,24 +149,80 @@ impl CubeMap {
     }
 }
 
-/// Sub-cells per lat-long cell side used when splatting a lat-long map into a cube. Each lat-long
-/// cell's power is split over `k x k` equal-angle sub-cells, each sent whole to the texel containing
-/// its centre. Total power is kept exactly whatever `k`; `k` only sets how finely a cell that
-/// straddles texel borders is divided. Chosen so a sub-cell is at most 1/8 of a texel across.
-fn splat_subdivision(map_width: usize, n: usize) -> usize {
-    // Lat-long cell width along the equator over the texel width at a face centre.
-    let cell = 2.0 * std::f64::consts::PI / map_width as f64;
-    let texel = 2.0 / n as f64;
-    ((8.0 * cell / texel).ceil() as usize).clamp(2, 16)
+/// Splits lat-long cells over cube texels. A cell whose four corners fall in one texel and that
+/// is smaller than a texel lies inside that texel (up to the bulge of its parallels, negligible at
+/// this size) and goes there whole; any other cell is cut into 2 x 2 sub-cells of exact solid angle,
+/// recursively, until the pieces are below `finest`, where the last pieces go to the texel of
+/// their centre. So the split of a cell over the texels it straddles is exact up to a band
+/// `finest` wide along texel borders.
+struct Splatter {
+    n: usize,
+    world_from_map: DMat3,
+    /// Angular size (radians) below which a cell that straddles texels is no longer cut.
+    finest: f64,
+    /// Angular size of the smallest texel (a cube corner's), radians.
+    texel_min: f64,
+}
+
+impl Splatter {
+    fn texel_of(&self, u: f64, v: f64) -> usize {
+        use std::f64::consts::PI;
+        let (sin_u, cos_u) = (2.0 * PI * u).sin_cos();
+        let (sin_v, cos_v) = (PI * v).sin_cos();
+        dir_to_texel(
+            self.n,
+            self.world_from_map * DVec3::new(sin_u * sin_v, cos_v, -cos_u * sin_v),
+        )
+    }
+
+    /// Adds radiance `l` times the solid angle of [u0, u1] x [v0, v1] to the texels it covers.
+    /// `corners` are the texels of (u0, v0), (u1, v0), (u0, v1), (u1, v1).
+    #[allow(clippy::too_many_arguments)]
+    fn splat(
+        &self,
+        (u0, u1, v0, v1): (f64, f64, f64, f64),
+        corners: [usize; 4],
+        l: [f32; 3],
+        acc: &mut [[f64; 4]],
+    ) {
+        use std::f64::consts::PI;
+        let height = PI * (v1 - v0);
+        let width = 2.0 * PI * (u1 - u0) * (PI * v0).sin().max((PI * v1).sin());
+        let size = height.max(width);
+        let same = corners.iter().all(|&c| c == corners[0]);
+        if (same && size < self.texel_min) || size < self.finest {
+            let j = if same {
+                corners[0]
+            } else {
+                self.texel_of(0.5 * (u0 + u1), 0.5 * (v0 + v1))
+            };
+            let omega = 2.0 * PI * (u1 - u0) * ((PI * v0).cos() - (PI * v1).cos());
+            for c in 0..3 {
+                acc[j][c] += l[c] as f64 * omega;
+            }
+            acc[j][3] += omega;
+            return;
+        }
+        let (um, vm) = (0.5 * (u0 + u1), 0.5 * (v0 + v1));
+        let [c00, c10, c01, c11] = corners;
+        let top = self.texel_of(um, v0);
+        let left = self.texel_of(u0, vm);
+        let mid = self.texel_of(um, vm);
+        let right = self.texel_of(u1, vm);
+        let bottom = self.texel_of(um, v1);
+        self.splat((u0, um, v0, vm), [c00, top, left, mid], l, acc);
+        self.splat((um, u1, v0, vm), [top, c10, mid, right], l, acc);
+        self.splat((u0, um, vm, v1), [left, mid, c01, bottom], l, acc);
+        self.splat((um, u1, vm, v1), [mid, right, bottom, c11], l, acc);
+    }
 }
 
 /// Resamples a lat-long radiance map (`width` x `height`, rows from the zenith) into a cube map of
 /// texel-average radiance, with the environment turned by `world_from_map` (a rotation).
 ///
-/// Each lat-long cell's power (radiance x exact cell solid angle) is split over sub-cells of exact
-/// solid angle and added to the texel that contains each sub-cell; a texel's radiance is its power
-/// over its exact solid angle. The total power is kept to rounding error; the split of a cell over
-/// the texels it straddles is exact up to the sub-cell size (see [`splat_subdivision`]).
+/// Each lat-long cell's power (radiance x exact cell solid angle) is split over the texels it
+/// overlaps (see [`Splatter`]); a texel's radiance is its power over the solid angle it received.
+/// A constant map gives a constant cube and the total power is kept to rounding error.
 pub fn resample_latlong(
     width: usize,
     height: usize,
@@ -185,60 +241,77 @@ pub fn resample_latlong(
             ),
         ));
     }
-    let k = splat_subdivision(width, n);
+    // A face-corner texel spans about a third of the angle of a face-centre one (2/N).
+    let texel_min = 2.0 / (3.0 * n as f64);
+    // Cells larger than texels are cut just finely enough that every texel gets pieces (their
+    // radiance is one value, so the normalisation below makes the split exact inside a cell);
+    // finer maps are cut finer along texel borders, where neighbouring cells differ.
+    let cell = std::f64::consts::PI / height as f64;
+    let splatter = Splatter {
+        n,
+        world_from_map,
+        finest: if cell > texel_min {
+            texel_min / 4.0
+        } else {
+            texel_min / 16.0
+        },
+        texel_min,
+    };
     let count = texel_count(n);
-    use std::f64::consts::PI;
-    // Per-row power accumulation in parallel; each worker owns a cube of power sums.
     let power = (0..height)
         .into_par_iter()
         .fold(
-            || vec![[0.0f64; 3]; count],
+            || vec![[0.0f64; 4]; count],
             |mut acc, y| {
-                for sy in 0..k {
-                    let v0 = (y as f64 + sy as f64 / k as f64) / height as f64;
-                    let v1 = (y as f64 + (sy + 1) as f64 / k as f64) / height as f64;
-                    let vm = 0.5 * (v0 + v1);
-                    // Exact solid angle of one sub-cell of this sub-row.
-                    let omega =
-                        (2.0 * PI / (width * k) as f64) * ((PI * v0).cos() - (PI * v1).cos());
-                    let (sin_v, cos_v) = (PI * vm).sin_cos();
-                    for x in 0..width {
-                        let l = pixels[y * width + x];
-                        if l == [0.0; 3] {
-                            continue;
-                        }
-                        for sx in 0..k {
-                            let u = (x as f64 + (sx as f64 + 0.5) / k as f64) / width as f64;
-                            let (sin_u, cos_u) = (2.0 * PI * u).sin_cos();
-                            let d =
-                                world_from_map * DVec3::new(sin_u * sin_v, cos_v, -cos_u * sin_v);
-                            let j = dir_to_texel(n, d);
-                            for c in 0..3 {
-                                acc[j][c] += l[c] as f64 * omega;
-                            }
-                        }
-                    }
+                let v0 = y as f64 / height as f64;
+                let v1 = (y + 1) as f64 / height as f64;
+                let row = &pixels[y * width..(y + 1) * width];
+                let corner = |x: usize, v: f64| splatter.texel_of(x as f64 / width as f64, v);
+                let (mut c00, mut c01) = (corner(0, v0), corner(0, v1));
+                for (x, l) in row.iter().enumerate() {
+                    let (c10, c11) = (corner(x + 1, v0), corner(x + 1, v1));
+                    let u0 = x as f64 / width as f64;
+                    let u1 = (x + 1) as f64 / width as f64;
+                    splatter.splat((u0, u1, v0, v1), [c00, c10, c01, c11], *l, &mut acc);
+                    (c00, c01) = (c10, c11);
                 }
                 acc
             },
         )
         .reduce(
-            || vec![[0.0f64; 3]; count],
+            || vec![[0.0f64; 4]; count],
             |mut a, b| {
                 for (x, y) in a.iter_mut().zip(&b) {
-                    for c in 0..3 {
+                    for c in 0..4 {
                         x[c] += y[c];
                     }
                 }
                 a
             },
         );
+    // Radiance is power over the solid angle the splat actually gave the texel, so a constant map
+    // gives a constant cube; a last global factor per channel then restores the total power
+    // exactly (it differs from 1 by the residual border error, about 1e-3 at most).
     let omega = solid_angles(n);
-    let texels = power
+    let mut texels: Vec<[f64; 3]> = power
         .iter()
-        .zip(&omega)
-        .map(|(p, w)| [(p[0] / w) as f32, (p[1] / w) as f32, (p[2] / w) as f32])
+        .map(|p| {
+            if p[3] > 0.0 {
+                [p[0] / p[3], p[1] / p[3], p[2] / p[3]]
+            } else {
+                [0.0; 3]
+            }
+        })
         .collect();
+    for c in 0..3 {
+        let want: f64 = power.iter().map(|p| p[c]).sum();
+        let got: f64 = texels.iter().zip(&omega).map(|(t, w)| t[c] * w).sum();
+        if got > 0.0 {
+            let f = want / got;
+            texels.iter_mut().for_each(|t| t[c] *= f);
+        }
+    }
+    let texels = texels.iter().map(|t| t.map(|v| v as f32)).collect();
     Ok(CubeMap { n, texels })
 }
 

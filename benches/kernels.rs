@@ -1,0 +1,138 @@
+//! Criterion benchmarks of the hot kernels: SH projection, cube resampling, Haar and K-term
+//! selection, and the CPU relight (sparse wavelet product at several K, SH dot products), with the
+//! machine's streaming read bandwidth measured in the same run so relight throughput can be
+//! quoted as a fraction of it.
+//!
+//! The relight benchmarks bake the demo scene once (256², N = 32) into `target/bench-cache/`;
+//! set `PRT_BENCH_SIZE=512` for a 512² bake.
+
+use std::hint::black_box;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::demo::write_assets;
+use wavelet_prt::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::haar;
+use wavelet_prt::light::{WaveletLight, Weighting};
+use wavelet_prt::relight::{LightContext, light_sh_order, relight_sh, relight_wavelet};
+use wavelet_prt::scene::Scene;
+use wavelet_prt::transport::{Transport, read_header_meta};
+
+fn assets() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets")
+}
+
+fn sunrise() -> EnvMap {
+    EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).expect("bundled map")
+}
+
+fn spherical(c: &mut Criterion) {
+    let env = sunrise();
+    let mut g = c.benchmark_group("environment");
+    g.sample_size(10).measurement_time(Duration::from_secs(3));
+    g.bench_function("sh_projection_1024x512_order10", |b| {
+        b.iter(|| env.project_sh(10, EnvRotation::default()).unwrap())
+    });
+    for n in [32, 64] {
+        g.bench_with_input(BenchmarkId::new("cube_resample", n), &n, |b, &n| {
+            b.iter(|| env.to_cube(n, EnvRotation::default()).unwrap())
+        });
+    }
+    let cube = env.to_cube(64, EnvRotation::default()).unwrap();
+    let area: Vec<f32> = haar::support_solid_angles(64)
+        .iter()
+        .map(|&a| a as f32)
+        .collect();
+    g.bench_function("haar_6x64x64_rgb", |b| {
+        b.iter(|| WaveletLight::from_cube(black_box(&cube)).unwrap())
+    });
+    let light = WaveletLight::from_cube(&cube).unwrap();
+    for w in [Weighting::Unweighted, Weighting::Area] {
+        g.bench_with_input(BenchmarkId::new("select_k200_6x64x64", w), &w, |b, &w| {
+            b.iter(|| light.select(200, w, &area, None).unwrap())
+        });
+    }
+    g.finish();
+}
+
+/// The demo scene baked at the benchmark size, cached between runs.
+fn transport() -> Transport {
+    let size: u32 = std::env::var("PRT_BENCH_SIZE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(256);
+    let cache = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/bench-cache");
+    std::fs::create_dir_all(&cache).unwrap();
+    let path = cache.join(format!("demo{size}.prt"));
+    let root = write_assets(&cache).unwrap();
+    let text = std::fs::read_to_string(root.join("scenes/demo.toml")).unwrap();
+    let text = text
+        .replace("width = 256", &format!("width = {size}"))
+        .replace("height = 256", &format!("height = {size}"));
+    let scene_path = root.join(format!("scenes/demo{size}.toml"));
+    std::fs::write(&scene_path, text).unwrap();
+    let scene = Scene::load(&scene_path).unwrap();
+    let settings = BakeSettings {
+        sh_order: 8,
+        ..BakeSettings::default()
+    };
+    if let Ok(meta) = read_header_meta(&path)
+        && meta.scene_hash == format!("{:016x}", scene.content_hash())
+        && meta.threshold == settings.threshold
+        && let Ok(t) = Transport::load(&path)
+    {
+        return t;
+    }
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    t.save(&path).unwrap();
+    t
+}
+
+fn relight(c: &mut Criterion) {
+    let t = transport();
+    let ctx = LightContext::new(&t).unwrap();
+    let light = ctx.prepare(&sunrise(), EnvRotation::default()).unwrap();
+    let size = t.meta.width;
+    let mut g = c.benchmark_group(format!("relight_{size}"));
+    g.sample_size(20).measurement_time(Duration::from_secs(3));
+    // Streaming read bandwidth of this machine, measured beside the kernels: a parallel sum over
+    // a buffer far larger than the caches.
+    let buffer = vec![1.0f32; 64 << 20];
+    g.throughput(Throughput::Bytes((buffer.len() * 4) as u64));
+    g.bench_function("stream_read_256MiB", |b| {
+        b.iter(|| {
+            use rayon::prelude::*;
+            buffer
+                .par_chunks(1 << 16)
+                .map(|c| c.iter().sum::<f32>())
+                .sum::<f32>()
+        })
+    });
+    drop(buffer);
+    let total = t.coeff_count();
+    for k in [1, 10, 100, 1000, total] {
+        let sparse = light
+            .wavelet
+            .select(k, Weighting::Area, &ctx.support_area, None)
+            .unwrap();
+        let (_, stats) = relight_wavelet(&t, &sparse).unwrap();
+        g.throughput(Throughput::Bytes(stats.bytes_touched));
+        g.bench_with_input(BenchmarkId::new("wavelet", k), &sparse, |b, s| {
+            b.iter(|| relight_wavelet(&t, s).unwrap())
+        });
+    }
+    for order in [4, 8] {
+        let sh = light_sh_order(&light.sh, order, t.meta.sh_order as usize).unwrap();
+        let (_, stats) = relight_sh(&t, &sh).unwrap();
+        g.throughput(Throughput::Bytes(stats.bytes_touched));
+        g.bench_with_input(BenchmarkId::new("sh", order), &sh, |b, sh| {
+            b.iter(|| relight_sh(&t, sh).unwrap())
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, spherical, relight);
+criterion_main!(benches);
