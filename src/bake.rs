@@ -202,22 +202,20 @@ pub fn bake(
     let samples = TexelSamples::new(n, settings.texel_samples as usize, settings.seed);
     let basis = TexelShBasis::new(n, settings.sh_order)?;
     let (tx, ty) = tile_grid(w, h);
-    let reference_energy = unoccluded_row_energy(&samples);
+    let ctx = TileContext {
+        scene,
+        tracer: &tracer,
+        settings,
+        reference_energy: unoccluded_row_energy(&samples),
+        samples: &samples,
+        basis: &basis,
+    };
     let done = AtomicUsize::new(0);
     let rays = AtomicU64::new(0);
     let outputs: Vec<TileOutput> = (0..tx * ty)
         .into_par_iter()
         .map(|t| {
-            let out = bake_tile(
-                scene,
-                &tracer,
-                settings,
-                &samples,
-                &basis,
-                reference_energy,
-                t % tx,
-                t / tx,
-            );
+            let out = bake_tile(&ctx, t % tx, t / tx);
             let px = out.pixels.len();
             progress(BakeProgress {
                 pixels_done: done.fetch_add(px, Ordering::Relaxed) + px,
@@ -291,17 +289,27 @@ pub fn bake(
     Ok(t)
 }
 
-/// Bakes one tile: dense rows per (pixel, material), SH projection, Haar and thresholding.
-fn bake_tile(
-    scene: &Scene,
-    tracer: &Tracer,
-    settings: &BakeSettings,
-    samples: &TexelSamples,
-    basis: &TexelShBasis,
+/// What every tile of a bake shares.
+struct TileContext<'a> {
+    scene: &'a Scene,
+    tracer: &'a Tracer,
+    settings: &'a BakeSettings,
+    samples: &'a TexelSamples,
+    basis: &'a TexelShBasis,
+    /// Energy of an unshadowed row, the scale of the thresholding budget.
     reference_energy: f64,
-    tile_x: usize,
-    tile_y: usize,
-) -> TileOutput {
+}
+
+/// Bakes one tile: dense rows per (pixel, material), SH projection, Haar and thresholding.
+fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
+    let TileContext {
+        scene,
+        tracer,
+        settings,
+        samples,
+        basis,
+        reference_energy,
+    } = *ctx;
     let cam = &scene.camera;
     let (w, h) = (cam.width as usize, cam.height as usize);
     let n = settings.cube_n;

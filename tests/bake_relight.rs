@@ -222,8 +222,8 @@ fn one_texel_light_casts_the_analytic_sphere_shadow() {
             let in_shadow = clearance.is_some_and(|c| c < 0.0);
             let i = (y * cam.width + x) as usize;
             let albedo = [0.8, 0.7, 0.6];
-            for k in 0..3 {
-                let lit_value = albedo[k] * 10.0 * d.y * omega / PI;
+            for (k, a) in albedo.iter().enumerate() {
+                let lit_value = a * 10.0 * d.y * omega / PI;
                 let want = if in_shadow { 0.0 } else { lit_value };
                 // Float rounding of the Haar round trip, relative to the light's contribution.
                 let tol = 1e-5 * lit_value;
