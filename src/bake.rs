@@ -52,7 +52,7 @@ impl Default for BakeSettings {
             sh_order: 6,
             spp: 1,
             texel_samples: 1,
-            threshold: 0.03,
+            threshold: 0.01,
             lossless: false,
             unshadowed: false,
             seed: 1,

@@ -46,6 +46,8 @@ pub enum Command {
     Reference(ReferenceArgs),
     /// Describe an environment map: size, power, SH coefficients, Haar energy compaction.
     Env(EnvArgs),
+    /// Sweep error against kept terms for SH and wavelets; write a CSV, plots and a summary.
+    Bench(BenchArgs),
     /// Compare two linear EXR images: relative L2, RMSE, PSNR, gradient error, 1 - SSIM.
     Compare {
         /// Image to judge (.exr).
@@ -92,7 +94,7 @@ pub struct BakeArgs {
     pub sh_order: usize,
     /// L2 error allowed per transport row when dropping small Haar coefficients, relative to an
     /// unshadowed row's norm.
-    #[arg(long, default_value_t = 0.03, conflicts_with = "lossless")]
+    #[arg(long, default_value_t = 0.01, conflicts_with = "lossless")]
     pub threshold: f32,
     /// Keep every coefficient in 32-bit floats.
     #[arg(long)]
@@ -156,6 +158,27 @@ pub struct ReferenceArgs {
 }
 
 #[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Transport file.
+    pub file: PathBuf,
+    /// Environments (.exr/.hdr files or sun:ELEV,AZIM[,RADIUS]), one or more.
+    #[arg(long, required = true, num_args = 1..)]
+    pub env: Vec<String>,
+    /// Output directory for bench.csv, summary.md and the plots.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Wavelet term counts, comma-separated (default: 1, 2, 5, 10, ... up to 6·N²).
+    #[arg(long, value_delimiter = ',')]
+    pub terms: Option<Vec<usize>>,
+    /// SH orders, comma-separated (default: 1 to the baked order).
+    #[arg(long, value_delimiter = ',')]
+    pub sh_orders: Option<Vec<usize>>,
+    /// Weightings, comma-separated (default: none,area,transport).
+    #[arg(long, value_delimiter = ',')]
+    pub weightings: Option<Vec<String>>,
+}
+
+#[derive(Args, Debug)]
 pub struct EnvArgs {
     /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
     pub env: String,
@@ -190,6 +213,7 @@ fn run(command: Command) -> Result<()> {
         Command::Relight(a) => relight_cmd(a),
         Command::Reference(a) => reference_cmd(a),
         Command::Env(a) => env_cmd(a),
+        Command::Bench(a) => bench_cmd(a),
         Command::Compare {
             image,
             reference,
@@ -514,6 +538,55 @@ fn env_cmd(a: EnvArgs) -> Result<()> {
     println!("Haar energy captured by the best K terms (N = {}):", a.cube);
     for (k, f) in captured {
         println!("  K = {k:>5}  {:.4}%", 100.0 * f);
+    }
+    Ok(())
+}
+
+fn bench_cmd(a: BenchArgs) -> Result<()> {
+    let t = Transport::load(&a.file)?;
+    let mut opts = crate::bench::BenchOptions::defaults_for(&t);
+    if let Some(k) = a.terms {
+        opts.terms = k;
+    }
+    if let Some(o) = a.sh_orders {
+        opts.sh_orders = o;
+    }
+    if let Some(w) = a.weightings {
+        opts.weightings = w.iter().map(|s| s.parse()).collect::<Result<_>>()?;
+    }
+    opts.validate(&t)?;
+    let mut envs = Vec::new();
+    for spec in &a.env {
+        let name: String = std::path::Path::new(spec)
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or(spec)
+            .chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        envs.push((name, load_env(spec)?));
+    }
+    let bar = ProgressBar::new(0);
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} points  ETA {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let points = crate::bench::run(&t, &envs, &opts, &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })?;
+    bar.finish_and_clear();
+    let written = crate::bench::write_report(&a.out, &points)?;
+    println!("{}", crate::bench::summary(&points));
+    for p in written {
+        println!("wrote {}", p.display());
     }
     Ok(())
 }

@@ -438,6 +438,34 @@ mod tests {
     }
 
     #[test]
+    fn radiance_hdr_files_load() {
+        let dir = std::env::temp_dir().join(format!("prt-hdr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("map.hdr");
+        let (w, h) = (8usize, 4usize);
+        let pixels: Vec<image::Rgb<f32>> = (0..w * h)
+            .map(|i| image::Rgb([i as f32, 0.5, 2.0]))
+            .collect();
+        let f = std::fs::File::create(&p).unwrap();
+        image::codecs::hdr::HdrEncoder::new(f)
+            .encode(&pixels, w, h)
+            .unwrap();
+        let env = EnvMap::load(&p).unwrap();
+        assert_eq!((env.width, env.height), (w, h));
+        // RGBE keeps 8 mantissa bits per channel.
+        for (i, px) in env.pixels.iter().enumerate() {
+            assert!(
+                (px[0] - i as f32).abs() <= 0.01 * (i as f32).max(1.0),
+                "{i}: {px:?}"
+            );
+            assert!((px[2] - 2.0).abs() < 0.02);
+        }
+        std::fs::write(&p, b"#?RADIANCE\ngarbage").unwrap();
+        let e = EnvMap::load(&p).unwrap_err().to_string();
+        assert!(e.contains("map.hdr"), "{e}");
+    }
+
+    #[test]
     fn yaw_turns_about_plus_y_right_handed() {
         // A quarter turn takes the map's -Z (u = 0) to world -X.
         let m = EnvRotation::yaw(90.0).world_from_map();

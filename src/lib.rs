@@ -18,6 +18,7 @@
 //! Every numeric convention (axes, lat-long, cube faces, SH, Haar) is fixed in [`conventions`].
 
 pub mod bake;
+pub mod bench;
 pub mod cli;
 pub mod conventions;
 pub mod cubemap;
@@ -28,6 +29,7 @@ pub mod film;
 pub mod haar;
 pub mod light;
 pub mod metrics;
+pub mod plot;
 pub mod reference;
 pub mod relight;
 pub mod sampling;

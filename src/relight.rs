@@ -14,6 +14,7 @@ use crate::error::{PrtError, Result};
 use crate::film::Image;
 use crate::haar::support_solid_angles;
 use crate::light::{SparseLight, TexelShBasis, WaveletLight, Weighting};
+use crate::sh;
 use crate::transport::{TILE, Transport, Values, tile_grid};
 
 /// Which approximation of the light relights the image.
@@ -101,12 +102,37 @@ impl LightContext {
         })
     }
 
-    /// Resamples `env` turned by `rotation` to the file's cube and transforms it both ways.
+    /// Prepares `env` turned by `rotation`: for wavelets the turned map is resampled to the
+    /// file's cube and transformed (a rotation does not map Haar coefficients to Haar
+    /// coefficients); for SH the unturned cube is projected once and its coefficient vector
+    /// rotated band by band, which is exact for the projected light.
     pub fn prepare(&self, env: &EnvMap, rotation: EnvRotation) -> Result<PreparedLight> {
+        let unturned = self.prepare_sh(env)?;
+        self.prepare_turned(env, &unturned, rotation)
+    }
+
+    /// The SH light of the unturned environment, to be reused for many rotations.
+    pub fn prepare_sh(&self, env: &EnvMap) -> Result<Vec<[f64; 3]>> {
+        self.basis
+            .project_light(&env.to_cube(self.n, EnvRotation::default())?)
+    }
+
+    /// [`LightContext::prepare`] with the unturned SH light already computed.
+    pub fn prepare_turned(
+        &self,
+        env: &EnvMap,
+        unturned_sh: &[[f64; 3]],
+        rotation: EnvRotation,
+    ) -> Result<PreparedLight> {
         let cube = env.to_cube(self.n, rotation)?;
+        let sh = if rotation == EnvRotation::default() {
+            unturned_sh.to_vec()
+        } else {
+            sh::Rotation::new(self.sh_order, rotation.world_from_map())?.apply_rgb(unturned_sh)
+        };
         Ok(PreparedLight {
             wavelet: WaveletLight::from_cube(&cube)?,
-            sh: self.basis.project_light(&cube)?,
+            sh,
         })
     }
 }
@@ -327,25 +353,6 @@ pub fn relight_sh(t: &Transport, sh: &[[f64; 3]]) -> Result<(Image, RelightStats
     Ok((image, stats))
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn fast_half_widening_is_exact_for_every_finite_half() {
-        for bits in 0..=u16::MAX {
-            let h = f16::from_bits(bits);
-            if h.is_finite() {
-                assert_eq!(
-                    StoredValue::f32(h).to_bits(),
-                    h.to_f32().to_bits(),
-                    "bits {bits:#06x}"
-                );
-            }
-        }
-    }
-}
-
 /// The slow twin of the wavelet kernel: rebuilds every row densely and takes plain dot products.
 /// For tests and checks only.
 pub fn relight_dense_reference(t: &Transport, light: &SparseLight) -> Image {
@@ -380,4 +387,23 @@ pub fn relight_dense_reference(t: &Transport, light: &SparseLight) -> Image {
         }
     }
     image
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fast_half_widening_is_exact_for_every_finite_half() {
+        for bits in 0..=u16::MAX {
+            let h = f16::from_bits(bits);
+            if h.is_finite() {
+                assert_eq!(
+                    StoredValue::f32(h).to_bits(),
+                    h.to_f32().to_bits(),
+                    "bits {bits:#06x}"
+                );
+            }
+        }
+    }
 }

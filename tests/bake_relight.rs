@@ -376,19 +376,29 @@ fn rotations_full_turn_and_sh_rotation() {
         let e = relative_l2(&ib, &ia, None).unwrap();
         assert!(e < 1e-5, "{method}: 360 degrees changed the image by {e}");
     }
-    // Rotating the SH light vector equals projecting the rotated environment (same order), up to
-    // the cube-map discretisation of the rotated map.
+    // The SH light of a turned environment comes from rotating the coefficient vector; it must
+    // match projecting the turned map itself (same order), up to the cube-map discretisation of
+    // the turned map.
     let rotation = EnvRotation {
         yaw_deg: 50.0,
         pitch_deg: 30.0,
     };
     let turned = ctx.prepare(&env, rotation).unwrap();
-    let rot = sh::Rotation::new(4, rotation.world_from_map()).unwrap();
-    let rotated_sh = rot.apply_rgb(&a.sh[..16]);
-    let (by_rotation, _) = relight_sh(&t, &rotated_sh).unwrap();
-    let (by_projection, _) = relight_sh(&t, &turned.sh[..16]).unwrap();
+    let projected = ctx
+        .basis
+        .project_light(&env.to_cube(8, rotation).unwrap())
+        .unwrap();
+    let (by_rotation, _) = relight_sh(&t, &turned.sh[..16]).unwrap();
+    let (by_projection, _) = relight_sh(&t, &projected[..16]).unwrap();
+    let (unturned, _) = relight_sh(&t, &a.sh[..16]).unwrap();
     let e = relative_l2(&by_rotation, &by_projection, Some(&t.coverage)).unwrap();
     assert!(e < 1e-2, "SH rotation vs rotated projection: {e}");
+    // And the rotation did something.
+    let moved = relative_l2(&unturned, &by_projection, Some(&t.coverage)).unwrap();
+    assert!(
+        moved > 10.0 * e,
+        "turning changed the image by only {moved}"
+    );
 }
 
 /// A random transport with several rows per pixel, empty pixels and an image size that tiles do

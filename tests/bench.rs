@@ -1,0 +1,185 @@
+//! The sparsity-versus-error sweep on a tiny scene: error falls as terms grow, every term gives
+//! zero error, the CSV and plots are well formed, and bad lists are clear errors.
+
+use std::path::PathBuf;
+
+use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::bench::{BenchOptions, csv, run, summary, terms_to_reach, write_report};
+use wavelet_prt::envmap::{EnvMap, SunSky};
+use wavelet_prt::light::Weighting;
+use wavelet_prt::relight::Method;
+use wavelet_prt::scene::Scene;
+use wavelet_prt::transport::Transport;
+
+fn tiny_transport(name: &str) -> Transport {
+    let dir = std::env::temp_dir().join(format!("prt-bench-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join("scene.toml");
+    std::fs::write(
+        &p,
+        r#"
+[camera]
+eye = [0.0, 1.5, 4.0]
+target = [0.0, 0.5, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 40.0
+width = 24
+height = 20
+[material.ground]
+type = "diffuse"
+albedo = [0.8, 0.8, 0.8]
+[material.clay]
+type = "diffuse"
+albedo = [0.8, 0.3, 0.2]
+[[shape]]
+type = "quad"
+corners = [[-2.0, 0.0, -2.0], [-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]]
+material = "ground"
+[[shape]]
+type = "sphere"
+center = [0.0, 0.6, 0.0]
+radius = 0.6
+material = "clay"
+"#,
+    )
+    .unwrap();
+    let scene = Scene::load(&p).unwrap();
+    let settings = BakeSettings {
+        cube_n: 8,
+        sh_order: 4,
+        lossless: true,
+        ..BakeSettings::default()
+    };
+    bake(&scene, &settings, &|_| {}).unwrap()
+}
+
+fn out_dir() -> PathBuf {
+    std::env::temp_dir().join(format!("prt-bench-out-{}", std::process::id()))
+}
+
+#[test]
+fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
+    let t = tiny_transport("sweep");
+    let envs = vec![
+        (
+            "sun".to_string(),
+            SunSky::new(30.0, 40.0, 3.0, 3.0).to_latlong(256, 128, 2),
+        ),
+        ("sky".to_string(), EnvMap::constant(64, 32, [1.0, 0.9, 0.8])),
+    ];
+    let opts = BenchOptions::defaults_for(&t);
+    assert_eq!(*opts.terms.last().unwrap(), 384);
+    assert_eq!(opts.sh_orders, vec![1, 2, 3, 4]);
+    let mut calls = 0;
+    let points = run(&t, &envs, &opts, &mut |_, _| calls += 1).unwrap();
+    let expected = 2 * (opts.terms.len() * 3 + 4);
+    assert_eq!(points.len(), expected);
+    assert_eq!(calls, expected);
+    for env in ["sun", "sky"] {
+        // Unweighted selection is the best K-term light: its error never rises with K. (The
+        // image error need not be monotone term by term: a kept coefficient can cancel against a
+        // missing one.)
+        let mut curve: Vec<_> = points
+            .iter()
+            .filter(|p| p.env == env && p.weighting == Some(Weighting::Unweighted))
+            .collect();
+        curve.sort_by_key(|p| p.terms);
+        for w in curve.windows(2) {
+            let (a, b) = (w[0].light_rel_l2.unwrap(), w[1].light_rel_l2.unwrap());
+            assert!(
+                b <= a * (1.0 + 1e-6) + 1e-9,
+                "{env}: K = {} light error {b} after K = {} light error {a}",
+                w[1].terms,
+                w[0].terms,
+            );
+        }
+        // The image error falls overall: far below its one-term value at 100 terms.
+        let at = |k: usize| curve.iter().find(|p| p.terms == k).unwrap().error.rel_l2;
+        assert!(
+            at(100) < 0.2 * at(1),
+            "K = 100: {}, K = 1: {}",
+            at(100),
+            at(1)
+        );
+        // Every term: the same product as full.
+        for p in points.iter().filter(|p| p.env == env && p.terms == 384) {
+            assert!(
+                p.error.rel_l2 < 1e-6,
+                "{env} {}: {}",
+                p.curve(),
+                p.error.rel_l2
+            );
+        }
+        assert!(curve[0].error.rel_l2 > 0.01, "one term should not be exact");
+    }
+    // The sun needs far fewer wavelet terms than SH coefficients for 5% error... or SH never
+    // gets there at order 4.
+    let sun_w: Vec<_> = points
+        .iter()
+        .filter(|p| p.env == "sun" && p.weighting == Some(Weighting::Unweighted))
+        .collect();
+    assert!(terms_to_reach(&sun_w, 0.05).is_some());
+    let sh: Vec<_> = points
+        .iter()
+        .filter(|p| p.env == "sun" && p.method == Method::Sh)
+        .collect();
+    assert_eq!(sh.len(), 4);
+
+    let text = csv(&points);
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), expected + 1);
+    let columns = lines[0].split(',').count();
+    assert!(lines.iter().all(|l| l.split(',').count() == columns));
+    assert!(summary(&points).contains("## sun"));
+
+    let dir = out_dir();
+    let written = write_report(&dir, &points).unwrap();
+    assert_eq!(written.len(), 2 + 2 * 2);
+    for p in &written {
+        let len = std::fs::metadata(p).unwrap().len();
+        assert!(len > 100, "{} is {len} bytes", p.display());
+    }
+    let png = image::open(dir.join("error_sun.png")).unwrap().to_rgb8();
+    let distinct: std::collections::HashSet<[u8; 3]> = png.pixels().map(|p| p.0).collect();
+    assert!(distinct.len() > 4, "the plot is nearly blank");
+}
+
+#[test]
+fn bad_lists_are_clear_errors() {
+    let t = tiny_transport("lists");
+    let base = BenchOptions::defaults_for(&t);
+    for (opts, needle) in [
+        (
+            BenchOptions {
+                terms: vec![0, 10],
+                ..base.clone()
+            },
+            "K = 0",
+        ),
+        (
+            BenchOptions {
+                terms: vec![385],
+                ..base.clone()
+            },
+            "K = 385",
+        ),
+        (
+            BenchOptions {
+                sh_orders: vec![5],
+                ..base.clone()
+            },
+            "order 5",
+        ),
+        (
+            BenchOptions {
+                terms: vec![],
+                sh_orders: vec![],
+                ..base.clone()
+            },
+            "nothing",
+        ),
+    ] {
+        let e = opts.validate(&t).unwrap_err().to_string();
+        assert!(e.contains(needle) || e.contains("no term counts"), "{e}");
+    }
+}
