@@ -305,7 +305,10 @@ pub fn summary(points: &[BenchPoint]) -> String {
         }
         if let Some((_, sh)) = cs.iter().find(|(n, _)| n == "sh") {
             let sh_max = sh.iter().map(|p| p.terms).max().unwrap_or(0) as f64;
-            let sh_best = sh.iter().map(|p| p.error.rel_l2).fold(f64::INFINITY, f64::min);
+            let sh_best = sh
+                .iter()
+                .map(|p| p.error.rel_l2)
+                .fold(f64::INFINITY, f64::min);
             let _ = writeln!(
                 s,
                 "| (SH at {sh_max} terms: {:.1}% error) | | | |",
