@@ -3,7 +3,9 @@
 //! slow twins of the sparse kernel, file round trips and corruption.
 
 use std::f64::consts::PI;
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::{SPHERE_ON_PLANE, assets, scene_from, temp_dir};
 
 use glam::DVec3;
 use wavelet_prt::bake::{BakeSettings, bake};
@@ -18,7 +20,6 @@ use wavelet_prt::relight::{
     relight_wavelet,
 };
 use wavelet_prt::sampling::Rng;
-use wavelet_prt::scene::Scene;
 use wavelet_prt::sh;
 use wavelet_prt::transport::{
     BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, tile_grid,
@@ -37,52 +38,6 @@ fn assert_close(what: &str, got: f64, want: f64, rel: f64) {
         diff / want.abs().max(1e-30)
     );
 }
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("prt-test-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn scene_from(text: &str, name: &str) -> Scene {
-    let dir = temp_dir(name);
-    let p = dir.join("scene.toml");
-    std::fs::write(&p, text).unwrap();
-    Scene::load(&p).unwrap()
-}
-
-fn assets() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets")
-}
-
-const SPHERE_ON_PLANE: &str = r#"
-[camera]
-eye = [0.0, 1.5, 4.0]
-target = [0.0, 0.5, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y_deg = 40.0
-width = 37
-height = 21
-
-[material.ground]
-type = "diffuse"
-albedo = [0.8, 0.7, 0.6]
-
-[material.clay]
-type = "diffuse"
-albedo = [0.8, 0.3, 0.2]
-
-[[shape]]
-type = "quad"
-corners = [[-2.0, 0.0, -2.0], [-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]]
-material = "ground"
-
-[[shape]]
-type = "sphere"
-center = [0.0, 0.6, 0.0]
-radius = 0.6
-material = "clay"
-"#;
 
 fn lossless(n: usize, sh_order: usize) -> BakeSettings {
     BakeSettings {

@@ -1,6 +1,8 @@
 //! The sparsity-versus-error sweep on a tiny scene: error falls as terms grow, every term gives
 //! zero error, the CSV and plots are well formed, and bad lists are clear errors.
 
+mod common;
+
 use std::path::PathBuf;
 
 use wavelet_prt::bake::{BakeSettings, bake};
@@ -8,42 +10,10 @@ use wavelet_prt::bench::{BenchOptions, csv, run, summary, terms_to_reach, write_
 use wavelet_prt::envmap::{EnvMap, SunSky};
 use wavelet_prt::light::Weighting;
 use wavelet_prt::relight::Method;
-use wavelet_prt::scene::Scene;
 use wavelet_prt::transport::Transport;
 
 fn tiny_transport(name: &str) -> Transport {
-    let dir = std::env::temp_dir().join(format!("prt-bench-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let p = dir.join("scene.toml");
-    std::fs::write(
-        &p,
-        r#"
-[camera]
-eye = [0.0, 1.5, 4.0]
-target = [0.0, 0.5, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y_deg = 40.0
-width = 24
-height = 20
-[material.ground]
-type = "diffuse"
-albedo = [0.8, 0.8, 0.8]
-[material.clay]
-type = "diffuse"
-albedo = [0.8, 0.3, 0.2]
-[[shape]]
-type = "quad"
-corners = [[-2.0, 0.0, -2.0], [-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]]
-material = "ground"
-[[shape]]
-type = "sphere"
-center = [0.0, 0.6, 0.0]
-radius = 0.6
-material = "clay"
-"#,
-    )
-    .unwrap();
-    let scene = Scene::load(&p).unwrap();
+    let scene = common::scene_from(common::SPHERE_ON_PLANE, &format!("bench-{name}"));
     let settings = BakeSettings {
         cube_n: 8,
         sh_order: 4,

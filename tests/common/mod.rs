@@ -1,0 +1,57 @@
+//! Helpers shared by the integration tests: temporary directories and small scenes.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+use wavelet_prt::scene::Scene;
+
+/// A fresh directory under the system temp dir, unique to this process and `name`.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("prt-test-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Writes `text` as a scene file in its own temp dir and loads it.
+pub fn scene_from(text: &str, name: &str) -> Scene {
+    let dir = temp_dir(name);
+    let p = dir.join("scene.toml");
+    std::fs::write(&p, text).unwrap();
+    Scene::load(&p).unwrap()
+}
+
+/// The bundled assets.
+pub fn assets() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets")
+}
+
+/// The canonical sphere on a ground plane, at an image size 16-pixel tiles do not divide.
+pub const SPHERE_ON_PLANE: &str = r#"
+[camera]
+eye = [0.0, 1.5, 4.0]
+target = [0.0, 0.5, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 40.0
+width = 37
+height = 21
+
+[material.ground]
+type = "diffuse"
+albedo = [0.8, 0.7, 0.6]
+
+[material.clay]
+type = "diffuse"
+albedo = [0.8, 0.3, 0.2]
+
+[[shape]]
+type = "quad"
+corners = [[-2.0, 0.0, -2.0], [-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]]
+material = "ground"
+
+[[shape]]
+type = "sphere"
+center = [0.0, 0.6, 0.0]
+radius = 0.6
+material = "clay"
+"#;
