@@ -257,14 +257,9 @@ impl Transport {
             ("checksum".to_string(), format!("{sum:016x}")),
         ]
         .into();
-        let tmp = temp_path(path);
-        safetensors::serialize_to_file(tensors, Some(info), &tmp).map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            PrtError::file(&tmp, format!("writing: {e}"))
-        })?;
-        std::fs::rename(&tmp, path).map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            PrtError::io(path, e)
+        crate::film::write_atomically(path, |tmp| {
+            safetensors::serialize_to_file(tensors, Some(info), tmp)
+                .map_err(|e| PrtError::file(tmp, format!("writing: {e}")))
         })
     }
 
@@ -685,15 +680,6 @@ fn checksum<'a>(parts: impl IntoIterator<Item = &'a [u8]>) -> u64 {
         h = crate::sampling::mix64(h ^ u64::from_le_bytes(tail) ^ (part.len() as u64) << 3);
     }
     h
-}
-
-fn temp_path(path: &Path) -> std::path::PathBuf {
-    let mut name = path
-        .file_name()
-        .map(|n| n.to_os_string())
-        .unwrap_or_default();
-    name.push(format!(".partial-{}", std::process::id()));
-    path.with_file_name(name)
 }
 
 /// A borrowed tensor for safetensors serialisation.
