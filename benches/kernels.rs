@@ -11,14 +11,14 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::bake::{BakeSettings, bake, load_if_baked_with};
 use wavelet_prt::demo::write_assets;
 use wavelet_prt::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::haar;
 use wavelet_prt::light::{WaveletLight, Weighting};
 use wavelet_prt::relight::{LightContext, light_sh_order, relight_sh, relight_wavelet};
 use wavelet_prt::scene::Scene;
-use wavelet_prt::transport::{Transport, read_header_meta};
+use wavelet_prt::transport::Transport;
 
 fn assets() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("assets")
@@ -78,11 +78,7 @@ fn transport() -> Transport {
         sh_order: 8,
         ..BakeSettings::default()
     };
-    if let Ok(meta) = read_header_meta(&path)
-        && meta.scene_hash == format!("{:016x}", scene.content_hash())
-        && meta.threshold == settings.threshold
-        && let Ok(t) = Transport::load(&path)
-    {
+    if let Some(t) = load_if_baked_with(&path, &scene, &settings) {
         return t;
     }
     let t = bake(&scene, &settings, &|_| {}).unwrap();

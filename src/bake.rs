@@ -450,6 +450,35 @@ fn sparsify(
     (kept, dropped, total)
 }
 
+/// The transport at `path` when it exists, loads, and was baked from this scene (same content
+/// hash) with these settings; `None` otherwise. Lets callers reuse a cached bake.
+pub fn load_if_baked_with(
+    path: &std::path::Path,
+    scene: &Scene,
+    settings: &BakeSettings,
+) -> Option<Transport> {
+    let meta = crate::transport::read_header_meta(path).ok()?;
+    let side = (settings.texel_samples.max(1) as f64).sqrt().ceil() as u32;
+    let threshold = if settings.lossless {
+        0.0
+    } else {
+        settings.threshold
+    };
+    let same = meta.scene_hash == format!("{:016x}", scene.content_hash())
+        && meta.cube_n as usize == settings.cube_n
+        && meta.sh_order as usize == settings.sh_order
+        && meta.spp == settings.spp
+        && meta.texel_samples == side * side
+        && meta.threshold == threshold
+        && meta.quantization == settings.quantization()
+        && meta.unshadowed == settings.unshadowed
+        && meta.seed == settings.seed;
+    if !same {
+        return None;
+    }
+    Transport::load(path).ok()
+}
+
 /// Bytes a bake's output will take at most (every coefficient kept), to warn or refuse up front.
 pub fn worst_case_bytes(width: usize, height: usize, settings: &BakeSettings) -> u64 {
     let c = texel_count(settings.cube_n) as u64;

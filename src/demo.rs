@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::bake::{BakeProgress, BakeSettings, bake};
+use crate::bake::{BakeProgress, BakeSettings, bake, load_if_baked_with};
 use crate::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
 use crate::film::{Image, ToneMap};
@@ -14,7 +14,6 @@ use crate::metrics::relative_l2;
 use crate::relight::{LightContext, Method, RelightRequest, relight};
 use crate::scene::Scene;
 use crate::sheet::{Cell, downsample, write_sheet};
-use crate::transport::{Transport, read_header_meta};
 
 /// A file bundled into the binary: its path under the demo's `assets/` and its bytes.
 pub struct Asset {
@@ -111,7 +110,7 @@ pub fn run_demo(
     let scene = Scene::load(&assets.join("scenes/demo.toml"))?;
     let settings = demo_settings();
     let transport_path = dir.join("demo.prt");
-    let (transport, reused) = match cached(&transport_path, &scene, &settings) {
+    let (transport, reused) = match load_if_baked_with(&transport_path, &scene, &settings) {
         Some(t) => {
             log(&format!(
                 "reusing the bake in {} (scene and settings unchanged)",
@@ -251,24 +250,6 @@ fn short_name(name: &str) -> String {
         .trim_start_matches("blender_")
         .trim_start_matches("pmndrs_city_");
     s.chars().take(10).collect()
-}
-
-/// The cached bake, when it exists, loads, and was made from this scene with these settings.
-fn cached(path: &Path, scene: &Scene, settings: &BakeSettings) -> Option<Transport> {
-    let meta = read_header_meta(path).ok()?;
-    let same = meta.scene_hash == format!("{:016x}", scene.content_hash())
-        && meta.cube_n as usize == settings.cube_n
-        && meta.sh_order as usize == settings.sh_order
-        && meta.spp == settings.spp
-        && meta.texel_samples == settings.texel_samples
-        && meta.threshold == settings.threshold
-        && meta.quantization == settings.quantization()
-        && meta.unshadowed == settings.unshadowed
-        && meta.seed == settings.seed;
-    if !same {
-        return None;
-    }
-    Transport::load(path).ok()
 }
 
 /// The demo's results as a markdown table.

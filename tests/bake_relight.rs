@@ -5,7 +5,7 @@
 use std::f64::consts::PI;
 mod common;
 
-use common::{SPHERE_ON_PLANE, assets, scene_from, temp_dir};
+use common::{SPHERE_ON_PLANE, assets, plane_from_above, scene_from, temp_dir};
 
 use glam::DVec3;
 use wavelet_prt::bake::{BakeSettings, bake};
@@ -60,22 +60,7 @@ fn full_light(cube: &CubeMap) -> SparseLight {
 fn white_furnace_plane_and_convex_sphere() {
     // A plane seen from above and a lone sphere, both unoccluded by anything else, shadows on:
     // under constant radiance c every visible point has radiance albedo x c.
-    let plane = r#"
-[camera]
-eye = [0.0, 3.0, 0.0]
-target = [0.0, 0.0, 0.0]
-up = [0.0, 0.0, -1.0]
-fov_y_deg = 30.0
-width = 9
-height = 7
-[material.m]
-type = "diffuse"
-albedo = [0.5, 0.25, 1.0]
-[[shape]]
-type = "quad"
-corners = [[-50.0, 0.0, -50.0], [-50.0, 0.0, 50.0], [50.0, 0.0, 50.0], [50.0, 0.0, -50.0]]
-material = "m"
-"#;
+    let plane = plane_from_above(9, 7, [0.5, 0.25, 1.0], 50.0);
     let sphere = r#"
 [camera]
 eye = [0.0, 0.0, 4.0]
@@ -97,7 +82,10 @@ material = "m"
     // about 2e-4 of relative error for arbitrary normals.
     const QUADRATURE: f64 = 1e-3;
     let c = [2.0f32, 1.0, 0.5];
-    for (name, text) in [("furnace-plane", plane), ("furnace-sphere", sphere)] {
+    for (name, text) in [
+        ("furnace-plane", plane.as_str()),
+        ("furnace-sphere", sphere),
+    ] {
         let scene = scene_from(text, name);
         let settings = BakeSettings {
             texel_samples: 16,
@@ -269,23 +257,8 @@ fn lossless_relight_equals_the_brute_force_reference() {
 
 #[test]
 fn sh_relight_of_an_unshadowed_plane_is_the_analytic_irradiance() {
-    let plane = r#"
-[camera]
-eye = [0.0, 3.0, 0.0]
-target = [0.0, 0.0, 0.0]
-up = [0.0, 0.0, -1.0]
-fov_y_deg = 30.0
-width = 5
-height = 5
-[material.m]
-type = "diffuse"
-albedo = [1.0, 1.0, 1.0]
-[[shape]]
-type = "quad"
-corners = [[-5.0, 0.0, -5.0], [-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0]]
-material = "m"
-"#;
-    let scene = scene_from(plane, "sh-plane");
+    let plane = plane_from_above(5, 5, [1.0, 1.0, 1.0], 5.0);
+    let scene = scene_from(&plane, "sh-plane");
     let settings = BakeSettings {
         unshadowed: true,
         texel_samples: 16,

@@ -55,3 +55,26 @@ center = [0.0, 0.6, 0.0]
 radius = 0.6
 material = "clay"
 "#;
+
+/// A square quad of half-size `half` at y = 0 with albedo `albedo`, seen straight from above by a
+/// `width` x `height` camera: every pixel sees the plane, whose normal is +Y.
+pub fn plane_from_above(width: u32, height: u32, albedo: [f32; 3], half: f32) -> String {
+    format!(
+        r#"
+[camera]
+eye = [0.0, 3.0, 0.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 0.0, -1.0]
+fov_y_deg = 30.0
+width = {width}
+height = {height}
+[material.m]
+type = "diffuse"
+albedo = {albedo:?}
+[[shape]]
+type = "quad"
+corners = [[-{half:?}, 0.0, -{half:?}], [-{half:?}, 0.0, {half:?}], [{half:?}, 0.0, {half:?}], [{half:?}, 0.0, -{half:?}]]
+material = "m"
+"#
+    )
+}
