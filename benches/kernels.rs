@@ -3,6 +3,8 @@
 //! machine's streaming read bandwidth measured in the same run so relight throughput can be
 //! quoted as a fraction of it.
 //!
+//! `relight_gpu` runs the wgpu kernels when an adapter exists.
+//!
 //! The relight benchmarks bake the demo scene once (256², N = 32) into `target/bench-cache/`;
 //! set `PRT_BENCH_SIZE=512` for a 512² bake.
 
@@ -130,5 +132,41 @@ fn relight(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, spherical, relight);
+/// The GPU kernels, when an adapter exists (a software one such as lavapipe counts: its times
+/// are for the record, not for comparison with a real GPU). Times include the upload of the kept
+/// terms and the image readback.
+fn relight_gpu(c: &mut Criterion) {
+    let gpu = match wavelet_prt::gpu::Gpu::new() {
+        Ok(g) => g,
+        Err(e) => {
+            eprintln!("relight_gpu: skipped: {e}");
+            return;
+        }
+    };
+    eprintln!("relight_gpu: on {}", gpu.adapter);
+    let t = transport();
+    let g = wavelet_prt::gpu::GpuTransport::upload(&gpu, &t, None).unwrap();
+    let ctx = LightContext::new(&t).unwrap();
+    let light = ctx.prepare(&sunrise(), EnvRotation::default()).unwrap();
+    let mut group = c.benchmark_group(format!("relight_gpu_{}", t.meta.width));
+    group.sample_size(10).measurement_time(Duration::from_secs(5));
+    for k in [1, 100, 1000, t.coeff_count()] {
+        let sparse = light
+            .wavelet
+            .select(k, Weighting::Area, &ctx.support_area, None)
+            .unwrap();
+        group.bench_with_input(BenchmarkId::new("wavelet", k), &sparse, |b, s| {
+            b.iter(|| g.relight_wavelet(&gpu, s).unwrap())
+        });
+    }
+    for order in [4, 8] {
+        let sh = light_sh_order(&light.sh, order, t.meta.sh_order as usize).unwrap();
+        group.bench_with_input(BenchmarkId::new("sh", order), &sh, |b, sh| {
+            b.iter(|| g.relight_sh(&gpu, sh).unwrap())
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, spherical, relight, relight_gpu);
 criterion_main!(benches);

@@ -129,7 +129,7 @@ pub struct RelightArgs {
     /// Turn the environment about +X after the yaw, degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub pitch: f64,
-    /// cpu (gpu comes with the GPU back-end).
+    /// cpu or gpu (wgpu; a software adapter such as Mesa's lavapipe works too).
     #[arg(long, default_value = "cpu")]
     pub device: String,
     /// PNG exposure in stops (default: automatic).
@@ -400,12 +400,16 @@ fn info(file: PathBuf) -> Result<()> {
 fn relight_cmd(a: RelightArgs) -> Result<()> {
     let method: Method = a.method.parse()?;
     let weighting: Weighting = a.weighting.parse()?;
-    if a.device != "cpu" {
-        return Err(PrtError::invalid(
-            "device",
-            format!("`{}`; this build relights on the cpu only", a.device),
-        ));
-    }
+    let gpu = match a.device.as_str() {
+        "cpu" => None,
+        "gpu" => Some(crate::gpu::Gpu::new()?),
+        other => {
+            return Err(PrtError::invalid(
+                "device",
+                format!("`{other}`; expected cpu or gpu"),
+            ));
+        }
+    };
     let t = Transport::load(&a.file)?;
     let env = load_env(&a.env)?;
     let ctx = LightContext::new(&t)?;
@@ -424,14 +428,45 @@ fn relight_cmd(a: RelightArgs) -> Result<()> {
         weighting,
         sh_order: a.sh_order.unwrap_or(t.meta.sh_order as usize),
     };
-    let (img, stats) = relight(&t, &ctx, &light, &req)?;
+    let (img, stats) = match &gpu {
+        None => relight(&t, &ctx, &light, &req)?,
+        Some(gpu) => {
+            let upload = Instant::now();
+            let g = crate::gpu::GpuTransport::upload(gpu, &t, None)?;
+            eprintln!(
+                "gpu: {} ({} chunk(s), {} bytes per nonzero, upload {:.0} ms)",
+                gpu.adapter,
+                g.chunk_count(),
+                g.bytes_per_nonzero(),
+                upload.elapsed().as_secs_f64() * 1e3
+            );
+            match method {
+                Method::Sh => g.relight_sh(
+                    gpu,
+                    &crate::relight::light_sh_order(
+                        &light.sh,
+                        req.sh_order,
+                        t.meta.sh_order as usize,
+                    )?,
+                )?,
+                _ => {
+                    let sparse = crate::relight::select_light(&t, &ctx, &light, &req)?;
+                    let (img, mut stats) = g.relight_wavelet(gpu, &sparse)?;
+                    stats.nonzeros_touched = crate::relight::nonzeros_touched(&t, &sparse);
+                    stats.bytes_touched = stats.nonzeros_touched * g.bytes_per_nonzero()
+                        + (t.tile_count() * sparse.len() * 8) as u64;
+                    (img, stats)
+                }
+            }
+        }
+    };
     let tone = match a.exposure {
         Some(e) => ToneMap { exposure: e },
         None => ToneMap::auto(&img, Some(&t.coverage)),
     };
     img.save(&a.output, tone)?;
     println!(
-        "{method}: {} terms{}, {} nonzeros touched ({:.1} MiB), light {:.1} ms, kernel {:.2} ms on the cpu -> {}",
+        "{method}: {} terms{}, {} nonzeros touched ({:.1} MiB), light {:.1} ms, kernel {:.2} ms on the {} -> {}",
         stats.terms,
         if method == Method::Wavelet {
             format!(" ({weighting} weighting)")
@@ -442,6 +477,7 @@ fn relight_cmd(a: RelightArgs) -> Result<()> {
         stats.bytes_touched as f64 / 1048576.0,
         light_ms,
         stats.kernel_seconds * 1e3,
+        a.device,
         a.output.display()
     );
     Ok(())

@@ -26,6 +26,7 @@ pub mod demo;
 pub mod envmap;
 pub mod error;
 pub mod film;
+pub mod gpu;
 pub mod haar;
 pub mod light;
 pub mod metrics;

@@ -107,6 +107,13 @@ impl LightContext {
     /// coefficients); for SH the unturned cube is projected once and its coefficient vector
     /// rotated band by band, which is exact for the projected light.
     pub fn prepare(&self, env: &EnvMap, rotation: EnvRotation) -> Result<PreparedLight> {
+        if rotation == EnvRotation::default() {
+            let cube = env.to_cube(self.n, rotation)?;
+            return Ok(PreparedLight {
+                wavelet: WaveletLight::from_cube(&cube)?,
+                sh: self.basis.project_light(&cube)?,
+            });
+        }
         let unturned = self.prepare_sh(env)?;
         self.prepare_turned(env, &unturned, rotation)
     }
@@ -165,27 +172,49 @@ pub fn relight(
         ));
     }
     match req.method {
-        Method::Wavelet => {
-            let sparse = light.wavelet.select(
-                req.terms,
-                req.weighting,
-                &ctx.support_area,
-                Some(&t.transport_magnitude),
-            )?;
-            relight_wavelet(t, &sparse)
-        }
-        Method::Full => {
-            let sparse = SparseLight {
-                indices: (0..light.wavelet.coeffs.len() as u32).collect(),
-                values: light.wavelet.coeffs.clone(),
-            };
-            relight_wavelet(t, &sparse)
-        }
+        Method::Wavelet | Method::Full => relight_wavelet(t, &select_light(t, ctx, light, req)?),
         Method::Sh => {
             let sh = light_sh_order(&light.sh, req.sh_order, t.meta.sh_order as usize)?;
             relight_sh(t, &sh)
         }
     }
+}
+
+/// The Haar terms a wavelet or full request keeps: the K best by its weighting, or all of them.
+pub fn select_light(
+    t: &Transport,
+    ctx: &LightContext,
+    light: &PreparedLight,
+    req: &RelightRequest,
+) -> Result<SparseLight> {
+    match req.method {
+        Method::Full => Ok(SparseLight {
+            indices: (0..light.wavelet.coeffs.len() as u32).collect(),
+            values: light.wavelet.coeffs.clone(),
+        }),
+        _ => light.wavelet.select(
+            req.terms,
+            req.weighting,
+            &ctx.support_area,
+            Some(&t.transport_magnitude),
+        ),
+    }
+}
+
+/// Transport values the sparse product reads for `light`: the lengths of its kept columns in
+/// every tile.
+pub fn nonzeros_touched(t: &Transport, light: &SparseLight) -> u64 {
+    let c = t.coeff_count();
+    (0..t.tile_count())
+        .map(|tile| {
+            let ptr = &t.col_ptr[tile * (c + 1)..(tile + 1) * (c + 1)];
+            light
+                .indices
+                .iter()
+                .map(|&j| (ptr[j as usize + 1] - ptr[j as usize]) as u64)
+                .sum::<u64>()
+        })
+        .sum()
 }
 
 /// The first `order²` SH coefficients, checked against the baked order.

@@ -1,0 +1,53 @@
+// Shared by the relight pipelines: parameters, the row and pixel tables, and the pixel pass.
+// One workgroup relights one 16 x 16 pixel tile; its 256 threads own the tile's 256 pixels.
+
+struct Params {
+    // First tile of this dispatch (global tile index) and how many tiles it covers.
+    tile_base: u32,
+    tile_count: u32,
+    // Workgroups along x in the dispatch grid (tiles beyond 65535 wrap to y).
+    dispatch_x: u32,
+    // Image width and height, and tiles along x.
+    width: u32,
+    height: u32,
+    tiles_x: u32,
+    // Coefficients per row (6 N^2) for the wavelet pass, SH coefficients per stored row for SH.
+    coeffs: u32,
+    // Light terms in `light` (K, or n^2 for SH).
+    terms: u32,
+    // 1 when entries are packed (row | f16 << 16), 0 when they are (row, f32 bits) pairs.
+    packed: u32,
+    // First global row of this dispatch's buffers (entries and SH rows are stored per chunk).
+    row_base: u32,
+    // Tiles with at most this many rows accumulate in workgroup memory (capped by the shader).
+    shared_rows: u32,
+    _pad: u32,
+};
+
+const TILE: u32 = 16u;
+const WORKGROUP: u32 = 256u;
+
+@group(0) @binding(0) var<uniform> params: Params;
+// tile_rows[t] .. tile_rows[t + 1] are tile t's rows (global row indices).
+@group(0) @binding(1) var<storage, read> tile_rows: array<u32>;
+// Per row: RGB weight in xyz, the global pixel index (bitcast) in w.
+@group(0) @binding(2) var<storage, read> rows: array<vec4<f32>>;
+// Per pixel: linear RGB radiance (xyz). Each pixel belongs to exactly one tile, so only one
+// workgroup writes it.
+@group(0) @binding(4) var<storage, read_write> image: array<vec4<f32>>;
+
+const NO_PIXEL: u32 = 0xffffffffu;
+
+fn tile_of(wid: vec3<u32>) -> u32 {
+    return wid.x + wid.y * params.dispatch_x;
+}
+
+// The image pixel thread `lid` of `tile` owns, or NO_PIXEL past the image's edge.
+fn pixel_of(tile: u32, lid: u32) -> u32 {
+    let x = (tile % params.tiles_x) * TILE + lid % TILE;
+    let y = (tile / params.tiles_x) * TILE + lid / TILE;
+    if (x >= params.width || y >= params.height) {
+        return NO_PIXEL;
+    }
+    return y * params.width + x;
+}

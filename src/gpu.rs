@@ -1,0 +1,545 @@
+//! Relighting on the GPU (wgpu compute): the tiled sparse wavelet product and the SH product of
+//! [`crate::relight`], with the same inputs and the same results.
+//!
+//! One workgroup of [`WORKGROUP_SIZE`] threads relights one 16 x 16 tile (`shaders/common.wgsl`):
+//! for every kept light term it walks that coefficient's column in the tile, each thread taking
+//! every 256th entry. A column holds each row at most once, so the threads of one column never
+//! write the same accumulator, and a barrier between columns orders the rest: no float atomics.
+//! The accumulators sit in workgroup memory (up to 1024 rows per tile, 16 KiB; a tile usually has
+//! one row per pixel and material), in device memory beyond that. Then each thread owns one pixel
+//! and sums its rows. On a real GPU the entries of one column are contiguous, so a warp's loads
+//! coalesce; thousands of tiles keep every compute unit busy. The SH pipeline needs no
+//! cooperation: each thread dots its own pixel's SH rows with the SH light.
+//!
+//! The transport is uploaded once. Matrices larger than the device's storage-binding limit are
+//! split by tiles into chunks, each with its own buffers and dispatch. Per relight, only the kept
+//! light terms (16 bytes each) and a few parameters go up.
+
+use std::time::Instant;
+
+use wgpu::util::DeviceExt;
+
+use crate::error::{PrtError, Result};
+use crate::film::Image;
+use crate::light::SparseLight;
+use crate::relight::RelightStats;
+use crate::transport::{Transport, Values, tile_grid};
+
+/// Threads per workgroup: one per pixel of a tile. Must match `WORKGROUP` in the shaders.
+pub const WORKGROUP_SIZE: u32 = (crate::transport::TILE * crate::transport::TILE) as u32;
+/// Most workgroups along one dispatch dimension (WebGPU's guaranteed minimum).
+const MAX_DISPATCH: u32 = 65535;
+
+/// Uniform parameters of one dispatch; the layout of `Params` in `shaders/common.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    tile_base: u32,
+    tile_count: u32,
+    dispatch_x: u32,
+    width: u32,
+    height: u32,
+    tiles_x: u32,
+    coeffs: u32,
+    terms: u32,
+    packed: u32,
+    row_base: u32,
+    shared_rows: u32,
+    _pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<Params>() == 48);
+
+/// A device, its queue and the two relight pipelines.
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    /// Name, back-end and driver of the adapter, for messages.
+    pub adapter: String,
+    wavelet: wgpu::ComputePipeline,
+    sh: wgpu::ComputePipeline,
+}
+
+fn shader_source(pipeline: &str) -> String {
+    let specific = match pipeline {
+        "wavelet" => include_str!("../shaders/relight_wavelet.wgsl"),
+        _ => include_str!("../shaders/relight_sh.wgsl"),
+    };
+    format!("{}\n{}", include_str!("../shaders/common.wgsl"), specific)
+}
+
+impl Gpu {
+    /// Opens the first adapter wgpu finds (honouring `WGPU_BACKEND` and the other wgpu
+    /// environment variables) with its full limits. Without an adapter the error says what to
+    /// install.
+    pub fn new() -> Result<Gpu> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            ..Default::default()
+        }))
+        .map_err(|e| {
+            PrtError::Gpu(format!(
+                "no GPU adapter ({e}); without a GPU, install Mesa's software drivers \
+                 (Debian/Ubuntu: apt-get install mesa-vulkan-drivers) or use --device cpu"
+            ))
+        })?;
+        let info = adapter.get_info();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("wavelet-prt relight"),
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .map_err(|e| PrtError::Gpu(format!("opening {}: {e}", info.name)))?;
+        let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
+        Gpu::from_device(device, queue, name)
+    }
+
+    /// Builds the pipelines on a device the caller already has (the viewer shares its own).
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, adapter: String) -> Result<Gpu> {
+        let make = |name: &str| {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(name),
+                source: wgpu::ShaderSource::Wgsl(shader_source(name).into()),
+            });
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: None,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let wavelet = make("wavelet");
+        let sh = make("sh");
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!(
+                "building the relight pipelines: {e}"
+            )));
+        }
+        Ok(Gpu {
+            device,
+            queue,
+            adapter,
+            wavelet,
+            sh,
+        })
+    }
+
+    /// The largest storage buffer one binding may hold on this device.
+    pub fn max_binding_bytes(&self) -> u64 {
+        let l = self.device.limits();
+        l.max_storage_buffer_binding_size.min(l.max_buffer_size)
+    }
+}
+
+/// Tiles whose entries, column pointers and SH rows share one set of buffers.
+struct Chunk {
+    tiles: std::ops::Range<usize>,
+    params: wgpu::Buffer,
+    wavelet_group: wgpu::BindGroup,
+    sh_group: wgpu::BindGroup,
+}
+
+/// A transport resident on the GPU.
+pub struct GpuTransport {
+    width: usize,
+    height: usize,
+    coeffs: usize,
+    sh_count: usize,
+    rows: usize,
+    entries: u64,
+    entry_bytes: u64,
+    chunks: Vec<Chunk>,
+    light: wgpu::Buffer,
+    image: wgpu::Buffer,
+    readback: wgpu::Buffer,
+}
+
+fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    // Bindings may not be empty: pad to one vec4.
+    let mut data = bytes.to_vec();
+    if data.len() < 16 {
+        data.resize(16, 0);
+    }
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: &data,
+        usage: wgpu::BufferUsages::STORAGE,
+    })
+}
+
+impl GpuTransport {
+    /// Uploads `t`. `max_binding_bytes` caps every storage binding (default: the device's limit;
+    /// tests lower it to exercise the split into chunks).
+    pub fn upload(gpu: &Gpu, t: &Transport, max_binding_bytes: Option<u64>) -> Result<Self> {
+        let device = &gpu.device;
+        let limit = max_binding_bytes
+            .unwrap_or(u64::MAX)
+            .min(gpu.max_binding_bytes());
+        let (w, h) = (t.meta.width as usize, t.meta.height as usize);
+        let (tiles_x, _) = tile_grid(w, h);
+        let c = t.coeff_count();
+        let shc = t.sh_count();
+        let rows = t.row_pixel.len();
+        let packed = matches!(t.values, Values::F16(_));
+        let entry_bytes: u64 = if packed { 4 } else { 8 };
+        let ptr_bytes = (c as u64 + 1) * 4;
+        for (what, bytes) in [
+            ("row table", rows as u64 * 16),
+            ("image", (w * h) as u64 * 16),
+            ("tile pointers", ptr_bytes),
+        ] {
+            if bytes > limit {
+                return Err(PrtError::Gpu(format!(
+                    "the {what} needs {bytes} bytes in one binding; this device allows {limit}"
+                )));
+            }
+        }
+        let tile_rows = storage(device, "tile rows", bytemuck::cast_slice(&t.tile_row_start));
+        let row_data: Vec<[f32; 4]> = t
+            .row_weight
+            .iter()
+            .zip(&t.row_pixel)
+            .map(|(wgt, p)| [wgt[0], wgt[1], wgt[2], f32::from_bits(*p)])
+            .collect();
+        let row_buf = storage(device, "rows", bytemuck::cast_slice(&row_data));
+        let acc = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("row accumulators"),
+            size: (rows.max(1) * 16) as u64,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let image_bytes = (w * h * 16) as u64;
+        let image = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("image"),
+            size: image_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("image readback"),
+            size: image_bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let light = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("light terms"),
+            size: (c.max(shc) * 16) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        // Split the tiles into chunks whose entries, pointers and SH rows each fit one binding.
+        let mut chunks = Vec::new();
+        let tiles = t.tile_count();
+        let mut start = 0;
+        while start < tiles {
+            let mut end = start;
+            loop {
+                let next = end + 1;
+                let entries = t.tile_entry_start[next] - t.tile_entry_start[start];
+                let rows_in = (t.tile_row_start[next] - t.tile_row_start[start]) as u64;
+                let fits = entries * entry_bytes <= limit
+                    && (next - start) as u64 * ptr_bytes <= limit
+                    && rows_in * shc as u64 * 4 <= limit;
+                if !fits {
+                    break;
+                }
+                end = next;
+                if end == tiles {
+                    break;
+                }
+            }
+            if end == start {
+                return Err(PrtError::Gpu(format!(
+                    "tile {start} alone does not fit a {limit}-byte binding"
+                )));
+            }
+            chunks.push(Self::chunk(
+                gpu,
+                t,
+                start..end,
+                packed,
+                tiles_x,
+                [&tile_rows, &row_buf, &acc, &image, &light],
+            )?);
+            start = end;
+        }
+        Ok(GpuTransport {
+            width: w,
+            height: h,
+            coeffs: c,
+            sh_count: shc,
+            rows,
+            entries: t.entry_row.len() as u64,
+            entry_bytes,
+            chunks,
+            light,
+            image,
+            readback,
+        })
+    }
+
+    fn chunk(
+        gpu: &Gpu,
+        t: &Transport,
+        tiles: std::ops::Range<usize>,
+        packed: bool,
+        tiles_x: usize,
+        [tile_rows, rows, acc, image, light]: [&wgpu::Buffer; 5],
+    ) -> Result<Chunk> {
+        let device = &gpu.device;
+        let c = t.coeff_count();
+        let (e0, e1) = (
+            t.tile_entry_start[tiles.start] as usize,
+            t.tile_entry_start[tiles.end] as usize,
+        );
+        let entries: Vec<u32> = match &t.values {
+            Values::F16(v) => t.entry_row[e0..e1]
+                .iter()
+                .zip(&v[e0..e1])
+                .map(|(&r, x)| r as u32 | (x.to_bits() as u32) << 16)
+                .collect(),
+            Values::F32(v) => t.entry_row[e0..e1]
+                .iter()
+                .zip(&v[e0..e1])
+                .flat_map(|(&r, x)| [r as u32, x.to_bits()])
+                .collect(),
+        };
+        // Column pointers relative to the chunk's first entry.
+        let mut ptrs = Vec::with_capacity(tiles.len() * (c + 1));
+        for tile in tiles.clone() {
+            let base = (t.tile_entry_start[tile] as usize - e0) as u32;
+            ptrs.extend(
+                t.col_ptr[tile * (c + 1)..(tile + 1) * (c + 1)]
+                    .iter()
+                    .map(|p| p + base),
+            );
+        }
+        let (r0, r1) = (
+            t.tile_row_start[tiles.start] as usize,
+            t.tile_row_start[tiles.end] as usize,
+        );
+        let shc = t.sh_count();
+        let entry_buf = storage(device, "entries", bytemuck::cast_slice(&entries));
+        let ptr_buf = storage(device, "column pointers", bytemuck::cast_slice(&ptrs));
+        let sh_buf = storage(
+            device,
+            "sh rows",
+            bytemuck::cast_slice(&t.sh[r0 * shc..r1 * shc]),
+        );
+        let count = tiles.len() as u32;
+        let dispatch_x = count.min(MAX_DISPATCH);
+        let params = Params {
+            tile_base: tiles.start as u32,
+            tile_count: count,
+            dispatch_x,
+            width: t.meta.width,
+            height: t.meta.height,
+            tiles_x: tiles_x as u32,
+            coeffs: c as u32,
+            terms: 0,
+            packed: packed as u32,
+            row_base: r0 as u32,
+            shared_rows: u32::MAX,
+            _pad: 0,
+        };
+        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("params"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        });
+        let shared = [(0, &params), (1, tile_rows), (2, rows), (4, image)];
+        let group = |pipeline: &wgpu::ComputePipeline, extra: &[(u32, &wgpu::Buffer)]| {
+            let entries: Vec<wgpu::BindGroupEntry> = shared
+                .iter()
+                .chain(extra)
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: *i,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &entries,
+            })
+        };
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let wavelet_group = group(
+            &gpu.wavelet,
+            &[(3, acc), (5, &entry_buf), (6, &ptr_buf), (7, light)],
+        );
+        let sh_group = group(&gpu.sh, &[(5, &sh_buf), (7, light)]);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!("binding the transport: {e}")));
+        }
+        Ok(Chunk {
+            tiles,
+            params,
+            wavelet_group,
+            sh_group,
+        })
+    }
+
+    /// Makes tiles with more than `rows` rows accumulate in device memory instead of workgroup
+    /// memory (the shader caps it at 1024). Tests set 0 to exercise that path.
+    pub fn set_shared_rows(&self, gpu: &Gpu, rows: u32) {
+        for chunk in &self.chunks {
+            gpu.queue
+                .write_buffer(&chunk.params, 40, bytemuck::bytes_of(&rows));
+        }
+    }
+
+    /// Number of chunks the transport was split into.
+    pub fn chunk_count(&self) -> usize {
+        self.chunks.len()
+    }
+
+    /// Bytes per stored nonzero on the device.
+    pub fn bytes_per_nonzero(&self) -> u64 {
+        self.entry_bytes
+    }
+
+    /// Wavelet relighting with the kept terms of `light`.
+    pub fn relight_wavelet(&self, gpu: &Gpu, light: &SparseLight) -> Result<(Image, RelightStats)> {
+        if light.indices.iter().any(|&j| j as usize >= self.coeffs) || light.is_empty() {
+            return Err(PrtError::invalid(
+                "light",
+                format!(
+                    "its terms do not fit a transport with {} coefficients",
+                    self.coeffs
+                ),
+            ));
+        }
+        let terms: Vec<[f32; 4]> = light
+            .indices
+            .iter()
+            .zip(&light.values)
+            .map(|(j, v)| [v[0], v[1], v[2], f32::from_bits(*j)])
+            .collect();
+        let (image, seconds) = self.run(gpu, &terms, true)?;
+        Ok((
+            image,
+            RelightStats {
+                terms: terms.len(),
+                // Not counted on the device; see `relight::nonzeros_touched`.
+                nonzeros_touched: 0,
+                bytes_touched: 0,
+                kernel_seconds: seconds,
+            },
+        ))
+    }
+
+    /// SH relighting with the first `sh.len()` SH coefficients of every row.
+    pub fn relight_sh(&self, gpu: &Gpu, sh: &[[f64; 3]]) -> Result<(Image, RelightStats)> {
+        if sh.is_empty() || sh.len() > self.sh_count {
+            return Err(PrtError::invalid(
+                "SH light",
+                format!(
+                    "{} coefficients for a transport baked with {}",
+                    sh.len(),
+                    self.sh_count
+                ),
+            ));
+        }
+        let terms: Vec<[f32; 4]> = sh
+            .iter()
+            .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32, 0.0])
+            .collect();
+        let (image, seconds) = self.run(gpu, &terms, false)?;
+        let touched = (self.rows * sh.len()) as u64;
+        Ok((
+            image,
+            RelightStats {
+                terms: sh.len(),
+                nonzeros_touched: touched,
+                bytes_touched: touched * 4,
+                kernel_seconds: seconds,
+            },
+        ))
+    }
+
+    /// Uploads the terms, dispatches every chunk, reads the image back. Returns the image and
+    /// the wall time from submission to completion.
+    fn run(&self, gpu: &Gpu, terms: &[[f32; 4]], wavelet: bool) -> Result<(Image, f64)> {
+        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        gpu.queue
+            .write_buffer(&self.light, 0, bytemuck::cast_slice(terms));
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("relight"),
+            });
+        for chunk in &self.chunks {
+            // `terms` sits at word 7 of Params; `coeffs` (word 6) is the SH row stride for SH.
+            let mut words = [0u32; 2];
+            words[0] = if wavelet { self.coeffs } else { self.sh_count } as u32;
+            words[1] = terms.len() as u32;
+            gpu.queue
+                .write_buffer(&chunk.params, 24, bytemuck::cast_slice(&words));
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("relight"),
+                timestamp_writes: None,
+            });
+            let (pipeline, group) = if wavelet {
+                (&gpu.wavelet, &chunk.wavelet_group)
+            } else {
+                (&gpu.sh, &chunk.sh_group)
+            };
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
+            let count = chunk.tiles.len() as u32;
+            let x = count.min(MAX_DISPATCH);
+            pass.dispatch_workgroups(x, count.div_ceil(x), 1);
+        }
+        // Each chunk has its own parameter buffer, and queued writes land before the submission
+        // that follows them; chunks touch disjoint tiles, rows and pixels.
+        encoder.copy_buffer_to_buffer(&self.image, 0, &self.readback, 0, self.image.size());
+        let start = Instant::now();
+        gpu.queue.submit([encoder.finish()]);
+        let slice = self.readback.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        gpu.device
+            .poll(wgpu::PollType::Wait {
+                submission_index: None,
+                timeout: None,
+            })
+            .map_err(|e| PrtError::Gpu(format!("waiting for the relight: {e}")))?;
+        let seconds = start.elapsed().as_secs_f64();
+        rx.recv()
+            .map_err(|_| PrtError::Gpu("the readback was dropped".into()))?
+            .map_err(|e| PrtError::Gpu(format!("reading the image back: {e}")))?;
+        let pixels = {
+            let view = slice
+                .get_mapped_range()
+                .map_err(|e| PrtError::Gpu(format!("reading the image back: {e:?}")))?;
+            let data: &[[f32; 4]] = bytemuck::cast_slice(&view);
+            data.iter().map(|p| [p[0], p[1], p[2]]).collect()
+        };
+        self.readback.unmap();
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!("relight: {e}")));
+        }
+        Ok((
+            Image {
+                width: self.width,
+                height: self.height,
+                pixels,
+            },
+            seconds,
+        ))
+    }
+
+    /// Entries on the device, for reporting.
+    pub fn nonzeros(&self) -> u64 {
+        self.entries
+    }
+}
