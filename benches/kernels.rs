@@ -149,7 +149,9 @@ fn relight_gpu(c: &mut Criterion) {
     let ctx = LightContext::new(&t).unwrap();
     let light = ctx.prepare(&sunrise(), EnvRotation::default()).unwrap();
     let mut group = c.benchmark_group(format!("relight_gpu_{}", t.meta.width));
-    group.sample_size(10).measurement_time(Duration::from_secs(5));
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(5));
     for k in [1, 100, 1000, t.coeff_count()] {
         let sparse = light
             .wavelet

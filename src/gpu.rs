@@ -57,14 +57,23 @@ pub struct Gpu {
     pub adapter: String,
     wavelet: wgpu::ComputePipeline,
     sh: wgpu::ComputePipeline,
+    to_texture: wgpu::ComputePipeline,
 }
 
 fn shader_source(pipeline: &str) -> String {
-    let specific = match pipeline {
-        "wavelet" => include_str!("../shaders/relight_wavelet.wgsl"),
-        _ => include_str!("../shaders/relight_sh.wgsl"),
-    };
-    format!("{}\n{}", include_str!("../shaders/common.wgsl"), specific)
+    match pipeline {
+        "wavelet" => format!(
+            "{}\n{}",
+            include_str!("../shaders/common.wgsl"),
+            include_str!("../shaders/relight_wavelet.wgsl")
+        ),
+        "sh" => format!(
+            "{}\n{}",
+            include_str!("../shaders/common.wgsl"),
+            include_str!("../shaders/relight_sh.wgsl")
+        ),
+        _ => include_str!("../shaders/to_texture.wgsl").to_string(),
+    }
 }
 
 impl Gpu {
@@ -116,6 +125,7 @@ impl Gpu {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let wavelet = make("wavelet");
         let sh = make("sh");
+        let to_texture = make("to_texture");
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!(
                 "building the relight pipelines: {e}"
@@ -127,6 +137,7 @@ impl Gpu {
             adapter,
             wavelet,
             sh,
+            to_texture,
         })
     }
 
@@ -405,9 +416,11 @@ impl GpuTransport {
         self.entry_bytes
     }
 
-    /// Wavelet relighting with the kept terms of `light`.
-    pub fn relight_wavelet(&self, gpu: &Gpu, light: &SparseLight) -> Result<(Image, RelightStats)> {
-        if light.indices.iter().any(|&j| j as usize >= self.coeffs) || light.is_empty() {
+    fn wavelet_terms(&self, light: &SparseLight) -> Result<Vec<[f32; 4]>> {
+        if light.indices.iter().any(|&j| j as usize >= self.coeffs)
+            || light.is_empty()
+            || light.indices.len() != light.values.len()
+        {
             return Err(PrtError::invalid(
                 "light",
                 format!(
@@ -416,12 +429,34 @@ impl GpuTransport {
                 ),
             ));
         }
-        let terms: Vec<[f32; 4]> = light
+        Ok(light
             .indices
             .iter()
             .zip(&light.values)
             .map(|(j, v)| [v[0], v[1], v[2], f32::from_bits(*j)])
-            .collect();
+            .collect())
+    }
+
+    fn sh_terms(&self, sh: &[[f64; 3]]) -> Result<Vec<[f32; 4]>> {
+        if sh.is_empty() || sh.len() > self.sh_count {
+            return Err(PrtError::invalid(
+                "SH light",
+                format!(
+                    "{} coefficients for a transport baked with {}",
+                    sh.len(),
+                    self.sh_count
+                ),
+            ));
+        }
+        Ok(sh
+            .iter()
+            .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32, 0.0])
+            .collect())
+    }
+
+    /// Wavelet relighting with the kept terms of `light`, read back.
+    pub fn relight_wavelet(&self, gpu: &Gpu, light: &SparseLight) -> Result<(Image, RelightStats)> {
+        let terms = self.wavelet_terms(light)?;
         let (image, seconds) = self.run(gpu, &terms, true)?;
         Ok((
             image,
@@ -435,22 +470,9 @@ impl GpuTransport {
         ))
     }
 
-    /// SH relighting with the first `sh.len()` SH coefficients of every row.
+    /// SH relighting with the first `sh.len()` SH coefficients of every row, read back.
     pub fn relight_sh(&self, gpu: &Gpu, sh: &[[f64; 3]]) -> Result<(Image, RelightStats)> {
-        if sh.is_empty() || sh.len() > self.sh_count {
-            return Err(PrtError::invalid(
-                "SH light",
-                format!(
-                    "{} coefficients for a transport baked with {}",
-                    sh.len(),
-                    self.sh_count
-                ),
-            ));
-        }
-        let terms: Vec<[f32; 4]> = sh
-            .iter()
-            .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32, 0.0])
-            .collect();
+        let terms = self.sh_terms(sh)?;
         let (image, seconds) = self.run(gpu, &terms, false)?;
         let touched = (self.rows * sh.len()) as u64;
         Ok((
@@ -464,22 +486,46 @@ impl GpuTransport {
         ))
     }
 
-    /// Uploads the terms, dispatches every chunk, reads the image back. Returns the image and
-    /// the wall time from submission to completion.
-    fn run(&self, gpu: &Gpu, terms: &[[f32; 4]], wavelet: bool) -> Result<(Image, f64)> {
-        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+    /// Wavelet relighting into `texture` (RGBA32F, storage-binding usage, the image's size),
+    /// with no readback: for display.
+    pub fn relight_wavelet_to_texture(
+        &self,
+        gpu: &Gpu,
+        light: &SparseLight,
+        texture: &wgpu::Texture,
+    ) -> Result<()> {
+        let terms = self.wavelet_terms(light)?;
+        self.run_to_texture(gpu, &terms, true, texture)
+    }
+
+    /// SH relighting into `texture`, as [`GpuTransport::relight_wavelet_to_texture`].
+    pub fn relight_sh_to_texture(
+        &self,
+        gpu: &Gpu,
+        sh: &[[f64; 3]],
+        texture: &wgpu::Texture,
+    ) -> Result<()> {
+        let terms = self.sh_terms(sh)?;
+        self.run_to_texture(gpu, &terms, false, texture)
+    }
+
+    /// Uploads the terms and records one dispatch per chunk.
+    fn encode(
+        &self,
+        gpu: &Gpu,
+        terms: &[[f32; 4]],
+        wavelet: bool,
+        encoder: &mut wgpu::CommandEncoder,
+    ) {
         gpu.queue
             .write_buffer(&self.light, 0, bytemuck::cast_slice(terms));
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("relight"),
-            });
         for chunk in &self.chunks {
-            // `terms` sits at word 7 of Params; `coeffs` (word 6) is the SH row stride for SH.
-            let mut words = [0u32; 2];
-            words[0] = if wavelet { self.coeffs } else { self.sh_count } as u32;
-            words[1] = terms.len() as u32;
+            // `coeffs` (word 6 of Params) is the row stride: 6 N² for wavelets, n² for SH;
+            // `terms` is word 7.
+            let words = [
+                if wavelet { self.coeffs } else { self.sh_count } as u32,
+                terms.len() as u32,
+            ];
             gpu.queue
                 .write_buffer(&chunk.params, 24, bytemuck::cast_slice(&words));
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -499,6 +545,91 @@ impl GpuTransport {
         }
         // Each chunk has its own parameter buffer, and queued writes land before the submission
         // that follows them; chunks touch disjoint tiles, rows and pixels.
+    }
+
+    fn run_to_texture(
+        &self,
+        gpu: &Gpu,
+        terms: &[[f32; 4]],
+        wavelet: bool,
+        texture: &wgpu::Texture,
+    ) -> Result<()> {
+        let size = texture.size();
+        if (size.width as usize, size.height as usize) != (self.width, self.height)
+            || texture.format() != wgpu::TextureFormat::Rgba32Float
+        {
+            return Err(PrtError::invalid(
+                "texture",
+                format!(
+                    "{}x{} {:?}; expected {}x{} Rgba32Float",
+                    size.width,
+                    size.height,
+                    texture.format(),
+                    self.width,
+                    self.height
+                ),
+            ));
+        }
+        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("relight to texture"),
+            });
+        self.encode(gpu, terms, wavelet, &mut encoder);
+        let dims = [self.width as u32, self.height as u32];
+        let size_buf = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("texture size"),
+                contents: bytemuck::cast_slice(&dims),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let view = texture.create_view(&Default::default());
+        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("to texture"),
+            layout: &gpu.to_texture.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: size_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: self.image.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+            ],
+        });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("to texture"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&gpu.to_texture);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(dims[0].div_ceil(16), dims[1].div_ceil(16), 1);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!("relight to texture: {e}")));
+        }
+        Ok(())
+    }
+
+    /// Records the relight, reads the image back. Returns the image and the wall time from
+    /// submission to completion.
+    fn run(&self, gpu: &Gpu, terms: &[[f32; 4]], wavelet: bool) -> Result<(Image, f64)> {
+        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("relight"),
+            });
+        self.encode(gpu, terms, wavelet, &mut encoder);
         encoder.copy_buffer_to_buffer(&self.image, 0, &self.readback, 0, self.image.size());
         let start = Instant::now();
         gpu.queue.submit([encoder.finish()]);

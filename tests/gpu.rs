@@ -129,3 +129,91 @@ fn bad_lights_are_errors_on_the_gpu_too() {
     assert!(g.relight_wavelet(&gpu, &bad).is_err());
     assert!(g.relight_sh(&gpu, &vec![[1.0; 3]; 10]).is_err());
 }
+
+/// Reads an RGBA32F texture back through a buffer with 256-byte aligned rows.
+fn read_texture(gpu: &Gpu, texture: &wgpu::Texture) -> Vec<[f32; 4]> {
+    let (w, h) = (texture.width() as usize, texture.height() as usize);
+    let row = (w * 16).div_ceil(256) * 256;
+    let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: (row * h) as u64,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    encoder.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row as u32),
+                rows_per_image: None,
+            },
+        },
+        texture.size(),
+    );
+    gpu.queue.submit([encoder.finish()]);
+    buffer
+        .slice(..)
+        .map_async(wgpu::MapMode::Read, |r| r.unwrap());
+    gpu.device
+        .poll(wgpu::PollType::Wait {
+            submission_index: None,
+            timeout: None,
+        })
+        .unwrap();
+    let view = buffer.slice(..).get_mapped_range().unwrap();
+    let mut out = Vec::with_capacity(w * h);
+    for y in 0..h {
+        let line: &[[f32; 4]] = bytemuck::cast_slice(&view[y * row..y * row + w * 16]);
+        out.extend_from_slice(line);
+    }
+    out
+}
+
+#[test]
+fn relight_into_a_texture_equals_the_read_back_image() {
+    let Some(gpu) = gpu_or_skip("relight_into_a_texture_equals_the_read_back_image") else {
+        return;
+    };
+    let t = &bakes()[1];
+    let g = GpuTransport::upload(&gpu, t, None).unwrap();
+    let ctx = LightContext::new(t).unwrap();
+    let env = EnvMap::load(&assets().join("envmaps/blender_city.exr")).unwrap();
+    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
+    let sparse = light
+        .wavelet
+        .select(50, Weighting::Area, &ctx.support_area, None)
+        .unwrap();
+    let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d {
+            width: t.meta.width,
+            height: t.meta.height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba32Float,
+        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let (buffered, _) = g.relight_wavelet(&gpu, &sparse).unwrap();
+    g.relight_wavelet_to_texture(&gpu, &sparse, &texture)
+        .unwrap();
+    let texels = read_texture(&gpu, &texture);
+    assert_eq!(texels.len(), buffered.pixels.len());
+    for (a, b) in texels.iter().zip(&buffered.pixels) {
+        assert_eq!([a[0], a[1], a[2]], *b);
+    }
+    assert!(buffered.pixels.iter().any(|p| p[0] > 0.0));
+    let sh = light_sh_order(&light.sh, 2, 3).unwrap();
+    let (buffered, _) = g.relight_sh(&gpu, &sh).unwrap();
+    g.relight_sh_to_texture(&gpu, &sh, &texture).unwrap();
+    let texels = read_texture(&gpu, &texture);
+    for (a, b) in texels.iter().zip(&buffered.pixels) {
+        assert_eq!([a[0], a[1], a[2]], *b);
+    }
+}
