@@ -7,13 +7,18 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use crate::bake::{BakeSettings, bake};
 use crate::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
 use crate::film::Image;
+use crate::gpu::{Gpu, GpuTransport};
 use crate::light::Weighting;
-use crate::metrics::{ErrorReport, compare};
+use crate::metrics::{ErrorReport, compare, relative_l2};
 use crate::plot::{self, PlotSpec, Series};
-use crate::relight::{LightContext, Method, RelightRequest, RelightStats, relight};
+use crate::relight::{
+    LightContext, Method, RelightRequest, RelightStats, light_sh_order, relight, select_light,
+};
+use crate::scene::Scene;
 use crate::transport::Transport;
 
 /// Error levels the summary reports the needed terms for.
@@ -93,8 +98,12 @@ pub struct BenchPoint {
     /// For wavelets: relative L2 of the light approximation itself, ‖L − L_K‖ / ‖L‖ over the Haar
     /// coefficients (Parseval: the same over texels). Non-increasing in K for unweighted selection.
     pub light_rel_l2: Option<f64>,
+    /// Relative L2 against the brute-force reference, when one was rendered.
+    pub reference_rel_l2: Option<f64>,
     /// Median CPU kernel time, milliseconds.
     pub cpu_ms: f64,
+    /// Median GPU time (terms upload, kernels, readback), milliseconds, when a GPU was used.
+    pub gpu_ms: Option<f64>,
     pub bytes_touched: u64,
 }
 
@@ -127,20 +136,42 @@ fn timed(
     Ok((img, stats, times[times.len() / 2]))
 }
 
+/// Optional extras of a sweep: the GPU kernels, and brute-force references (one per
+/// environment, in order) to report every point's error against ground truth too.
+#[derive(Default)]
+pub struct BenchExtras<'a> {
+    pub gpu: Option<(&'a Gpu, &'a GpuTransport)>,
+    pub references: Option<&'a [Image]>,
+}
+
 /// Runs the sweep. `progress(done, total)` is called after every point.
 pub fn run(
     t: &Transport,
     envs: &[(String, EnvMap)],
     opts: &BenchOptions,
+    extras: &BenchExtras,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<BenchPoint>> {
     opts.validate(t)?;
+    if let Some(r) = extras.references
+        && r.len() != envs.len()
+    {
+        return Err(PrtError::invalid(
+            "references",
+            format!(
+                "{} reference images for {} environments",
+                r.len(),
+                envs.len()
+            ),
+        ));
+    }
     let ctx = LightContext::new(t)?;
-    let total = envs.len() * (opts.terms.len() * opts.weightings.len() + opts.sh_orders.len());
+    let total = envs.len() * (opts.terms.len() * opts.weightings.len() + opts.sh_orders.len() + 1);
     let mut points = Vec::with_capacity(total);
     let mask = Some(t.coverage.as_slice());
-    for (name, env) in envs {
+    for (e, (name, env)) in envs.iter().enumerate() {
         let light = ctx.prepare(env, EnvRotation::default())?;
+        let reference = extras.references.map(|r| &r[e]);
         let full_req = RelightRequest {
             method: Method::Full,
             terms: 0,
@@ -148,6 +179,33 @@ pub fn run(
             sh_order: 1,
         };
         let (full, _) = relight(t, &ctx, &light, &full_req)?;
+        // One measured point: CPU (and GPU) timings and every error.
+        let mut measure = |req: RelightRequest, light_rel_l2: Option<f64>| -> Result<()> {
+            let (img, stats, cpu_ms) = timed(t, &ctx, &light, &req)?;
+            let gpu_ms = match extras.gpu {
+                Some((gpu, g)) => Some(timed_gpu(gpu, g, t, &ctx, &light, &req)?),
+                None => None,
+            };
+            points.push(BenchPoint {
+                env: name.clone(),
+                method: req.method,
+                weighting: (req.method == Method::Wavelet).then_some(req.weighting),
+                terms: stats.terms,
+                light_rel_l2,
+                error: compare(&img, &full, mask)?,
+                reference_rel_l2: match reference {
+                    Some(r) => Some(relative_l2(&img, r, mask)?),
+                    None => None,
+                },
+                cpu_ms,
+                gpu_ms,
+                bytes_touched: stats.bytes_touched,
+            });
+            progress(points.len(), total);
+            Ok(())
+        };
+        let energy = |c: &[f32; 3]| c.iter().map(|v| (*v as f64).powi(2)).sum::<f64>();
+        let total_energy: f64 = light.wavelet.coeffs.iter().map(energy).sum();
         for &w in &opts.weightings {
             for &k in &opts.terms {
                 let req = RelightRequest {
@@ -156,63 +214,67 @@ pub fn run(
                     weighting: w,
                     ..full_req
                 };
-                let (img, stats, ms) = timed(t, &ctx, &light, &req)?;
-                let kept =
-                    light
-                        .wavelet
-                        .select(k, w, &ctx.support_area, Some(&t.transport_magnitude))?;
-                let energy = |c: &[f32; 3]| c.iter().map(|v| (*v as f64).powi(2)).sum::<f64>();
-                let total_energy: f64 = light.wavelet.coeffs.iter().map(energy).sum();
+                let kept = select_light(t, &ctx, &light, &req)?;
                 let kept_energy: f64 = kept.values.iter().map(energy).sum();
-                points.push(BenchPoint {
-                    env: name.clone(),
-                    method: Method::Wavelet,
-                    weighting: Some(w),
-                    terms: stats.terms,
-                    light_rel_l2: Some(
-                        ((total_energy - kept_energy).max(0.0)
-                            / total_energy.max(f64::MIN_POSITIVE))
-                        .sqrt(),
-                    ),
-                    error: compare(&img, &full, mask)?,
-                    cpu_ms: ms,
-                    bytes_touched: stats.bytes_touched,
-                });
-                progress(points.len(), total);
+                let light_error = ((total_energy - kept_energy).max(0.0)
+                    / total_energy.max(f64::MIN_POSITIVE))
+                .sqrt();
+                measure(req, Some(light_error))?;
             }
         }
         for &o in &opts.sh_orders {
-            let req = RelightRequest {
-                method: Method::Sh,
-                sh_order: o,
-                ..full_req
-            };
-            let (img, stats, ms) = timed(t, &ctx, &light, &req)?;
-            points.push(BenchPoint {
-                env: name.clone(),
-                method: Method::Sh,
-                weighting: None,
-                terms: stats.terms,
-                light_rel_l2: None,
-                error: compare(&img, &full, mask)?,
-                cpu_ms: ms,
-                bytes_touched: stats.bytes_touched,
-            });
-            progress(points.len(), total);
+            measure(
+                RelightRequest {
+                    method: Method::Sh,
+                    sh_order: o,
+                    ..full_req
+                },
+                None,
+            )?;
         }
+        measure(full_req, Some(0.0))?;
     }
     Ok(points)
 }
 
-/// The points as CSV, one line each.
+/// Median wall time of the GPU relight of `req` (upload of the terms, kernels, readback), ms.
+fn timed_gpu(
+    gpu: &Gpu,
+    g: &GpuTransport,
+    t: &Transport,
+    ctx: &LightContext,
+    light: &crate::relight::PreparedLight,
+    req: &RelightRequest,
+) -> Result<f64> {
+    let mut times = Vec::with_capacity(TIMING_RUNS);
+    for _ in 0..TIMING_RUNS {
+        let stats = match req.method {
+            Method::Sh => {
+                g.relight_sh(gpu, &light_sh_order(&light.sh, req.sh_order, ctx.sh_order)?)?
+                    .1
+            }
+            _ => {
+                g.relight_wavelet(gpu, &select_light(t, ctx, light, req)?)?
+                    .1
+            }
+        };
+        times.push(stats.kernel_seconds * 1e3);
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(times[times.len() / 2])
+}
+
+/// The points as CSV, one line each. Empty fields: not applicable or not measured.
 pub fn csv(points: &[BenchPoint]) -> String {
     let mut s = String::from(
-        "environment,method,weighting,terms,rel_l2,rel_h1,dssim,psnr_db,rmse,light_rel_l2,cpu_ms,bytes_touched\n",
+        "environment,method,weighting,terms,rel_l2,rel_h1,dssim,psnr_db,rmse,light_rel_l2,\
+         reference_rel_l2,cpu_ms,gpu_ms,bytes_touched\n",
     );
+    let opt = |v: Option<f64>| v.map(|e| format!("{e:.6e}")).unwrap_or_default();
     for p in points {
         let _ = writeln!(
             s,
-            "{},{},{},{},{:.6e},{:.6e},{:.6e},{:.3},{:.6e},{},{:.4},{}",
+            "{},{},{},{},{:.6e},{:.6e},{:.6e},{:.3},{:.6e},{},{},{:.4},{},{}",
             p.env,
             p.method,
             p.weighting.map(|w| w.name()).unwrap_or(""),
@@ -222,10 +284,10 @@ pub fn csv(points: &[BenchPoint]) -> String {
             p.error.dssim,
             p.error.psnr_db,
             p.error.rmse,
-            p.light_rel_l2
-                .map(|e| format!("{e:.6e}"))
-                .unwrap_or_default(),
+            opt(p.light_rel_l2),
+            opt(p.reference_rel_l2),
             p.cpu_ms,
+            p.gpu_ms.map(|v| format!("{v:.4}")).unwrap_or_default(),
             p.bytes_touched
         );
     }
@@ -256,7 +318,10 @@ pub fn terms_to_reach(curve: &[&BenchPoint], target: f64) -> Option<f64> {
 /// Curves present in `points` for one environment, in a stable order.
 fn curves<'a>(points: &'a [BenchPoint], env: &str) -> Vec<(String, Vec<&'a BenchPoint>)> {
     let mut out: Vec<(String, Vec<&BenchPoint>)> = Vec::new();
-    for p in points.iter().filter(|p| p.env == env) {
+    for p in points
+        .iter()
+        .filter(|p| p.env == env && p.method != Method::Full)
+    {
         let name = p.curve();
         match out.iter_mut().find(|(n, _)| *n == name) {
             Some((_, v)) => v.push(p),
@@ -302,6 +367,16 @@ pub fn summary(points: &[BenchPoint]) -> String {
                 let _ = write!(s, " {} |", fmt(terms_to_reach(pts, t)));
             }
             s.push('\n');
+        }
+        let full = points
+            .iter()
+            .find(|p| p.env == env && p.method == Method::Full);
+        if let Some(r) = full.and_then(|p| p.reference_rel_l2) {
+            let _ = writeln!(
+                s,
+                "| (every stored term against the brute-force reference: {:.3}%) | | | |",
+                100.0 * r
+            );
         }
         if let Some((_, sh)) = cs.iter().find(|(n, _)| n == "sh") {
             let sh_max = sh.iter().map(|p| p.terms).max().unwrap_or(0) as f64;
@@ -386,4 +461,132 @@ pub fn write_report(dir: &Path, points: &[BenchPoint]) -> Result<Vec<PathBuf>> {
         written.push(p);
     }
     Ok(written)
+}
+
+/// One point of the compression curve: a bake at one threshold, relit with every stored term
+/// under one environment, against the lossless bake.
+#[derive(Clone, Debug)]
+pub struct CompressionPoint {
+    pub threshold: f32,
+    pub env: String,
+    /// Stored nonzeros over the dense entry count.
+    pub kept_fraction: f64,
+    /// Bytes of the sparse Haar matrix (entries and column pointers) per pixel.
+    pub bytes_per_pixel: f64,
+    /// Relative L2 the sparsification adds to the relit image.
+    pub rel_l2: f64,
+}
+
+/// Bakes `scene` losslessly and at every threshold (other settings from `base`, SH order 1 to
+/// save time), relights each with every stored term under every environment and measures the
+/// error thresholding adds. `log` receives a line per bake.
+pub fn compression_sweep(
+    scene: &Scene,
+    base: &BakeSettings,
+    thresholds: &[f32],
+    envs: &[(String, EnvMap)],
+    log: &mut dyn FnMut(&str),
+) -> Result<Vec<CompressionPoint>> {
+    if thresholds.is_empty() {
+        return Err(PrtError::invalid("threshold list", "it is empty"));
+    }
+    let settings = |lossless: bool, threshold: f32| BakeSettings {
+        sh_order: 1,
+        lossless,
+        threshold,
+        ..base.clone()
+    };
+    for &th in thresholds {
+        settings(false, th).validate()?;
+    }
+    log("baking the lossless reference");
+    let exact = bake(scene, &settings(true, 0.0), &|_| {})?;
+    let ctx = LightContext::new(&exact)?;
+    let all = |t: &Transport, light: &crate::relight::PreparedLight| -> Result<Image> {
+        let req = RelightRequest {
+            method: Method::Full,
+            terms: 0,
+            weighting: Weighting::Unweighted,
+            sh_order: 1,
+        };
+        Ok(relight(t, &ctx, light, &req)?.0)
+    };
+    let lights: Vec<_> = envs
+        .iter()
+        .map(|(_, env)| ctx.prepare(env, EnvRotation::default()))
+        .collect::<Result<_>>()?;
+    let references: Vec<Image> = lights
+        .iter()
+        .map(|l| all(&exact, l))
+        .collect::<Result<_>>()?;
+    let mut points = Vec::new();
+    for &th in thresholds {
+        log(&format!("baking at threshold {th}"));
+        let t = bake(scene, &settings(false, th), &|_| {})?;
+        let kept_fraction = t.meta.stats.nonzeros as f64 / t.meta.stats.dense_entries.max(1) as f64;
+        let bytes_per_pixel = t.haar_bytes() as f64 / t.pixel_count() as f64;
+        for (((name, _), light), reference) in envs.iter().zip(&lights).zip(&references) {
+            points.push(CompressionPoint {
+                threshold: th,
+                env: name.clone(),
+                kept_fraction,
+                bytes_per_pixel,
+                rel_l2: relative_l2(&all(&t, light)?, reference, Some(&exact.coverage))?,
+            });
+        }
+    }
+    Ok(points)
+}
+
+/// Writes `compression.csv` and `compression.png` (added error against kept fraction, one
+/// curve per environment). Returns the paths written.
+pub fn write_compression(dir: &Path, points: &[CompressionPoint]) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
+    let mut text = String::from("threshold,environment,kept_fraction,bytes_per_pixel,rel_l2\n");
+    for p in points {
+        let _ = writeln!(
+            text,
+            "{},{},{:.6e},{:.2},{:.6e}",
+            p.threshold, p.env, p.kept_fraction, p.bytes_per_pixel, p.rel_l2
+        );
+    }
+    let csv_path = dir.join("compression.csv");
+    crate::film::write_atomically(&csv_path, |tmp| {
+        std::fs::write(tmp, &text).map_err(|e| PrtError::io(tmp, e))
+    })?;
+    let mut envs: Vec<&str> = Vec::new();
+    for p in points {
+        if !envs.contains(&p.env.as_str()) {
+            envs.push(&p.env);
+        }
+    }
+    let series: Vec<Series> = envs
+        .iter()
+        .enumerate()
+        .map(|(i, env)| Series {
+            label: env.to_string(),
+            points: points
+                .iter()
+                .filter(|p| p.env == *env)
+                .map(|p| (100.0 * p.kept_fraction, p.rel_l2))
+                .collect(),
+            color: plot::PALETTE[i % plot::PALETTE.len()],
+            dashed: false,
+        })
+        .collect();
+    let png = dir.join("compression.png");
+    plot::write(
+        &png,
+        &PlotSpec {
+            title: "Error added by sparsification vs stored fraction".into(),
+            x_label: "stored nonzeros (% of dense)".into(),
+            y_label: "relative L2 error".into(),
+            log_x: true,
+            log_y: true,
+            width: 800,
+            height: 560,
+        },
+        &series,
+    )?;
+    Ok(vec![csv_path, png])
 }

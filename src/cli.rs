@@ -176,6 +176,19 @@ pub struct BenchArgs {
     /// Weightings, comma-separated (default: none,area,transport).
     #[arg(long, value_delimiter = ',')]
     pub weightings: Option<Vec<String>>,
+    /// auto (the GPU when an adapter exists), cpu, or gpu: times the GPU kernels beside the CPU.
+    #[arg(long, default_value = "auto")]
+    pub device: String,
+    /// Also render the brute-force reference of the scene and report every point against it.
+    #[arg(long)]
+    pub reference: bool,
+    /// Thresholds for the compression curve, comma-separated: the scene is baked at each and
+    /// the error sparsification adds is measured.
+    #[arg(long, value_delimiter = ',')]
+    pub compression: Option<Vec<f32>>,
+    /// Scene file for --reference and --compression (default: the one the file was baked from).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -614,12 +627,85 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
-    let points = crate::bench::run(&t, &envs, &opts, &mut |done, total| {
+    let gpu = match a.device.as_str() {
+        "cpu" => None,
+        "gpu" => Some(crate::gpu::Gpu::new()?),
+        "auto" => crate::gpu::Gpu::new()
+            .map_err(|e| eprintln!("note: timing the CPU only: {e}"))
+            .ok(),
+        other => {
+            return Err(PrtError::invalid(
+                "device",
+                format!("`{other}`; expected auto, cpu or gpu"),
+            ));
+        }
+    };
+    let device = match &gpu {
+        Some(g) => {
+            eprintln!("gpu: {}", g.adapter);
+            Some((g, crate::gpu::GpuTransport::upload(g, &t, None)?))
+        }
+        None => None,
+    };
+    let settings = BakeSettings {
+        cube_n: t.meta.cube_n as usize,
+        sh_order: t.meta.sh_order as usize,
+        spp: t.meta.spp,
+        texel_samples: t.meta.texel_samples,
+        threshold: t.meta.threshold,
+        lossless: true,
+        unshadowed: t.meta.unshadowed,
+        seed: t.meta.seed,
+    };
+    let scene = if a.reference || a.compression.is_some() {
+        let path = a
+            .scene
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(&t.meta.scene_path));
+        let scene = Scene::load(&path)?;
+        if format!("{:016x}", scene.content_hash()) != t.meta.scene_hash {
+            return Err(PrtError::invalid(
+                "scene",
+                format!(
+                    "{} is not the scene {} was baked from (content hash differs)",
+                    path.display(),
+                    a.file.display()
+                ),
+            ));
+        }
+        Some(scene)
+    } else {
+        None
+    };
+    let references = match (&scene, a.reference) {
+        (Some(scene), true) => {
+            let mut refs = Vec::new();
+            for (name, env) in &envs {
+                eprintln!("rendering the brute-force reference under {name}");
+                let cube = env.to_cube(settings.cube_n, EnvRotation::default())?;
+                refs.push(crate::reference::render_reference(scene, &cube, &settings)?);
+            }
+            Some(refs)
+        }
+        _ => None,
+    };
+    let extras = crate::bench::BenchExtras {
+        gpu: device.as_ref().map(|(g, gt)| (*g, gt)),
+        references: references.as_deref(),
+    };
+    let points = crate::bench::run(&t, &envs, &opts, &extras, &mut |done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     })?;
     bar.finish_and_clear();
-    let written = crate::bench::write_report(&a.out, &points)?;
+    let mut written = crate::bench::write_report(&a.out, &points)?;
+    if let (Some(scene), Some(thresholds)) = (&scene, &a.compression) {
+        let curve =
+            crate::bench::compression_sweep(scene, &settings, thresholds, &envs, &mut |l| {
+                eprintln!("{l}")
+            })?;
+        written.extend(crate::bench::write_compression(&a.out, &curve)?);
+    }
     println!("{}", crate::bench::summary(&points));
     for p in written {
         println!("wrote {}", p.display());

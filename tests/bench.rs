@@ -6,9 +6,13 @@ mod common;
 use std::path::PathBuf;
 
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::bench::{BenchOptions, csv, run, summary, terms_to_reach, write_report};
-use wavelet_prt::envmap::{EnvMap, SunSky};
+use wavelet_prt::bench::{
+    BenchExtras, BenchOptions, compression_sweep, csv, run, summary, terms_to_reach,
+    write_compression, write_report,
+};
+use wavelet_prt::envmap::{EnvMap, EnvRotation, SunSky};
 use wavelet_prt::light::Weighting;
+use wavelet_prt::reference::render_reference;
 use wavelet_prt::relight::Method;
 use wavelet_prt::transport::Transport;
 
@@ -40,9 +44,29 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
     let opts = BenchOptions::defaults_for(&t);
     assert_eq!(*opts.terms.last().unwrap(), 384);
     assert_eq!(opts.sh_orders, vec![1, 2, 3, 4]);
+    // The brute-force references of the same scene under both environments.
+    let scene = common::scene_from(common::SPHERE_ON_PLANE, "bench-reference");
+    let settings = BakeSettings {
+        cube_n: 8,
+        sh_order: 4,
+        lossless: true,
+        ..BakeSettings::default()
+    };
+    let references: Vec<_> = envs
+        .iter()
+        .map(|(_, env)| {
+            let cube = env.to_cube(8, EnvRotation::default()).unwrap();
+            render_reference(&scene, &cube, &settings).unwrap()
+        })
+        .collect();
+    let extras = BenchExtras {
+        gpu: None,
+        references: Some(&references),
+    };
     let mut calls = 0;
-    let points = run(&t, &envs, &opts, &mut |_, _| calls += 1).unwrap();
-    let expected = 2 * (opts.terms.len() * 3 + 4);
+    let points = run(&t, &envs, &opts, &extras, &mut |_, _| calls += 1).unwrap();
+    // Every wavelet K and weighting, every SH order, and full, per environment.
+    let expected = 2 * (opts.terms.len() * 3 + 4 + 1);
     assert_eq!(points.len(), expected);
     assert_eq!(calls, expected);
     for env in ["sun", "sky"] {
@@ -81,6 +105,16 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
             );
         }
         assert!(curve[0].error.rel_l2 > 0.01, "one term should not be exact");
+        // A lossless bake relit with every term is the brute-force reference.
+        let full = points
+            .iter()
+            .find(|p| p.env == env && p.method == Method::Full)
+            .unwrap();
+        assert!(
+            full.reference_rel_l2.unwrap() < 1e-4,
+            "{:?}",
+            full.reference_rel_l2
+        );
     }
     // The sun needs far fewer wavelet terms than SH coefficients for 5% error... or SH never
     // gets there at order 4.
@@ -100,7 +134,11 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
     assert_eq!(lines.len(), expected + 1);
     let columns = lines[0].split(',').count();
     assert!(lines.iter().all(|l| l.split(',').count() == columns));
-    assert!(summary(&points).contains("## sun"));
+    let text = summary(&points);
+    assert!(
+        text.contains("## sun") && text.contains("brute-force reference"),
+        "{text}"
+    );
 
     let dir = out_dir();
     let written = write_report(&dir, &points).unwrap();
@@ -152,4 +190,35 @@ fn bad_lists_are_clear_errors() {
         let e = opts.validate(&t).unwrap_err().to_string();
         assert!(e.contains(needle) || e.contains("no term counts"), "{e}");
     }
+}
+
+#[test]
+fn compression_curve_trades_size_for_error() {
+    let scene = common::scene_from(common::SPHERE_ON_PLANE, "bench-compression");
+    let envs = vec![(
+        "sun".to_string(),
+        SunSky::new(30.0, 40.0, 3.0, 3.0).to_latlong(256, 128, 2),
+    )];
+    let base = BakeSettings {
+        cube_n: 8,
+        ..BakeSettings::default()
+    };
+    let mut lines = 0;
+    let curve =
+        compression_sweep(&scene, &base, &[0.0, 0.05, 0.3], &envs, &mut |_| lines += 1).unwrap();
+    assert_eq!(curve.len(), 3);
+    assert_eq!(lines, 4);
+    // No thresholding: only f16 rounding (relative 2^-11 per value).
+    assert!(curve[0].rel_l2 < 2e-3, "{:?}", curve[0]);
+    // Higher thresholds keep fewer coefficients and cost more error.
+    assert!(curve[2].kept_fraction < curve[1].kept_fraction);
+    assert!(curve[1].kept_fraction < curve[0].kept_fraction);
+    assert!(curve[2].rel_l2 > curve[0].rel_l2);
+    let dir = out_dir().join("compression");
+    let written = write_compression(&dir, &curve).unwrap();
+    let csv = std::fs::read_to_string(&written[0]).unwrap();
+    assert_eq!(csv.lines().count(), 4);
+    assert!(std::fs::metadata(&written[1]).unwrap().len() > 100);
+    let e = compression_sweep(&scene, &base, &[], &envs, &mut |_| {}).unwrap_err();
+    assert!(e.to_string().contains("empty"));
 }
