@@ -24,8 +24,7 @@ struct Params {
     _pad: u32,
 };
 
-const TILE: u32 = 16u;
-const WORKGROUP: u32 = 256u;
+// TILE and WORKGROUP (= TILE * TILE) are defined by the Rust side, which prepends them.
 
 @group(0) @binding(0) var<uniform> params: Params;
 // tile_rows[t] .. tile_rows[t + 1] are tile t's rows (global row indices).

@@ -6,7 +6,7 @@
 // SH light: RGB in xyz, params.terms of them.
 @group(0) @binding(7) var<storage, read> light: array<vec4<f32>>;
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(WORKGROUP)
 fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let local_tile = tile_of(wid);
     if (local_tile >= params.tile_count) {

@@ -19,7 +19,7 @@
 const SHARED_ROWS: u32 = 1024u;
 var<workgroup> shared_acc: array<vec4<f32>, SHARED_ROWS>;
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(WORKGROUP)
 fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let local_tile = tile_of(wid);
     if (local_tile >= params.tile_count) {

@@ -25,7 +25,7 @@ use crate::light::SparseLight;
 use crate::relight::RelightStats;
 use crate::transport::{Transport, Values, tile_grid};
 
-/// Threads per workgroup: one per pixel of a tile. Must match `WORKGROUP` in the shaders.
+/// Threads per workgroup: one per pixel of a tile. The shaders receive it as `WORKGROUP`.
 pub const WORKGROUP_SIZE: u32 = (crate::transport::TILE * crate::transport::TILE) as u32;
 /// Most workgroups along one dispatch dimension (WebGPU's guaranteed minimum).
 const MAX_DISPATCH: u32 = 65535;
@@ -60,18 +60,19 @@ pub struct Gpu {
     to_texture: wgpu::ComputePipeline,
 }
 
+/// WGSL of a pipeline: the relight pipelines get the tile and workgroup sizes from here (the one
+/// place they are defined) and the shared part in `shaders/common.wgsl`.
 fn shader_source(pipeline: &str) -> String {
+    let relight = |specific: &str| {
+        format!(
+            "const TILE: u32 = {}u;\nconst WORKGROUP: u32 = {WORKGROUP_SIZE}u;\n{}\n{specific}",
+            crate::transport::TILE,
+            include_str!("../shaders/common.wgsl"),
+        )
+    };
     match pipeline {
-        "wavelet" => format!(
-            "{}\n{}",
-            include_str!("../shaders/common.wgsl"),
-            include_str!("../shaders/relight_wavelet.wgsl")
-        ),
-        "sh" => format!(
-            "{}\n{}",
-            include_str!("../shaders/common.wgsl"),
-            include_str!("../shaders/relight_sh.wgsl")
-        ),
+        "wavelet" => relight(include_str!("../shaders/relight_wavelet.wgsl")),
+        "sh" => relight(include_str!("../shaders/relight_sh.wgsl")),
         _ => include_str!("../shaders/to_texture.wgsl").to_string(),
     }
 }
