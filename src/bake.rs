@@ -5,7 +5,6 @@
 //! before the next is taken, so memory stays bounded by the output.
 
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::time::Instant;
 
 use glam::Vec3;
 use half::f16;
@@ -14,12 +13,13 @@ use rayon::prelude::*;
 use crate::cubemap::{texel_count, validate_n};
 use crate::error::{PrtError, Result};
 use crate::haar;
-use crate::light::{TexelShBasis, rgb_magnitude};
+use crate::light::TexelShBasis;
 use crate::sampling::{TexelSamples, pixel_samples};
 use crate::scene::Scene;
 use crate::trace::{Hit, Tracer};
 use crate::transport::{
-    BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, tile_grid,
+    BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, shard_of_band,
+    tile_grid,
 };
 
 /// Settings of a bake; the defaults are the command line's.
@@ -43,6 +43,8 @@ pub struct BakeSettings {
     pub unshadowed: bool,
     /// Seed of every random choice.
     pub seed: u64,
+    /// `[index, count]`: bake only shard `index` of `count` (bands of tile rows).
+    pub shard: Option<[u32; 2]>,
 }
 
 impl Default for BakeSettings {
@@ -56,6 +58,7 @@ impl Default for BakeSettings {
             lossless: false,
             unshadowed: false,
             seed: 1,
+            shard: None,
         }
     }
 }
@@ -89,6 +92,14 @@ impl BakeSettings {
             return Err(PrtError::invalid(
                 "texel samples",
                 format!("{}; it must be from 1 to 256", self.texel_samples),
+            ));
+        }
+        if let Some([i, count]) = self.shard
+            && (count == 0 || i >= count)
+        {
+            return Err(PrtError::invalid(
+                "shard",
+                format!("{i}/{count}; it must be I/COUNT with 0 <= I < COUNT"),
             ));
         }
         if !(0.0..1.0).contains(&self.threshold) {
@@ -193,15 +204,26 @@ pub fn bake(
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<Transport> {
     settings.validate()?;
-    let start = Instant::now();
     let tracer = Tracer::new(scene);
     let cam = &scene.camera;
     let (w, h) = (cam.width as usize, cam.height as usize);
     let n = settings.cube_n;
-    let c = texel_count(n);
     let samples = TexelSamples::new(n, settings.texel_samples as usize, settings.seed);
     let basis = TexelShBasis::new(n, settings.sh_order)?;
     let (tx, ty) = tile_grid(w, h);
+    if let Some([_, count]) = settings.shard
+        && count as usize > ty
+    {
+        return Err(PrtError::invalid(
+            "shard",
+            format!("{count} shards for an image of only {ty} tile rows"),
+        ));
+    }
+    // A shard bakes only its band of tile rows; the other tiles stay empty.
+    let mine = |tile: usize| match settings.shard {
+        None => true,
+        Some([i, count]) => shard_of_band(tile / tx, ty, count as usize) == i as usize,
+    };
     let ctx = TileContext {
         scene,
         tracer: &tracer,
@@ -210,47 +232,45 @@ pub fn bake(
         samples: &samples,
         basis: &basis,
     };
+    let pixels_total: usize = (0..tx * ty)
+        .filter(|&t| mine(t))
+        .map(|t| tile_pixels(w, h, t % tx, t / tx))
+        .sum();
     let done = AtomicUsize::new(0);
     let rays = AtomicU64::new(0);
-    let outputs: Vec<TileOutput> = (0..tx * ty)
+    let outputs: Vec<Option<TileOutput>> = (0..tx * ty)
         .into_par_iter()
         .map(|t| {
+            if !mine(t) {
+                return None;
+            }
             let out = bake_tile(&ctx, t % tx, t / tx);
             let px = out.pixels.len();
             progress(BakeProgress {
                 pixels_done: done.fetch_add(px, Ordering::Relaxed) + px,
-                pixels_total: w * h,
+                pixels_total,
                 shadow_rays: rays.fetch_add(out.rays, Ordering::Relaxed) + out.rays,
             });
-            out
+            Some(out)
         })
         .collect();
     let mut albedo = vec![[0.0f32; 3]; w * h];
     let mut coverage = vec![0.0f32; w * h];
-    let mut magnitude = vec![0.0f64; c];
-    let (mut dropped, mut total, mut shadow_rays, mut rows) = (0.0, 0.0, 0u64, 0usize);
     let mut tiles = Vec::with_capacity(outputs.len());
+    let mut tile_stats = Vec::with_capacity(outputs.len());
     for out in outputs {
+        let Some(out) = out else {
+            tiles.push(Vec::new());
+            tile_stats.push([0.0; 3]);
+            continue;
+        };
         for (p, a, cov) in out.pixels {
             albedo[p as usize] = a;
             coverage[p as usize] = cov;
         }
-        for row in &out.rows {
-            let lum = rgb_magnitude(row.weight) as f64;
-            for &(j, v) in &row.entries {
-                magnitude[j as usize] += v.abs() as f64 * lum;
-            }
-        }
-        dropped += out.dropped_energy;
-        total += out.total_energy;
-        shadow_rays += out.rays;
-        rows += out.rows.len();
+        tile_stats.push([out.dropped_energy, out.total_energy, out.rays as f64]);
         tiles.push(out.rows);
     }
-    let transport_magnitude = magnitude
-        .iter()
-        .map(|m| (m / rows.max(1) as f64) as f32)
-        .collect();
     let meta = TransportMeta {
         width: w as u32,
         height: h as u32,
@@ -275,18 +295,14 @@ pub fn bake(
             settings.threshold
         },
         quantization: settings.quantization(),
+        shard: settings.shard,
         stats: BakeStats::default(),
     };
-    let mut t = Transport::assemble(meta, tiles, albedo, coverage, transport_magnitude)?;
-    t.meta.stats = BakeStats {
-        rows: rows as u64,
-        nonzeros: t.entry_row.len() as u64,
-        dense_entries: (rows * c) as u64,
-        dropped_energy_fraction: if total > 0.0 { dropped / total } else { 0.0 },
-        shadow_rays,
-        bake_seconds: start.elapsed().as_secs_f64(),
-    };
-    Ok(t)
+    Transport::assemble(meta, tiles, albedo, coverage, tile_stats)
+}
+
+fn tile_pixels(w: usize, h: usize, tx: usize, ty: usize) -> usize {
+    (w - tx * TILE).min(TILE) * (h - ty * TILE).min(TILE)
 }
 
 /// What every tile of a bake shares.
@@ -472,7 +488,8 @@ pub fn load_if_baked_with(
         && meta.threshold == threshold
         && meta.quantization == settings.quantization()
         && meta.unshadowed == settings.unshadowed
-        && meta.seed == settings.seed;
+        && meta.seed == settings.seed
+        && meta.shard == settings.shard;
     if !same {
         return None;
     }

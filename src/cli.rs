@@ -35,6 +35,15 @@ pub enum Command {
     },
     /// Bake a scene's per-pixel transport into a file.
     Bake(BakeArgs),
+    /// Join the shards of a sharded bake into one transport file.
+    Merge {
+        /// Shard files, in any order.
+        #[arg(required = true, num_args = 1..)]
+        shards: Vec<PathBuf>,
+        /// Output transport file.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Print a transport file's metadata and statistics.
     Info {
         /// Transport file.
@@ -99,6 +108,9 @@ pub struct BakeArgs {
     /// Keep every coefficient in 32-bit floats.
     #[arg(long)]
     pub lossless: bool,
+    /// Bake only shard I of COUNT (bands of tile rows), e.g. 0/4; join them with `prt merge`.
+    #[arg(long, value_name = "I/COUNT")]
+    pub shard: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -223,6 +235,7 @@ fn run(command: Command) -> Result<()> {
         Command::Demo { out } => demo(out),
         Command::Bake(a) => bake_cmd(a),
         Command::Info { file } => info(file),
+        Command::Merge { shards, output } => merge_cmd(shards, output),
         Command::Relight(a) => relight_cmd(a),
         Command::Reference(a) => reference_cmd(a),
         Command::Env(a) => env_cmd(a),
@@ -289,6 +302,7 @@ fn settings_from(
         lossless,
         unshadowed: s.unshadowed,
         seed: s.seed,
+        shard: None,
     }
 }
 
@@ -299,10 +313,29 @@ fn available_memory_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// Parses `I/COUNT`.
+fn parse_shard(s: &str) -> Result<[u32; 2]> {
+    let bad = || PrtError::invalid("shard", format!("`{s}`; expected I/COUNT, e.g. 0/4"));
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    Ok([
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    ])
+}
+
 fn bake_cmd(a: BakeArgs) -> Result<()> {
-    let settings = settings_from(&a.sampling, a.sh_order, a.threshold, a.lossless);
+    let mut settings = settings_from(&a.sampling, a.sh_order, a.threshold, a.lossless);
+    settings.shard = a.shard.as_deref().map(parse_shard).transpose()?;
     settings.validate()?;
     let scene = Scene::load(&a.scene)?;
+    // Resuming: a finished output of this very bake (or shard) is kept, not redone.
+    if crate::bake::load_if_baked_with(&a.output, &scene, &settings).is_some() {
+        eprintln!(
+            "{} already holds this bake (same scene and settings): kept",
+            a.output.display()
+        );
+        return Ok(());
+    }
     let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
     let worst = worst_case_bytes(w, h, &settings);
     eprintln!(
@@ -338,9 +371,26 @@ fn bake_cmd(a: BakeArgs) -> Result<()> {
             ));
         }
     }
+    let start = Instant::now();
     let t = bake_with_progress(&scene, &settings)?;
+    let seconds = start.elapsed().as_secs_f64();
     t.save(&a.output)?;
     print_info(&a.output, &t);
+    println!(
+        "bake time     {seconds:.1} s ({:.2} M shadow rays/s)",
+        t.meta.stats.shadow_rays as f64 / seconds.max(1e-9) / 1e6
+    );
+    Ok(())
+}
+
+fn merge_cmd(shards: Vec<PathBuf>, output: PathBuf) -> Result<()> {
+    let loaded: Vec<Transport> = shards
+        .iter()
+        .map(|p| Transport::load(p))
+        .collect::<Result<_>>()?;
+    let t = Transport::merge(&loaded)?;
+    t.save(&output)?;
+    print_info(&output, &t);
     Ok(())
 }
 
@@ -396,12 +446,10 @@ fn print_info(path: &std::path::Path, t: &Transport) {
         100.0 * s.dropped_energy_fraction,
         100.0 * s.dropped_energy_fraction.sqrt()
     );
-    println!(
-        "bake          {:.1} s, {} shadow rays ({:.2} M/s)",
-        s.bake_seconds,
-        s.shadow_rays,
-        s.shadow_rays as f64 / s.bake_seconds.max(1e-9) / 1e6
-    );
+    println!("shadow rays   {}", s.shadow_rays);
+    if let Some([i, n]) = m.shard {
+        println!("shard         {i}/{n} (join all {n} with `prt merge`)");
+    }
 }
 
 fn info(file: PathBuf) -> Result<()> {
@@ -656,6 +704,7 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         lossless: true,
         unshadowed: t.meta.unshadowed,
         seed: t.meta.seed,
+        shard: None,
     };
     let scene = if a.reference || a.compression.is_some() {
         let path = a

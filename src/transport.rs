@@ -14,13 +14,15 @@
 //! atomics, a column touches each row at most once, and relighting with K terms reads only K columns.
 //!
 //! # File
-//! A safetensors file (readable from Python with `safetensors.numpy.load_file`); its metadata holds
-//! `format = "wavelet-prt transport"`, `format_version` and a JSON `meta` ([`TransportMeta`]).
+//! A safetensors file (readable from Python with `safetensors.numpy.load_file`); its one metadata
+//! entry `meta` is JSON: `format = "wavelet-prt transport"`, `format_version`, `checksum` and the
+//! fields of [`TransportMeta`].
 //! Tensors: `tile_row_start` u32 [T+1], `row_pixel` u32 [R], `row_weight` f32 [R,3],
 //! `tile_entry_start` u64 [T+1], `col_ptr` u32 [T, C+1] (relative to the tile's first entry),
 //! `entry_row` u16 [nnz], `entry_value` f16 or f32 [nnz], `sh` f32 [R, n²], `albedo` f32 [H, W, 3],
-//! `coverage` f32 [H, W], `transport_magnitude` f32 [C]. The metadata's `checksum` covers the tensors'
-//! bytes in name order, so a flipped bit anywhere is caught. Loading checks the header, the sizes and
+//! `coverage` f32 [H, W], `transport_magnitude` f32 [C], `tile_stats` f64 [T, 3] (per tile: energy
+//! dropped by thresholding, total energy, shadow rays). The `checksum` covers the tensors' bytes in
+//! name order, so a flipped bit anywhere is caught. Loading checks the header, the sizes and
 //! every index before it allocates anything or trusts any offset; writing goes to a temporary file
 //! that is renamed into place.
 
@@ -40,7 +42,7 @@ pub const TILE: usize = 16;
 /// Name written in every transport file.
 pub const FORMAT_NAME: &str = "wavelet-prt transport";
 /// Version of the layout described in this module.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 /// Largest safetensors header accepted (JSON text), checked before it is read.
 const MAX_HEADER_BYTES: u64 = 1 << 24;
 
@@ -77,8 +79,6 @@ pub struct BakeStats {
     pub dropped_energy_fraction: f64,
     /// Shadow rays traced.
     pub shadow_rays: u64,
-    /// Wall time of the bake.
-    pub bake_seconds: f64,
 }
 
 /// Everything about a transport file but its arrays.
@@ -101,6 +101,11 @@ pub struct TransportMeta {
     /// Relative L2 error allowed per row by thresholding (0 = keep every nonzero).
     pub threshold: f32,
     pub quantization: Quantization,
+    /// `[index, count]` for one shard of a sharded bake (it holds only its band of tile rows);
+    /// absent for a whole bake or a merge of all shards.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<[u32; 2]>,
+    /// Derived from the tables (see [`Transport::finish`]): the same for a bake and a merge.
     pub stats: BakeStats,
 }
 
@@ -155,6 +160,8 @@ pub struct Transport {
     pub albedo: Vec<[f32; 3]>,
     pub coverage: Vec<f32>,
     pub transport_magnitude: Vec<f32>,
+    /// Per tile: energy thresholding dropped, the rows' total energy, shadow rays traced.
+    pub tile_stats: Vec<[f64; 3]>,
 }
 
 /// Tiles along x and y for an image.
@@ -195,8 +202,6 @@ impl Transport {
 
     /// Writes the file atomically: a temporary file beside `path`, then a rename.
     pub fn save(&self, path: &Path) -> Result<()> {
-        let meta_json = serde_json::to_string(&self.meta)
-            .map_err(|e| PrtError::file(path, format!("metadata: {e}")))?;
         let (w, h) = (self.meta.width as usize, self.meta.height as usize);
         let tiles = self.tile_count();
         let c = self.coeff_count();
@@ -242,6 +247,10 @@ impl Transport {
                 "transport_magnitude",
                 Tensor::new(Dtype::F32, vec![c], &self.transport_magnitude),
             ),
+            (
+                "tile_stats",
+                Tensor::new(Dtype::F64, vec![tiles, 3], &self.tile_stats),
+            ),
         ];
         tensors.push(match &self.values {
             Values::F16(v) => ("entry_value", Tensor::new(Dtype::F16, vec![v.len()], v)),
@@ -250,13 +259,17 @@ impl Transport {
         tensors.sort_by_key(|(name, _)| *name);
         debug_assert!(tensors.iter().map(|(n, _)| *n).eq(TENSOR_NAMES));
         let sum = checksum(tensors.iter().map(|(_, t)| t.bytes));
-        let info: HashMap<String, String> = [
-            ("format".to_string(), FORMAT_NAME.to_string()),
-            ("format_version".to_string(), FORMAT_VERSION.to_string()),
-            ("meta".to_string(), meta_json),
-            ("checksum".to_string(), format!("{sum:016x}")),
-        ]
-        .into();
+        // One metadata key, so the header is the same bytes for the same content (the
+        // container keeps its metadata in a hash map, whose order varies between runs).
+        let header = FileHeader {
+            format: FORMAT_NAME.to_string(),
+            format_version: FORMAT_VERSION,
+            checksum: format!("{sum:016x}"),
+            meta: self.meta.clone(),
+        };
+        let json = serde_json::to_string(&header)
+            .map_err(|e| PrtError::file(path, format!("metadata: {e}")))?;
+        let info: HashMap<String, String> = [("meta".to_string(), json)].into();
         crate::film::write_atomically(path, |tmp| {
             safetensors::serialize_to_file(tensors, Some(info), tmp)
                 .map_err(|e| PrtError::file(tmp, format!("writing: {e}")))
@@ -358,6 +371,9 @@ impl Transport {
         let (s, d) = get("transport_magnitude", Dtype::F32)?;
         expect("transport_magnitude", &s, &[c])?;
         let transport_magnitude: Vec<f32> = bytemuck::pod_collect_to_vec(d);
+        let (s, d) = get("tile_stats", Dtype::F64)?;
+        expect("tile_stats", &s, &[tiles, 3])?;
+        let tile_stats: Vec<[f64; 3]> = bytemuck::pod_collect_to_vec(d);
         let t = Transport {
             meta,
             tile_row_start,
@@ -371,6 +387,7 @@ impl Transport {
             albedo,
             coverage,
             transport_magnitude,
+            tile_stats,
         };
         t.validate().map_err(|m| PrtError::file(path, m))?;
         Ok(t)
@@ -458,6 +475,7 @@ impl Transport {
         if self.albedo.len() != w * h
             || self.coverage.len() != w * h
             || self.transport_magnitude.len() != c
+            || self.tile_stats.len() != tiles
         {
             return Err("per-pixel or per-coefficient tables have the wrong length".into());
         }
@@ -485,7 +503,7 @@ impl Transport {
         tiles: Vec<Vec<RowData>>,
         albedo: Vec<[f32; 3]>,
         coverage: Vec<f32>,
-        transport_magnitude: Vec<f32>,
+        tile_stats: Vec<[f64; 3]>,
     ) -> Result<Transport> {
         let c = 6 * (meta.cube_n as usize).pow(2);
         let nnz: usize = tiles.iter().flatten().map(|r| r.entries.len()).sum();
@@ -502,7 +520,8 @@ impl Transport {
             sh: Vec::with_capacity(rows * shc),
             albedo,
             coverage,
-            transport_magnitude,
+            transport_magnitude: vec![0.0; c],
+            tile_stats,
             meta,
         };
         let mut values = vec![0.0f32; nnz];
@@ -556,8 +575,145 @@ impl Transport {
         };
         t.validate()
             .map_err(|m| PrtError::invalid("transport", m))?;
+        t.finish();
         Ok(t)
     }
+
+    /// Derives the per-coefficient transport magnitudes and the statistics from the tables, in
+    /// one fixed order (tile, coefficient, row), so a bake and a merge of its shards give the
+    /// same bits.
+    pub fn finish(&mut self) {
+        let c = self.coeff_count();
+        let mut magnitude = vec![0.0f64; c];
+        for tile in 0..self.tile_count() {
+            let r0 = self.tile_row_start[tile] as usize;
+            for (j, m) in magnitude.iter_mut().enumerate() {
+                for e in self.column(tile, j) {
+                    let w = self.row_weight[r0 + self.entry_row[e] as usize];
+                    *m += self.values.get(e).abs() as f64 * crate::light::rgb_magnitude(w) as f64;
+                }
+            }
+        }
+        let rows = self.row_pixel.len();
+        self.transport_magnitude = magnitude
+            .iter()
+            .map(|m| (m / rows.max(1) as f64) as f32)
+            .collect();
+        let (mut dropped, mut total, mut rays) = (0.0f64, 0.0f64, 0.0f64);
+        for s in &self.tile_stats {
+            dropped += s[0];
+            total += s[1];
+            rays += s[2];
+        }
+        self.meta.stats = BakeStats {
+            rows: rows as u64,
+            nonzeros: self.entry_row.len() as u64,
+            dense_entries: (rows * c) as u64,
+            dropped_energy_fraction: if total > 0.0 { dropped / total } else { 0.0 },
+            shadow_rays: rays as u64,
+        };
+    }
+
+    /// The rows of tile `tile` as [`RowData`], decoded from its columns.
+    fn tile_rows(&self, tile: usize) -> Vec<RowData> {
+        let (r0, r1) = (
+            self.tile_row_start[tile] as usize,
+            self.tile_row_start[tile + 1] as usize,
+        );
+        let shc = self.sh_count();
+        let mut rows: Vec<RowData> = (r0..r1)
+            .map(|r| RowData {
+                pixel: self.row_pixel[r],
+                weight: self.row_weight[r],
+                entries: Vec::new(),
+                sh: self.sh[r * shc..(r + 1) * shc].to_vec(),
+            })
+            .collect();
+        for j in 0..self.coeff_count() {
+            for e in self.column(tile, j) {
+                rows[self.entry_row[e] as usize]
+                    .entries
+                    .push((j as u32, self.values.get(e)));
+            }
+        }
+        rows
+    }
+
+    /// Joins the shards of one bake (in any order) into the file a single bake would have
+    /// written. The shards must come from the same scene and settings and cover every band once.
+    pub fn merge(shards: &[Transport]) -> Result<Transport> {
+        let first = shards
+            .first()
+            .ok_or_else(|| PrtError::invalid("merge", "no shard given"))?;
+        let Some([_, count]) = first.meta.shard else {
+            return Err(PrtError::invalid("merge", "the first file is not a shard"));
+        };
+        let same = |m: &TransportMeta| TransportMeta {
+            shard: None,
+            stats: BakeStats::default(),
+            ..m.clone()
+        };
+        let mut owner = vec![usize::MAX; count as usize];
+        for (k, s) in shards.iter().enumerate() {
+            if same(&s.meta) != same(&first.meta) {
+                return Err(PrtError::invalid(
+                    "merge",
+                    format!(
+                        "file {} was baked from another scene or with other settings \
+                         (scene hash {} vs {})",
+                        k + 1,
+                        s.meta.scene_hash,
+                        first.meta.scene_hash
+                    ),
+                ));
+            }
+            match s.meta.shard {
+                Some([i, n]) if n == count && i < n && owner[i as usize] == usize::MAX => {
+                    owner[i as usize] = k
+                }
+                Some([i, n]) => {
+                    return Err(PrtError::invalid(
+                        "merge",
+                        format!("shard {i}/{n} does not fit a set of {count} shards, or repeats"),
+                    ));
+                }
+                None => {
+                    return Err(PrtError::invalid(
+                        "merge",
+                        format!("file {} is not a shard", k + 1),
+                    ));
+                }
+            }
+        }
+        if let Some(i) = owner.iter().position(|&o| o == usize::MAX) {
+            return Err(PrtError::invalid(
+                "merge",
+                format!("shard {i}/{count} is missing"),
+            ));
+        }
+        let (w, h) = (first.meta.width as usize, first.meta.height as usize);
+        let (tx, ty) = tile_grid(w, h);
+        let mut tiles = Vec::with_capacity(tx * ty);
+        let mut albedo = vec![[0.0f32; 3]; w * h];
+        let mut coverage = vec![0.0f32; w * h];
+        let mut tile_stats = Vec::with_capacity(tx * ty);
+        for band in 0..ty {
+            let s = &shards[owner[shard_of_band(band, ty, count as usize)]];
+            for tile in band * tx..(band + 1) * tx {
+                tiles.push(s.tile_rows(tile));
+                tile_stats.push(s.tile_stats[tile]);
+            }
+            let pixels = band * TILE * w..((band + 1) * TILE * w).min(w * h);
+            albedo[pixels.clone()].copy_from_slice(&s.albedo[pixels.clone()]);
+            coverage[pixels.clone()].copy_from_slice(&s.coverage[pixels]);
+        }
+        Transport::assemble(same(&first.meta), tiles, albedo, coverage, tile_stats)
+    }
+}
+
+/// The shard that bakes band (tile row) `band` of `bands` when a bake is split into `count`.
+pub fn shard_of_band(band: usize, bands: usize, count: usize) -> usize {
+    (band * count) / bands.max(1)
 }
 
 /// Reads only the safetensors header and our metadata, checking that the declared tensors fill the
@@ -593,21 +749,29 @@ fn read_header(path: &Path) -> Result<(TransportMeta, String)> {
         .get("__metadata__")
         .and_then(|m| m.as_object())
         .ok_or_else(|| PrtError::file(path, "no metadata: not a wavelet-prt transport file"))?;
-    let field = |k: &str| info.get(k).and_then(|v| v.as_str());
-    if field("format") != Some(FORMAT_NAME) {
+    let text = info
+        .get("meta")
+        .and_then(|v| v.as_str())
+        .ok_or_else(|| PrtError::file(path, "not a wavelet-prt transport file (no `meta`)"))?;
+    let value: serde_json::Value = serde_json::from_str(text)
+        .map_err(|e| PrtError::file(path, format!("metadata `meta` is not JSON: {e}")))?;
+    if value.get("format").and_then(|v| v.as_str()) != Some(FORMAT_NAME) {
         return Err(PrtError::file(
             path,
             "not a wavelet-prt transport file (metadata `format`)",
         ));
     }
-    let version = field("format_version").unwrap_or("?");
-    if version != FORMAT_VERSION.to_string() {
+    let version = value.get("format_version").and_then(|v| v.as_u64());
+    if version != Some(FORMAT_VERSION as u64) {
         return Err(PrtError::file(
             path,
-            format!("format_version {version}; this build reads version {FORMAT_VERSION}"),
+            format!(
+                "format_version {}; this build reads version {FORMAT_VERSION}",
+                version.map(|v| v.to_string()).unwrap_or("?".into())
+            ),
         ));
     }
-    let meta: TransportMeta = serde_json::from_str(field("meta").unwrap_or(""))
+    let header: FileHeader = serde_json::from_value(value)
         .map_err(|e| PrtError::file(path, format!("metadata `meta`: {e}")))?;
     let mut data_end = 0u64;
     for (name, t) in obj.iter().filter(|(k, _)| *k != "__metadata__") {
@@ -627,9 +791,18 @@ fn read_header(path: &Path) -> Result<(TransportMeta, String)> {
             ),
         ));
     }
-    check_meta(&meta).map_err(|m| PrtError::file(path, m))?;
-    let checksum = field("checksum").unwrap_or("").to_string();
-    Ok((meta, checksum))
+    check_meta(&header.meta).map_err(|m| PrtError::file(path, m))?;
+    Ok((header.meta, header.checksum))
+}
+
+/// The one metadata entry of a file: format, version, checksum and the [`TransportMeta`].
+#[derive(Serialize, Deserialize)]
+struct FileHeader {
+    format: String,
+    format_version: u32,
+    checksum: String,
+    #[serde(flatten)]
+    meta: TransportMeta,
 }
 
 fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
@@ -650,7 +823,7 @@ fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
 }
 
 /// Names of the tensors in a file, in the order the checksum covers them.
-const TENSOR_NAMES: [&str; 11] = [
+const TENSOR_NAMES: [&str; 12] = [
     "albedo",
     "col_ptr",
     "coverage",
@@ -661,6 +834,7 @@ const TENSOR_NAMES: [&str; 11] = [
     "sh",
     "tile_entry_start",
     "tile_row_start",
+    "tile_stats",
     "transport_magnitude",
 ];
 

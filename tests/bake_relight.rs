@@ -385,6 +385,7 @@ fn random_transport(
         seed,
         threshold: 0.0,
         quantization,
+        shard: None,
         stats: BakeStats::default(),
     };
     Transport::assemble(
@@ -392,7 +393,7 @@ fn random_transport(
         tiles,
         vec![[0.5; 3]; w * h],
         vec![1.0; w * h],
-        vec![1.0; c],
+        vec![[0.0; 3]; tx * ty],
     )
     .unwrap()
 }
