@@ -10,6 +10,7 @@ use glam::Vec3;
 use half::f16;
 use rayon::prelude::*;
 
+use crate::brdf;
 use crate::cubemap::{texel_count, validate_n};
 use crate::error::{PrtError, Result};
 use crate::haar;
@@ -135,15 +136,19 @@ pub struct ShadingPoint {
     pub origin: Vec3,
     /// Shading normal, facing the camera ray.
     pub normal: Vec3,
+    /// Unit direction from the surface towards the viewer.
+    pub view: Vec3,
     /// Material index.
     pub material: u32,
 }
 
-/// Shades a camera hit: the offset origin for shadow rays and the normal.
-pub fn shading_point(tracer: &Tracer, hit: &Hit) -> ShadingPoint {
+/// Shades a camera hit seen along `ray_dir`: the offset origin for shadow rays, the normal and
+/// the direction back to the viewer.
+pub fn shading_point(tracer: &Tracer, hit: &Hit, ray_dir: Vec3) -> ShadingPoint {
     ShadingPoint {
         origin: tracer.offset_origin(hit, hit.normal),
         normal: hit.normal,
+        view: -ray_dir,
         material: hit.material,
     }
 }
@@ -153,25 +158,27 @@ pub fn albedo(scene: &Scene, material: u32) -> [f32; 3] {
     scene.materials[material as usize].albedo().to_array()
 }
 
-/// Adds `scale · visibility · max(0, n·ω) · Ω_ω` for every texel sample to `row` (texel order).
-/// Returns the shadow rays traced.
-pub fn accumulate_direct_row(
+/// For every texel sample ω, adds `scale · visibility · lobe(ω) · Ω_ω` to the rows (texel
+/// order): the Lambertian lobe ([`brdf::diffuse_cosine`]) to `diffuse` and, for a glossy
+/// material, the GGX lobe of width `alpha` ([`brdf::ggx_cosine`]) to `glossy`. One shadow ray
+/// serves both. Returns the shadow rays traced.
+pub fn accumulate_direct_rows(
     tracer: &Tracer,
     samples: &TexelSamples,
     sp: &ShadingPoint,
     unshadowed: bool,
     scale: f32,
-    row: &mut [f32],
+    diffuse: &mut [f32],
+    mut glossy: Option<(f32, &mut [f32])>,
 ) -> u64 {
     let m = samples.per_texel;
     let mut rays = 0u64;
-    for (j, out) in row.iter_mut().enumerate() {
+    for (j, out) in diffuse.iter_mut().enumerate() {
         let dirs = &samples.dirs[j * m..(j + 1) * m];
         let weights = &samples.weights[j * m..(j + 1) * m];
-        let mut acc = 0.0f32;
+        let (mut acc, mut acc_glossy) = (0.0f32, 0.0f32);
         for (d, w) in dirs.iter().zip(weights) {
-            let cos = sp.normal.dot(*d);
-            if cos <= 0.0 {
+            if sp.normal.dot(*d) <= 0.0 {
                 continue;
             }
             if !unshadowed {
@@ -180,9 +187,15 @@ pub fn accumulate_direct_row(
                     continue;
                 }
             }
-            acc += cos * w;
+            acc += brdf::diffuse_cosine(sp.normal, *d) * w;
+            if let Some((alpha, _)) = glossy {
+                acc_glossy += brdf::ggx_cosine(sp.normal, sp.view, *d, alpha) * w;
+            }
         }
         *out += acc * scale;
+        if let Some((_, row)) = glossy.as_mut() {
+            row[j] += acc_glossy * scale;
+        }
     }
     rays
 }
@@ -345,7 +358,9 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             let subs = pixel_samples(x as u32, y as u32, w as u32, settings.spp, settings.seed);
             let inv_spp = 1.0 / subs.len() as f32;
             // Dense rows of this pixel, one per material seen.
-            let mut dense: Vec<(u32, Vec<f32>)> = Vec::new();
+            // Dense rows of this pixel per material seen: the diffuse lobe's and, for glossy
+            // materials, the GGX lobe's.
+            let mut dense: Vec<(u32, Vec<f32>, Option<Vec<f32>>)> = Vec::new();
             let mut hits = 0usize;
             let mut albedo_sum = [0.0f32; 3];
             for (fx, fy) in subs {
@@ -354,25 +369,29 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     continue;
                 };
                 hits += 1;
-                let sp = shading_point(tracer, &hit);
+                let sp = shading_point(tracer, &hit, ray.dir);
                 let a = albedo(scene, sp.material);
                 for k in 0..3 {
                     albedo_sum[k] += a[k];
                 }
-                let slot = match dense.iter().position(|(m, _)| *m == sp.material) {
+                let lobe = scene.materials[sp.material as usize].glossy_lobe();
+                let slot = match dense.iter().position(|(m, ..)| *m == sp.material) {
                     Some(i) => i,
                     None => {
-                        dense.push((sp.material, vec![0.0; c]));
+                        dense.push((sp.material, vec![0.0; c], lobe.map(|_| vec![0.0; c])));
                         dense.len() - 1
                     }
                 };
-                out.rays += accumulate_direct_row(
+                let (_, diffuse, glossy) = &mut dense[slot];
+                out.rays += accumulate_direct_rows(
                     tracer,
                     samples,
                     &sp,
                     settings.unshadowed,
-                    inv_spp * std::f32::consts::FRAC_1_PI,
-                    &mut dense[slot].1,
+                    inv_spp,
+                    diffuse,
+                    lobe.zip(glossy.as_deref_mut())
+                        .map(|((_, alpha), row)| (alpha, row)),
                 );
             }
             let pixel = (y * w + x) as u32;
@@ -382,7 +401,13 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                 [0.0; 3]
             };
             out.pixels.push((pixel, mean_albedo, hits as f32 * inv_spp));
-            for (material, mut row) in dense {
+            let lobes = dense.into_iter().flat_map(|(material, diffuse, glossy)| {
+                let m = &scene.materials[material as usize];
+                let specular = m.glossy_lobe().map(|(s, _)| s.to_array());
+                std::iter::once((m.albedo().to_array(), diffuse))
+                    .chain(glossy.zip(specular).map(|(row, s)| (s, row)))
+            });
+            for (weight, mut row) in lobes {
                 let mut sh = vec![0.0f32; shc];
                 basis.project_row(&row, &mut sh);
                 haar::forward_face_all(&mut row, n, &mut scratch);
@@ -392,7 +417,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                 out.total_energy += total;
                 out.rows.push(RowData {
                     pixel,
-                    weight: albedo(scene, material),
+                    weight,
                     entries,
                     sh,
                 });

@@ -19,6 +19,7 @@
 
 pub mod bake;
 pub mod bench;
+pub mod brdf;
 pub mod cli;
 pub mod conventions;
 pub mod cubemap;

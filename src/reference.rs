@@ -1,11 +1,12 @@
 //! The brute-force reference: the scene ray traced under a cube map whose texels are
 //! piecewise-constant lights, with no transport matrix. It is the ground truth for tests and
 //! benchmarks, so it is written to be obviously right: for every camera sub-sample and every texel
-//! sample direction, visibility x (albedo / π) x cos x solid angle x radiance, summed.
+//! sample direction, visibility x BRDF x cos x solid angle x radiance, summed.
 
 use rayon::prelude::*;
 
 use crate::bake::{BakeSettings, shading_point};
+use crate::brdf;
 use crate::cubemap::CubeMap;
 use crate::error::{PrtError, Result};
 use crate::film::Image;
@@ -45,20 +46,29 @@ pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) 
                     let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
                         continue;
                     };
-                    let sp = shading_point(&tracer, &hit);
-                    let albedo = scene.materials[sp.material as usize].albedo();
+                    let sp = shading_point(&tracer, &hit, ray.dir);
+                    let material = &scene.materials[sp.material as usize];
+                    let albedo = material.albedo();
+                    let glossy = material.glossy_lobe();
                     for (d, w) in samples.dirs.iter().zip(&samples.weights) {
-                        let cos = sp.normal.dot(*d);
-                        if cos <= 0.0 {
+                        if sp.normal.dot(*d) <= 0.0 {
                             continue;
                         }
                         if !settings.unshadowed && tracer.occluded(sp.origin, *d, f32::INFINITY) {
                             continue;
                         }
+                        // f(ω, view) · cos: albedo / π · cos, plus the specular GGX lobe.
+                        let diffuse = brdf::diffuse_cosine(sp.normal, *d);
+                        let (specular, ggx) = match glossy {
+                            Some((s, alpha)) => {
+                                (s, brdf::ggx_cosine(sp.normal, sp.view, *d, alpha))
+                            }
+                            None => (glam::Vec3::ZERO, 0.0),
+                        };
                         let l = cube.lookup(d.as_dvec3());
-                        let f = cos as f64 * *w as f64 * std::f64::consts::FRAC_1_PI * inv_spp;
                         for k in 0..3 {
-                            sum[k] += albedo[k] as f64 * f * l[k] as f64;
+                            let f = albedo[k] * diffuse + specular[k] * ggx;
+                            sum[k] += f as f64 * *w as f64 * inv_spp * l[k] as f64;
                         }
                     }
                 }

@@ -137,8 +137,8 @@ impl Camera {
     }
 }
 
-/// How a surface reflects light. Only Lambertian surfaces so far; the scene file's `type` key
-/// selects the variant, so further kinds (glossy) slot in as new variants.
+/// How a surface reflects light; the scene file's `type` key selects the variant. BRDFs are in
+/// [`crate::brdf`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Material {
     /// Lambertian reflector.
@@ -146,13 +146,34 @@ pub enum Material {
         /// Linear RGB reflectance, each channel in [0, 1].
         albedo: Vec3,
     },
+    /// A GGX microfacet lobe over a Lambertian base.
+    Glossy {
+        /// Reflectance of the Lambertian base.
+        albedo: Vec3,
+        /// Specular reflectance (scales the GGX lobe); `albedo + specular` is at most 1.
+        specular: Vec3,
+        /// Perceptual roughness in [0.02, 1]; the GGX width is its square.
+        roughness: f32,
+    },
 }
 
 impl Material {
     /// Linear RGB reflectance of the material's diffuse part.
     pub fn albedo(&self) -> Vec3 {
         match self {
-            Material::Diffuse { albedo } => *albedo,
+            Material::Diffuse { albedo } | Material::Glossy { albedo, .. } => *albedo,
+        }
+    }
+
+    /// The specular colour and GGX width (roughness²) of a glossy material.
+    pub fn glossy_lobe(&self) -> Option<(Vec3, f32)> {
+        match self {
+            Material::Diffuse { .. } => None,
+            Material::Glossy {
+                specular,
+                roughness,
+                ..
+            } => Some((*specular, roughness * roughness)),
         }
     }
 }
@@ -284,6 +305,7 @@ struct CameraFile {
 #[serde(rename_all = "lowercase")]
 enum MaterialKind {
     Diffuse,
+    Glossy,
 }
 
 #[derive(Deserialize)]
@@ -291,6 +313,8 @@ enum MaterialKind {
 struct MaterialFile {
     r#type: MaterialKind,
     albedo: Option<[f32; 3]>,
+    specular: Option<[f32; 3]>,
+    roughness: Option<f32>,
 }
 
 #[derive(Deserialize, Clone, Copy, PartialEq, Debug)]
@@ -522,6 +546,13 @@ impl Fnv1a {
     }
 }
 
+fn kind_name(k: &MaterialKind) -> &'static str {
+    match k {
+        MaterialKind::Diffuse => "diffuse",
+        MaterialKind::Glossy => "glossy",
+    }
+}
+
 fn finite3(map: &SourceMap, field: &str, v: [f32; 3]) -> Result<Vec3> {
     let v = Vec3::from_array(v);
     if v.is_finite() {
@@ -685,21 +716,66 @@ impl<'a> Loader<'a> {
 
     fn material(&self, name: &str, m: &MaterialFile) -> Result<Material> {
         let field = |key: &str| format!("material.{name}.{key}");
+        let reflectance = |key: &str, value: Option<[f32; 3]>| -> Result<Vec3> {
+            let Some(v) = value else {
+                return Err(self.map.error(
+                    &field(key),
+                    format!("a {} material needs `{key}`", kind_name(&m.r#type)),
+                ));
+            };
+            let v = finite3(&self.map, &field(key), v)?;
+            if !(v.cmpge(Vec3::ZERO).all() && v.cmple(Vec3::ONE).all()) {
+                return Err(self.map.error(
+                    &field(key),
+                    format!("each channel must be in [0, 1], got {v}"),
+                ));
+            }
+            Ok(v)
+        };
         match m.r#type {
             MaterialKind::Diffuse => {
-                let Some(albedo) = m.albedo else {
-                    return Err(self
-                        .map
-                        .error(&field("albedo"), "a diffuse material needs `albedo`"));
-                };
-                let albedo = finite3(&self.map, &field("albedo"), albedo)?;
-                if !(albedo.cmpge(Vec3::ZERO).all() && albedo.cmple(Vec3::ONE).all()) {
+                for (key, set) in [
+                    ("specular", m.specular.is_some()),
+                    ("roughness", m.roughness.is_some()),
+                ] {
+                    if set {
+                        return Err(self.map.error(
+                            &field(key),
+                            "only a glossy material has it (set type = \"glossy\")",
+                        ));
+                    }
+                }
+                Ok(Material::Diffuse {
+                    albedo: reflectance("albedo", m.albedo)?,
+                })
+            }
+            MaterialKind::Glossy => {
+                let albedo = reflectance("albedo", m.albedo)?;
+                let specular = reflectance("specular", m.specular)?;
+                if (albedo + specular).cmpgt(Vec3::ONE).any() {
                     return Err(self.map.error(
-                        &field("albedo"),
-                        format!("each channel must be in [0, 1], got {albedo}"),
+                        &field("specular"),
+                        format!(
+                            "albedo + specular must be at most 1 per channel (energy), got {}",
+                            albedo + specular
+                        ),
                     ));
                 }
-                Ok(Material::Diffuse { albedo })
+                let roughness = m.roughness.ok_or_else(|| {
+                    self.map
+                        .error(&field("roughness"), "a glossy material needs `roughness`")
+                })?;
+                if !(0.02..=1.0).contains(&roughness) {
+                    return Err(self.map.error(
+                        &field("roughness"),
+                        format!("it must be in [0.02, 1], got {roughness}"),
+                    ));
+                }
+                Ok(Material::Glossy {
+                    albedo,
+                    specular,
+                    roughness,
+                })
             }
         }
     }
@@ -1486,9 +1562,25 @@ f 1//1 3//3 2//2\nf 4//1 6//3 5//2\n";
 
         let text = CANONICAL.replace(
             "type = \"diffuse\"\nalbedo = [0.8, 0.3",
-            "type = \"glossy\"\nalbedo = [0.8, 0.3",
+            "type = \"shiny\"\nalbedo = [0.8, 0.3",
         );
-        assert_mentions(&load_err(&text), &["material.clay.type", "glossy"]);
+        assert_mentions(&load_err(&text), &["material.clay.type", "shiny"]);
+
+        let text = CANONICAL.replace(
+            "type = \"diffuse\"\nalbedo = [0.8, 0.3, 0.2]",
+            "type = \"glossy\"\nalbedo = [0.8, 0.3, 0.2]\nspecular = [0.5, 0.5, 0.5]\nroughness = 0.3",
+        );
+        assert_mentions(&load_err(&text), &["material.clay.specular", "at most 1"]);
+        let text = CANONICAL.replace(
+            "type = \"diffuse\"\nalbedo = [0.8, 0.3, 0.2]",
+            "type = \"glossy\"\nalbedo = [0.4, 0.3, 0.2]\nspecular = [0.5, 0.5, 0.5]",
+        );
+        assert_mentions(&load_err(&text), &["material.clay.roughness"]);
+        let text = CANONICAL.replace(
+            "type = \"diffuse\"\nalbedo = [0.8, 0.3, 0.2]",
+            "type = \"diffuse\"\nalbedo = [0.4, 0.3, 0.2]\nroughness = 0.5",
+        );
+        assert_mentions(&load_err(&text), &["material.clay.roughness", "glossy"]);
 
         let text = CANONICAL.replace("eye = [0.0, 1.5, 4.0]", "eye = [0.0, 1.5]");
         assert_mentions(&load_err(&text), &["camera.eye", ":2:"]);
