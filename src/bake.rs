@@ -46,6 +46,10 @@ pub struct BakeSettings {
     pub seed: u64,
     /// `[index, count]`: bake only shard `index` of `count` (bands of tile rows).
     pub shard: Option<[u32; 2]>,
+    /// Interreflection bounces added to the direct light (0: direct only).
+    pub bounces: u32,
+    /// Paths traced per camera sub-sample for the interreflections.
+    pub paths: u32,
 }
 
 impl Default for BakeSettings {
@@ -60,6 +64,8 @@ impl Default for BakeSettings {
             unshadowed: false,
             seed: 1,
             shard: None,
+            bounces: 0,
+            paths: 64,
         }
     }
 }
@@ -103,6 +109,15 @@ impl BakeSettings {
                 format!("{i}/{count}; it must be I/COUNT with 0 <= I < COUNT"),
             ));
         }
+        if self.bounces > 16 || (self.bounces > 0 && !(1..=65536).contains(&self.paths)) {
+            return Err(PrtError::invalid(
+                "interreflections",
+                format!(
+                    "{} bounces with {} paths; bounces go up to 16, paths from 1 to 65536",
+                    self.bounces, self.paths
+                ),
+            ));
+        }
         if !(0.0..1.0).contains(&self.threshold) {
             return Err(PrtError::invalid(
                 "threshold",
@@ -131,6 +146,7 @@ pub struct BakeProgress {
 }
 
 /// Where the shading of one camera sub-sample happens: a hit point and its diffuse material.
+#[derive(Clone, Copy, Debug)]
 pub struct ShadingPoint {
     /// Origin for shadow rays, offset off the surface.
     pub origin: Vec3,
@@ -195,6 +211,75 @@ pub fn accumulate_direct_rows(
         *out += acc * scale;
         if let Some((_, row)) = glossy.as_mut() {
             row[j] += acc_glossy * scale;
+        }
+    }
+    rays
+}
+
+/// The random stream of a camera sub-sample's interreflection paths.
+pub fn path_stream(pixel: u64, sub: usize, spp: u32) -> u64 {
+    pixel * spp.max(1) as u64 + sub as u64
+}
+
+/// Traces `settings.paths` paths of up to `settings.bounces` bounces from a camera hit and calls
+/// `emit(direction, throughput)` for every path that leaves the scene after at least one bounce:
+/// the light it brings is `throughput ⊙ L(direction)` per path. Directions are cosine-sampled, so
+/// a bounce multiplies the throughput by `π f cos / cos` (the albedo, plus the GGX lobe over its
+/// cosine). Paths that leave straight from the camera hit are direct light, which the texel rows
+/// already hold exactly. Seeded per stream; returns the rays traced.
+pub fn indirect_paths(
+    tracer: &Tracer,
+    scene: &Scene,
+    start: &ShadingPoint,
+    settings: &BakeSettings,
+    stream: u64,
+    emit: &mut dyn FnMut(Vec3, [f32; 3]),
+) -> u64 {
+    let mut rays = 0;
+    let mut rng = crate::sampling::Rng::new(settings.seed ^ 0x5eed_ba11, stream);
+    for _ in 0..settings.paths {
+        let mut throughput = [1.0f32; 3];
+        let mut at = *start;
+        for bounce in 0..=settings.bounces {
+            let (u1, u2) = (rng.next_f32(), rng.next_f32());
+            let (t, b) = at.normal.any_orthonormal_pair();
+            let (r, phi) = (u1.sqrt(), 2.0 * std::f32::consts::PI * u2);
+            let d = (t * (r * phi.cos())
+                + b * (r * phi.sin())
+                + at.normal * (1.0 - u1).max(0.0).sqrt())
+            .normalize();
+            let cos = at.normal.dot(d);
+            if cos <= 1e-6 {
+                break;
+            }
+            let m = &scene.materials[at.material as usize];
+            let weight = match m.glossy_lobe() {
+                Some((s, alpha)) => {
+                    let g =
+                        std::f32::consts::PI * brdf::ggx_cosine(at.normal, at.view, d, alpha) / cos;
+                    m.albedo() + s * g
+                }
+                None => m.albedo(),
+            };
+            for k in 0..3 {
+                throughput[k] *= weight[k];
+            }
+            rays += 1;
+            // The origin is offset to the side of the shading normal, where `d` points.
+            match tracer.closest_hit(at.origin, d, f32::INFINITY) {
+                None => {
+                    if bounce > 0 {
+                        emit(d, throughput);
+                    }
+                    break;
+                }
+                Some(hit) => {
+                    if bounce == settings.bounces {
+                        break;
+                    }
+                    at = shading_point(tracer, &hit, d);
+                }
+            }
         }
     }
     rays
@@ -309,6 +394,12 @@ pub fn bake(
         },
         quantization: settings.quantization(),
         shard: settings.shard,
+        bounces: settings.bounces,
+        paths: if settings.bounces > 0 {
+            settings.paths
+        } else {
+            0
+        },
         stats: BakeStats::default(),
     };
     Transport::assemble(meta, tiles, albedo, coverage, tile_stats)
@@ -361,9 +452,12 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             // Dense rows of this pixel per material seen: the diffuse lobe's and, for glossy
             // materials, the GGX lobe's.
             let mut dense: Vec<(u32, Vec<f32>, Option<Vec<f32>>)> = Vec::new();
+            // Interreflected light, one row per colour channel (colour bleeding mixes them).
+            let mut indirect: Option<[Vec<f32>; 3]> = None;
             let mut hits = 0usize;
             let mut albedo_sum = [0.0f32; 3];
-            for (fx, fy) in subs {
+            let pixel_index = (y * w + x) as u64;
+            for (sub, (fx, fy)) in subs.into_iter().enumerate() {
                 let ray = cam.ray(fx, fy);
                 let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
                     continue;
@@ -393,6 +487,24 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     lobe.zip(glossy.as_deref_mut())
                         .map(|((_, alpha), row)| (alpha, row)),
                 );
+                if settings.bounces > 0 {
+                    let rows =
+                        indirect.get_or_insert_with(|| std::array::from_fn(|_| vec![0.0; c]));
+                    let scale = inv_spp / settings.paths as f32;
+                    out.rays += indirect_paths(
+                        tracer,
+                        scene,
+                        &sp,
+                        settings,
+                        path_stream(pixel_index, sub, settings.spp),
+                        &mut |dir, throughput| {
+                            let j = crate::cubemap::dir_to_texel(n, dir.as_dvec3());
+                            for k in 0..3 {
+                                rows[k][j] += throughput[k] * scale;
+                            }
+                        },
+                    );
+                }
             }
             let pixel = (y * w + x) as u32;
             let mean_albedo = if hits > 0 {
@@ -407,7 +519,12 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                 std::iter::once((m.albedo().to_array(), diffuse))
                     .chain(glossy.zip(specular).map(|(row, s)| (s, row)))
             });
-            for (weight, mut row) in lobes {
+            let channels = indirect.into_iter().flat_map(|rows| {
+                rows.into_iter()
+                    .enumerate()
+                    .map(|(k, row)| (std::array::from_fn(|i| (i == k) as u8 as f32), row))
+            });
+            for (weight, mut row) in lobes.chain(channels) {
                 let mut sh = vec![0.0f32; shc];
                 basis.project_row(&row, &mut sh);
                 haar::forward_face_all(&mut row, n, &mut scratch);
@@ -514,7 +631,9 @@ pub fn load_if_baked_with(
         && meta.quantization == settings.quantization()
         && meta.unshadowed == settings.unshadowed
         && meta.seed == settings.seed
-        && meta.shard == settings.shard;
+        && meta.shard == settings.shard
+        && meta.bounces == settings.bounces
+        && (settings.bounces == 0 || meta.paths == settings.paths);
     if !same {
         return None;
     }

@@ -87,6 +87,13 @@ pub struct SamplingArgs {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Interreflection bounces added to the direct light (path traced, binned by the texel each
+    /// path leaves through).
+    #[arg(long, default_value_t = 0)]
+    pub bounces: u32,
+    /// Paths per camera sub-sample for --bounces.
+    #[arg(long, default_value_t = 64)]
+    pub paths: u32,
 }
 
 #[derive(Args, Debug)]
@@ -303,6 +310,8 @@ fn settings_from(
         unshadowed: s.unshadowed,
         seed: s.seed,
         shard: None,
+        bounces: s.bounces,
+        paths: s.paths,
     }
 }
 
@@ -705,6 +714,8 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         unshadowed: t.meta.unshadowed,
         seed: t.meta.seed,
         shard: None,
+        bounces: t.meta.bounces,
+        paths: t.meta.paths.max(1),
     };
     let scene = if a.reference || a.compression.is_some() {
         let path = a

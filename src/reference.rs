@@ -1,11 +1,12 @@
 //! The brute-force reference: the scene ray traced under a cube map whose texels are
 //! piecewise-constant lights, with no transport matrix. It is the ground truth for tests and
 //! benchmarks, so it is written to be obviously right: for every camera sub-sample and every texel
-//! sample direction, visibility x BRDF x cos x solid angle x radiance, summed.
+//! sample direction, visibility x BRDF x cos x solid angle x radiance, summed; with bounces, the
+//! same seeded paths as the bake, each bringing its throughput times its exit texel's radiance.
 
 use rayon::prelude::*;
 
-use crate::bake::{BakeSettings, shading_point};
+use crate::bake::{BakeSettings, indirect_paths, path_stream, shading_point};
 use crate::brdf;
 use crate::cubemap::CubeMap;
 use crate::error::{PrtError, Result};
@@ -41,7 +42,7 @@ pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) 
                 let subs = pixel_samples(x as u32, y as u32, w as u32, settings.spp, settings.seed);
                 let inv_spp = 1.0 / subs.len() as f64;
                 let mut sum = [0.0f64; 3];
-                for (fx, fy) in subs {
+                for (sub, (fx, fy)) in subs.into_iter().enumerate() {
                     let ray = cam.ray(fx, fy);
                     let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
                         continue;
@@ -70,6 +71,18 @@ pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) 
                             let f = albedo[k] * diffuse + specular[k] * ggx;
                             sum[k] += f as f64 * *w as f64 * inv_spp * l[k] as f64;
                         }
+                    }
+                    // Interreflections: every path that leaves the scene after a bounce brings
+                    // its throughput times the radiance of the texel it leaves through.
+                    if settings.bounces > 0 {
+                        let scale = inv_spp / settings.paths as f64;
+                        let stream = path_stream((y * w + x) as u64, sub, settings.spp);
+                        indirect_paths(&tracer, scene, &sp, settings, stream, &mut |d, tp| {
+                            let l = cube.lookup(d.as_dvec3());
+                            for k in 0..3 {
+                                sum[k] += tp[k] as f64 * l[k] as f64 * scale;
+                            }
+                        });
                     }
                 }
                 *px = sum.map(|v| v as f32);

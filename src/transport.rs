@@ -105,6 +105,12 @@ pub struct TransportMeta {
     /// absent for a whole bake or a merge of all shards.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shard: Option<[u32; 2]>,
+    /// Interreflection bounces baked in (0: direct light only).
+    #[serde(default)]
+    pub bounces: u32,
+    /// Paths per camera sub-sample for the interreflections (0 without them).
+    #[serde(default)]
+    pub paths: u32,
     /// Derived from the tables (see [`Transport::finish`]): the same for a bake and a merge.
     pub stats: BakeStats,
 }
