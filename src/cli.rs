@@ -57,6 +57,9 @@ pub enum Command {
     Env(EnvArgs),
     /// Sweep error against kept terms for SH and wavelets; write a CSV, plots and a summary.
     Bench(BenchArgs),
+    /// Open the interactive viewer (SH versus wavelet, kept terms, environments, rotation), or
+    /// with --screenshot render the image it would show to a PNG and exit.
+    View(ViewArgs),
     /// Compare two linear EXR images: relative L2, RMSE, PSNR, gradient error, 1 - SSIM.
     Compare {
         /// Image to judge (.exr).
@@ -211,6 +214,42 @@ pub struct BenchArgs {
 }
 
 #[derive(Args, Debug)]
+pub struct ViewArgs {
+    /// Transport file.
+    pub file: PathBuf,
+    /// Extra environments (.exr/.hdr or sun:ELEV,AZIM), besides the bundled ones.
+    #[arg(long, num_args = 1..)]
+    pub env: Vec<String>,
+    /// Render one frame to this PNG without opening a window, then exit.
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+    /// wavelet, sh or full (with --screenshot).
+    #[arg(long)]
+    pub method: Option<String>,
+    /// Kept wavelet terms K (with --screenshot).
+    #[arg(long)]
+    pub terms: Option<usize>,
+    /// none, area or transport (with --screenshot).
+    #[arg(long)]
+    pub weighting: Option<String>,
+    /// SH order (with --screenshot).
+    #[arg(long)]
+    pub sh_order: Option<usize>,
+    /// Environment yaw, degrees (with --screenshot).
+    #[arg(long, allow_negative_numbers = true)]
+    pub yaw: Option<f64>,
+    /// Environment pitch, degrees (with --screenshot).
+    #[arg(long, allow_negative_numbers = true)]
+    pub pitch: Option<f64>,
+    /// Exposure in stops (with --screenshot; default automatic).
+    #[arg(long, allow_negative_numbers = true)]
+    pub exposure: Option<f32>,
+    /// SH and wavelet side by side (with --screenshot).
+    #[arg(long)]
+    pub compare: bool,
+}
+
+#[derive(Args, Debug)]
 pub struct EnvArgs {
     /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
     pub env: String,
@@ -247,6 +286,7 @@ fn run(command: Command) -> Result<()> {
         Command::Reference(a) => reference_cmd(a),
         Command::Env(a) => env_cmd(a),
         Command::Bench(a) => bench_cmd(a),
+        Command::View(a) => view_cmd(a),
         Command::Compare {
             image,
             reference,
@@ -770,6 +810,62 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
     for p in written {
         println!("wrote {}", p.display());
     }
+    Ok(())
+}
+
+fn view_cmd(a: ViewArgs) -> Result<()> {
+    use crate::viewer::{Engine, env_entries, screenshot};
+    let err = |m: String| PrtError::invalid("viewer", m);
+    let Some(out) = a.screenshot else {
+        if a.method.is_some() || a.terms.is_some() || a.compare {
+            return Err(PrtError::invalid(
+                "viewer",
+                "--method, --terms, ... apply to --screenshot only",
+            ));
+        }
+        return crate::viewer::run(&a.file, &a.env).map_err(|e| err(e.to_string()));
+    };
+    let (entries, sun, selected) = env_entries(&a.env);
+    let mut engine = Engine::open(&a.file, entries).map_err(err)?;
+    let mut state = engine.initial_state(selected, sun);
+    state.compare = a.compare;
+    if let Some(m) = &a.method {
+        state.method = m.parse()?;
+    }
+    if let Some(k) = a.terms {
+        state.terms = k;
+    }
+    if let Some(w) = &a.weighting {
+        state.weighting = w.parse()?;
+    }
+    if let Some(o) = a.sh_order {
+        state.sh_order = o;
+    }
+    if let Some(y) = a.yaw {
+        state.yaw = y;
+    }
+    if let Some(p) = a.pitch {
+        state.pitch = p;
+    }
+    state.exposure = match a.exposure {
+        Some(e) => e,
+        None => engine.auto_exposure(&state).map_err(err)?,
+    };
+    let r = screenshot(&mut engine, &state, &out).map_err(err)?;
+    for n in &r.notes {
+        eprintln!("note: {n}");
+    }
+    for p in &r.panes {
+        let l = &p.linear;
+        println!(
+            "{}: {} terms, relight {:.2} ms, relative L2 vs full {:.4}",
+            l.title,
+            l.terms,
+            l.relight_seconds * 1e3,
+            l.rel_l2
+        );
+    }
+    println!("wrote {}", out.display());
     Ok(())
 }
 

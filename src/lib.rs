@@ -40,5 +40,6 @@ pub mod sh;
 pub mod sheet;
 pub mod trace;
 pub mod transport;
+pub mod viewer;
 
 pub use error::{PrtError, Result};

@@ -3,7 +3,9 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
+use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::scene::Scene;
 
 /// A fresh directory under the system temp dir, unique to this process and `name`.
@@ -77,4 +79,61 @@ corners = [[-{half:?}, 0.0, -{half:?}], [-{half:?}, 0.0, {half:?}], [{half:?}, 0
 material = "m"
 "#
     )
+}
+
+/// A red ball on a grey floor under a slanted camera, small enough to bake in a moment.
+const VIEWER_SCENE: &str = r#"
+[camera]
+eye = [0.5, 2.0, 3.5]
+target = [0.0, 0.4, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 45.0
+width = 40
+height = 30
+
+[material.floor]
+type = "diffuse"
+albedo = [0.7, 0.7, 0.7]
+
+[material.ball]
+type = "diffuse"
+albedo = [0.9, 0.2, 0.1]
+
+[[shape]]
+type = "quad"
+corners = [[-3.0, 0.0, -3.0], [-3.0, 0.0, 3.0], [3.0, 0.0, 3.0], [3.0, 0.0, -3.0]]
+material = "floor"
+
+[[shape]]
+type = "sphere"
+center = [0.0, 0.5, 0.0]
+radius = 0.5
+material = "ball"
+"#;
+
+/// Cube face size and SH order of the test bake.
+pub const VIEWER_N: usize = 8;
+pub const VIEWER_SH_ORDER: usize = 3;
+
+/// Path of the baked test transport (baked once per test process).
+pub fn viewer_transport_path() -> PathBuf {
+    static PATH: OnceLock<PathBuf> = OnceLock::new();
+    PATH.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("viewer-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene_path = dir.join("scene.toml");
+        std::fs::write(&scene_path, VIEWER_SCENE).unwrap();
+        let scene = Scene::load(&scene_path).unwrap();
+        let settings = BakeSettings {
+            cube_n: VIEWER_N,
+            sh_order: VIEWER_SH_ORDER,
+            threshold: 0.0,
+            ..BakeSettings::default()
+        };
+        let t = bake(&scene, &settings, &|_| {}).unwrap();
+        let out = dir.join("test.prt");
+        t.save(&out).unwrap();
+        out
+    })
+    .clone()
 }

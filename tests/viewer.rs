@@ -1,0 +1,225 @@
+//! The state -> image function behind the window and the screenshot.
+
+mod common;
+
+use wavelet_prt::relight::Method;
+use wavelet_prt::viewer::{Engine, EnvEntry, EnvSource, ViewState, env_entries, screenshot};
+
+/// An engine on the test bake with a sun (index 0) and the first bundled map, if any.
+fn engine() -> Engine {
+    let (entries, _, _) = env_entries(&[]);
+    let mut envs = vec![EnvEntry {
+        name: "sun".into(),
+        source: EnvSource::Sun,
+    }];
+    envs.extend(
+        entries
+            .into_iter()
+            .filter(|e| e.source != EnvSource::Sun)
+            .take(1),
+    );
+    Engine::open(&common::viewer_transport_path(), envs).unwrap()
+}
+
+fn sun_state(engine: &mut Engine) -> ViewState {
+    let mut s = engine.initial_state(0, (25.0, 60.0));
+    s.exposure = 0.0;
+    s
+}
+
+fn l2(engine: &mut Engine, s: &ViewState) -> f64 {
+    engine.render(s).unwrap().panes[0].linear.rel_l2
+}
+
+#[test]
+fn more_terms_lower_the_error_against_full() {
+    let mut e = engine();
+    let mut s = sun_state(&mut e);
+    s.method = Method::Wavelet;
+    let all = 6 * common::VIEWER_N * common::VIEWER_N;
+    let errors: Vec<f64> = [2, 16, 128, all]
+        .iter()
+        .map(|&k| {
+            s.terms = k;
+            l2(&mut e, &s)
+        })
+        .collect();
+    assert!(errors[0] > errors[1] && errors[1] > errors[2], "{errors:?}");
+    assert!(errors[3] < 1e-5, "{errors:?}");
+    s.method = Method::Full;
+    assert_eq!(l2(&mut e, &s), 0.0);
+    // SH: higher order is closer for this smooth-enough sky.
+    s.method = Method::Sh;
+    s.sh_order = 1;
+    let low = l2(&mut e, &s);
+    s.sh_order = common::VIEWER_SH_ORDER;
+    let high = l2(&mut e, &s);
+    assert!(
+        high < low,
+        "SH order 1: {low}, order {}: {high}",
+        common::VIEWER_SH_ORDER
+    );
+}
+
+#[test]
+fn environment_yaw_and_sun_change_the_image() {
+    let mut e = engine();
+    let s = sun_state(&mut e);
+    let base = e.render(&s).unwrap().panes[0].rgb.clone();
+    let mut turned = s.clone();
+    turned.yaw = 90.0;
+    assert_ne!(e.render(&turned).unwrap().panes[0].rgb, base, "yaw");
+    let mut moved = s.clone();
+    moved.sun_elev = 60.0;
+    assert_ne!(
+        e.render(&moved).unwrap().panes[0].rgb,
+        base,
+        "sun elevation"
+    );
+    if e.envs.len() > 1 {
+        let mut other = s.clone();
+        other.env = 1;
+        assert_ne!(e.render(&other).unwrap().panes[0].rgb, base, "environment");
+    }
+    // Same state, same image (the caches do not leak between states).
+    assert_eq!(e.render(&s).unwrap().panes[0].rgb, base);
+}
+
+#[test]
+fn exposure_changes_only_the_tone_mapping() {
+    let mut e = engine();
+    let s = sun_state(&mut e);
+    let a = e.render(&s).unwrap();
+    let mut brighter = s.clone();
+    brighter.exposure += 1.0;
+    let b = e.render(&brighter).unwrap();
+    assert_eq!(a.panes[0].linear.image, b.panes[0].linear.image);
+    assert_ne!(a.panes[0].rgb, b.panes[0].rgb);
+}
+
+#[test]
+fn sh_order_above_baked_is_clamped_with_a_note() {
+    let mut e = engine();
+    let mut s = sun_state(&mut e);
+    s.method = Method::Sh;
+    s.sh_order = common::VIEWER_SH_ORDER + 5;
+    s.terms = 1_000_000;
+    let r = e.render(&s).unwrap();
+    assert_eq!(r.state.sh_order, common::VIEWER_SH_ORDER);
+    assert_eq!(r.state.terms, 6 * common::VIEWER_N * common::VIEWER_N);
+    assert_eq!(r.notes.len(), 2, "{:?}", r.notes);
+    assert_eq!(
+        r.panes[0].linear.terms,
+        common::VIEWER_SH_ORDER * common::VIEWER_SH_ORDER
+    );
+}
+
+#[test]
+fn compare_shows_sh_and_wavelet_at_matching_term_counts() {
+    let mut e = engine();
+    let mut s = sun_state(&mut e);
+    s.compare = true;
+    s.terms = 5;
+    let r = e.render(&s).unwrap();
+    assert_eq!(r.panes.len(), 2);
+    assert_eq!(r.panes[0].linear.request.method, Method::Sh);
+    assert_eq!(r.panes[0].linear.terms, 4); // nearest n² to 5
+    assert_eq!(r.panes[1].linear.request.method, Method::Wavelet);
+    assert_eq!(r.panes[1].linear.terms, 5);
+    let (w, h, rgb) = r.side_by_side(4);
+    assert_eq!((w, h), (2 * r.width + 4, r.height));
+    assert_eq!(rgb.len(), w * h * 3);
+}
+
+#[test]
+fn screenshot_writes_the_rendered_image() {
+    let mut e = engine();
+    let s = sun_state(&mut e);
+    let out = std::env::temp_dir().join(format!("viewer-shot-{}.png", std::process::id()));
+    let r = screenshot(&mut e, &s, &out).unwrap();
+    let bytes = std::fs::read(&out).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+    assert_eq!(r.panes.len(), 1);
+    std::fs::remove_file(out).unwrap();
+}
+
+#[test]
+fn a_bad_file_is_an_error_not_a_panic() {
+    let dir = std::env::temp_dir();
+    let bad = dir.join(format!("viewer-bad-{}.prt", std::process::id()));
+    std::fs::write(&bad, b"not a transport").unwrap();
+    assert!(Engine::open(&bad, Vec::new()).is_err());
+    let app = wavelet_prt::viewer::ViewerApp::new(&bad, &[]);
+    assert!(app.engine.is_err());
+    std::fs::remove_file(bad).unwrap();
+}
+
+#[test]
+fn gpu_relight_matches_the_cpu() {
+    let gpu = match wavelet_prt::gpu::Gpu::new() {
+        Ok(g) => g,
+        Err(e) if std::env::var("PRT_REQUIRE_GPU").as_deref() != Ok("1") => {
+            eprintln!("skipped, no GPU: {e}");
+            return;
+        }
+        Err(e) => panic!("PRT_REQUIRE_GPU=1 but {e}"),
+    };
+    let mut e = engine();
+    e.attach_gpu(gpu);
+    let mut s = sun_state(&mut e);
+    for method in [Method::Wavelet, Method::Sh, Method::Full] {
+        s.method = method;
+        s.gpu = false;
+        let cpu = e.render(&s).unwrap().panes[0].linear.clone();
+        s.gpu = true;
+        let gpu = e.render(&s).unwrap().panes[0].linear.clone();
+        let d = wavelet_prt::metrics::relative_l2(&gpu.image, &cpu.image, None).unwrap();
+        assert!(d < 1e-4, "{method}: GPU differs from CPU by {d}");
+        assert!((gpu.rel_l2 - cpu.rel_l2).abs() < 1e-4);
+    }
+}
+
+#[test]
+fn gpu_texture_path_shows_what_the_cpu_path_shows() {
+    let gpu = match wavelet_prt::gpu::Gpu::new() {
+        Ok(g) => g,
+        Err(e) if std::env::var("PRT_REQUIRE_GPU").as_deref() != Ok("1") => {
+            eprintln!("skipped, no GPU: {e}");
+            return;
+        }
+        Err(e) => panic!("PRT_REQUIRE_GPU=1 but {e}"),
+    };
+    let mut e = engine();
+    e.attach_gpu(gpu);
+    let mut s = sun_state(&mut e);
+    s.exposure = 0.5;
+    for (method, compare) in [
+        (Method::Wavelet, false),
+        (Method::Sh, false),
+        (Method::Full, true),
+    ] {
+        s.method = method;
+        s.compare = compare;
+        let r = e.render(&s).unwrap();
+        for pane in &r.panes {
+            let g = e.gpu().unwrap();
+            let view =
+                wavelet_prt::viewer::GpuView::new(&g.device, r.width as u32, r.height as u32);
+            e.relight_to_view(&pane.linear.request, &view, s.exposure)
+                .unwrap();
+            let g = e.gpu().unwrap();
+            let shown = view.read_rgb8(&g.device, &g.queue).unwrap();
+            assert_eq!(shown.len(), pane.rgb.len());
+            let worst = shown
+                .iter()
+                .zip(&pane.rgb)
+                .map(|(a, b)| a.abs_diff(*b))
+                .max()
+                .unwrap();
+            assert!(
+                worst <= 1,
+                "{method}: GPU display differs from the CPU image by {worst}"
+            );
+        }
+    }
+}
