@@ -247,6 +247,9 @@ pub struct ViewArgs {
     /// SH and wavelet side by side (with --screenshot).
     #[arg(long)]
     pub compare: bool,
+    /// Add the error heat map against full beside each image (with --screenshot).
+    #[arg(long)]
+    pub error_map: bool,
 }
 
 #[derive(Args, Debug)]
@@ -817,7 +820,7 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
     use crate::viewer::{Engine, env_entries, screenshot};
     let err = |m: String| PrtError::invalid("viewer", m);
     let Some(out) = a.screenshot else {
-        if a.method.is_some() || a.terms.is_some() || a.compare {
+        if a.method.is_some() || a.terms.is_some() || a.compare || a.error_map {
             return Err(PrtError::invalid(
                 "viewer",
                 "--method, --terms, ... apply to --screenshot only",
@@ -829,6 +832,7 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
     let mut engine = Engine::open(&a.file, entries).map_err(err)?;
     let mut state = engine.initial_state(selected, sun);
     state.compare = a.compare;
+    state.error_map = a.error_map;
     if let Some(m) = &a.method {
         state.method = m.parse()?;
     }

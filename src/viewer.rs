@@ -150,6 +150,8 @@ pub struct ViewState {
     pub exposure: f32,
     /// SH and wavelet side by side at the same term count.
     pub compare: bool,
+    /// Show, beside each image, its error against `full` as a heat map.
+    pub error_map: bool,
     /// Take the image from the GPU kernels, when a GPU is attached: in the window they write
     /// straight into a texture (the numbers still come from the CPU relight); in
     /// [`Engine::render`] the image is read back.
@@ -170,6 +172,7 @@ impl Default for ViewState {
             pitch: 0.0,
             exposure: 0.0,
             compare: false,
+            error_map: false,
             gpu: false,
         }
     }
@@ -278,6 +281,7 @@ impl ViewState {
     fn relight_key(&self) -> ViewState {
         ViewState {
             exposure: 0.0,
+            error_map: false,
             ..self.clone()
         }
     }
@@ -601,13 +605,28 @@ impl Engine {
         let tone = ToneMap {
             exposure: state.exposure,
         };
-        let panes = linear
+        let mut panes: Vec<Pane> = linear
             .iter()
             .map(|l| Pane {
                 rgb: l.image.to_srgb8(tone),
                 linear: l.clone(),
             })
             .collect();
+        if state.error_map
+            && let Some((_, _, full)) = &self.light
+        {
+            let maps: Vec<Pane> = panes
+                .iter()
+                .map(|p| Pane {
+                    rgb: error_heat_map(&p.linear.image, full, ERROR_MAP_GAIN),
+                    linear: LinearPane {
+                        title: format!("error of {} x{ERROR_MAP_GAIN}", p.linear.title),
+                        ..p.linear.clone()
+                    },
+                })
+                .collect();
+            panes.extend(maps);
+        }
         Ok(Rendered {
             width: self.transport.meta.width as usize,
             height: self.transport.meta.height as usize,
@@ -617,6 +636,44 @@ impl Engine {
             light_seconds,
         })
     }
+}
+
+/// Writes what `state` shows as `stem.png` (tone-mapped, side by side) and the first image as
+/// `stem.exr` (linear radiance).
+pub fn save_view(engine: &mut Engine, state: &ViewState, stem: &Path) -> Result<(), String> {
+    let r = screenshot(engine, state, &stem.with_extension("png"))?;
+    let first = r.panes.first().ok_or("nothing to save")?;
+    first
+        .linear
+        .image
+        .save(&stem.with_extension("exr"), ToneMap::default())
+        .map_err(|e| e.to_string())
+}
+
+/// How much the error heat map magnifies: a difference of 1/10 of the image's mean luminance
+/// shows at full heat.
+pub const ERROR_MAP_GAIN: f32 = 10.0;
+
+/// |image − full| in luminance, over the mean luminance of `full`, times `gain`, as a black →
+/// red → yellow → white heat map (RGB8).
+pub fn error_heat_map(image: &Image, full: &Image, gain: f32) -> Vec<u8> {
+    let lum = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+    let lit: Vec<f32> = full.pixels.iter().map(lum).filter(|l| *l > 0.0).collect();
+    let mean = if lit.is_empty() {
+        1.0
+    } else {
+        lit.iter().sum::<f32>() / lit.len() as f32
+    };
+    image
+        .pixels
+        .iter()
+        .zip(&full.pixels)
+        .flat_map(|(a, b)| {
+            let e = ((lum(a) - lum(b)).abs() / mean * gain).clamp(0.0, 1.0);
+            let ramp = |lo: f32| ((3.0 * e - lo).clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+            [ramp(0.0), ramp(1.0), ramp(2.0)]
+        })
+        .collect()
 }
 
 /// Renders `state` as the window would show it and writes it as a PNG.
@@ -642,6 +699,8 @@ pub struct ViewerApp {
     size: [usize; 2],
     light_seconds: f64,
     path_edit: String,
+    /// Where "Save" writes: a `.png` (what is shown) and an `.exr` (the first image, linear).
+    pub save_stem: String,
     cli_envs: Vec<String>,
     /// The window's wgpu device, queue and adapter name, for GPU relighting.
     device: Option<(wgpu::Device, wgpu::Queue, String)>,
@@ -666,6 +725,7 @@ impl ViewerApp {
             size: [0, 0],
             light_seconds: 0.0,
             path_edit: file.display().to_string(),
+            save_stem: "prt-view".to_string(),
             cli_envs: envs.to_vec(),
             device: None,
             render_state: None,
@@ -768,6 +828,7 @@ impl ViewerApp {
             ui.selectable_value(&mut s.method, Method::Full, "Full");
         });
         ui.checkbox(&mut s.compare, "Compare SH | wavelet");
+        ui.checkbox(&mut s.error_map, "Error heat map vs full");
         if let Some(name) = engine.gpu_name() {
             ui.checkbox(&mut s.gpu, "Relight on the GPU")
                 .on_hover_text(name.to_string());
@@ -817,6 +878,17 @@ impl ViewerApp {
         ui.add(egui::Slider::new(&mut s.yaw, -180.0..=180.0).text("yaw°"));
         ui.add(egui::Slider::new(&mut s.pitch, -90.0..=90.0).text("pitch°"));
         ui.add(egui::Slider::new(&mut s.exposure, -12.0..=12.0).text("exposure (stops)"));
+        ui.separator();
+        ui.horizontal(|ui| {
+            let label = ui.label("Save as");
+            ui.text_edit_singleline(&mut self.save_stem)
+                .labelled_by(label.id);
+        });
+        if ui.button("Save PNG + EXR").clicked() {
+            let stem = PathBuf::from(&self.save_stem);
+            let state = s.clone();
+            self.error = save_view(engine, &state, &stem).err();
+        }
         if ui.button("Auto exposure").clicked()
             && let Ok(e) = engine.auto_exposure(s)
         {
@@ -863,8 +935,10 @@ impl ViewerApp {
             return;
         }
         self.shown = Some(self.state.clone());
-        let gpu_display =
-            self.state.gpu && self.render_state.is_some() && engine.gpu_name().is_some();
+        let gpu_display = self.state.gpu
+            && !self.state.error_map
+            && self.render_state.is_some()
+            && engine.gpu_name().is_some();
         // The numbers (and the CPU image) always come from the CPU relight.
         let cpu_state = ViewState {
             gpu: false,

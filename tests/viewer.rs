@@ -223,3 +223,45 @@ fn gpu_texture_path_shows_what_the_cpu_path_shows() {
         }
     }
 }
+
+#[test]
+fn error_map_is_black_at_every_term_and_lit_with_few() {
+    let mut e = engine();
+    let mut s = sun_state(&mut e);
+    s.error_map = true;
+    s.method = Method::Wavelet;
+    s.terms = 6 * common::VIEWER_N * common::VIEWER_N;
+    let r = e.render(&s).unwrap();
+    assert_eq!(r.panes.len(), 2, "an image and its error map");
+    assert!(
+        r.panes[1].rgb.iter().all(|&v| v == 0),
+        "every term: no error"
+    );
+    s.terms = 2;
+    let r = e.render(&s).unwrap();
+    assert!(
+        r.panes[1].rgb.iter().any(|&v| v > 0),
+        "two terms: some error shows"
+    );
+    // Side by side with the comparison: two images, two maps.
+    s.compare = true;
+    assert_eq!(e.render(&s).unwrap().panes.len(), 4);
+}
+
+#[test]
+fn save_writes_the_png_and_the_linear_exr() {
+    let mut e = engine();
+    let s = sun_state(&mut e);
+    let dir = std::env::temp_dir().join(format!("viewer-save-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let stem = dir.join("view");
+    wavelet_prt::viewer::save_view(&mut e, &s, &stem).unwrap();
+    let png = image::open(stem.with_extension("png")).unwrap();
+    let exr = wavelet_prt::film::Image::load_exr(&stem.with_extension("exr")).unwrap();
+    assert_eq!(
+        (exr.width as u32, exr.height as u32),
+        (png.width(), png.height())
+    );
+    let shown = e.render(&s).unwrap();
+    assert_eq!(exr.pixels, shown.panes[0].linear.image.pixels);
+}
