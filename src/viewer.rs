@@ -763,6 +763,8 @@ impl ViewerApp {
         let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
         self.attach_device(rs.device.clone(), rs.queue.clone(), name);
         self.render_state = Some(rs);
+        // The window draws from the GPU kernels by default; the box in the panel turns it off.
+        self.state.gpu = true;
     }
 
     fn connect_gpu(&mut self) {
@@ -829,9 +831,14 @@ impl ViewerApp {
         });
         ui.checkbox(&mut s.compare, "Compare SH | wavelet");
         ui.checkbox(&mut s.error_map, "Error heat map vs full");
-        if let Some(name) = engine.gpu_name() {
-            ui.checkbox(&mut s.gpu, "Relight on the GPU")
-                .on_hover_text(name.to_string());
+        match engine.gpu_name() {
+            Some(name) => {
+                ui.checkbox(&mut s.gpu, "Relight on the GPU")
+                    .on_hover_text(name.to_string());
+            }
+            None => {
+                ui.label("No GPU adapter: relighting on the CPU");
+            }
         }
         ui.separator();
         ui.label(format!("Kept terms (+/-), 1 to {}", limits.coeffs));

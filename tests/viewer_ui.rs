@@ -58,14 +58,16 @@ fn gpu_display_draws_what_the_cpu_path_draws() {
         .renderer(WgpuTestRenderer::from_render_state(rs))
         .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), app);
     h.run();
-    let cpu = h.render().expect("render");
-    h.get_by_label("Relight on the GPU").click();
-    h.run();
+    // With a render state attached, the window draws from the GPU kernels by default.
     assert!(h.state().state.gpu);
     assert!(h.state().error.is_none(), "{:?}", h.state().error);
     h.query_by_label_contains("GPU pane 1")
         .expect("GPU timing shown");
     let gpu = h.render().expect("render");
+    h.get_by_label("Relight on the GPU").click();
+    h.run();
+    assert!(!h.state().state.gpu);
+    let cpu = h.render().expect("render");
     if let Some(out) = std::env::var_os("VIEWER_UI_GPU_PNG") {
         gpu.save(out).unwrap();
     }
