@@ -20,20 +20,6 @@ use wavelet_prt::transport::Transport;
 /// issue asks for 1e-4.
 const GPU_MATCH: f64 = 1e-4;
 
-fn gpu_or_skip(test: &str) -> Option<Gpu> {
-    match Gpu::new() {
-        Ok(g) => {
-            eprintln!("{test}: on {}", g.adapter);
-            Some(g)
-        }
-        Err(e) if std::env::var("PRT_REQUIRE_GPU").as_deref() != Ok("1") => {
-            eprintln!("{test}: skipped, no GPU: {e}");
-            None
-        }
-        Err(e) => panic!("{test}: PRT_REQUIRE_GPU=1 but {e}"),
-    }
-}
-
 fn bakes() -> Vec<Transport> {
     let scene = scene_from(SPHERE_ON_PLANE, "gpu");
     let base = BakeSettings {
@@ -90,7 +76,7 @@ fn check(gpu: &Gpu, t: &Transport, limit: Option<u64>, shared_rows: Option<u32>)
 
 #[test]
 fn gpu_equals_cpu() {
-    let Some(gpu) = gpu_or_skip("gpu_equals_cpu") else {
+    let Some(gpu) = common::gpu_or_skip("gpu_equals_cpu") else {
         return;
     };
     for t in bakes() {
@@ -100,7 +86,7 @@ fn gpu_equals_cpu() {
 
 #[test]
 fn gpu_equals_cpu_when_split_across_bindings() {
-    let Some(gpu) = gpu_or_skip("gpu_equals_cpu_when_split_across_bindings") else {
+    let Some(gpu) = common::gpu_or_skip("gpu_equals_cpu_when_split_across_bindings") else {
         return;
     };
     for t in bakes() {
@@ -117,7 +103,7 @@ fn gpu_equals_cpu_when_split_across_bindings() {
 
 #[test]
 fn bad_lights_are_errors_on_the_gpu_too() {
-    let Some(gpu) = gpu_or_skip("bad_lights_are_errors_on_the_gpu_too") else {
+    let Some(gpu) = common::gpu_or_skip("bad_lights_are_errors_on_the_gpu_too") else {
         return;
     };
     let t = &bakes()[1];
@@ -174,7 +160,7 @@ fn read_texture(gpu: &Gpu, texture: &wgpu::Texture) -> Vec<[f32; 4]> {
 
 #[test]
 fn relight_into_a_texture_equals_the_read_back_image() {
-    let Some(gpu) = gpu_or_skip("relight_into_a_texture_equals_the_read_back_image") else {
+    let Some(gpu) = common::gpu_or_skip("relight_into_a_texture_equals_the_read_back_image") else {
         return;
     };
     let t = &bakes()[1];

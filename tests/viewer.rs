@@ -156,13 +156,8 @@ fn a_bad_file_is_an_error_not_a_panic() {
 
 #[test]
 fn gpu_relight_matches_the_cpu() {
-    let gpu = match wavelet_prt::gpu::Gpu::new() {
-        Ok(g) => g,
-        Err(e) if std::env::var("PRT_REQUIRE_GPU").as_deref() != Ok("1") => {
-            eprintln!("skipped, no GPU: {e}");
-            return;
-        }
-        Err(e) => panic!("PRT_REQUIRE_GPU=1 but {e}"),
+    let Some(gpu) = common::gpu_or_skip("viewer GPU") else {
+        return;
     };
     let mut e = engine();
     e.attach_gpu(gpu);
@@ -181,13 +176,8 @@ fn gpu_relight_matches_the_cpu() {
 
 #[test]
 fn gpu_texture_path_shows_what_the_cpu_path_shows() {
-    let gpu = match wavelet_prt::gpu::Gpu::new() {
-        Ok(g) => g,
-        Err(e) if std::env::var("PRT_REQUIRE_GPU").as_deref() != Ok("1") => {
-            eprintln!("skipped, no GPU: {e}");
-            return;
-        }
-        Err(e) => panic!("PRT_REQUIRE_GPU=1 but {e}"),
+    let Some(gpu) = common::gpu_or_skip("viewer GPU") else {
+        return;
     };
     let mut e = engine();
     e.attach_gpu(gpu);

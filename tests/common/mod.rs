@@ -137,3 +137,19 @@ pub fn viewer_transport_path() -> PathBuf {
     })
     .clone()
 }
+
+/// A GPU for the tests: `None` (after printing why) when no adapter exists, unless
+/// `PRT_REQUIRE_GPU=1`, when the test fails instead.
+pub fn gpu_or_skip(test: &str) -> Option<wavelet_prt::gpu::Gpu> {
+    match wavelet_prt::gpu::Gpu::new() {
+        Ok(g) => {
+            eprintln!("{test}: on {}", g.adapter);
+            Some(g)
+        }
+        Err(e) if std::env::var("PRT_REQUIRE_GPU").as_deref() != Ok("1") => {
+            eprintln!("{test}: skipped, no GPU: {e}");
+            None
+        }
+        Err(e) => panic!("{test}: PRT_REQUIRE_GPU=1 but {e}"),
+    }
+}
