@@ -17,6 +17,10 @@ fn harness(app: ViewerApp) -> Harness<'static, ViewerApp> {
 
 #[test]
 fn clicking_the_method_toggle_changes_the_state_and_the_image() {
+    // The harness renders with wgpu: it needs an adapter (a software one will do).
+    if common::gpu_or_skip("clicking_the_method_toggle_changes_the_state_and_the_image").is_none() {
+        return;
+    }
     let app = ViewerApp::new(&common::viewer_transport_path(), &["sun:30,45".to_string()]);
     let mut h = harness(app);
     h.run();
@@ -36,6 +40,10 @@ fn clicking_the_method_toggle_changes_the_state_and_the_image() {
 
 #[test]
 fn a_bad_file_shows_a_message() {
+    // The harness renders with wgpu: it needs an adapter (a software one will do).
+    if common::gpu_or_skip("a_bad_file_shows_a_message").is_none() {
+        return;
+    }
     let bad = std::env::temp_dir().join(format!("viewer-ui-bad-{}.prt", std::process::id()));
     std::fs::write(&bad, b"junk").unwrap();
     let mut h = harness(ViewerApp::new(&bad, &[]));
@@ -46,6 +54,10 @@ fn a_bad_file_shows_a_message() {
 
 #[test]
 fn gpu_display_draws_what_the_cpu_path_draws() {
+    // The harness renders with wgpu: it needs an adapter (a software one will do).
+    if common::gpu_or_skip("gpu_display_draws_what_the_cpu_path_draws").is_none() {
+        return;
+    }
     use egui_kittest::wgpu::{WgpuTestRenderer, create_render_state, default_wgpu_setup};
     let rs = create_render_state(
         default_wgpu_setup(),
