@@ -1,10 +1,11 @@
-// Display tone mapping: linear RGBA32F radiance times 2^exposure, then the sRGB curve, into the
-// RGBA8 texture egui samples.
+// Display tone mapping: linear RGBA32F radiance times 2^exposure, a display curve (0 clip,
+// 1 Reinhard, 2 the ACES fit; `ToneCurve` in src/film.rs), then the sRGB curve, into the RGBA8
+// texture egui samples.
 struct Params {
     scale: f32,
     width: u32,
     height: u32,
-    pad: u32,
+    curve: u32,
 }
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var linear_image: texture_2d<f32>;
@@ -18,11 +19,25 @@ fn srgb(x: f32) -> f32 {
     return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
 }
 
+fn curve(x: f32) -> f32 {
+    if params.curve == 1u {
+        return x / (1.0 + x);
+    }
+    if params.curve == 2u {
+        return clamp(x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
+    }
+    return x;
+}
+
+fn display_value(x: f32) -> f32 {
+    return srgb(curve(max(x * params.scale, 0.0)));
+}
+
 @compute @workgroup_size(16, 16)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= params.width || id.y >= params.height {
         return;
     }
-    let p = textureLoad(linear_image, vec2<i32>(id.xy), 0).rgb * params.scale;
-    textureStore(display, vec2<i32>(id.xy), vec4<f32>(srgb(p.r), srgb(p.g), srgb(p.b), 1.0));
+    let p = textureLoad(linear_image, vec2<i32>(id.xy), 0).rgb;
+    textureStore(display, vec2<i32>(id.xy), vec4<f32>(display_value(p.r), display_value(p.g), display_value(p.b), 1.0));
 }

@@ -247,6 +247,13 @@ pub struct ViewArgs {
     /// SH and wavelet side by side (with --screenshot).
     #[arg(long)]
     pub compare: bool,
+    /// SH and wavelet as one image split at this fraction of the width, SH on the left
+    /// (with --screenshot; implies --compare).
+    #[arg(long)]
+    pub split: Option<f32>,
+    /// Display curve after the exposure: clip, reinhard or aces (with --screenshot).
+    #[arg(long)]
+    pub tone: Option<String>,
     /// Add the error heat map against full beside each image (with --screenshot).
     #[arg(long)]
     pub error_map: bool,
@@ -574,7 +581,7 @@ fn relight_cmd(a: RelightArgs) -> Result<()> {
         }
     };
     let tone = match a.exposure {
-        Some(e) => ToneMap { exposure: e },
+        Some(e) => ToneMap::exposure(e),
         None => ToneMap::auto(&img, Some(&t.coverage)),
     };
     img.save(&a.output, tone)?;
@@ -820,7 +827,13 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
     use crate::viewer::{Engine, env_entries, screenshot};
     let err = |m: String| PrtError::invalid("viewer", m);
     let Some(out) = a.screenshot else {
-        if a.method.is_some() || a.terms.is_some() || a.compare || a.error_map {
+        if a.method.is_some()
+            || a.terms.is_some()
+            || a.compare
+            || a.error_map
+            || a.split.is_some()
+            || a.tone.is_some()
+        {
             return Err(PrtError::invalid(
                 "viewer",
                 "--method, --terms, ... apply to --screenshot only",
@@ -831,8 +844,26 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
     let (entries, sun, selected) = env_entries(&a.env);
     let mut engine = Engine::open(&a.file, entries).map_err(err)?;
     let mut state = engine.initial_state(selected, sun);
-    state.compare = a.compare;
+    if let Some(r) = crate::viewer::cli_sun_radius(&a.env) {
+        state.sun_radius = r;
+    }
+    state.compare = a.compare || a.split.is_some();
     state.error_map = a.error_map;
+    if let Some(f) = a.split {
+        if !(0.0..=1.0).contains(&f) {
+            return Err(err(format!("--split {f}: expected a fraction in [0, 1]")));
+        }
+        state.layout = crate::viewer::Layout::Split;
+        state.split = f;
+    }
+    if let Some(t) = &a.tone {
+        state.tone = match t.to_ascii_lowercase().as_str() {
+            "clip" => crate::film::ToneCurve::Clip,
+            "reinhard" => crate::film::ToneCurve::Reinhard,
+            "aces" => crate::film::ToneCurve::Aces,
+            _ => return Err(err(format!("--tone {t}: expected clip, reinhard or aces"))),
+        };
+    }
     if let Some(m) = &a.method {
         state.method = m.parse()?;
     }
@@ -862,9 +893,10 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
     for p in &r.panes {
         let l = &p.linear;
         println!(
-            "{}: {} terms, relight {:.2} ms, relative L2 vs full {:.4}",
+            "{}: {} terms, {:.2} M nonzeros touched, relight {:.2} ms, relative L2 vs full {:.4}",
             l.title,
             l.terms,
+            l.nonzeros_touched as f64 * 1e-6,
             l.relight_seconds * 1e3,
             l.rel_l2
         );

@@ -17,13 +17,69 @@ pub struct Image {
 /// How linear radiance becomes display values.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ToneMap {
-    /// Exposure in stops: values are multiplied by 2^exposure before the sRGB curve.
+    /// Exposure in stops: values are multiplied by 2^exposure before the curve.
     pub exposure: f32,
+    /// How exposed values above 1 are brought into range before the sRGB curve.
+    pub curve: ToneCurve,
 }
 
 impl Default for ToneMap {
     fn default() -> Self {
-        ToneMap { exposure: 0.0 }
+        ToneMap {
+            exposure: 0.0,
+            curve: ToneCurve::Clip,
+        }
+    }
+}
+
+impl ToneMap {
+    /// Exposure only, clipping at 1 (what PNG output and the contact sheet use).
+    pub fn exposure(exposure: f32) -> ToneMap {
+        ToneMap {
+            exposure,
+            curve: ToneCurve::Clip,
+        }
+    }
+}
+
+/// The display curve applied per channel to exposed linear values, before the sRGB encoding.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum ToneCurve {
+    /// Values above 1 clip: faithful below 1, what an error comparison wants.
+    #[default]
+    Clip,
+    /// Reinhard's x / (1 + x) (Reinhard et al. 2002): never clips, flattens highlights.
+    Reinhard,
+    /// Narkowicz's fit of the ACES filmic curve (2015): a toe and a soft shoulder.
+    Aces,
+}
+
+impl ToneCurve {
+    pub const ALL: [ToneCurve; 3] = [ToneCurve::Clip, ToneCurve::Reinhard, ToneCurve::Aces];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ToneCurve::Clip => "clip",
+            ToneCurve::Reinhard => "Reinhard",
+            ToneCurve::Aces => "ACES (fit)",
+        }
+    }
+
+    /// The index the display shader switches on (`shaders/tonemap.wgsl`).
+    pub fn index(self) -> u32 {
+        self as u32
+    }
+
+    /// The curve at an exposed linear value `x >= 0`.
+    #[inline]
+    pub fn apply(self, x: f32) -> f32 {
+        match self {
+            ToneCurve::Clip => x,
+            ToneCurve::Reinhard => x / (1.0 + x),
+            ToneCurve::Aces => {
+                (x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14)).clamp(0.0, 1.0)
+            }
+        }
     }
 }
 
@@ -43,7 +99,7 @@ impl ToneMap {
     #[inline]
     pub fn apply(&self, p: [f32; 3]) -> [u8; 3] {
         let s = self.exposure.exp2();
-        p.map(|v| (srgb_encode(v * s) * 255.0 + 0.5) as u8)
+        p.map(|v| (srgb_encode(self.curve.apply((v * s).max(0.0))) * 255.0 + 0.5) as u8)
     }
 
     /// An exposure that maps the 99th percentile of luminance over `mask`ed pixels to 0.9, so a
@@ -62,9 +118,7 @@ impl ToneMap {
         }
         let k = ((lum.len() as f32 * 0.99) as usize).min(lum.len() - 1);
         let (_, v, _) = lum.select_nth_unstable_by(k, f32::total_cmp);
-        ToneMap {
-            exposure: (0.9 / *v).log2(),
-        }
+        ToneMap::exposure((0.9 / *v).log2())
     }
 }
 
@@ -164,4 +218,39 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) ->
         let _ = std::fs::remove_file(&tmp);
         PrtError::io(path, e)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tone_curves_are_monotone_and_map_zero_to_zero() {
+        for c in ToneCurve::ALL {
+            assert_eq!(c.apply(0.0), 0.0, "{c:?}");
+            let mut last = 0.0;
+            for i in 1..2000 {
+                let y = c.apply(i as f32 * 0.01);
+                assert!(y >= last, "{c:?} falls at {i}");
+                last = y;
+            }
+        }
+        assert_eq!(ToneCurve::Reinhard.apply(1.0), 0.5);
+        assert!(ToneCurve::Reinhard.apply(1e6) < 1.0);
+        // The ACES fit shoulders towards 1 without clipping early.
+        let a = ToneCurve::Aces;
+        assert!(a.apply(0.5) < 0.7 && a.apply(8.0) > 0.95);
+    }
+
+    #[test]
+    fn clip_curve_is_plain_exposure() {
+        let t = ToneMap::exposure(1.0);
+        assert_eq!(t.apply([0.25, 0.0, 10.0]), [188, 0, 255]);
+        let r = ToneMap {
+            curve: ToneCurve::Reinhard,
+            ..t
+        };
+        // 10 · 2 = 20 → 20/21 → 250 after the sRGB curve: below white, where clip gives 255.
+        assert_eq!(r.apply([10.0, 0.0, 0.0])[0], 250);
+    }
 }

@@ -49,7 +49,8 @@ struct Params {
 }
 const _: () = assert!(std::mem::size_of::<Params>() == 48);
 
-/// A device, its queue and the two relight pipelines.
+/// A device, its queue and the relight pipelines (cloning shares them).
+#[derive(Clone)]
 pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
@@ -58,6 +59,90 @@ pub struct Gpu {
     wavelet: wgpu::ComputePipeline,
     sh: wgpu::ComputePipeline,
     to_texture: wgpu::ComputePipeline,
+    /// Timestamp queries around the relight passes, where the device has them.
+    timer: Option<Timer>,
+}
+
+/// Two timestamps (start of the first relight pass, end of the last), resolved and copied to a
+/// mappable buffer in the same submission.
+#[derive(Clone)]
+struct Timer {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    period_ns: f64,
+}
+
+impl Timer {
+    fn new(device: &wgpu::Device, queue: &wgpu::Queue) -> Option<Timer> {
+        if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+            return None;
+        }
+        let set = device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("relight timestamps"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        });
+        let buffer = |label, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 16,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        Some(Timer {
+            set,
+            resolve: buffer(
+                "timestamps",
+                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            readback: buffer(
+                "timestamps readback",
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+            period_ns: queue.get_timestamp_period() as f64,
+        })
+    }
+
+    /// Timestamp writes for pass `i` of `n`: the start of the first, the end of the last.
+    fn writes(&self, i: usize, n: usize) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+        let (begin, end) = (i == 0, i + 1 == n);
+        (begin || end).then(|| wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: begin.then_some(0),
+            end_of_pass_write_index: end.then_some(1),
+        })
+    }
+
+    fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.resolve_query_set(&self.set, 0..2, &self.resolve, 0);
+        encoder.copy_buffer_to_buffer(&self.resolve, 0, &self.readback, 0, 16);
+    }
+
+    /// The time between the two stamps of the last finished submission, seconds.
+    fn read(&self, device: &wgpu::Device) -> Option<f64> {
+        let slice = self.readback.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        device
+            .poll(wgpu::PollType::Wait {
+                submission_index: None,
+                timeout: None,
+            })
+            .ok()?;
+        rx.recv().ok()?.ok()?;
+        let stamps: [u64; 2] = {
+            let view = slice.get_mapped_range().ok()?;
+            bytemuck::pod_read_unaligned(&view[..16])
+        };
+        self.readback.unmap();
+        // Some drivers stamp a pass that was skipped as 0; a reversed pair is no measurement.
+        (stamps[1] > stamps[0] && stamps[0] != 0)
+            .then(|| (stamps[1] - stamps[0]) as f64 * self.period_ns * 1e-9)
+    }
 }
 
 /// WGSL of a pipeline: the relight pipelines get the tile and workgroup sizes from here (the one
@@ -100,6 +185,7 @@ impl Gpu {
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("wavelet-prt relight"),
             required_limits: adapter.limits(),
+            required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
             ..Default::default()
         }))
         .map_err(|e| PrtError::Gpu(format!("opening {}: {e}", info.name)))?;
@@ -132,6 +218,7 @@ impl Gpu {
                 "building the relight pipelines: {e}"
             )));
         }
+        let timer = Timer::new(&device, &queue);
         Ok(Gpu {
             device,
             queue,
@@ -139,7 +226,19 @@ impl Gpu {
             wavelet,
             sh,
             to_texture,
+            timer,
         })
+    }
+
+    /// Whether relight times come from GPU timestamp queries (else from the wall clock).
+    pub fn has_timestamps(&self) -> bool {
+        self.timer.is_some()
+    }
+
+    /// The GPU time of the relight passes of the last finished relight, from timestamp queries;
+    /// `None` when the device has none. Call after the relight's submission has completed.
+    pub fn last_kernel_seconds(&self) -> Option<f64> {
+        self.timer.as_ref()?.read(&self.device)
     }
 
     /// The largest storage buffer one binding may hold on this device.
@@ -520,7 +619,8 @@ impl GpuTransport {
     ) {
         gpu.queue
             .write_buffer(&self.light, 0, bytemuck::cast_slice(terms));
-        for chunk in &self.chunks {
+        let n = self.chunks.len();
+        for (i, chunk) in self.chunks.iter().enumerate() {
             // `coeffs` (word 6 of Params) is the row stride: 6 N² for wavelets, n² for SH;
             // `terms` is word 7.
             let words = [
@@ -531,7 +631,7 @@ impl GpuTransport {
                 .write_buffer(&chunk.params, 24, bytemuck::cast_slice(&words));
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("relight"),
-                timestamp_writes: None,
+                timestamp_writes: gpu.timer.as_ref().and_then(|t| t.writes(i, n)),
             });
             let (pipeline, group) = if wavelet {
                 (&gpu.wavelet, &chunk.wavelet_group)
@@ -543,6 +643,9 @@ impl GpuTransport {
             let count = chunk.tiles.len() as u32;
             let x = count.min(MAX_DISPATCH);
             pass.dispatch_workgroups(x, count.div_ceil(x), 1);
+        }
+        if let Some(t) = &gpu.timer {
+            t.resolve(encoder);
         }
         // Each chunk has its own parameter buffer, and queued writes land before the submission
         // that follows them; chunks touch disjoint tiles, rows and pixels.
@@ -621,8 +724,9 @@ impl GpuTransport {
         Ok(())
     }
 
-    /// Records the relight, reads the image back. Returns the image and the wall time from
-    /// submission to completion.
+    /// Records the relight, reads the image back. Returns the image and the GPU time of the relight
+    /// passes (timestamp queries), or where the device has none the wall time from submission to
+    /// completion.
     fn run(&self, gpu: &Gpu, terms: &[[f32; 4]], wavelet: bool) -> Result<(Image, f64)> {
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let mut encoder = gpu
@@ -645,7 +749,7 @@ impl GpuTransport {
                 timeout: None,
             })
             .map_err(|e| PrtError::Gpu(format!("waiting for the relight: {e}")))?;
-        let seconds = start.elapsed().as_secs_f64();
+        let wall = start.elapsed().as_secs_f64();
         rx.recv()
             .map_err(|_| PrtError::Gpu("the readback was dropped".into()))?
             .map_err(|e| PrtError::Gpu(format!("reading the image back: {e}")))?;
@@ -660,6 +764,7 @@ impl GpuTransport {
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!("relight: {e}")));
         }
+        let seconds = gpu.last_kernel_seconds().unwrap_or(wall);
         Ok((
             Image {
                 width: self.width,

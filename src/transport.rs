@@ -284,8 +284,14 @@ impl Transport {
 
     /// Reads and fully validates a transport file.
     pub fn load(path: &Path) -> Result<Self> {
+        Self::load_with_progress(path, &|_, _| {})
+    }
+
+    /// [`Transport::load`], calling `progress(bytes read, file size)` as the file comes in (the
+    /// viewer shows it; validation after the read is quick).
+    pub fn load_with_progress(path: &Path, progress: &dyn Fn(u64, u64)) -> Result<Self> {
         let (meta, stored) = read_header(path)?;
-        let buf = std::fs::read(path).map_err(|e| PrtError::io(path, e))?;
+        let buf = read_with_progress(path, progress)?;
         let st = safetensors::SafeTensors::deserialize(&buf)
             .map_err(|e| PrtError::file(path, format!("not a valid safetensors file: {e}")))?;
         let mut parts = Vec::with_capacity(TENSOR_NAMES.len());
@@ -720,6 +726,26 @@ impl Transport {
 /// The shard that bakes band (tile row) `band` of `bands` when a bake is split into `count`.
 pub fn shard_of_band(band: usize, bands: usize, count: usize) -> usize {
     (band * count) / bands.max(1)
+}
+
+/// Reads a whole file in 8 MiB pieces, reporting each.
+fn read_with_progress(path: &Path, progress: &dyn Fn(u64, u64)) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path).map_err(|e| PrtError::io(path, e))?;
+    let total = f.metadata().map_err(|e| PrtError::io(path, e))?.len();
+    let mut buf = Vec::new();
+    buf.try_reserve_exact(total as usize)
+        .map_err(|_| PrtError::file(path, format!("{total} bytes do not fit in memory")))?;
+    let mut piece = vec![0u8; 8 << 20];
+    loop {
+        let n = f.read(&mut piece).map_err(|e| PrtError::io(path, e))?;
+        if n == 0 {
+            break;
+        }
+        buf.extend_from_slice(&piece[..n]);
+        progress(buf.len() as u64, total);
+    }
+    Ok(buf)
 }
 
 /// Reads only the safetensors header and our metadata, checking that the declared tensors fill the

@@ -2,13 +2,20 @@
 //! relight kernels of [`crate::gpu`].
 //!
 //! The rendering core is [`Engine::render`]: a function from a [`ViewState`] to the tone-mapped
-//! panes the window shows (one, or SH and wavelet side by side). The window, the keyboard and the
-//! `--screenshot` mode all go through it; the engine only caches what does not change between
-//! calls (loaded maps, the prepared light, the `full` relight used as the error reference, the
-//! last linear images so an exposure change only re-tone-maps).
+//! panes the window shows (one, or SH and wavelet side by side or split). The window, the
+//! keyboard and the `--screenshot` mode all go through it; the engine only caches what does not
+//! change between calls (loaded maps, the prepared light, the `full` relight used as the error
+//! reference, the last linear images so an exposure change only re-tone-maps).
+//!
+//! The window ([`ViewerApp`], in `app.rs`) never waits on the CPU: an [`Engine`] lives on a
+//! worker thread (`worker.rs`) that loads the file, prepares lights and computes the CPU images
+//! and their errors, while the window draws the GPU relight of every change at once.
 
+mod app;
 mod gpu_view;
+mod worker;
 
+pub use app::{ViewerApp, run};
 pub use gpu_view::GpuView;
 
 use std::collections::HashMap;
@@ -17,7 +24,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use crate::envmap::{EnvMap, EnvRotation};
-use crate::film::{Image, ToneMap};
+use crate::film::{Image, ToneCurve, ToneMap};
 use crate::gpu::{Gpu, GpuTransport};
 use crate::light::Weighting;
 use crate::metrics::relative_l2;
@@ -26,7 +33,7 @@ use crate::relight::{
     select_light,
 };
 use crate::transport::Transport;
-use eframe::{egui, wgpu};
+use eframe::wgpu;
 
 /// Where the bundled environment maps are looked for: `$PRT_ENVMAPS`, else the checkout this
 /// binary was built from, else `assets/envmaps` under the working directory.
@@ -53,6 +60,13 @@ pub enum EnvSource {
 pub struct EnvEntry {
     pub name: String,
     pub source: EnvSource,
+}
+
+/// The sun radius of the first `sun:ELEV,AZIM,RADIUS` on the command line, if it has one.
+pub fn cli_sun_radius(cli: &[String]) -> Option<f64> {
+    cli.iter()
+        .find_map(|s| s.strip_prefix("sun:"))
+        .and_then(|a| a.split(',').nth(2)?.trim().parse().ok())
 }
 
 /// The environment list: the bundled maps, then the files given on the command line, then the
@@ -140,16 +154,23 @@ pub struct ViewState {
     pub sh_order: usize,
     /// Index into the environment list.
     pub env: usize,
-    /// Procedural sun elevation and azimuth, degrees.
+    /// Procedural sun elevation, azimuth and angular radius, degrees.
     pub sun_elev: f64,
     pub sun_azim: f64,
+    pub sun_radius: f64,
     /// Environment rotation, degrees.
     pub yaw: f64,
     pub pitch: f64,
     /// Exposure in stops.
     pub exposure: f32,
-    /// SH and wavelet side by side at the same term count.
+    /// Display curve after the exposure.
+    pub tone: ToneCurve,
+    /// SH and wavelet at the same term count.
     pub compare: bool,
+    /// How the two images of `compare` are shown.
+    pub layout: Layout,
+    /// Where the split falls in [`Layout::Split`], as a fraction of the width (SH to its left).
+    pub split: f32,
     /// Show, beside each image, its error against `full` as a heat map.
     pub error_map: bool,
     /// Take the image from the GPU kernels, when a GPU is attached: in the window they write
@@ -168,12 +189,53 @@ impl Default for ViewState {
             env: 0,
             sun_elev: 30.0,
             sun_azim: 45.0,
+            sun_radius: 2.0,
             yaw: 0.0,
             pitch: 0.0,
             exposure: 0.0,
+            tone: ToneCurve::Clip,
             compare: false,
+            layout: Layout::SideBySide,
+            split: 0.5,
             error_map: false,
             gpu: false,
+        }
+    }
+}
+
+/// How [`ViewState::compare`] shows its two images.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Layout {
+    /// Side by side.
+    #[default]
+    SideBySide,
+    /// One image, SH left of the split and wavelet right of it.
+    Split,
+}
+
+/// The light an environment entry, the sun and the rotation of `state` make: what a prepared
+/// light is cached under.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightKey {
+    pub spec: String,
+    pub yaw: f64,
+    pub pitch: f64,
+}
+
+impl LightKey {
+    /// The key of `state` over the environment list `envs` (a path, or `sun:ELEV,AZIM,RADIUS`).
+    pub fn of(envs: &[EnvEntry], state: &ViewState) -> LightKey {
+        let spec = match envs.get(state.env).map(|e| &e.source) {
+            Some(EnvSource::File(p)) => p.display().to_string(),
+            _ => format!(
+                "sun:{:.2},{:.2},{:.2}",
+                state.sun_elev, state.sun_azim, state.sun_radius
+            ),
+        };
+        LightKey {
+            spec,
+            yaw: state.yaw,
+            pitch: state.pitch,
         }
     }
 }
@@ -221,6 +283,20 @@ impl ViewState {
         }
         if !self.sun_azim.is_finite() {
             self.sun_azim = 0.0;
+        }
+        if !(0.05..=45.0).contains(&self.sun_radius) {
+            self.sun_radius = if self.sun_radius.is_finite() {
+                self.sun_radius.clamp(0.05, 45.0)
+            } else {
+                2.0
+            };
+        }
+        if !(0.0..=1.0).contains(&self.split) {
+            self.split = if self.split.is_finite() {
+                self.split.clamp(0.0, 1.0)
+            } else {
+                0.5
+            };
         }
         notes
     }
@@ -277,13 +353,30 @@ impl ViewState {
         }
     }
 
-    /// Everything but the exposure: what the linear images depend on.
-    fn relight_key(&self) -> ViewState {
+    /// Everything but the display settings: what the linear images depend on.
+    pub fn relight_key(&self) -> ViewState {
         ViewState {
             exposure: 0.0,
+            tone: ToneCurve::Clip,
             error_map: false,
+            layout: Layout::SideBySide,
+            split: 0.5,
+            gpu: false,
             ..self.clone()
         }
+    }
+
+    /// The tone mapping of this state.
+    pub fn tone_map(&self) -> ToneMap {
+        ToneMap {
+            exposure: self.exposure,
+            curve: self.tone,
+        }
+    }
+
+    /// Whether the panes are shown in pairs split by [`ViewState::split`].
+    pub fn split_pairs(&self) -> bool {
+        self.compare && self.layout == Layout::Split
     }
 }
 
@@ -301,6 +394,8 @@ pub struct LinearPane {
     pub image: Image,
     /// Light terms used.
     pub terms: usize,
+    /// Transport values the relight read.
+    pub nonzeros_touched: u64,
     /// Kernel time and the whole relight call, seconds.
     pub kernel_seconds: f64,
     pub relight_seconds: f64,
@@ -346,23 +441,105 @@ impl Rendered {
         }
         (w, h, out)
     }
+
+    /// What the window shows, as one RGB8 image: the panes side by side, or with
+    /// [`Layout::Split`] each (SH, wavelet) pair as one image split at [`ViewState::split`] by a
+    /// white line.
+    pub fn composite(&self, gap: usize) -> (usize, usize, Vec<u8>) {
+        if !self.state.split_pairs() {
+            return self.side_by_side(gap);
+        }
+        let (w, h) = (self.width, self.height);
+        let cut = ((self.state.split * w as f32).round() as usize).min(w);
+        let panes = self
+            .panes
+            .chunks(2)
+            .map(|pair| {
+                let (a, b) = (&pair[0], pair.get(1).unwrap_or(&pair[0]));
+                let mut rgb = b.rgb.clone();
+                for y in 0..h {
+                    let row = y * w * 3;
+                    rgb[row..row + cut * 3].copy_from_slice(&a.rgb[row..row + cut * 3]);
+                    if cut > 0 && cut < w {
+                        rgb[row + cut * 3..row + cut * 3 + 3].copy_from_slice(&[255; 3]);
+                    }
+                }
+                Pane {
+                    rgb,
+                    linear: a.linear.clone(),
+                }
+            })
+            .collect();
+        Rendered {
+            panes,
+            state: ViewState {
+                layout: Layout::SideBySide,
+                ..self.state.clone()
+            },
+            notes: Vec::new(),
+            ..*self
+        }
+        .side_by_side(gap)
+    }
 }
 
-#[derive(Clone, Debug, PartialEq)]
-struct LightKey {
-    spec: String,
-    yaw: f64,
-    pitch: f64,
+/// Wall and GPU time of one relight into a [`GpuView`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GpuTiming {
+    /// From the first submission to the finished tone map, seconds.
+    pub wall_seconds: f64,
+    /// The relight passes alone, from GPU timestamp queries where the device has them.
+    pub kernel_seconds: Option<f64>,
+}
+
+/// Relights `request` under `light` with the transport already on the GPU into `view`, and
+/// tone-maps it there: the window's display path (no readback).
+#[allow(clippy::too_many_arguments)]
+pub fn relight_into_view(
+    gpu: &Gpu,
+    gt: &GpuTransport,
+    t: &Transport,
+    ctx: &LightContext,
+    light: &PreparedLight,
+    request: &RelightRequest,
+    view: &GpuView,
+    tone: ToneMap,
+) -> Result<GpuTiming, String> {
+    let start = Instant::now();
+    match request.method {
+        Method::Wavelet | Method::Full => {
+            let sparse = select_light(t, ctx, light, request).map_err(|e| e.to_string())?;
+            gt.relight_wavelet_to_texture(gpu, &sparse, &view.linear)
+        }
+        Method::Sh => {
+            let sh = light_sh_order(&light.sh, request.sh_order, ctx.sh_order)
+                .map_err(|e| e.to_string())?;
+            gt.relight_sh_to_texture(gpu, &sh, &view.linear)
+        }
+    }
+    .map_err(|e| e.to_string())?;
+    let kernel_seconds = gpu.last_kernel_seconds();
+    view.tone_map(&gpu.device, &gpu.queue, tone);
+    gpu.device
+        .poll(wgpu::PollType::Wait {
+            submission_index: None,
+            timeout: None,
+        })
+        .map_err(|e| e.to_string())?;
+    Ok(GpuTiming {
+        wall_seconds: start.elapsed().as_secs_f64(),
+        kernel_seconds,
+    })
 }
 
 /// A loaded transport, its environments and the caches behind [`Engine::render`].
 pub struct Engine {
     pub path: PathBuf,
-    pub transport: Transport,
-    pub ctx: LightContext,
+    pub transport: Arc<Transport>,
+    pub ctx: Arc<LightContext>,
     pub envs: Vec<EnvEntry>,
     maps: HashMap<String, Arc<EnvMap>>,
-    light: Option<(LightKey, PreparedLight, Image)>,
+    light: Option<(LightKey, Arc<PreparedLight>, Image)>,
     last: Option<(ViewState, Vec<LinearPane>)>,
     gpu: Option<Gpu>,
     gpu_transport: Option<GpuTransport>,
@@ -371,12 +548,21 @@ pub struct Engine {
 impl Engine {
     /// Loads a transport file; `envs` as on the command line (paths or `sun:ELEV,AZIM`).
     pub fn open(path: &Path, envs: Vec<EnvEntry>) -> Result<Engine, String> {
-        let transport = Transport::load(path).map_err(|e| e.to_string())?;
+        Self::open_with_progress(path, envs, &|_, _| {})
+    }
+
+    /// [`Engine::open`], calling `progress(bytes read, file size)` while the file loads.
+    pub fn open_with_progress(
+        path: &Path,
+        envs: Vec<EnvEntry>,
+        progress: &dyn Fn(u64, u64),
+    ) -> Result<Engine, String> {
+        let transport = Transport::load_with_progress(path, progress).map_err(|e| e.to_string())?;
         let ctx = LightContext::new(&transport).map_err(|e| e.to_string())?;
         Ok(Engine {
             path: path.to_path_buf(),
-            transport,
-            ctx,
+            transport: Arc::new(transport),
+            ctx: Arc::new(ctx),
             envs,
             maps: HashMap::new(),
             light: None,
@@ -404,43 +590,36 @@ impl Engine {
     }
 
     /// Relights `request` under the light of the last [`Engine::render`] into `view` and
-    /// tone-maps it there with `exposure`, on the attached GPU. Returns the wall time until the
-    /// GPU finished, seconds.
+    /// tone-maps it there, on the attached GPU.
     pub fn relight_to_view(
         &mut self,
         request: &RelightRequest,
         view: &GpuView,
-        exposure: f32,
-    ) -> Result<f64, String> {
+        tone: ToneMap,
+    ) -> Result<GpuTiming, String> {
+        self.upload()?;
         let gpu = self.gpu.as_ref().ok_or("no GPU attached")?;
         let (_, light, _) = self.light.as_ref().ok_or("nothing rendered yet")?;
+        let gt = self.gpu_transport.as_ref().expect("uploaded");
+        relight_into_view(
+            gpu,
+            gt,
+            &self.transport,
+            &self.ctx,
+            light,
+            request,
+            view,
+            tone,
+        )
+    }
+
+    fn upload(&mut self) -> Result<(), String> {
+        let gpu = self.gpu.as_ref().ok_or("no GPU attached")?;
         if self.gpu_transport.is_none() {
             self.gpu_transport =
                 Some(GpuTransport::upload(gpu, &self.transport, None).map_err(|e| e.to_string())?);
         }
-        let gt = self.gpu_transport.as_ref().expect("uploaded");
-        let start = Instant::now();
-        match request.method {
-            Method::Wavelet | Method::Full => {
-                let sparse = select_light(&self.transport, &self.ctx, light, request)
-                    .map_err(|e| e.to_string())?;
-                gt.relight_wavelet_to_texture(gpu, &sparse, &view.linear)
-            }
-            Method::Sh => {
-                let sh = light_sh_order(&light.sh, request.sh_order, self.ctx.sh_order)
-                    .map_err(|e| e.to_string())?;
-                gt.relight_sh_to_texture(gpu, &sh, &view.linear)
-            }
-        }
-        .map_err(|e| e.to_string())?;
-        view.tone_map(&gpu.device, &gpu.queue, exposure);
-        gpu.device
-            .poll(wgpu::PollType::Wait {
-                submission_index: None,
-                timeout: None,
-            })
-            .map_err(|e| e.to_string())?;
-        Ok(start.elapsed().as_secs_f64())
+        Ok(())
     }
 
     fn relight_gpu(
@@ -448,11 +627,8 @@ impl Engine {
         light: &PreparedLight,
         req: &RelightRequest,
     ) -> Result<(Image, RelightStats), String> {
+        self.upload()?;
         let gpu = self.gpu.as_ref().ok_or("no GPU attached")?;
-        if self.gpu_transport.is_none() {
-            self.gpu_transport =
-                Some(GpuTransport::upload(gpu, &self.transport, None).map_err(|e| e.to_string())?);
-        }
         let gt = self.gpu_transport.as_ref().expect("uploaded");
         let t = &self.transport;
         let out = match req.method {
@@ -496,20 +672,19 @@ impl Engine {
         s
     }
 
-    /// The environment spec of entry `i` under `state` (a path, or `sun:ELEV,AZIM`).
+    /// The environment spec of `state` (a path, or `sun:ELEV,AZIM,RADIUS`).
     pub fn env_spec(&self, state: &ViewState) -> String {
-        match &self.envs[state.env].source {
-            EnvSource::File(p) => p.display().to_string(),
-            EnvSource::Sun => format!("sun:{:.2},{:.2}", state.sun_elev, state.sun_azim),
-        }
+        LightKey::of(&self.envs, state).spec
     }
 
-    fn prepare(&mut self, state: &ViewState) -> Result<f64, String> {
-        let key = LightKey {
-            spec: self.env_spec(state),
-            yaw: state.yaw,
-            pitch: state.pitch,
-        };
+    /// The prepared light of `state`, computing it (and the `full` image) when it changed;
+    /// `on_light` sees a new light before the `full` relight starts. Returns the seconds spent.
+    fn prepare_with(
+        &mut self,
+        state: &ViewState,
+        on_light: &mut dyn FnMut(&LightKey, &Arc<PreparedLight>),
+    ) -> Result<f64, String> {
+        let key = LightKey::of(&self.envs, state);
         if self.light.as_ref().is_some_and(|(k, _, _)| *k == key) {
             return Ok(0.0);
         }
@@ -529,10 +704,12 @@ impl Engine {
             yaw_deg: key.yaw,
             pitch_deg: key.pitch,
         };
-        let light = self
-            .ctx
-            .prepare(&map, rotation)
-            .map_err(|e| e.to_string())?;
+        let light = Arc::new(
+            self.ctx
+                .prepare(&map, rotation)
+                .map_err(|e| e.to_string())?,
+        );
+        on_light(&key, &light);
         let full_req = RelightRequest {
             method: Method::Full,
             terms: 0,
@@ -544,6 +721,15 @@ impl Engine {
         self.light = Some((key, light, full));
         self.last = None;
         Ok(start.elapsed().as_secs_f64())
+    }
+
+    /// The light of the last render or exposure, and its key.
+    pub fn current_light(&self) -> Option<(LightKey, Arc<PreparedLight>)> {
+        self.light.as_ref().map(|(k, l, _)| (k.clone(), l.clone()))
+    }
+
+    fn prepare(&mut self, state: &ViewState) -> Result<f64, String> {
+        self.prepare_with(state, &mut |_, _| {})
     }
 
     /// The exposure [`ToneMap::auto`] picks for the `full` image under `state`'s light.
@@ -577,6 +763,7 @@ impl Engine {
                 request,
                 image,
                 terms: stats.terms,
+                nonzeros_touched: stats.nonzeros_touched,
                 kernel_seconds: stats.kernel_seconds,
                 relight_seconds,
                 rel_l2,
@@ -588,10 +775,20 @@ impl Engine {
     /// Relights and tone-maps what `state` asks for. The same call serves the window, the
     /// screenshot and the tests.
     pub fn render(&mut self, state: &ViewState) -> Result<Rendered, String> {
+        self.render_with(state, &mut |_, _| {})
+    }
+
+    /// [`Engine::render`], handing a newly prepared light to `on_light` as soon as it exists
+    /// (before the CPU relights), so a GPU can draw it meanwhile.
+    pub fn render_with(
+        &mut self,
+        state: &ViewState,
+        on_light: &mut dyn FnMut(&LightKey, &Arc<PreparedLight>),
+    ) -> Result<Rendered, String> {
         let mut state = state.clone();
         let limits = self.limits();
         let notes = state.clamp(limits);
-        let light_seconds = self.prepare(&state)?;
+        let light_seconds = self.prepare_with(&state, on_light)?;
         let key = state.relight_key();
         let cached = self.last.as_ref().is_some_and(|(k, _)| *k == key);
         if !cached {
@@ -602,9 +799,7 @@ impl Engine {
             self.last = Some((key, panes?));
         }
         let (_, linear) = self.last.as_ref().expect("relit");
-        let tone = ToneMap {
-            exposure: state.exposure,
-        };
+        let tone = state.tone_map();
         let mut panes: Vec<Pane> = linear
             .iter()
             .map(|l| Pane {
@@ -679,431 +874,7 @@ pub fn error_heat_map(image: &Image, full: &Image, gain: f32) -> Vec<u8> {
 /// Renders `state` as the window would show it and writes it as a PNG.
 pub fn screenshot(engine: &mut Engine, state: &ViewState, out: &Path) -> Result<Rendered, String> {
     let r = engine.render(state)?;
-    let (w, h, rgb) = r.side_by_side(4);
+    let (w, h, rgb) = r.composite(4);
     crate::film::write_png(out, w, h, &rgb).map_err(|e| e.to_string())?;
     Ok(r)
-}
-
-/// The window.
-pub struct ViewerApp {
-    /// The loaded file, or why it could not be loaded.
-    pub engine: Result<Engine, String>,
-    pub state: ViewState,
-    /// The last error of a render (a bad environment file, ...).
-    pub error: Option<String>,
-    /// Notes from clamping the state.
-    pub notes: Vec<String>,
-    shown: Option<ViewState>,
-    textures: Vec<egui::TextureHandle>,
-    info: Vec<LinearPane>,
-    size: [usize; 2],
-    light_seconds: f64,
-    path_edit: String,
-    /// Where "Save" writes: a `.png` (what is shown) and an `.exr` (the first image, linear).
-    pub save_stem: String,
-    cli_envs: Vec<String>,
-    /// The window's wgpu device, queue and adapter name, for GPU relighting.
-    device: Option<(wgpu::Device, wgpu::Queue, String)>,
-    /// The window's renderer, to draw GPU textures.
-    render_state: Option<eframe::egui_wgpu::RenderState>,
-    gpu_views: Vec<(GpuView, egui::TextureId)>,
-    /// GPU relight + tone-map time of each pane shown from the GPU.
-    gpu_seconds: Vec<f64>,
-}
-
-impl ViewerApp {
-    /// Opens `file`; a file that does not load leaves a message for the window.
-    pub fn new(file: &Path, envs: &[String]) -> ViewerApp {
-        let mut app = ViewerApp {
-            engine: Err(String::new()),
-            state: ViewState::default(),
-            error: None,
-            notes: Vec::new(),
-            shown: None,
-            textures: Vec::new(),
-            info: Vec::new(),
-            size: [0, 0],
-            light_seconds: 0.0,
-            path_edit: file.display().to_string(),
-            save_stem: "prt-view".to_string(),
-            cli_envs: envs.to_vec(),
-            device: None,
-            render_state: None,
-            gpu_views: Vec::new(),
-            gpu_seconds: Vec::new(),
-        };
-        app.open(file);
-        app
-    }
-
-    fn open(&mut self, file: &Path) {
-        let (entries, sun, selected) = env_entries(&self.cli_envs);
-        self.engine = Engine::open(file, entries);
-        self.shown = None;
-        self.error = None;
-        self.textures.clear();
-        self.gpu_seconds.clear();
-        self.info.clear();
-        if let Ok(engine) = &mut self.engine {
-            self.state = engine.initial_state(selected, sun);
-        }
-        self.connect_gpu();
-    }
-
-    /// Shares a wgpu device (the window's) with the relight kernels; the side panel then offers
-    /// GPU relighting.
-    pub fn attach_device(&mut self, device: wgpu::Device, queue: wgpu::Queue, name: String) {
-        self.device = Some((device, queue, name));
-        self.connect_gpu();
-    }
-
-    /// Uses the window's wgpu device for relighting and draws GPU results without a readback.
-    pub fn attach_render_state(&mut self, rs: eframe::egui_wgpu::RenderState) {
-        let info = rs.adapter.get_info();
-        let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
-        self.attach_device(rs.device.clone(), rs.queue.clone(), name);
-        self.render_state = Some(rs);
-        // The window draws from the GPU kernels by default; the box in the panel turns it off.
-        self.state.gpu = true;
-    }
-
-    fn connect_gpu(&mut self) {
-        if let (Ok(engine), Some((device, queue, name))) = (&mut self.engine, &self.device) {
-            match Gpu::from_device(device.clone(), queue.clone(), name.clone()) {
-                Ok(gpu) => engine.attach_gpu(gpu),
-                Err(e) => self.error = Some(e.to_string()),
-            }
-        }
-    }
-
-    /// Keyboard shortcuts: `M` method, `+`/`-` terms, `E` environment.
-    fn keys(&mut self, ctx: &egui::Context) {
-        if ctx.egui_wants_keyboard_input() {
-            return;
-        }
-        let (m, plus, minus, e) = ctx.input(|i| {
-            (
-                i.key_pressed(egui::Key::M),
-                i.key_pressed(egui::Key::Plus) || i.key_pressed(egui::Key::Equals),
-                i.key_pressed(egui::Key::Minus),
-                i.key_pressed(egui::Key::E),
-            )
-        });
-        if m {
-            self.state.cycle_method();
-        }
-        if plus {
-            self.state.terms = self.state.terms.saturating_mul(2);
-        }
-        if minus {
-            self.state.terms = (self.state.terms / 2).max(1);
-        }
-        if e && let Ok(engine) = &self.engine {
-            self.state.env = (self.state.env + 1) % engine.envs.len();
-        }
-        if let Ok(engine) = &self.engine {
-            let lim = engine.limits();
-            self.state.terms = self.state.terms.clamp(1, lim.coeffs);
-        }
-    }
-
-    fn controls(&mut self, ui: &mut egui::Ui) {
-        ui.horizontal(|ui| {
-            let label = ui.label("File");
-            ui.text_edit_singleline(&mut self.path_edit)
-                .labelled_by(label.id);
-        });
-        if ui.button("Open").clicked() {
-            let p = PathBuf::from(self.path_edit.clone());
-            self.open(&p);
-        }
-        ui.separator();
-        let Ok(engine) = &mut self.engine else {
-            return;
-        };
-        let limits = engine.limits();
-        let s = &mut self.state;
-        ui.heading("Method (M)");
-        ui.horizontal(|ui| {
-            ui.selectable_value(&mut s.method, Method::Wavelet, "Wavelet");
-            ui.selectable_value(&mut s.method, Method::Sh, "SH");
-            ui.selectable_value(&mut s.method, Method::Full, "Full");
-        });
-        ui.checkbox(&mut s.compare, "Compare SH | wavelet");
-        ui.checkbox(&mut s.error_map, "Error heat map vs full");
-        match engine.gpu_name() {
-            Some(name) => {
-                ui.checkbox(&mut s.gpu, "Relight on the GPU")
-                    .on_hover_text(name.to_string());
-            }
-            None => {
-                ui.label("No GPU adapter: relighting on the CPU");
-            }
-        }
-        ui.separator();
-        ui.label(format!("Kept terms (+/-), 1 to {}", limits.coeffs));
-        ui.add(
-            egui::Slider::new(&mut s.terms, 1..=limits.coeffs)
-                .logarithmic(true)
-                .show_value(false)
-                .text("K"),
-        );
-        ui.horizontal(|ui| {
-            let label = ui.label("K =");
-            ui.add(egui::DragValue::new(&mut s.terms).range(1..=limits.coeffs))
-                .labelled_by(label.id);
-        });
-        egui::ComboBox::from_label("Weighting")
-            .selected_text(s.weighting.name())
-            .show_ui(ui, |ui| {
-                for w in Weighting::ALL {
-                    ui.selectable_value(&mut s.weighting, w, w.name());
-                }
-            });
-        ui.add(egui::Slider::new(&mut s.sh_order, 1..=limits.sh_order).text("SH order"));
-        ui.separator();
-        let current = engine
-            .envs
-            .get(s.env)
-            .map(|e| e.name.clone())
-            .unwrap_or_default();
-        egui::ComboBox::from_label("Environment (E)")
-            .selected_text(current)
-            .show_ui(ui, |ui| {
-                for (i, e) in engine.envs.iter().enumerate() {
-                    ui.selectable_value(&mut s.env, i, &e.name);
-                }
-            });
-        if engine
-            .envs
-            .get(s.env)
-            .is_some_and(|e| e.source == EnvSource::Sun)
-        {
-            ui.add(egui::Slider::new(&mut s.sun_elev, -10.0..=90.0).text("sun elevation°"));
-            ui.add(egui::Slider::new(&mut s.sun_azim, 0.0..=360.0).text("sun azimuth°"));
-        }
-        ui.add(egui::Slider::new(&mut s.yaw, -180.0..=180.0).text("yaw°"));
-        ui.add(egui::Slider::new(&mut s.pitch, -90.0..=90.0).text("pitch°"));
-        ui.add(egui::Slider::new(&mut s.exposure, -12.0..=12.0).text("exposure (stops)"));
-        ui.separator();
-        ui.horizontal(|ui| {
-            let label = ui.label("Save as");
-            ui.text_edit_singleline(&mut self.save_stem)
-                .labelled_by(label.id);
-        });
-        if ui.button("Save PNG + EXR").clicked() {
-            let stem = PathBuf::from(&self.save_stem);
-            let state = s.clone();
-            self.error = save_view(engine, &state, &stem).err();
-        }
-        if ui.button("Auto exposure").clicked()
-            && let Ok(e) = engine.auto_exposure(s)
-        {
-            s.exposure = e;
-        }
-        ui.separator();
-        for p in &self.info {
-            ui.strong(&p.title);
-            ui.label(format!("terms used: {}", p.terms));
-            ui.label(format!(
-                "CPU relight: {:.2} ms (kernel {:.2} ms)",
-                p.relight_seconds * 1e3,
-                p.kernel_seconds * 1e3
-            ));
-            ui.label(format!("relative L2 vs full: {:.4}", p.rel_l2));
-        }
-        for (i, t) in self.gpu_seconds.iter().enumerate() {
-            ui.label(format!(
-                "GPU pane {}: relight + tone map {:.2} ms",
-                i + 1,
-                t * 1e3
-            ));
-        }
-        if self.light_seconds > 0.0 {
-            ui.label(format!(
-                "light prepared in {:.1} ms",
-                self.light_seconds * 1e3
-            ));
-        }
-        for n in &self.notes {
-            ui.colored_label(egui::Color32::YELLOW, n);
-        }
-        if let Some(e) = &self.error {
-            ui.colored_label(egui::Color32::RED, e);
-        }
-    }
-
-    /// Re-renders when the state changed since the last shown image.
-    fn refresh(&mut self, ctx: &egui::Context) {
-        let Ok(engine) = &mut self.engine else {
-            return;
-        };
-        if self.shown.as_ref() == Some(&self.state) {
-            return;
-        }
-        self.shown = Some(self.state.clone());
-        let gpu_display = self.state.gpu
-            && !self.state.error_map
-            && self.render_state.is_some()
-            && engine.gpu_name().is_some();
-        // The numbers (and the CPU image) always come from the CPU relight.
-        let cpu_state = ViewState {
-            gpu: false,
-            ..self.state.clone()
-        };
-        let r = match engine.render(&cpu_state) {
-            Ok(r) => r,
-            Err(e) => {
-                self.error = Some(e);
-                return;
-            }
-        };
-        self.error = None;
-        self.notes = r.notes.clone();
-        self.state = ViewState {
-            gpu: self.state.gpu,
-            ..r.state.clone()
-        };
-        self.shown = Some(self.state.clone());
-        if r.light_seconds > 0.0 {
-            self.light_seconds = r.light_seconds;
-        }
-        self.size = [r.width, r.height];
-        self.gpu_seconds.clear();
-        if gpu_display {
-            if let Err(e) = self.show_on_gpu(&r) {
-                self.error = Some(format!("GPU display: {e}"));
-            }
-        } else {
-            self.textures.truncate(r.panes.len());
-            for (i, p) in r.panes.iter().enumerate() {
-                let img = egui::ColorImage::from_rgb([r.width, r.height], &p.rgb);
-                if let Some(t) = self.textures.get_mut(i) {
-                    t.set(img, egui::TextureOptions::NEAREST);
-                } else {
-                    self.textures.push(ctx.load_texture(
-                        format!("pane {i}"),
-                        img,
-                        egui::TextureOptions::NEAREST,
-                    ));
-                }
-            }
-        }
-        self.info = r.panes.into_iter().map(|p| p.linear).collect();
-    }
-
-    /// Relights every pane of `r` straight into GPU textures egui draws.
-    fn show_on_gpu(&mut self, r: &Rendered) -> Result<(), String> {
-        let (Ok(engine), Some(rs)) = (&mut self.engine, &self.render_state) else {
-            return Err("no GPU".into());
-        };
-        let (w, h) = (r.width as u32, r.height as u32);
-        self.gpu_views
-            .retain(|(v, _)| (v.width, v.height) == (w, h));
-        while self.gpu_views.len() < r.panes.len() {
-            let view = GpuView::new(&rs.device, w, h);
-            let id = rs.renderer.write().register_native_texture(
-                &rs.device,
-                &view.display.create_view(&Default::default()),
-                wgpu::FilterMode::Nearest,
-            );
-            self.gpu_views.push((view, id));
-        }
-        for (p, (view, _)) in r.panes.iter().zip(&self.gpu_views) {
-            let seconds = engine.relight_to_view(&p.linear.request, view, r.state.exposure)?;
-            self.gpu_seconds.push(seconds);
-        }
-        Ok(())
-    }
-
-    /// The textures to draw: the GPU ones after a GPU relight, else the CPU uploads.
-    fn shown_textures(&self) -> Vec<egui::TextureId> {
-        if !self.gpu_seconds.is_empty() {
-            self.gpu_views
-                .iter()
-                .take(self.gpu_seconds.len())
-                .map(|(_, id)| *id)
-                .collect()
-        } else {
-            self.textures.iter().map(|t| t.id()).collect()
-        }
-    }
-
-    fn images(&self, ui: &mut egui::Ui) {
-        if let Err(e) = &self.engine {
-            ui.centered_and_justified(|ui| {
-                ui.colored_label(
-                    egui::Color32::RED,
-                    format!("Could not open the transport file:\n{e}"),
-                );
-            });
-            return;
-        }
-        let ids = self.shown_textures();
-        if ids.is_empty() {
-            if let Some(e) = &self.error {
-                ui.colored_label(egui::Color32::RED, e);
-            }
-            return;
-        }
-        let n = ids.len() as f32;
-        let avail = ui.available_size();
-        let [w, h] = [self.size[0] as f32, self.size[1] as f32];
-        let gap = 8.0;
-        let title_h = 20.0;
-        let scale = (((avail.x - gap * (n - 1.0)) / n) / w)
-            .min((avail.y - title_h) / h)
-            .max(0.01);
-        ui.horizontal_top(|ui| {
-            for (id, info) in ids.iter().zip(&self.info) {
-                ui.vertical(|ui| {
-                    ui.label(&info.title);
-                    ui.add(egui::Image::new((*id, egui::vec2(w * scale, h * scale))));
-                });
-                ui.add_space(gap);
-            }
-        });
-    }
-
-    /// The whole window, drawn into `ui` (also what the UI tests drive).
-    pub fn show(&mut self, ui: &mut egui::Ui) {
-        let ctx = ui.ctx().clone();
-        self.keys(&ctx);
-        egui::Panel::left("controls")
-            .resizable(true)
-            .default_size(300.0)
-            .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
-            });
-        self.refresh(&ctx);
-        egui::CentralPanel::default_margins().show(ui, |ui| self.images(ui));
-    }
-}
-
-impl eframe::App for ViewerApp {
-    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
-        self.show(ui);
-    }
-}
-
-/// Opens the window on `file` with the extra environments `envs`.
-pub fn run(file: &Path, envs: &[String]) -> eframe::Result {
-    let app = ViewerApp::new(file, envs);
-    let options = eframe::NativeOptions {
-        viewport: egui::ViewportBuilder::default()
-            .with_inner_size([1280.0, 800.0])
-            .with_title("wavelet-prt viewer"),
-        ..Default::default()
-    };
-    eframe::run_native(
-        "wavelet-prt viewer",
-        options,
-        Box::new(move |cc| {
-            let mut app = app;
-            if let Some(rs) = &cc.wgpu_render_state {
-                app.attach_render_state(rs.clone());
-            }
-            Ok(Box::new(app))
-        }),
-    )
 }

@@ -203,3 +203,44 @@ fn relight_into_a_texture_equals_the_read_back_image() {
         assert_eq!([a[0], a[1], a[2]], *b);
     }
 }
+
+#[test]
+fn timestamp_queries_time_the_relight_passes_when_the_device_has_them() {
+    let Some(gpu) = common::gpu_or_skip("timestamp queries") else {
+        return;
+    };
+    let t = &bakes()[1];
+    let g = GpuTransport::upload(&gpu, t, None).unwrap();
+    let ctx = LightContext::new(t).unwrap();
+    let env = EnvMap::from_spec("sun:40,30").unwrap();
+    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
+    let sparse = light
+        .wavelet
+        .select(
+            t.coeff_count(),
+            Weighting::Unweighted,
+            &ctx.support_area,
+            None,
+        )
+        .unwrap();
+    let start = std::time::Instant::now();
+    let (_, stats) = g.relight_wavelet(&gpu, &sparse).unwrap();
+    let wall = start.elapsed().as_secs_f64();
+    assert!(stats.kernel_seconds > 0.0);
+    assert!(
+        stats.kernel_seconds <= wall,
+        "kernel {} s longer than the whole call {wall} s",
+        stats.kernel_seconds
+    );
+    match gpu.last_kernel_seconds() {
+        Some(k) => {
+            println!("{}: timestamp queries, {k} s", gpu.adapter);
+            // The stamps of the last relight stay readable until the next one.
+            assert_eq!(k, stats.kernel_seconds);
+        }
+        None => {
+            assert!(!gpu.has_timestamps());
+            println!("{}: no timestamp queries; wall clock", gpu.adapter);
+        }
+    }
+}

@@ -149,8 +149,13 @@ fn a_bad_file_is_an_error_not_a_panic() {
     let bad = dir.join(format!("viewer-bad-{}.prt", std::process::id()));
     std::fs::write(&bad, b"not a transport").unwrap();
     assert!(Engine::open(&bad, Vec::new()).is_err());
-    let app = wavelet_prt::viewer::ViewerApp::new(&bad, &[]);
-    assert!(app.engine.is_err());
+    // The window loads on its worker thread and shows the error once it arrives.
+    let mut app = wavelet_prt::viewer::ViewerApp::new(&bad, &[]);
+    assert!(app.wait_idle(std::time::Duration::from_secs(60)));
+    app.poll(&eframe::egui::Context::default());
+    assert!(!app.is_loaded());
+    let msg = app.load_error.clone().expect("a load error");
+    assert!(msg.contains(&bad.display().to_string()), "{msg}");
     std::fs::remove_file(bad).unwrap();
 }
 
@@ -195,7 +200,7 @@ fn gpu_texture_path_shows_what_the_cpu_path_shows() {
             let g = e.gpu().unwrap();
             let view =
                 wavelet_prt::viewer::GpuView::new(&g.device, r.width as u32, r.height as u32);
-            e.relight_to_view(&pane.linear.request, &view, s.exposure)
+            e.relight_to_view(&pane.linear.request, &view, s.tone_map())
                 .unwrap();
             let g = e.gpu().unwrap();
             let shown = view.read_rgb8(&g.device, &g.queue).unwrap();
@@ -254,4 +259,65 @@ fn save_writes_the_png_and_the_linear_exr() {
     );
     let shown = e.render(&s).unwrap();
     assert_eq!(exr.pixels, shown.panes[0].linear.image.pixels);
+}
+
+#[test]
+fn split_composite_takes_sh_left_of_the_cut_and_wavelet_right() {
+    let mut e = engine();
+    let mut s = sun_state(&mut e);
+    s.compare = true;
+    s.terms = 4;
+    s.layout = wavelet_prt::viewer::Layout::Split;
+    s.split = 0.25;
+    let r = e.render(&s).unwrap();
+    assert_eq!(r.panes.len(), 2);
+    let (w, h, rgb) = r.composite(4);
+    assert_eq!((w, h), (r.width, r.height), "one image, not two");
+    let cut = (0.25 * w as f32).round() as usize;
+    let (sh, wav) = (&r.panes[0].rgb, &r.panes[1].rgb);
+    assert_ne!(sh, wav, "4 terms: SH and wavelet differ");
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) * 3;
+            let want: &[u8] = match x.cmp(&cut) {
+                std::cmp::Ordering::Less => &sh[i..i + 3],
+                std::cmp::Ordering::Equal => &[255; 3],
+                std::cmp::Ordering::Greater => &wav[i..i + 3],
+            };
+            assert_eq!(&rgb[i..i + 3], want, "pixel ({x}, {y})");
+        }
+    }
+    // Side by side, the same panes make a double-width image.
+    s.layout = wavelet_prt::viewer::Layout::SideBySide;
+    assert_eq!(e.render(&s).unwrap().composite(4).0, 2 * r.width + 4);
+}
+
+#[test]
+fn tone_curve_and_sun_size_change_what_they_should() {
+    use wavelet_prt::film::ToneCurve;
+    let mut e = engine();
+    let mut s = sun_state(&mut e);
+    s.exposure = 2.0;
+    let clip = e.render(&s).unwrap();
+    s.tone = ToneCurve::Reinhard;
+    let reinhard = e.render(&s).unwrap();
+    // Only the display changes: the same linear image and error, darker highlights.
+    assert_eq!(clip.panes[0].linear.image, reinhard.panes[0].linear.image);
+    let sum =
+        |r: &wavelet_prt::viewer::Rendered| r.panes[0].rgb.iter().map(|&v| v as u64).sum::<u64>();
+    assert!(sum(&reinhard) < sum(&clip));
+    // A larger sun of the same irradiance softens shadows: the image changes but keeps its
+    // overall brightness within a few percent.
+    s.tone = ToneCurve::Clip;
+    let mean = |r: &wavelet_prt::viewer::Rendered| {
+        let p = &r.panes[0].linear.image.pixels;
+        p.iter().map(|c| (c[0] + c[1] + c[2]) as f64).sum::<f64>() / p.len() as f64
+    };
+    s.method = Method::Full;
+    let small = e.render(&s).unwrap();
+    s.sun_radius = 8.0;
+    let big = e.render(&s).unwrap();
+    assert_ne!(small.panes[0].linear.image, big.panes[0].linear.image);
+    let (a, b) = (mean(&small), mean(&big));
+    assert!((a - b).abs() < 0.1 * a, "mean {a} vs {b}");
 }

@@ -2,11 +2,13 @@
 
 mod common;
 
+use std::time::Duration;
+
 use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use wavelet_prt::relight::Method;
-use wavelet_prt::viewer::ViewerApp;
+use wavelet_prt::viewer::{Layout, ViewerApp};
 
 fn harness(app: ViewerApp) -> Harness<'static, ViewerApp> {
     Harness::builder()
@@ -15,27 +17,83 @@ fn harness(app: ViewerApp) -> Harness<'static, ViewerApp> {
         .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), app)
 }
 
+/// Lets the frame that changed something send its job, waits for the worker, and draws the
+/// answer: the window never waits by itself.
+fn settle(h: &mut Harness<'static, ViewerApp>) {
+    h.run_ok();
+    // A reply can start more work (the loaded file asks for its first image, the upload for a
+    // GPU draw): wait and draw until a frame leaves nothing to do.
+    for _ in 0..20 {
+        assert!(
+            h.state().wait_idle(Duration::from_secs(120)),
+            "the worker did not finish"
+        );
+        h.step();
+        if !h.state().busy() {
+            break;
+        }
+    }
+    h.run();
+}
+
+fn sun_app() -> ViewerApp {
+    ViewerApp::new(&common::viewer_transport_path(), &["sun:30,45".to_string()])
+}
+
+fn rel_l2(h: &Harness<'static, ViewerApp>) -> f64 {
+    let r = h.state().rendered().expect("a CPU result");
+    assert_eq!(r.state.relight_key(), h.state().state.relight_key());
+    r.panes[0].linear.rel_l2
+}
+
 #[test]
 fn clicking_the_method_toggle_changes_the_state_and_the_image() {
     // The harness renders with wgpu: it needs an adapter (a software one will do).
     if common::gpu_or_skip("clicking_the_method_toggle_changes_the_state_and_the_image").is_none() {
         return;
     }
-    let app = ViewerApp::new(&common::viewer_transport_path(), &["sun:30,45".to_string()]);
-    let mut h = harness(app);
-    h.run();
+    let mut h = harness(sun_app());
+    settle(&mut h);
+    assert!(h.state().is_loaded());
     assert_eq!(h.state().state.method, Method::Wavelet);
     h.get_by_label("SH").click();
-    h.run();
+    settle(&mut h);
     assert_eq!(h.state().state.method, Method::Sh);
     h.key_press(egui::Key::M);
-    h.run();
+    settle(&mut h);
     assert_eq!(h.state().state.method, Method::Full);
+    assert!(rel_l2(&h) < 1e-6, "full against full");
+    h.query_by_label_contains("nonzeros touched")
+        .expect("nonzeros shown");
     let image = h.render().expect("headless wgpu render");
     assert!(image.width() > 0);
     if let Some(out) = std::env::var_os("VIEWER_UI_PNG") {
         image.save(out).unwrap();
     }
+}
+
+#[test]
+fn more_terms_from_the_keyboard_lower_the_error() {
+    if common::gpu_or_skip("more_terms_from_the_keyboard_lower_the_error").is_none() {
+        return;
+    }
+    let mut h = harness(sun_app());
+    settle(&mut h);
+    h.state_mut().state.terms = 4;
+    settle(&mut h);
+    let few = rel_l2(&h);
+    for _ in 0..5 {
+        h.key_press(egui::Key::Plus);
+    }
+    settle(&mut h);
+    assert_eq!(h.state().state.terms, 128);
+    let many = rel_l2(&h);
+    assert!(many < few, "128 terms: {many}, 4 terms: {few}");
+    // The next environment changes the light, and so the image.
+    let before = h.state().rendered().unwrap().panes[0].rgb.clone();
+    h.key_press(egui::Key::E);
+    settle(&mut h);
+    assert_ne!(h.state().rendered().unwrap().panes[0].rgb, before);
 }
 
 #[test]
@@ -47,9 +105,59 @@ fn a_bad_file_shows_a_message() {
     let bad = std::env::temp_dir().join(format!("viewer-ui-bad-{}.prt", std::process::id()));
     std::fs::write(&bad, b"junk").unwrap();
     let mut h = harness(ViewerApp::new(&bad, &[]));
-    h.run();
+    settle(&mut h);
     assert!(h.query_by_label_contains("Could not open").is_some());
     std::fs::remove_file(bad).unwrap();
+}
+
+#[test]
+fn scrolling_zooms_about_the_cursor_and_double_click_fits() {
+    if common::gpu_or_skip("scrolling_zooms_about_the_cursor_and_double_click_fits").is_none() {
+        return;
+    }
+    let mut h = harness(sun_app());
+    settle(&mut h);
+    assert_eq!(h.state().viewport.zoom, 1.0);
+    // Over the image (the panel is on the left, the image right of it).
+    let at = egui::pos2(700.0, 350.0);
+    h.event(egui::Event::PointerMoved(at));
+    h.event(egui::Event::MouseWheel {
+        unit: egui::MouseWheelUnit::Point,
+        delta: egui::vec2(0.0, 200.0),
+        phase: egui::TouchPhase::Move,
+        source: egui::MouseWheelSource::Wheel,
+        modifiers: egui::Modifiers::NONE,
+    });
+    h.run_ok();
+    let v = h.state().viewport;
+    assert!(v.zoom > 1.5, "zoom {}", v.zoom);
+    assert!(v.uv().width() < 0.7);
+    h.key_press(egui::Key::Num0);
+    h.run_ok();
+    assert_eq!(h.state().viewport.zoom, 1.0);
+}
+
+#[test]
+fn split_layout_shows_one_image_with_both_titles() {
+    if common::gpu_or_skip("split_layout_shows_one_image_with_both_titles").is_none() {
+        return;
+    }
+    let mut h = harness(sun_app());
+    settle(&mut h);
+    h.key_press(egui::Key::C);
+    settle(&mut h);
+    assert!(h.state().state.compare);
+    h.get_by_label("Split").click();
+    settle(&mut h);
+    assert_eq!(h.state().state.layout, Layout::Split);
+    h.query_by_label_contains("  |  wavelet")
+        .expect("one title for the split pair");
+    assert!(
+        h.query_all_by_label_contains("split (SH | wavelet)")
+            .next()
+            .is_some(),
+        "the split slider"
+    );
 }
 
 #[test]
@@ -63,22 +171,24 @@ fn gpu_display_draws_what_the_cpu_path_draws() {
         default_wgpu_setup(),
         eframe::egui_wgpu::RendererOptions::PREDICTABLE,
     );
-    let mut app = ViewerApp::new(&common::viewer_transport_path(), &["sun:30,45".to_string()]);
+    let mut app = sun_app();
     app.attach_render_state(rs.clone());
     let mut h = Harness::builder()
         .with_size(egui::vec2(1000.0, 700.0))
         .renderer(WgpuTestRenderer::from_render_state(rs))
         .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), app);
-    h.run();
+    settle(&mut h);
     // With a render state attached, the window draws from the GPU kernels by default.
     assert!(h.state().state.gpu);
     assert!(h.state().error.is_none(), "{:?}", h.state().error);
+    assert_eq!(h.state().gpu_timings().len(), 1);
     h.query_by_label_contains("GPU pane 1")
         .expect("GPU timing shown");
     let gpu = h.render().expect("render");
     h.get_by_label("Relight on the GPU").click();
-    h.run();
+    settle(&mut h);
     assert!(!h.state().state.gpu);
+    assert!(h.state().gpu_timings().is_empty());
     let cpu = h.render().expect("render");
     if let Some(out) = std::env::var_os("VIEWER_UI_GPU_PNG") {
         gpu.save(out).unwrap();
@@ -100,4 +210,32 @@ fn gpu_display_draws_what_the_cpu_path_draws() {
         differ * 1000 < total,
         "{differ} of {total} image-area pixels differ"
     );
+}
+
+/// The settings panel, drawn alone (no file path, no timings), against stored snapshots:
+/// `UPDATE_SNAPSHOTS=1` rewrites them after a deliberate change.
+#[test]
+fn settings_panel_snapshots() {
+    if common::gpu_or_skip("settings_panel_snapshots").is_none() {
+        return;
+    }
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(340.0, 620.0))
+        .wgpu()
+        .build_ui_state(
+            |ui, app: &mut ViewerApp| {
+                app.poll(ui.ctx());
+                app.settings(ui);
+            },
+            sun_app(),
+        );
+    for _ in 0..3 {
+        assert!(h.state().wait_idle(Duration::from_secs(120)));
+        h.run_ok();
+    }
+    h.snapshot("settings_panel");
+    h.state_mut().state.compare = true;
+    h.state_mut().state.layout = Layout::Split;
+    h.run();
+    h.snapshot("settings_panel_split");
 }

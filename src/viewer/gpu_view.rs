@@ -5,6 +5,8 @@
 
 use eframe::wgpu;
 
+use crate::film::ToneMap;
+
 const TONE_WGSL: &str = include_str!("../../shaders/tonemap.wgsl");
 
 /// The two textures of one image size and the tone-mapping pass between them.
@@ -141,10 +143,11 @@ impl GpuView {
         }
     }
 
-    /// Tone-maps `linear` into `display` with `exposure` stops.
-    pub fn tone_map(&self, device: &wgpu::Device, queue: &wgpu::Queue, exposure: f32) {
+    /// Tone-maps `linear` into `display` as `tone` says.
+    pub fn tone_map(&self, device: &wgpu::Device, queue: &wgpu::Queue, tone: ToneMap) {
         let mut words = [0u8; 16];
-        words[0..4].copy_from_slice(&exposure.exp2().to_le_bytes());
+        words[0..4].copy_from_slice(&tone.exposure.exp2().to_le_bytes());
+        words[12..16].copy_from_slice(&tone.curve.index().to_le_bytes());
         words[4..8].copy_from_slice(&self.width.to_le_bytes());
         words[8..12].copy_from_slice(&self.height.to_le_bytes());
         queue.write_buffer(&self.params, 0, &words);
