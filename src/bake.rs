@@ -15,6 +15,7 @@ use crate::cubemap::{texel_count, validate_n};
 use crate::error::{PrtError, Result};
 use crate::haar;
 use crate::light::TexelShBasis;
+use crate::medium::Medium;
 use crate::sampling::{TexelSamples, pixel_samples};
 use crate::scene::Scene;
 use crate::trace::{Hit, Tracer};
@@ -22,6 +23,7 @@ use crate::transport::{
     BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, shard_of_band,
     tile_grid,
 };
+use crate::volume::wavelet::MediumRows;
 
 /// Settings of a bake; the defaults are the command line's.
 #[derive(Clone, Debug, PartialEq)]
@@ -143,6 +145,9 @@ pub struct BakeProgress {
     pub pixels_done: usize,
     pub pixels_total: usize,
     pub shadow_rays: u64,
+    /// Texel lights done and in all for a scene's medium rows (a first stage; `[0, 0]` without a
+    /// medium).
+    pub medium_texels: [usize; 2],
 }
 
 /// Where the shading of one camera sub-sample happens: a hit point and its diffuse material.
@@ -178,11 +183,13 @@ pub fn albedo(scene: &Scene, material: u32) -> [f32; 3] {
 /// order): the Lambertian lobe ([`brdf::diffuse_cosine`]) to `diffuse` and, for a glossy
 /// material, the GGX lobe of width `alpha` ([`brdf::ggx_cosine`]) to `glossy`. One shadow ray
 /// serves both. Returns the shadow rays traced.
+#[allow(clippy::too_many_arguments)]
 pub fn accumulate_direct_rows(
     tracer: &Tracer,
     samples: &TexelSamples,
     sp: &ShadingPoint,
     unshadowed: bool,
+    medium: Option<&Medium>,
     scale: f32,
     diffuse: &mut [f32],
     mut glossy: Option<(f32, &mut [f32])>,
@@ -197,10 +204,14 @@ pub fn accumulate_direct_rows(
             if sp.normal.dot(*d) <= 0.0 {
                 continue;
             }
+            let mut w = *w;
             if !unshadowed {
                 rays += 1;
                 if tracer.occluded(sp.origin, *d, f32::INFINITY) {
                     continue;
+                }
+                if let Some(m) = medium {
+                    w *= m.transmittance(sp.origin, *d, f32::INFINITY);
                 }
             }
             acc += brdf::diffuse_cosine(sp.normal, *d) * w;
@@ -322,6 +333,41 @@ pub fn bake(
         None => true,
         Some([i, count]) => shard_of_band(tile / tx, ty, count as usize) == i as usize,
     };
+    let pixels_total: usize = (0..tx * ty)
+        .filter(|&t| mine(t))
+        .map(|t| tile_pixels(w, h, t % tx, t / tx))
+        .sum();
+    let medium = match &scene.medium {
+        Some(spec) => Some(spec.build(None)?),
+        None => None,
+    };
+    if medium.is_some() && settings.bounces > 0 {
+        return Err(PrtError::invalid(
+            "bounces",
+            "interreflections are not traced through a medium; bake a scene with a [medium] \
+             with --bounces 0",
+        ));
+    }
+    let medium_rows = match &medium {
+        Some(m) => Some(MediumRows::bake(
+            m,
+            scene,
+            &tracer,
+            &samples,
+            settings.spp,
+            settings.seed,
+            &|p| mine((p / w / TILE) * tx + (p % w) / TILE),
+            &|done, total| {
+                progress(BakeProgress {
+                    pixels_done: 0,
+                    pixels_total,
+                    shadow_rays: 0,
+                    medium_texels: [done, total],
+                })
+            },
+        )?),
+        None => None,
+    };
     let ctx = TileContext {
         scene,
         tracer: &tracer,
@@ -329,11 +375,9 @@ pub fn bake(
         reference_energy: unoccluded_row_energy(&samples),
         samples: &samples,
         basis: &basis,
+        medium: medium.as_ref(),
+        medium_rows: medium_rows.as_ref(),
     };
-    let pixels_total: usize = (0..tx * ty)
-        .filter(|&t| mine(t))
-        .map(|t| tile_pixels(w, h, t % tx, t / tx))
-        .sum();
     let done = AtomicUsize::new(0);
     let rays = AtomicU64::new(0);
     let outputs: Vec<Option<TileOutput>> = (0..tx * ty)
@@ -348,6 +392,7 @@ pub fn bake(
                 pixels_done: done.fetch_add(px, Ordering::Relaxed) + px,
                 pixels_total,
                 shadow_rays: rays.fetch_add(out.rays, Ordering::Relaxed) + out.rays,
+                medium_texels: [0, 0],
             });
             Some(out)
         })
@@ -418,6 +463,9 @@ struct TileContext<'a> {
     basis: &'a TexelShBasis,
     /// Energy of an unshadowed row, the scale of the thresholding budget.
     reference_energy: f64,
+    /// The scene's medium and its rows, if it has one.
+    medium: Option<&'a Medium>,
+    medium_rows: Option<&'a MediumRows>,
 }
 
 /// Bakes one tile: dense rows per (pixel, material), SH projection, Haar and thresholding.
@@ -429,6 +477,8 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
         samples,
         basis,
         reference_energy,
+        medium,
+        medium_rows,
     } = *ctx;
     let cam = &scene.camera;
     let (w, h) = (cam.width as usize, cam.height as usize);
@@ -455,11 +505,28 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             // Interreflected light, one row per colour channel (colour bleeding mixes them).
             let mut indirect: Option<[Vec<f32>; 3]> = None;
             let mut hits = 0usize;
+            let mut covered = 0usize;
             let mut albedo_sum = [0.0f32; 3];
             let pixel_index = (y * w + x) as u64;
             for (sub, (fx, fy)) in subs.into_iter().enumerate() {
                 let ray = cam.ray(fx, fy);
-                let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
+                let found = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
+                // Through a medium, what the camera sees of the surface is attenuated.
+                let (seen, in_medium) = match medium {
+                    Some(m) => {
+                        let t = m.transmittance(
+                            ray.origin,
+                            ray.dir,
+                            found.map_or(f32::INFINITY, |h| h.t),
+                        );
+                        (t, t < 0.999)
+                    }
+                    None => (1.0, false),
+                };
+                if found.is_some() || in_medium {
+                    covered += 1;
+                }
+                let Some(hit) = found else {
                     continue;
                 };
                 hits += 1;
@@ -482,7 +549,8 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     samples,
                     &sp,
                     settings.unshadowed,
-                    inv_spp,
+                    medium,
+                    inv_spp * seen,
                     diffuse,
                     lobe.zip(glossy.as_deref_mut())
                         .map(|((_, alpha), row)| (alpha, row)),
@@ -512,7 +580,8 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             } else {
                 [0.0; 3]
             };
-            out.pixels.push((pixel, mean_albedo, hits as f32 * inv_spp));
+            out.pixels
+                .push((pixel, mean_albedo, covered as f32 * inv_spp));
             let lobes = dense.into_iter().flat_map(|(material, diffuse, glossy)| {
                 let m = &scene.materials[material as usize];
                 let specular = m.glossy_lobe().map(|(s, _)| s.to_array());
@@ -524,7 +593,10 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     .enumerate()
                     .map(|(k, row)| (std::array::from_fn(|i| (i == k) as u8 as f32), row))
             });
-            for (weight, mut row) in lobes.chain(channels) {
+            let scattered = medium
+                .zip(medium_rows)
+                .and_then(|(m, rows)| Some((m.albedo.to_array(), rows.row(pixel as usize)?)));
+            for (weight, mut row) in lobes.chain(channels).chain(scattered) {
                 let mut sh = vec![0.0f32; shc];
                 basis.project_row(&row, &mut sh);
                 haar::forward_face_all(&mut row, n, &mut scratch);

@@ -30,6 +30,7 @@ pub mod film;
 pub mod gpu;
 pub mod haar;
 pub mod light;
+pub mod medium;
 pub mod metrics;
 pub mod plot;
 pub mod reference;
@@ -41,5 +42,6 @@ pub mod sheet;
 pub mod trace;
 pub mod transport;
 pub mod viewer;
+pub mod volume;
 
 pub use error::{PrtError, Result};

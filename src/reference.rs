@@ -3,6 +3,9 @@
 //! benchmarks, so it is written to be obviously right: for every camera sub-sample and every texel
 //! sample direction, visibility x BRDF x cos x solid angle x radiance, summed; with bounces, the
 //! same seeded paths as the bake, each bringing its throughput times its exit texel's radiance.
+//! A medium attenuates what the camera sees and every shadow ray, and adds single scattering along
+//! the camera ray: at every march sample and texel sample direction, the shadow ray's
+//! transmittance is marched through the medium directly (no sweep, no SH, no matrix).
 
 use rayon::prelude::*;
 
@@ -11,6 +14,7 @@ use crate::brdf;
 use crate::cubemap::CubeMap;
 use crate::error::{PrtError, Result};
 use crate::film::Image;
+use crate::medium::henyey_greenstein;
 use crate::sampling::{TexelSamples, pixel_samples};
 use crate::scene::Scene;
 use crate::trace::Tracer;
@@ -32,6 +36,17 @@ pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) 
     let cam = &scene.camera;
     let (w, h) = (cam.width as usize, cam.height as usize);
     let samples = TexelSamples::new(cube.n, settings.texel_samples as usize, settings.seed);
+    let medium = match &scene.medium {
+        Some(spec) => Some(spec.build(None)?),
+        None => None,
+    };
+    let medium = medium.as_ref();
+    if medium.is_some() && settings.bounces > 0 {
+        return Err(PrtError::invalid(
+            "bounces",
+            "interreflections are not traced through a medium",
+        ));
+    }
     let mut image = Image::new(w, h);
     image
         .pixels
@@ -42,9 +57,31 @@ pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) 
                 let subs = pixel_samples(x as u32, y as u32, w as u32, settings.spp, settings.seed);
                 let inv_spp = 1.0 / subs.len() as f64;
                 let mut sum = [0.0f64; 3];
+                let mut march = Vec::new();
                 for (sub, (fx, fy)) in subs.into_iter().enumerate() {
                     let ray = cam.ray(fx, fy);
-                    let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
+                    let found = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
+                    let t_hit = found.map_or(f32::INFINITY, |h| h.t);
+                    let mut seen = 1.0f64;
+                    if let Some(m) = medium {
+                        seen = m.transmittance(ray.origin, ray.dir, t_hit) as f64;
+                        m.march_camera(ray.origin, ray.dir, t_hit, &mut march);
+                        for s in &march {
+                            for (d, w) in samples.dirs.iter().zip(&samples.weights) {
+                                let tau = m.optical_depth(s.pos, *d, f32::INFINITY);
+                                let f = s.weight as f64
+                                    * henyey_greenstein(m.g, d.dot(ray.dir)) as f64
+                                    * *w as f64
+                                    * (-tau as f64).exp()
+                                    * inv_spp;
+                                let l = cube.lookup(d.as_dvec3());
+                                for k in 0..3 {
+                                    sum[k] += f * m.albedo[k] as f64 * l[k] as f64;
+                                }
+                            }
+                        }
+                    }
+                    let Some(hit) = found else {
                         continue;
                     };
                     let sp = shading_point(&tracer, &hit, ray.dir);
@@ -55,8 +92,14 @@ pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) 
                         if sp.normal.dot(*d) <= 0.0 {
                             continue;
                         }
-                        if !settings.unshadowed && tracer.occluded(sp.origin, *d, f32::INFINITY) {
-                            continue;
+                        let mut visible = seen;
+                        if !settings.unshadowed {
+                            if tracer.occluded(sp.origin, *d, f32::INFINITY) {
+                                continue;
+                            }
+                            if let Some(m) = medium {
+                                visible *= m.transmittance(sp.origin, *d, f32::INFINITY) as f64;
+                            }
                         }
                         // f(ω, view) · cos: albedo / π · cos, plus the specular GGX lobe.
                         let diffuse = brdf::diffuse_cosine(sp.normal, *d);
@@ -69,7 +112,7 @@ pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) 
                         let l = cube.lookup(d.as_dvec3());
                         for k in 0..3 {
                             let f = albedo[k] * diffuse + specular[k] * ggx;
-                            sum[k] += f as f64 * *w as f64 * inv_spp * l[k] as f64;
+                            sum[k] += f as f64 * *w as f64 * inv_spp * l[k] as f64 * visible;
                         }
                     }
                     // Interreflections: every path that leaves the scene after a bounce brings

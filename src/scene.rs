@@ -15,6 +15,7 @@ use glam::{Mat3, Vec3};
 use serde::Deserialize;
 
 use crate::error::{PrtError, Result};
+use crate::medium::{DensityGrid, DensitySource, Medium};
 
 /// Largest accepted image width or height, in pixels. A per-pixel bake beyond this is surely a
 /// typo, and refusing it early avoids allocating absurd buffers.
@@ -113,7 +114,7 @@ impl Camera {
     }
 
     /// Orthonormal camera frame: (forward, right, up on the film).
-    fn frame(&self) -> (Vec3, Vec3, Vec3) {
+    pub fn frame(&self) -> (Vec3, Vec3, Vec3) {
         let forward = (self.target - self.eye).normalize();
         let right = forward.cross(self.up).normalize();
         let film_up = right.cross(forward);
@@ -222,6 +223,8 @@ pub struct Scene {
     pub triangles: Vec<Triangle>,
     /// Analytic spheres.
     pub spheres: Vec<Sphere>,
+    /// A participating medium (`[medium]`), if any.
+    pub medium: Option<MediumSpec>,
     /// The scene file this was loaded from (or named as such by [`Scene::from_toml_str`]).
     pub source_path: PathBuf,
     content_hash: u64,
@@ -288,6 +291,98 @@ struct SceneFile {
     material: BTreeMap<String, MaterialFile>,
     #[serde(default)]
     shape: Vec<ShapeFile>,
+    medium: Option<MediumFile>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Debug)]
+#[serde(rename_all = "lowercase")]
+enum MediumKind {
+    Ellipsoid,
+    Cloud,
+    Grid,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MediumFile {
+    r#type: MediumKind,
+    bounds: [[f32; 3]; 2],
+    resolution: Option<usize>,
+    extinction: f32,
+    albedo: Option<[f32; 3]>,
+    g: Option<f32>,
+    center: Option<[f32; 3]>,
+    radii: Option<[f32; 3]>,
+    falloff: Option<f32>,
+    seed: Option<u64>,
+    frequency: Option<f32>,
+    octaves: Option<u32>,
+    coverage: Option<f32>,
+    path: Option<String>,
+}
+
+/// Where a scene's medium densities come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MediumSource {
+    /// Evaluated at the voxel centres of the grid.
+    Procedural(DensitySource),
+    /// Read from a `.npy` file; another resolution resamples it trilinearly.
+    Grid(DensityGrid),
+}
+
+/// The `[medium]` of a scene: how to build its density grid and its optical parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MediumSpec {
+    pub source: MediumSource,
+    pub min: Vec3,
+    pub max: Vec3,
+    /// Voxels along the longest side of the box (others in proportion, cubic voxels).
+    pub resolution: usize,
+    pub extinction: f32,
+    pub albedo: Vec3,
+    pub g: f32,
+}
+
+/// Default voxels along the longest side of a medium's box.
+pub const DEFAULT_MEDIUM_RESOLUTION: usize = 64;
+
+impl MediumSpec {
+    /// The medium at the scene's resolution, or `resolution` voxels along the longest side.
+    pub fn build(&self, resolution: Option<usize>) -> Result<Medium> {
+        let extent = self.max - self.min;
+        let grid = match (&self.source, resolution) {
+            (MediumSource::Grid(g), None) => g.clone(),
+            (source, r) => {
+                let r = r.unwrap_or(self.resolution);
+                if !(1..=512).contains(&r) {
+                    return Err(PrtError::invalid(
+                        "medium resolution",
+                        format!("{r} voxels is outside 1 to 512"),
+                    ));
+                }
+                let longest = extent.max_element();
+                let dims = extent
+                    .to_array()
+                    .map(|e| ((e / longest * r as f32).round() as usize).max(1));
+                match source {
+                    MediumSource::Procedural(src) => {
+                        DensityGrid::from_fn(dims, self.min, self.max, |p| src.density(p))
+                    }
+                    MediumSource::Grid(g) => {
+                        DensityGrid::from_fn(dims, self.min, self.max, |p| g.density(p))
+                    }
+                }
+            }
+        };
+        let m = Medium {
+            grid,
+            extinction: self.extinction,
+            albedo: self.albedo,
+            g: self.g,
+        };
+        m.validate()?;
+        Ok(m)
+    }
 }
 
 #[derive(Deserialize)]
@@ -600,10 +695,14 @@ impl<'a> Loader<'a> {
             material_names.push(name.clone());
         }
 
-        if file.shape.is_empty() {
+        let medium = match &file.medium {
+            Some(m) => Some(self.medium(m)?),
+            None => None,
+        };
+        if file.shape.is_empty() && medium.is_none() {
             return Err(self.map.error(
                 "shape",
-                "the scene has no shapes; add at least one [[shape]]",
+                "the scene has no shapes and no medium; add a [[shape]] or a [medium]",
             ));
         }
         let mut triangles = Vec::new();
@@ -694,6 +793,7 @@ impl<'a> Loader<'a> {
             material_names,
             triangles,
             spheres,
+            medium,
             source_path: self.map.file.clone(),
             content_hash: self.hasher.0,
         })
@@ -778,6 +878,157 @@ impl<'a> Loader<'a> {
                 })
             }
         }
+    }
+
+    fn medium(&mut self, m: &MediumFile) -> Result<MediumSpec> {
+        let field = |key: &str| format!("medium.{key}");
+        let min = finite3(&self.map, "medium.bounds", m.bounds[0])?;
+        let max = finite3(&self.map, "medium.bounds", m.bounds[1])?;
+        if !min.cmplt(max).all() {
+            return Err(self.map.error(
+                "medium.bounds",
+                format!("[min, max] needs min < max on every axis, got {min} and {max}"),
+            ));
+        }
+        let resolution = m.resolution.unwrap_or(DEFAULT_MEDIUM_RESOLUTION);
+        if !(1..=512).contains(&resolution) {
+            return Err(self.map.error(
+                &field("resolution"),
+                format!("must be 1 to 512 voxels, got {resolution}"),
+            ));
+        }
+        if !(m.extinction.is_finite() && m.extinction >= 0.0) {
+            return Err(self.map.error(
+                &field("extinction"),
+                format!("must be finite and >= 0, got {}", m.extinction),
+            ));
+        }
+        let albedo = finite3(&self.map, &field("albedo"), m.albedo.unwrap_or([0.95; 3]))?;
+        if !(albedo.cmpge(Vec3::ZERO).all() && albedo.cmple(Vec3::ONE).all()) {
+            return Err(self.map.error(
+                &field("albedo"),
+                format!("each channel must be in [0, 1], got {albedo}"),
+            ));
+        }
+        let g = m.g.unwrap_or(0.0);
+        if !(g.is_finite() && g.abs() < 1.0) {
+            return Err(self
+                .map
+                .error(&field("g"), format!("must be in (-1, 1), got {g}")));
+        }
+        let present = [
+            ("center", m.center.is_some()),
+            ("radii", m.radii.is_some()),
+            ("falloff", m.falloff.is_some()),
+            ("seed", m.seed.is_some()),
+            ("frequency", m.frequency.is_some()),
+            ("octaves", m.octaves.is_some()),
+            ("coverage", m.coverage.is_some()),
+            ("path", m.path.is_some()),
+        ];
+        let (kind, allowed): (&str, &[&str]) = match m.r#type {
+            MediumKind::Ellipsoid => ("ellipsoid", &["center", "radii", "falloff"]),
+            MediumKind::Cloud => (
+                "cloud",
+                &[
+                    "center",
+                    "radii",
+                    "seed",
+                    "frequency",
+                    "octaves",
+                    "coverage",
+                ],
+            ),
+            MediumKind::Grid => ("grid", &["path"]),
+        };
+        for (key, set) in present {
+            if set && !allowed.contains(&key) {
+                return Err(self.map.error(
+                    &field(key),
+                    format!("`{key}` does not apply to a {kind} medium"),
+                ));
+            }
+        }
+        let center = finite3(
+            &self.map,
+            &field("center"),
+            m.center.unwrap_or(((min + max) * 0.5).to_array()),
+        )?;
+        let radii = finite3(
+            &self.map,
+            &field("radii"),
+            m.radii.unwrap_or(((max - min) * 0.5).to_array()),
+        )?;
+        if !radii.cmpgt(Vec3::ZERO).all() {
+            return Err(self
+                .map
+                .error(&field("radii"), format!("must be > 0, got {radii}")));
+        }
+        let source = match m.r#type {
+            MediumKind::Ellipsoid => {
+                let falloff = m.falloff.unwrap_or(0.3);
+                if !(0.0..1.0).contains(&falloff) {
+                    return Err(self.map.error(
+                        &field("falloff"),
+                        format!("must be in [0, 1), got {falloff}"),
+                    ));
+                }
+                MediumSource::Procedural(DensitySource::Ellipsoid {
+                    center,
+                    radii,
+                    falloff,
+                })
+            }
+            MediumKind::Cloud => {
+                let frequency = m.frequency.unwrap_or(3.0);
+                let coverage = m.coverage.unwrap_or(0.6);
+                let octaves = m.octaves.unwrap_or(4);
+                if !(frequency.is_finite() && frequency > 0.0) {
+                    return Err(self
+                        .map
+                        .error(&field("frequency"), format!("must be > 0, got {frequency}")));
+                }
+                if !(coverage > 0.0 && coverage <= 1.0) {
+                    return Err(self.map.error(
+                        &field("coverage"),
+                        format!("must be in (0, 1], got {coverage}"),
+                    ));
+                }
+                if !(1..=8).contains(&octaves) {
+                    return Err(self
+                        .map
+                        .error(&field("octaves"), format!("must be 1 to 8, got {octaves}")));
+                }
+                MediumSource::Procedural(DensitySource::Cloud {
+                    center,
+                    radii,
+                    seed: m.seed.unwrap_or(1),
+                    frequency,
+                    octaves,
+                    coverage,
+                })
+            }
+            MediumKind::Grid => {
+                let rel = m.path.as_deref().ok_or_else(|| {
+                    self.map
+                        .error("medium.path", "a grid medium needs `path` (a .npy file)")
+                })?;
+                let path = self.base_dir.join(rel);
+                let grid = crate::medium::load_npy(&path, min, max)?;
+                let bytes = std::fs::read(&path).map_err(|e| PrtError::io(&path, e))?;
+                self.hasher.write_chunk(&bytes);
+                MediumSource::Grid(grid)
+            }
+        };
+        Ok(MediumSpec {
+            source,
+            min,
+            max,
+            resolution,
+            extinction: m.extinction,
+            albedo,
+            g,
+        })
     }
 
     fn mesh(&mut self, index: usize, shape: &ShapeFile, material: u32) -> Result<Vec<Triangle>> {

@@ -873,7 +873,7 @@ const TENSOR_NAMES: [&str; 12] = [
 /// A 64-bit checksum of byte slices taken in order: words mixed with the SplitMix64 finaliser,
 /// position-dependent, so any flipped bit changes it. Fast enough to run on every load
 /// (several GB/s).
-fn checksum<'a>(parts: impl IntoIterator<Item = &'a [u8]>) -> u64 {
+pub(crate) fn checksum<'a>(parts: impl IntoIterator<Item = &'a [u8]>) -> u64 {
     let mut h = 0x51_7c_c1_b7_27_22_0a_95u64;
     for part in parts {
         let mut chunks = part.chunks_exact(8);
@@ -889,14 +889,18 @@ fn checksum<'a>(parts: impl IntoIterator<Item = &'a [u8]>) -> u64 {
 }
 
 /// A borrowed tensor for safetensors serialisation.
-struct Tensor<'a> {
+pub(crate) struct Tensor<'a> {
     dtype: Dtype,
     shape: Vec<usize>,
-    bytes: &'a [u8],
+    pub(crate) bytes: &'a [u8],
 }
 
 impl<'a> Tensor<'a> {
-    fn new<T: bytemuck::NoUninit>(dtype: Dtype, shape: Vec<usize>, data: &'a [T]) -> Self {
+    pub(crate) fn new<T: bytemuck::NoUninit>(
+        dtype: Dtype,
+        shape: Vec<usize>,
+        data: &'a [T],
+    ) -> Self {
         Tensor {
             dtype,
             shape,

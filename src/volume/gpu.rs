@@ -1,0 +1,253 @@
+//! Ray-marched volume relighting on the GPU (wgpu compute, `shaders/volume_march.wgsl`): the same
+//! march as [`super::render_volume`], one thread per pixel. The density and the transfer grid are
+//! uploaded once; per frame only the phase-light table (when the environment changes), the camera
+//! and the view go up.
+
+use wgpu::util::DeviceExt;
+
+use super::{PhaseLight, VolumeTransfer, VolumeView};
+use crate::error::{PrtError, Result};
+use crate::film::Image;
+use crate::gpu::Gpu;
+use crate::scene::Camera;
+
+/// The layout of `Params` in `shaders/volume_march.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    eye: [f32; 3],
+    width: u32,
+    forward: [f32; 3],
+    height: u32,
+    right: [f32; 3],
+    n2: u32,
+    up: [f32; 3],
+    view: u32,
+    grid_min: [f32; 3],
+    table_w: u32,
+    cell: [f32; 3],
+    table_h: u32,
+    dims: [u32; 3],
+    extinction: f32,
+    albedo: [f32; 3],
+    step: f32,
+}
+const _: () = assert!(std::mem::size_of::<Params>() == 128);
+
+/// A volume transfer resident on the GPU.
+pub struct GpuVolume {
+    pipeline: wgpu::ComputePipeline,
+    density: wgpu::Buffer,
+    transfer: wgpu::Buffer,
+    params: wgpu::Buffer,
+    table: Option<(PhaseLight, wgpu::Buffer)>,
+    base: Params,
+}
+
+impl GpuVolume {
+    /// Uploads `vt` and builds the march pipeline.
+    pub fn new(gpu: &Gpu, vt: &VolumeTransfer) -> Result<GpuVolume> {
+        let device = &gpu.device;
+        let bytes = (vt.transfer.len() * 4) as u64;
+        if bytes > gpu.max_binding_bytes() {
+            return Err(PrtError::Gpu(format!(
+                "the transfer grid ({bytes} bytes) exceeds this device's storage binding limit \
+                 ({} bytes); bake a smaller grid or a lower SH order",
+                gpu.max_binding_bytes()
+            )));
+        }
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("volume march"),
+            source: wgpu::ShaderSource::Wgsl(
+                include_str!("../../shaders/volume_march.wgsl").into(),
+            ),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("volume march"),
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let storage = |label, data: &[f32]| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytemuck::cast_slice(data),
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let density = storage("volume density", &vt.density);
+        let transfer = storage("volume transfer", &vt.transfer);
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("volume params"),
+            size: std::mem::size_of::<Params>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!("building the volume march: {e}")));
+        }
+        let medium = vt.medium();
+        let cell = medium.grid.cell();
+        let base = Params {
+            grid_min: vt.meta.min,
+            cell: cell.to_array(),
+            dims: vt.meta.dims.map(|d| d as u32),
+            extinction: vt.meta.extinction,
+            albedo: vt.meta.albedo,
+            step: medium.camera_step(),
+            ..Params::default()
+        };
+        Ok(GpuVolume {
+            pipeline,
+            density,
+            transfer,
+            params,
+            table: None,
+            base,
+        })
+    }
+
+    /// Marches `camera`'s view of the medium lit by `light` and reads the image back. Returns
+    /// the image and the GPU time (timestamp-free: wall time from submission to completion).
+    pub fn render(
+        &mut self,
+        gpu: &Gpu,
+        light: &PhaseLight,
+        camera: &Camera,
+        view: VolumeView,
+    ) -> Result<(Image, f64)> {
+        let n2 = light.order * light.order;
+        if n2 > 64 {
+            return Err(PrtError::invalid(
+                "SH order",
+                "the GPU march takes up to order 8",
+            ));
+        }
+        let device = &gpu.device;
+        if self.table.as_ref().is_none_or(|(l, _)| l != light) {
+            let rgba: Vec<[f32; 4]> = light
+                .table
+                .iter()
+                .map(|c| [c[0], c[1], c[2], 0.0])
+                .collect();
+            let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("phase light"),
+                contents: bytemuck::cast_slice(&rgba),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            self.table = Some((light.clone(), buffer));
+        }
+        let (w, h) = (camera.width, camera.height);
+        let (forward, right, up) = camera.frame();
+        let tan_half = (camera.fov_y_deg.to_radians() * 0.5).tan();
+        let aspect = w as f32 / h as f32;
+        let params = Params {
+            eye: camera.eye.to_array(),
+            width: w,
+            forward: forward.to_array(),
+            height: h,
+            right: (right * tan_half * aspect).to_array(),
+            n2: n2 as u32,
+            up: (up * tan_half).to_array(),
+            view: view.index(),
+            table_w: light.width as u32,
+            table_h: light.height as u32,
+            ..self.base
+        };
+        gpu.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let image_bytes = w as u64 * h as u64 * 16;
+        let image = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("volume image"),
+            size: image_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("volume readback"),
+            size: image_bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let table = &self.table.as_ref().expect("uploaded").1;
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("volume march"),
+            layout: &self.pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: self.density.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: self.transfer.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: table.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: image.as_entire_binding(),
+                },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("volume march"),
+        });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("volume march"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        }
+        encoder.copy_buffer_to_buffer(&image, 0, &readback, 0, image_bytes);
+        let start = std::time::Instant::now();
+        gpu.queue.submit([encoder.finish()]);
+        let slice = readback.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        device
+            .poll(wgpu::PollType::Wait {
+                submission_index: None,
+                timeout: None,
+            })
+            .map_err(|e| PrtError::Gpu(format!("waiting for the volume march: {e}")))?;
+        let seconds = start.elapsed().as_secs_f64();
+        rx.recv()
+            .map_err(|_| PrtError::Gpu("the readback was dropped".into()))?
+            .map_err(|e| PrtError::Gpu(format!("reading the image back: {e}")))?;
+        let pixels = {
+            let view = slice
+                .get_mapped_range()
+                .map_err(|e| PrtError::Gpu(format!("reading the image back: {e:?}")))?;
+            let data: &[[f32; 4]] = bytemuck::cast_slice(&view);
+            data.iter().map(|p| [p[0], p[1], p[2]]).collect()
+        };
+        readback.unmap();
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!("volume march: {e}")));
+        }
+        Ok((
+            Image {
+                width: w as usize,
+                height: h as usize,
+                pixels,
+            },
+            seconds,
+        ))
+    }
+}

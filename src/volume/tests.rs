@@ -1,0 +1,156 @@
+use super::*;
+use crate::medium::{DensitySource, Medium};
+
+fn medium(dims: [usize; 3], f: impl Fn(Vec3) -> f32, extinction: f32) -> Medium {
+    Medium {
+        grid: DensityGrid::from_fn(dims, Vec3::splat(-1.0), Vec3::splat(1.0), f),
+        extinction,
+        albedo: Vec3::ONE,
+        g: 0.0,
+    }
+}
+
+fn sphere(n: usize, radius: f32, extinction: f32) -> Medium {
+    let src = DensitySource::Ellipsoid {
+        center: Vec3::ZERO,
+        radii: Vec3::splat(radius),
+        falloff: 0.0,
+    };
+    medium([n; 3], |p| src.density(p), extinction)
+}
+
+#[test]
+fn empty_space_is_exactly_2_sqrt_pi_in_band_0_and_nothing_else() {
+    let m = medium([6, 5, 4], |_| 0.0, 3.0);
+    let t = bake_transfer(&m, &TransferSettings::default(), &|_, _| {}).unwrap();
+    let dc = 2.0 * std::f32::consts::PI.sqrt();
+    for v in t.chunks_exact(9) {
+        assert_eq!(v[0], dc);
+        assert!(v[1..].iter().all(|x| *x == 0.0));
+    }
+}
+
+#[test]
+fn sphere_centre_sees_exp_minus_sigma_r_every_way() {
+    // Constant sigma = 2 inside radius 0.75: from the centre tau = 1.5 along every direction.
+    let m = sphere(48, 0.75, 2.0);
+    let t = bake_transfer(&m, &TransferSettings::default(), &|_, _| {}).unwrap();
+    let vt = VolumeTransfer {
+        meta: meta_for(&m, 3, 512),
+        density: m.grid.data.clone(),
+        transfer: t,
+    };
+    let mut v = [0.0f32; 9];
+    vt.transfer_at(Vec3::ZERO, &mut v);
+    let want = 2.0 * std::f32::consts::PI.sqrt() * (-1.5f32).exp();
+    assert!((v[0] - want).abs() < 0.03 * want, "T0 {} vs {want}", v[0]);
+    // Symmetric: the higher bands vanish up to the grid's faceting.
+    assert!(v[1..].iter().all(|x| x.abs() < 0.02 * want), "{v:?}");
+    // Every direction from the centre: sweep against exp(-sigma r).
+    let s = Sweeper::new(&m);
+    for d in fibonacci_directions(40) {
+        let tau = s.depth(d).at(Vec3::ZERO);
+        assert!((tau - 1.5).abs() < 0.04, "{d}: tau {tau}");
+    }
+}
+
+#[test]
+fn sweep_matches_a_direct_march_in_a_soft_medium() {
+    let src = DensitySource::Cloud {
+        center: Vec3::ZERO,
+        radii: Vec3::splat(0.8),
+        seed: 5,
+        frequency: 2.0,
+        octaves: 3,
+        coverage: 0.7,
+    };
+    let m = medium([40, 32, 36], |p| src.density(p), 3.0);
+    let s = Sweeper::new(&m);
+    let mut errors = Vec::new();
+    for (k, d) in fibonacci_directions(24).into_iter().enumerate() {
+        let grid = s.depth(d);
+        for i in 0..20 {
+            let (x, y, z) = ((7 * i + k) % 40, (5 * i + 3 * k) % 32, (11 * i + k) % 36);
+            let p = m.grid.min + m.grid.cell() * (Vec3::new(x as f32, y as f32, z as f32) + 0.5);
+            let march = m.optical_depth(p, d, f32::INFINITY);
+            let sweep = grid.voxel(x, y, z);
+            errors.push((sweep - march).abs() / (1.0 + march));
+        }
+    }
+    // Bilinear steps blur the optical depth a little over long paths: small on average, a few
+    // percent at the far side of the grid (measured: mean 0.35%, worst 8%, 480 voxels).
+    errors.sort_by(f32::total_cmp);
+    let mean = errors.iter().sum::<f32>() / errors.len() as f32;
+    let p95 = errors[errors.len() * 95 / 100];
+    let worst = errors[errors.len() - 1];
+    assert!(mean < 0.01, "mean relative difference {mean}");
+    assert!(p95 < 0.03, "95th percentile {p95}");
+    assert!(worst < 0.12, "worst {worst}");
+}
+
+#[test]
+fn axis_aligned_sweep_of_a_slab_is_exact() {
+    // Density 1 for y > 0: looking up, tau is the density's integral above the voxel.
+    let m = medium([4, 16, 4], |p| (p.y > 0.0) as u8 as f32, 1.0);
+    let s = Sweeper::new(&m);
+    let g = s.depth(Vec3::Y);
+    let cell = 2.0 / 16.0;
+    for y in 0..16 {
+        let march = m.optical_depth(
+            Vec3::new(0.1, -1.0 + (y as f32 + 0.5) * cell, 0.1),
+            Vec3::Y,
+            f32::INFINITY,
+        );
+        assert!(
+            (g.voxel(1, y, 2) - march).abs() < 1e-4 + 0.01 * march,
+            "y {y}"
+        );
+    }
+}
+
+pub(crate) fn meta_for(m: &Medium, order: usize, directions: usize) -> VolumeMeta {
+    VolumeMeta {
+        dims: m.grid.dims,
+        min: m.grid.min.to_array(),
+        max: m.grid.max.to_array(),
+        extinction: m.extinction,
+        albedo: m.albedo.to_array(),
+        g: m.g,
+        sh_order: order,
+        directions,
+        camera: CameraMeta {
+            eye: [0.0, 0.0, 3.0],
+            target: [0.0; 3],
+            up: [0.0, 1.0, 0.0],
+            fov_y_deg: 40.0,
+        },
+        width: 32,
+        height: 24,
+        scene_hash: "0".into(),
+    }
+}
+
+#[test]
+fn file_round_trip_and_damage() {
+    let m = sphere(8, 0.7, 2.0);
+    let t = bake_transfer(&m, &TransferSettings::default(), &|_, _| {}).unwrap();
+    let vt = VolumeTransfer {
+        meta: meta_for(&m, 3, 512),
+        density: m.grid.data.clone(),
+        transfer: t,
+    };
+    let dir = std::env::temp_dir().join(format!("prt-vol-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("v.prtv");
+    vt.save(&path).unwrap();
+    assert_eq!(VolumeTransfer::load(&path).unwrap(), vt);
+    let mut bytes = std::fs::read(&path).unwrap();
+    let n = bytes.len();
+    bytes[n - 3] ^= 0x40;
+    std::fs::write(&path, &bytes).unwrap();
+    let e = VolumeTransfer::load(&path).unwrap_err().to_string();
+    assert!(e.contains("checksum"), "{e}");
+    std::fs::write(&path, b"junk").unwrap();
+    assert!(VolumeTransfer::load(&path).is_err());
+    std::fs::remove_dir_all(dir).unwrap();
+}
