@@ -3,15 +3,15 @@
 //! `row_t = Σ_k T_cam(x_k) sigma_t(x_k) dt · Σ_m p(w_m·d) Ω_m · exp(−tau(x_k, w_t))`
 //! (the medium's albedo is the row's RGB weight), up to the surface the ray hits.
 //!
-//! The rows are computed texel by texel: one [`Sweeper`] pass gives the optical depth towards the
-//! texel's centre direction at every voxel, and every pixel's march samples read it
-//! trilinearly. That is one sweep per texel instead of one shadow march per (sample, texel). The
+//! The rows are computed texel by texel: one [`Sweeper`] pass gives the transmittance towards
+//! the texel's centre direction at every voxel, and every pixel's march samples (located in the
+//! grid once, up front) read it trilinearly. That is one sweep per texel instead of one shadow march per (sample, texel). The
 //! rows are held texel-major (6 N² × pixels floats) until the tiles take them.
 
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::Sweeper;
+use super::{Located, Sweeper};
 use crate::cubemap::{texel_count, texel_dirs};
 use crate::error::{PrtError, Result};
 use crate::medium::{Medium, henyey_greenstein};
@@ -67,7 +67,8 @@ impl MediumRows {
             ));
         }
         // Every pixel's sub-rays and march samples, weights already divided by the sub-samples.
-        let per_pixel: Vec<(Vec<SubRay>, Vec<(Vec3, f32)>)> = (0..w * h)
+        let sweeper = Sweeper::new(medium);
+        let per_pixel: Vec<(Vec<SubRay>, Vec<([Located; 3], f32)>)> = (0..w * h)
             .into_par_iter()
             .map(|p| {
                 let (mut rays, mut marks) = (Vec::new(), Vec::new());
@@ -85,7 +86,11 @@ impl MediumRows {
                         .map_or(f32::INFINITY, |hit| hit.t);
                     medium.march_camera(ray.origin, ray.dir, t_max, &mut march);
                     let start = marks.len();
-                    marks.extend(march.iter().map(|s| (s.pos, s.weight * inv)));
+                    marks.extend(
+                        march
+                            .iter()
+                            .map(|s| (sweeper.locate(s.pos), s.weight * inv)),
+                    );
                     if marks.len() > start {
                         rays.push(SubRay {
                             dir: ray.dir,
@@ -98,7 +103,6 @@ impl MediumRows {
             .collect();
         let touched: Vec<bool> = per_pixel.iter().map(|(r, _)| !r.is_empty()).collect();
         let centres: Vec<Vec3> = texel_dirs(n).iter().map(|d| d.as_vec3()).collect();
-        let sweeper = Sweeper::new(medium);
         let m = samples.per_texel;
         let pixels = w * h;
         let mut cols = vec![0.0f32; texels * pixels];
@@ -106,7 +110,7 @@ impl MediumRows {
         cols.par_chunks_mut(pixels)
             .enumerate()
             .for_each(|(t, col)| {
-                let depth = sweeper.depth(centres[t]);
+                let open = sweeper.transmittance(centres[t]);
                 let dirs = &samples.dirs[t * m..(t + 1) * m];
                 let omegas = &samples.weights[t * m..(t + 1) * m];
                 for (p, (rays, marks)) in per_pixel.iter().enumerate() {
@@ -118,8 +122,8 @@ impl MediumRows {
                             .map(|(wd, o)| henyey_greenstein(medium.g, wd.dot(ray.dir)) * o)
                             .sum();
                         let mut s = 0.0f32;
-                        for (pos, weight) in &marks[ray.samples.clone()] {
-                            s += weight * (-depth.at(*pos)).exp();
+                        for (loc, weight) in &marks[ray.samples.clone()] {
+                            s += weight * open.at_located(loc);
                         }
                         sum += phase * s;
                     }
