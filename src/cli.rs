@@ -922,7 +922,7 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
 fn view_cmd(a: ViewArgs) -> Result<()> {
     use crate::viewer::{Engine, env_entries, screenshot};
     let err = |m: String| PrtError::invalid("viewer", m);
-    let Some(out) = a.screenshot else {
+    let Some(out) = a.screenshot.clone() else {
         if a.method.is_some()
             || a.terms.is_some()
             || a.compare
@@ -937,6 +937,9 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
         }
         return crate::viewer::run(&a.file, &a.env).map_err(|e| err(e.to_string()));
     };
+    if crate::volume::is_volume_file(&a.file) {
+        return volume_screenshot_cmd(&a, &out);
+    }
     let (entries, sun, selected) = env_entries(&a.env);
     let mut engine = Engine::open(&a.file, entries).map_err(err)?;
     let mut state = engine.initial_state(selected, sun);
@@ -953,12 +956,7 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
         state.split = f;
     }
     if let Some(t) = &a.tone {
-        state.tone = match t.to_ascii_lowercase().as_str() {
-            "clip" => crate::film::ToneCurve::Clip,
-            "reinhard" => crate::film::ToneCurve::Reinhard,
-            "aces" => crate::film::ToneCurve::Aces,
-            _ => return Err(err(format!("--tone {t}: expected clip, reinhard or aces"))),
-        };
+        state.tone = parse_tone(t)?;
     }
     if let Some(m) = &a.method {
         state.method = m.parse()?;
@@ -999,6 +997,64 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
     }
     println!("wrote {}", out.display());
     Ok(())
+}
+
+/// `prt view FILE.prtv --screenshot OUT.png`: the volume window's first frame.
+fn volume_screenshot_cmd(a: &ViewArgs, out: &std::path::Path) -> Result<()> {
+    use crate::viewer::{VolumeEngine, VolumeState, env_entries, volume_screenshot};
+    let err = |m: String| PrtError::invalid("viewer", m);
+    let vt = crate::volume::VolumeTransfer::load(&a.file)?;
+    let (entries, sun, selected) = env_entries(&a.env);
+    let mut state = VolumeState::initial(&vt);
+    state.env = selected;
+    (state.sun_elev, state.sun_azim) = sun;
+    if let Some(r) = crate::viewer::cli_sun_radius(&a.env) {
+        state.sun_radius = r;
+    }
+    if let Some(y) = a.yaw {
+        state.yaw = y;
+    }
+    if let Some(p) = a.pitch {
+        state.pitch = p;
+    }
+    if let Some(o) = a.sh_order {
+        state.sh_order = o.clamp(1, vt.meta.sh_order);
+    }
+    if let Some(t) = &a.tone {
+        state.tone = parse_tone(t)?;
+    }
+    let mut engine = VolumeEngine::new(vt, entries);
+    state.exposure = match a.exposure {
+        Some(e) => e,
+        None => {
+            let f = engine.render(&state).map_err(err)?;
+            ToneMap::auto(&f.image, None).exposure
+        }
+    };
+    let f = volume_screenshot(&mut engine, &state, out).map_err(err)?;
+    println!(
+        "volume {} view, SH order {}: march {:.1} ms on {}",
+        state.view.name(),
+        state.sh_order,
+        f.march_seconds * 1e3,
+        f.device
+    );
+    println!("wrote {}", out.display());
+    Ok(())
+}
+
+fn parse_tone(t: &str) -> Result<crate::film::ToneCurve> {
+    Ok(match t.to_ascii_lowercase().as_str() {
+        "clip" => crate::film::ToneCurve::Clip,
+        "reinhard" => crate::film::ToneCurve::Reinhard,
+        "aces" => crate::film::ToneCurve::Aces,
+        _ => {
+            return Err(PrtError::invalid(
+                "viewer",
+                format!("--tone {t}: expected clip, reinhard or aces"),
+            ));
+        }
+    })
 }
 
 fn volume_bake_cmd(a: VolumeBakeArgs) -> Result<()> {

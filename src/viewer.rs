@@ -13,10 +13,12 @@
 
 mod app;
 mod gpu_view;
+mod volume_app;
 mod worker;
 
 pub use app::{ViewerApp, run};
 pub use gpu_view::GpuView;
+pub use volume_app::{VolumeApp, VolumeEngine, VolumeFrame, VolumeState, volume_screenshot};
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

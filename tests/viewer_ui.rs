@@ -239,3 +239,93 @@ fn settings_panel_snapshots() {
     h.run();
     h.snapshot("settings_panel_split");
 }
+
+/// A small baked volume for the volume window.
+fn volume_file() -> std::path::PathBuf {
+    let dir = common::temp_dir("viewer-volume");
+    let scene = dir.join("fog.toml");
+    std::fs::write(
+        &scene,
+        r#"
+[camera]
+eye = [0.0, 0.6, 3.0]
+target = [0.0, 0.6, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 40.0
+width = 48
+height = 40
+
+[medium]
+type = "ellipsoid"
+bounds = [[-0.8, 0.0, -0.8], [0.8, 1.2, 0.8]]
+resolution = 20
+extinction = 4.0
+g = 0.3
+center = [0.0, 0.6, 0.0]
+radii = [0.7, 0.5, 0.6]
+"#,
+    )
+    .unwrap();
+    let scene = wavelet_prt::scene::Scene::load(&scene).unwrap();
+    let vt = wavelet_prt::volume::bake_volume(
+        &scene,
+        None,
+        &wavelet_prt::volume::TransferSettings::default(),
+        &|_, _| {},
+    )
+    .unwrap();
+    let out = dir.join("fog.prtv");
+    vt.save(&out).unwrap();
+    assert!(wavelet_prt::volume::is_volume_file(&out));
+    out
+}
+
+fn settle_volume(h: &mut Harness<'static, wavelet_prt::viewer::VolumeApp>) {
+    h.run_ok();
+    for _ in 0..20 {
+        assert!(h.state().wait_idle(Duration::from_secs(120)));
+        h.step();
+        if !h.state().busy() {
+            break;
+        }
+    }
+    h.run();
+}
+
+#[test]
+fn volume_window_orbits_on_drag_and_switches_views() {
+    use wavelet_prt::viewer::VolumeApp;
+    use wavelet_prt::volume::{VolumeTransfer, VolumeView};
+    if common::gpu_or_skip("volume_window_orbits_on_drag_and_switches_views").is_none() {
+        return;
+    }
+    let vt = VolumeTransfer::load(&volume_file()).unwrap();
+    let app = VolumeApp::new(vt, &["sun:30,45".to_string()], None);
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(900.0, 600.0))
+        .wgpu()
+        .build_ui_state(|ui, app: &mut VolumeApp| app.show(ui), app);
+    settle_volume(&mut h);
+    let first = h.state().frame().expect("a frame").image.clone();
+    assert!(first.pixels.iter().any(|p| p[0] > 0.0), "the fog shows");
+    let azim = h.state().state.orbit_azim;
+    // Drag across the image: the camera orbits and a new frame comes.
+    h.drag_at(egui::pos2(600.0, 300.0));
+    h.hover_at(egui::pos2(700.0, 300.0));
+    h.drop_at(egui::pos2(700.0, 300.0));
+    settle_volume(&mut h);
+    assert_ne!(h.state().state.orbit_azim, azim, "dragging orbits");
+    let turned = &h.state().frame().unwrap().image;
+    assert_ne!(turned.pixels, first.pixels);
+    // The transmittance view is grey and at most 1.
+    h.state_mut().state.view = VolumeView::Transmittance;
+    settle_volume(&mut h);
+    let t = &h.state().frame().unwrap().image;
+    assert!(
+        t.pixels
+            .iter()
+            .all(|p| p[0] == p[1] && p[0] <= 1.0 && p[0] >= 0.0)
+    );
+    assert!(t.pixels.iter().any(|p| p[0] < 0.9), "the fog attenuates");
+    h.query_by_label_contains("march ").expect("the march time");
+}

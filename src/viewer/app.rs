@@ -786,7 +786,6 @@ impl eframe::App for ViewerApp {
 /// where the adapter has them.
 pub fn run(file: &Path, envs: &[String]) -> eframe::Result {
     use eframe::egui_wgpu::{WgpuConfiguration, WgpuSetup, WgpuSetupCreateNew};
-    let app = ViewerApp::new(file, envs);
     let mut setup = WgpuSetupCreateNew::without_display_handle();
     setup.device_descriptor = Arc::new(|adapter: &wgpu::Adapter| wgpu::DeviceDescriptor {
         label: Some("prt view"),
@@ -804,6 +803,25 @@ pub fn run(file: &Path, envs: &[String]) -> eframe::Result {
         },
         ..Default::default()
     };
+    if crate::volume::is_volume_file(file) {
+        // The volume path: load now (volume files are small), march on the window's device.
+        let vt = crate::volume::VolumeTransfer::load(file)
+            .map_err(|e| eframe::Error::AppCreation(Box::new(e)))?;
+        let envs = envs.to_vec();
+        return eframe::run_native(
+            "wavelet-prt volume viewer",
+            options,
+            Box::new(move |cc| {
+                let gpu = cc.wgpu_render_state.as_ref().and_then(|rs| {
+                    let info = rs.adapter.get_info();
+                    let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
+                    Gpu::from_device(rs.device.clone(), rs.queue.clone(), name).ok()
+                });
+                Ok(Box::new(super::VolumeApp::new(vt, &envs, gpu)))
+            }),
+        );
+    }
+    let app = ViewerApp::new(file, envs);
     eframe::run_native(
         "wavelet-prt viewer",
         options,

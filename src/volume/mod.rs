@@ -517,6 +517,21 @@ impl VolumeTransfer {
     }
 }
 
+/// Whether `path` is a volume transfer file (by its header, not its name).
+pub fn is_volume_file(path: &Path) -> bool {
+    use std::io::Read;
+    let Ok(mut f) = std::fs::File::open(path) else {
+        return false;
+    };
+    let mut len = [0u8; 8];
+    if f.read_exact(&mut len).is_err() {
+        return false;
+    }
+    let n = u64::from_le_bytes(len).min(1 << 20) as usize;
+    let mut header = vec![0u8; n];
+    f.read_exact(&mut header).is_ok() && String::from_utf8_lossy(&header).contains(FORMAT_NAME)
+}
+
 /// Bakes the SH self-transfer of `scene`'s medium at its resolution (or `resolution` voxels along
 /// the longest side), with the scene's camera as the default view.
 pub fn bake_volume(

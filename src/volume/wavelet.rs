@@ -28,6 +28,9 @@ struct SubRay {
     samples: std::ops::Range<usize>,
 }
 
+/// A pixel's camera sub-rays and their march samples (located, weighted).
+type PixelMarch = (Vec<SubRay>, Vec<([Located; 3], f32)>);
+
 /// The medium rows of every pixel, texel-major.
 pub struct MediumRows {
     pixels: usize,
@@ -40,6 +43,7 @@ pub struct MediumRows {
 impl MediumRows {
     /// Bakes the rows of the pixels `wanted(pixel)` of `scene`'s view (sub-samples as the bake's:
     /// `spp`, `seed`), texel lights of `samples`. Calls `progress(texels done, texels)`.
+    #[allow(clippy::too_many_arguments)]
     pub fn bake(
         medium: &Medium,
         scene: &Scene,
@@ -68,7 +72,7 @@ impl MediumRows {
         }
         // Every pixel's sub-rays and march samples, weights already divided by the sub-samples.
         let sweeper = Sweeper::new(medium);
-        let per_pixel: Vec<(Vec<SubRay>, Vec<([Located; 3], f32)>)> = (0..w * h)
+        let per_pixel: Vec<PixelMarch> = (0..w * h)
             .into_par_iter()
             .map(|p| {
                 let (mut rays, mut marks) = (Vec::new(), Vec::new());
@@ -130,7 +134,7 @@ impl MediumRows {
                     col[p] = sum;
                 }
                 let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                if d % 64 == 0 || d == texels {
+                if d.is_multiple_of(64) || d == texels {
                     progress(d, texels);
                 }
             });
