@@ -5,6 +5,9 @@
 //!
 //! `relight_gpu` runs the wgpu kernels when an adapter exists.
 //!
+//! `volume` times the SH self-transfer bake of a 64³ noise cloud with 512 directions at orders 3
+//! and 6, and the CPU ray march of a 512² frame (and the GPU march when an adapter exists).
+//!
 //! The relight benchmarks bake the demo scene once (256², N = 32) into `target/bench-cache/`;
 //! set `PRT_BENCH_SIZE=512` for a 512² bake.
 
@@ -170,5 +173,85 @@ fn relight_gpu(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, spherical, relight, relight_gpu);
+/// The 64³ noise cloud of the volume benchmarks.
+fn cloud64() -> wavelet_prt::medium::Medium {
+    use glam::Vec3;
+    use wavelet_prt::medium::{DensityGrid, DensitySource, Medium};
+    let src = DensitySource::Cloud {
+        center: Vec3::ZERO,
+        radii: Vec3::new(0.95, 0.8, 0.95),
+        seed: 3,
+        frequency: 2.5,
+        octaves: 4,
+        coverage: 0.6,
+    };
+    Medium {
+        grid: DensityGrid::from_fn([64; 3], Vec3::splat(-1.0), Vec3::ONE, |p| src.density(p)),
+        extinction: 8.0,
+        albedo: Vec3::splat(0.95),
+        g: 0.3,
+    }
+}
+
+fn volume(c: &mut Criterion) {
+    use wavelet_prt::volume::{
+        PhaseLight, TransferSettings, VolumeMeta, VolumeTransfer, VolumeView, bake_transfer,
+        render_volume,
+    };
+    let medium = cloud64();
+    let mut g = c.benchmark_group("volume");
+    g.sample_size(10).measurement_time(Duration::from_secs(10));
+    for order in [3, 6] {
+        let settings = TransferSettings {
+            sh_order: order,
+            directions: 512,
+        };
+        g.bench_function(format!("transfer_bake_64^3_512dirs_order{order}"), |b| {
+            b.iter(|| bake_transfer(black_box(&medium), &settings, &|_, _| {}).unwrap())
+        });
+    }
+    let transfer = bake_transfer(&medium, &TransferSettings::default(), &|_, _| {}).unwrap();
+    let vt = VolumeTransfer {
+        meta: VolumeMeta {
+            dims: [64; 3],
+            min: [-1.0; 3],
+            max: [1.0; 3],
+            extinction: medium.extinction,
+            albedo: medium.albedo.to_array(),
+            g: medium.g,
+            sh_order: 3,
+            directions: 512,
+            camera: wavelet_prt::transport::CameraMeta {
+                eye: [0.0, 0.3, 3.2],
+                target: [0.0; 3],
+                up: [0.0, 1.0, 0.0],
+                fov_y_deg: 40.0,
+            },
+            width: 512,
+            height: 512,
+            scene_hash: String::new(),
+        },
+        density: medium.grid.data.clone(),
+        transfer,
+    };
+    let cube = sunrise().to_cube(32, EnvRotation::default()).unwrap();
+    let light = PhaseLight::new(&cube, 3, medium.g);
+    let cam = vt.camera(None, None, None).unwrap();
+    g.bench_function("march_cpu_512x512_order3", |b| {
+        b.iter(|| render_volume(&vt, &light, &cam, VolumeView::Full))
+    });
+    g.bench_function("phase_light_table_n32_order3", |b| {
+        b.iter(|| PhaseLight::new(&cube, 3, medium.g))
+    });
+    if let Ok(gpu) = wavelet_prt::gpu::Gpu::new() {
+        eprintln!("volume: GPU march on {}", gpu.adapter);
+        let mut gv = wavelet_prt::volume::gpu::GpuVolume::new(&gpu, &vt).unwrap();
+        g.bench_function("march_gpu_512x512_order3", |b| {
+            b.iter(|| gv.render(&gpu, &light, &cam, VolumeView::Full).unwrap())
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, spherical, relight, relight_gpu, volume);
 criterion_main!(benches);

@@ -593,15 +593,19 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     .enumerate()
                     .map(|(k, row)| (std::array::from_fn(|i| (i == k) as u8 as f32), row))
             });
-            let scattered = medium
-                .zip(medium_rows)
-                .and_then(|(m, rows)| Some((m.albedo.to_array(), rows.row(pixel as usize)?)));
-            for (weight, mut row) in lobes.chain(channels).chain(scattered) {
+            // Every row with the scale of its thresholding budget.
+            let lobes = lobes
+                .chain(channels)
+                .map(|(weight, row)| (weight, row, reference_energy));
+            let scattered = medium.zip(medium_rows).and_then(|(m, rows)| {
+                let p = pixel as usize;
+                Some((m.albedo.to_array(), rows.row(p)?, rows.reference_energy(p)))
+            });
+            for (weight, mut row, budget_scale) in lobes.chain(scattered) {
                 let mut sh = vec![0.0f32; shc];
                 basis.project_row(&row, &mut sh);
                 haar::forward_face_all(&mut row, n, &mut scratch);
-                let (entries, dropped, total) =
-                    sparsify(&row, settings, reference_energy, &mut order);
+                let (entries, dropped, total) = sparsify(&row, settings, budget_scale, &mut order);
                 out.dropped_energy += dropped;
                 out.total_energy += total;
                 out.rows.push(RowData {

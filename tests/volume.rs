@@ -312,3 +312,31 @@ path = "{npy}"
     let e = load("missing").unwrap_err().to_string();
     assert!(e.contains("missing.npy"), "{e}");
 }
+
+#[test]
+fn thresholding_keeps_the_faint_fringe_of_a_medium() {
+    // The budget of a medium row scales with the pixel's opacity: the thin edge of the fog
+    // keeps its rows instead of being dropped whole under an absolute budget.
+    let scene = scene_from(&fog(0.3), "vol-threshold");
+    let env = EnvMap::from_spec("sun:35,60,8").unwrap();
+    let exact = full(&scene, &lossless(8), &env);
+    let sparse_settings = BakeSettings {
+        cube_n: 8,
+        sh_order: 3,
+        ..BakeSettings::default()
+    };
+    let sparse = full(&scene, &sparse_settings, &env);
+    let e = relative_l2(&sparse, &exact, None).unwrap();
+    println!("default threshold vs lossless: {e}");
+    assert!(e < 0.02, "thresholding added {e}");
+    // Every pixel above 1% of the brightest keeps most of its light (fainter ones sit in the
+    // exponential tail, down to values f16 cannot hold).
+    let brightest = exact.pixels.iter().map(|p| p[1]).fold(0.0, f32::max);
+    let dark = exact
+        .pixels
+        .iter()
+        .zip(&sparse.pixels)
+        .filter(|(a, b)| a[1] > 0.01 * brightest && b[1] < 0.5 * a[1])
+        .count();
+    assert_eq!(dark, 0, "{dark} pixels lost more than half their light");
+}

@@ -38,6 +38,11 @@ pub struct MediumRows {
     cols: Vec<f32>,
     /// Whether a pixel's rays meet the medium at all.
     touched: Vec<bool>,
+    /// A pixel's opacity: `Σ_k T_cam sigma_t dt`, about `1 − T_cam`, averaged over sub-samples.
+    opacity: Vec<f32>,
+    /// Squared norm of the row of an unshadowed isotropic medium of opacity 1:
+    /// `Σ_t (Ω_t / 4π)²`.
+    unshadowed_energy: f64,
 }
 
 impl MediumRows {
@@ -106,6 +111,19 @@ impl MediumRows {
             })
             .collect();
         let touched: Vec<bool> = per_pixel.iter().map(|(r, _)| !r.is_empty()).collect();
+        let opacity: Vec<f32> = per_pixel
+            .iter()
+            .map(|(_, marks)| marks.iter().map(|(_, w)| w).sum())
+            .collect();
+        let unshadowed_energy: f64 = (0..texels)
+            .map(|t| {
+                let o: f64 = samples.weights[t * samples.per_texel..(t + 1) * samples.per_texel]
+                    .iter()
+                    .map(|w| *w as f64)
+                    .sum();
+                (o / (4.0 * std::f64::consts::PI)).powi(2)
+            })
+            .sum();
         let centres: Vec<Vec3> = texel_dirs(n).iter().map(|d| d.as_vec3()).collect();
         let m = samples.per_texel;
         let pixels = w * h;
@@ -143,7 +161,17 @@ impl MediumRows {
             texels,
             cols,
             touched,
+            opacity,
+            unshadowed_energy,
         })
+    }
+
+    /// The scale of `pixel`'s thresholding budget: the energy of the row of an unshadowed
+    /// isotropic medium of the pixel's opacity. A surface row's budget is absolute (shadowed
+    /// surfaces are dark); a thin fringe of medium is faint everywhere, and an absolute budget
+    /// would drop it whole.
+    pub fn reference_energy(&self, pixel: usize) -> f64 {
+        self.unshadowed_energy * (self.opacity[pixel] as f64).powi(2)
     }
 
     /// The dense row of `pixel` (texel order), or `None` when its rays miss the medium.
