@@ -1191,5 +1191,11 @@ fn demo(out: PathBuf) -> Result<()> {
     println!("contact sheet  {}", report.sheet_path.display());
     println!("table          {}", report.table_path.display());
     println!("transport      {}", report.transport_path.display());
+    println!(
+        "volume         {} (SH self-transfer baked in {:.2} s; images in {})",
+        out.join("volume_sheet.png").display(),
+        report.volume_bake_seconds,
+        out.join("volume").display()
+    );
     Ok(())
 }

@@ -1777,11 +1777,18 @@ f 1//1 3//3 2//2\nf 4//1 6//3 5//2\n";
             &["shape[1].radus", &format!(":{}:", line_of(&text, "radus"))],
         );
 
+        let text = format!("{CANONICAL}\n[fog]\ndensity = 1.0\n");
+        let err = load_err(&text);
+        assert_mentions(&err, &["`fog`", &format!(":{}:", line_of(&text, "[fog]"))]);
+
         let text = format!("{CANONICAL}\n[medium]\ndensity = 1.0\n");
         let err = load_err(&text);
         assert_mentions(
             &err,
-            &["`medium`", &format!(":{}:", line_of(&text, "[medium]"))],
+            &[
+                "medium.density",
+                &format!(":{}:", line_of(&text, "density")),
+            ],
         );
 
         // A key that exists, but for another shape type.
