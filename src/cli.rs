@@ -44,9 +44,9 @@ pub enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
-    /// Print a transport file's metadata and statistics.
+    /// Print a transport or volume file's metadata and statistics.
     Info {
-        /// Transport file.
+        /// Transport (.prt) or volume (.prtv) file.
         file: PathBuf,
     },
     /// Relight a baked view under an environment.
@@ -608,6 +608,31 @@ fn print_info(path: &std::path::Path, t: &Transport) {
 }
 
 fn info(file: PathBuf) -> Result<()> {
+    if crate::volume::is_volume_file(&file) {
+        let v = crate::volume::VolumeTransfer::load(&file)?;
+        let m = &v.meta;
+        let [nx, ny, nz] = m.dims;
+        println!("file          {} (volume transfer)", file.display());
+        println!(
+            "grid          {nx} x {ny} x {nz} voxels over {:?} to {:?}",
+            m.min, m.max
+        );
+        println!(
+            "medium        extinction {}, albedo {:?}, g {}",
+            m.extinction, m.albedo, m.g
+        );
+        println!(
+            "transfer      SH order {} ({} coefficients per voxel), {} directions",
+            m.sh_order,
+            v.sh_count(),
+            m.directions
+        );
+        println!(
+            "default view  eye {:?}, target {:?}, {} x {}",
+            m.camera.eye, m.camera.target, m.width, m.height
+        );
+        return Ok(());
+    }
     let t = Transport::load(&file)?;
     print_info(&file, &t);
     Ok(())
