@@ -118,9 +118,10 @@ pub struct VolumeRenderArgs {
     /// Point the camera looks at, X,Y,Z (default: the scene's target).
     #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true)]
     pub target: Option<glam::Vec3>,
-    /// Image width and height (default: the scene's).
+    /// Image width (default: the scene's).
     #[arg(long)]
     pub width: Option<u32>,
+    /// Image height (default: the scene's).
     #[arg(long)]
     pub height: Option<u32>,
     /// full, inscatter, transmittance or dc (the self-shadow map).
@@ -129,9 +130,10 @@ pub struct VolumeRenderArgs {
     /// SH order to relight with (default: the baked order).
     #[arg(long)]
     pub sh_order: Option<usize>,
-    /// Environment yaw and pitch, degrees.
+    /// Environment yaw, degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub yaw: f64,
+    /// Environment pitch, degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub pitch: f64,
     /// Cube face size the environment is resampled to for the light.
@@ -302,7 +304,7 @@ pub struct BenchArgs {
 
 #[derive(Args, Debug)]
 pub struct ViewArgs {
-    /// Transport file.
+    /// Transport file (.prt), or a volume file (.prtv) for the volume path.
     pub file: PathBuf,
     /// Extra environments (.exr/.hdr or sun:ELEV,AZIM), besides the bundled ones.
     #[arg(long, num_args = 1..)]
@@ -960,9 +962,39 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
                 "--method, --terms, ... apply to --screenshot only",
             ));
         }
-        return crate::viewer::run(&a.file, &a.env).map_err(|e| err(e.to_string()));
+        if !a.file.exists() {
+            return Err(PrtError::io(
+                &a.file,
+                std::io::Error::from(std::io::ErrorKind::NotFound),
+            ));
+        }
+        return crate::viewer::run(&a.file, &a.env).map_err(|e| {
+            let text = e.to_string();
+            if text.contains("DISPLAY") {
+                PrtError::invalid(
+                    "display",
+                    "no display to open a window on (neither WAYLAND_DISPLAY nor DISPLAY is \
+                     set): use --screenshot OUT.png to render the view to a file",
+                )
+            } else {
+                err(text)
+            }
+        });
     };
     if crate::volume::is_volume_file(&a.file) {
+        if a.method.is_some()
+            || a.terms.is_some()
+            || a.weighting.is_some()
+            || a.compare
+            || a.error_map
+            || a.split.is_some()
+        {
+            return Err(PrtError::invalid(
+                "viewer",
+                "--method, --terms, --weighting, --compare, --split and --error-map apply to \
+                 transport files; for a volume's views and cameras use `prt volume render`",
+            ));
+        }
         return volume_screenshot_cmd(&a, &out);
     }
     let (entries, sun, selected) = env_entries(&a.env);
@@ -1170,7 +1202,7 @@ fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
     };
     img.save(&a.output, tone)?;
     println!(
-        "{}x{} {} view at SH order {order} on {device}: light {light_ms:.0} ms, march {march_ms:.1} ms",
+        "{}x{} {} view at SH order {order} on {device}: environment to light {light_ms:.0} ms, march {march_ms:.1} ms",
         camera.width,
         camera.height,
         view.name()

@@ -50,6 +50,21 @@ impl PrtError {
             message: message.into(),
         }
     }
+    /// The same error naming `to` wherever it named `from` (a temporary file stands for the
+    /// file the user asked for).
+    pub fn renaming(self, from: &Path, to: &Path) -> Self {
+        match self {
+            PrtError::Io { path, source } if path == from => PrtError::Io {
+                path: to.to_path_buf(),
+                source,
+            },
+            PrtError::File { path, message } if path == from => PrtError::File {
+                path: to.to_path_buf(),
+                message,
+            },
+            e => e,
+        }
+    }
     /// An invalid argument or input named `what`.
     pub fn invalid(what: impl Into<String>, message: impl Into<String>) -> Self {
         PrtError::Invalid {

@@ -248,6 +248,40 @@ impl Gpu {
     }
 }
 
+/// Waits for the submissions, then reads `readback` (RGBA32F pixels) as RGB. Returns the pixels
+/// and the seconds from `start` until the GPU finished; `what` names the work in errors.
+pub(crate) fn wait_and_read(
+    device: &wgpu::Device,
+    readback: &wgpu::Buffer,
+    start: Instant,
+    what: &str,
+) -> Result<(Vec<[f32; 3]>, f64)> {
+    let slice = readback.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::Wait {
+            submission_index: None,
+            timeout: None,
+        })
+        .map_err(|e| PrtError::Gpu(format!("waiting for {what}: {e}")))?;
+    let seconds = start.elapsed().as_secs_f64();
+    rx.recv()
+        .map_err(|_| PrtError::Gpu("the readback was dropped".into()))?
+        .map_err(|e| PrtError::Gpu(format!("reading the image back: {e}")))?;
+    let pixels = {
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| PrtError::Gpu(format!("reading the image back: {e:?}")))?;
+        let data: &[[f32; 4]] = bytemuck::cast_slice(&view);
+        data.iter().map(|p| [p[0], p[1], p[2]]).collect()
+    };
+    readback.unmap();
+    Ok((pixels, seconds))
+}
+
 /// Tiles whose entries, column pointers and SH rows share one set of buffers.
 struct Chunk {
     tiles: std::ops::Range<usize>,
@@ -738,29 +772,7 @@ impl GpuTransport {
         encoder.copy_buffer_to_buffer(&self.image, 0, &self.readback, 0, self.image.size());
         let start = Instant::now();
         gpu.queue.submit([encoder.finish()]);
-        let slice = self.readback.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        gpu.device
-            .poll(wgpu::PollType::Wait {
-                submission_index: None,
-                timeout: None,
-            })
-            .map_err(|e| PrtError::Gpu(format!("waiting for the relight: {e}")))?;
-        let wall = start.elapsed().as_secs_f64();
-        rx.recv()
-            .map_err(|_| PrtError::Gpu("the readback was dropped".into()))?
-            .map_err(|e| PrtError::Gpu(format!("reading the image back: {e}")))?;
-        let pixels = {
-            let view = slice
-                .get_mapped_range()
-                .map_err(|e| PrtError::Gpu(format!("reading the image back: {e:?}")))?;
-            let data: &[[f32; 4]] = bytemuck::cast_slice(&view);
-            data.iter().map(|p| [p[0], p[1], p[2]]).collect()
-        };
-        self.readback.unmap();
+        let (pixels, wall) = wait_and_read(&gpu.device, &self.readback, start, "the relight")?;
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!("relight: {e}")));
         }

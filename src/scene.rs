@@ -374,6 +374,17 @@ impl MediumSpec {
                 }
             }
         };
+        // Thinner than 1e-3 optical depth across the whole box: nothing would show.
+        let densest = grid.data.iter().copied().fold(0.0f32, f32::max);
+        if densest * self.extinction * extent.length() < 1e-3 {
+            return Err(PrtError::invalid(
+                "medium",
+                format!(
+                    "practically empty (the densest voxel holds {densest:e}): is the medium's \
+                     `center` inside its `bounds`, and `extinction` above 0?"
+                ),
+            ));
+        }
         let m = Medium {
             grid,
             extinction: self.extinction,
@@ -593,7 +604,12 @@ impl SourceMap {
     /// error naming the field.
     fn schema_error(&self, err: &toml::de::Error) -> PrtError {
         let message = err.message().trim().to_string();
-        let located = err.span().and_then(|s| self.field_at(s.start));
+        // An error spanning from the top of the document is about the document itself (a
+        // missing top-level table), not about the first key in it.
+        let located = err
+            .span()
+            .filter(|s| s.start > 0)
+            .and_then(|s| self.field_at(s.start));
         // A missing key is reported at its table; name the key itself.
         let missing = message
             .strip_prefix("missing field `")
@@ -941,6 +957,12 @@ impl<'a> Loader<'a> {
             ),
             MediumKind::Grid => ("grid", &["path"]),
         };
+        if m.r#type == MediumKind::Grid && m.resolution.is_some() {
+            return Err(self.map.error(
+                "medium.resolution",
+                "a grid medium has its file's resolution (`prt volume bake --grid N` resamples it)",
+            ));
+        }
         for (key, set) in present {
             if set && !allowed.contains(&key) {
                 return Err(self.map.error(
@@ -1014,7 +1036,8 @@ impl<'a> Loader<'a> {
                         .error("medium.path", "a grid medium needs `path` (a .npy file)")
                 })?;
                 let path = self.base_dir.join(rel);
-                let grid = crate::medium::load_npy(&path, min, max)?;
+                let grid = crate::medium::load_npy(&path, min, max)
+                    .map_err(|e| self.map.error("medium.path", e.to_string()))?;
                 let bytes = std::fs::read(&path).map_err(|e| PrtError::io(&path, e))?;
                 self.hasher.write_chunk(&bytes);
                 MediumSource::Grid(grid)

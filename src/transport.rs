@@ -787,7 +787,15 @@ fn read_header(path: &Path) -> Result<(TransportMeta, String)> {
         .ok_or_else(|| PrtError::file(path, "not a wavelet-prt transport file (no `meta`)"))?;
     let value: serde_json::Value = serde_json::from_str(text)
         .map_err(|e| PrtError::file(path, format!("metadata `meta` is not JSON: {e}")))?;
-    if value.get("format").and_then(|v| v.as_str()) != Some(FORMAT_NAME) {
+    let format = value.get("format").and_then(|v| v.as_str());
+    if format == Some(crate::volume::FORMAT_NAME) {
+        return Err(PrtError::file(
+            path,
+            "a volume file (from `prt volume bake`), not a transport file: relight it with \
+             `prt volume render` or `prt view`",
+        ));
+    }
+    if format != Some(FORMAT_NAME) {
         return Err(PrtError::file(
             path,
             "not a wavelet-prt transport file (metadata `format`)",

@@ -35,7 +35,7 @@ use crate::relight::{
     select_light,
 };
 use crate::transport::Transport;
-use eframe::wgpu;
+use eframe::{egui, wgpu};
 
 /// Where the bundled environment maps are looked for: `$PRT_ENVMAPS`, else the checkout this
 /// binary was built from, else `assets/envmaps` under the working directory.
@@ -69,6 +69,51 @@ pub fn cli_sun_radius(cli: &[String]) -> Option<f64> {
     cli.iter()
         .find_map(|s| s.strip_prefix("sun:"))
         .and_then(|a| a.split(',').nth(2)?.trim().parse().ok())
+}
+
+/// The environment picker (`label`), the sun's elevation, azimuth and radius sliders when the
+/// procedural sun is picked, then yaw and pitch: the light controls both windows share.
+pub(crate) fn light_controls(
+    ui: &mut egui::Ui,
+    label: &str,
+    envs: &[EnvEntry],
+    env: &mut usize,
+    sun: [&mut f64; 3],
+    rotation: [&mut f64; 2],
+) {
+    let current = envs.get(*env).map(|e| e.name.clone()).unwrap_or_default();
+    egui::ComboBox::from_label(label)
+        .selected_text(current)
+        .show_ui(ui, |ui| {
+            for (i, e) in envs.iter().enumerate() {
+                ui.selectable_value(env, i, &e.name);
+            }
+        });
+    let [elev, azim, radius] = sun;
+    if envs.get(*env).is_some_and(|e| e.source == EnvSource::Sun) {
+        ui.add(egui::Slider::new(elev, -10.0..=90.0).text("sun elevation°"));
+        ui.add(egui::Slider::new(azim, 0.0..=360.0).text("sun azimuth°"));
+        ui.add(
+            egui::Slider::new(radius, 0.25..=20.0)
+                .logarithmic(true)
+                .text("sun radius°"),
+        );
+    }
+    let [yaw, pitch] = rotation;
+    ui.add(egui::Slider::new(yaw, -180.0..=180.0).text("yaw°"));
+    ui.add(egui::Slider::new(pitch, -90.0..=90.0).text("pitch°"));
+}
+
+/// Exposure and tone curve.
+pub(crate) fn tone_controls(ui: &mut egui::Ui, exposure: &mut f32, tone: &mut ToneCurve) {
+    ui.add(egui::Slider::new(exposure, -12.0..=12.0).text("exposure (stops)"));
+    egui::ComboBox::from_label("Tone curve")
+        .selected_text(tone.name())
+        .show_ui(ui, |ui| {
+            for c in ToneCurve::ALL {
+                ui.selectable_value(tone, c, c.name());
+            }
+        });
 }
 
 /// The environment list: the bundled maps, then the files given on the command line, then the

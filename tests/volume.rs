@@ -310,7 +310,82 @@ path = "{npy}"
     let e = load("junk").unwrap_err().to_string();
     assert!(e.contains("junk.npy") && e.contains("NumPy"), "{e}");
     let e = load("missing").unwrap_err().to_string();
-    assert!(e.contains("missing.npy"), "{e}");
+    assert!(
+        e.contains("missing.npy") && e.contains("missing.toml") && e.contains("medium.path"),
+        "{e}"
+    );
+    // A grid keeps its file's resolution: the key is refused rather than ignored.
+    let p = dir.join("res.toml");
+    std::fs::write(
+        &p,
+        scene("good.npy").replace("extinction", "resolution = 8\nextinction"),
+    )
+    .unwrap();
+    let e = Scene::load(&p).unwrap_err().to_string();
+    assert!(e.contains("medium.resolution"), "{e}");
+}
+
+#[test]
+fn scene_mistakes_around_a_medium_are_named() {
+    let dir = temp_dir("vol-scene-errors");
+    let write = |name: &str, text: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    // A medium-only scene still needs its camera, and the error says so at the top level.
+    let no_camera = fog(0.0).replace("[camera]", "[kamera]");
+    let e = Scene::load(&write("nocam.toml", &no_camera))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("field `kamera`") || e.contains("field `camera`"),
+        "{e}"
+    );
+    assert!(!e.contains("medium.camera"), "{e}");
+    // An ellipsoid outside its box leaves nothing: an error, not a black image.
+    let outside = fog(0.0).replace("center = [0.0, 0.6, 0.0]", "center = [5.0, 0.6, 0.0]");
+    let scene = Scene::load(&write("outside.toml", &outside)).unwrap();
+    let e = match scene.medium.as_ref().unwrap().build(None) {
+        Ok(_) => panic!("an ellipsoid outside its box built a medium"),
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains("practically empty"), "{e}");
+    // Each file kind names the other when given in its place.
+    let fog_scene = Scene::load(&write("fog.toml", &fog(0.0))).unwrap();
+    let vt = bake_volume(
+        &fog_scene,
+        Some(8),
+        &TransferSettings::default(),
+        &|_, _| {},
+    )
+    .unwrap();
+    let prtv = dir.join("fog.prtv");
+    vt.save(&prtv).unwrap();
+    let e = wavelet_prt::transport::Transport::load(&prtv)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("a volume file") && e.contains("prt volume render"),
+        "{e}"
+    );
+    let t = bake(&fog_scene, &lossless(4), &|_| {}).unwrap();
+    let prt = dir.join("fog.prt");
+    t.save(&prt).unwrap();
+    let e = wavelet_prt::volume::VolumeTransfer::load(&prt)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("a transport file") && e.contains("prt relight"),
+        "{e}"
+    );
+    // An unwritable output is named as asked, not as its temporary file.
+    let bad = dir.join("no-such-dir").join("fog.prtv");
+    let e = vt.save(&bad).unwrap_err().to_string();
+    assert!(
+        e.starts_with(&bad.display().to_string()) && !e.contains("partial"),
+        "{e}"
+    );
 }
 
 #[test]

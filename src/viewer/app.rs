@@ -15,7 +15,6 @@ use super::{
     GpuTiming, GpuView, Layout, LightKey, Rendered, ViewState, relight_into_view,
     sh_order_for_terms,
 };
-use crate::film::ToneCurve;
 use crate::gpu::{Gpu, GpuTransport};
 use crate::light::Weighting;
 use crate::relight::{Method, PreparedLight};
@@ -493,42 +492,16 @@ impl ViewerApp {
             ui.label(format!("compare uses SH order {n} ({} terms)", n * n));
         }
         ui.separator();
-        let current = loaded
-            .envs
-            .get(s.env)
-            .map(|e| e.name.clone())
-            .unwrap_or_default();
-        egui::ComboBox::from_label("Environment (E)")
-            .selected_text(current)
-            .show_ui(ui, |ui| {
-                for (i, e) in loaded.envs.iter().enumerate() {
-                    ui.selectable_value(&mut s.env, i, &e.name);
-                }
-            });
-        if loaded
-            .envs
-            .get(s.env)
-            .is_some_and(|e| e.source == super::EnvSource::Sun)
-        {
-            ui.add(egui::Slider::new(&mut s.sun_elev, -10.0..=90.0).text("sun elevation°"));
-            ui.add(egui::Slider::new(&mut s.sun_azim, 0.0..=360.0).text("sun azimuth°"));
-            ui.add(
-                egui::Slider::new(&mut s.sun_radius, 0.25..=20.0)
-                    .logarithmic(true)
-                    .text("sun radius°"),
-            );
-        }
-        ui.add(egui::Slider::new(&mut s.yaw, -180.0..=180.0).text("yaw°"));
-        ui.add(egui::Slider::new(&mut s.pitch, -90.0..=90.0).text("pitch°"));
+        super::light_controls(
+            ui,
+            "Environment (E)",
+            &loaded.envs,
+            &mut s.env,
+            [&mut s.sun_elev, &mut s.sun_azim, &mut s.sun_radius],
+            [&mut s.yaw, &mut s.pitch],
+        );
         ui.separator();
-        ui.add(egui::Slider::new(&mut s.exposure, -12.0..=12.0).text("exposure (stops)"));
-        egui::ComboBox::from_label("Tone curve")
-            .selected_text(s.tone.name())
-            .show_ui(ui, |ui| {
-                for c in ToneCurve::ALL {
-                    ui.selectable_value(&mut s.tone, c, c.name());
-                }
-            });
+        super::tone_controls(ui, &mut s.exposure, &mut s.tone);
         let auto = ui.button("Auto exposure").clicked();
         ui.horizontal(|ui| {
             ui.label(format!("zoom {:.1}x", self.viewport.zoom));

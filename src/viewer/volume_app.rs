@@ -343,33 +343,14 @@ impl VolumeApp {
             ui.label("No GPU adapter: marching on the CPU");
         }
         ui.separator();
-        let current = self
-            .envs
-            .get(s.env)
-            .map(|e| e.name.clone())
-            .unwrap_or_default();
-        egui::ComboBox::from_label("Environment")
-            .selected_text(current)
-            .show_ui(ui, |ui| {
-                for (i, e) in self.envs.iter().enumerate() {
-                    ui.selectable_value(&mut s.env, i, &e.name);
-                }
-            });
-        if self
-            .envs
-            .get(s.env)
-            .is_some_and(|e| e.source == EnvSource::Sun)
-        {
-            ui.add(egui::Slider::new(&mut s.sun_elev, -10.0..=90.0).text("sun elevation°"));
-            ui.add(egui::Slider::new(&mut s.sun_azim, 0.0..=360.0).text("sun azimuth°"));
-            ui.add(
-                egui::Slider::new(&mut s.sun_radius, 0.25..=20.0)
-                    .logarithmic(true)
-                    .text("sun radius°"),
-            );
-        }
-        ui.add(egui::Slider::new(&mut s.yaw, -180.0..=180.0).text("yaw°"));
-        ui.add(egui::Slider::new(&mut s.pitch, -90.0..=90.0).text("pitch°"));
+        super::light_controls(
+            ui,
+            "Environment",
+            &self.envs,
+            &mut s.env,
+            [&mut s.sun_elev, &mut s.sun_azim, &mut s.sun_radius],
+            [&mut s.yaw, &mut s.pitch],
+        );
         ui.separator();
         ui.label("Camera: drag the image to orbit, scroll to move in and out");
         ui.add(egui::Slider::new(&mut s.orbit_azim, -180.0..=180.0).text("orbit azimuth°"));
@@ -380,14 +361,7 @@ impl VolumeApp {
                 .text("distance"),
         );
         ui.separator();
-        ui.add(egui::Slider::new(&mut s.exposure, -12.0..=12.0).text("exposure (stops)"));
-        egui::ComboBox::from_label("Tone curve")
-            .selected_text(s.tone.name())
-            .show_ui(ui, |ui| {
-                for c in ToneCurve::ALL {
-                    ui.selectable_value(&mut s.tone, c, c.name());
-                }
-            });
+        super::tone_controls(ui, &mut s.exposure, &mut s.tone);
         if let Some(f) = &self.last
             && ui.button("Auto exposure").clicked()
         {

@@ -215,29 +215,8 @@ impl GpuVolume {
         encoder.copy_buffer_to_buffer(&image, 0, &readback, 0, image_bytes);
         let start = std::time::Instant::now();
         gpu.queue.submit([encoder.finish()]);
-        let slice = readback.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        device
-            .poll(wgpu::PollType::Wait {
-                submission_index: None,
-                timeout: None,
-            })
-            .map_err(|e| PrtError::Gpu(format!("waiting for the volume march: {e}")))?;
-        let seconds = start.elapsed().as_secs_f64();
-        rx.recv()
-            .map_err(|_| PrtError::Gpu("the readback was dropped".into()))?
-            .map_err(|e| PrtError::Gpu(format!("reading the image back: {e}")))?;
-        let pixels = {
-            let view = slice
-                .get_mapped_range()
-                .map_err(|e| PrtError::Gpu(format!("reading the image back: {e:?}")))?;
-            let data: &[[f32; 4]] = bytemuck::cast_slice(&view);
-            data.iter().map(|p| [p[0], p[1], p[2]]).collect()
-        };
-        readback.unmap();
+        let (pixels, seconds) =
+            crate::gpu::wait_and_read(device, &readback, start, "the volume march")?;
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!("volume march: {e}")));
         }

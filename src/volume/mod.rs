@@ -455,6 +455,17 @@ impl VolumeTransfer {
             .as_ref()
             .and_then(|m| m.get("meta"))
             .ok_or_else(|| bad("no `meta` entry: not a volume transfer file".into()))?;
+        let format = serde_json::from_str::<serde_json::Value>(json)
+            .ok()
+            .and_then(|v| v.get("format")?.as_str().map(str::to_string))
+            .unwrap_or_default();
+        if format == crate::transport::FORMAT_NAME {
+            return Err(bad(
+                "a transport file (from `prt bake`), not a volume file: relight it with \
+                 `prt relight` or `prt view`"
+                    .into(),
+            ));
+        }
         let header: FileHeader =
             serde_json::from_str(json).map_err(|e| bad(format!("metadata: {e}")))?;
         if header.format != FORMAT_NAME {
@@ -584,10 +595,19 @@ impl VolumeTransfer {
     ) -> Result<crate::scene::Camera> {
         let c = &self.meta.camera;
         let (width, height) = size.unwrap_or((self.meta.width, self.meta.height));
+        let (eye, target) = (
+            eye.unwrap_or(Vec3::from(c.eye)),
+            target.unwrap_or(Vec3::from(c.target)),
+        );
+        // Looking along the baked up vector (straight down, say), take the other horizontal.
+        let mut up = Vec3::from(c.up);
+        if (target - eye).normalize_or_zero().cross(up).length() < 1e-3 {
+            up = Vec3::Z;
+        }
         let cam = crate::scene::Camera {
-            eye: eye.unwrap_or(Vec3::from(c.eye)),
-            target: target.unwrap_or(Vec3::from(c.target)),
-            up: Vec3::from(c.up),
+            eye,
+            target,
+            up,
             fov_y_deg: c.fov_y_deg,
             width,
             height,
