@@ -321,3 +321,19 @@ fn tone_curve_and_sun_size_change_what_they_should() {
     let (a, b) = (mean(&small), mean(&big));
     assert!((a - b).abs() < 0.1 * a, "mean {a} vs {b}");
 }
+
+#[test]
+fn loading_reports_progress_up_to_the_file_size() {
+    let path = common::viewer_transport_path();
+    let size = std::fs::metadata(&path).unwrap().len();
+    let seen = std::sync::Mutex::new(Vec::new());
+    let engine = Engine::open_with_progress(&path, Vec::new(), &|read, total| {
+        seen.lock().unwrap().push((read, total))
+    })
+    .unwrap();
+    let seen = seen.into_inner().unwrap();
+    assert!(!seen.is_empty());
+    assert!(seen.windows(2).all(|w| w[0].0 < w[1].0), "{seen:?}");
+    assert_eq!(*seen.last().unwrap(), (size, size));
+    assert!(engine.transport.coeff_count() > 0);
+}
