@@ -184,7 +184,7 @@ impl Sweeper {
                     return (0, 0.0);
                 }
                 let v = v.clamp(0.0, (n - 1) as f32);
-                let i = (v.floor() as usize).min(n - 2);
+                let i = (v as usize).min(n - 2);
                 (i, v - i as f32)
             };
             let (ia, fa) = coord(u[a], na);
@@ -291,7 +291,7 @@ impl DepthGrid<'_> {
         let [na, nb, nc] = layout.n;
         let coord = |v: f32, n: usize| -> (usize, usize, f32) {
             let v = v.clamp(0.0, (n - 1) as f32);
-            let i = (v.floor() as usize).min(n.saturating_sub(2));
+            let i = (v as usize).min(n.saturating_sub(2));
             let i1 = (i + 1).min(n - 1);
             (i, i1, v - i as f32)
         };
@@ -387,7 +387,7 @@ impl VolumeTransfer {
         let u = (p - min) / cell - 0.5;
         let axis = |v: f32, n: usize| -> (usize, usize, f32) {
             let v = v.clamp(0.0, (n - 1) as f32);
-            let i = (v.floor() as usize).min(n.saturating_sub(2));
+            let i = (v as usize).min(n.saturating_sub(2));
             (i, (i + 1).min(n - 1), v - i as f32)
         };
         let (x0, x1, fx) = axis(u.x, d[0]);
