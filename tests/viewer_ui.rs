@@ -93,7 +93,14 @@ fn more_terms_from_the_keyboard_lower_the_error() {
     let before = h.state().rendered().unwrap().panes[0].rgb.clone();
     h.key_press(egui::Key::E);
     settle(&mut h);
-    assert_ne!(h.state().rendered().unwrap().panes[0].rgb, before);
+    let other = h.state().rendered().unwrap().panes[0].rgb.clone();
+    assert_ne!(other, before);
+    // Turning the environment with the yaw slider changes it again.
+    h.get_by_role_and_label(egui::accesskit::Role::Slider, "yaw°")
+        .set_value_accesskit(90.0);
+    settle(&mut h);
+    assert_eq!(h.state().state.yaw, 90.0);
+    assert_ne!(h.state().rendered().unwrap().panes[0].rgb, other);
 }
 
 #[test]
