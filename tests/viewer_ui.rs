@@ -251,28 +251,7 @@ fn settings_panel_snapshots() {
 fn volume_file() -> std::path::PathBuf {
     let dir = common::temp_dir("viewer-volume");
     let scene = dir.join("fog.toml");
-    std::fs::write(
-        &scene,
-        r#"
-[camera]
-eye = [0.0, 0.6, 3.0]
-target = [0.0, 0.6, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y_deg = 40.0
-width = 48
-height = 40
-
-[medium]
-type = "ellipsoid"
-bounds = [[-0.8, 0.0, -0.8], [0.8, 1.2, 0.8]]
-resolution = 20
-extinction = 4.0
-g = 0.3
-center = [0.0, 0.6, 0.0]
-radii = [0.7, 0.5, 0.6]
-"#,
-    )
-    .unwrap();
+    std::fs::write(&scene, common::fog_scene(0.3, 48, 40)).unwrap();
     let scene = wavelet_prt::scene::Scene::load(&scene).unwrap();
     let vt = wavelet_prt::volume::bake_volume(
         &scene,

@@ -17,30 +17,9 @@ use wavelet_prt::relight::{LightContext, Method, RelightRequest, relight};
 use wavelet_prt::scene::Scene;
 use wavelet_prt::volume::{PhaseLight, TransferSettings, VolumeView, bake_volume, render_volume};
 
-/// A foggy blob on its own.
+/// The shared foggy blob at 24×20 pixels.
 fn fog(g: f32) -> String {
-    format!(
-        r#"
-[camera]
-eye = [0.0, 0.6, 3.0]
-target = [0.0, 0.6, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y_deg = 40.0
-width = 24
-height = 20
-
-[medium]
-type = "ellipsoid"
-bounds = [[-0.8, 0.0, -0.8], [0.8, 1.2, 0.8]]
-resolution = 24
-extinction = 4.0
-albedo = [0.9, 0.8, 0.7]
-g = {g}
-center = [0.0, 0.6, 0.0]
-radii = [0.7, 0.5, 0.6]
-falloff = 0.3
-"#
-    )
+    common::fog_scene(g, 24, 20)
 }
 
 /// A cloud layer over a ground plane, seen from the side and above.

@@ -228,7 +228,9 @@ impl ViewerApp {
                 }
                 Reply::Rendered(Ok(r)) => {
                     self.error = None;
-                    self.notes = r.notes.clone();
+                    if !r.notes.is_empty() {
+                        self.notes = r.notes.clone();
+                    }
                     self.upload_cpu_textures(ctx, &r);
                     self.rendered = Some(r);
                 }
@@ -734,8 +736,10 @@ impl ViewerApp {
                 egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
             });
         if let Some(l) = &self.loaded {
-            self.notes = self.state.clamp(l.limits);
+            let notes = self.state.clamp(l.limits);
             if self.sent.as_ref() != Some(&self.state) {
+                // What was clamped stays noted until the next change.
+                self.notes = notes;
                 self.sent = Some(self.state.clone());
                 self.worker.send(Job::Render(self.state.clone()));
             }

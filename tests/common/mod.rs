@@ -153,3 +153,30 @@ pub fn gpu_or_skip(test: &str) -> Option<wavelet_prt::gpu::Gpu> {
         Err(e) => panic!("{test}: PRT_REQUIRE_GPU=1 but {e}"),
     }
 }
+
+/// A foggy blob on its own (an ellipsoid medium of asymmetry `g`, no shapes), seen at
+/// `width` × `height`.
+pub fn fog_scene(g: f32, width: u32, height: u32) -> String {
+    format!(
+        r#"
+[camera]
+eye = [0.0, 0.6, 3.0]
+target = [0.0, 0.6, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 40.0
+width = {width}
+height = {height}
+
+[medium]
+type = "ellipsoid"
+bounds = [[-0.8, 0.0, -0.8], [0.8, 1.2, 0.8]]
+resolution = 24
+extinction = 4.0
+albedo = [0.9, 0.8, 0.7]
+g = {g}
+center = [0.0, 0.6, 0.0]
+radii = [0.7, 0.5, 0.6]
+falloff = 0.3
+"#
+    )
+}
