@@ -79,6 +79,18 @@ impl DensityGrid {
         let f = u - i;
         let (x, y, z) = (i.x as isize, i.y as isize, i.z as isize);
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+        let [nx, ny, nz] = self.dims.map(|d| d as isize);
+        if x >= 0 && y >= 0 && z >= 0 && x + 1 < nx && y + 1 < ny && z + 1 < nz {
+            // All eight corners inside: straight loads (most samples of a march).
+            let (sy, sz) = (nx as usize, (nx * ny) as usize);
+            let b = (z as usize * ny as usize + y as usize) * nx as usize + x as usize;
+            let d = &self.data;
+            let c00 = lerp(d[b], d[b + 1], f.x);
+            let c10 = lerp(d[b + sy], d[b + sy + 1], f.x);
+            let c01 = lerp(d[b + sz], d[b + sz + 1], f.x);
+            let c11 = lerp(d[b + sz + sy], d[b + sz + sy + 1], f.x);
+            return lerp(lerp(c00, c10, f.y), lerp(c01, c11, f.y), f.z);
+        }
         let c00 = lerp(self.at(x, y, z), self.at(x + 1, y, z), f.x);
         let c10 = lerp(self.at(x, y + 1, z), self.at(x + 1, y + 1, z), f.x);
         let c01 = lerp(self.at(x, y, z + 1), self.at(x + 1, y, z + 1), f.x);
