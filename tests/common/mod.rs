@@ -15,9 +15,12 @@ pub fn temp_dir(name: &str) -> PathBuf {
     d
 }
 
-/// Writes `text` as a scene file in its own temp dir and loads it.
+/// Writes `text` as a scene file in its own temp dir and loads it. Every call gets a directory
+/// of its own: tests of one binary run in parallel and may load the same scene at once.
 pub fn scene_from(text: &str, name: &str) -> Scene {
-    let dir = temp_dir(name);
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = temp_dir(&format!("{name}-{n}"));
     let p = dir.join("scene.toml");
     std::fs::write(&p, text).unwrap();
     Scene::load(&p).unwrap()
