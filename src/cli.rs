@@ -495,11 +495,18 @@ fn bake_cmd(a: BakeArgs) -> Result<()> {
     }
     let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
     let worst = worst_case_bytes(w, h, &settings);
+    let plural =
+        |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
     eprintln!(
-        "baking {} ({} triangles, {} spheres) at {w}x{h}, N = {}, SH order {}, {} spp, {} samples/texel",
+        "baking {} ({}, {}{}) at {w}x{h}, N = {}, SH order {}, {} spp, {} samples/texel",
         a.scene.display(),
-        scene.triangle_count(),
-        scene.spheres.len(),
+        plural(scene.triangle_count(), "triangle", "triangles"),
+        plural(scene.spheres.len(), "sphere", "spheres"),
+        if scene.medium.is_some() {
+            ", a medium"
+        } else {
+            ""
+        },
         settings.cube_n,
         settings.sh_order,
         settings.spp,
