@@ -99,19 +99,52 @@ fn relight(c: &mut Criterion) {
     let mut g = c.benchmark_group(format!("relight_{size}"));
     g.sample_size(20).measurement_time(Duration::from_secs(3));
     // Streaming read bandwidth of this machine, measured beside the kernels: a parallel sum over
-    // a buffer far larger than the caches.
-    let buffer = vec![1.0f32; 64 << 20];
-    g.throughput(Throughput::Bytes((buffer.len() * 4) as u64));
+    // a buffer far larger than the caches, in integers, whose adds the compiler may reorder into
+    // many independent vector accumulators (a float sum is one serial chain of dependent adds and
+    // measures the adder, not the memory).
+    let buffer: Vec<u64> = (0..32u64 << 20).collect();
+    g.throughput(Throughput::Bytes((buffer.len() * 8) as u64));
     g.bench_function("stream_read_256MiB", |b| {
         b.iter(|| {
             use rayon::prelude::*;
             buffer
                 .par_chunks(1 << 16)
-                .map(|c| c.iter().sum::<f32>())
-                .sum::<f32>()
+                .map(|c| c.iter().fold(0u64, |a, &x| a.wrapping_add(x)))
+                .reduce(|| 0, u64::wrapping_add)
         })
     });
     drop(buffer);
+    // The peer: the same matrix as a plain sprs CSC matrix (f32 values, u32 row indices, 8 bytes
+    // a coefficient), multiplied by the whole light on one thread.
+    let csc = csc_of(&t);
+    let full = light
+        .wavelet
+        .select(
+            t.coeff_count(),
+            Weighting::Unweighted,
+            &ctx.support_area,
+            None,
+        )
+        .unwrap();
+    let mut dense_light = vec![[0.0f32; 3]; t.coeff_count()];
+    for (&j, l) in full.indices.iter().zip(&full.values) {
+        dense_light[j as usize] = *l;
+    }
+    g.throughput(Throughput::Bytes((csc.nnz() * 8) as u64));
+    g.bench_function("sprs_csc_full_1thread", |b| {
+        b.iter(|| {
+            let mut y = vec![[0.0f32; 3]; csc.rows()];
+            for (col, l) in csc.outer_iterator().zip(&dense_light) {
+                for (r, &v) in col.iter() {
+                    for k in 0..3 {
+                        y[r][k] += v * l[k];
+                    }
+                }
+            }
+            y
+        })
+    });
+    drop(csc);
     let total = t.coeff_count();
     for k in [1, 10, 100, 1000, total] {
         let sparse = light
@@ -133,6 +166,20 @@ fn relight(c: &mut Criterion) {
         });
     }
     g.finish();
+}
+
+/// The transport's Haar matrix (rows x 6 N², values decoded) as a sprs CSC matrix.
+fn csc_of(t: &Transport) -> sprs::CsMatI<f32, u32> {
+    let mut tri = sprs::TriMatI::<f32, u32>::new((t.row_pixel.len(), t.coeff_count()));
+    for b in 0..t.block_count() {
+        let r0 = t.block_row_start[b] as usize;
+        for j in 0..t.coeff_count() {
+            for e in t.block_column(b, j) {
+                tri.add_triplet(r0 + t.entry_row[e] as usize, j, t.value(b, j, e));
+            }
+        }
+    }
+    tri.to_csc()
 }
 
 /// The GPU kernels, when an adapter exists (a software one such as lavapipe counts: its times

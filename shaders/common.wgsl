@@ -15,19 +15,27 @@ struct Params {
     coeffs: u32,
     // Light terms in `light` (K, or n^2 for SH).
     terms: u32,
-    // 1 when entries are packed (row | f16 << 16), 0 when they are (row, f32 bits) pairs.
-    packed: u32,
+    // How entries are packed: 0 = q8 (two 16-bit halves per word, row | i8 << 8),
+    // 1 = q16 (row | i16 << 16), 2 = f32 ((row, f32 bits) pairs).
+    format: u32,
     // First global row of this dispatch's buffers (entries and SH rows are stored per chunk).
     row_base: u32,
     // Tiles with at most this many rows accumulate in workgroup memory (capped by the shader).
     shared_rows: u32,
-    _pad: u32,
+    // First global block of this dispatch's column tables.
+    block_base: u32,
+    // Where the tiles' block starts begin in `tile_rows` (after the T + 1 row starts).
+    block_table: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 };
 
 // TILE and WORKGROUP (= TILE * TILE) are defined by the Rust side, which prepends them.
 
 @group(0) @binding(0) var<uniform> params: Params;
-// tile_rows[t] .. tile_rows[t + 1] are tile t's rows (global row indices).
+// tile_rows[t] .. tile_rows[t + 1] are tile t's rows (global row indices); from
+// params.block_table on, the same for its blocks of at most BLOCK_ROWS rows.
 @group(0) @binding(1) var<storage, read> tile_rows: array<u32>;
 // Per row: RGB weight in xyz, the global pixel index (bitcast) in w.
 @group(0) @binding(2) var<storage, read> rows: array<vec4<f32>>;

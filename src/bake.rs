@@ -7,10 +7,10 @@
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 use glam::Vec3;
-use half::f16;
 use rayon::prelude::*;
 
 use crate::brdf;
+use crate::budget::{Budget, Thresholder};
 use crate::cubemap::{texel_count, validate_n};
 use crate::error::{PrtError, Result};
 use crate::haar;
@@ -20,8 +20,8 @@ use crate::sampling::{TexelSamples, pixel_samples};
 use crate::scene::Scene;
 use crate::trace::{Hit, Tracer};
 use crate::transport::{
-    BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, shard_of_band,
-    tile_grid,
+    BakeStats, CameraMeta, EncodedTile, Quantization, RowData, TILE, Transport, TransportMeta,
+    shard_of_band, tile_grid,
 };
 use crate::volume::wavelet::MediumRows;
 
@@ -40,6 +40,10 @@ pub struct BakeSettings {
     /// an unshadowed row (0 keeps all). One absolute budget for every row spends it where the
     /// image is bright: shadowed rows become sparser than lit ones.
     pub threshold: f32,
+    /// How the thresholding budget weighs coefficients.
+    pub budget: Budget,
+    /// How kept values are stored (unless `lossless`).
+    pub quantization: Quantization,
     /// Keep every coefficient in 32-bit floats (for checks against the reference).
     pub lossless: bool,
     /// Ignore visibility (no shadows).
@@ -62,6 +66,8 @@ impl Default for BakeSettings {
             spp: 1,
             texel_samples: 1,
             threshold: 0.01,
+            budget: Budget::L2,
+            quantization: Quantization::Q8,
             lossless: false,
             unshadowed: false,
             seed: 1,
@@ -134,7 +140,7 @@ impl BakeSettings {
         if self.lossless {
             Quantization::F32
         } else {
-            Quantization::F16
+            self.quantization
         }
     }
 }
@@ -368,11 +374,24 @@ pub fn bake(
         )?),
         None => None,
     };
+    let mut reference_haar = unoccluded_row(&samples);
+    let reference_energy: f64 = reference_haar.iter().map(|&v| (v as f64).powi(2)).sum();
+    haar::forward_face_all(&mut reference_haar, n, &mut Vec::new());
     let ctx = TileContext {
         scene,
         tracer: &tracer,
         settings,
-        reference_energy: unoccluded_row_energy(&samples),
+        reference_energy,
+        thresholder: Thresholder::new(
+            settings.budget,
+            if settings.lossless {
+                0.0
+            } else {
+                settings.threshold
+            },
+            n,
+            &reference_haar,
+        ),
         samples: &samples,
         basis: &basis,
         medium: medium.as_ref(),
@@ -380,13 +399,21 @@ pub fn bake(
     };
     let done = AtomicUsize::new(0);
     let rays = AtomicU64::new(0);
-    let outputs: Vec<Option<TileOutput>> = (0..tx * ty)
+    let (c, shc, quantization) = (
+        texel_count(n),
+        settings.sh_order.pow(2),
+        settings.quantization(),
+    );
+    let outputs: Vec<Option<(TileOutput, EncodedTile)>> = (0..tx * ty)
         .into_par_iter()
         .map(|t| {
             if !mine(t) {
-                return None;
+                return Ok(None);
             }
-            let out = bake_tile(&ctx, t % tx, t / tx);
+            let mut out = bake_tile(&ctx, t % tx, t / tx);
+            // Quantised here, in parallel, so the rows' floats are freed tile by tile.
+            let encoded = EncodedTile::encode(&out.rows, c, shc, quantization)?;
+            out.rows = Vec::new();
             let px = out.pixels.len();
             progress(BakeProgress {
                 pixels_done: done.fetch_add(px, Ordering::Relaxed) + px,
@@ -394,16 +421,16 @@ pub fn bake(
                 shadow_rays: rays.fetch_add(out.rays, Ordering::Relaxed) + out.rays,
                 medium_texels: [0, 0],
             });
-            Some(out)
+            Ok(Some((out, encoded)))
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let mut albedo = vec![[0.0f32; 3]; w * h];
     let mut coverage = vec![0.0f32; w * h];
     let mut tiles = Vec::with_capacity(outputs.len());
     let mut tile_stats = Vec::with_capacity(outputs.len());
     for out in outputs {
-        let Some(out) = out else {
-            tiles.push(Vec::new());
+        let Some((out, encoded)) = out else {
+            tiles.push(EncodedTile::encode(&[], c, shc, quantization)?);
             tile_stats.push([0.0; 3]);
             continue;
         };
@@ -411,8 +438,12 @@ pub fn bake(
             albedo[p as usize] = a;
             coverage[p as usize] = cov;
         }
-        tile_stats.push([out.dropped_energy, out.total_energy, out.rays as f64]);
-        tiles.push(out.rows);
+        tile_stats.push([
+            out.dropped_energy + encoded.quantization_energy,
+            out.total_energy,
+            out.rays as f64,
+        ]);
+        tiles.push(encoded);
     }
     let meta = TransportMeta {
         width: w as u32,
@@ -437,6 +468,7 @@ pub fn bake(
         } else {
             settings.threshold
         },
+        budget: settings.budget,
         quantization: settings.quantization(),
         shard: settings.shard,
         bounces: settings.bounces,
@@ -447,7 +479,7 @@ pub fn bake(
         },
         stats: BakeStats::default(),
     };
-    Transport::assemble(meta, tiles, albedo, coverage, tile_stats)
+    Transport::assemble_encoded(meta, &tiles, albedo, coverage, tile_stats)
 }
 
 fn tile_pixels(w: usize, h: usize, tx: usize, ty: usize) -> usize {
@@ -463,6 +495,8 @@ struct TileContext<'a> {
     basis: &'a TexelShBasis,
     /// Energy of an unshadowed row, the scale of the thresholding budget.
     reference_energy: f64,
+    /// The thresholding budget.
+    thresholder: Thresholder,
     /// The scene's medium and its rows, if it has one.
     medium: Option<&'a Medium>,
     medium_rows: Option<&'a MediumRows>,
@@ -477,6 +511,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
         samples,
         basis,
         reference_energy,
+        ref thresholder,
         medium,
         medium_rows,
     } = *ctx;
@@ -605,7 +640,8 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                 let mut sh = vec![0.0f32; shc];
                 basis.project_row(&row, &mut sh);
                 haar::forward_face_all(&mut row, n, &mut scratch);
-                let (entries, dropped, total) = sparsify(&row, settings, budget_scale, &mut order);
+                let (entries, dropped, total) =
+                    thresholder.sparsify(&row, budget_scale, &mut order);
                 out.dropped_energy += dropped;
                 out.total_energy += total;
                 out.rows.push(RowData {
@@ -620,68 +656,19 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
     out
 }
 
-/// Squared L2 norm of the row of an unshadowed surface facing +Y with unit albedo: the scale the
-/// thresholding budget is relative to (the same for every normal up to texel discretisation).
-fn unoccluded_row_energy(samples: &TexelSamples) -> f64 {
+/// The row of an unshadowed surface facing +Y with unit albedo, in texel order: the row the
+/// thresholding budget is relative to (the same energy for every normal up to texel
+/// discretisation).
+fn unoccluded_row(samples: &TexelSamples) -> Vec<f32> {
     let m = samples.per_texel;
     (0..samples.dirs.len() / m)
         .map(|j| {
-            let v: f64 = (j * m..(j + 1) * m)
+            ((j * m..(j + 1) * m)
                 .map(|k| samples.dirs[k].y.max(0.0) as f64 * samples.weights[k] as f64)
                 .sum::<f64>()
-                * std::f64::consts::FRAC_1_PI;
-            v * v
+                * std::f64::consts::FRAC_1_PI) as f32
         })
-        .sum()
-}
-
-/// Drops the smallest Haar coefficients of a row while the dropped energy stays within
-/// `threshold² · reference_energy` (so the row's L2 error is at most `threshold` times the norm of
-/// an unshadowed row), then
-/// quantises what is kept. Returns the kept (coefficient, value) pairs ascending by coefficient,
-/// the dropped energy and the row's energy (including quantisation error in the dropped part).
-fn sparsify(
-    row: &[f32],
-    settings: &BakeSettings,
-    reference_energy: f64,
-    order: &mut Vec<(f32, u32)>,
-) -> (Vec<(u32, f32)>, f64, f64) {
-    let total: f64 = row.iter().map(|&v| (v as f64) * (v as f64)).sum();
-    order.clear();
-    order.extend(
-        row.iter()
-            .enumerate()
-            .filter(|(_, v)| **v != 0.0)
-            .map(|(j, v)| (v.abs(), j as u32)),
-    );
-    let mut dropped = 0.0f64;
-    let mut first_kept = 0;
-    if !settings.lossless && settings.threshold > 0.0 {
-        order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let budget = (settings.threshold as f64).powi(2) * reference_energy;
-        while first_kept < order.len() {
-            let e = (order[first_kept].0 as f64).powi(2);
-            if dropped + e > budget {
-                break;
-            }
-            dropped += e;
-            first_kept += 1;
-        }
-    }
-    let mut kept: Vec<(u32, f32)> = order[first_kept..]
-        .iter()
-        .map(|&(_, j)| (j, row[j as usize]))
-        .collect();
-    kept.sort_unstable_by_key(|&(j, _)| j);
-    if !settings.lossless {
-        for (_, v) in kept.iter_mut() {
-            let q = f16::from_f32(*v).to_f32();
-            dropped += ((*v - q) as f64).powi(2);
-            *v = q;
-        }
-        kept.retain(|&(_, v)| v != 0.0);
-    }
-    (kept, dropped, total)
+        .collect()
 }
 
 /// The transport at `path` when it exists, loads, and was baked from this scene (same content
@@ -705,6 +692,7 @@ pub fn load_if_baked_with(
         && meta.texel_samples == side * side
         && meta.threshold == threshold
         && meta.quantization == settings.quantization()
+        && (settings.lossless || meta.budget == settings.budget)
         && meta.unshadowed == settings.unshadowed
         && meta.seed == settings.seed
         && meta.shard == settings.shard
@@ -719,6 +707,6 @@ pub fn load_if_baked_with(
 /// Bytes a bake's output will take at most (every coefficient kept), to warn or refuse up front.
 pub fn worst_case_bytes(width: usize, height: usize, settings: &BakeSettings) -> u64 {
     let c = texel_count(settings.cube_n) as u64;
-    let value = if settings.lossless { 4 } else { 2 };
-    (width * height) as u64 * c * (2 + value)
+    let value = settings.quantization().value_bytes() as u64;
+    (width * height) as u64 * c * (1 + value)
 }

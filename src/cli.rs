@@ -207,6 +207,13 @@ pub struct BakeArgs {
     /// Keep every coefficient in 32-bit floats.
     #[arg(long)]
     pub lossless: bool,
+    /// How the threshold weighs coefficients: l2 (the row's L2 error), area (support solid
+    /// angle), sun (the error at any one texel) or absolute (drop |v| < threshold · norm).
+    #[arg(long, default_value = "l2", conflicts_with = "lossless")]
+    pub budget: crate::budget::Budget,
+    /// Stored values: q8 (8-bit integers against per-column scales) or q16.
+    #[arg(long, default_value = "q8", conflicts_with = "lossless")]
+    pub quantization: crate::quant::Quantization,
     /// Bake only shard I of COUNT (bands of tile rows), e.g. 0/4; join them with `prt merge`.
     #[arg(long, value_name = "I/COUNT")]
     pub shard: Option<String>,
@@ -460,6 +467,7 @@ fn settings_from(
         shard: None,
         bounces: s.bounces,
         paths: s.paths,
+        ..BakeSettings::default()
     }
 }
 
@@ -482,6 +490,8 @@ fn parse_shard(s: &str) -> Result<[u32; 2]> {
 
 fn bake_cmd(a: BakeArgs) -> Result<()> {
     let mut settings = settings_from(&a.sampling, a.sh_order, a.threshold, a.lossless);
+    settings.budget = a.budget;
+    settings.quantization = a.quantization;
     settings.shard = a.shard.as_deref().map(parse_shard).transpose()?;
     settings.validate()?;
     let scene = Scene::load(&a.scene)?;
@@ -590,8 +600,8 @@ fn print_info(path: &std::path::Path, t: &Transport) {
         if m.unshadowed { ", unshadowed" } else { "" }
     );
     println!(
-        "sparsify      threshold {} ({:?} values)",
-        m.threshold, m.quantization
+        "sparsify      threshold {} ({} budget, {} values)",
+        m.threshold, m.budget, m.quantization
     );
     println!("rows          {}", s.rows);
     println!(
@@ -890,6 +900,11 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         spp: t.meta.spp,
         texel_samples: t.meta.texel_samples,
         threshold: t.meta.threshold,
+        budget: t.meta.budget,
+        quantization: match t.meta.quantization {
+            crate::quant::Quantization::F32 => crate::quant::Quantization::Q8,
+            q => q,
+        },
         lossless: true,
         unshadowed: t.meta.unshadowed,
         seed: t.meta.seed,

@@ -22,6 +22,7 @@ use wgpu::util::DeviceExt;
 use crate::error::{PrtError, Result};
 use crate::film::Image;
 use crate::light::SparseLight;
+use crate::quant::{BLOCK_ROWS, Quantization};
 use crate::relight::RelightStats;
 use crate::transport::{Transport, Values, tile_grid};
 
@@ -42,12 +43,34 @@ struct Params {
     tiles_x: u32,
     coeffs: u32,
     terms: u32,
-    packed: u32,
+    format: u32,
     row_base: u32,
     shared_rows: u32,
-    _pad: u32,
+    block_base: u32,
+    block_table: u32,
+    _pad: [u32; 3],
 }
-const _: () = assert!(std::mem::size_of::<Params>() == 48);
+const _: () = assert!(std::mem::size_of::<Params>() == 64);
+
+/// `Params::format`: how entries are packed in the `entries` buffer (see
+/// `shaders/relight_wavelet.wgsl`).
+fn format_code(q: Quantization) -> u32 {
+    match q {
+        Quantization::Q8 => 0,
+        Quantization::Q16 => 1,
+        Quantization::F32 => 2,
+    }
+}
+
+/// Bytes `count` entries take on the device: two per word in q8, one word in q16, two words in
+/// f32.
+fn device_entry_bytes(q: Quantization, count: u64) -> u64 {
+    match q {
+        Quantization::Q8 => count.div_ceil(2) * 4,
+        Quantization::Q16 => count * 4,
+        Quantization::F32 => count * 8,
+    }
+}
 
 /// A device, its queue and the relight pipelines (cloning shares them).
 #[derive(Clone)]
@@ -59,6 +82,8 @@ pub struct Gpu {
     wavelet: wgpu::ComputePipeline,
     sh: wgpu::ComputePipeline,
     to_texture: wgpu::ComputePipeline,
+    /// The 256 scales of the stored values' codes (`crate::quant`), a uniform buffer.
+    scales: wgpu::Buffer,
     /// Timestamp queries around the relight passes, where the device has them.
     timer: Option<Timer>,
 }
@@ -150,7 +175,8 @@ impl Timer {
 fn shader_source(pipeline: &str) -> String {
     let relight = |specific: &str| {
         format!(
-            "const TILE: u32 = {}u;\nconst WORKGROUP: u32 = {WORKGROUP_SIZE}u;\n{}\n{specific}",
+            "const TILE: u32 = {}u;\nconst WORKGROUP: u32 = {WORKGROUP_SIZE}u;\n\
+             const BLOCK_ROWS: u32 = {BLOCK_ROWS}u;\n{}\n{specific}",
             crate::transport::TILE,
             include_str!("../shaders/common.wgsl"),
         )
@@ -219,6 +245,11 @@ impl Gpu {
             )));
         }
         let timer = Timer::new(&device, &queue);
+        let scales = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("value scales"),
+            contents: bytemuck::cast_slice(crate::quant::scale_table()),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
         Ok(Gpu {
             device,
             queue,
@@ -226,6 +257,7 @@ impl Gpu {
             wavelet,
             sh,
             to_texture,
+            scales,
             timer,
         })
     }
@@ -331,9 +363,10 @@ impl GpuTransport {
         let c = t.coeff_count();
         let shc = t.sh_count();
         let rows = t.row_pixel.len();
-        let packed = matches!(t.values, Values::F16(_));
-        let entry_bytes: u64 = if packed { 4 } else { 8 };
-        let ptr_bytes = (c as u64 + 1) * 4;
+        let quant = t.values.quantization();
+        // Per block: C + 1 column pointers, then the C scale codes packed four to a word.
+        let block_words = c + 1 + c.div_ceil(4);
+        let ptr_bytes = block_words as u64 * 4;
         for (what, bytes) in [
             ("row table", rows as u64 * 16),
             ("image", (w * h) as u64 * 16),
@@ -345,7 +378,14 @@ impl GpuTransport {
                 )));
             }
         }
-        let tile_rows = storage(device, "tile rows", bytemuck::cast_slice(&t.tile_row_start));
+        // The tiles' row starts, then their block starts (at `Params::block_table`).
+        let tile_table: Vec<u32> = t
+            .tile_row_start
+            .iter()
+            .chain(&t.tile_block_start)
+            .copied()
+            .collect();
+        let tile_rows = storage(device, "tile rows", bytemuck::cast_slice(&tile_table));
         let row_data: Vec<[f32; 4]> = t
             .row_weight
             .iter()
@@ -353,6 +393,13 @@ impl GpuTransport {
             .map(|(wgt, p)| [wgt[0], wgt[1], wgt[2], f32::from_bits(*p)])
             .collect();
         let row_buf = storage(device, "rows", bytemuck::cast_slice(&row_data));
+        // The wavelet pass applies each row's value scale with its weight.
+        let scaled: Vec<[f32; 4]> = row_data
+            .iter()
+            .zip(&t.row_scale)
+            .map(|(r, s)| [r[0] * s, r[1] * s, r[2] * s, r[3]])
+            .collect();
+        let scaled_buf = storage(device, "scaled rows", bytemuck::cast_slice(&scaled));
         let acc = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("row accumulators"),
             size: (rows.max(1) * 16) as u64,
@@ -386,10 +433,11 @@ impl GpuTransport {
             let mut end = start;
             loop {
                 let next = end + 1;
-                let entries = t.tile_entry_start[next] - t.tile_entry_start[start];
+                let (b0, b1) = (t.tile_block_start[start], t.tile_block_start[next]);
+                let entries = t.block_entry_start[b1 as usize] - t.block_entry_start[b0 as usize];
                 let rows_in = (t.tile_row_start[next] - t.tile_row_start[start]) as u64;
-                let fits = entries * entry_bytes <= limit
-                    && (next - start) as u64 * ptr_bytes <= limit
+                let fits = device_entry_bytes(quant, entries) <= limit
+                    && (b1 - b0) as u64 * ptr_bytes <= limit
                     && rows_in * shc as u64 * 4 <= limit;
                 if !fits {
                     break;
@@ -408,9 +456,8 @@ impl GpuTransport {
                 gpu,
                 t,
                 start..end,
-                packed,
                 tiles_x,
-                [&tile_rows, &row_buf, &acc, &image, &light],
+                [&tile_rows, &row_buf, &scaled_buf, &acc, &image, &light],
             )?);
             start = end;
         }
@@ -421,7 +468,7 @@ impl GpuTransport {
             sh_count: shc,
             rows,
             entries: t.entry_row.len() as u64,
-            entry_bytes,
+            entry_bytes: device_entry_bytes(quant, 2) / 2,
             chunks,
             light,
             image,
@@ -433,37 +480,61 @@ impl GpuTransport {
         gpu: &Gpu,
         t: &Transport,
         tiles: std::ops::Range<usize>,
-        packed: bool,
         tiles_x: usize,
-        [tile_rows, rows, acc, image, light]: [&wgpu::Buffer; 5],
+        [tile_rows, rows, scaled_rows, acc, image, light]: [&wgpu::Buffer; 6],
     ) -> Result<Chunk> {
         let device = &gpu.device;
         let c = t.coeff_count();
+        let blocks =
+            t.tile_block_start[tiles.start] as usize..t.tile_block_start[tiles.end] as usize;
         let (e0, e1) = (
-            t.tile_entry_start[tiles.start] as usize,
-            t.tile_entry_start[tiles.end] as usize,
+            t.block_entry_start[blocks.start] as usize,
+            t.block_entry_start[blocks.end] as usize,
         );
+        let rows_of = &t.entry_row[e0..e1];
         let entries: Vec<u32> = match &t.values {
-            Values::F16(v) => t.entry_row[e0..e1]
+            // Two 16-bit halves per word: row in the low byte, the integer in the high byte.
+            Values::Q8(v) => {
+                let half = |i: usize| rows_of[i] as u32 | ((v[e0 + i] as u8 as u32) << 8);
+                (0..rows_of.len())
+                    .step_by(2)
+                    .map(|i| {
+                        let hi = if i + 1 < rows_of.len() {
+                            half(i + 1)
+                        } else {
+                            0
+                        };
+                        half(i) | hi << 16
+                    })
+                    .collect()
+            }
+            // Row in the low byte, the integer in the high 16 bits.
+            Values::Q16(v) => rows_of
                 .iter()
                 .zip(&v[e0..e1])
-                .map(|(&r, x)| r as u32 | (x.to_bits() as u32) << 16)
+                .map(|(&r, &q)| r as u32 | (q as u16 as u32) << 16)
                 .collect(),
-            Values::F32(v) => t.entry_row[e0..e1]
+            Values::F32(v) => rows_of
                 .iter()
                 .zip(&v[e0..e1])
                 .flat_map(|(&r, x)| [r as u32, x.to_bits()])
                 .collect(),
         };
-        // Column pointers relative to the chunk's first entry.
-        let mut ptrs = Vec::with_capacity(tiles.len() * (c + 1));
-        for tile in tiles.clone() {
-            let base = (t.tile_entry_start[tile] as usize - e0) as u32;
+        // Per block: column pointers relative to the chunk's first entry, then the scale codes.
+        let mut ptrs = Vec::with_capacity(blocks.len() * (c + 1 + c.div_ceil(4)));
+        for b in blocks.clone() {
+            let base = (t.block_entry_start[b] as usize - e0) as u32;
             ptrs.extend(
-                t.col_ptr[tile * (c + 1)..(tile + 1) * (c + 1)]
+                t.col_ptr[b * (c + 1)..(b + 1) * (c + 1)]
                     .iter()
                     .map(|p| p + base),
             );
+            ptrs.extend(t.col_scale[b * c..(b + 1) * c].chunks(4).map(|codes| {
+                codes
+                    .iter()
+                    .enumerate()
+                    .fold(0u32, |w, (i, &code)| w | (code as u32) << (8 * i))
+            }));
         }
         let (r0, r1) = (
             t.tile_row_start[tiles.start] as usize,
@@ -488,17 +559,19 @@ impl GpuTransport {
             tiles_x: tiles_x as u32,
             coeffs: c as u32,
             terms: 0,
-            packed: packed as u32,
+            format: format_code(t.values.quantization()),
             row_base: r0 as u32,
             shared_rows: u32::MAX,
-            _pad: 0,
+            block_base: blocks.start as u32,
+            block_table: t.tile_row_start.len() as u32,
+            _pad: [0; 3],
         };
         let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("params"),
             contents: bytemuck::bytes_of(&params),
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
-        let shared = [(0, &params), (1, tile_rows), (2, rows), (4, image)];
+        let shared = [(0, &params), (1, tile_rows), (4, image)];
         let group = |pipeline: &wgpu::ComputePipeline, extra: &[(u32, &wgpu::Buffer)]| {
             let entries: Vec<wgpu::BindGroupEntry> = shared
                 .iter()
@@ -517,9 +590,16 @@ impl GpuTransport {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let wavelet_group = group(
             &gpu.wavelet,
-            &[(3, acc), (5, &entry_buf), (6, &ptr_buf), (7, light)],
+            &[
+                (2, scaled_rows),
+                (3, acc),
+                (5, &entry_buf),
+                (6, &ptr_buf),
+                (7, light),
+                (8, &gpu.scales),
+            ],
         );
-        let sh_group = group(&gpu.sh, &[(5, &sh_buf), (7, light)]);
+        let sh_group = group(&gpu.sh, &[(2, rows), (5, &sh_buf), (7, light)]);
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!("binding the transport: {e}")));
         }

@@ -20,6 +20,7 @@
 pub mod bake;
 pub mod bench;
 pub mod brdf;
+pub mod budget;
 pub mod cli;
 pub mod conventions;
 pub mod cubemap;
@@ -33,6 +34,7 @@ pub mod light;
 pub mod medium;
 pub mod metrics;
 pub mod plot;
+pub mod quant;
 pub mod reference;
 pub mod relight;
 pub mod sampling;

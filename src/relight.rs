@@ -6,7 +6,6 @@
 use std::str::FromStr;
 use std::time::Instant;
 
-use half::f16;
 use rayon::prelude::*;
 
 use crate::envmap::{EnvMap, EnvRotation};
@@ -14,6 +13,7 @@ use crate::error::{PrtError, Result};
 use crate::film::Image;
 use crate::haar::support_solid_angles;
 use crate::light::{SparseLight, TexelShBasis, WaveletLight, Weighting};
+use crate::quant::{BLOCK_ROWS, scale_of};
 use crate::sh;
 use crate::transport::{TILE, Transport, Values, tile_grid};
 
@@ -202,12 +202,12 @@ pub fn select_light(
 }
 
 /// Transport values the sparse product reads for `light`: the lengths of its kept columns in
-/// every tile.
+/// every block.
 pub fn nonzeros_touched(t: &Transport, light: &SparseLight) -> u64 {
     let c = t.coeff_count();
-    (0..t.tile_count())
-        .map(|tile| {
-            let ptr = &t.col_ptr[tile * (c + 1)..(tile + 1) * (c + 1)];
+    (0..t.block_count())
+        .map(|b| {
+            let ptr = &t.col_ptr[b * (c + 1)..(b + 1) * (c + 1)];
             light
                 .indices
                 .iter()
@@ -228,7 +228,8 @@ pub fn light_sh_order(sh: &[[f64; 3]], order: usize, baked: usize) -> Result<Vec
     Ok(sh[..order * order].to_vec())
 }
 
-/// Reads a stored value as f32, whatever the quantisation.
+/// Widens a stored value (an integer, or a lossless float) to f32; the column's scale is applied
+/// to the light term instead, once per block and column.
 trait StoredValue: Copy + Send + Sync {
     fn f32(self) -> f32;
 }
@@ -238,22 +239,22 @@ impl StoredValue for f32 {
         self
     }
 }
-impl StoredValue for f16 {
-    /// Branch-free widening that the compiler can vectorise (the library call checks the CPU on
-    /// every value). Shifting the 15 magnitude bits into place gives an f32 whose exponent is off by
-    /// 112; multiplying by 2^112 fixes it exactly, subnormals included. Stored values are finite
-    /// (checked on load), so infinities and NaNs need no care.
+impl StoredValue for i8 {
     #[inline(always)]
     fn f32(self) -> f32 {
-        let h = self.to_bits() as u32;
-        let magnitude = f32::from_bits((h & 0x7fff) << 13) * f32::from_bits(0x7780_0000);
-        f32::from_bits(magnitude.to_bits() | ((h & 0x8000) << 16))
+        self as f32
+    }
+}
+impl StoredValue for i16 {
+    #[inline(always)]
+    fn f32(self) -> f32 {
+        self as f32
     }
 }
 
-/// The tiled sparse product: for every tile, every kept light term's column adds `value · L` to
-/// its rows; the rows then add `weight ⊙ sum` to their pixels. Checks that the light fits the
-/// transport (N, index range).
+/// The tiled sparse product: for every block of every tile, every kept light term's column adds
+/// `integer · (scale · L)` to its rows; the rows then add `weight ⊙ sum` to their pixels. Checks
+/// that the light fits the transport (N, index range).
 pub fn relight_wavelet(t: &Transport, light: &SparseLight) -> Result<(Image, RelightStats)> {
     let c = t.coeff_count();
     if light.indices.iter().any(|&j| j as usize >= c) || light.indices.len() != light.values.len() {
@@ -264,19 +265,22 @@ pub fn relight_wavelet(t: &Transport, light: &SparseLight) -> Result<(Image, Rel
     }
     let start = Instant::now();
     let (image, touched) = match &t.values {
-        Values::F16(v) => wavelet_kernel(t, light, v),
+        Values::Q8(v) => wavelet_kernel(t, light, v),
+        Values::Q16(v) => wavelet_kernel(t, light, v),
         Values::F32(v) => wavelet_kernel(t, light, v),
     };
-    let tiles = t.tile_count() as u64;
     let stats = RelightStats {
         terms: light.len(),
         nonzeros_touched: touched,
-        bytes_touched: touched * (2 + t.values.value_bytes() as u64)
-            + tiles * light.len() as u64 * 8,
+        bytes_touched: touched * (1 + t.values.value_bytes() as u64)
+            + t.block_count() as u64 * light.len() as u64 * 9,
         kernel_seconds: start.elapsed().as_secs_f64(),
     };
     Ok((image, stats))
 }
+
+/// One block's accumulators: a row index is a byte, so indexing needs no bounds check.
+type BlockAcc = [[f32; 4]; BLOCK_ROWS];
 
 fn wavelet_kernel<V: StoredValue>(
     t: &Transport,
@@ -291,45 +295,53 @@ fn wavelet_kernel<V: StoredValue>(
         .pixels
         .par_chunks_mut(w * TILE)
         .enumerate()
-        .map_init(Vec::new, |acc: &mut Vec<[f32; 4]>, (ty, band)| {
-            let mut touched = 0u64;
-            for tile in ty * tx..(ty + 1) * tx {
-                let (r0, r1) = (
-                    t.tile_row_start[tile] as usize,
-                    t.tile_row_start[tile + 1] as usize,
-                );
-                acc.clear();
-                acc.resize(r1 - r0, [0.0; 4]);
-                let base = t.tile_entry_start[tile] as usize;
-                let ptr = &t.col_ptr[tile * (c + 1)..(tile + 1) * (c + 1)];
-                for (&j, l) in light.indices.iter().zip(&light.values) {
-                    // Four lanes (the last unused) so one vector op updates a row.
-                    let l = [l[0], l[1], l[2], 0.0];
-                    let (e0, e1) = (
-                        base + ptr[j as usize] as usize,
-                        base + ptr[j as usize + 1] as usize,
-                    );
-                    touched += (e1 - e0) as u64;
-                    for (&r, &v) in t.entry_row[e0..e1].iter().zip(&values[e0..e1]) {
-                        let v = v.f32();
-                        let a = &mut acc[r as usize];
-                        for k in 0..4 {
-                            a[k] += v * l[k];
+        .map_init(
+            || Box::new([[0.0f32; 4]; BLOCK_ROWS]),
+            |acc: &mut Box<BlockAcc>, (ty, band)| {
+                let mut touched = 0u64;
+                let y0 = ty * TILE * w;
+                for tile in ty * tx..(ty + 1) * tx {
+                    for b in t.blocks(tile) {
+                        let (r0, r1) = (
+                            t.block_row_start[b] as usize,
+                            t.block_row_start[b + 1] as usize,
+                        );
+                        acc[..r1 - r0].fill([0.0; 4]);
+                        let base = t.block_entry_start[b] as usize;
+                        let ptr = &t.col_ptr[b * (c + 1)..(b + 1) * (c + 1)];
+                        let codes = &t.col_scale[b * c..(b + 1) * c];
+                        for (&j, l) in light.indices.iter().zip(&light.values) {
+                            let j = j as usize;
+                            let (e0, e1) = (base + ptr[j] as usize, base + ptr[j + 1] as usize);
+                            if e0 == e1 {
+                                continue;
+                            }
+                            touched += (e1 - e0) as u64;
+                            // Four lanes (the last unused) so one vector op updates a row.
+                            let s = scale_of(codes[j]);
+                            let l = [l[0] * s, l[1] * s, l[2] * s, 0.0];
+                            for (&r, &v) in t.entry_row[e0..e1].iter().zip(&values[e0..e1]) {
+                                let v = v.f32();
+                                let a = &mut acc[r as usize];
+                                for k in 0..4 {
+                                    a[k] += v * l[k];
+                                }
+                            }
+                        }
+                        for (r, a) in acc[..r1 - r0].iter().enumerate() {
+                            let p = t.row_pixel[r0 + r] as usize - y0;
+                            let wgt = t.row_weight[r0 + r];
+                            let s = t.row_scale[r0 + r];
+                            let px = &mut band[p];
+                            for k in 0..3 {
+                                px[k] += wgt[k] * (a[k] * s);
+                            }
                         }
                     }
                 }
-                let y0 = ty * TILE * w;
-                for (r, a) in acc.iter().enumerate() {
-                    let p = t.row_pixel[r0 + r] as usize - y0;
-                    let wgt = t.row_weight[r0 + r];
-                    let px = &mut band[p];
-                    for k in 0..3 {
-                        px[k] += wgt[k] * a[k];
-                    }
-                }
-            }
-            touched
-        })
+                touched
+            },
+        )
         .sum();
     (image, touched)
 }
@@ -392,13 +404,13 @@ pub fn relight_dense_reference(t: &Transport, light: &SparseLight) -> Image {
         dense_light[j as usize] = l.map(|v| v as f64);
     }
     let mut image = Image::new(w, h);
-    for tile in 0..t.tile_count() {
-        let r0 = t.tile_row_start[tile] as usize;
-        let rows = t.tile_row_start[tile + 1] as usize - r0;
+    for b in 0..t.block_count() {
+        let r0 = t.block_row_start[b] as usize;
+        let rows = t.block_row_start[b + 1] as usize - r0;
         let mut dense = vec![vec![0.0f64; c]; rows];
-        for (j, col) in (0..c).map(|j| (j, t.column(tile, j))) {
-            for e in col {
-                dense[t.entry_row[e] as usize][j] = t.values.get(e) as f64;
+        for j in 0..c {
+            for e in t.block_column(b, j) {
+                dense[t.entry_row[e] as usize][j] = t.value(b, j, e) as f64;
             }
         }
         for (r, row) in dense.iter().enumerate() {
@@ -416,23 +428,4 @@ pub fn relight_dense_reference(t: &Transport, light: &SparseLight) -> Image {
         }
     }
     image
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn fast_half_widening_is_exact_for_every_finite_half() {
-        for bits in 0..=u16::MAX {
-            let h = f16::from_bits(bits);
-            if h.is_finite() {
-                assert_eq!(
-                    StoredValue::f32(h).to_bits(),
-                    h.to_f32().to_bits(),
-                    "bits {bits:#06x}"
-                );
-            }
-        }
-    }
 }

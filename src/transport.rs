@@ -1,60 +1,68 @@
 //! The transport store: the baked sparse Haar transport, the dense SH transport and per-pixel data
 //! of one fixed view, in memory and in a documented safetensors file.
 //!
-//! # Rows, tiles and columns
+//! # Rows, tiles, blocks and columns
 //! The image is cut into [`TILE`] x [`TILE`] pixel tiles, row-major over the tile grid. A *row* is
 //! one transport vector over the 6 N² Haar coefficients together with the pixel it lights and an RGB
 //! weight: a pixel's radiance is `Σ_rows weight ⊙ (row · L)`. A diffuse pixel that sees one material
 //! has one row whose weight is the albedo; a pixel whose sub-samples see several materials has one
 //! row per material, so the split stays exact. Rows are grouped by tile.
 //!
-//! Inside a tile the rows' nonzero coefficients are stored column by column (coefficient-major):
-//! `col_ptr[t][j]..col_ptr[t][j + 1]` are tile t's entries of coefficient j, each a local row index
-//! and a value, rows strictly increasing inside a column. So one worker owns a tile's rows with no
-//! atomics, a column touches each row at most once, and relighting with K terms reads only K columns.
+//! A tile's rows are cut into *blocks* of at most [`BLOCK_ROWS`] (256) consecutive rows, so a row
+//! index inside a block is one byte; a tile of one row per pixel is one block. Inside a block the
+//! rows' nonzero coefficients are stored column by column (coefficient-major): the entries of
+//! coefficient j, each a row index and an integer, rows strictly increasing, with the value
+//! `integer · scale(code[block, j]) · row_scale[row]` (see [`crate::quant`]). The row scale (the
+//! row's largest magnitude) puts rows of very different brightness, such as a glossy lobe beside a
+//! diffuse row, on one footing before a block's columns share a scale; the kernels apply it once per
+//! row, with the weight. So one worker owns a tile's rows
+//! with no atomics, a column touches each row at most once, and relighting with K terms reads only
+//! K columns of each block.
 //!
-//! # File
+//! # File (format version 3)
 //! A safetensors file (readable from Python with `safetensors.numpy.load_file`); its one metadata
 //! entry `meta` is JSON: `format = "wavelet-prt transport"`, `format_version`, `checksum` and the
-//! fields of [`TransportMeta`].
-//! Tensors: `tile_row_start` u32 [T+1], `row_pixel` u32 [R], `row_weight` f32 [R,3],
-//! `tile_entry_start` u64 [T+1], `col_ptr` u32 [T, C+1] (relative to the tile's first entry),
-//! `entry_row` u16 [nnz], `entry_value` f16 or f32 [nnz], `sh` f32 [R, n²], `albedo` f32 [H, W, 3],
-//! `coverage` f32 [H, W], `transport_magnitude` f32 [C], `tile_stats` f64 [T, 3] (per tile: energy
-//! dropped by thresholding, total energy, shadow rays). The `checksum` covers the tensors' bytes in
-//! name order, so a flipped bit anywhere is caught. Loading checks the header, the sizes and
-//! every index before it allocates anything or trusts any offset; writing goes to a temporary file
-//! that is renamed into place.
+//! fields of [`TransportMeta`]. Tensors (T tiles, R rows, B blocks, C = 6 N² coefficients):
+//!
+//! | tensor | dtype, shape | what |
+//! |---|---|---|
+//! | `tile_row_start` | u32 [T+1] | tile t holds rows `tile_row_start[t] .. tile_row_start[t+1]`; its blocks are those rows in runs of 256 |
+//! | `row_pixel`, `row_weight` | u32 [R], f32 [R, 3] | the pixel (y · width + x) and RGB weight of each row |
+//! | `row_scale` | f32 [R] | each row's stored values are relative to this (its largest magnitude) |
+//! | `col_count` | u16 [B, C] | entries of coefficient j in block b; blocks in tile order, entries in (block, j) order |
+//! | `col_scale` | u8 [B, C] | the scale code of (b, j): `scale = 2^((code − 192) / 4)` |
+//! | `entry_row` | u8 [nnz] | the row inside its block |
+//! | `entry_value` | i8, i16 or f32 [nnz] | the integer (`quantization` q8, q16) or the value (f32, scale 1) |
+//! | `sh` | f32 [R, n²] | SH transport of each row |
+//! | `albedo`, `coverage` | f32 [H, W, 3], f32 [H, W] | per pixel: albedo seen, fraction of sub-samples that hit |
+//! | `transport_magnitude` | f32 [C] | mean magnitude of each coefficient over the rows (transport weighting) |
+//! | `tile_stats` | f64 [T, 3] | per tile: energy dropped by thresholding and quantisation, total energy, shadow rays |
+//!
+//! The `checksum` covers the tensors' bytes in name order, so a flipped bit anywhere is caught.
+//! Loading checks the header, the sizes and every count and index before it allocates anything or
+//! trusts any offset; writing goes to a temporary file that is renamed into place.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::io::Read;
+use std::ops::Range;
 use std::path::Path;
 
-use half::f16;
 use safetensors::tensor::{Dtype, View};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{PrtError, Result};
+pub use crate::quant::{BLOCK_ROWS, Quantization};
+use crate::quant::{UNIT_SCALE_CODE, code_for, quantize, scale_of};
 
 /// Pixels on a side of a tile.
 pub const TILE: usize = 16;
 /// Name written in every transport file.
 pub const FORMAT_NAME: &str = "wavelet-prt transport";
 /// Version of the layout described in this module.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 /// Largest safetensors header accepted (JSON text), checked before it is read.
 const MAX_HEADER_BYTES: u64 = 1 << 24;
-
-/// How stored coefficient values are quantised.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Quantization {
-    /// IEEE half floats (2 bytes).
-    F16,
-    /// 32-bit floats, for lossless bakes.
-    F32,
-}
 
 /// Camera of the baked view, as written in the file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -74,8 +82,8 @@ pub struct BakeStats {
     pub nonzeros: u64,
     /// rows x 6 N², what a dense matrix would hold.
     pub dense_entries: u64,
-    /// Sum over rows of the squared norm of what thresholding dropped, over the sum of squared
-    /// norms: the relative L2 (squared) the sparsification removed from the transport.
+    /// Sum over rows of the squared norm of what thresholding and quantisation changed, over the
+    /// sum of squared norms: the relative L2 (squared) the storage removed from the transport.
     pub dropped_energy_fraction: f64,
     /// Shadow rays traced.
     pub shadow_rays: u64,
@@ -98,8 +106,11 @@ pub struct TransportMeta {
     pub texel_samples: u32,
     pub unshadowed: bool,
     pub seed: u64,
-    /// Relative L2 error allowed per row by thresholding (0 = keep every nonzero).
+    /// Thresholding parameter (0 = keep every nonzero); its meaning is `budget`'s.
     pub threshold: f32,
+    /// How the thresholding budget weighs coefficients.
+    #[serde(default)]
+    pub budget: crate::budget::Budget,
     pub quantization: Quantization,
     /// `[index, count]` for one shard of a sharded bake (it holds only its band of tile rows);
     /// absent for a whole bake or a merge of all shards.
@@ -115,18 +126,36 @@ pub struct TransportMeta {
     pub stats: BakeStats,
 }
 
-/// Stored coefficient values.
+/// Stored coefficient values: integers against their column's scale, or lossless floats.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Values {
-    F16(Vec<f16>),
+    Q8(Vec<i8>),
+    Q16(Vec<i16>),
     F32(Vec<f32>),
 }
 
 impl Values {
+    /// Empty values of a quantisation.
+    pub fn empty(q: Quantization) -> Self {
+        match q {
+            Quantization::Q8 => Values::Q8(Vec::new()),
+            Quantization::Q16 => Values::Q16(Vec::new()),
+            Quantization::F32 => Values::F32(Vec::new()),
+        }
+    }
+    /// The quantisation these values are in.
+    pub fn quantization(&self) -> Quantization {
+        match self {
+            Values::Q8(_) => Quantization::Q8,
+            Values::Q16(_) => Quantization::Q16,
+            Values::F32(_) => Quantization::F32,
+        }
+    }
     /// Number of values.
     pub fn len(&self) -> usize {
         match self {
-            Values::F16(v) => v.len(),
+            Values::Q8(v) => v.len(),
+            Values::Q16(v) => v.len(),
             Values::F32(v) => v.len(),
         }
     }
@@ -136,43 +165,78 @@ impl Values {
     }
     /// Bytes per value.
     pub fn value_bytes(&self) -> usize {
+        self.quantization().value_bytes()
+    }
+    /// Stored value `i` (the integer, or the float) as f32, before its column's scale.
+    #[inline]
+    pub fn raw(&self, i: usize) -> f32 {
         match self {
-            Values::F16(_) => 2,
-            Values::F32(_) => 4,
+            Values::Q8(v) => v[i] as f32,
+            Values::Q16(v) => v[i] as f32,
+            Values::F32(v) => v[i],
         }
     }
-    /// Value `i` as f32.
-    #[inline]
-    pub fn get(&self, i: usize) -> f32 {
+    /// Appends the stored values `range` of `other` (same quantisation).
+    fn extend_from(&mut self, other: &Values, range: Range<usize>) {
+        match (self, other) {
+            (Values::Q8(a), Values::Q8(b)) => a.extend_from_slice(&b[range]),
+            (Values::Q16(a), Values::Q16(b)) => a.extend_from_slice(&b[range]),
+            (Values::F32(a), Values::F32(b)) => a.extend_from_slice(&b[range]),
+            _ => debug_assert!(false, "mixed quantisations"),
+        }
+    }
+    /// Appends one quantised value.
+    fn push(&mut self, q: f32) {
         match self {
-            Values::F16(v) => v[i].to_f32(),
-            Values::F32(v) => v[i],
+            Values::Q8(a) => a.push(q as i8),
+            Values::Q16(a) => a.push(q as i16),
+            Values::F32(a) => a.push(q),
         }
     }
 }
 
-/// A baked view in memory, in the layout of this module.
+/// A baked view in memory, in the layout of this module. The block tables (`tile_block_start`,
+/// `block_row_start`, `block_entry_start`, `col_ptr`) are derived from `tile_row_start` and the
+/// file's `col_count`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Transport {
     pub meta: TransportMeta,
     pub tile_row_start: Vec<u32>,
     pub row_pixel: Vec<u32>,
     pub row_weight: Vec<[f32; 3]>,
-    pub tile_entry_start: Vec<u64>,
+    /// Each row's values are stored relative to this.
+    pub row_scale: Vec<f32>,
+    /// Tile t holds blocks `tile_block_start[t] .. tile_block_start[t + 1]`.
+    pub tile_block_start: Vec<u32>,
+    /// Block b holds rows `block_row_start[b] .. block_row_start[b + 1]` (global row indices).
+    pub block_row_start: Vec<u32>,
+    /// Block b holds entries `block_entry_start[b] .. block_entry_start[b + 1]`.
+    pub block_entry_start: Vec<u64>,
+    /// `col_ptr[b (C + 1) + j] .. col_ptr[b (C + 1) + j + 1]`: block b's entries of coefficient j,
+    /// relative to the block's first entry.
     pub col_ptr: Vec<u32>,
-    pub entry_row: Vec<u16>,
+    /// Scale code of every (block, coefficient).
+    pub col_scale: Vec<u8>,
+    /// Row of each entry inside its block.
+    pub entry_row: Vec<u8>,
     pub values: Values,
     pub sh: Vec<f32>,
     pub albedo: Vec<[f32; 3]>,
     pub coverage: Vec<f32>,
     pub transport_magnitude: Vec<f32>,
-    /// Per tile: energy thresholding dropped, the rows' total energy, shadow rays traced.
+    /// Per tile: energy thresholding and quantisation dropped, the rows' total energy, shadow
+    /// rays traced.
     pub tile_stats: Vec<[f64; 3]>,
 }
 
 /// Tiles along x and y for an image.
 pub fn tile_grid(width: usize, height: usize) -> (usize, usize) {
     (width.div_ceil(TILE), height.div_ceil(TILE))
+}
+
+/// Blocks a tile of `rows` rows is cut into.
+pub fn blocks_of(rows: usize) -> usize {
+    rows.div_ceil(BLOCK_ROWS)
 }
 
 impl Transport {
@@ -184,6 +248,10 @@ impl Transport {
     pub fn tile_count(&self) -> usize {
         self.tile_row_start.len() - 1
     }
+    /// Number of row blocks.
+    pub fn block_count(&self) -> usize {
+        self.block_row_start.len() - 1
+    }
     /// Pixels in the image.
     pub fn pixel_count(&self) -> usize {
         self.meta.width as usize * self.meta.height as usize
@@ -192,18 +260,44 @@ impl Transport {
     pub fn sh_count(&self) -> usize {
         (self.meta.sh_order as usize).pow(2)
     }
-    /// Entry range of coefficient `j` in tile `t`, as absolute entry indices.
+    /// The blocks of tile `t`.
     #[inline]
-    pub fn column(&self, t: usize, j: usize) -> std::ops::Range<usize> {
-        let c = self.coeff_count() + 1;
-        let base = self.tile_entry_start[t] as usize;
-        base + self.col_ptr[t * c + j] as usize..base + self.col_ptr[t * c + j + 1] as usize
+    pub fn blocks(&self, t: usize) -> Range<usize> {
+        self.tile_block_start[t] as usize..self.tile_block_start[t + 1] as usize
     }
-    /// Bytes of the sparse Haar matrix (entries and column pointers).
+    /// Entry range of coefficient `j` in block `b`, as absolute entry indices.
+    #[inline]
+    pub fn block_column(&self, b: usize, j: usize) -> Range<usize> {
+        let c = self.coeff_count() + 1;
+        let base = self.block_entry_start[b] as usize;
+        base + self.col_ptr[b * c + j] as usize..base + self.col_ptr[b * c + j + 1] as usize
+    }
+    /// The scale of coefficient `j` in block `b`.
+    #[inline]
+    pub fn scale(&self, b: usize, j: usize) -> f32 {
+        scale_of(self.col_scale[b * self.coeff_count() + j])
+    }
+    /// Stored value of entry `e` of block `b`, coefficient `j`, decoded.
+    #[inline]
+    pub fn value(&self, b: usize, j: usize, e: usize) -> f32 {
+        let row = self.block_row_start[b] as usize + self.entry_row[e] as usize;
+        self.values.raw(e) * self.scale(b, j) * self.row_scale[row]
+    }
+    /// Bytes of the sparse Haar matrix as stored in the file: entries (row and value), column
+    /// counts and scale codes.
     pub fn haar_bytes(&self) -> usize {
-        self.entry_row.len() * 2
-            + self.values.len() * self.values.value_bytes()
-            + self.col_ptr.len() * 4
+        self.entry_row.len() * (1 + self.values.value_bytes())
+            + self.block_count() * self.coeff_count() * 3
+    }
+    /// The per-column entry counts of the file, derived from the column pointers.
+    fn col_counts(&self) -> Vec<u16> {
+        let c = self.coeff_count();
+        let mut counts = Vec::with_capacity(self.block_count() * c);
+        for b in 0..self.block_count() {
+            let ptr = &self.col_ptr[b * (c + 1)..(b + 1) * (c + 1)];
+            counts.extend(ptr.windows(2).map(|w| (w[1] - w[0]) as u16));
+        }
+        counts
     }
 
     /// Writes the file atomically: a temporary file beside `path`, then a rename.
@@ -212,6 +306,9 @@ impl Transport {
         let tiles = self.tile_count();
         let c = self.coeff_count();
         let r = self.row_pixel.len();
+        let b = self.block_count();
+        let nnz = self.entry_row.len();
+        let counts = self.col_counts();
         let mut tensors: Vec<(&str, Tensor)> = vec![
             (
                 "tile_row_start",
@@ -226,16 +323,17 @@ impl Transport {
                 Tensor::new(Dtype::F32, vec![r, 3], &self.row_weight),
             ),
             (
-                "tile_entry_start",
-                Tensor::new(Dtype::U64, vec![tiles + 1], &self.tile_entry_start),
+                "row_scale",
+                Tensor::new(Dtype::F32, vec![r], &self.row_scale),
             ),
+            ("col_count", Tensor::new(Dtype::U16, vec![b, c], &counts)),
             (
-                "col_ptr",
-                Tensor::new(Dtype::U32, vec![tiles, c + 1], &self.col_ptr),
+                "col_scale",
+                Tensor::new(Dtype::U8, vec![b, c], &self.col_scale),
             ),
             (
                 "entry_row",
-                Tensor::new(Dtype::U16, vec![self.entry_row.len()], &self.entry_row),
+                Tensor::new(Dtype::U8, vec![nnz], &self.entry_row),
             ),
             (
                 "sh",
@@ -259,8 +357,9 @@ impl Transport {
             ),
         ];
         tensors.push(match &self.values {
-            Values::F16(v) => ("entry_value", Tensor::new(Dtype::F16, vec![v.len()], v)),
-            Values::F32(v) => ("entry_value", Tensor::new(Dtype::F32, vec![v.len()], v)),
+            Values::Q8(v) => ("entry_value", Tensor::new(Dtype::I8, vec![nnz], v)),
+            Values::Q16(v) => ("entry_value", Tensor::new(Dtype::I16, vec![nnz], v)),
+            Values::F32(v) => ("entry_value", Tensor::new(Dtype::F32, vec![nnz], v)),
         });
         tensors.sort_by_key(|(name, _)| *name);
         debug_assert!(tensors.iter().map(|(n, _)| *n).eq(TENSOR_NAMES));
@@ -338,6 +437,7 @@ impl Transport {
             }
             Ok(())
         };
+        let bad = |m: String| PrtError::file(path, m);
         let (s, d) = get("tile_row_start", Dtype::U32)?;
         expect("tile_row_start", &s, &[tiles + 1])?;
         let tile_row_start: Vec<u32> = bytemuck::pod_collect_to_vec(d);
@@ -345,24 +445,38 @@ impl Transport {
         let r = s.first().copied().unwrap_or(0);
         expect("row_pixel", &s, &[r])?;
         let row_pixel: Vec<u32> = bytemuck::pod_collect_to_vec(d);
+        // The block tables follow from the tiles' row counts, checked before anything is sized
+        // by them.
+        let (tile_block_start, block_row_start) = block_tables(&tile_row_start, r).map_err(bad)?;
+        let blocks = block_row_start.len() - 1;
         let (s, d) = get("row_weight", Dtype::F32)?;
         expect("row_weight", &s, &[r, 3])?;
         let row_weight: Vec<[f32; 3]> = bytemuck::pod_collect_to_vec(d);
-        let (s, d) = get("tile_entry_start", Dtype::U64)?;
-        expect("tile_entry_start", &s, &[tiles + 1])?;
-        let tile_entry_start: Vec<u64> = bytemuck::pod_collect_to_vec(d);
-        let (s, d) = get("col_ptr", Dtype::U32)?;
-        expect("col_ptr", &s, &[tiles, c + 1])?;
-        let col_ptr: Vec<u32> = bytemuck::pod_collect_to_vec(d);
-        let (s, d) = get("entry_row", Dtype::U16)?;
+        let (s, d) = get("row_scale", Dtype::F32)?;
+        expect("row_scale", &s, &[r])?;
+        let row_scale: Vec<f32> = bytemuck::pod_collect_to_vec(d);
+        let (s, d) = get("col_count", Dtype::U16)?;
+        expect("col_count", &s, &[blocks, c])?;
+        let counts: Vec<u16> = bytemuck::pod_collect_to_vec(d);
+        let (s, d) = get("col_scale", Dtype::U8)?;
+        expect("col_scale", &s, &[blocks, c])?;
+        let col_scale: Vec<u8> = d.to_vec();
+        let (s, d) = get("entry_row", Dtype::U8)?;
         let nnz = s.first().copied().unwrap_or(0);
         expect("entry_row", &s, &[nnz])?;
-        let entry_row: Vec<u16> = bytemuck::pod_collect_to_vec(d);
+        let entry_row: Vec<u8> = d.to_vec();
+        let (col_ptr, block_entry_start) =
+            column_pointers(&counts, &block_row_start, c, nnz).map_err(bad)?;
         let values = match meta.quantization {
-            Quantization::F16 => {
-                let (s, d) = get("entry_value", Dtype::F16)?;
+            Quantization::Q8 => {
+                let (s, d) = get("entry_value", Dtype::I8)?;
                 expect("entry_value", &s, &[nnz])?;
-                Values::F16(bytemuck::pod_collect_to_vec(d))
+                Values::Q8(bytemuck::pod_collect_to_vec(d))
+            }
+            Quantization::Q16 => {
+                let (s, d) = get("entry_value", Dtype::I16)?;
+                expect("entry_value", &s, &[nnz])?;
+                Values::Q16(bytemuck::pod_collect_to_vec(d))
             }
             Quantization::F32 => {
                 let (s, d) = get("entry_value", Dtype::F32)?;
@@ -391,8 +505,12 @@ impl Transport {
             tile_row_start,
             row_pixel,
             row_weight,
-            tile_entry_start,
+            row_scale,
+            tile_block_start,
+            block_row_start,
+            block_entry_start,
             col_ptr,
+            col_scale,
             entry_row,
             values,
             sh,
@@ -401,7 +519,7 @@ impl Transport {
             transport_magnitude,
             tile_stats,
         };
-        t.validate().map_err(|m| PrtError::file(path, m))?;
+        t.validate().map_err(bad)?;
         Ok(t)
     }
 
@@ -414,22 +532,37 @@ impl Transport {
         let tiles = tx * ty;
         let c = self.coeff_count();
         let r = self.row_pixel.len();
-        if self.tile_row_start.len() != tiles + 1
-            || self.tile_entry_start.len() != tiles + 1
-            || self.col_ptr.len() != tiles * (c + 1)
-        {
+        if self.tile_row_start.len() != tiles + 1 || self.tile_block_start.len() != tiles + 1 {
             return Err("tile tables do not match the image size".into());
         }
-        if self.tile_row_start[0] != 0 || self.tile_row_start[tiles] as usize != r {
-            return Err("tile_row_start does not span the rows".into());
+        let (tile_blocks, block_rows) = block_tables(&self.tile_row_start, r)?;
+        if tile_blocks != self.tile_block_start || block_rows != self.block_row_start {
+            return Err("block tables do not follow from the tiles' rows".into());
         }
-        if self.tile_entry_start[0] != 0
-            || self.tile_entry_start[tiles] != self.entry_row.len() as u64
+        let blocks = self.block_count();
+        if self.col_ptr.len() != blocks * (c + 1)
+            || self.col_scale.len() != blocks * c
+            || self.block_entry_start.len() != blocks + 1
+        {
+            return Err("block tables have the wrong length".into());
+        }
+        if self.block_entry_start[0] != 0
+            || self.block_entry_start[blocks] != self.entry_row.len() as u64
             || self.values.len() != self.entry_row.len()
         {
-            return Err("tile_entry_start does not span the entries".into());
+            return Err("block_entry_start does not span the entries".into());
         }
-        if self.row_weight.len() != r || self.sh.len() != r * self.sh_count() {
+        if self.values.quantization() != m.quantization {
+            return Err(format!(
+                "values are {} but the header says {}",
+                self.values.quantization(),
+                m.quantization
+            ));
+        }
+        if self.row_weight.len() != r
+            || self.row_scale.len() != r
+            || self.sh.len() != r * self.sh_count()
+        {
             return Err("row tables have different lengths".into());
         }
         for t in 0..tiles {
@@ -437,16 +570,6 @@ impl Transport {
                 self.tile_row_start[t] as usize,
                 self.tile_row_start[t + 1] as usize,
             );
-            let (e0, e1) = (self.tile_entry_start[t], self.tile_entry_start[t + 1]);
-            if r1 < r0 || e1 < e0 {
-                return Err(format!("tile {t}: offsets decrease"));
-            }
-            let rows = r1 - r0;
-            if rows > u16::MAX as usize + 1 {
-                return Err(format!(
-                    "tile {t}: {rows} rows do not fit 16-bit row indices"
-                ));
-            }
             let (x0, y0) = ((t % tx) * TILE, (t / tx) * TILE);
             for &p in &self.row_pixel[r0..r1] {
                 let (px, py) = (p as usize % w.max(1), p as usize / w.max(1));
@@ -454,35 +577,49 @@ impl Transport {
                     return Err(format!("tile {t}: row pixel {p} lies outside the tile"));
                 }
             }
-            let ptr = &self.col_ptr[t * (c + 1)..(t + 1) * (c + 1)];
-            if ptr[0] != 0 || ptr[c] as u64 != e1 - e0 {
-                return Err(format!("tile {t}: column pointers do not span its entries"));
+        }
+        for b in 0..blocks {
+            let rows = (self.block_row_start[b + 1] - self.block_row_start[b]) as usize;
+            let (e0, e1) = (self.block_entry_start[b], self.block_entry_start[b + 1]);
+            let ptr = &self.col_ptr[b * (c + 1)..(b + 1) * (c + 1)];
+            if e1 < e0 || ptr[0] != 0 || ptr[c] as u64 != e1 - e0 {
+                return Err(format!(
+                    "block {b}: column pointers do not span its entries"
+                ));
+            }
+            // Every pointer is checked against the next before either slices anything.
+            if let Some(j) = (0..c).find(|&j| ptr[j + 1] < ptr[j]) {
+                return Err(format!(
+                    "block {b}: column pointers decrease at coefficient {j}"
+                ));
             }
             for j in 0..c {
-                if ptr[j + 1] < ptr[j] {
-                    return Err(format!(
-                        "tile {t}: column pointers decrease at coefficient {j}"
-                    ));
-                }
                 let col = &self.entry_row
                     [(e0 as usize + ptr[j] as usize)..(e0 as usize + ptr[j + 1] as usize)];
                 let mut last: i32 = -1;
                 for &row in col {
                     if row as usize >= rows || row as i32 <= last {
                         return Err(format!(
-                            "tile {t}, coefficient {j}: row index {row} out of range or not increasing"
+                            "block {b}, coefficient {j}: row index {row} out of range or not increasing"
                         ));
                     }
                     last = row as i32;
                 }
             }
         }
-        let finite = match &self.values {
-            Values::F16(v) => v.iter().all(|x| x.is_finite()),
-            Values::F32(v) => v.iter().all(|x| x.is_finite()),
-        };
-        if !finite || !self.sh.iter().all(|x| x.is_finite()) {
+        if let Values::F32(v) = &self.values
+            && !v.iter().all(|x| x.is_finite())
+        {
             return Err("non-finite transport values".into());
+        }
+        if !self.sh.iter().all(|x| x.is_finite()) {
+            return Err("non-finite SH transport values".into());
+        }
+        if !self.row_weight.iter().flatten().all(|x| x.is_finite()) {
+            return Err("non-finite row weights".into());
+        }
+        if !self.row_scale.iter().all(|x| x.is_finite() && *x > 0.0) {
+            return Err("row scales must be finite and positive".into());
         }
         if self.albedo.len() != w * h
             || self.coverage.len() != w * h
@@ -495,6 +632,69 @@ impl Transport {
     }
 }
 
+/// The blocks of every tile and the rows of every block, from the tiles' row starts; checks that
+/// the starts begin at 0, never decrease and end at `rows`.
+fn block_tables(
+    tile_row_start: &[u32],
+    rows: usize,
+) -> std::result::Result<(Vec<u32>, Vec<u32>), String> {
+    if tile_row_start.first() != Some(&0) || *tile_row_start.last().unwrap_or(&0) as usize != rows {
+        return Err("tile_row_start does not span the rows".into());
+    }
+    if let Some(t) = tile_row_start.windows(2).position(|w| w[1] < w[0]) {
+        return Err(format!("tile {t}: row offsets decrease"));
+    }
+    let mut tile_blocks = Vec::with_capacity(tile_row_start.len());
+    let mut block_rows = vec![0u32];
+    tile_blocks.push(0u32);
+    for w in tile_row_start.windows(2) {
+        let mut start = w[0];
+        while start < w[1] {
+            start = (start + BLOCK_ROWS as u32).min(w[1]);
+            block_rows.push(start);
+        }
+        tile_blocks.push(block_rows.len() as u32 - 1);
+    }
+    Ok((tile_blocks, block_rows))
+}
+
+/// Column pointers and block entry starts from the file's per-(block, coefficient) counts;
+/// checks each count against its block's rows and the total against the entries.
+fn column_pointers(
+    counts: &[u16],
+    block_row_start: &[u32],
+    c: usize,
+    nnz: usize,
+) -> std::result::Result<(Vec<u32>, Vec<u64>), String> {
+    let blocks = block_row_start.len() - 1;
+    let mut col_ptr = Vec::with_capacity(blocks * (c + 1));
+    let mut starts = Vec::with_capacity(blocks + 1);
+    starts.push(0u64);
+    let mut total = 0u64;
+    for b in 0..blocks {
+        let rows = (block_row_start[b + 1] - block_row_start[b]) as u16;
+        let mut p = 0u32;
+        col_ptr.push(0);
+        for (j, &n) in counts[b * c..(b + 1) * c].iter().enumerate() {
+            if n > rows {
+                return Err(format!(
+                    "block {b}, coefficient {j}: {n} entries in a block of {rows} rows"
+                ));
+            }
+            p += n as u32;
+            col_ptr.push(p);
+        }
+        total += p as u64;
+        starts.push(total);
+    }
+    if total != nnz as u64 {
+        return Err(format!(
+            "column counts add up to {total} entries but the file stores {nnz}"
+        ));
+    }
+    Ok((col_ptr, starts))
+}
+
 /// One transport row before assembly: its pixel, RGB weight, sparse Haar entries (ascending by
 /// coefficient) and SH transport.
 #[derive(Clone, Debug, PartialEq)]
@@ -505,51 +705,77 @@ pub struct RowData {
     pub sh: Vec<f32>,
 }
 
-impl Transport {
-    /// Lays out rows given tile by tile (tiles in row-major order of the tile grid, each tile's
-    /// rows in the order they should keep) into the column-major tiled layout. Values are stored
-    /// as `meta.quantization` says. Per-pixel and per-coefficient tables are taken as given.
-    /// Checks the result, so a caller's mistake is an error, not a bad file.
-    pub fn assemble(
-        meta: TransportMeta,
-        tiles: Vec<Vec<RowData>>,
-        albedo: Vec<[f32; 3]>,
-        coverage: Vec<f32>,
-        tile_stats: Vec<[f64; 3]>,
-    ) -> Result<Transport> {
-        let c = 6 * (meta.cube_n as usize).pow(2);
-        let nnz: usize = tiles.iter().flatten().map(|r| r.entries.len()).sum();
-        let rows: usize = tiles.iter().map(|t| t.len()).sum();
-        let shc = (meta.sh_order as usize).pow(2);
-        let mut t = Transport {
-            tile_row_start: Vec::with_capacity(tiles.len() + 1),
-            row_pixel: Vec::with_capacity(rows),
-            row_weight: Vec::with_capacity(rows),
-            tile_entry_start: Vec::with_capacity(tiles.len() + 1),
-            col_ptr: Vec::with_capacity(tiles.len() * (c + 1)),
-            entry_row: vec![0; nnz],
-            values: Values::F32(Vec::new()),
-            sh: Vec::with_capacity(rows * shc),
-            albedo,
-            coverage,
-            transport_magnitude: vec![0.0; c],
-            tile_stats,
-            meta,
+/// One tile in the stored layout: its rows' pixels, weights and SH, and its blocks' counts,
+/// scale codes and entries. Bakes encode tiles in parallel; a merge copies them from shards.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EncodedTile {
+    pub row_pixel: Vec<u32>,
+    pub row_weight: Vec<[f32; 3]>,
+    pub row_scale: Vec<f32>,
+    pub sh: Vec<f32>,
+    /// `[blocks, C]` entry counts.
+    pub col_count: Vec<u16>,
+    /// `[blocks, C]` scale codes.
+    pub col_scale: Vec<u8>,
+    pub entry_row: Vec<u8>,
+    pub values: Values,
+    /// Squared error quantisation added (dropped values included).
+    pub quantization_energy: f64,
+}
+
+impl EncodedTile {
+    /// Lays out a tile's rows (in the order they should keep) in blocks and columns, quantising
+    /// each (block, coefficient) column against the smallest scale that holds its largest value.
+    /// Values that round to zero are dropped.
+    pub fn encode(rows: &[RowData], c: usize, shc: usize, q: Quantization) -> Result<Self> {
+        let mut tile = EncodedTile {
+            row_pixel: Vec::with_capacity(rows.len()),
+            row_weight: Vec::with_capacity(rows.len()),
+            row_scale: Vec::with_capacity(rows.len()),
+            sh: Vec::with_capacity(rows.len() * shc),
+            col_count: Vec::with_capacity(blocks_of(rows.len()) * c),
+            col_scale: Vec::with_capacity(blocks_of(rows.len()) * c),
+            entry_row: Vec::new(),
+            values: Values::empty(q),
+            quantization_energy: 0.0,
         };
-        let mut values = vec![0.0f32; nnz];
-        t.tile_row_start.push(0);
-        t.tile_entry_start.push(0);
-        let mut base = 0usize;
-        for tile in &tiles {
+        let q_max = q.q_max();
+        let mut ptr = vec![0u32; c + 1];
+        let mut col: Vec<(u8, f32)> = Vec::new();
+        for block in rows.chunks(BLOCK_ROWS) {
             // Counting sort by coefficient; rows are visited in order, so every column's rows
             // come out strictly increasing.
-            let mut ptr = vec![0u32; c + 1];
-            for row in tile {
-                for &(j, _) in &row.entries {
+            ptr.iter_mut().for_each(|p| *p = 0);
+            // Lossless rows keep scale 1, so their values stay bit-exact.
+            let row_scales: Vec<f32> = block
+                .iter()
+                .map(|row| {
+                    let m = row.entries.iter().fold(0.0f32, |m, e| m.max(e.1.abs()));
+                    if q == Quantization::F32 || !m.is_normal() {
+                        1.0
+                    } else {
+                        m
+                    }
+                })
+                .collect();
+            for row in block {
+                if row.sh.len() != shc {
+                    return Err(PrtError::invalid(
+                        "transport row",
+                        format!("{} SH values, expected {shc}", row.sh.len()),
+                    ));
+                }
+                for &(j, v) in &row.entries {
                     if j as usize >= c {
                         return Err(PrtError::invalid(
                             "transport row",
                             format!("coefficient {j} >= {c}"),
+                        ));
+                    }
+                    if !v.is_finite() {
+                        return Err(PrtError::invalid(
+                            "transport row",
+                            format!("non-finite value at coefficient {j}"),
                         ));
                     }
                     ptr[j as usize + 1] += 1;
@@ -558,51 +784,169 @@ impl Transport {
             for j in 0..c {
                 ptr[j + 1] += ptr[j];
             }
+            col.clear();
+            col.resize(ptr[c] as usize, (0, 0.0));
             let mut fill = ptr.clone();
-            for (r, row) in tile.iter().enumerate() {
+            for (r, row) in block.iter().enumerate() {
                 for &(j, v) in &row.entries {
-                    let e = base + fill[j as usize] as usize;
-                    t.entry_row[e] = r as u16;
-                    values[e] = v;
+                    col[fill[j as usize] as usize] = (r as u8, v / row_scales[r]);
                     fill[j as usize] += 1;
                 }
-                if row.sh.len() != shc {
-                    return Err(PrtError::invalid(
-                        "transport row",
-                        format!("{} SH values, expected {shc}", row.sh.len()),
-                    ));
-                }
-                t.row_pixel.push(row.pixel);
-                t.row_weight.push(row.weight);
-                t.sh.extend_from_slice(&row.sh);
             }
-            base += ptr[c] as usize;
-            t.col_ptr.extend_from_slice(&ptr);
-            t.tile_row_start.push(t.row_pixel.len() as u32);
-            t.tile_entry_start.push(base as u64);
+            for j in 0..c {
+                let entries = &col[ptr[j] as usize..ptr[j + 1] as usize];
+                let before = tile.entry_row.len();
+                if q == Quantization::F32 {
+                    tile.col_scale.push(UNIT_SCALE_CODE);
+                    for &(r, v) in entries.iter().filter(|(_, v)| *v != 0.0) {
+                        tile.entry_row.push(r);
+                        tile.values.push(v);
+                    }
+                } else {
+                    let max = entries.iter().fold(0.0f32, |m, e| m.max(e.1.abs()));
+                    let code = code_for(max, q_max).ok_or_else(|| {
+                        PrtError::invalid(
+                            "transport row",
+                            format!("coefficient {j}: {max} is too large to quantise"),
+                        )
+                    })?;
+                    let s = scale_of(code);
+                    tile.col_scale.push(code);
+                    for &(r, v) in entries {
+                        let k = quantize(v, s, q_max);
+                        let sr = row_scales[r as usize] as f64;
+                        tile.quantization_energy += ((v - k * s) as f64 * sr).powi(2);
+                        if k != 0.0 {
+                            tile.entry_row.push(r);
+                            tile.values.push(k);
+                        }
+                    }
+                }
+                tile.col_count.push((tile.entry_row.len() - before) as u16);
+            }
+            for (row, &sr) in block.iter().zip(&row_scales) {
+                tile.row_pixel.push(row.pixel);
+                tile.row_weight.push(row.weight);
+                tile.row_scale.push(sr);
+                tile.sh.extend_from_slice(&row.sh);
+            }
         }
-        t.values = match t.meta.quantization {
-            Quantization::F32 => Values::F32(values),
-            Quantization::F16 => Values::F16(values.iter().map(|&v| f16::from_f32(v)).collect()),
+        Ok(tile)
+    }
+}
+
+impl Transport {
+    /// Lays out rows given tile by tile (tiles in row-major order of the tile grid, each tile's
+    /// rows in the order they should keep) into the blocked column layout, quantised as
+    /// `meta.quantization` says. Per-pixel and per-coefficient tables are taken as given; the
+    /// energy quantisation drops is added to each tile's first statistic. Checks the result, so a
+    /// caller's mistake is an error, not a bad file.
+    pub fn assemble(
+        meta: TransportMeta,
+        tiles: Vec<Vec<RowData>>,
+        albedo: Vec<[f32; 3]>,
+        coverage: Vec<f32>,
+        mut tile_stats: Vec<[f64; 3]>,
+    ) -> Result<Transport> {
+        let c = 6 * (meta.cube_n as usize).pow(2);
+        let shc = (meta.sh_order as usize).pow(2);
+        let encoded = tiles
+            .iter()
+            .map(|rows| EncodedTile::encode(rows, c, shc, meta.quantization))
+            .collect::<Result<Vec<_>>>()?;
+        for (s, e) in tile_stats.iter_mut().zip(&encoded) {
+            s[0] += e.quantization_energy;
+        }
+        Self::assemble_encoded(meta, &encoded, albedo, coverage, tile_stats)
+    }
+
+    /// Joins encoded tiles (row-major over the tile grid) into a transport and derives its
+    /// statistics.
+    pub fn assemble_encoded(
+        meta: TransportMeta,
+        tiles: &[EncodedTile],
+        albedo: Vec<[f32; 3]>,
+        coverage: Vec<f32>,
+        tile_stats: Vec<[f64; 3]>,
+    ) -> Result<Transport> {
+        let c = 6 * (meta.cube_n as usize).pow(2);
+        let rows: usize = tiles.iter().map(|t| t.row_pixel.len()).sum();
+        let nnz: usize = tiles.iter().map(|t| t.entry_row.len()).sum();
+        let blocks: usize = tiles.iter().map(|t| t.col_count.len() / c.max(1)).sum();
+        let mut tile_row_start = Vec::with_capacity(tiles.len() + 1);
+        let mut row_pixel = Vec::with_capacity(rows);
+        let mut row_weight = Vec::with_capacity(rows);
+        let mut row_scale = Vec::with_capacity(rows);
+        let mut sh = Vec::new();
+        let mut counts = Vec::with_capacity(blocks * c);
+        let mut col_scale = Vec::with_capacity(blocks * c);
+        let mut entry_row = Vec::with_capacity(nnz);
+        let mut values = Values::empty(meta.quantization);
+        tile_row_start.push(0u32);
+        for t in tiles {
+            if t.values.quantization() != meta.quantization
+                || t.row_scale.len() != t.row_pixel.len()
+                || t.col_count.len() != blocks_of(t.row_pixel.len()) * c
+                || t.col_scale.len() != t.col_count.len()
+            {
+                return Err(PrtError::invalid(
+                    "transport tile",
+                    "its blocks do not match its rows or the quantisation",
+                ));
+            }
+            row_pixel.extend_from_slice(&t.row_pixel);
+            row_weight.extend_from_slice(&t.row_weight);
+            row_scale.extend_from_slice(&t.row_scale);
+            sh.extend_from_slice(&t.sh);
+            counts.extend_from_slice(&t.col_count);
+            col_scale.extend_from_slice(&t.col_scale);
+            entry_row.extend_from_slice(&t.entry_row);
+            values.extend_from(&t.values, 0..t.values.len());
+            tile_row_start.push(row_pixel.len() as u32);
+        }
+        let invalid = |m: String| PrtError::invalid("transport", m);
+        let (tile_block_start, block_row_start) =
+            block_tables(&tile_row_start, rows).map_err(invalid)?;
+        let (col_ptr, block_entry_start) =
+            column_pointers(&counts, &block_row_start, c, nnz).map_err(invalid)?;
+        let mut t = Transport {
+            meta,
+            tile_row_start,
+            row_pixel,
+            row_weight,
+            row_scale,
+            tile_block_start,
+            block_row_start,
+            block_entry_start,
+            col_ptr,
+            col_scale,
+            entry_row,
+            values,
+            sh,
+            albedo,
+            coverage,
+            transport_magnitude: vec![0.0; c],
+            tile_stats,
         };
-        t.validate()
-            .map_err(|m| PrtError::invalid("transport", m))?;
+        t.validate().map_err(invalid)?;
         t.finish();
         Ok(t)
     }
 
     /// Derives the per-coefficient transport magnitudes and the statistics from the tables, in
-    /// one fixed order (tile, coefficient, row), so a bake and a merge of its shards give the
+    /// one fixed order (block, coefficient, row), so a bake and a merge of its shards give the
     /// same bits.
     pub fn finish(&mut self) {
         let c = self.coeff_count();
         let mut magnitude = vec![0.0f64; c];
-        for tile in 0..self.tile_count() {
-            let r0 = self.tile_row_start[tile] as usize;
+        for b in 0..self.block_count() {
+            let r0 = self.block_row_start[b] as usize;
             for (j, m) in magnitude.iter_mut().enumerate() {
-                for e in self.column(tile, j) {
-                    let w = self.row_weight[r0 + self.entry_row[e] as usize];
-                    *m += self.values.get(e).abs() as f64 * crate::light::rgb_magnitude(w) as f64;
+                let s = self.scale(b, j) as f64;
+                for e in self.block_column(b, j) {
+                    let r = r0 + self.entry_row[e] as usize;
+                    *m += (self.values.raw(e).abs() as f64 * s * self.row_scale[r] as f64)
+                        * crate::light::rgb_magnitude(self.row_weight[r]) as f64;
                 }
             }
         }
@@ -626,8 +970,44 @@ impl Transport {
         };
     }
 
-    /// The rows of tile `tile` as [`RowData`], decoded from its columns.
-    fn tile_rows(&self, tile: usize) -> Vec<RowData> {
+    /// Tile `tile` in the stored layout, copied (for a merge).
+    fn encoded_tile(&self, tile: usize) -> EncodedTile {
+        let c = self.coeff_count();
+        let (r0, r1) = (
+            self.tile_row_start[tile] as usize,
+            self.tile_row_start[tile + 1] as usize,
+        );
+        let blocks = self.blocks(tile);
+        let (e0, e1) = (
+            self.block_entry_start[blocks.start] as usize,
+            self.block_entry_start[blocks.end] as usize,
+        );
+        let shc = self.sh_count();
+        let mut values = Values::empty(self.values.quantization());
+        values.extend_from(&self.values, e0..e1);
+        let counts: Vec<u16> = blocks
+            .clone()
+            .flat_map(|b| {
+                self.col_ptr[b * (c + 1)..(b + 1) * (c + 1)]
+                    .windows(2)
+                    .map(|w| (w[1] - w[0]) as u16)
+            })
+            .collect();
+        EncodedTile {
+            row_pixel: self.row_pixel[r0..r1].to_vec(),
+            row_weight: self.row_weight[r0..r1].to_vec(),
+            row_scale: self.row_scale[r0..r1].to_vec(),
+            sh: self.sh[r0 * shc..r1 * shc].to_vec(),
+            col_count: counts,
+            col_scale: self.col_scale[blocks.start * c..blocks.end * c].to_vec(),
+            entry_row: self.entry_row[e0..e1].to_vec(),
+            values,
+            quantization_energy: 0.0,
+        }
+    }
+
+    /// The rows of tile `tile` as [`RowData`] with decoded values (for tests and tools).
+    pub fn tile_rows(&self, tile: usize) -> Vec<RowData> {
         let (r0, r1) = (
             self.tile_row_start[tile] as usize,
             self.tile_row_start[tile + 1] as usize,
@@ -641,11 +1021,14 @@ impl Transport {
                 sh: self.sh[r * shc..(r + 1) * shc].to_vec(),
             })
             .collect();
-        for j in 0..self.coeff_count() {
-            for e in self.column(tile, j) {
-                rows[self.entry_row[e] as usize]
-                    .entries
-                    .push((j as u32, self.values.get(e)));
+        for b in self.blocks(tile) {
+            let local = self.block_row_start[b] as usize - r0;
+            for j in 0..self.coeff_count() {
+                for e in self.block_column(b, j) {
+                    rows[local + self.entry_row[e] as usize]
+                        .entries
+                        .push((j as u32, self.value(b, j, e)));
+                }
             }
         }
         rows
@@ -712,14 +1095,14 @@ impl Transport {
         for band in 0..ty {
             let s = &shards[owner[shard_of_band(band, ty, count as usize)]];
             for tile in band * tx..(band + 1) * tx {
-                tiles.push(s.tile_rows(tile));
+                tiles.push(s.encoded_tile(tile));
                 tile_stats.push(s.tile_stats[tile]);
             }
             let pixels = band * TILE * w..((band + 1) * TILE * w).min(w * h);
             albedo[pixels.clone()].copy_from_slice(&s.albedo[pixels.clone()]);
             coverage[pixels.clone()].copy_from_slice(&s.coverage[pixels]);
         }
-        Transport::assemble(same(&first.meta), tiles, albedo, coverage, tile_stats)
+        Transport::assemble_encoded(same(&first.meta), &tiles, albedo, coverage, tile_stats)
     }
 }
 
@@ -802,14 +1185,27 @@ fn read_header(path: &Path) -> Result<(TransportMeta, String)> {
         ));
     }
     let version = value.get("format_version").and_then(|v| v.as_u64());
-    if version != Some(FORMAT_VERSION as u64) {
-        return Err(PrtError::file(
-            path,
-            format!(
-                "format_version {}; this build reads version {FORMAT_VERSION}",
-                version.map(|v| v.to_string()).unwrap_or("?".into())
-            ),
-        ));
+    match version {
+        Some(v) if v == FORMAT_VERSION as u64 => {}
+        Some(v) if v < FORMAT_VERSION as u64 => {
+            return Err(PrtError::file(
+                path,
+                format!(
+                    "format_version {v} was written by an older build (16-bit float values); \
+                     this build reads version {FORMAT_VERSION}: bake the scene again with \
+                     `prt bake`"
+                ),
+            ));
+        }
+        _ => {
+            return Err(PrtError::file(
+                path,
+                format!(
+                    "format_version {}; this build reads version {FORMAT_VERSION}",
+                    version.map(|v| v.to_string()).unwrap_or("?".into())
+                ),
+            ));
+        }
     }
     let header: FileHeader = serde_json::from_value(value)
         .map_err(|e| PrtError::file(path, format!("metadata `meta`: {e}")))?;
@@ -863,16 +1259,17 @@ fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
 }
 
 /// Names of the tensors in a file, in the order the checksum covers them.
-const TENSOR_NAMES: [&str; 12] = [
+const TENSOR_NAMES: [&str; 13] = [
     "albedo",
-    "col_ptr",
+    "col_count",
+    "col_scale",
     "coverage",
     "entry_row",
     "entry_value",
     "row_pixel",
+    "row_scale",
     "row_weight",
     "sh",
-    "tile_entry_start",
     "tile_row_start",
     "tile_stats",
     "transport_magnitude",

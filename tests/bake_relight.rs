@@ -5,7 +5,7 @@
 use std::f64::consts::PI;
 mod common;
 
-use common::{SPHERE_ON_PLANE, assets, plane_from_above, scene_from, temp_dir};
+use common::{SPHERE_ON_PLANE, assets, plane_from_above, random_transport, scene_from, temp_dir};
 
 use glam::DVec3;
 use wavelet_prt::bake::{BakeSettings, bake};
@@ -21,9 +21,7 @@ use wavelet_prt::relight::{
 };
 use wavelet_prt::sampling::Rng;
 use wavelet_prt::sh;
-use wavelet_prt::transport::{
-    BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, tile_grid,
-};
+use wavelet_prt::transport::{Quantization, Transport};
 
 /// Float sums over a few thousand texels in a different order: the same value to ~1e-6.
 const SAME_SUM: f64 = 1e-5;
@@ -329,85 +327,15 @@ fn rotations_full_turn_and_sh_rotation() {
     );
 }
 
-/// A random transport with several rows per pixel, empty pixels and an image size that tiles do
-/// not divide.
-fn random_transport(
-    w: usize,
-    h: usize,
-    n: usize,
-    quantization: Quantization,
-    seed: u64,
-) -> Transport {
-    let mut rng = Rng::new(seed, 0);
-    let c = texel_count(n);
-    let (tx, ty) = tile_grid(w, h);
-    let mut tiles = Vec::new();
-    for t in 0..tx * ty {
-        let mut rows = Vec::new();
-        for y in (t / tx) * TILE..((t / tx + 1) * TILE).min(h) {
-            for x in (t % tx) * TILE..((t % tx + 1) * TILE).min(w) {
-                let count = (rng.next_u64() % 3) as usize; // 0, 1 or 2 rows
-                for _ in 0..count {
-                    let mut entries = Vec::new();
-                    for j in 0..c {
-                        if rng.next_f32() < 0.1 {
-                            entries.push((j as u32, rng.next_f32() * 2.0 - 1.0));
-                        }
-                    }
-                    rows.push(RowData {
-                        pixel: (y * w + x) as u32,
-                        weight: [rng.next_f32(), rng.next_f32(), rng.next_f32()],
-                        entries,
-                        sh: vec![rng.next_f32(); 4],
-                    });
-                }
-            }
-        }
-        tiles.push(rows);
-    }
-    let meta = TransportMeta {
-        width: w as u32,
-        height: h as u32,
-        tile: TILE as u32,
-        cube_n: n as u32,
-        sh_order: 2,
-        scene_hash: "0".into(),
-        scene_path: "random".into(),
-        camera: CameraMeta {
-            eye: [0.0; 3],
-            target: [0.0, 0.0, -1.0],
-            up: [0.0, 1.0, 0.0],
-            fov_y_deg: 40.0,
-        },
-        spp: 1,
-        texel_samples: 1,
-        unshadowed: false,
-        seed,
-        threshold: 0.0,
-        quantization,
-        shard: None,
-        bounces: 0,
-        paths: 0,
-        stats: BakeStats::default(),
-    };
-    Transport::assemble(
-        meta,
-        tiles,
-        vec![[0.5; 3]; w * h],
-        vec![1.0; w * h],
-        vec![[0.0; 3]; tx * ty],
-    )
-    .unwrap()
-}
-
 #[test]
 fn tiled_kernel_equals_the_dense_and_sprs_twins() {
     for (w, h, n, q) in [
         (37, 21, 4, Quantization::F32),
-        (16, 16, 2, Quantization::F16),
-        (1, 45, 4, Quantization::F16),
+        (16, 16, 2, Quantization::Q8),
+        (1, 45, 4, Quantization::Q16),
+        (33, 17, 4, Quantization::Q8),
     ] {
-        let t = random_transport(w, h, n, q, (w * h) as u64);
+        let t = random_transport(w, h, n, q, (w * h) as u64, 1.0);
         let c = texel_count(n);
         let mut rng = Rng::new(9, 1);
         for k in [1, 7, c] {
@@ -443,11 +371,11 @@ fn sprs_product(t: &Transport, light: &SparseLight) -> Image {
     let c = t.coeff_count();
     let rows = t.row_pixel.len();
     let mut tri = sprs::TriMat::new((rows, c));
-    for tile in 0..t.tile_count() {
-        let r0 = t.tile_row_start[tile] as usize;
+    for b in 0..t.block_count() {
+        let r0 = t.block_row_start[b] as usize;
         for j in 0..c {
-            for e in t.column(tile, j) {
-                tri.add_triplet(r0 + t.entry_row[e] as usize, j, t.values.get(e) as f64);
+            for e in t.block_column(b, j) {
+                tri.add_triplet(r0 + t.entry_row[e] as usize, j, t.value(b, j, e) as f64);
             }
         }
     }
@@ -480,7 +408,7 @@ fn sparse_vector(l: &[f64]) -> sprs::CsVec<f64> {
 #[test]
 fn file_round_trip_and_corruption() {
     let dir = temp_dir("file");
-    let t = random_transport(20, 18, 4, Quantization::F16, 5);
+    let t = random_transport(20, 18, 4, Quantization::Q8, 5, 1.0);
     let p = dir.join("t.prt");
     t.save(&p).unwrap();
     let back = Transport::load(&p).unwrap();
@@ -556,7 +484,7 @@ fn bad_relight_requests_are_clear_errors() {
     let e = "heavy".parse::<Weighting>().unwrap_err().to_string();
     assert!(e.contains("heavy"), "{e}");
     // A light prepared for another cube size does not fit this transport.
-    let other = random_transport(8, 8, 8, Quantization::F32, 1);
+    let other = random_transport(8, 8, 8, Quantization::F32, 1, 1.0);
     let other_ctx = LightContext::new(&other).unwrap();
     let other_light = other_ctx.prepare(&env, EnvRotation::default()).unwrap();
     let e = relight(&t, &ctx, &other_light, &base)
@@ -588,7 +516,7 @@ fn thresholded_bake_is_sparser_and_close_to_lossless() {
         sparse.entry_row.len(),
         exact.entry_row.len()
     );
-    assert_eq!(sparse.meta.quantization, Quantization::F16);
+    assert_eq!(sparse.meta.quantization, Quantization::Q8);
     let cube = CubeMap::constant(8, [1.0; 3]).unwrap();
     let (a, _) = relight_wavelet(&exact, &full_light(&cube)).unwrap();
     let (b, _) = relight_wavelet(&sparse, &full_light(&cube)).unwrap();

@@ -208,8 +208,9 @@ fn compression_curve_trades_size_for_error() {
         compression_sweep(&scene, &base, &[0.0, 0.05, 0.3], &envs, &mut |_| lines += 1).unwrap();
     assert_eq!(curve.len(), 3);
     assert_eq!(lines, 4);
-    // No thresholding: only f16 rounding (relative 2^-11 per value).
-    assert!(curve[0].rel_l2 < 2e-3, "{:?}", curve[0]);
+    // No thresholding: only 8-bit quantisation, at most half a step (1/254 of a column's largest
+    // value after the row scale) per value; under a sun a pixel sees a few columns, about 0.4%.
+    assert!(curve[0].rel_l2 < 5e-3, "{:?}", curve[0]);
     // Higher thresholds keep fewer coefficients and cost more error.
     assert!(curve[2].kept_fraction < curve[1].kept_fraction);
     assert!(curve[1].kept_fraction < curve[0].kept_fraction);

@@ -1,5 +1,5 @@
 //! The GPU kernels against the CPU kernels: wavelet relighting at several K with every
-//! weighting, SH at several orders, f16 and f32 transports, an image size tiles do not divide,
+//! weighting, SH at several orders, q8, q16 and f32 transports, an image size tiles do not divide,
 //! pixels with several rows, a binding limit lowered so the transport is split into chunks, and
 //! accumulators in device memory as well as workgroup memory.
 //!
@@ -32,9 +32,14 @@ fn bakes() -> Vec<Transport> {
         lossless: true,
         ..base.clone()
     };
+    let q16 = BakeSettings {
+        quantization: wavelet_prt::quant::Quantization::Q16,
+        ..base.clone()
+    };
     vec![
         bake(&scene, &lossless, &|_| {}).unwrap(),
         bake(&scene, &base, &|_| {}).unwrap(),
+        bake(&scene, &q16, &|_| {}).unwrap(),
     ]
 }
 
@@ -91,7 +96,13 @@ fn gpu_equals_cpu_when_split_across_bindings() {
     };
     for t in bakes() {
         // Small enough that the entries of a few tiles fill a binding.
-        let limit = (t.entry_row.len() as u64 * 8 / 3).max(t.row_pixel.len() as u64 * 16);
+        let device_bytes = match t.meta.quantization {
+            wavelet_prt::quant::Quantization::Q8 => 2,
+            wavelet_prt::quant::Quantization::Q16 => 4,
+            wavelet_prt::quant::Quantization::F32 => 8,
+        };
+        let limit =
+            (t.entry_row.len() as u64 * device_bytes / 3).max(t.row_pixel.len() as u64 * 16);
         // Also with every tile accumulating in device memory rather than workgroup memory.
         let chunks = check(&gpu, &t, Some(limit), Some(0));
         assert!(

@@ -43,6 +43,7 @@ fn merge_of_three_shards_is_byte_identical_to_one_bake() {
     assert!(a == b, "merged file differs from the single bake");
     // Shard files round-trip through disk too.
     shards[0].save(&dir.join("s.prt")).unwrap();
+    // (The header's floats round-trip exactly: the statistics are compared too.)
     assert_eq!(Transport::load(&dir.join("s.prt")).unwrap(), shards[0]);
 }
 

@@ -6,7 +6,12 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::cubemap::texel_count;
+use wavelet_prt::sampling::Rng;
 use wavelet_prt::scene::Scene;
+use wavelet_prt::transport::{
+    BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, tile_grid,
+};
 
 /// A fresh directory under the system temp dir, unique to this process and `name`.
 pub fn temp_dir(name: &str) -> PathBuf {
@@ -182,4 +187,78 @@ radii = [0.7, 0.5, 0.6]
 falloff = 0.3
 "#
     )
+}
+
+/// A random transport with several rows per pixel, empty pixels and an image size that tiles do
+/// not divide; values are uniform in ±`scale`.
+pub fn random_transport(
+    w: usize,
+    h: usize,
+    n: usize,
+    quantization: Quantization,
+    seed: u64,
+    scale: f32,
+) -> Transport {
+    let mut rng = Rng::new(seed, 0);
+    let c = texel_count(n);
+    let (tx, ty) = tile_grid(w, h);
+    let mut tiles = Vec::new();
+    for t in 0..tx * ty {
+        let mut rows = Vec::new();
+        for y in (t / tx) * TILE..((t / tx + 1) * TILE).min(h) {
+            for x in (t % tx) * TILE..((t % tx + 1) * TILE).min(w) {
+                // 0 to 3 rows: tiles of up to 768 rows, so up to three blocks of 256.
+                let count = (rng.next_u64() % 4) as usize;
+                for _ in 0..count {
+                    let mut entries = Vec::new();
+                    for j in 0..c {
+                        if rng.next_f32() < 0.1 {
+                            entries.push((j as u32, (rng.next_f32() * 2.0 - 1.0) * scale));
+                        }
+                    }
+                    rows.push(RowData {
+                        pixel: (y * w + x) as u32,
+                        weight: [rng.next_f32(), rng.next_f32(), rng.next_f32()],
+                        entries,
+                        sh: vec![rng.next_f32(); 4],
+                    });
+                }
+            }
+        }
+        tiles.push(rows);
+    }
+    let meta = TransportMeta {
+        width: w as u32,
+        height: h as u32,
+        tile: TILE as u32,
+        cube_n: n as u32,
+        sh_order: 2,
+        scene_hash: "0".into(),
+        scene_path: "random".into(),
+        camera: CameraMeta {
+            eye: [0.0; 3],
+            target: [0.0, 0.0, -1.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y_deg: 40.0,
+        },
+        spp: 1,
+        texel_samples: 1,
+        unshadowed: false,
+        seed,
+        threshold: 0.0,
+        budget: Default::default(),
+        quantization,
+        shard: None,
+        bounces: 0,
+        paths: 0,
+        stats: BakeStats::default(),
+    };
+    Transport::assemble(
+        meta,
+        tiles,
+        vec![[0.5; 3]; w * h],
+        vec![1.0; w * h],
+        vec![[0.0; 3]; tx * ty],
+    )
+    .unwrap()
 }

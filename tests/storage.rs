@@ -1,0 +1,230 @@
+//! The stored transport values: quantisation round trips within the documented bound on a real
+//! bake, no stored value is subnormal, files of the previous format are refused with a message
+//! that says to bake again, and the GPU kernel decodes every format as the CPU does, including
+//! values the 16-bit-float format stored as subnormals.
+
+mod common;
+
+use common::{random_transport, scene_from, temp_dir};
+use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::light::SparseLight;
+use wavelet_prt::metrics::relative_l2;
+use wavelet_prt::quant::Quantization;
+use wavelet_prt::relight::{relight_dense_reference, relight_wavelet};
+use wavelet_prt::sampling::Rng;
+use wavelet_prt::transport::Transport;
+
+/// A glossy sphere beside a diffuse one on the ground, with two materials seen by some pixels'
+/// sub-samples: tiles with more than 256 rows (several blocks) and rows of very different size.
+const GLOSSY: &str = r#"
+[camera]
+eye = [0.0, 1.5, 4.0]
+target = [0.0, 0.5, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 40.0
+width = 40
+height = 36
+
+[material.ground]
+type = "diffuse"
+albedo = [0.8, 0.8, 0.8]
+
+[material.shiny]
+type = "glossy"
+albedo = [0.1, 0.15, 0.3]
+specular = [0.85, 0.8, 0.65]
+roughness = 0.15
+
+[[shape]]
+type = "quad"
+corners = [[-3.0, 0.0, -3.0], [-3.0, 0.0, 3.0], [3.0, 0.0, 3.0], [3.0, 0.0, -3.0]]
+material = "ground"
+
+[[shape]]
+type = "sphere"
+center = [-0.5, 0.6, 0.0]
+radius = 0.6
+material = "shiny"
+
+[[shape]]
+type = "sphere"
+center = [0.8, 0.4, 0.5]
+radius = 0.4
+material = "ground"
+"#;
+
+fn settings(quantization: Quantization, lossless: bool, threshold: f32) -> BakeSettings {
+    BakeSettings {
+        cube_n: 8,
+        sh_order: 2,
+        spp: 4,
+        threshold,
+        quantization,
+        lossless,
+        ..BakeSettings::default()
+    }
+}
+
+/// Every value of a bake, decoded, by (row, coefficient).
+fn decoded(t: &Transport) -> std::collections::HashMap<(usize, usize), f32> {
+    let mut out = std::collections::HashMap::new();
+    for b in 0..t.block_count() {
+        for j in 0..t.coeff_count() {
+            for e in t.block_column(b, j) {
+                let row = t.block_row_start[b] as usize + t.entry_row[e] as usize;
+                out.insert((row, j), t.value(b, j, e));
+            }
+        }
+    }
+    out
+}
+
+/// With no thresholding, every quantised value is within half a step of the lossless one: the
+/// step is the column's scale times the row's scale (`quant`'s documented bound), and values
+/// that round to zero are dropped only when they are below half a step.
+#[test]
+fn quantised_values_round_trip_within_half_a_step() {
+    let scene = scene_from(GLOSSY, "storage-round-trip");
+    let exact = bake(&scene, &settings(Quantization::Q8, true, 0.0), &|_| {}).unwrap();
+    assert!(
+        exact.block_count() > exact.tile_count(),
+        "the scene should give tiles of several blocks"
+    );
+    let want = decoded(&exact);
+    for q in [Quantization::Q8, Quantization::Q16] {
+        let t = bake(&scene, &settings(q, false, 0.0), &|_| {}).unwrap();
+        assert_eq!(t.row_pixel, exact.row_pixel, "rows in the same order");
+        let got = decoded(&t);
+        let mut checked = 0;
+        for b in 0..t.block_count() {
+            let r0 = t.block_row_start[b] as usize;
+            for r in r0..t.block_row_start[b + 1] as usize {
+                for j in 0..t.coeff_count() {
+                    let step = t.scale(b, j) * t.row_scale[r];
+                    let v = want.get(&(r, j)).copied().unwrap_or(0.0);
+                    let g = got.get(&(r, j)).copied().unwrap_or(0.0);
+                    // Half a step, and the f32 rounding of the decode.
+                    let bound = 0.5 * step + 1e-6 * v.abs();
+                    assert!(
+                        (g - v).abs() <= bound,
+                        "{q} row {r} coefficient {j}: {g} for {v}, half step {}",
+                        0.5 * step
+                    );
+                    checked += (v != 0.0) as usize;
+                }
+            }
+        }
+        assert!(checked > 10_000, "only {checked} values checked");
+    }
+}
+
+/// No stored value is a subnormal float: integers against normal scales, and normal row scales.
+#[test]
+fn no_stored_value_is_subnormal() {
+    let scene = scene_from(GLOSSY, "storage-subnormal");
+    for q in [Quantization::Q8, Quantization::Q16] {
+        // At N = 32, as the demo bakes, most values are below f16's normal range.
+        let s = BakeSettings {
+            cube_n: 32,
+            spp: 1,
+            ..settings(q, false, 0.01)
+        };
+        let t = bake(&scene, &s, &|_| {}).unwrap();
+        assert!(t.row_scale.iter().all(|s| s.is_normal()));
+        let scales_used: std::collections::HashSet<u8> = t.col_scale.iter().copied().collect();
+        assert!(
+            scales_used
+                .iter()
+                .all(|&c| wavelet_prt::quant::scale_of(c).is_normal())
+        );
+        let mut smallest = f32::MAX;
+        for (_, v) in decoded(&t) {
+            assert!(v != 0.0, "a stored zero");
+            assert!(v.is_normal(), "{q}: decoded value {v} is subnormal");
+            smallest = smallest.min(v.abs());
+        }
+        // The bake holds values an f16 could only store as subnormals (below 6.1e-5).
+        assert!(smallest < 6.1e-5, "{q}: smallest value {smallest}");
+    }
+}
+
+/// A file written in format version 2 (16-bit floats) is refused with a message that says to
+/// bake again.
+#[test]
+fn old_format_files_are_refused_with_a_clear_message() {
+    let dir = temp_dir("storage-old");
+    let t = random_transport(20, 18, 2, Quantization::Q8, 3, 1.0);
+    let p = dir.join("t.prt");
+    t.save(&p).unwrap();
+    let bytes = std::fs::read(&p).unwrap();
+    let key = b"format_version\\\":3";
+    let at = bytes
+        .windows(key.len())
+        .position(|w| w == key)
+        .expect("the header names its version");
+    let mut old = bytes.clone();
+    old[at + key.len() - 1] = b'2';
+    let q = dir.join("old.prt");
+    std::fs::write(&q, &old).unwrap();
+    let e = Transport::load(&q).unwrap_err().to_string();
+    assert!(
+        e.contains("old.prt") && e.contains("version 2") && e.contains("bake the scene again"),
+        "{e}"
+    );
+}
+
+/// The tiled kernel equals its dense twin on every format, for rows spanning several blocks.
+#[test]
+fn kernel_equals_dense_twin_for_every_format() {
+    for q in [Quantization::Q8, Quantization::Q16, Quantization::F32] {
+        let t = random_transport(37, 29, 4, q, 11, 1e-5);
+        assert!(t.block_count() > t.tile_count());
+        let c = t.coeff_count();
+        let mut rng = Rng::new(5, 0);
+        let light = SparseLight {
+            indices: (0..c as u32).collect(),
+            values: (0..c)
+                .map(|_| [rng.next_f32(), rng.next_f32(), 1.0])
+                .collect(),
+        };
+        let (fast, _) = relight_wavelet(&t, &light).unwrap();
+        let dense = relight_dense_reference(&t, &light);
+        let e = relative_l2(&fast, &dense, None).unwrap();
+        assert!(e < 1e-5, "{q}: tiled vs dense {e}");
+    }
+}
+
+/// GPU and CPU agree (1e-4) on every format, on values from 1e-7 to 1e-5: in the old format
+/// these were f16 subnormals, which a GPU may flush to zero when unpacking.
+#[test]
+fn gpu_decodes_every_format_like_the_cpu() {
+    let Some(gpu) = common::gpu_or_skip("gpu_decodes_every_format_like_the_cpu") else {
+        return;
+    };
+    for q in [Quantization::Q8, Quantization::Q16, Quantization::F32] {
+        let t = random_transport(37, 29, 4, q, 13, 1e-5);
+        let c = t.coeff_count();
+        let g = wavelet_prt::gpu::GpuTransport::upload(&gpu, &t, None).unwrap();
+        let mut rng = Rng::new(6, 0);
+        for k in [3, 40, c] {
+            let mut indices: Vec<u32> = (0..c as u32).collect();
+            for i in (1..indices.len()).rev() {
+                indices.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
+            }
+            indices.truncate(k);
+            let light = SparseLight {
+                values: indices
+                    .iter()
+                    .map(|_| [rng.next_f32(), 2.0 * rng.next_f32(), 1.0])
+                    .collect(),
+                indices,
+            };
+            let (cpu, _) = relight_wavelet(&t, &light).unwrap();
+            let (dev, _) = g.relight_wavelet(&gpu, &light).unwrap();
+            let norm: f64 = cpu.pixels.iter().flatten().map(|v| (*v as f64).abs()).sum();
+            assert!(norm > 0.0, "{q} K = {k}: the CPU image is black");
+            let e = relative_l2(&dev, &cpu, None).unwrap();
+            assert!(e < 1e-4, "{q} K = {k}: GPU vs CPU {e}");
+        }
+    }
+}
