@@ -289,11 +289,12 @@ impl Transport {
         self.entry_row.len() * (1 + self.values.value_bytes())
             + self.block_count() * self.coeff_count() * 3
     }
-    /// The per-column entry counts of the file, derived from the column pointers.
-    fn col_counts(&self) -> Vec<u16> {
+    /// The per-column entry counts of `blocks`, as the file stores them, derived from the column
+    /// pointers.
+    fn col_counts(&self, blocks: Range<usize>) -> Vec<u16> {
         let c = self.coeff_count();
-        let mut counts = Vec::with_capacity(self.block_count() * c);
-        for b in 0..self.block_count() {
+        let mut counts = Vec::with_capacity(blocks.len() * c);
+        for b in blocks {
             let ptr = &self.col_ptr[b * (c + 1)..(b + 1) * (c + 1)];
             counts.extend(ptr.windows(2).map(|w| (w[1] - w[0]) as u16));
         }
@@ -308,7 +309,7 @@ impl Transport {
         let r = self.row_pixel.len();
         let b = self.block_count();
         let nnz = self.entry_row.len();
-        let counts = self.col_counts();
+        let counts = self.col_counts(0..self.block_count());
         let mut tensors: Vec<(&str, Tensor)> = vec![
             (
                 "tile_row_start",
@@ -985,14 +986,7 @@ impl Transport {
         let shc = self.sh_count();
         let mut values = Values::empty(self.values.quantization());
         values.extend_from(&self.values, e0..e1);
-        let counts: Vec<u16> = blocks
-            .clone()
-            .flat_map(|b| {
-                self.col_ptr[b * (c + 1)..(b + 1) * (c + 1)]
-                    .windows(2)
-                    .map(|w| (w[1] - w[0]) as u16)
-            })
-            .collect();
+        let counts = self.col_counts(blocks.clone());
         EncodedTile {
             row_pixel: self.row_pixel[r0..r1].to_vec(),
             row_weight: self.row_weight[r0..r1].to_vec(),
