@@ -217,13 +217,50 @@ impl Splatter {
     }
 }
 
+/// Checks that `len` pixels make a non-empty `width` x `height` lat-long map.
+pub(crate) fn check_latlong(width: usize, height: usize, len: usize) -> Result<()> {
+    if width == 0 || height == 0 || width.checked_mul(height) != Some(len) {
+        return Err(PrtError::invalid(
+            "environment map",
+            format!(
+                "{width} x {height} needs {} pixels, got {len}",
+                width.saturating_mul(height)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The two sizes that steer the splat of a map with `height` rows into a cube of face size `n`:
+/// (`texel_min`, `finest`) of [`Splatter`]. Shared with the recorded splat of
+/// [`crate::resample`], so both cut cells alike.
+pub(crate) fn splat_limits(n: usize, height: usize) -> (f64, f64) {
+    // A face-corner texel spans about a third of the angle of a face-centre one (2/N).
+    let texel_min = 2.0 / (3.0 * n as f64);
+    // Cells larger than texels are cut just finely enough that every texel gets pieces (their
+    // radiance is one value, so the normalisation below makes the split exact inside a cell);
+    // finer maps are cut finer along texel borders, where neighbouring cells differ.
+    let cell = std::f64::consts::PI / height as f64;
+    let finest = if cell > texel_min {
+        texel_min / 4.0
+    } else {
+        texel_min / 16.0
+    };
+    (texel_min, finest)
+}
+
 /// Resamples a lat-long radiance map (`width` x `height`, rows from the zenith) into a cube map of
-/// texel-average radiance, with the environment turned by `world_from_map` (a rotation).
+/// texel-average radiance, with the environment turned by `world_from_map` (any rotation).
 ///
 /// Each lat-long cell's power (radiance x exact cell solid angle) is split over the texels it
 /// overlaps (see [`Splatter`]); a texel's radiance is its power over the solid angle it received.
 /// A constant map gives a constant cube and the total power is kept to rounding error.
-pub fn resample_latlong(
+///
+/// This is the direct splat, cell by cell, with trigonometry at every cut: the slow twin of
+/// [`crate::resample`], which records the same split once per (map size, N, pitch) and reuses
+/// it. [`crate::envmap::EnvMap::to_cube`] takes the fast path; this one stays as its reference
+/// and for rotations that are not a yaw followed by a pitch.
+pub fn resample_latlong_exact(
     width: usize,
     height: usize,
     pixels: &[[f32; 3]],
@@ -231,30 +268,12 @@ pub fn resample_latlong(
     world_from_map: DMat3,
 ) -> Result<CubeMap> {
     validate_n(n)?;
-    if width == 0 || height == 0 || pixels.len() != width * height {
-        return Err(PrtError::invalid(
-            "environment map",
-            format!(
-                "{width} x {height} needs {} pixels, got {}",
-                width * height,
-                pixels.len()
-            ),
-        ));
-    }
-    // A face-corner texel spans about a third of the angle of a face-centre one (2/N).
-    let texel_min = 2.0 / (3.0 * n as f64);
-    // Cells larger than texels are cut just finely enough that every texel gets pieces (their
-    // radiance is one value, so the normalisation below makes the split exact inside a cell);
-    // finer maps are cut finer along texel borders, where neighbouring cells differ.
-    let cell = std::f64::consts::PI / height as f64;
+    check_latlong(width, height, pixels.len())?;
+    let (texel_min, finest) = splat_limits(n, height);
     let splatter = Splatter {
         n,
         world_from_map,
-        finest: if cell > texel_min {
-            texel_min / 4.0
-        } else {
-            texel_min / 16.0
-        },
+        finest,
         texel_min,
     };
     let count = texel_count(n);

@@ -11,7 +11,7 @@ use std::path::Path;
 
 use glam::{DMat3, DVec3};
 
-use crate::cubemap::{CubeMap, resample_latlong};
+use crate::cubemap::{CubeMap, resample_latlong_exact};
 use crate::error::{PrtError, Result};
 
 /// Largest accepted lat-long map, checked from the header before any pixel is allocated.
@@ -211,7 +211,7 @@ impl EnvMap {
 
     /// The cube map of texel-average radiance at face size `n`, environment turned by `rotation`.
     pub fn to_cube(&self, n: usize, rotation: EnvRotation) -> Result<CubeMap> {
-        resample_latlong(
+        resample_latlong_exact(
             self.width,
             self.height,
             &self.pixels,
