@@ -210,7 +210,15 @@ impl EnvMap {
     }
 
     /// The cube map of texel-average radiance at face size `n`, environment turned by `rotation`.
+    /// Takes the fast path of [`crate::resample`]: the split of cells over texels is cached per
+    /// (map size, N, pitch) and the yaw shifts the map, so turning and switching maps is cheap.
     pub fn to_cube(&self, n: usize, rotation: EnvRotation) -> Result<CubeMap> {
+        crate::resample::resample_latlong(self.width, self.height, &self.pixels, n, rotation)
+    }
+
+    /// [`EnvMap::to_cube`] by the direct exact splat, cell by cell under the full rotation: the
+    /// slow twin, for tests and comparisons.
+    pub fn to_cube_exact(&self, n: usize, rotation: EnvRotation) -> Result<CubeMap> {
         resample_latlong_exact(
             self.width,
             self.height,

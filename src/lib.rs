@@ -37,6 +37,7 @@ pub mod plot;
 pub mod quant;
 pub mod reference;
 pub mod relight;
+pub mod resample;
 pub mod sampling;
 pub mod scene;
 pub mod sh;
