@@ -6,6 +6,8 @@
 
 use std::str::FromStr;
 
+use rayon::prelude::*;
+
 use crate::cubemap::{CubeMap, solid_angles, texel_count, texel_dirs};
 use crate::error::{PrtError, Result};
 use crate::haar;
@@ -185,6 +187,8 @@ pub struct TexelShBasis {
     pub n: usize,
     /// Texel-major values.
     pub values: Vec<f32>,
+    /// Exact texel solid angles, kept so projecting a light does not recompute them.
+    pub omega: Vec<f64>,
 }
 
 impl TexelShBasis {
@@ -201,7 +205,12 @@ impl TexelShBasis {
                 *o = *v as f32;
             }
         }
-        Ok(TexelShBasis { order, n, values })
+        Ok(TexelShBasis {
+            order,
+            n,
+            values,
+            omega: solid_angles(n),
+        })
     }
 
     /// SH light vector of a cube map, `L_i = Σ_j L_j Ω_j Y_i(d_j)`.
@@ -216,21 +225,46 @@ impl TexelShBasis {
             ));
         }
         let count = self.order * self.order;
-        let omega = solid_angles(self.n);
-        let mut out = vec![[0.0f64; 3]; count];
-        for (j, l) in cube.texels.iter().enumerate() {
-            if *l == [0.0; 3] {
-                continue;
-            }
-            let row = &self.values[j * count..(j + 1) * count];
-            for (o, y) in out.iter_mut().zip(row) {
-                let w = *y as f64 * omega[j];
-                for c in 0..3 {
-                    o[c] += l[c] as f64 * w;
-                }
-            }
-        }
-        Ok(out)
+        // One accumulator per channel, so the loop over coefficients is a plain multiply-add
+        // over contiguous values; texels are split across threads in chunks.
+        const CHUNK: usize = 1024;
+        let sums = cube
+            .texels
+            .par_chunks(CHUNK)
+            .enumerate()
+            .fold(
+                || vec![0.0f64; 3 * count],
+                |mut acc, (chunk, texels)| {
+                    let (r, rest) = acc.split_at_mut(count);
+                    let (g, b) = rest.split_at_mut(count);
+                    for (i, l) in texels.iter().enumerate() {
+                        if *l == [0.0; 3] {
+                            continue;
+                        }
+                        let j = chunk * CHUNK + i;
+                        let w = self.omega[j];
+                        let (lr, lg, lb) = (l[0] as f64 * w, l[1] as f64 * w, l[2] as f64 * w);
+                        let row = &self.values[j * count..(j + 1) * count];
+                        for (((y, r), g), b) in row.iter().zip(&mut *r).zip(&mut *g).zip(&mut *b) {
+                            let y = *y as f64;
+                            *r += lr * y;
+                            *g += lg * y;
+                            *b += lb * y;
+                        }
+                    }
+                    acc
+                },
+            )
+            .reduce(
+                || vec![0.0f64; 3 * count],
+                |mut a, b| {
+                    a.iter_mut().zip(&b).for_each(|(a, b)| *a += b);
+                    a
+                },
+            );
+        Ok((0..count)
+            .map(|i| [sums[i], sums[count + i], sums[2 * count + i]])
+            .collect())
     }
 
     /// SH transport of one row of texel transport `t` (already containing solid angles):
@@ -260,6 +294,49 @@ mod tests {
         assert_eq!(select_top_k(&p, 2), vec![1, 2]);
         assert_eq!(select_top_k(&p, 4), vec![1, 2, 4, 5]);
         assert_eq!(select_top_k(&p, 6), vec![0, 1, 2, 3, 4, 5]);
+    }
+
+    #[test]
+    fn light_projection_is_the_plain_sum() {
+        // L_i = Σ_j L_j Ω_j Y_i(d_j), written out serially against the chunked, per-channel
+        // projection: only the order of f64 sums differs.
+        const SUM_ORDER_REL: f64 = 1e-12;
+        let n = 16;
+        let texels: Vec<[f32; 3]> = (0..texel_count(n))
+            .map(|j| {
+                let a = ((j * 7919) % 1000) as f32 / 100.0;
+                if j % 5 == 0 {
+                    [0.0; 3]
+                } else {
+                    [a, 0.5 * a, 2.0]
+                }
+            })
+            .collect();
+        let cube = CubeMap { n, texels };
+        let basis = TexelShBasis::new(n, 6).unwrap();
+        let got = basis.project_light(&cube).unwrap();
+        let omega = solid_angles(n);
+        let mut y = vec![0.0f64; 36];
+        let mut want = vec![[0.0f64; 3]; 36];
+        for (j, d) in texel_dirs(n).into_iter().enumerate() {
+            crate::sh::eval(6, d, &mut y);
+            for (i, w) in want.iter_mut().enumerate() {
+                for c in 0..3 {
+                    w[c] += cube.texels[j][c] as f64 * omega[j] * (y[i] as f32) as f64;
+                }
+            }
+        }
+        let scale = want[0][0].abs();
+        for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+            for c in 0..3 {
+                assert!(
+                    (g[c] - w[c]).abs() <= SUM_ORDER_REL * scale,
+                    "coefficient {i}, channel {c}: {} vs {}",
+                    g[c],
+                    w[c]
+                );
+            }
+        }
     }
 
     #[test]
