@@ -93,12 +93,18 @@ pub struct LightContext {
 impl LightContext {
     /// For a transport.
     pub fn new(t: &Transport) -> Result<Self> {
-        let n = t.meta.cube_n as usize;
+        Self::with_sizes(t.meta.cube_n as usize, t.meta.sh_order as usize)
+    }
+
+    /// For a cube of face size `n` and SH order `sh_order`, without a transport (benchmarks,
+    /// tools that only prepare lights).
+    pub fn with_sizes(n: usize, sh_order: usize) -> Result<Self> {
+        crate::cubemap::validate_n(n)?;
         Ok(LightContext {
             n,
-            sh_order: t.meta.sh_order as usize,
+            sh_order,
             support_area: support_solid_angles(n).iter().map(|&a| a as f32).collect(),
-            basis: TexelShBasis::new(n, t.meta.sh_order as usize)?,
+            basis: TexelShBasis::new(n, sh_order)?,
         })
     }
 

@@ -1,0 +1,111 @@
+//! Criterion benchmarks of light preparation (environment -> cube map -> Haar, and the SH light)
+//! on blender_sunrise at N = 32 and 64, SH order 8 (the demo bake's), before and after the cached
+//! resampling of [`wavelet_prt::resample`]:
+//!
+//! - `exact_prepare`: what `LightContext::prepare` did before, the direct splat for the unturned
+//!   cube (SH) and for the turned one (wavelets);
+//! - `first_prepare`: the same through the fast path with an empty weight cache (weights built);
+//! - `yaw_drag`: cached weights, a new yaw every iteration;
+//! - `map_switch`: cached weights, alternating between two bundled maps of the same size, each at
+//!   a new yaw;
+//! - `pitch_drag`: a new pitch every iteration, so its weights are built each time;
+//! - `cube_gather`: one cached cube at a fractional yaw, the resampling alone.
+
+use std::hint::black_box;
+use std::path::Path;
+use std::time::Duration;
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use wavelet_prt::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::light::WaveletLight;
+use wavelet_prt::relight::{LightContext, PreparedLight};
+use wavelet_prt::resample;
+use wavelet_prt::sh;
+
+/// SH order of the demo bake.
+const SH_ORDER: usize = 8;
+/// The yaw of the first-call and exact benchmarks, a fraction of a pixel off the grid.
+const YAW: f64 = 37.0;
+
+fn load(name: &str) -> EnvMap {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("assets/envmaps")
+        .join(name);
+    EnvMap::load(&path).expect("bundled map")
+}
+
+/// `LightContext::prepare` as it was before the cached resampling: the direct splat for both
+/// cubes (the SH projection and Haar transform are today's, a small part of the time).
+fn exact_prepare(ctx: &LightContext, env: &EnvMap, rotation: EnvRotation) -> PreparedLight {
+    let unturned = env.to_cube_exact(ctx.n, EnvRotation::default()).unwrap();
+    let unturned_sh = ctx.basis.project_light(&unturned).unwrap();
+    let cube = env.to_cube_exact(ctx.n, rotation).unwrap();
+    PreparedLight {
+        wavelet: WaveletLight::from_cube(&cube).unwrap(),
+        sh: sh::Rotation::new(ctx.sh_order, rotation.world_from_map())
+            .unwrap()
+            .apply_rgb(&unturned_sh),
+    }
+}
+
+fn prepare(c: &mut Criterion) {
+    let sunrise = load("blender_sunrise.exr");
+    let city = load("blender_city.exr");
+    assert_eq!(
+        (sunrise.width, sunrise.height),
+        (city.width, city.height),
+        "the map switch needs two maps of one size"
+    );
+    let mut g = c.benchmark_group("light_prepare");
+    g.sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(3));
+    for n in [32, 64] {
+        let ctx = LightContext::with_sizes(n, SH_ORDER).unwrap();
+        let rotation = EnvRotation::yaw(YAW);
+        g.bench_with_input(BenchmarkId::new("exact_prepare", n), &n, |b, _| {
+            b.iter(|| exact_prepare(&ctx, black_box(&sunrise), rotation))
+        });
+        g.bench_with_input(BenchmarkId::new("first_prepare", n), &n, |b, _| {
+            b.iter(|| {
+                resample::clear_cache();
+                ctx.prepare(black_box(&sunrise), rotation).unwrap()
+            })
+        });
+        let mut yaw = YAW;
+        g.bench_with_input(BenchmarkId::new("yaw_drag", n), &n, |b, _| {
+            b.iter(|| {
+                yaw += 1.37;
+                ctx.prepare(black_box(&sunrise), EnvRotation::yaw(yaw))
+                    .unwrap()
+            })
+        });
+        let mut i = 0usize;
+        g.bench_with_input(BenchmarkId::new("map_switch", n), &n, |b, _| {
+            b.iter(|| {
+                i += 1;
+                let env = if i % 2 == 0 { &sunrise } else { &city };
+                ctx.prepare(black_box(env), EnvRotation::yaw(YAW + i as f64))
+                    .unwrap()
+            })
+        });
+        let mut pitch = 0.0;
+        g.bench_with_input(BenchmarkId::new("pitch_drag", n), &n, |b, _| {
+            b.iter(|| {
+                pitch += 0.73;
+                let rotation = EnvRotation {
+                    yaw_deg: YAW,
+                    pitch_deg: pitch,
+                };
+                ctx.prepare(black_box(&sunrise), rotation).unwrap()
+            })
+        });
+        g.bench_with_input(BenchmarkId::new("cube_gather", n), &n, |b, &n| {
+            b.iter(|| sunrise.to_cube(n, black_box(rotation)).unwrap())
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, prepare);
+criterion_main!(benches);
