@@ -42,7 +42,8 @@ use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
 use crate::cubemap::{
-    CubeMap, check_latlong, dir_to_texel, solid_angles, splat_limits, texel_count, validate_n,
+    CubeMap, check_latlong, dir_to_face_st, dir_to_texel, solid_angles, splat_limits, texel_count,
+    texel_dirs, texel_index, validate_n,
 };
 use crate::envmap::{EnvRotation, pixel_solid_angle};
 use crate::error::{PrtError, Result};
@@ -73,6 +74,10 @@ const EVEN_TOL: f64 = 1e-9;
 /// final normalisation.
 const TAIL_SCALE: f64 = 65535.0;
 
+/// A point this close to a texel border (in texels, or relative between face axes) may fall on
+/// either side by rounding: far above the ~1e-16 by which the half-angle directions differ from
+/// sin/cos, far below the spacing of the points the cuts make.
+const TIE_TOL: f64 = 1e-9;
 /// Low bits of a share's word: the texel index (6·256² < 2^30).
 const TEXEL_BITS: u32 = (1 << 30) - 1;
 /// Word flag: the last share of its cell.
@@ -176,6 +181,31 @@ impl Recorder {
         dir_to_texel(self.n, self.world_from_map * d) as u32
     }
 
+    /// Texel of the centre of [u0, u1] x [v0, v1], which takes the whole piece. A centre within
+    /// rounding of a texel border (a cell centred on a face edge when W is not a multiple of 8,
+    /// say) goes to whichever side rounding picks, so there the direction is recomputed from
+    /// sin/cos exactly as the exact splat computes it, to pick the same side.
+    fn texel_of_centre(&self, u0: Edge, u1: Edge, v0: Edge, v1: Edge) -> u32 {
+        let (u, v) = (Edge::mid(u0, u1, TAU), Edge::mid(v0, v1, PI));
+        let d = self.world_from_map * DVec3::new(u.sin * v.sin, v.cos, -u.cos * v.sin);
+        let a = d.abs();
+        let major = a.max_element();
+        let (face, s, t) = dir_to_face_st(d);
+        let cell = |x: f64| (x + 1.0) * 0.5 * self.n as f64;
+        let off_grid = |x: f64| (cell(x) - cell(x).round()).abs() > TIE_TOL;
+        // Exactly one axis is the major one, clearly.
+        let faces_apart = [a.x, a.y, a.z]
+            .iter()
+            .filter(|&&c| major - c <= TIE_TOL * major)
+            .count()
+            == 1;
+        if faces_apart && off_grid(s) && off_grid(t) {
+            let to_cell = |x: f64| (cell(x) as usize).min(self.n - 1);
+            return texel_index(self.n, face, to_cell(t), to_cell(s)) as u32;
+        }
+        self.texel_of(Edge::at(u.t, TAU), Edge::at(v.t, PI))
+    }
+
     /// Adds the last pieces of cell part [u0, u1] x [v0, v1] to `pieces`. `tau` is the part's span
     /// across its cell's width; `corners` are the texels of (u0, v0), (u1, v0), (u0, v1),
     /// (u1, v1).
@@ -194,7 +224,7 @@ impl Recorder {
             let texel = if same {
                 corners[0]
             } else {
-                self.texel_of(Edge::mid(u0, u1, TAU), Edge::mid(v0, v1, PI))
+                self.texel_of_centre(u0, u1, v0, v1)
             };
             pieces.push(Piece {
                 texel,
@@ -219,18 +249,24 @@ impl Recorder {
     }
 }
 
-/// What the build records for one row: share words and solid angles, and the tables of the
-/// uneven shares (Q − 1 fractions each, in share order).
+/// What the build records for one row: share words and solid angles, the tables of the uneven
+/// shares (Q − 1 fractions each, in share order), and where each cell's shares start.
 #[derive(Default)]
 struct RowRecord {
     word: Vec<u32>,
     weight: Vec<f32>,
     tails: Vec<u16>,
+    /// Shares before each cell, and after the last.
+    cell_start: Vec<usize>,
+    /// Uneven shares before each cell, and after the last.
+    cell_uneven: Vec<usize>,
 }
 
 impl RowRecord {
     /// Merges a cell's pieces into one share per texel and records them.
     fn add_cell(&mut self, pieces: &mut [Piece], q: usize) {
+        self.cell_start.push(self.word.len());
+        self.cell_uneven.push(self.tails.len() / (q - 1).max(1));
         if pieces.iter().all(|p| p.texel == pieces[0].texel) {
             // The whole cell in one texel: even by construction.
             let omega: f64 = pieces.iter().map(|p| p.omega).sum();
@@ -277,6 +313,97 @@ impl RowRecord {
     }
 }
 
+/// Symmetries of the split, so only part of the cells are cut and the rest are copies with their
+/// texels renumbered. The mirror x → −x (u → 1 − u) commutes with R_x(pitch), so it holds at every
+/// pitch; at pitch 0 the quarter turn about +Y (u → u + 1/4, when W is a multiple of 4) and the
+/// mirror y → −y (v → 1 − v) hold too. The cube's texel grid has all three. A copy equals cutting
+/// the cell itself except where a cut point lies exactly on a texel border and rounding breaks the
+/// tie one way or the other; either way the pieces then tile the same region, so the shares agree
+/// to rounding (the tests hold the result to the exact splat).
+struct Symmetry {
+    /// Rows that are cut: 0..rows; row y beyond is row H − 1 − y mirrored.
+    rows: usize,
+    /// Columns of one period that are cut: 0..cols; column r beyond is period − 1 − r mirrored.
+    cols: usize,
+    /// Columns per quarter turn (W / 4), or W without quarter turns.
+    period: usize,
+    /// Texel renumbering of each copy, at `a·8 + k·2 + b` for a v-mirror (a), k quarter turns and
+    /// a u-mirror (b); empty where that copy does not occur.
+    renumber: Vec<Vec<u32>>,
+}
+
+impl Symmetry {
+    fn new(width: usize, height: usize, n: usize, pitch_deg: f64) -> Self {
+        // With W a multiple of 8 the lines where cube faces meet at pitch 0 (u = k/8) and the
+        // plane x = 0 at any pitch (u = 0, 1/2) run along cell edges, never through a point the
+        // cuts take a texel at, so no tie decides a copy. Otherwise every cell is cut.
+        if width % 8 != 0 {
+            return Symmetry {
+                rows: height,
+                cols: width,
+                period: width,
+                renumber: vec![(0..texel_count(n) as u32).collect()],
+            };
+        }
+        let upright = pitch_deg == 0.0;
+        let quarter = upright;
+        let period = if quarter { width / 4 } else { width };
+        // World direction maps: d(u + 1/4) = turn · d(u); d(1 − u) and d(1 − v) are mirrors.
+        let turn = DMat3::from_cols(DVec3::Z, DVec3::Y, -DVec3::X);
+        let mirror_u = DMat3::from_diagonal(DVec3::new(-1.0, 1.0, 1.0));
+        let mirror_v = DMat3::from_diagonal(DVec3::new(1.0, -1.0, 1.0));
+        // Within a period, column r is column period − 1 − r mirrored: by u → 1 − u and, with
+        // quarter turns, a turn back into the first quarter.
+        let within = if quarter { turn * mirror_u } else { mirror_u };
+        let dirs = texel_dirs(n);
+        let renumber = (0..16)
+            .map(|i| {
+                let (a, k, b) = (i / 8, (i / 2) % 4, i % 2);
+                if (a == 1 && !upright) || (k > 0 && !quarter) {
+                    return Vec::new();
+                }
+                let mut m = DMat3::IDENTITY;
+                if a == 1 {
+                    m = mirror_v;
+                }
+                for _ in 0..k {
+                    m *= turn;
+                }
+                if b == 1 {
+                    m *= within;
+                }
+                // Texel centres map to texel centres, half a texel from any border.
+                dirs.iter()
+                    .map(|&d| dir_to_texel(n, m * d) as u32)
+                    .collect()
+            })
+            .collect();
+        Symmetry {
+            rows: if upright { height.div_ceil(2) } else { height },
+            cols: period.div_ceil(2),
+            period,
+            renumber,
+        }
+    }
+
+    /// The cut cell that cell (x, y) copies: its column and row, the renumbering, and whether the
+    /// copy is mirrored in u (so its tables run backwards).
+    fn source(&self, x: usize, y: usize, height: usize) -> (usize, usize, &[u32], bool) {
+        let (ys, a) = if y < self.rows {
+            (y, 0)
+        } else {
+            (height - 1 - y, 1)
+        };
+        let (k, r) = (x / self.period, x % self.period);
+        let (xs, b) = if r < self.cols {
+            (r, 0)
+        } else {
+            (self.period - 1 - r, 1)
+        };
+        (xs, ys, &self.renumber[a * 8 + k * 2 + b], b == 1)
+    }
+}
+
 impl LatLongWeights {
     /// Records the splat of a `width` x `height` map into a cube of face size `n` under
     /// R_x(`pitch_deg`) (the rotation [`EnvRotation`] makes with yaw 0).
@@ -314,23 +441,26 @@ impl LatLongWeights {
         let v_edges: Vec<Edge> = (0..=height)
             .map(|y| Edge::at(y as f64 / height as f64, PI))
             .collect();
-        // Texels of the grid points, each computed once and shared by the four cells around it.
-        let mut grid = vec![0u32; (width + 1) * (height + 1)];
-        grid.par_chunks_mut(width + 1)
+        let sym = Symmetry::new(width, height, n, pitch_deg);
+        let (rows, cols) = (sym.rows, sym.cols);
+        // Texels of the grid points of the cut cells, each computed once and shared by the four
+        // cells around it.
+        let mut grid = vec![0u32; (cols + 1) * (rows + 1)];
+        grid.par_chunks_mut(cols + 1)
             .zip(&v_edges)
             .for_each(|(row, &v)| {
                 for (g, &u) in row.iter_mut().zip(&u_edges) {
                     *g = rec.texel_of(u, v);
                 }
             });
-        let rows: Vec<RowRecord> = (0..height)
+        let cut: Vec<RowRecord> = (0..rows)
             .into_par_iter()
             .map_init(Vec::new, |pieces, y| {
                 let (v0, v1) = (v_edges[y], v_edges[y + 1]);
-                let top = &grid[y * (width + 1)..(y + 1) * (width + 1)];
-                let bottom = &grid[(y + 1) * (width + 1)..(y + 2) * (width + 1)];
+                let top = &grid[y * (cols + 1)..(y + 1) * (cols + 1)];
+                let bottom = &grid[(y + 1) * (cols + 1)..(y + 2) * (cols + 1)];
                 let mut out = RowRecord::default();
-                for x in 0..width {
+                for x in 0..cols {
                     pieces.clear();
                     rec.splat(
                         (u_edges[x], u_edges[x + 1], v0, v1),
@@ -339,6 +469,39 @@ impl LatLongWeights {
                         pieces,
                     );
                     out.add_cell(pieces, q);
+                }
+                out.cell_start.push(out.word.len());
+                out.cell_uneven.push(out.tails.len() / (q - 1).max(1));
+                out
+            })
+            .collect();
+        // Every cell, copied from the cell it mirrors or turns to.
+        let rows: Vec<RowRecord> = (0..height)
+            .into_par_iter()
+            .map(|y| {
+                let mut out = RowRecord::default();
+                for x in 0..width {
+                    let (xs, ys, renumber, flip) = sym.source(x, y, height);
+                    let src = &cut[ys];
+                    let mut b = src.cell_uneven[xs];
+                    for s in src.cell_start[xs]..src.cell_start[xs + 1] {
+                        let word = src.word[s];
+                        let texel = renumber[(word & TEXEL_BITS) as usize];
+                        out.word.push(texel | (word & !TEXEL_BITS));
+                        out.weight.push(src.weight[s]);
+                        if word & UNEVEN == 0 {
+                            continue;
+                        }
+                        let tails = &src.tails[b * (q - 1)..(b + 1) * (q - 1)];
+                        b += 1;
+                        if flip {
+                            // The last k/Q of a mirrored share is the first k/Q of its source.
+                            let scale = TAIL_SCALE as u16;
+                            out.tails.extend(tails.iter().rev().map(|&t| scale - t));
+                        } else {
+                            out.tails.extend_from_slice(tails);
+                        }
+                    }
                 }
                 out
             })
@@ -719,17 +882,23 @@ mod tests {
 
     #[test]
     fn unturned_and_pitched_equal_the_exact_splat() {
-        // Cells smaller than texels (256 x 128 at N = 8, 16) and larger (at N = 64).
-        let (w, h) = (256, 128);
-        let px = test_map(w, h, true);
-        for n in [1, 8, 16, 64] {
-            for pitch in [0.0, 20.0, -73.0] {
-                let r = EnvRotation {
-                    yaw_deg: 0.0,
-                    pitch_deg: pitch,
-                };
-                let e = worst_rel(&fast(w, h, &px, n, r), &exact(w, h, &px, n, r));
-                assert!(e <= ROUNDING_REL, "N = {n}, pitch {pitch}: {e:e}");
+        // Cells smaller than texels (256 x 128 at N = 8, 16) and larger (at N = 64); widths with
+        // quarter turns of even and odd length (256, 300), without (90), and an odd height, so
+        // every copy of a cut cell in the build is checked.
+        for (w, h) in [(256, 128), (300, 150), (90, 45)] {
+            let px = test_map(w, h, true);
+            for n in [1, 8, 16, 64] {
+                for pitch in [0.0, 20.0, -73.0] {
+                    let r = EnvRotation {
+                        yaw_deg: 0.0,
+                        pitch_deg: pitch,
+                    };
+                    let e = worst_rel(&fast(w, h, &px, n, r), &exact(w, h, &px, n, r));
+                    assert!(
+                        e <= ROUNDING_REL,
+                        "{w} x {h}, N = {n}, pitch {pitch}: {e:e}"
+                    );
+                }
             }
         }
     }
