@@ -84,7 +84,7 @@ fn prepare(c: &mut Criterion) {
         g.bench_with_input(BenchmarkId::new("map_switch", n), &n, |b, _| {
             b.iter(|| {
                 i += 1;
-                let env = if i % 2 == 0 { &sunrise } else { &city };
+                let env = if i.is_multiple_of(2) { &sunrise } else { &city };
                 ctx.prepare(black_box(env), EnvRotation::yaw(YAW + i as f64))
                     .unwrap()
             })

@@ -320,9 +320,9 @@ mod tests {
         let mut want = vec![[0.0f64; 3]; 36];
         for (j, d) in texel_dirs(n).into_iter().enumerate() {
             crate::sh::eval(6, d, &mut y);
-            for (i, w) in want.iter_mut().enumerate() {
-                for c in 0..3 {
-                    w[c] += cube.texels[j][c] as f64 * omega[j] * (y[i] as f32) as f64;
+            for (w, y) in want.iter_mut().zip(&y) {
+                for (w, l) in w.iter_mut().zip(cube.texels[j]) {
+                    *w += l as f64 * omega[j] * (*y as f32) as f64;
                 }
             }
         }

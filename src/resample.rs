@@ -343,7 +343,7 @@ impl Symmetry {
         // With W a multiple of 8 the lines where cube faces meet at pitch 0 (u = k/8) and the
         // plane x = 0 at any pitch (u = 0, 1/2) run along cell edges, never through a point the
         // cuts take a texel at, so no tie decides a copy. Otherwise every cell is cut.
-        if width % 8 != 0 {
+        if !width.is_multiple_of(8) {
             return Symmetry {
                 rows: height,
                 cols: width,
