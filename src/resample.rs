@@ -573,6 +573,79 @@ impl LatLongWeights {
             + (self.received.len() + self.omega.len()) * 8
     }
 
+    /// Adds the power that row `y` of the turned map gives each texel to `power`, and returns the
+    /// row's sum of radiance. World cell x shows map cells x + `shift` and x + `shift` + 1
+    /// (cyclic), the second over the fraction `f` of the cell (or `tail_at` of an uneven share);
+    /// without a fraction (`FRACTIONAL` false, f = 0) only the first is read.
+    #[inline(always)]
+    fn scatter_row<const FRACTIONAL: bool>(
+        &self,
+        y: usize,
+        row: &[[f32; 3]],
+        shift: usize,
+        f: f64,
+        tail_at: &impl Fn(usize) -> f64,
+        power: &mut [[f64; 3]],
+    ) -> [f64; 3] {
+        let w = row.len();
+        let (mut s, mut b) = (self.row_start[y], self.row_uneven[y]);
+        let mut sum = [0.0f64; 3];
+        // Runs of shares into one texel (a texel spans several cells of a row) add up in
+        // registers, not through memory.
+        let (mut texel, mut acc) = (u32::MAX, [0.0f64; 3]);
+        let mut x1 = shift;
+        for _ in 0..w {
+            let x2 = if x1 + 1 == w { 0 } else { x1 + 1 };
+            let m1 = row[x1].map(|v| v as f64);
+            let d: [f64; 3] = if FRACTIONAL {
+                std::array::from_fn(|c| row[x2][c] as f64 - m1[c])
+            } else {
+                [0.0; 3]
+            };
+            for c in 0..3 {
+                sum[c] += m1[c];
+            }
+            loop {
+                let (word, wt) = (self.word[s], self.weight[s] as f64);
+                s += 1;
+                let j = word & TEXEL_BITS;
+                if j != texel {
+                    if let Some(p) = power.get_mut(texel as usize) {
+                        for c in 0..3 {
+                            p[c] += acc[c];
+                        }
+                    }
+                    (texel, acc) = (j, [0.0; 3]);
+                }
+                if FRACTIONAL {
+                    let g = if word & UNEVEN == 0 {
+                        f
+                    } else {
+                        b += 1;
+                        tail_at(b - 1)
+                    };
+                    for c in 0..3 {
+                        acc[c] += wt * (m1[c] + g * d[c]);
+                    }
+                } else {
+                    for c in 0..3 {
+                        acc[c] += wt * m1[c];
+                    }
+                }
+                if word & LAST != 0 {
+                    break;
+                }
+            }
+            x1 = x2;
+        }
+        if let Some(p) = power.get_mut(texel as usize) {
+            for c in 0..3 {
+                p[c] += acc[c];
+            }
+        }
+        sum
+    }
+
     /// The cube map of texel-average radiance of `pixels`, a `width` x `height` map, turned by
     /// `yaw_deg` about +Y and then by the pitch these weights were built for.
     pub fn cube(&self, pixels: &[[f32; 3]], yaw_deg: f64) -> Result<CubeMap> {
@@ -605,53 +678,11 @@ impl LatLongWeights {
                     let rows = band * self.height / bands..(band + 1) * self.height / bands;
                     for y in rows {
                         let row = &pixels[y * w..(y + 1) * w];
-                        let (mut s, mut b) = (self.row_start[y], self.row_uneven[y]);
-                        let mut sum = [0.0f64; 3];
-                        // World cell x shows map cells x + shift and x + shift + 1 (cyclic).
-                        // Runs of shares into one texel (a texel spans several cells of a
-                        // row) add up in registers, not through memory.
-                        let (mut texel, mut acc) = (u32::MAX, [0.0f64; 3]);
-                        let mut x1 = shift;
-                        for _ in 0..w {
-                            let x2 = if x1 + 1 == w { 0 } else { x1 + 1 };
-                            let m1 = row[x1].map(|v| v as f64);
-                            let m2 = row[x2].map(|v| v as f64);
-                            let d: [f64; 3] = std::array::from_fn(|c| m2[c] - m1[c]);
-                            for c in 0..3 {
-                                sum[c] += m1[c];
-                            }
-                            loop {
-                                let (word, wt) = (self.word[s], self.weight[s] as f64);
-                                s += 1;
-                                let g = if word & UNEVEN == 0 {
-                                    f
-                                } else {
-                                    b += 1;
-                                    tail_at(b - 1)
-                                };
-                                let j = word & TEXEL_BITS;
-                                if j != texel {
-                                    if let Some(p) = power.get_mut(texel as usize) {
-                                        for c in 0..3 {
-                                            p[c] += acc[c];
-                                        }
-                                    }
-                                    (texel, acc) = (j, [0.0; 3]);
-                                }
-                                for c in 0..3 {
-                                    acc[c] += wt * (m1[c] + g * d[c]);
-                                }
-                                if word & LAST != 0 {
-                                    break;
-                                }
-                            }
-                            x1 = x2;
-                        }
-                        if let Some(p) = power.get_mut(texel as usize) {
-                            for c in 0..3 {
-                                p[c] += acc[c];
-                            }
-                        }
+                        let sum = if f == 0.0 {
+                            self.scatter_row::<false>(y, row, shift, 0.0, &tail_at, &mut power)
+                        } else {
+                            self.scatter_row::<true>(y, row, shift, f, &tail_at, &mut power)
+                        };
                         // A shift keeps every row's sum: this is the map's exact power.
                         for c in 0..3 {
                             want[c] += sum[c] * self.row_omega[y];
