@@ -54,6 +54,9 @@ use crate::cubemap::{
 use crate::envmap::{EnvRotation, pixel_solid_angle};
 use crate::error::{PrtError, Result};
 
+/// Row bands per thread in the gather: each band scatters into a cube of its own (590 KiB at
+/// N = 64) that is then summed, so few bands; two leave some room to balance a busy machine.
+const BANDS_PER_THREAD: usize = 2;
 /// Most weight matrices kept at once: the viewer needs two per cube size (pitch 0 for the
 /// unturned SH light, the current pitch for the wavelet light); benchmarks and demos switch
 /// between two map sizes and two cube sizes.
@@ -668,8 +671,8 @@ impl LatLongWeights {
             a + r * (b - a)
         };
         let count = texel_count(self.n);
-        // A few row bands per thread, each scattering into its own cube of power.
-        let bands = (4 * rayon::current_num_threads()).clamp(1, self.height);
+        // Row bands, each scattering into its own cube of power.
+        let bands = (BANDS_PER_THREAD * rayon::current_num_threads()).clamp(1, self.height);
         let (power, want) = (0..bands)
             .into_par_iter()
             .fold(
