@@ -288,6 +288,9 @@ pub fn relight_wavelet(t: &Transport, light: &SparseLight) -> Result<(Image, Rel
 /// One block's accumulators: a row index is a byte, so indexing needs no bounds check.
 type BlockAcc = [[f32; 4]; BLOCK_ROWS];
 
+/// Entries widened to f32 together before they are scattered.
+const CHUNK: usize = 32;
+
 fn wavelet_kernel<V: StoredValue>(
     t: &Transport,
     light: &SparseLight,
@@ -326,11 +329,19 @@ fn wavelet_kernel<V: StoredValue>(
                             // Four lanes (the last unused) so one vector op updates a row.
                             let s = scale_of(codes[j]);
                             let l = [l[0] * s, l[1] * s, l[2] * s, 0.0];
-                            for (&r, &v) in t.entry_row[e0..e1].iter().zip(&values[e0..e1]) {
-                                let v = v.f32();
-                                let a = &mut acc[r as usize];
-                                for k in 0..4 {
-                                    a[k] += v * l[k];
+                            // Widen a chunk of values at once (a vector conversion), then
+                            // scatter: one row update per entry with no scalar conversion.
+                            let rows = t.entry_row[e0..e1].chunks(CHUNK);
+                            for (rows, vals) in rows.zip(values[e0..e1].chunks(CHUNK)) {
+                                let mut wide = [0.0f32; CHUNK];
+                                for (w, &v) in wide.iter_mut().zip(vals) {
+                                    *w = v.f32();
+                                }
+                                for (&r, &v) in rows.iter().zip(&wide) {
+                                    let a = &mut acc[r as usize];
+                                    for k in 0..4 {
+                                        a[k] += v * l[k];
+                                    }
                                 }
                             }
                         }
