@@ -220,6 +220,19 @@ fn compression_curve_trades_size_for_error() {
     let csv = std::fs::read_to_string(&written[0]).unwrap();
     assert_eq!(csv.lines().count(), 4);
     assert!(std::fs::metadata(&written[1]).unwrap().len() > 100);
+    // The table: a row per threshold whose bytes per coefficient follow from the point's own
+    // size and count (between 2 and 4 bytes for 8-bit values with their tables at N = 8).
+    let md = std::fs::read_to_string(&written[2]).unwrap();
+    let row = md.lines().find(|l| l.starts_with("| 0.05 |")).expect(&md);
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    let per_coefficient: f64 = cells[4].parse().unwrap();
+    let expected = curve[1].bytes_per_pixel / curve[1].coefficients_per_pixel;
+    assert!(
+        (per_coefficient - expected).abs() < 0.006,
+        "{row} vs {expected}"
+    );
+    assert!((2.0..4.0).contains(&per_coefficient), "{row}");
+    assert!(cells[5].ends_with('%'), "{row}");
     let e = compression_sweep(&scene, &base, &[], &envs, &mut |_| {}).unwrap_err();
     assert!(e.to_string().contains("empty"));
 }
