@@ -467,8 +467,11 @@ pub struct Rendered {
     /// The state after clamping, and what was clamped.
     pub state: ViewState,
     pub notes: Vec<String>,
-    /// Time spent preparing the light in this call (0 when cached), seconds.
+    /// Time spent preparing the light in this call (0 when cached), seconds: resampling, Haar
+    /// and SH projection, up to the moment the GPU could draw it.
     pub light_seconds: f64,
+    /// Time spent relighting the `full` image the errors are measured against (0 when cached).
+    pub full_seconds: f64,
 }
 
 impl Rendered {
@@ -725,15 +728,16 @@ impl Engine {
     }
 
     /// The prepared light of `state`, computing it (and the `full` image) when it changed;
-    /// `on_light` sees a new light before the `full` relight starts. Returns the seconds spent.
+    /// `on_light` sees a new light before the `full` relight starts. Returns the seconds spent on
+    /// the light and on the `full` image.
     fn prepare_with(
         &mut self,
         state: &ViewState,
         on_light: &mut dyn FnMut(&LightKey, &Arc<PreparedLight>),
-    ) -> Result<f64, String> {
+    ) -> Result<(f64, f64), String> {
         let key = LightKey::of(&self.envs, state);
         if self.light.as_ref().is_some_and(|(k, _, _)| *k == key) {
-            return Ok(0.0);
+            return Ok((0.0, 0.0));
         }
         let start = Instant::now();
         let map = match self.maps.get(&key.spec) {
@@ -756,7 +760,9 @@ impl Engine {
                 .prepare(&map, rotation)
                 .map_err(|e| e.to_string())?,
         );
+        let light_seconds = start.elapsed().as_secs_f64();
         on_light(&key, &light);
+        let full_start = Instant::now();
         let full_req = RelightRequest {
             method: Method::Full,
             terms: 0,
@@ -767,7 +773,7 @@ impl Engine {
             relight(&self.transport, &self.ctx, &light, &full_req).map_err(|e| e.to_string())?;
         self.light = Some((key, light, full));
         self.last = None;
-        Ok(start.elapsed().as_secs_f64())
+        Ok((light_seconds, full_start.elapsed().as_secs_f64()))
     }
 
     /// The light of the last render or exposure, and its key.
@@ -775,7 +781,7 @@ impl Engine {
         self.light.as_ref().map(|(k, l, _)| (k.clone(), l.clone()))
     }
 
-    fn prepare(&mut self, state: &ViewState) -> Result<f64, String> {
+    fn prepare(&mut self, state: &ViewState) -> Result<(f64, f64), String> {
         self.prepare_with(state, &mut |_, _| {})
     }
 
@@ -835,7 +841,7 @@ impl Engine {
         let mut state = state.clone();
         let limits = self.limits();
         let notes = state.clamp(limits);
-        let light_seconds = self.prepare_with(&state, on_light)?;
+        let (light_seconds, full_seconds) = self.prepare_with(&state, on_light)?;
         let key = state.relight_key();
         let cached = self.last.as_ref().is_some_and(|(k, _)| *k == key);
         if !cached {
@@ -876,6 +882,7 @@ impl Engine {
             state,
             notes,
             light_seconds,
+            full_seconds,
         })
     }
 }

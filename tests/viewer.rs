@@ -95,6 +95,25 @@ fn exposure_changes_only_the_tone_mapping() {
     let b = e.render(&brighter).unwrap();
     assert_eq!(a.panes[0].linear.image, b.panes[0].linear.image);
     assert_ne!(a.panes[0].rgb, b.panes[0].rgb);
+    // The light was cached: neither the light nor the `full` image was prepared again.
+    assert_eq!((b.light_seconds, b.full_seconds), (0.0, 0.0));
+}
+
+#[test]
+fn a_new_light_reports_its_time_apart_from_the_full_image() {
+    let mut e = engine();
+    let mut s = sun_state(&mut e);
+    s.yaw = 33.5;
+    let r = e.render(&s).unwrap();
+    assert!(
+        r.light_seconds > 0.0 && r.full_seconds > 0.0,
+        "{} {}",
+        r.light_seconds,
+        r.full_seconds
+    );
+    s.yaw = 34.5;
+    let turned = e.render(&s).unwrap();
+    assert!(turned.light_seconds > 0.0 && turned.full_seconds > 0.0);
 }
 
 #[test]

@@ -561,7 +561,11 @@ impl ViewerApp {
                 ui.label(format!("relative L2 vs full: {:.4}{mark}", l.rel_l2));
             }
             if r.light_seconds > 0.0 {
-                ui.label(format!("light prepared in {:.1} ms", r.light_seconds * 1e3));
+                ui.label(format!(
+                    "light prepared in {:.1} ms (full image for the errors {:.1} ms)",
+                    r.light_seconds * 1e3,
+                    r.full_seconds * 1e3
+                ));
             }
         }
         for (i, t) in self.gpu_timings().iter().enumerate() {
@@ -581,7 +585,10 @@ impl ViewerApp {
             ui.label(text);
         }
         if let Some(fps) = self.frame_rate() {
-            ui.label(format!("window: {fps:.1} frames/s"));
+            ui.label(format!(
+                "window: {fps:.1} frames/s ({:.1} ms a frame)",
+                1e3 / fps.max(1e-9)
+            ));
         }
         for n in &self.notes {
             ui.colored_label(egui::Color32::YELLOW, n);
