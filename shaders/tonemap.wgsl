@@ -1,4 +1,5 @@
-// Display tone mapping: linear RGBA32F radiance times 2^exposure, a display curve (0 clip,
+// Display tone mapping: linear RGBA32F radiance plus the environment behind the scene (black where
+// geometry covers a pixel), times 2^exposure, a display curve (0 clip,
 // 1 Reinhard, 2 the ACES fit; `ToneCurve` in src/film.rs), then the sRGB curve, into the RGBA8
 // texture egui samples.
 struct Params {
@@ -10,6 +11,7 @@ struct Params {
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var linear_image: texture_2d<f32>;
 @group(0) @binding(2) var display: texture_storage_2d<rgba8unorm, write>;
+@group(0) @binding(3) var behind: texture_2d<f32>;
 
 fn srgb(x: f32) -> f32 {
     let c = clamp(x, 0.0, 1.0);
@@ -38,6 +40,6 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= params.width || id.y >= params.height {
         return;
     }
-    let p = textureLoad(linear_image, vec2<i32>(id.xy), 0).rgb;
+    let p = textureLoad(linear_image, vec2<i32>(id.xy), 0).rgb + textureLoad(behind, vec2<i32>(id.xy), 0).rgb;
     textureStore(display, vec2<i32>(id.xy), vec4<f32>(display_value(p.r), display_value(p.g), display_value(p.b), 1.0));
 }

@@ -7,6 +7,7 @@ use std::time::Instant;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::background::Background;
 use crate::bake::{BakeProgress, BakeSettings, bake, worst_case_bytes};
 use crate::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
@@ -236,7 +237,7 @@ pub struct RelightArgs {
     #[arg(long, default_value_t = 200)]
     pub terms: usize,
     /// Wavelet term selection: none, area or transport.
-    #[arg(long, default_value = "area")]
+    #[arg(long, default_value = "transport")]
     pub weighting: String,
     /// SH order (at most the baked order; default: the baked order).
     #[arg(long)]
@@ -253,6 +254,10 @@ pub struct RelightArgs {
     /// PNG exposure in stops (default: automatic).
     #[arg(long, allow_negative_numbers = true)]
     pub exposure: Option<f32>,
+    /// What pixels that see no geometry show: env (the environment behind the scene, turned
+    /// with it) or black.
+    #[arg(long, default_value = "env")]
+    pub background: String,
 }
 
 #[derive(Args, Debug)]
@@ -406,9 +411,10 @@ fn run(command: Command) -> Result<()> {
 fn load_env(spec: &str) -> Result<EnvMap> {
     let env = EnvMap::from_spec(spec)?;
     if env.negatives_clamped > 0 {
+        // Lossy HDR encoders leave slightly negative samples; radiance cannot be negative.
         eprintln!(
-            "warning: {}: {} negative samples clamped to 0",
-            env.source, env.negatives_clamped
+            "note: {}: {} slightly negative samples (the lowest {:.2e}) read as 0",
+            env.source, env.negatives_clamped, env.lowest_negative
         );
     }
     Ok(env)
@@ -660,6 +666,7 @@ fn info(file: PathBuf) -> Result<()> {
 fn relight_cmd(a: RelightArgs) -> Result<()> {
     let method: Method = a.method.parse()?;
     let weighting: Weighting = a.weighting.parse()?;
+    let background: Background = a.background.parse()?;
     let gpu = match a.device.as_str() {
         "cpu" => None,
         "gpu" => Some(crate::gpu::Gpu::new()?),
@@ -674,13 +681,11 @@ fn relight_cmd(a: RelightArgs) -> Result<()> {
     let env = load_env(&a.env)?;
     let ctx = LightContext::new(&t)?;
     let start = Instant::now();
-    let light = ctx.prepare(
-        &env,
-        EnvRotation {
-            yaw_deg: a.yaw,
-            pitch_deg: a.pitch,
-        },
-    )?;
+    let rotation = EnvRotation {
+        yaw_deg: a.yaw,
+        pitch_deg: a.pitch,
+    };
+    let light = ctx.prepare(&env, rotation)?;
     let light_ms = start.elapsed().as_secs_f64() * 1e3;
     let req = RelightRequest {
         method,
@@ -723,6 +728,13 @@ fn relight_cmd(a: RelightArgs) -> Result<()> {
     let tone = match a.exposure {
         Some(e) => ToneMap::exposure(e),
         None => ToneMap::auto(&img, Some(&t.coverage)),
+    };
+    let img = match background {
+        Background::Environment => crate::background::composite(
+            &img,
+            &crate::background::environment_behind(&t.meta, &t.coverage, &env, rotation)?,
+        ),
+        Background::Black => img,
     };
     img.save(&a.output, tone)?;
     println!(

@@ -7,6 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::background::{composite, environment_behind};
 use crate::bake::{BakeProgress, BakeSettings, bake, load_if_baked_with};
 use crate::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
@@ -54,7 +55,7 @@ pub const DEMO_SH_ORDERS: [usize; 3] = [2, 4, 8];
 /// Kept wavelet terms the demo shows.
 pub const DEMO_TERMS: [usize; 4] = [10, 50, 200, 1000];
 /// Weighting of the demo's wavelet selection.
-pub const DEMO_WEIGHTING: Weighting = Weighting::Area;
+pub const DEMO_WEIGHTING: Weighting = Weighting::Transport;
 
 /// The demo's bake settings: the CLI defaults with SH up to order 8.
 pub fn demo_settings() -> BakeSettings {
@@ -155,6 +156,14 @@ pub fn run_demo(
             .to_string();
         let env = EnvMap::load(&assets.join(a.path))?;
         let light = ctx.prepare(&env, EnvRotation::default())?;
+        // Shown and saved over the environment behind the scene; errors are taken before.
+        let behind = environment_behind(
+            &transport.meta,
+            &transport.coverage,
+            &env,
+            EnvRotation::default(),
+        )?;
+        let shown = |img: &Image| composite(img, &behind);
         let full_req = RelightRequest {
             method: Method::Full,
             terms: 0,
@@ -180,16 +189,17 @@ pub fn run_demo(
             let (img, stats) = relight(&transport, &ctx, &light, req)?;
             let err = relative_l2(&img, &full, Some(&transport.coverage))?;
             let label = match req.method {
-                Method::Sh => format!("sh{}", req.sh_order),
+                Method::Sh => format!("sh_order{}", req.sh_order),
                 _ => format!("wavelet{}", req.terms),
             };
+            let img = shown(&img);
             img.save(&images.join(format!("{name}_{label}.png")), tone)?;
             thumbs.push((
                 downsample(&img, 2),
                 tone,
                 [
                     match req.method {
-                        Method::Sh => format!("SH N={}", req.sh_order),
+                        Method::Sh => format!("SH {} ({})", req.sh_order, req.sh_order.pow(2)),
                         _ => format!("WAV K={}", req.terms),
                     },
                     format!("ERR {:.1}%", 100.0 * err),
@@ -203,6 +213,7 @@ pub fn run_demo(
                 relight_ms: stats.kernel_seconds * 1e3,
             });
         }
+        let full = shown(&full);
         full.save(&images.join(format!("{name}_full.png")), tone)?;
         full.save(&images.join(format!("{name}_full.exr")), tone)?;
         thumbs.push((
@@ -234,7 +245,7 @@ pub fn run_demo(
         columns,
         &cells,
         &format!(
-            "N={}: SH ORDER N VS K WAVELET TERMS ({} WEIGHTING), REL. L2 ERROR VS FULL",
+            "CUBE 6X{0}X{0}: SH ORDER (TERMS) VS K WAVELET TERMS ({1} WEIGHTING), REL. L2 ERROR VS FULL",
             transport.meta.cube_n, DEMO_WEIGHTING
         ),
     )?;

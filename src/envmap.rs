@@ -30,6 +30,8 @@ pub struct EnvMap {
     pub source: String,
     /// Number of negative samples that were clamped to zero on load.
     pub negatives_clamped: usize,
+    /// The most negative of them (0 when there were none).
+    pub lowest_negative: f32,
 }
 
 /// Orientation of an environment: world direction = R_x(pitch) · R_y(yaw) · map direction.
@@ -88,6 +90,7 @@ impl EnvMap {
             pixels: vec![value; width * height],
             source: format!("constant {value:?}"),
             negatives_clamped: 0,
+            lowest_negative: 0.0,
         }
     }
 
@@ -167,6 +170,7 @@ impl EnvMap {
             ));
         }
         let mut negatives = 0;
+        let mut lowest = 0.0f32;
         for (i, p) in pixels.iter_mut().enumerate() {
             for (c, v) in p.iter_mut().enumerate() {
                 if !v.is_finite() {
@@ -181,6 +185,7 @@ impl EnvMap {
                     ));
                 }
                 if *v < 0.0 {
+                    lowest = lowest.min(*v);
                     *v = 0.0;
                     negatives += 1;
                 }
@@ -192,6 +197,29 @@ impl EnvMap {
             pixels,
             source: source.to_string(),
             negatives_clamped: negatives,
+            lowest_negative: lowest,
+        })
+    }
+
+    /// Radiance seen along the unit map direction `d`: bilinear between pixel centres, wrapping
+    /// around in longitude and clamped at the poles.
+    pub fn radiance_at(&self, d: DVec3) -> [f32; 3] {
+        let (u, v) = latlong_uv(d);
+        let x = u * self.width as f64 - 0.5;
+        let y = (v * self.height as f64 - 0.5).clamp(0.0, (self.height - 1) as f64);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+        let w = self.width as i64;
+        let col = |i: i64| (i.rem_euclid(w)) as usize;
+        let (xa, xb) = (col(x0 as i64), col(x0 as i64 + 1));
+        let ya = y0 as usize;
+        let yb = (ya + 1).min(self.height - 1);
+        let p = |x: usize, y: usize| self.pixels[y * self.width + x];
+        let (a, b, c, e) = (p(xa, ya), p(xb, ya), p(xa, yb), p(xb, yb));
+        std::array::from_fn(|k| {
+            let top = a[k] + (b[k] - a[k]) * fx;
+            let bottom = c[k] + (e[k] - c[k]) * fx;
+            top + (bottom - top) * fy
         })
     }
 
@@ -416,6 +444,7 @@ impl SunSky {
                 self.sun_radius_deg
             ),
             negatives_clamped: 0,
+            lowest_negative: 0.0,
         }
     }
 }

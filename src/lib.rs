@@ -17,6 +17,7 @@
 //!
 //! Every numeric convention (axes, lat-long, cube faces, SH, Haar) is fixed in [`conventions`].
 
+pub mod background;
 pub mod bake;
 pub mod bench;
 pub mod brdf;

@@ -25,6 +25,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
+use crate::background::{composite, environment_behind};
 use crate::envmap::{EnvMap, EnvRotation};
 use crate::film::{Image, ToneCurve, ToneMap};
 use crate::gpu::{Gpu, GpuTransport};
@@ -589,7 +590,8 @@ pub struct Engine {
     pub ctx: Arc<LightContext>,
     pub envs: Vec<EnvEntry>,
     maps: HashMap<String, Arc<EnvMap>>,
-    light: Option<(LightKey, Arc<PreparedLight>, Image)>,
+    /// The prepared light, the `full` image under it, and the environment behind the scene.
+    light: Option<(LightKey, Arc<PreparedLight>, Image, Arc<Image>)>,
     last: Option<(ViewState, Vec<LinearPane>)>,
     gpu: Option<Gpu>,
     gpu_transport: Option<GpuTransport>,
@@ -649,7 +651,7 @@ impl Engine {
     ) -> Result<GpuTiming, String> {
         self.upload()?;
         let gpu = self.gpu.as_ref().ok_or("no GPU attached")?;
-        let (_, light, _) = self.light.as_ref().ok_or("nothing rendered yet")?;
+        let (_, light, _, _) = self.light.as_ref().ok_or("nothing rendered yet")?;
         let gt = self.gpu_transport.as_ref().expect("uploaded");
         relight_into_view(
             gpu,
@@ -733,10 +735,10 @@ impl Engine {
     fn prepare_with(
         &mut self,
         state: &ViewState,
-        on_light: &mut dyn FnMut(&LightKey, &Arc<PreparedLight>),
+        on_light: &mut dyn FnMut(&LightKey, &Arc<PreparedLight>, &Arc<Image>),
     ) -> Result<(f64, f64), String> {
         let key = LightKey::of(&self.envs, state);
-        if self.light.as_ref().is_some_and(|(k, _, _)| *k == key) {
+        if self.light.as_ref().is_some_and(|(k, _, _, _)| *k == key) {
             return Ok((0.0, 0.0));
         }
         let start = Instant::now();
@@ -760,8 +762,17 @@ impl Engine {
                 .prepare(&map, rotation)
                 .map_err(|e| e.to_string())?,
         );
+        let behind = Arc::new(
+            environment_behind(
+                &self.transport.meta,
+                &self.transport.coverage,
+                &map,
+                rotation,
+            )
+            .map_err(|e| e.to_string())?,
+        );
         let light_seconds = start.elapsed().as_secs_f64();
-        on_light(&key, &light);
+        on_light(&key, &light, &behind);
         let full_start = Instant::now();
         let full_req = RelightRequest {
             method: Method::Full,
@@ -771,18 +782,20 @@ impl Engine {
         };
         let (full, _) =
             relight(&self.transport, &self.ctx, &light, &full_req).map_err(|e| e.to_string())?;
-        self.light = Some((key, light, full));
+        self.light = Some((key, light, full, behind));
         self.last = None;
         Ok((light_seconds, full_start.elapsed().as_secs_f64()))
     }
 
-    /// The light of the last render or exposure, and its key.
-    pub fn current_light(&self) -> Option<(LightKey, Arc<PreparedLight>)> {
-        self.light.as_ref().map(|(k, l, _)| (k.clone(), l.clone()))
+    /// The light of the last render or exposure, its key, and the environment behind the scene.
+    pub fn current_light(&self) -> Option<(LightKey, Arc<PreparedLight>, Arc<Image>)> {
+        self.light
+            .as_ref()
+            .map(|(k, l, _, b)| (k.clone(), l.clone(), b.clone()))
     }
 
     fn prepare(&mut self, state: &ViewState) -> Result<(f64, f64), String> {
-        self.prepare_with(state, &mut |_, _| {})
+        self.prepare_with(state, &mut |_, _, _| {})
     }
 
     /// The exposure [`ToneMap::auto`] picks for the `full` image under `state`'s light.
@@ -790,7 +803,7 @@ impl Engine {
         let mut s = state.clone();
         s.clamp(self.limits());
         self.prepare(&s)?;
-        let (_, _, full) = self.light.as_ref().expect("prepared");
+        let (_, _, full, _) = self.light.as_ref().expect("prepared");
         Ok(ToneMap::auto(full, None).exposure)
     }
 
@@ -828,7 +841,7 @@ impl Engine {
     /// Relights and tone-maps what `state` asks for. The same call serves the window, the
     /// screenshot and the tests.
     pub fn render(&mut self, state: &ViewState) -> Result<Rendered, String> {
-        self.render_with(state, &mut |_, _| {})
+        self.render_with(state, &mut |_, _, _| {})
     }
 
     /// [`Engine::render`], handing a newly prepared light to `on_light` as soon as it exists
@@ -836,7 +849,7 @@ impl Engine {
     pub fn render_with(
         &mut self,
         state: &ViewState,
-        on_light: &mut dyn FnMut(&LightKey, &Arc<PreparedLight>),
+        on_light: &mut dyn FnMut(&LightKey, &Arc<PreparedLight>, &Arc<Image>),
     ) -> Result<Rendered, String> {
         let mut state = state.clone();
         let limits = self.limits();
@@ -852,21 +865,28 @@ impl Engine {
             self.last = Some((key, panes?));
         }
         let (_, linear) = self.last.as_ref().expect("relit");
+        let (_, _, full, behind) = self.light.as_ref().expect("prepared");
         let tone = state.tone_map();
+        // Shown over the environment behind the scene; the errors were taken before.
         let mut panes: Vec<Pane> = linear
             .iter()
-            .map(|l| Pane {
-                rgb: l.image.to_srgb8(tone),
-                linear: l.clone(),
+            .map(|l| {
+                let shown = LinearPane {
+                    image: composite(&l.image, behind),
+                    ..l.clone()
+                };
+                Pane {
+                    rgb: shown.image.to_srgb8(tone),
+                    linear: shown,
+                }
             })
             .collect();
-        if state.error_map
-            && let Some((_, _, full)) = &self.light
-        {
+        if state.error_map {
             let maps: Vec<Pane> = panes
                 .iter()
-                .map(|p| Pane {
-                    rgb: error_heat_map(&p.linear.image, full, ERROR_MAP_GAIN),
+                .zip(linear)
+                .map(|(p, l)| Pane {
+                    rgb: error_heat_map(&l.image, full, ERROR_MAP_GAIN),
                     linear: LinearPane {
                         title: format!("error of {} x{ERROR_MAP_GAIN}", p.linear.title),
                         ..p.linear.clone()

@@ -219,6 +219,8 @@ fn gpu_texture_path_shows_what_the_cpu_path_shows() {
             let g = e.gpu().unwrap();
             let view =
                 wavelet_prt::viewer::GpuView::new(&g.device, r.width as u32, r.height as u32);
+            let (_, _, behind) = e.current_light().unwrap();
+            view.set_behind(&g.queue, &behind);
             e.relight_to_view(&pane.linear.request, &view, s.tone_map())
                 .unwrap();
             let g = e.gpu().unwrap();
@@ -355,4 +357,32 @@ fn loading_reports_progress_up_to_the_file_size() {
     assert!(seen.windows(2).all(|w| w[0].0 < w[1].0), "{seen:?}");
     assert_eq!(*seen.last().unwrap(), (size, size));
     assert!(engine.transport.coeff_count() > 0);
+}
+
+#[test]
+fn pixels_that_miss_the_geometry_show_the_environment_turned_with_it() {
+    let mut e = engine();
+    let mut s = sun_state(&mut e);
+    let t = e.transport.clone();
+    let open: Vec<usize> = (0..t.coverage.len())
+        .filter(|&i| t.coverage[i] == 0.0)
+        .collect();
+    assert!(
+        !open.is_empty(),
+        "the test view must see past the geometry somewhere"
+    );
+    let r = e.render(&s).unwrap();
+    let (_, _, behind) = e.current_light().unwrap();
+    let pane = &r.panes[0];
+    for &i in &open {
+        // Shown = relit (black there) + the environment behind, and never black under a sky.
+        assert_eq!(pane.linear.image.pixels[i], behind.pixels[i]);
+        assert!(behind.pixels[i].iter().sum::<f32>() > 0.0, "pixel {i}");
+    }
+    // Turning the light turns what is seen behind the scene. The view sees past the floor into
+    // the ground half of the sky, which a yaw leaves alone: turn it upside down.
+    s.pitch += 180.0;
+    e.render(&s).unwrap();
+    let (_, _, turned) = e.current_light().unwrap();
+    assert!(open.iter().any(|&i| turned.pixels[i] != behind.pixels[i]));
 }

@@ -15,6 +15,7 @@ use super::{
     GpuTiming, GpuView, Layout, LightKey, Rendered, ViewState, relight_into_view,
     sh_order_for_terms,
 };
+use crate::film::Image;
 use crate::gpu::{Gpu, GpuTransport};
 use crate::light::Weighting;
 use crate::relight::{Method, PreparedLight};
@@ -99,7 +100,7 @@ pub struct ViewerApp {
     /// The last CPU result, and its textures.
     rendered: Option<Rendered>,
     textures: Vec<egui::TextureHandle>,
-    light: Option<(LightKey, Arc<PreparedLight>)>,
+    light: Option<(LightKey, Arc<PreparedLight>, Arc<Image>)>,
     gpu: Option<GpuDisplay>,
     gpu_error: Option<String>,
     /// Frame start times of the last second, for the frame rate.
@@ -222,8 +223,8 @@ impl ViewerApp {
                     self.start_upload();
                 }
                 Reply::Loaded(Err(e)) => self.load_error = Some(e),
-                Reply::Light(key, light) => {
-                    self.light = Some((key, light));
+                Reply::Light(key, light, behind) => {
+                    self.light = Some((key, light, behind));
                     self.invalidate_gpu();
                 }
                 Reply::Rendered(Ok(r)) => {
@@ -270,12 +271,12 @@ impl ViewerApp {
         for (i, p) in r.panes.iter().enumerate() {
             let img = egui::ColorImage::from_rgb([r.width, r.height], &p.rgb);
             if let Some(t) = self.textures.get_mut(i) {
-                t.set(img, egui::TextureOptions::NEAREST);
+                t.set(img, egui::TextureOptions::LINEAR);
             } else {
                 self.textures.push(ctx.load_texture(
                     format!("pane {i}"),
                     img,
-                    egui::TextureOptions::NEAREST,
+                    egui::TextureOptions::LINEAR,
                 ));
             }
         }
@@ -307,7 +308,7 @@ impl ViewerApp {
     }
 
     fn try_draw_on_gpu(&mut self) -> Result<(), String> {
-        let (Some(loaded), Some((key, light)), Some(g)) =
+        let (Some(loaded), Some((key, light, behind)), Some(g)) =
             (&self.loaded, &self.light, &mut self.gpu)
         else {
             return Ok(());
@@ -328,12 +329,13 @@ impl ViewerApp {
             let id = g.render_state.renderer.write().register_native_texture(
                 &g.render_state.device,
                 &view.display.create_view(&Default::default()),
-                wgpu::FilterMode::Nearest,
+                wgpu::FilterMode::Linear,
             );
             g.views.push((view, id));
         }
         g.timings.clear();
         for ((_, request), (view, _)) in requests.iter().zip(&g.views) {
+            view.set_behind(&g.render_state.queue, behind);
             let timing = relight_into_view(
                 &g.gpu,
                 &gt,

@@ -5,7 +5,7 @@
 
 use eframe::wgpu;
 
-use crate::film::ToneMap;
+use crate::film::{Image, ToneMap};
 
 const TONE_WGSL: &str = include_str!("../../shaders/tonemap.wgsl");
 
@@ -17,6 +17,9 @@ pub struct GpuView {
     pub linear: wgpu::Texture,
     /// Exposed, sRGB-encoded RGBA8, for display.
     pub display: wgpu::Texture,
+    /// The environment behind the scene (RGBA32F), added before tone mapping; black until
+    /// [`GpuView::set_behind`].
+    pub behind: wgpu::Texture,
     pipeline: wgpu::ComputePipeline,
     params: wgpu::Buffer,
     group: wgpu::BindGroup,
@@ -53,6 +56,11 @@ impl GpuView {
                 | wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_SRC,
         );
+        let behind = texture(
+            "environment behind",
+            wgpu::TextureFormat::Rgba32Float,
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        );
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("tone map"),
             entries: &[
@@ -87,6 +95,16 @@ impl GpuView {
                     },
                     count: None,
                 },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 3,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -114,6 +132,7 @@ impl GpuView {
         });
         let linear_view = linear.create_view(&Default::default());
         let display_view = display.create_view(&Default::default());
+        let behind_view = behind.create_view(&Default::default());
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("tone map"),
             layout: &layout,
@@ -130,6 +149,10 @@ impl GpuView {
                     binding: 2,
                     resource: wgpu::BindingResource::TextureView(&display_view),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&behind_view),
+                },
             ],
         });
         GpuView {
@@ -137,13 +160,38 @@ impl GpuView {
             height,
             linear,
             display,
+            behind,
             pipeline,
             params,
             group,
         }
     }
 
-    /// Tone-maps `linear` into `display` as `tone` says.
+    /// Uploads the environment behind the scene (an image of this view's size; others are
+    /// ignored, leaving the last one).
+    pub fn set_behind(&self, queue: &wgpu::Queue, image: &Image) {
+        if (image.width, image.height) != (self.width as usize, self.height as usize) {
+            return;
+        }
+        let mut bytes = Vec::with_capacity(image.pixels.len() * 16);
+        for p in &image.pixels {
+            for v in [p[0], p[1], p[2], 0.0] {
+                bytes.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        queue.write_texture(
+            self.behind.as_image_copy(),
+            &bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(self.width * 16),
+                rows_per_image: None,
+            },
+            self.behind.size(),
+        );
+    }
+
+    /// Tone-maps `linear` plus `behind` into `display` as `tone` says.
     pub fn tone_map(&self, device: &wgpu::Device, queue: &wgpu::Queue, tone: ToneMap) {
         let mut words = [0u8; 16];
         words[0..4].copy_from_slice(&tone.exposure.exp2().to_le_bytes());

@@ -10,6 +10,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 
 use super::{Engine, EnvEntry, LightKey, Limits, Rendered, ViewState, env_entries, save_view};
+use crate::film::Image;
 use crate::gpu::{Gpu, GpuTransport};
 use crate::relight::{LightContext, PreparedLight};
 use crate::transport::Transport;
@@ -35,7 +36,7 @@ pub struct Loaded {
 /// What the worker answers.
 pub enum Reply {
     Loaded(Result<Loaded, String>),
-    Light(LightKey, Arc<PreparedLight>),
+    Light(LightKey, Arc<PreparedLight>, Arc<Image>),
     Rendered(Result<Rendered, String>),
     Exposure(Result<f32, String>),
     Saved(Result<PathBuf, String>),
@@ -173,8 +174,8 @@ fn run(
             let _ = replies.send(Reply::Loaded(Ok(loaded)));
             // The initial state's light, prepared for its exposure: later lights come with the
             // renders that prepare them.
-            if let Some((key, light)) = engine.current_light() {
-                let _ = replies.send(Reply::Light(key, light));
+            if let Some((key, light, behind)) = engine.current_light() {
+                let _ = replies.send(Reply::Light(key, light, behind));
             }
             pending.done(1);
             engine
@@ -198,8 +199,9 @@ fn run(
                         gpu: false,
                         ..state
                     };
-                    let r = engine.render_with(&cpu, &mut |key, light| {
-                        let _ = replies.send(Reply::Light(key.clone(), light.clone()));
+                    let r = engine.render_with(&cpu, &mut |key, light, behind| {
+                        let _ =
+                            replies.send(Reply::Light(key.clone(), light.clone(), behind.clone()));
                     });
                     Some(Reply::Rendered(r))
                 }
