@@ -91,6 +91,20 @@ fn glyph(ch: char) -> [u8; 7] {
     }
 }
 
+/// Height in pixels of a one-line caption strip: the glyphs and a margin above and below.
+pub const CAPTION_HEIGHT: usize = GLYPH_H * SCALE + 8;
+
+/// `text` cut to fit `width` pixels in this font, with `..` where it was cut.
+pub fn fit_text(text: &str, width: usize) -> String {
+    let per = (GLYPH_W + 1) * SCALE;
+    let fits = width / per;
+    if text.chars().count() <= fits {
+        return text.to_string();
+    }
+    let kept: String = text.chars().take(fits.saturating_sub(2)).collect();
+    format!("{kept}..")
+}
+
 /// Draws `text` into an RGB8 buffer of width `w` at (x0, y0), clipped to the buffer.
 pub fn draw_text(rgb: &mut [u8], w: usize, x0: usize, y0: usize, text: &str, color: [u8; 3]) {
     let h = rgb.len() / (3 * w);

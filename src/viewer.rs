@@ -117,9 +117,12 @@ pub(crate) fn tone_controls(ui: &mut egui::Ui, exposure: &mut f32, tone: &mut To
         });
 }
 
+/// The bundled map the viewer opens on when no environment is given.
+pub const FIRST_VIEW_MAP: &str = "blender_sunrise";
+
 /// The environment list: the bundled maps, then the files given on the command line, then the
 /// procedural sun. Returns the list, the sun's initial (elevation, azimuth) and the entry to
-/// select first (the first command-line environment, else the first bundled map).
+/// select first (the first command-line environment, else [`FIRST_VIEW_MAP`], else the sun).
 pub fn env_entries(cli: &[String]) -> (Vec<EnvEntry>, (f64, f64), usize) {
     let mut entries = Vec::new();
     if let Some(dir) = bundled_env_dir()
@@ -150,7 +153,7 @@ pub fn env_entries(cli: &[String]) -> (Vec<EnvEntry>, (f64, f64), usize) {
             });
         }
     }
-    let mut sun = (30.0, 45.0);
+    let mut sun = (15.0, 45.0);
     let mut first_cli = None;
     let mut sun_given = false;
     for spec in cli {
@@ -183,10 +186,15 @@ pub fn env_entries(cli: &[String]) -> (Vec<EnvEntry>, (f64, f64), usize) {
         name: "sun (procedural)".into(),
         source: EnvSource::Sun,
     });
+    // Without a choice the first view shows what wavelets are for: a low sun and hard shadows
+    // (the bundled sunrise, else the procedural sun).
     let selected = match first_cli {
         Some(usize::MAX) => sun_index,
         Some(i) => i,
-        None => 0,
+        None => entries
+            .iter()
+            .position(|e| e.name == FIRST_VIEW_MAP)
+            .unwrap_or(sun_index),
     };
     (entries, sun, selected)
 }
@@ -531,6 +539,39 @@ impl Rendered {
             ..*self
         }
         .side_by_side(gap)
+    }
+}
+
+impl Rendered {
+    /// The titles of the images [`Rendered::composite`] draws, left to right: a split pair's
+    /// titles joined as left | right.
+    pub fn captions(&self) -> Vec<String> {
+        if self.state.split_pairs() {
+            self.panes
+                .chunks(2)
+                .map(|pair| match pair {
+                    [a, b] => format!("{} | {}", a.linear.title, b.linear.title),
+                    [a] => a.linear.title.clone(),
+                    _ => String::new(),
+                })
+                .collect()
+        } else {
+            self.panes.iter().map(|p| p.linear.title.clone()).collect()
+        }
+    }
+
+    /// [`Rendered::composite`] under a dark strip that names each image.
+    pub fn captioned(&self, gap: usize) -> (usize, usize, Vec<u8>) {
+        let (w, h, rgb) = self.composite(gap);
+        let strip = crate::sheet::CAPTION_HEIGHT;
+        let mut out = vec![24u8; w * (h + strip) * 3];
+        out[w * strip * 3..].copy_from_slice(&rgb);
+        for (i, caption) in self.captions().iter().enumerate() {
+            let x = i * (self.width + gap) + 4;
+            let text = crate::sheet::fit_text(caption, self.width.saturating_sub(8));
+            crate::sheet::draw_text(&mut out, w, x, 4, &text, [235, 235, 235]);
+        }
+        (w, h + strip, out)
     }
 }
 
@@ -945,10 +986,11 @@ pub fn error_heat_map(image: &Image, full: &Image, gain: f32) -> Vec<u8> {
         .collect()
 }
 
-/// Renders `state` as the window would show it and writes it as a PNG.
+/// Renders `state` as the window would show it and writes it as a PNG, each image under a
+/// caption with its title (as the window shows them).
 pub fn screenshot(engine: &mut Engine, state: &ViewState, out: &Path) -> Result<Rendered, String> {
     let r = engine.render(state)?;
-    let (w, h, rgb) = r.composite(4);
+    let (w, h, rgb) = r.captioned(4);
     crate::film::write_png(out, w, h, &rgb).map_err(|e| e.to_string())?;
     Ok(r)
 }

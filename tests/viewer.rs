@@ -163,6 +163,39 @@ fn screenshot_writes_the_rendered_image() {
 }
 
 #[test]
+fn comparisons_are_captioned_with_what_each_side_shows() {
+    let mut e = engine();
+    let mut s = sun_state(&mut e);
+    s.compare = true;
+    let r = e.render(&s).unwrap();
+    let captions = r.captions();
+    assert_eq!(captions.len(), 2);
+    assert!(captions[0].starts_with("SH"), "{captions:?}");
+    assert!(captions[1].starts_with("wavelet"), "{captions:?}");
+    let (w, h, plain) = r.composite(4);
+    let (cw, ch, rgb) = r.captioned(4);
+    assert_eq!(cw, w);
+    assert!(ch > h);
+    // The images sit unchanged under the strip, and the strip holds light caption pixels over
+    // each image.
+    assert_eq!(&rgb[(ch - h) * w * 3..], &plain[..]);
+    for i in 0..2 {
+        let x0 = i * (r.width + 4);
+        let lit = (0..ch - h)
+            .flat_map(|y| (x0..x0 + r.width).map(move |x| (y, x)))
+            .filter(|&(y, x)| rgb[(y * w + x) * 3] > 200)
+            .count();
+        assert!(lit > 20, "caption {i}: {lit} lit pixels");
+    }
+    // A split pair is one image, captioned left | right.
+    s.layout = wavelet_prt::viewer::Layout::Split;
+    let r = e.render(&s).unwrap();
+    let captions = r.captions();
+    assert_eq!(captions.len(), 1);
+    assert!(captions[0].contains(" | "), "{captions:?}");
+}
+
+#[test]
 fn a_bad_file_is_an_error_not_a_panic() {
     let dir = std::env::temp_dir();
     let bad = dir.join(format!("viewer-bad-{}.prt", std::process::id()));
@@ -274,8 +307,10 @@ fn save_writes_the_png_and_the_linear_exr() {
     wavelet_prt::viewer::save_view(&mut e, &s, &stem).unwrap();
     let png = image::open(stem.with_extension("png")).unwrap();
     let exr = wavelet_prt::film::Image::load_exr(&stem.with_extension("exr")).unwrap();
+    // The PNG is the image under its caption strip.
+    let strip = wavelet_prt::sheet::CAPTION_HEIGHT as u32;
     assert_eq!(
-        (exr.width as u32, exr.height as u32),
+        (exr.width as u32, exr.height as u32 + strip),
         (png.width(), png.height())
     );
     let shown = e.render(&s).unwrap();
@@ -385,4 +420,19 @@ fn pixels_that_miss_the_geometry_show_the_environment_turned_with_it() {
     e.render(&s).unwrap();
     let (_, _, turned) = e.current_light().unwrap();
     assert!(open.iter().any(|&i| turned.pixels[i] != behind.pixels[i]));
+}
+
+#[test]
+fn the_first_view_is_a_low_sun_with_hard_shadows() {
+    let (entries, sun, selected) = env_entries(&[]);
+    match entries.iter().position(|e| e.name == "blender_sunrise") {
+        Some(i) => assert_eq!(selected, i),
+        None => {
+            assert!(matches!(entries[selected].source, EnvSource::Sun));
+            assert!(sun.0 <= 20.0, "{sun:?}");
+        }
+    }
+    // A map given on the command line still comes first.
+    let (entries, _, selected) = env_entries(&["sun:40,10".to_string()]);
+    assert!(matches!(entries[selected].source, EnvSource::Sun));
 }
