@@ -481,13 +481,14 @@ pub struct CompressionPoint {
 
 /// Bakes `scene` losslessly and at every threshold (other settings from `base`, SH order 1 to
 /// save time), relights each with every stored term under every environment and measures the
-/// error thresholding adds. `log` receives a line per bake.
+/// error thresholding adds. `log` receives a line per bake, `progress` each bake's progress.
 pub fn compression_sweep(
     scene: &Scene,
     base: &BakeSettings,
     thresholds: &[f32],
     envs: &[(String, EnvMap)],
     log: &mut dyn FnMut(&str),
+    progress: &(dyn Fn(crate::bake::BakeProgress) + Sync),
 ) -> Result<Vec<CompressionPoint>> {
     if thresholds.is_empty() {
         return Err(PrtError::invalid("threshold list", "it is empty"));
@@ -502,7 +503,7 @@ pub fn compression_sweep(
         settings(false, th).validate()?;
     }
     log("baking the lossless reference");
-    let exact = bake(scene, &settings(true, 0.0), &|_| {})?;
+    let exact = bake(scene, &settings(true, 0.0), progress)?;
     let ctx = LightContext::new(&exact)?;
     let all = |t: &Transport, light: &crate::relight::PreparedLight| -> Result<Image> {
         let req = RelightRequest {
@@ -524,7 +525,7 @@ pub fn compression_sweep(
     let mut points = Vec::new();
     for &th in thresholds {
         log(&format!("baking at threshold {th}"));
-        let t = bake(scene, &settings(false, th), &|_| {})?;
+        let t = bake(scene, &settings(false, th), progress)?;
         let kept_fraction = t.meta.stats.nonzeros as f64 / t.meta.stats.dense_entries.max(1) as f64;
         let bytes_per_pixel = t.haar_bytes() as f64 / t.pixel_count() as f64;
         for (((name, _), light), reference) in envs.iter().zip(&lights).zip(&references) {

@@ -278,6 +278,10 @@ pub struct ReferenceArgs {
     /// Turn the environment about +X after the yaw, degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub pitch: f64,
+    /// What pixels that see no geometry show: env (the environment behind the scene, turned
+    /// with it) or black.
+    #[arg(long, default_value = "env")]
+    pub background: String,
 }
 
 #[derive(Args, Debug)]
@@ -420,23 +424,55 @@ fn load_env(spec: &str) -> Result<EnvMap> {
     Ok(env)
 }
 
-fn progress_bar(total: usize) -> ProgressBar {
-    let bar = ProgressBar::new(total as u64);
+/// A progress bar over `total` `unit`s with the elapsed time, the rate to three significant
+/// digits, a message and the time left.
+fn bar(total: u64, unit: &str) -> ProgressBar {
+    let bar = ProgressBar::new(total);
+    let template = format!(
+        "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {unit}  {{rate}}  {{msg}}  ETA {{eta}}"
+    );
     bar.set_style(
-        ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] {pos}/{len} px  {per_sec}  {msg}  ETA {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar())
-        .progress_chars("=> "),
+        ProgressStyle::with_template(&template)
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .with_key(
+                "rate",
+                |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+                    let _ = write!(w, "{}/s", three_significant(s.per_sec()));
+                },
+            )
+            .progress_chars("=> "),
     );
     bar
 }
 
-fn bake_with_progress(scene: &Scene, settings: &BakeSettings) -> Result<Transport> {
-    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
-    let bar = progress_bar(w * h);
-    let start = Instant::now();
-    let t = bake(scene, settings, &|p: BakeProgress| {
+/// `x` to three significant digits with a k, M or G suffix: 16,694.7 is "16.7k".
+pub fn three_significant(x: f64) -> String {
+    if !(x.is_finite() && x > 0.0) {
+        return "0".into();
+    }
+    let (v, suffix) = match x {
+        x if x >= 1e9 => (x / 1e9, "G"),
+        x if x >= 1e6 => (x / 1e6, "M"),
+        x if x >= 1e3 => (x / 1e3, "k"),
+        x => (x, ""),
+    };
+    let decimals = if v >= 99.95 {
+        0
+    } else if v >= 9.995 {
+        1
+    } else {
+        2
+    };
+    format!("{v:.decimals$}{suffix}")
+}
+
+fn progress_bar(total: usize) -> ProgressBar {
+    bar(total as u64, "px")
+}
+
+/// The bake's own progress as a bar: pixels, shadow rays per second, the medium's first stage.
+fn bake_progress(bar: &ProgressBar, start: Instant) -> impl Fn(BakeProgress) + Sync + '_ {
+    move |p: BakeProgress| {
         if p.medium_texels[1] > 0 {
             bar.set_message(format!(
                 "medium rows: {}/{} texel lights",
@@ -444,13 +480,20 @@ fn bake_with_progress(scene: &Scene, settings: &BakeSettings) -> Result<Transpor
             ));
             return;
         }
+        bar.set_length(p.pixels_total as u64);
         bar.set_position(p.pixels_done as u64);
         let secs = start.elapsed().as_secs_f64().max(1e-3);
         bar.set_message(format!(
-            "{:.2} M shadow rays/s",
-            p.shadow_rays as f64 / secs / 1e6
+            "{} shadow rays/s",
+            three_significant(p.shadow_rays as f64 / secs)
         ));
-    })?;
+    }
+}
+
+fn bake_with_progress(scene: &Scene, settings: &BakeSettings) -> Result<Transport> {
+    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
+    let bar = progress_bar(w * h);
+    let t = bake(scene, settings, &bake_progress(&bar, Instant::now()))?;
     bar.finish_and_clear();
     Ok(t)
 }
@@ -564,12 +607,24 @@ fn bake_cmd(a: BakeArgs) -> Result<()> {
 }
 
 fn merge_cmd(shards: Vec<PathBuf>, output: PathBuf) -> Result<()> {
-    let loaded: Vec<Transport> = shards
+    let total: u64 = shards
         .iter()
-        .map(|p| Transport::load(p))
-        .collect::<Result<_>>()?;
+        .map(|p| std::fs::metadata(p).map(|m| m.len()).unwrap_or(0))
+        .sum();
+    let progress = bar(total, "bytes read");
+    let mut loaded = Vec::with_capacity(shards.len());
+    let mut before = 0;
+    for p in &shards {
+        progress.set_message(p.display().to_string());
+        loaded.push(Transport::load_with_progress(p, &|read, _| {
+            progress.set_position(before + read)
+        })?);
+        before += std::fs::metadata(p).map(|m| m.len()).unwrap_or(0);
+    }
+    progress.set_message(format!("merging and writing {}", output.display()));
     let t = Transport::merge(&loaded)?;
     t.save(&output)?;
+    progress.finish_and_clear();
     print_info(&output, &t);
     Ok(())
 }
@@ -758,23 +813,34 @@ fn relight_cmd(a: RelightArgs) -> Result<()> {
 fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     let settings = settings_from(&a.sampling, 1, 0.0, true);
     settings.validate()?;
+    let background: Background = a.background.parse()?;
     let scene = Scene::load(&a.scene)?;
     let env = load_env(&a.env)?;
-    let cube = env.to_cube(
-        settings.cube_n,
-        EnvRotation {
-            yaw_deg: a.yaw,
-            pitch_deg: a.pitch,
-        },
-    )?;
+    let rotation = EnvRotation {
+        yaw_deg: a.yaw,
+        pitch_deg: a.pitch,
+    };
+    let cube = env.to_cube(settings.cube_n, rotation)?;
     let start = Instant::now();
-    let img = crate::reference::render_reference(&scene, &cube, &settings)?;
-    let mask: Vec<f32> = img
-        .pixels
-        .iter()
-        .map(|p| (p.iter().sum::<f32>() > 0.0) as u8 as f32)
-        .collect();
-    img.save(&a.output, ToneMap::auto(&img, Some(&mask)))?;
+    let rows = bar(scene.camera.height as u64, "rows");
+    let r = crate::reference::render_reference_with(&scene, &cube, &settings, &|done, _| {
+        rows.set_position(done as u64)
+    })?;
+    rows.finish_and_clear();
+    let tone = ToneMap::auto(&r.image, Some(&r.coverage));
+    let img = match background {
+        Background::Environment => crate::background::composite(
+            &r.image,
+            &crate::background::environment_behind_camera(
+                &scene.camera,
+                &r.coverage,
+                &env,
+                rotation,
+            )?,
+        ),
+        Background::Black => r.image,
+    };
+    img.save(&a.output, tone)?;
     println!(
         "reference: {}x{}, N = {}, {:.1} s -> {}",
         img.width,
@@ -880,12 +946,7 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
             .collect();
         envs.push((name, load_env(spec)?));
     }
-    let bar = ProgressBar::new(0);
-    bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} points  ETA {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
+    let points_bar = bar(0, "points");
     let gpu = match a.device.as_str() {
         "cpu" => None,
         "gpu" => Some(crate::gpu::Gpu::new()?),
@@ -947,11 +1008,23 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
     let references = match (&scene, a.reference) {
         (Some(scene), true) => {
             let mut refs = Vec::new();
-            for (name, env) in &envs {
-                eprintln!("rendering the brute-force reference under {name}");
+            let rows = bar(
+                (envs.len() * scene.camera.height as usize) as u64,
+                "reference rows",
+            );
+            for (i, (name, env)) in envs.iter().enumerate() {
+                rows.set_message(format!("brute force under {name}"));
                 let cube = env.to_cube(settings.cube_n, EnvRotation::default())?;
-                refs.push(crate::reference::render_reference(scene, &cube, &settings)?);
+                let before = (i * scene.camera.height as usize) as u64;
+                let r = crate::reference::render_reference_with(
+                    scene,
+                    &cube,
+                    &settings,
+                    &|done, _| rows.set_position(before + done as u64),
+                )?;
+                refs.push(r.image);
             }
+            rows.finish_and_clear();
             Some(refs)
         }
         _ => None,
@@ -961,16 +1034,23 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
         references: references.as_deref(),
     };
     let points = crate::bench::run(&t, &envs, &opts, &extras, &mut |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
+        points_bar.set_length(total as u64);
+        points_bar.set_position(done as u64);
     })?;
-    bar.finish_and_clear();
+    points_bar.finish_and_clear();
     let mut written = crate::bench::write_report(&a.out, &points)?;
     if let (Some(scene), Some(thresholds)) = (&scene, &a.compression) {
-        let curve =
-            crate::bench::compression_sweep(scene, &settings, thresholds, &envs, &mut |l| {
-                eprintln!("{l}")
-            })?;
+        let sweep = progress_bar(0);
+        let progress = bake_progress(&sweep, Instant::now());
+        let curve = crate::bench::compression_sweep(
+            scene,
+            &settings,
+            thresholds,
+            &envs,
+            &mut |l| sweep.println(l),
+            &progress,
+        )?;
+        sweep.finish_and_clear();
         written.extend(crate::bench::write_compression(&a.out, &curve)?);
     }
     println!("{}", crate::bench::summary(&points));
@@ -1289,4 +1369,25 @@ fn demo(out: PathBuf) -> Result<()> {
         out.join("volume").display()
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::three_significant;
+
+    #[test]
+    fn rates_have_three_significant_digits() {
+        for (x, want) in [
+            (16_694.7352, "16.7k"),
+            (1234.0, "1.23k"),
+            (523.4, "523"),
+            (52.34, "52.3"),
+            (5.234, "5.23"),
+            (12_860_000.0, "12.9M"),
+            (0.0, "0"),
+            (f64::NAN, "0"),
+        ] {
+            assert_eq!(three_significant(x), want, "{x}");
+        }
+    }
 }

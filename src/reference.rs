@@ -18,10 +18,28 @@ use crate::medium::henyey_greenstein;
 use crate::sampling::{TexelSamples, pixel_samples};
 use crate::scene::Scene;
 use crate::trace::Tracer;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Renders `scene` lit by `cube` with the sampling of `settings` (spp, texel samples, seed,
 /// unshadowed); the cube's N is the texel-light resolution.
 pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) -> Result<Image> {
+    Ok(render_reference_with(scene, cube, settings, &|_, _| {})?.image)
+}
+
+/// A reference image and, per pixel, the fraction of its camera sub-samples that hit geometry
+/// (as a bake's `coverage`).
+pub struct Reference {
+    pub image: Image,
+    pub coverage: Vec<f32>,
+}
+
+/// [`render_reference`], with the coverage, calling `progress(rows done, rows)` as rows finish.
+pub fn render_reference_with(
+    scene: &Scene,
+    cube: &CubeMap,
+    settings: &BakeSettings,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Reference> {
     if cube.n != settings.cube_n {
         return Err(PrtError::invalid(
             "cube map",
@@ -48,12 +66,15 @@ pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) 
         ));
     }
     let mut image = Image::new(w, h);
+    let mut coverage = vec![0.0f32; w * h];
+    let rows_done = AtomicUsize::new(0);
     image
         .pixels
         .par_chunks_mut(w)
+        .zip(coverage.par_chunks_mut(w))
         .enumerate()
-        .for_each(|(y, line)| {
-            for (x, px) in line.iter_mut().enumerate() {
+        .for_each(|(y, (line, line_coverage))| {
+            for (x, (px, cov)) in line.iter_mut().zip(line_coverage).enumerate() {
                 let subs = pixel_samples(x as u32, y as u32, w as u32, settings.spp, settings.seed);
                 let inv_spp = 1.0 / subs.len() as f64;
                 let mut sum = [0.0f64; 3];
@@ -84,6 +105,7 @@ pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) 
                     let Some(hit) = found else {
                         continue;
                     };
+                    *cov += inv_spp as f32;
                     let sp = shading_point(&tracer, &hit, ray.dir);
                     let material = &scene.materials[sp.material as usize];
                     let albedo = material.albedo();
@@ -130,6 +152,7 @@ pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) 
                 }
                 *px = sum.map(|v| v as f32);
             }
+            progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1, h);
         });
-    Ok(image)
+    Ok(Reference { image, coverage })
 }

@@ -212,6 +212,17 @@ fn lossless_relight_equals_the_brute_force_reference() {
     let brute = render_reference(&scene, &cube, &settings).unwrap();
     let err = relative_l2(&full, &brute, None).unwrap();
     assert!(err < REFERENCE_MATCH, "full vs reference: {err}");
+    // The reference traces the bake's camera sub-samples, so it sees the same coverage, and
+    // reports every row done.
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let with = wavelet_prt::reference::render_reference_with(&scene, &cube, &settings, &|d, n| {
+        assert!(d <= n);
+        done.fetch_max(d, std::sync::atomic::Ordering::Relaxed);
+    })
+    .unwrap();
+    assert_eq!(with.image, brute);
+    assert_eq!(with.coverage, t.coverage);
+    assert_eq!(done.into_inner(), scene.camera.height as usize);
     // Wavelet relighting with every term is the same product as full.
     let all = RelightRequest {
         method: Method::Wavelet,

@@ -204,8 +204,15 @@ fn compression_curve_trades_size_for_error() {
         ..BakeSettings::default()
     };
     let mut lines = 0;
-    let curve =
-        compression_sweep(&scene, &base, &[0.0, 0.05, 0.3], &envs, &mut |_| lines += 1).unwrap();
+    let curve = compression_sweep(
+        &scene,
+        &base,
+        &[0.0, 0.05, 0.3],
+        &envs,
+        &mut |_| lines += 1,
+        &|_| {},
+    )
+    .unwrap();
     assert_eq!(curve.len(), 3);
     assert_eq!(lines, 4);
     // No thresholding: only 8-bit quantisation, at most half a step (1/254 of a column's largest
@@ -233,6 +240,6 @@ fn compression_curve_trades_size_for_error() {
     );
     assert!((2.0..4.0).contains(&per_coefficient), "{row}");
     assert!(cells[5].ends_with('%'), "{row}");
-    let e = compression_sweep(&scene, &base, &[], &envs, &mut |_| {}).unwrap_err();
+    let e = compression_sweep(&scene, &base, &[], &envs, &mut |_| {}, &|_| {}).unwrap_err();
     assert!(e.to_string().contains("empty"));
 }
