@@ -598,7 +598,7 @@ fn bake_cmd(a: BakeArgs) -> Result<()> {
     let t = bake_with_progress(&scene, &settings)?;
     let seconds = start.elapsed().as_secs_f64();
     t.save(&a.output)?;
-    print_info(&a.output, &t);
+    print_info(&a.output, &t.meta);
     println!(
         "bake time     {seconds:.1} s ({:.2} M shadow rays/s)",
         t.meta.stats.shadow_rays as f64 / seconds.max(1e-9) / 1e6
@@ -625,12 +625,11 @@ fn merge_cmd(shards: Vec<PathBuf>, output: PathBuf) -> Result<()> {
     let t = Transport::merge(&loaded)?;
     t.save(&output)?;
     progress.finish_and_clear();
-    print_info(&output, &t);
+    print_info(&output, &t.meta);
     Ok(())
 }
 
-fn print_info(path: &std::path::Path, t: &Transport) {
-    let m = &t.meta;
+fn print_info(path: &std::path::Path, m: &crate::transport::TransportMeta) {
     let s = &m.stats;
     let bytes = std::fs::metadata(path).map(|x| x.len()).unwrap_or(0);
     let dense_bytes = s.dense_entries as f64 * 4.0;
@@ -640,18 +639,21 @@ fn print_info(path: &std::path::Path, t: &Transport) {
         "image         {} x {} ({} tiles of {}²)",
         m.width,
         m.height,
-        t.tile_count(),
+        {
+            let (tx, ty) = crate::transport::tile_grid(m.width as usize, m.height as usize);
+            tx * ty
+        },
         m.tile
     );
     println!(
         "cube          N = {} ({} coefficients per row)",
         m.cube_n,
-        t.coeff_count()
+        6 * m.cube_n as usize * m.cube_n as usize
     );
     println!(
         "SH order      {} ({} coefficients per row)",
         m.sh_order,
-        t.sh_count()
+        (m.sh_order as usize).pow(2)
     );
     println!(
         "sampling      {} spp, {} samples/texel, seed {}{}",
@@ -674,7 +676,7 @@ fn print_info(path: &std::path::Path, t: &Transport) {
         "size          {:.2} MiB file, {:.2}% of the dense f32 matrix, {:.1} bytes/pixel",
         bytes as f64 / 1048576.0,
         100.0 * bytes as f64 / dense_bytes.max(1.0),
-        bytes as f64 / t.pixel_count().max(1) as f64
+        bytes as f64 / (m.width as usize * m.height as usize).max(1) as f64
     );
     println!(
         "dropped       {:.3}% of transport energy (relative L2 {:.3}%)",
@@ -713,8 +715,9 @@ fn info(file: PathBuf) -> Result<()> {
         );
         return Ok(());
     }
-    let t = Transport::load(&file)?;
-    print_info(&file, &t);
+    // The header holds everything printed: the arrays are neither read nor checked.
+    let meta = crate::transport::read_header_meta(&file)?;
+    print_info(&file, &meta);
     Ok(())
 }
 

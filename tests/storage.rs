@@ -228,3 +228,36 @@ fn gpu_decodes_every_format_like_the_cpu() {
         }
     }
 }
+
+/// `prt info` prints from the header alone: a file whose arrays were overwritten (same size) is
+/// still described, while loading it fails its checksum.
+#[test]
+fn info_reads_only_the_header() {
+    let dir = temp_dir("storage-info");
+    let t = random_transport(20, 18, 2, Quantization::Q8, 5, 1.0);
+    let p = dir.join("t.prt");
+    t.save(&p).unwrap();
+    let mut bytes = std::fs::read(&p).unwrap();
+    let header = 8 + u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    for b in &mut bytes[header..] {
+        *b ^= 0x5a;
+    }
+    std::fs::write(&p, &bytes).unwrap();
+    assert!(Transport::load(&p).is_err());
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_prt"))
+        .arg("info")
+        .arg(&p)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text} {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("image         20 x 18"), "{text}");
+    assert!(
+        text.contains(&format!("nonzeros      {}", t.meta.stats.nonzeros)),
+        "{text}"
+    );
+}
