@@ -42,6 +42,7 @@ pub mod resample;
 pub mod sampling;
 pub mod scene;
 pub mod sh;
+pub mod sh_light;
 pub mod sheet;
 pub mod trace;
 pub mod transport;

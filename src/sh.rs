@@ -19,6 +19,11 @@ use crate::error::{PrtError, Result};
 /// [`Rotation`] (about 4/3 n^3 matrix entries) and is the range the tests check the recurrence over.
 pub const MAX_ORDER: usize = 32;
 
+/// Largest order of SH lighting through the light ([`crate::sh_light`]): 16,384 terms, past the
+/// 10,000 of Ng et al. 2003's comparison at a 6x64x64 cube. The recurrence's factors are tabled
+/// up to it.
+pub const MAX_LIGHT_ORDER: usize = 128;
+
 /// Bands written by the hand-written closed forms in [`eval`]; higher bands come from the recurrence.
 const CLOSED_FORM_BANDS: usize = 4;
 
@@ -185,11 +190,12 @@ impl LegendreStep {
     }
 }
 
-/// Recurrence factors for every (l, m >= 0) below [`MAX_ORDER`], at slot `index(l, m)`; the square
-/// roots otherwise dominate the cost of the recurrence. Orders above fall back to computing them.
+/// Recurrence factors for every (l, m >= 0) below [`MAX_LIGHT_ORDER`], at slot `index(l, m)`; the
+/// square roots otherwise dominate the cost of the recurrence. Orders above fall back to computing
+/// them.
 static LEGENDRE_STEPS: LazyLock<Vec<LegendreStep>> = LazyLock::new(|| {
-    let mut steps = vec![LegendreStep { a: 0.0, b: 0.0 }; coeff_count(MAX_ORDER)];
-    for l in 0..MAX_ORDER {
+    let mut steps = vec![LegendreStep { a: 0.0, b: 0.0 }; coeff_count(MAX_LIGHT_ORDER)];
+    for l in 0..MAX_LIGHT_ORDER {
         for m in 0..=l {
             steps[index(l, m as i32)] = LegendreStep::new(l, m);
         }
@@ -202,7 +208,7 @@ static LEGENDRE_STEPS: LazyLock<Vec<LegendreStep>> = LazyLock::new(|| {
 /// complex multiplication, so no angle is ever formed.
 #[inline(always)]
 fn recurrence(order: usize, d: DVec3, first_band: usize, mut put: impl FnMut(usize, f64)) {
-    let steps: &[LegendreStep] = if order <= MAX_ORDER {
+    let steps: &[LegendreStep] = if order <= MAX_LIGHT_ORDER {
         &LEGENDRE_STEPS
     } else {
         &[]
