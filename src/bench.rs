@@ -33,13 +33,20 @@ pub struct BenchOptions {
     pub terms: Vec<usize>,
     /// SH orders n (n² terms).
     pub sh_orders: Vec<usize>,
+    /// SH orders n through the light ([`crate::sh_light`]): the light projected to n² SH terms,
+    /// relit with the full stored transport, at any order up to
+    /// [`crate::sh::MAX_LIGHT_ORDER`].
+    pub sh_light_orders: Vec<usize>,
     /// Wavelet weightings.
     pub weightings: Vec<Weighting>,
 }
 
+/// The default SH orders through the light: roughly even steps in log(n²) from 1 to 10,000 terms.
+pub const SH_LIGHT_ORDERS: [usize; 14] = [1, 2, 3, 4, 6, 8, 11, 16, 22, 32, 45, 64, 80, 100];
+
 impl BenchOptions {
     /// Default sweep for a transport: K on a 1-2-5 ladder up to every term, every baked SH order,
-    /// all three weightings.
+    /// SH through the light up to as many terms as the cube has texels, all three weightings.
     pub fn defaults_for(t: &Transport) -> Self {
         let total = t.coeff_count();
         let mut terms: Vec<usize> = [1, 2, 5]
@@ -52,6 +59,11 @@ impl BenchOptions {
         BenchOptions {
             terms,
             sh_orders: (1..=t.meta.sh_order as usize).collect(),
+            // No more SH terms than the cube has texels (the paper's SH(20,000) on 24,576).
+            sh_light_orders: SH_LIGHT_ORDERS
+                .into_iter()
+                .filter(|&o| o * o <= total)
+                .collect(),
             weightings: Weighting::ALL.to_vec(),
         }
     }
@@ -59,7 +71,7 @@ impl BenchOptions {
     /// Checks the lists against the transport.
     pub fn validate(&self, t: &Transport) -> Result<()> {
         let total = t.coeff_count();
-        if self.terms.is_empty() && self.sh_orders.is_empty() {
+        if self.terms.is_empty() && self.sh_orders.is_empty() && self.sh_light_orders.is_empty() {
             return Err(PrtError::invalid(
                 "bench",
                 "no term counts and no SH orders to sweep",
@@ -78,6 +90,13 @@ impl BenchOptions {
                 format!("order {o}; this transport was baked up to order {baked}"),
             ));
         }
+        let most = crate::sh::MAX_LIGHT_ORDER;
+        if let Some(&o) = self.sh_light_orders.iter().find(|&&o| o == 0 || o > most) {
+            return Err(PrtError::invalid(
+                "SH-through-light order list",
+                format!("order {o}; orders go from 1 to {most}"),
+            ));
+        }
         if !self.terms.is_empty() && self.weightings.is_empty() {
             return Err(PrtError::invalid("weighting list", "it is empty"));
         }
@@ -94,6 +113,8 @@ pub struct BenchPoint {
     pub weighting: Option<Weighting>,
     /// Light terms: K or n².
     pub terms: usize,
+    /// SH through the light (`sh-light`) rather than the baked per-pixel SH path.
+    pub through_light: bool,
     pub error: ErrorReport,
     /// For wavelets: relative L2 of the light approximation itself, ‖L − L_K‖ / ‖L‖ over the Haar
     /// coefficients (Parseval: the same over texels). Non-increasing in K for unweighted selection.
@@ -112,6 +133,7 @@ impl BenchPoint {
     pub fn curve(&self) -> String {
         match self.weighting {
             Some(w) => format!("{}-{}", self.method, w),
+            None if self.through_light => format!("{}-light", self.method),
             None => self.method.to_string(),
         }
     }
@@ -166,7 +188,11 @@ pub fn run(
         ));
     }
     let ctx = LightContext::new(t)?;
-    let total = envs.len() * (opts.terms.len() * opts.weightings.len() + opts.sh_orders.len() + 1);
+    let total = envs.len()
+        * (opts.terms.len() * opts.weightings.len()
+            + opts.sh_orders.len()
+            + opts.sh_light_orders.len()
+            + 1);
     let mut points = Vec::with_capacity(total);
     let mask = Some(t.coverage.as_slice());
     for (e, (name, env)) in envs.iter().enumerate() {
@@ -191,6 +217,7 @@ pub fn run(
                 method: req.method,
                 weighting: (req.method == Method::Wavelet).then_some(req.weighting),
                 terms: stats.terms,
+                through_light: false,
                 light_rel_l2,
                 error: compare(&img, &full, mask)?,
                 reference_rel_l2: match reference {
@@ -233,6 +260,38 @@ pub fn run(
             )?;
         }
         measure(full_req, Some(0.0))?;
+        if let Some(&most) = opts.sh_light_orders.iter().max() {
+            let cube = env.to_cube(t.meta.cube_n as usize, EnvRotation::default())?;
+            let projected = crate::sh_light::ShThroughLight::new(&cube, most)?;
+            for &o in &opts.sh_light_orders {
+                let mut times = Vec::with_capacity(TIMING_RUNS);
+                let mut last = None;
+                for _ in 0..TIMING_RUNS {
+                    let (img, stats) = crate::sh_light::relight(t, &projected, o)?;
+                    times.push(stats.kernel_seconds * 1e3);
+                    last = Some((img, stats));
+                }
+                times.sort_by(f64::total_cmp);
+                let (img, stats) = last.ok_or_else(|| PrtError::invalid("bench", "no run"))?;
+                points.push(BenchPoint {
+                    env: name.clone(),
+                    method: Method::Sh,
+                    weighting: None,
+                    terms: stats.terms,
+                    through_light: true,
+                    light_rel_l2: None,
+                    error: compare(&img, &full, mask)?,
+                    reference_rel_l2: match extras.references.map(|r| &r[e]) {
+                        Some(r) => Some(relative_l2(&img, r, mask)?),
+                        None => None,
+                    },
+                    cpu_ms: times[times.len() / 2],
+                    gpu_ms: None,
+                    bytes_touched: stats.bytes_touched,
+                });
+                progress(points.len(), total);
+            }
+        }
     }
     Ok(points)
 }
@@ -276,7 +335,11 @@ pub fn csv(points: &[BenchPoint]) -> String {
             s,
             "{},{},{},{},{:.6e},{:.6e},{:.6e},{:.3},{:.6e},{},{},{:.4},{},{}",
             p.env,
-            p.method,
+            if p.through_light {
+                format!("{}-light", p.method)
+            } else {
+                p.method.to_string()
+            },
             p.weighting.map(|w| w.name()).unwrap_or(""),
             p.terms,
             p.error.rel_l2,
@@ -298,10 +361,16 @@ pub fn csv(points: &[BenchPoint]) -> String {
 /// point above and the first at or below it; `None` when no point reaches it. Points must be of
 /// one curve.
 pub fn terms_to_reach(curve: &[&BenchPoint], target: f64) -> Option<f64> {
-    let mut pts: Vec<(f64, f64)> = curve
-        .iter()
-        .map(|p| (p.terms as f64, p.error.rel_l2))
-        .collect();
+    terms_to_reach_by(curve, target, |p| p.error.rel_l2)
+}
+
+/// [`terms_to_reach`] for any error measure of the points (relative L2, H1, ...).
+pub fn terms_to_reach_by(
+    curve: &[&BenchPoint],
+    target: f64,
+    metric: fn(&BenchPoint) -> f64,
+) -> Option<f64> {
+    let mut pts: Vec<(f64, f64)> = curve.iter().map(|p| (p.terms as f64, metric(p))).collect();
     pts.sort_by(|a, b| a.0.total_cmp(&b.0));
     let first = pts.iter().position(|&(_, e)| e <= target)?;
     if first == 0 {
@@ -348,7 +417,10 @@ pub fn summary(points: &[BenchPoint]) -> String {
     s.push_str(
         "Relative L2 error against relighting with every stored term; terms needed are \
          interpolated in log-log between measured points (— when never reached). A ratio \
-         `> r` is a lower bound: SH did not reach the error with every baked order.\n\n",
+         `> r` is a lower bound: SH did not reach the error with every baked order. `sh-light` \
+         is SH through the light (the light projected to n² terms and relit with the full \
+         transport), at orders past the baked one; its ratios are given in relative L2 and in \
+         the gradient (H1) error.\n\n",
     );
     let fmt = |v: Option<f64>| v.map(|k| format!("{k:.0}")).unwrap_or_else(|| "—".into());
     for env in environments(points) {
@@ -402,6 +474,33 @@ pub fn summary(points: &[BenchPoint]) -> String {
                 s.push('\n');
             }
         }
+        if let Some((_, sl)) = cs.iter().find(|(n, _)| n == "sh-light") {
+            let most = sl.iter().map(|p| p.terms).max().unwrap_or(0) as f64;
+            let best =
+                |m: fn(&BenchPoint) -> f64| sl.iter().map(|p| m(p)).fold(f64::INFINITY, f64::min);
+            let _ = writeln!(
+                s,
+                "| (SH through the light at {most} terms: {:.2}% L2, {:.2}% H1) | | | |",
+                100.0 * best(|p| p.error.rel_l2),
+                100.0 * best(|p| p.error.rel_h1)
+            );
+            let metrics: [(&str, fn(&BenchPoint) -> f64); 2] =
+                [("L2", |p| p.error.rel_l2), ("H1", |p| p.error.rel_h1)];
+            for (metric, f) in metrics {
+                for (name, pts) in cs.iter().filter(|(n, _)| n.starts_with("wavelet")) {
+                    let _ = write!(s, "| SH-light / {name} ratio, {metric} |");
+                    for t in SUMMARY_TARGETS {
+                        let r = match (terms_to_reach_by(sl, t, f), terms_to_reach_by(pts, t, f)) {
+                            (Some(a), Some(b)) => format!("{:.1}x", a / b),
+                            (None, Some(b)) => format!("> {:.1}x", most / b),
+                            _ => "—".into(),
+                        };
+                        let _ = write!(s, " {r} |");
+                    }
+                    s.push('\n');
+                }
+            }
+        }
         s.push('\n');
     }
     s
@@ -429,7 +528,7 @@ pub fn write_report(dir: &Path, points: &[BenchPoint]) -> Result<Vec<PathBuf>> {
                     label: name.clone(),
                     points: pts.iter().map(|p| (p.terms as f64, value(p))).collect(),
                     color: plot::PALETTE[i % plot::PALETTE.len()],
-                    dashed: name == "sh",
+                    dashed: name.starts_with("sh"),
                 })
                 .collect()
         };

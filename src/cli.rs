@@ -300,6 +300,10 @@ pub struct BenchArgs {
     /// SH orders, comma-separated (default: 1 to the baked order).
     #[arg(long, value_delimiter = ',')]
     pub sh_orders: Option<Vec<usize>>,
+    /// SH orders through the light, comma-separated, up to 128: the light projected to n² terms
+    /// and relit with the full transport (default: 1, 2, 3, 4, 6, ... 100; `none` for none).
+    #[arg(long, value_delimiter = ',')]
+    pub sh_light_orders: Option<Vec<String>>,
     /// Weightings, comma-separated (default: none,area,transport).
     #[arg(long, value_delimiter = ',')]
     pub weightings: Option<Vec<String>>,
@@ -924,6 +928,22 @@ fn bench_cmd(a: BenchArgs) -> Result<()> {
     let mut opts = crate::bench::BenchOptions::defaults_for(&t);
     if let Some(k) = a.terms {
         opts.terms = k;
+    }
+    if let Some(o) = a.sh_light_orders {
+        opts.sh_light_orders = if o.iter().any(|v| v == "none") {
+            Vec::new()
+        } else {
+            o.iter()
+                .map(|v| {
+                    v.trim().parse().map_err(|_| {
+                        PrtError::invalid(
+                            "--sh-light-orders",
+                            format!("'{v}' is not an order (or `none`)"),
+                        )
+                    })
+                })
+                .collect::<Result<_>>()?
+        };
     }
     if let Some(o) = a.sh_orders {
         opts.sh_orders = o;

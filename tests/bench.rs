@@ -44,6 +44,8 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
     let opts = BenchOptions::defaults_for(&t);
     assert_eq!(*opts.terms.last().unwrap(), 384);
     assert_eq!(opts.sh_orders, vec![1, 2, 3, 4]);
+    // Through the light: no more SH terms than the 384 texels.
+    assert_eq!(opts.sh_light_orders, vec![1, 2, 3, 4, 6, 8, 11, 16]);
     // The brute-force references of the same scene under both environments.
     let scene = common::scene_from(common::SPHERE_ON_PLANE, "bench-reference");
     let settings = BakeSettings {
@@ -65,8 +67,9 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
     };
     let mut calls = 0;
     let points = run(&t, &envs, &opts, &extras, &mut |_, _| calls += 1).unwrap();
-    // Every wavelet K and weighting, every SH order, and full, per environment.
-    let expected = 2 * (opts.terms.len() * 3 + 4 + 1);
+    // Every wavelet K and weighting, every SH order, full, and SH through the light, per
+    // environment.
+    let expected = 2 * (opts.terms.len() * 3 + 4 + 1 + 8);
     assert_eq!(points.len(), expected);
     assert_eq!(calls, expected);
     for env in ["sun", "sky"] {
@@ -125,9 +128,29 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
     assert!(terms_to_reach(&sun_w, 0.05).is_some());
     let sh: Vec<_> = points
         .iter()
-        .filter(|p| p.env == "sun" && p.method == Method::Sh)
+        .filter(|p| p.env == "sun" && p.method == Method::Sh && !p.through_light)
         .collect();
     assert_eq!(sh.len(), 4);
+    // SH through the light: the baked path's numbers where both exist (N = 8: texel averages of
+    // the basis against its values at the texel samples), and far better at 256 terms.
+    let light: Vec<_> = points
+        .iter()
+        .filter(|p| p.env == "sun" && p.through_light)
+        .collect();
+    assert_eq!(light.len(), 8);
+    assert!(light.iter().all(|p| p.curve() == "sh-light"));
+    for (a, b) in sh.iter().zip(&light) {
+        assert_eq!(a.terms, b.terms);
+        let d = (a.error.rel_l2 - b.error.rel_l2).abs();
+        assert!(
+            d < 0.02 * a.error.rel_l2,
+            "{} terms: {} vs {}",
+            a.terms,
+            a.error.rel_l2,
+            b.error.rel_l2
+        );
+    }
+    assert!(light[7].error.rel_l2 < 0.5 * light[3].error.rel_l2);
 
     let text = csv(&points);
     let lines: Vec<&str> = text.lines().collect();
@@ -139,6 +162,12 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
         text.contains("## sun") && text.contains("brute-force reference"),
         "{text}"
     );
+    for metric in ["L2", "H1"] {
+        assert!(
+            text.contains(&format!("| SH-light / wavelet-none ratio, {metric} |")),
+            "{text}"
+        );
+    }
 
     let dir = out_dir();
     let written = write_report(&dir, &points).unwrap();
@@ -182,9 +211,17 @@ fn bad_lists_are_clear_errors() {
             BenchOptions {
                 terms: vec![],
                 sh_orders: vec![],
+                sh_light_orders: vec![],
                 ..base.clone()
             },
             "nothing",
+        ),
+        (
+            BenchOptions {
+                sh_light_orders: vec![4, 129],
+                ..base.clone()
+            },
+            "order 129",
         ),
     ] {
         let e = opts.validate(&t).unwrap_err().to_string();
