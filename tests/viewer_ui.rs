@@ -73,6 +73,47 @@ fn clicking_the_method_toggle_changes_the_state_and_the_image() {
 }
 
 #[test]
+fn a_new_light_shows_a_busy_indicator_until_it_arrives() {
+    if common::gpu_or_skip("a_new_light_shows_a_busy_indicator_until_it_arrives").is_none() {
+        return;
+    }
+    let mut h = harness(sun_app());
+    settle(&mut h);
+    assert!(h.query_by_label("preparing the light").is_none());
+    // A new yaw: the frame that asks for it has no light for it yet.
+    h.state_mut().state.yaw += 40.0;
+    h.step();
+    assert!(h.query_by_label("preparing the light").is_some());
+    settle(&mut h);
+    assert!(h.query_by_label("preparing the light").is_none());
+}
+
+#[test]
+fn at_the_default_window_size_every_panel_row_is_visible() {
+    if common::gpu_or_skip("at_the_default_window_size_every_panel_row_is_visible").is_none() {
+        return;
+    }
+    // The window's default inner size (`run_viewer`), with the panel's longest content: a
+    // comparison, so two panes' numbers.
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1280.0, 800.0))
+        .wgpu()
+        .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), sun_app());
+    settle(&mut h);
+    h.state_mut().state.compare = true;
+    settle(&mut h);
+    let last = h
+        .query_all_by_label_contains("relative L2 vs full")
+        .map(|n| n.rect().max.y)
+        .fold(0.0f32, f32::max);
+    assert!(last > 0.0, "the numbers are shown");
+    assert!(
+        last <= 800.0,
+        "the last row ends at y = {last}, below the window"
+    );
+}
+
+#[test]
 fn more_terms_from_the_keyboard_lower_the_error() {
     if common::gpu_or_skip("more_terms_from_the_keyboard_lower_the_error").is_none() {
         return;

@@ -437,6 +437,11 @@ impl ViewerApp {
             return;
         };
         let limits = loaded.limits;
+        // The light the window shows is not yet the one the settings ask for.
+        let light_pending = self
+            .light
+            .as_ref()
+            .is_none_or(|(k, _, _)| *k != LightKey::of(&loaded.envs, &self.state));
         let s = &mut self.state;
         ui.heading("Method (M)");
         ui.horizontal(|ui| {
@@ -504,6 +509,12 @@ impl ViewerApp {
             [&mut s.sun_elev, &mut s.sun_azim, &mut s.sun_radius],
             [&mut s.yaw, &mut s.pitch],
         );
+        if light_pending {
+            ui.horizontal(|ui| {
+                ui.spinner();
+                ui.label("preparing the light");
+            });
+        }
         ui.separator();
         super::tone_controls(ui, &mut s.exposure, &mut s.tone);
         let auto = ui.button("Auto exposure").clicked();
@@ -549,9 +560,9 @@ impl ViewerApp {
             for p in panes {
                 let l = &p.linear;
                 ui.strong(&l.title);
-                ui.label(format!("terms used: {}", l.terms));
                 ui.label(format!(
-                    "nonzeros touched: {:.2} M",
+                    "terms used: {}, nonzeros touched: {:.2} M",
+                    l.terms,
                     l.nonzeros_touched as f64 * 1e-6
                 ));
                 ui.label(format!(
@@ -573,7 +584,7 @@ impl ViewerApp {
         for (i, t) in self.gpu_timings().iter().enumerate() {
             let text = match t.kernel_seconds {
                 Some(k) => format!(
-                    "GPU pane {}: relight {:.2} ms (timestamp queries), with tone map {:.2} ms",
+                    "GPU pane {}: {:.2} ms (timestamps), {:.1} ms with tone map",
                     i + 1,
                     k * 1e3,
                     t.wall_seconds * 1e3
