@@ -364,12 +364,11 @@ pub fn terms_to_reach(curve: &[&BenchPoint], target: f64) -> Option<f64> {
     terms_to_reach_by(curve, target, |p| p.error.rel_l2)
 }
 
+/// An error measure of a point.
+type Metric = fn(&BenchPoint) -> f64;
+
 /// [`terms_to_reach`] for any error measure of the points (relative L2, H1, ...).
-pub fn terms_to_reach_by(
-    curve: &[&BenchPoint],
-    target: f64,
-    metric: fn(&BenchPoint) -> f64,
-) -> Option<f64> {
+pub fn terms_to_reach_by(curve: &[&BenchPoint], target: f64, metric: Metric) -> Option<f64> {
     let mut pts: Vec<(f64, f64)> = curve.iter().map(|p| (p.terms as f64, metric(p))).collect();
     pts.sort_by(|a, b| a.0.total_cmp(&b.0));
     let first = pts.iter().position(|&(_, e)| e <= target)?;
@@ -484,7 +483,7 @@ pub fn summary(points: &[BenchPoint]) -> String {
                 100.0 * best(|p| p.error.rel_l2),
                 100.0 * best(|p| p.error.rel_h1)
             );
-            let metrics: [(&str, fn(&BenchPoint) -> f64); 2] =
+            let metrics: [(&str, Metric); 2] =
                 [("L2", |p| p.error.rel_l2), ("H1", |p| p.error.rel_h1)];
             for (metric, f) in metrics {
                 for (name, pts) in cs.iter().filter(|(n, _)| n.starts_with("wavelet")) {

@@ -1401,7 +1401,7 @@ mod tests {
     #[test]
     fn rates_have_three_significant_digits() {
         for (x, want) in [
-            (16_694.7352, "16.7k"),
+            (16_694.735_2, "16.7k"),
             (1234.0, "1.23k"),
             (523.4, "523"),
             (52.34, "52.3"),

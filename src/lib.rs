@@ -22,6 +22,7 @@ pub mod bake;
 pub mod bench;
 pub mod brdf;
 pub mod budget;
+#[cfg(feature = "app")]
 pub mod cli;
 pub mod conventions;
 pub mod cubemap;
@@ -46,6 +47,7 @@ pub mod sh_light;
 pub mod sheet;
 pub mod trace;
 pub mod transport;
+#[cfg(feature = "app")]
 pub mod viewer;
 pub mod volume;
 

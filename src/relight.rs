@@ -425,6 +425,8 @@ pub fn relight_dense_reference(t: &Transport, light: &SparseLight) -> Image {
         let r0 = t.block_row_start[b] as usize;
         let rows = t.block_row_start[b + 1] as usize - r0;
         let mut dense = vec![vec![0.0f64; c]; rows];
+        // Column by column, as stored; `j` indexes the stored columns and each dense row.
+        #[allow(clippy::needless_range_loop)]
         for j in 0..c {
             for e in t.block_column(b, j) {
                 dense[t.entry_row[e] as usize][j] = t.value(b, j, e) as f64;

@@ -624,6 +624,9 @@ pub fn relight_into_view(
     })
 }
 
+/// Called with a newly prepared light, its key and the environment behind the scene.
+pub type OnLight<'a> = dyn FnMut(&LightKey, &Arc<PreparedLight>, &Arc<Image>) + 'a;
+
 /// A loaded transport, its environments and the caches behind [`Engine::render`].
 pub struct Engine {
     pub path: PathBuf,
@@ -776,7 +779,7 @@ impl Engine {
     fn prepare_with(
         &mut self,
         state: &ViewState,
-        on_light: &mut dyn FnMut(&LightKey, &Arc<PreparedLight>, &Arc<Image>),
+        on_light: &mut OnLight<'_>,
     ) -> Result<(f64, f64), String> {
         let key = LightKey::of(&self.envs, state);
         if self.light.as_ref().is_some_and(|(k, _, _, _)| *k == key) {
@@ -890,7 +893,7 @@ impl Engine {
     pub fn render_with(
         &mut self,
         state: &ViewState,
-        on_light: &mut dyn FnMut(&LightKey, &Arc<PreparedLight>, &Arc<Image>),
+        on_light: &mut OnLight<'_>,
     ) -> Result<Rendered, String> {
         let mut state = state.clone();
         let limits = self.limits();

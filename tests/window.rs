@@ -126,7 +126,14 @@ fn the_viewer_draws_its_window_under_an_x_server() {
         eprintln!("skipped: Xvfb and xwd are needed (apt-get install xvfb x11-apps)");
         return;
     }
-    let display = format!(":{}", 90 + std::process::id() % 400);
+    // A display number no server holds (another test run's or a desktop's).
+    let free = (90 + std::process::id() % 400..1000)
+        .find(|n| {
+            !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
+                && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
+        })
+        .expect("a free X display number");
+    let display = format!(":{free}");
     let dir = common::temp_dir("window");
     let _xvfb = Running(
         Command::new("Xvfb")
@@ -143,6 +150,15 @@ fn the_viewer_draws_its_window_under_an_x_server() {
             .spawn()
             .expect("Xvfb starts"),
     );
+    // The server takes a moment to listen; the viewer must not start before.
+    let ready = Instant::now();
+    while capture(&display).is_none() {
+        assert!(
+            ready.elapsed() < Duration::from_secs(30),
+            "Xvfb {display} did not come up"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
     let runtime = dir.join("runtime");
     std::fs::create_dir_all(&runtime).unwrap();
     #[cfg(unix)]
