@@ -27,6 +27,7 @@ pub mod cubemap;
 pub mod demo;
 pub mod envmap;
 pub mod error;
+pub mod files;
 pub mod film;
 pub mod gpu;
 pub mod haar;

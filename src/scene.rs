@@ -227,13 +227,15 @@ pub struct Scene {
     pub medium: Option<MediumSpec>,
     /// The scene file this was loaded from (or named as such by [`Scene::from_toml_str`]).
     pub source_path: PathBuf,
+    /// Every file the scene was read from: the scene file, then its meshes and density grid.
+    pub input_files: Vec<PathBuf>,
     content_hash: u64,
 }
 
 impl Scene {
     /// Reads and loads the scene file at `path`; OBJ paths in it are relative to its folder.
     pub fn load(path: &Path) -> Result<Scene> {
-        let text = std::fs::read_to_string(path).map_err(|e| PrtError::io(path, e))?;
+        let text = crate::files::read_regular_text(path, crate::files::MAX_SCENE_BYTES, "scene")?;
         Scene::from_toml_str(&text, path)
     }
 
@@ -680,6 +682,8 @@ struct Loader<'a> {
     hasher: Fnv1a,
     /// OBJ files already read, by resolved path, so a mesh used twice is parsed once.
     obj_cache: HashMap<PathBuf, (Vec<u8>, ObjData)>,
+    /// Files read besides the scene text (meshes, a grid), in load order.
+    inputs: Vec<PathBuf>,
 }
 
 impl<'a> Loader<'a> {
@@ -695,6 +699,7 @@ impl<'a> Loader<'a> {
             base_dir,
             hasher: Fnv1a::new(),
             obj_cache: HashMap::new(),
+            inputs: Vec::new(),
         })
     }
 
@@ -811,6 +816,9 @@ impl<'a> Loader<'a> {
             spheres,
             medium,
             source_path: self.map.file.clone(),
+            input_files: std::iter::once(self.map.file.clone())
+                .chain(self.inputs)
+                .collect(),
             content_hash: self.hasher.0,
         })
     }
@@ -1036,10 +1044,16 @@ impl<'a> Loader<'a> {
                         .error("medium.path", "a grid medium needs `path` (a .npy file)")
                 })?;
                 let path = self.base_dir.join(rel);
-                let grid = crate::medium::load_npy(&path, min, max)
+                let bytes = crate::files::read_regular(
+                    &path,
+                    crate::medium::MAX_NPY_BYTES,
+                    "NumPy .npy grid",
+                )
+                .map_err(|e| self.map.error("medium.path", e.to_string()))?;
+                let grid = crate::medium::parse_npy(&bytes, &path, min, max)
                     .map_err(|e| self.map.error("medium.path", e.to_string()))?;
-                let bytes = std::fs::read(&path).map_err(|e| PrtError::io(&path, e))?;
                 self.hasher.write_chunk(&bytes);
+                self.inputs.push(path);
                 MediumSource::Grid(grid)
             }
         };
@@ -1078,9 +1092,10 @@ impl<'a> Loader<'a> {
         let rel = shape.path.as_deref().unwrap_or_default();
         let path = self.base_dir.join(rel);
         if !self.obj_cache.contains_key(&path) {
-            let bytes = std::fs::read(&path).map_err(|e| PrtError::io(&path, e))?;
+            let bytes = crate::files::read_regular(&path, crate::files::MAX_MESH_BYTES, "mesh")?;
             let obj = parse_obj(&bytes, &path)?;
             self.obj_cache.insert(path.clone(), (bytes, obj));
+            self.inputs.push(path.clone());
         }
         let (bytes, obj) = &self.obj_cache[&path];
         self.hasher.write_chunk(bytes);
