@@ -29,6 +29,7 @@ pub mod envmap;
 pub mod error;
 pub mod files;
 pub mod film;
+pub mod flags;
 pub mod gpu;
 pub mod haar;
 pub mod light;
