@@ -414,6 +414,36 @@ fn load_env(spec: &str) -> Result<EnvMap> {
     Ok(env)
 }
 
+/// The files among environment specs (not the procedural `sun:` ones), for the output checks.
+fn env_files(specs: &[String]) -> Vec<PathBuf> {
+    specs
+        .iter()
+        .filter(|s| !s.starts_with("sun:"))
+        .map(PathBuf::from)
+        .collect()
+}
+
+/// Image outputs: `.exr` (linear) or `.png` (tone-mapped), none of `inputs`.
+fn check_image_output(output: &std::path::Path, inputs: &[PathBuf]) -> Result<()> {
+    let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(
+        output,
+        &["exr", "png"],
+        "an image (.exr linear, .png tone-mapped)",
+        &inputs,
+    )
+}
+
+/// The flags every relighting command shares, checked before any work.
+fn check_light_flags(yaw: f64, pitch: f64, exposure: Option<f32>) -> Result<()> {
+    crate::flags::angle("yaw", yaw)?;
+    crate::flags::angle("pitch", pitch)?;
+    if let Some(e) = exposure {
+        crate::flags::exposure(e)?;
+    }
+    Ok(())
+}
+
 fn progress_bar(total: usize) -> ProgressBar {
     let bar = ProgressBar::new(total as u64);
     bar.set_style(
@@ -494,7 +524,12 @@ fn bake_cmd(a: BakeArgs) -> Result<()> {
     settings.quantization = a.quantization;
     settings.shard = a.shard.as_deref().map(parse_shard).transpose()?;
     settings.validate()?;
+    crate::files::check_output(&a.output, &["prt"], "a transport file", &[])?;
     let scene = Scene::load(&a.scene)?;
+    let inputs: Vec<&std::path::Path> = scene.input_files.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(&a.output, &["prt"], "a transport file", &inputs)?;
+    // A run killed while writing left its temporary file; this one takes its place.
+    crate::files::remove_stale_partials(&a.output);
     // Resuming: a finished output of this very bake (or shard) is kept, not redone.
     if crate::bake::load_if_baked_with(&a.output, &scene, &settings).is_some() {
         eprintln!(
@@ -558,11 +593,14 @@ fn bake_cmd(a: BakeArgs) -> Result<()> {
 }
 
 fn merge_cmd(shards: Vec<PathBuf>, output: PathBuf) -> Result<()> {
+    let inputs: Vec<&std::path::Path> = shards.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(&output, &["prt"], "a transport file", &inputs)?;
     let loaded: Vec<Transport> = shards
         .iter()
         .map(|p| Transport::load(p))
         .collect::<Result<_>>()?;
-    let t = Transport::merge(&loaded)?;
+    let names: Vec<String> = shards.iter().map(|p| p.display().to_string()).collect();
+    let t = Transport::merge_named(&loaded, &names)?;
     t.save(&output)?;
     print_info(&output, &t);
     Ok(())
@@ -660,6 +698,10 @@ fn info(file: PathBuf) -> Result<()> {
 fn relight_cmd(a: RelightArgs) -> Result<()> {
     let method: Method = a.method.parse()?;
     let weighting: Weighting = a.weighting.parse()?;
+    check_light_flags(a.yaw, a.pitch, a.exposure)?;
+    let mut inputs = env_files(std::slice::from_ref(&a.env));
+    inputs.push(a.file.clone());
+    check_image_output(&a.output, &inputs)?;
     let gpu = match a.device.as_str() {
         "cpu" => None,
         "gpu" => Some(crate::gpu::Gpu::new()?),
@@ -671,6 +713,12 @@ fn relight_cmd(a: RelightArgs) -> Result<()> {
         }
     };
     let t = Transport::load(&a.file)?;
+    if let Some(o) = a.sh_order {
+        crate::flags::sh_order(o, t.meta.sh_order as usize)?;
+    }
+    if method == Method::Wavelet {
+        crate::flags::terms(a.terms, t.meta.cube_n as usize)?;
+    }
     let env = load_env(&a.env)?;
     let ctx = LightContext::new(&t)?;
     let start = Instant::now();
@@ -720,6 +768,7 @@ fn relight_cmd(a: RelightArgs) -> Result<()> {
             }
         }
     };
+    img.check_finite("relit image")?;
     let tone = match a.exposure {
         Some(e) => ToneMap::exposure(e),
         None => ToneMap::auto(&img, Some(&t.coverage)),
@@ -746,7 +795,12 @@ fn relight_cmd(a: RelightArgs) -> Result<()> {
 fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     let settings = settings_from(&a.sampling, 1, 0.0, true);
     settings.validate()?;
+    check_light_flags(a.yaw, a.pitch, None)?;
+    let mut inputs = env_files(std::slice::from_ref(&a.env));
+    check_image_output(&a.output, &inputs)?;
     let scene = Scene::load(&a.scene)?;
+    inputs.extend(scene.input_files.iter().cloned());
+    check_image_output(&a.output, &inputs)?;
     let env = load_env(&a.env)?;
     let cube = env.to_cube(
         settings.cube_n,
@@ -757,6 +811,7 @@ fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     )?;
     let start = Instant::now();
     let img = crate::reference::render_reference(&scene, &cube, &settings)?;
+    img.check_finite("reference image")?;
     let mask: Vec<f32> = img
         .pixels
         .iter()
@@ -1003,6 +1058,19 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
             }
         });
     };
+    let mut inputs = env_files(&a.env);
+    inputs.push(a.file.clone());
+    let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(
+        &out,
+        &["png"],
+        "a tone-mapped PNG (`prt relight -o IMG.exr` writes linear radiance)",
+        &inputs,
+    )?;
+    check_light_flags(a.yaw.unwrap_or(0.0), a.pitch.unwrap_or(0.0), a.exposure)?;
+    if let Some(f) = a.split {
+        crate::flags::fraction("split", f)?;
+    }
     if crate::volume::is_volume_file(&a.file) {
         if a.method.is_some()
             || a.terms.is_some()
@@ -1020,7 +1088,8 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
         return volume_screenshot_cmd(&a, &out);
     }
     let (entries, sun, selected) = env_entries(&a.env);
-    let mut engine = Engine::open(&a.file, entries).map_err(err)?;
+    let transport = Transport::load(&a.file)?;
+    let mut engine = Engine::from_transport(&a.file, transport, entries).map_err(err)?;
     let mut state = engine.initial_state(selected, sun);
     if let Some(r) = crate::viewer::cli_sun_radius(&a.env) {
         state.sun_radius = r;
@@ -1028,9 +1097,6 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
     state.compare = a.compare || a.split.is_some();
     state.error_map = a.error_map;
     if let Some(f) = a.split {
-        if !(0.0..=1.0).contains(&f) {
-            return Err(err(format!("--split {f}: expected a fraction in [0, 1]")));
-        }
         state.layout = crate::viewer::Layout::Split;
         state.split = f;
     }
@@ -1040,13 +1106,17 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
     if let Some(m) = &a.method {
         state.method = m.parse()?;
     }
+    // Given flags are checked as `relight` checks them; only the defaults are fitted to the file.
+    let limits = engine.limits();
     if let Some(k) = a.terms {
+        crate::flags::terms(k, engine.transport.meta.cube_n as usize)?;
         state.terms = k;
     }
     if let Some(w) = &a.weighting {
         state.weighting = w.parse()?;
     }
     if let Some(o) = a.sh_order {
+        crate::flags::sh_order(o, limits.sh_order)?;
         state.sh_order = o;
     }
     if let Some(y) = a.yaw {
@@ -1097,7 +1167,8 @@ fn volume_screenshot_cmd(a: &ViewArgs, out: &std::path::Path) -> Result<()> {
         state.pitch = p;
     }
     if let Some(o) = a.sh_order {
-        state.sh_order = o.clamp(1, vt.meta.sh_order);
+        crate::flags::sh_order(o, vt.meta.sh_order)?;
+        state.sh_order = o;
     }
     if let Some(t) = &a.tone {
         state.tone = parse_tone(t)?;
@@ -1138,7 +1209,10 @@ fn parse_tone(t: &str) -> Result<crate::film::ToneCurve> {
 
 fn volume_bake_cmd(a: VolumeBakeArgs) -> Result<()> {
     use crate::volume::{TransferSettings, bake_volume};
+    crate::files::check_output(&a.output, &["prtv"], "a volume file", &[])?;
     let scene = Scene::load(&a.scene)?;
+    let inputs: Vec<&std::path::Path> = scene.input_files.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(&a.output, &["prtv"], "a volume file", &inputs)?;
     let settings = TransferSettings {
         sh_order: a.sh_order,
         directions: a.directions,
@@ -1173,6 +1247,10 @@ fn volume_bake_cmd(a: VolumeBakeArgs) -> Result<()> {
 fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
     use crate::volume::{PhaseLight, VolumeTransfer, VolumeView, render_volume};
     let view: VolumeView = a.view.parse()?;
+    check_light_flags(a.yaw, a.pitch, a.exposure)?;
+    let mut inputs = env_files(std::slice::from_ref(&a.env));
+    inputs.push(a.file.clone());
+    check_image_output(&a.output, &inputs)?;
     let vt = VolumeTransfer::load(&a.file)?;
     let size = match (a.width, a.height) {
         (None, None) => None,
@@ -1180,15 +1258,7 @@ fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
     };
     let camera = vt.camera(a.eye, a.target, size)?;
     let order = a.sh_order.unwrap_or(vt.meta.sh_order);
-    if !(1..=vt.meta.sh_order).contains(&order) {
-        return Err(PrtError::invalid(
-            "SH order",
-            format!(
-                "{order}: this file was baked up to order {}",
-                vt.meta.sh_order
-            ),
-        ));
-    }
+    crate::flags::sh_order(order, vt.meta.sh_order)?;
     crate::cubemap::validate_n(a.cube)?;
     let env = load_env(&a.env)?;
     let start = Instant::now();
@@ -1218,6 +1288,7 @@ fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
         }
     };
     let march_ms = start.elapsed().as_secs_f64() * 1e3;
+    img.check_finite("volume image")?;
     let tone = match a.exposure {
         Some(e) => ToneMap::exposure(e),
         None => ToneMap::auto(&img, None),

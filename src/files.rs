@@ -176,8 +176,13 @@ fn host_tag() -> String {
     if tag.is_empty() { "host".into() } else { tag }
 }
 
-/// The temporary file a write of `path` by process `pid` of host `host` goes through.
-fn partial_path(path: &Path, host: &str, pid: u32) -> PathBuf {
+/// The temporary file a write of `path` by process `pid` of this host goes through.
+pub fn partial_path(path: &Path, pid: u32) -> PathBuf {
+    partial_path_of(path, &host_tag(), pid)
+}
+
+/// [`partial_path`] for the host named `host`.
+fn partial_path_of(path: &Path, host: &str, pid: u32) -> PathBuf {
     let mut name = path
         .file_name()
         .map(|n| n.to_os_string())
@@ -240,7 +245,7 @@ pub fn remove_stale_partials(path: &Path) {
 /// `path`, not the temporary file.
 pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
     remove_stale_partials(path);
-    let tmp = partial_path(path, &host_tag(), std::process::id());
+    let tmp = partial_path(path, std::process::id());
     if let Err(e) = write(&tmp) {
         let _ = std::fs::remove_file(&tmp);
         return Err(e.renaming(&tmp, path));
@@ -257,10 +262,10 @@ mod tests {
 
     #[test]
     fn partial_names_keep_the_extension_and_parse_back() {
-        let p = partial_path(Path::new("dir/out.prt"), "node-1", 42);
+        let p = partial_path_of(Path::new("dir/out.prt"), "node-1", 42);
         assert_eq!(p, Path::new("dir/out.prt.partial-node-1-42.prt"));
         assert_eq!(p.extension().and_then(|e| e.to_str()), Some("prt"));
-        let p = partial_path(Path::new("noext"), "h", 7);
+        let p = partial_path_of(Path::new("noext"), "h", 7);
         assert_eq!(p, Path::new("noext.partial-h-7"));
     }
 }
