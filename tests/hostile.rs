@@ -659,3 +659,70 @@ fn device_files_are_refused_at_once() {
         &["/dev/zero", "not a regular file"],
     );
 }
+
+/// A regression input the mutation harness found, from `tests/data/hostile`.
+fn found(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/hostile")
+        .join(name)
+}
+
+// Found by the mutation harness: a sphere centre or a quad corner of 3.4e38 (finite) made the
+// BVH builder index out of bounds, its boxes' areas overflowing f32.
+#[test]
+fn scene_coordinates_near_the_f32_limit_are_refused_not_a_bvh_panic() {
+    for (file, field) in [
+        ("bvh_panic_sphere_center_3e38.toml", "shape[1].center"),
+        ("bvh_panic_quad_corner_3e38.toml", "shape[1].corners"),
+    ] {
+        let e = Scene::load(&found(file)).unwrap_err().to_string();
+        assert!(
+            e.contains(file) && e.contains(field) && e.contains("beyond"),
+            "{e}"
+        );
+    }
+    // A mesh scaled past the limit, and a scene at the limit, which bakes.
+    let dir = temp_dir("hostile-coordinates");
+    std::fs::write(dir.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\n").unwrap();
+    let mesh = SPHERE_ON_PLANE.replace(
+        "[[shape]]\ntype = \"sphere\"",
+        "[[shape]]\ntype = \"mesh\"\npath = \"tri.obj\"\nscale = 1e30\nmaterial = \"clay\"\n\n[[shape]]\ntype = \"sphere\"",
+    );
+    let p = dir.join("mesh.toml");
+    std::fs::write(&p, &mesh).unwrap();
+    let e = Scene::load(&p).unwrap_err().to_string();
+    assert!(e.contains("shape[1].scale") && e.contains("beyond"), "{e}");
+    std::fs::write(&p, mesh.replace("scale = 1e30", "scale = 1e9")).unwrap();
+    let scene = Scene::load(&p).unwrap();
+    let settings = BakeSettings {
+        cube_n: 2,
+        sh_order: 1,
+        ..BakeSettings::default()
+    };
+    bake(&scene, &settings, &|_| {}).unwrap();
+}
+
+// Found by the mutation harness: a grid medium's box far longer than its grid (2e9 units for 4
+// voxels against 1 unit for 3) made the direction sweep pad its slices by a billion cells, an
+// allocation of 6.6e18 bytes that aborted the process.
+#[test]
+fn a_medium_box_far_longer_than_its_grid_sweeps_without_a_giant_buffer() {
+    let e = Scene::load(&found("sweep_overflow_grid_box_2e9_long.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("medium.bounds") && e.contains("beyond"), "{e}");
+    let scene = Scene::load(&found("sweep_overflow_grid_box_1e9_long.toml")).unwrap();
+    let settings = TransferSettings {
+        sh_order: 2,
+        directions: 64,
+    };
+    let vt = bake_volume(&scene, None, &settings, &|_, _| {}).unwrap();
+    assert!(vt.transfer.iter().all(|v| v.is_finite()));
+    let bake_settings = BakeSettings {
+        cube_n: 2,
+        sh_order: 1,
+        ..BakeSettings::default()
+    };
+    let t = bake(&scene, &bake_settings, &|_| {}).unwrap();
+    t.validate().unwrap();
+}

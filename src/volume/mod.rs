@@ -202,10 +202,21 @@ impl Sweeper {
         let [a, b, c] = layout.axes;
         let [na, nb, nc] = layout.n;
         let h = self.cell[a] / dir[a].abs();
-        let ob = h * dir[b] / self.cell[b];
-        let oc = h * dir[c] / self.cell[c];
-        let (fb, fc) = (ob.floor(), oc.floor());
-        let (wb, wc) = (ob - fb, oc - fc);
+        // The upstream point's offset in cells along b and c. Very flat voxels (a box far
+        // longer than its grid is fine) can put it many grids away: beyond one grid it only
+        // reads the empty padding, so it is cut there (and the padding stays small).
+        let offset = |o: f32, n: usize| -> (f32, f32) {
+            let limit = n as f32 + 1.0;
+            if o.abs() <= limit {
+                (o.floor(), o - o.floor())
+            } else if o > limit {
+                (limit, 0.0)
+            } else {
+                (-limit - 1.0, 0.0)
+            }
+        };
+        let (fb, wb) = offset(h * dir[b] / self.cell[b], nb);
+        let (fc, wc) = offset(h * dir[c] / self.cell[c], nc);
         let (ib, ic) = (fb as isize, fc as isize);
         let pad = [ib, ib + 1, ic, ic + 1]
             .iter()
