@@ -40,7 +40,7 @@ pub enum Command {
         /// Shard files, in any order.
         #[arg(required = true, num_args = 1..)]
         shards: Vec<PathBuf>,
-        /// Output transport file.
+        /// Output transport file (.prt).
         #[arg(short, long)]
         output: PathBuf,
     },
@@ -192,7 +192,7 @@ pub struct SamplingArgs {
 pub struct BakeArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
-    /// Output transport file.
+    /// Output transport file (.prt).
     #[arg(short, long)]
     pub output: PathBuf,
     #[command(flatten)]
