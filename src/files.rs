@@ -118,10 +118,12 @@ pub fn check_output(
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        return Err(PrtError::file(
-            output,
-            format!("the folder {} does not exist", dir.display()),
-        ));
+        let message = if dir.exists() {
+            format!("{} is not a folder", dir.display())
+        } else {
+            format!("the folder {} does not exist", dir.display())
+        };
+        return Err(PrtError::file(output, message));
     }
     for input in inputs {
         if same_file(output, input) {

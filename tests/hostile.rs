@@ -575,7 +575,11 @@ fn an_unwritable_output_is_named_in_the_error() {
     std::fs::write(&scene, SPHERE_ON_PLANE).unwrap();
     assert_clean_error(
         &["bake", s(&scene), "-o", s(&out)],
-        &["out.prt", "does not exist"],
+        &["out.prt", "blocker is not a folder"],
+    );
+    assert_clean_error(
+        &["bake", s(&scene), "-o", s(&dir.join("missing/out.prt"))],
+        &["out.prt", "the folder", "missing does not exist"],
     );
 }
 
