@@ -70,25 +70,17 @@ impl BenchOptions {
 
     /// Checks the lists against the transport.
     pub fn validate(&self, t: &Transport) -> Result<()> {
-        let total = t.coeff_count();
         if self.terms.is_empty() && self.sh_orders.is_empty() && self.sh_light_orders.is_empty() {
             return Err(PrtError::invalid(
                 "bench",
                 "no term counts and no SH orders to sweep",
             ));
         }
-        if let Some(&k) = self.terms.iter().find(|&&k| k == 0 || k > total) {
-            return Err(PrtError::invalid(
-                "term list",
-                format!("K = {k}; each K must be from 1 to 6·N² = {total}"),
-            ));
+        for &k in &self.terms {
+            crate::flags::terms(k, t.meta.cube_n as usize)?;
         }
-        let baked = t.meta.sh_order as usize;
-        if let Some(&o) = self.sh_orders.iter().find(|&&o| o == 0 || o > baked) {
-            return Err(PrtError::invalid(
-                "SH order list",
-                format!("order {o}; this transport was baked up to order {baked}"),
-            ));
+        for &o in &self.sh_orders {
+            crate::flags::sh_order(o, t.meta.sh_order as usize)?;
         }
         let most = crate::sh::MAX_LIGHT_ORDER;
         if let Some(&o) = self.sh_light_orders.iter().find(|&&o| o == 0 || o > most) {

@@ -41,7 +41,7 @@ pub enum Command {
         /// Shard files, in any order.
         #[arg(required = true, num_args = 1..)]
         shards: Vec<PathBuf>,
-        /// Output transport file.
+        /// Output transport file (.prt).
         #[arg(short, long)]
         output: PathBuf,
     },
@@ -193,7 +193,7 @@ pub struct SamplingArgs {
 pub struct BakeArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
-    /// Output transport file.
+    /// Output transport file (.prt).
     #[arg(short, long)]
     pub output: PathBuf,
     #[command(flatten)]
@@ -428,6 +428,36 @@ fn load_env(spec: &str) -> Result<EnvMap> {
     Ok(env)
 }
 
+/// The files among environment specs (not the procedural `sun:` ones), for the output checks.
+fn env_files(specs: &[String]) -> Vec<PathBuf> {
+    specs
+        .iter()
+        .filter(|s| !s.starts_with("sun:"))
+        .map(PathBuf::from)
+        .collect()
+}
+
+/// Image outputs: `.exr` (linear) or `.png` (tone-mapped), none of `inputs`.
+fn check_image_output(output: &std::path::Path, inputs: &[PathBuf]) -> Result<()> {
+    let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(
+        output,
+        &["exr", "png"],
+        "an image (.exr linear, .png tone-mapped)",
+        &inputs,
+    )
+}
+
+/// The flags every relighting command shares, checked before any work.
+fn check_light_flags(yaw: f64, pitch: f64, exposure: Option<f32>) -> Result<()> {
+    crate::flags::angle("yaw", yaw)?;
+    crate::flags::angle("pitch", pitch)?;
+    if let Some(e) = exposure {
+        crate::flags::exposure(e)?;
+    }
+    Ok(())
+}
+
 /// A progress bar over `total` `unit`s with the elapsed time, the rate to three significant
 /// digits, a message and the time left.
 fn bar(total: u64, unit: &str) -> ProgressBar {
@@ -547,7 +577,12 @@ fn bake_cmd(a: BakeArgs) -> Result<()> {
     settings.quantization = a.quantization;
     settings.shard = a.shard.as_deref().map(parse_shard).transpose()?;
     settings.validate()?;
+    crate::files::check_output(&a.output, &["prt"], "a transport file", &[])?;
     let scene = Scene::load(&a.scene)?;
+    let inputs: Vec<&std::path::Path> = scene.input_files.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(&a.output, &["prt"], "a transport file", &inputs)?;
+    // A run killed while writing left its temporary file; this one takes its place.
+    crate::files::remove_stale_partials(&a.output);
     // Resuming: a finished output of this very bake (or shard) is kept, not redone.
     if crate::bake::load_if_baked_with(&a.output, &scene, &settings).is_some() {
         eprintln!(
@@ -611,6 +646,8 @@ fn bake_cmd(a: BakeArgs) -> Result<()> {
 }
 
 fn merge_cmd(shards: Vec<PathBuf>, output: PathBuf) -> Result<()> {
+    let inputs: Vec<&std::path::Path> = shards.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(&output, &["prt"], "a transport file", &inputs)?;
     let total: u64 = shards
         .iter()
         .map(|p| std::fs::metadata(p).map(|m| m.len()).unwrap_or(0))
@@ -626,7 +663,8 @@ fn merge_cmd(shards: Vec<PathBuf>, output: PathBuf) -> Result<()> {
         before += std::fs::metadata(p).map(|m| m.len()).unwrap_or(0);
     }
     progress.set_message(format!("merging and writing {}", output.display()));
-    let t = Transport::merge(&loaded)?;
+    let names: Vec<String> = shards.iter().map(|p| p.display().to_string()).collect();
+    let t = Transport::merge_named(&loaded, &names)?;
     t.save(&output)?;
     progress.finish_and_clear();
     print_info(&output, &t.meta);
@@ -719,8 +757,9 @@ fn info(file: PathBuf) -> Result<()> {
         );
         return Ok(());
     }
-    // The header holds everything printed: the arrays are neither read nor checked.
-    let meta = crate::transport::read_header_meta(&file)?;
+    // The header holds everything printed; the small tables are read and checked, the entries
+    // and values are not.
+    let meta = crate::transport::read_summary(&file)?;
     print_info(&file, &meta);
     Ok(())
 }
@@ -729,6 +768,10 @@ fn relight_cmd(a: RelightArgs) -> Result<()> {
     let method: Method = a.method.parse()?;
     let weighting: Weighting = a.weighting.parse()?;
     let background: Background = a.background.parse()?;
+    check_light_flags(a.yaw, a.pitch, a.exposure)?;
+    let mut inputs = env_files(std::slice::from_ref(&a.env));
+    inputs.push(a.file.clone());
+    check_image_output(&a.output, &inputs)?;
     let gpu = match a.device.as_str() {
         "cpu" => None,
         "gpu" => Some(crate::gpu::Gpu::new()?),
@@ -740,6 +783,12 @@ fn relight_cmd(a: RelightArgs) -> Result<()> {
         }
     };
     let t = Transport::load(&a.file)?;
+    if let Some(o) = a.sh_order {
+        crate::flags::sh_order(o, t.meta.sh_order as usize)?;
+    }
+    if method == Method::Wavelet {
+        crate::flags::terms(a.terms, t.meta.cube_n as usize)?;
+    }
     let env = load_env(&a.env)?;
     let ctx = LightContext::new(&t)?;
     let start = Instant::now();
@@ -787,6 +836,7 @@ fn relight_cmd(a: RelightArgs) -> Result<()> {
             }
         }
     };
+    img.check_finite("relit image")?;
     let tone = match a.exposure {
         Some(e) => ToneMap::exposure(e),
         None => ToneMap::auto(&img, Some(&t.coverage)),
@@ -821,7 +871,12 @@ fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     let settings = settings_from(&a.sampling, 1, 0.0, true);
     settings.validate()?;
     let background: Background = a.background.parse()?;
+    check_light_flags(a.yaw, a.pitch, None)?;
+    let mut inputs = env_files(std::slice::from_ref(&a.env));
+    check_image_output(&a.output, &inputs)?;
     let scene = Scene::load(&a.scene)?;
+    inputs.extend(scene.input_files.iter().cloned());
+    check_image_output(&a.output, &inputs)?;
     let env = load_env(&a.env)?;
     let rotation = EnvRotation {
         yaw_deg: a.yaw,
@@ -834,6 +889,7 @@ fn reference_cmd(a: ReferenceArgs) -> Result<()> {
         rows.set_position(done as u64)
     })?;
     rows.finish_and_clear();
+    r.image.check_finite("reference image")?;
     let tone = ToneMap::auto(&r.image, Some(&r.coverage));
     let img = match background {
         Background::Environment => crate::background::composite(
@@ -1118,6 +1174,19 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
             }
         });
     };
+    let mut inputs = env_files(&a.env);
+    inputs.push(a.file.clone());
+    let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(
+        &out,
+        &["png"],
+        "a tone-mapped PNG (`prt relight -o IMG.exr` writes linear radiance)",
+        &inputs,
+    )?;
+    check_light_flags(a.yaw.unwrap_or(0.0), a.pitch.unwrap_or(0.0), a.exposure)?;
+    if let Some(f) = a.split {
+        crate::flags::fraction("split", f)?;
+    }
     if crate::volume::is_volume_file(&a.file) {
         if a.method.is_some()
             || a.terms.is_some()
@@ -1135,7 +1204,8 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
         return volume_screenshot_cmd(&a, &out);
     }
     let (entries, sun, selected) = env_entries(&a.env);
-    let mut engine = Engine::open(&a.file, entries).map_err(err)?;
+    let transport = Transport::load(&a.file)?;
+    let mut engine = Engine::from_transport(&a.file, transport, entries).map_err(err)?;
     let mut state = engine.initial_state(selected, sun);
     if let Some(r) = crate::viewer::cli_sun_radius(&a.env) {
         state.sun_radius = r;
@@ -1143,9 +1213,6 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
     state.compare = a.compare || a.split.is_some();
     state.error_map = a.error_map;
     if let Some(f) = a.split {
-        if !(0.0..=1.0).contains(&f) {
-            return Err(err(format!("--split {f}: expected a fraction in [0, 1]")));
-        }
         state.layout = crate::viewer::Layout::Split;
         state.split = f;
     }
@@ -1155,13 +1222,17 @@ fn view_cmd(a: ViewArgs) -> Result<()> {
     if let Some(m) = &a.method {
         state.method = m.parse()?;
     }
+    // Given flags are checked as `relight` checks them; only the defaults are fitted to the file.
+    let limits = engine.limits();
     if let Some(k) = a.terms {
+        crate::flags::terms(k, engine.transport.meta.cube_n as usize)?;
         state.terms = k;
     }
     if let Some(w) = &a.weighting {
         state.weighting = w.parse()?;
     }
     if let Some(o) = a.sh_order {
+        crate::flags::sh_order(o, limits.sh_order)?;
         state.sh_order = o;
     }
     if let Some(y) = a.yaw {
@@ -1212,7 +1283,8 @@ fn volume_screenshot_cmd(a: &ViewArgs, out: &std::path::Path) -> Result<()> {
         state.pitch = p;
     }
     if let Some(o) = a.sh_order {
-        state.sh_order = o.clamp(1, vt.meta.sh_order);
+        crate::flags::sh_order(o, vt.meta.sh_order)?;
+        state.sh_order = o;
     }
     if let Some(t) = &a.tone {
         state.tone = parse_tone(t)?;
@@ -1253,7 +1325,10 @@ fn parse_tone(t: &str) -> Result<crate::film::ToneCurve> {
 
 fn volume_bake_cmd(a: VolumeBakeArgs) -> Result<()> {
     use crate::volume::{TransferSettings, bake_volume};
+    crate::files::check_output(&a.output, &["prtv"], "a volume file", &[])?;
     let scene = Scene::load(&a.scene)?;
+    let inputs: Vec<&std::path::Path> = scene.input_files.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(&a.output, &["prtv"], "a volume file", &inputs)?;
     let settings = TransferSettings {
         sh_order: a.sh_order,
         directions: a.directions,
@@ -1288,6 +1363,10 @@ fn volume_bake_cmd(a: VolumeBakeArgs) -> Result<()> {
 fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
     use crate::volume::{PhaseLight, VolumeTransfer, VolumeView, render_volume};
     let view: VolumeView = a.view.parse()?;
+    check_light_flags(a.yaw, a.pitch, a.exposure)?;
+    let mut inputs = env_files(std::slice::from_ref(&a.env));
+    inputs.push(a.file.clone());
+    check_image_output(&a.output, &inputs)?;
     let vt = VolumeTransfer::load(&a.file)?;
     let size = match (a.width, a.height) {
         (None, None) => None,
@@ -1295,15 +1374,7 @@ fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
     };
     let camera = vt.camera(a.eye, a.target, size)?;
     let order = a.sh_order.unwrap_or(vt.meta.sh_order);
-    if !(1..=vt.meta.sh_order).contains(&order) {
-        return Err(PrtError::invalid(
-            "SH order",
-            format!(
-                "{order}: this file was baked up to order {}",
-                vt.meta.sh_order
-            ),
-        ));
-    }
+    crate::flags::sh_order(order, vt.meta.sh_order)?;
     crate::cubemap::validate_n(a.cube)?;
     let env = load_env(&a.env)?;
     let start = Instant::now();
@@ -1333,6 +1404,7 @@ fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
         }
     };
     let march_ms = start.elapsed().as_secs_f64() * 1e3;
+    img.check_finite("volume image")?;
     let tone = match a.exposure {
         Some(e) => ToneMap::exposure(e),
         None => ToneMap::auto(&img, None),

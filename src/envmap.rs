@@ -16,6 +16,8 @@ use crate::error::{PrtError, Result};
 
 /// Largest accepted lat-long map, checked from the header before any pixel is allocated.
 pub const MAX_ENV_PIXELS: usize = 32768 * 16384;
+/// Largest accepted image file: the largest map in uncompressed 32-bit RGBA, and its header.
+pub const MAX_ENV_BYTES: u64 = MAX_ENV_PIXELS as u64 * 16 + (64 << 20);
 
 /// A lat-long radiance map, rows from the zenith down.
 #[derive(Clone, Debug)]
@@ -100,7 +102,7 @@ impl EnvMap {
         let mut magic = [0u8; 4];
         {
             use std::io::Read;
-            let mut f = std::fs::File::open(path).map_err(|e| PrtError::io(path, e))?;
+            let (mut f, _) = crate::files::open_regular(path, MAX_ENV_BYTES, "environment map")?;
             let got = f.read(&mut magic).map_err(|e| PrtError::io(path, e))?;
             if got < 4 {
                 return Err(PrtError::file(path, "too short to be an EXR or HDR image"));
@@ -302,7 +304,10 @@ impl EnvMap {
     }
 }
 
-fn read_exr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
+/// Reads the first RGB(A) layer of an OpenEXR file, its size checked from the header before any
+/// pixel is allocated.
+pub(crate) fn read_exr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
+    crate::files::open_regular(path, MAX_ENV_BYTES, "OpenEXR image")?;
     let exr_err = |e: exr::error::Error| PrtError::file(path, format!("OpenEXR: {e}"));
     // Check the size from the header before any pixel memory is allocated.
     let meta = exr::meta::MetaData::read_from_file(path, false).map_err(exr_err)?;
@@ -332,7 +337,7 @@ fn read_exr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
 
 fn read_hdr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
     use image::ImageDecoder;
-    let file = std::fs::File::open(path).map_err(|e| PrtError::io(path, e))?;
+    let (file, _) = crate::files::open_regular(path, MAX_ENV_BYTES, "environment map")?;
     let decoder = image::codecs::hdr::HdrDecoder::new(std::io::BufReader::new(file))
         .map_err(|e| PrtError::file(path, format!("Radiance HDR: {e}")))?;
     let (w, h) = decoder.dimensions();

@@ -137,8 +137,40 @@ impl Image {
         self.pixels.iter().flat_map(|p| tone.apply(*p)).collect()
     }
 
-    /// Writes `.exr` (linear float) or `.png` (tone-mapped sRGB), chosen by the extension.
+    /// The first pixel with a NaN or infinite channel, as (x, y, value).
+    pub fn first_non_finite(&self) -> Option<(usize, usize, f32)> {
+        let w = self.width.max(1);
+        self.pixels.iter().enumerate().find_map(|(i, p)| {
+            p.iter()
+                .find(|v| !v.is_finite())
+                .map(|&v| (i % w, i / w, v))
+        })
+    }
+
+    /// An error when a pixel is NaN or infinite: `what` names the image ("the relit image").
+    /// Inputs are finite, so such a pixel means an overflow of 32-bit floats on the way.
+    pub fn check_finite(&self, what: &str) -> Result<()> {
+        match self.first_non_finite() {
+            None => Ok(()),
+            Some((x, y, v)) => Err(PrtError::invalid(
+                what,
+                format!(
+                    "pixel (x = {x}, y = {y}) is {v}: the light or the transport overflows \
+                     32-bit floats (an environment far too bright, or a damaged file)"
+                ),
+            )),
+        }
+    }
+
+    /// Writes `.exr` (linear float) or `.png` (tone-mapped sRGB), chosen by the extension. An
+    /// image with a NaN or infinite pixel is refused, not written.
     pub fn save(&self, path: &Path, tone: ToneMap) -> Result<()> {
+        if let Some((x, y, v)) = self.first_non_finite() {
+            return Err(PrtError::file(
+                path,
+                format!("not written: pixel (x = {x}, y = {y}) is {v}"),
+            ));
+        }
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
@@ -166,16 +198,19 @@ impl Image {
 
     /// Reads a linear image written by [`Image::save`] (EXR only).
     pub fn load_exr(path: &Path) -> Result<Image> {
-        let img = exr::prelude::read_first_rgba_layer_from_file(
-            path,
-            |res, _| Image::new(res.width(), res.height()),
-            |img: &mut Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-                let w = img.width;
-                img.pixels[pos.y() * w + pos.x()] = [r, g, b];
-            },
-        )
-        .map_err(|e| PrtError::file(path, format!("OpenEXR: {e}")))?;
-        Ok(img.layer_data.channel_data.pixels)
+        let (width, height, pixels) = crate::envmap::read_exr(path)?;
+        let img = Image {
+            width,
+            height,
+            pixels,
+        };
+        if let Some((x, y, v)) = img.first_non_finite() {
+            return Err(PrtError::file(
+                path,
+                format!("pixel (x = {x}, y = {y}) is {v}: an image must be finite"),
+            ));
+        }
+        Ok(img)
     }
 }
 
@@ -192,33 +227,7 @@ pub fn write_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result
     .map_err(|e| PrtError::file(path, format!("writing PNG: {e}")))
 }
 
-/// Runs `write` on a temporary path beside `path`, then renames it into place, so an interrupted
-/// write never leaves a half file under the final name.
-pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let mut name = path
-        .file_name()
-        .map(|n| n.to_os_string())
-        .unwrap_or_default();
-    name.push(format!(".partial-{}", std::process::id()));
-    let tmp = path.with_file_name(name);
-    // Keep the real extension last so format detection by extension still works.
-    let tmp = match path.extension() {
-        Some(ext) => tmp.with_extension(format!(
-            "{}.{}",
-            tmp.extension().and_then(|e| e.to_str()).unwrap_or(""),
-            ext.to_string_lossy()
-        )),
-        None => tmp,
-    };
-    if let Err(e) = write(&tmp) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e.renaming(&tmp, path));
-    }
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        PrtError::io(path, e)
-    })
-}
+pub use crate::files::write_atomically;
 
 #[cfg(test)]
 mod tests {

@@ -53,6 +53,22 @@ impl HaarValue for [f32; 3] {
     }
 }
 
+impl HaarValue for [f64; 3] {
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        [self[0] + o[0], self[1] + o[1], self[2] + o[2]]
+    }
+    #[inline]
+    fn sub(self, o: Self) -> Self {
+        [self[0] - o[0], self[1] - o[1], self[2] - o[2]]
+    }
+    #[inline]
+    fn scale(self, f: f32) -> Self {
+        let f = f as f64;
+        [self[0] * f, self[1] * f, self[2] * f]
+    }
+}
+
 /// Forward transform of one N x N face in place; `scratch` is reused between calls.
 pub fn forward_face<T: HaarValue>(face: &mut [T], n: usize, scratch: &mut Vec<T>) {
     debug_assert_eq!(face.len(), n * n);

@@ -117,10 +117,26 @@ pub struct WaveletLight {
 }
 
 impl WaveletLight {
-    /// Transforms a cube map.
+    /// Transforms a cube map. The sums run in f64: a coefficient is up to N times the largest
+    /// texel, which f32 sums would overflow for a map near the f32 range; one that does not fit
+    /// an f32 at the end is an error, not an infinity.
     pub fn from_cube(cube: &CubeMap) -> Result<Self> {
-        let mut coeffs = cube.texels.clone();
-        haar::forward_cube(&mut coeffs, cube.n)?;
+        let mut wide: Vec<[f64; 3]> = cube.texels.iter().map(|t| t.map(f64::from)).collect();
+        haar::forward_cube(&mut wide, cube.n)?;
+        if let Some(c) = wide
+            .iter()
+            .flatten()
+            .find(|c| !c.is_finite() || c.abs() > f32::MAX as f64)
+        {
+            return Err(PrtError::invalid(
+                "environment",
+                format!(
+                    "a Haar coefficient of its light is {c:.3e}, beyond 32-bit floats: the map \
+                     is far too bright (scale it down)"
+                ),
+            ));
+        }
+        let coeffs = wide.iter().map(|c| c.map(|v| v as f32)).collect();
         Ok(WaveletLight { n: cube.n, coeffs })
     }
 
@@ -135,15 +151,7 @@ impl WaveletLight {
         transport_magnitude: Option<&[f32]>,
     ) -> Result<SparseLight> {
         let total = self.coeffs.len();
-        if k == 0 || k > total {
-            return Err(PrtError::invalid(
-                "term count",
-                format!(
-                    "K = {k}; it must be from 1 to 6·N² = {total} for N = {}",
-                    self.n
-                ),
-            ));
-        }
+        crate::flags::terms(k, self.n)?;
         let weights: Option<&[f32]> = match weighting {
             Weighting::Unweighted => None,
             Weighting::Area => Some(support_area),

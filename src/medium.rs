@@ -440,7 +440,15 @@ fn fbm(p: Vec3, seed: u64, octaves: u32) -> f32 {
 /// and the file size are checked before the data is read; NaN, infinite or negative densities are
 /// errors naming the voxel.
 pub fn load_npy(path: &Path, min: Vec3, max: Vec3) -> Result<DensityGrid> {
-    let bytes = std::fs::read(path).map_err(|e| PrtError::io(path, e))?;
+    let bytes = crate::files::read_regular(path, MAX_NPY_BYTES, "NumPy .npy grid")?;
+    parse_npy(&bytes, path, min, max)
+}
+
+/// Largest `.npy` file: [`MAX_VOXELS`] float64 values and a header.
+pub const MAX_NPY_BYTES: u64 = MAX_VOXELS as u64 * 8 + (1 << 20);
+
+/// [`load_npy`] of bytes already read; `path` names them in messages.
+pub fn parse_npy(bytes: &[u8], path: &Path, min: Vec3, max: Vec3) -> Result<DensityGrid> {
     let bad = |m: String| PrtError::file(path, m);
     if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
         return Err(bad("not a NumPy .npy file (no \\x93NUMPY magic)".into()));

@@ -115,10 +115,11 @@ impl LightContext {
     pub fn prepare(&self, env: &EnvMap, rotation: EnvRotation) -> Result<PreparedLight> {
         if rotation == EnvRotation::default() {
             let cube = env.to_cube(self.n, rotation)?;
-            return Ok(PreparedLight {
-                wavelet: WaveletLight::from_cube(&cube)?,
+            let light = PreparedLight {
+                wavelet: WaveletLight::from_cube(&cube).map_err(|e| named(e, env))?,
                 sh: self.basis.project_light(&cube)?,
-            });
+            };
+            return light.checked(env);
         }
         let unturned = self.prepare_sh(env)?;
         self.prepare_turned(env, &unturned, rotation)
@@ -143,10 +144,43 @@ impl LightContext {
         } else {
             sh::Rotation::new(self.sh_order, rotation.world_from_map())?.apply_rgb(unturned_sh)
         };
-        Ok(PreparedLight {
-            wavelet: WaveletLight::from_cube(&cube)?,
+        PreparedLight {
+            wavelet: WaveletLight::from_cube(&cube).map_err(|e| named(e, env))?,
             sh,
-        })
+        }
+        .checked(env)
+    }
+}
+
+/// An error about "environment" as one about the map's file (or procedural source).
+fn named(e: PrtError, env: &EnvMap) -> PrtError {
+    match e {
+        PrtError::Invalid { what, message } if what == "environment" => {
+            PrtError::file(&env.source, message)
+        }
+        e => e,
+    }
+}
+
+impl PreparedLight {
+    /// The light itself, or an error when a coefficient does not fit the kernels' 32-bit floats
+    /// (a map so bright that relighting would write infinities and NaN).
+    fn checked(self, env: &EnvMap) -> Result<Self> {
+        if let Some(c) = self
+            .sh
+            .iter()
+            .flatten()
+            .find(|c| !c.is_finite() || c.abs() > f32::MAX as f64)
+        {
+            return Err(PrtError::file(
+                &env.source,
+                format!(
+                    "an SH coefficient of its light is {c:.3e}, beyond 32-bit floats: the map is \
+                     far too bright (scale it down)"
+                ),
+            ));
+        }
+        Ok(self)
     }
 }
 
@@ -177,13 +211,17 @@ pub fn relight(
             ),
         ));
     }
-    match req.method {
-        Method::Wavelet | Method::Full => relight_wavelet(t, &select_light(t, ctx, light, req)?),
+    let (image, stats) = match req.method {
+        Method::Wavelet | Method::Full => relight_wavelet(t, &select_light(t, ctx, light, req)?)?,
         Method::Sh => {
             let sh = light_sh_order(&light.sh, req.sh_order, t.meta.sh_order as usize)?;
-            relight_sh(t, &sh)
+            relight_sh(t, &sh)?
         }
-    }
+    };
+    // Inputs are finite (loading checks the file, preparing the light its range), but their
+    // products may still overflow f32: an error, never an image with infinities or NaN.
+    image.check_finite("relit image")?;
+    Ok((image, stats))
 }
 
 /// The Haar terms a wavelet or full request keeps: the K best by its weighting, or all of them.
@@ -225,13 +263,10 @@ pub fn nonzeros_touched(t: &Transport, light: &SparseLight) -> u64 {
 
 /// The first `order²` SH coefficients, checked against the baked order.
 pub fn light_sh_order(sh: &[[f64; 3]], order: usize, baked: usize) -> Result<Vec<[f64; 3]>> {
-    if order == 0 || order > baked {
-        return Err(PrtError::invalid(
-            "SH order",
-            format!("{order}; this transport was baked up to order {baked}"),
-        ));
-    }
-    Ok(sh[..order * order].to_vec())
+    crate::flags::sh_order(order, baked)?;
+    sh.get(..order * order)
+        .map(<[_]>::to_vec)
+        .ok_or_else(|| PrtError::invalid("SH light", format!("fewer than {order}² coefficients")))
 }
 
 /// Widens a stored value (an integer, or a lossless float) to f32; the column's scale is applied

@@ -733,10 +733,7 @@ impl LatLongWeights {
 }
 
 fn check_angle(what: &str, deg: f64) -> Result<()> {
-    if !deg.is_finite() {
-        return Err(PrtError::invalid(what, format!("{deg} degrees")));
-    }
-    Ok(())
+    crate::flags::angle(what, deg)
 }
 
 /// The shift of a `width`-pixel row that turns a map by `yaw_deg`: (whole pixels n, fraction f)

@@ -227,13 +227,15 @@ pub struct Scene {
     pub medium: Option<MediumSpec>,
     /// The scene file this was loaded from (or named as such by [`Scene::from_toml_str`]).
     pub source_path: PathBuf,
+    /// Every file the scene was read from: the scene file, then its meshes and density grid.
+    pub input_files: Vec<PathBuf>,
     content_hash: u64,
 }
 
 impl Scene {
     /// Reads and loads the scene file at `path`; OBJ paths in it are relative to its folder.
     pub fn load(path: &Path) -> Result<Scene> {
-        let text = std::fs::read_to_string(path).map_err(|e| PrtError::io(path, e))?;
+        let text = crate::files::read_regular_text(path, crate::files::MAX_SCENE_BYTES, "scene")?;
         Scene::from_toml_str(&text, path)
     }
 
@@ -673,6 +675,23 @@ fn finite3(map: &SourceMap, field: &str, v: [f32; 3]) -> Result<Vec3> {
     }
 }
 
+/// Largest coordinate of a point in a scene (camera, shapes, medium), in scene units. The BVH
+/// builder and the ray tests multiply and sum extents, which overflow f32 near 1e19; at 1e9 an
+/// f32 still resolves 64 units, far beyond any scene that makes sense.
+pub const MAX_COORDINATE: f32 = 1e9;
+
+/// [`finite3`] for a position or size: finite and within ±[`MAX_COORDINATE`].
+fn position3(map: &SourceMap, field: &str, v: [f32; 3]) -> Result<Vec3> {
+    let v = finite3(map, field, v)?;
+    if v.abs().max_element() > MAX_COORDINATE {
+        return Err(map.error(
+            field,
+            format!("{v} lies beyond ±{MAX_COORDINATE:e} scene units"),
+        ));
+    }
+    Ok(v)
+}
+
 struct Loader<'a> {
     text: &'a str,
     map: SourceMap,
@@ -680,6 +699,8 @@ struct Loader<'a> {
     hasher: Fnv1a,
     /// OBJ files already read, by resolved path, so a mesh used twice is parsed once.
     obj_cache: HashMap<PathBuf, (Vec<u8>, ObjData)>,
+    /// Files read besides the scene text (meshes, a grid), in load order.
+    inputs: Vec<PathBuf>,
 }
 
 impl<'a> Loader<'a> {
@@ -695,6 +716,7 @@ impl<'a> Loader<'a> {
             base_dir,
             hasher: Fnv1a::new(),
             obj_cache: HashMap::new(),
+            inputs: Vec::new(),
         })
     }
 
@@ -761,16 +783,16 @@ impl<'a> Loader<'a> {
                 ShapeKind::Sphere => {
                     require("center", shape.center.is_some())?;
                     require("radius", shape.radius.is_some())?;
-                    let center = finite3(
+                    let center = position3(
                         &self.map,
                         &field("center"),
                         shape.center.unwrap_or_default(),
                     )?;
                     let radius = shape.radius.unwrap_or_default();
-                    if !(radius.is_finite() && radius > 0.0) {
+                    if !(radius.is_finite() && radius > 0.0 && radius <= MAX_COORDINATE) {
                         return Err(self.map.error(
                             &field("radius"),
-                            format!("must be a finite number > 0, got {radius}"),
+                            format!("must be a number > 0 and <= {MAX_COORDINATE:e}, got {radius}"),
                         ));
                     }
                     spheres.push(Sphere {
@@ -783,7 +805,7 @@ impl<'a> Loader<'a> {
                     require("corners", shape.corners.is_some())?;
                     let mut c = [Vec3::ZERO; 4];
                     for (k, corner) in shape.corners.unwrap_or_default().iter().enumerate() {
-                        c[k] = finite3(&self.map, &field("corners"), *corner)?;
+                        c[k] = position3(&self.map, &field("corners"), *corner)?;
                     }
                     let before = triangles.len();
                     for [a, b, d] in [[c[0], c[1], c[2]], [c[0], c[2], c[3]]] {
@@ -811,14 +833,17 @@ impl<'a> Loader<'a> {
             spheres,
             medium,
             source_path: self.map.file.clone(),
+            input_files: std::iter::once(self.map.file.clone())
+                .chain(self.inputs)
+                .collect(),
             content_hash: self.hasher.0,
         })
     }
 
     fn camera(&self, c: &CameraFile) -> Result<Camera> {
         let camera = Camera {
-            eye: finite3(&self.map, "camera.eye", c.eye)?,
-            target: finite3(&self.map, "camera.target", c.target)?,
+            eye: position3(&self.map, "camera.eye", c.eye)?,
+            target: position3(&self.map, "camera.target", c.target)?,
             up: finite3(&self.map, "camera.up", c.up)?,
             fov_y_deg: c.fov_y_deg,
             width: c.width,
@@ -898,8 +923,8 @@ impl<'a> Loader<'a> {
 
     fn medium(&mut self, m: &MediumFile) -> Result<MediumSpec> {
         let field = |key: &str| format!("medium.{key}");
-        let min = finite3(&self.map, "medium.bounds", m.bounds[0])?;
-        let max = finite3(&self.map, "medium.bounds", m.bounds[1])?;
+        let min = position3(&self.map, "medium.bounds", m.bounds[0])?;
+        let max = position3(&self.map, "medium.bounds", m.bounds[1])?;
         if !min.cmplt(max).all() {
             return Err(self.map.error(
                 "medium.bounds",
@@ -971,12 +996,12 @@ impl<'a> Loader<'a> {
                 ));
             }
         }
-        let center = finite3(
+        let center = position3(
             &self.map,
             &field("center"),
             m.center.unwrap_or(((min + max) * 0.5).to_array()),
         )?;
-        let radii = finite3(
+        let radii = position3(
             &self.map,
             &field("radii"),
             m.radii.unwrap_or(((max - min) * 0.5).to_array()),
@@ -1036,10 +1061,16 @@ impl<'a> Loader<'a> {
                         .error("medium.path", "a grid medium needs `path` (a .npy file)")
                 })?;
                 let path = self.base_dir.join(rel);
-                let grid = crate::medium::load_npy(&path, min, max)
+                let bytes = crate::files::read_regular(
+                    &path,
+                    crate::medium::MAX_NPY_BYTES,
+                    "NumPy .npy grid",
+                )
+                .map_err(|e| self.map.error("medium.path", e.to_string()))?;
+                let grid = crate::medium::parse_npy(&bytes, &path, min, max)
                     .map_err(|e| self.map.error("medium.path", e.to_string()))?;
-                let bytes = std::fs::read(&path).map_err(|e| PrtError::io(&path, e))?;
                 self.hasher.write_chunk(&bytes);
+                self.inputs.push(path);
                 MediumSource::Grid(grid)
             }
         };
@@ -1070,7 +1101,7 @@ impl<'a> Loader<'a> {
                 format!("must be finite, got {rotate_y_deg}"),
             ));
         }
-        let translate = finite3(
+        let translate = position3(
             &self.map,
             &field("translate"),
             shape.translate.unwrap_or_default(),
@@ -1078,9 +1109,10 @@ impl<'a> Loader<'a> {
         let rel = shape.path.as_deref().unwrap_or_default();
         let path = self.base_dir.join(rel);
         if !self.obj_cache.contains_key(&path) {
-            let bytes = std::fs::read(&path).map_err(|e| PrtError::io(&path, e))?;
+            let bytes = crate::files::read_regular(&path, crate::files::MAX_MESH_BYTES, "mesh")?;
             let obj = parse_obj(&bytes, &path)?;
             self.obj_cache.insert(path.clone(), (bytes, obj));
+            self.inputs.push(path.clone());
         }
         let (bytes, obj) = &self.obj_cache[&path];
         self.hasher.write_chunk(bytes);
@@ -1090,6 +1122,20 @@ impl<'a> Loader<'a> {
             rotation: Mat3::from_rotation_y(rotate_y_deg.to_radians()),
             translate,
         };
+        // Every vertex a face uses, placed in the scene, within the coordinate limit (checked
+        // before triangles are built: an overflowing one would only look like zero area).
+        if let Some(v) = obj
+            .triangles
+            .iter()
+            .flat_map(|t| t.positions)
+            .map(|i| transform.point(obj.positions[i as usize]))
+            .find(|v| !(v.is_finite() && v.abs().max_element() <= MAX_COORDINATE))
+        {
+            return Err(self.map.error(
+                &field("scale"),
+                format!("the placed mesh reaches {v}, beyond ±{MAX_COORDINATE:e} scene units"),
+            ));
+        }
         let triangles = mesh_triangles(
             obj,
             &transform,

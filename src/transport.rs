@@ -38,13 +38,17 @@
 //! | `transport_magnitude` | f32 [C] | mean magnitude of each coefficient over the rows (transport weighting) |
 //! | `tile_stats` | f64 [T, 3] | per tile: energy dropped by thresholding and quantisation, total energy, shadow rays |
 //!
-//! The `checksum` covers the tensors' bytes in name order, so a flipped bit anywhere is caught.
-//! Loading checks the header, the sizes and every count and index before it allocates anything or
-//! trusts any offset; writing goes to a temporary file that is renamed into place.
+//! The `checksum` covers the tensors' bytes in name order and `meta_checksum` the metadata's
+//! fields (the JSON of `meta` without `meta_checksum`, as this build writes it), so a flipped bit
+//! anywhere is caught; files written before `meta_checksum` existed have none and are read as
+//! before. A checksum guards against accidents, not edits: loading checks the header, the sizes
+//! and every count, index and value (NaN or infinite floats included) before it allocates
+//! anything or trusts any offset, and allocates no more than the file's own tensors hold. Writing
+//! goes to a temporary file that is renamed into place ([`crate::files`]).
 
 use std::borrow::Cow;
 use std::collections::HashMap;
-use std::io::Read;
+use std::io::{Read, Seek};
 use std::ops::Range;
 use std::path::Path;
 
@@ -375,11 +379,7 @@ impl Transport {
         };
         let json = serde_json::to_string(&header)
             .map_err(|e| PrtError::file(path, format!("metadata: {e}")))?;
-        let info: HashMap<String, String> = [("meta".to_string(), json)].into();
-        crate::film::write_atomically(path, |tmp| {
-            safetensors::serialize_to_file(tensors, Some(info), tmp)
-                .map_err(|e| PrtError::file(tmp, format!("writing: {e}")))
-        })
+        crate::files::write_atomically(path, |tmp| write_tensors(tmp, tensors, seal_meta(json)))
     }
 
     /// Reads and fully validates a transport file.
@@ -611,16 +611,16 @@ impl Transport {
         if let Values::F32(v) = &self.values
             && !v.iter().all(|x| x.is_finite())
         {
-            return Err("non-finite transport values".into());
+            return Err("tensor `entry_value` holds NaN or infinite values".into());
         }
         if !self.sh.iter().all(|x| x.is_finite()) {
-            return Err("non-finite SH transport values".into());
+            return Err("tensor `sh` holds NaN or infinite values".into());
         }
         if !self.row_weight.iter().flatten().all(|x| x.is_finite()) {
-            return Err("non-finite row weights".into());
+            return Err("tensor `row_weight` holds NaN or infinite values".into());
         }
         if !self.row_scale.iter().all(|x| x.is_finite() && *x > 0.0) {
-            return Err("row scales must be finite and positive".into());
+            return Err("tensor `row_scale`: every row scale must be finite and positive".into());
         }
         if self.albedo.len() != w * h
             || self.coverage.len() != w * h
@@ -628,6 +628,25 @@ impl Transport {
             || self.tile_stats.len() != tiles
         {
             return Err("per-pixel or per-coefficient tables have the wrong length".into());
+        }
+        for (name, finite) in [
+            (
+                "albedo",
+                self.albedo.iter().flatten().all(|x| x.is_finite()),
+            ),
+            ("coverage", self.coverage.iter().all(|x| x.is_finite())),
+            (
+                "transport_magnitude",
+                self.transport_magnitude.iter().all(|x| x.is_finite()),
+            ),
+            (
+                "tile_stats",
+                self.tile_stats.iter().flatten().all(|x| x.is_finite()),
+            ),
+        ] {
+            if !finite {
+                return Err(format!("tensor `{name}` holds NaN or infinite values"));
+            }
         }
         Ok(())
     }
@@ -1030,46 +1049,70 @@ impl Transport {
 
     /// Joins the shards of one bake (in any order) into the file a single bake would have
     /// written. The shards must come from the same scene and settings and cover every band once.
+    /// Errors name a shard as "file K" (its place in `shards`, from 1).
     pub fn merge(shards: &[Transport]) -> Result<Transport> {
+        let names: Vec<String> = (1..=shards.len()).map(|k| format!("file {k}")).collect();
+        Self::merge_named(shards, &names)
+    }
+
+    /// [`Transport::merge`], naming shard k as `names[k]` in errors (a path, say).
+    pub fn merge_named(shards: &[Transport], names: &[String]) -> Result<Transport> {
+        let name = |k: usize| {
+            names
+                .get(k)
+                .cloned()
+                .unwrap_or_else(|| format!("file {}", k + 1))
+        };
         let first = shards
             .first()
             .ok_or_else(|| PrtError::invalid("merge", "no shard given"))?;
         let Some([_, count]) = first.meta.shard else {
-            return Err(PrtError::invalid("merge", "the first file is not a shard"));
+            return Err(PrtError::invalid(
+                "merge",
+                format!("{} is not a shard", name(0)),
+            ));
         };
         let same = |m: &TransportMeta| TransportMeta {
             shard: None,
             stats: BakeStats::default(),
             ..m.clone()
         };
+        // Loading checked count <= the image's bands, so this is small.
         let mut owner = vec![usize::MAX; count as usize];
         for (k, s) in shards.iter().enumerate() {
             if same(&s.meta) != same(&first.meta) {
                 return Err(PrtError::invalid(
                     "merge",
-                    format!(
-                        "file {} was baked from another scene or with other settings \
-                         (scene hash {} vs {})",
-                        k + 1,
-                        s.meta.scene_hash,
-                        first.meta.scene_hash
-                    ),
+                    meta_difference(&same(&s.meta), &name(k), &same(&first.meta), &name(0)),
                 ));
             }
             match s.meta.shard {
                 Some([i, n]) if n == count && i < n && owner[i as usize] == usize::MAX => {
                     owner[i as usize] = k
                 }
+                Some([i, n]) if n == count && i < n => {
+                    return Err(PrtError::invalid(
+                        "merge",
+                        format!(
+                            "shard {i}/{n} repeats: {} and {} are both shard {i}/{n}",
+                            name(owner[i as usize]),
+                            name(k)
+                        ),
+                    ));
+                }
                 Some([i, n]) => {
                     return Err(PrtError::invalid(
                         "merge",
-                        format!("shard {i}/{n} does not fit a set of {count} shards, or repeats"),
+                        format!(
+                            "{} is shard {i}/{n}, which does not fit a set of {count} shards",
+                            name(k)
+                        ),
                     ));
                 }
                 None => {
                     return Err(PrtError::invalid(
                         "merge",
-                        format!("file {} is not a shard", k + 1),
+                        format!("{} is not a shard", name(k)),
                     ));
                 }
             }
@@ -1082,6 +1125,31 @@ impl Transport {
         }
         let (w, h) = (first.meta.width as usize, first.meta.height as usize);
         let (tx, ty) = tile_grid(w, h);
+        // A shard holds nothing outside its own bands: a label that does not match the content
+        // (two shards' labels swapped, say) would otherwise merge into a mostly black image.
+        for (i, &k) in owner.iter().enumerate() {
+            let s = &shards[k];
+            for band in (0..ty).filter(|&b| shard_of_band(b, ty, count as usize) != i) {
+                let tiles = band * tx..(band + 1) * tx;
+                let pixels = band * TILE * w..((band + 1) * TILE * w).min(w * h);
+                let rows = s.tile_row_start[tiles.end] - s.tile_row_start[tiles.start];
+                let stats = s.tile_stats[tiles].iter().flatten().any(|v| *v != 0.0);
+                let seen = s.coverage[pixels.clone()].iter().any(|v| *v != 0.0)
+                    || s.albedo[pixels].iter().flatten().any(|v| *v != 0.0);
+                if rows > 0 || stats || seen {
+                    return Err(PrtError::invalid(
+                        "merge",
+                        format!(
+                            "{} is labelled shard {i}/{count} but holds data in tile row {band}, \
+                             which shard {}/{count} bakes: its `shard` label does not match its \
+                             content",
+                            name(k),
+                            shard_of_band(band, ty, count as usize)
+                        ),
+                    ));
+                }
+            }
+        }
         let mut tiles = Vec::with_capacity(tx * ty);
         let mut albedo = vec![[0.0f32; 3]; w * h];
         let mut coverage = vec![0.0f32; w * h];
@@ -1100,6 +1168,29 @@ impl Transport {
     }
 }
 
+/// How shard `a` (named `na`) differs from shard `b` (named `nb`): "A was baked from another
+/// scene than B (scene hash X against Y)", or the first setting that differs, "A was baked with
+/// seed 7, B with seed 1".
+fn meta_difference(a: &TransportMeta, na: &str, b: &TransportMeta, nb: &str) -> String {
+    if a.scene_hash != b.scene_hash {
+        return format!(
+            "{na} was baked from another scene than {nb} (scene hash {} against {})",
+            a.scene_hash, b.scene_hash
+        );
+    }
+    if let (Ok(serde_json::Value::Object(x)), Ok(serde_json::Value::Object(y))) =
+        (serde_json::to_value(a), serde_json::to_value(b))
+    {
+        for (key, va) in &x {
+            let vb = y.get(key).unwrap_or(&serde_json::Value::Null);
+            if va != vb {
+                return format!("{na} was baked with {key} {va}, {nb} with {key} {vb}");
+            }
+        }
+    }
+    format!("{na} was baked with other settings than {nb}")
+}
+
 /// The shard that bakes band (tile row) `band` of `bands` when a bake is split into `count`.
 pub fn shard_of_band(band: usize, bands: usize, count: usize) -> usize {
     (band * count) / bands.max(1)
@@ -1108,8 +1199,9 @@ pub fn shard_of_band(band: usize, bands: usize, count: usize) -> usize {
 /// Reads a whole file in 8 MiB pieces, reporting each.
 fn read_with_progress(path: &Path, progress: &dyn Fn(u64, u64)) -> Result<Vec<u8>> {
     use std::io::Read;
-    let mut f = std::fs::File::open(path).map_err(|e| PrtError::io(path, e))?;
-    let total = f.metadata().map_err(|e| PrtError::io(path, e))?.len();
+    let (f, total) = crate::files::open_regular(path, u64::MAX, "transport")?;
+    // The size was read before the data: a file that grows meanwhile is not read past it.
+    let mut f = f.take(total);
     let mut buf = Vec::new();
     buf.try_reserve_exact(total as usize)
         .map_err(|_| PrtError::file(path, format!("{total} bytes do not fit in memory")))?;
@@ -1132,10 +1224,108 @@ pub fn read_header_meta(path: &Path) -> Result<TransportMeta> {
     read_header(path).map(|(meta, _)| meta)
 }
 
+/// The header and the small tables, for `prt info`: the metadata, checked as
+/// [`read_header_meta`] does, and the tile and column-count tables, checked against each other and
+/// against the entry count the header declares. The entries and values, nearly all of the file,
+/// are neither read nor checked (their checksum needs them all).
+pub fn read_summary(path: &Path) -> Result<TransportMeta> {
+    let meta = read_header_meta(path)?;
+    let (mut f, _) = crate::files::open_regular(path, u64::MAX, "transport")?;
+    let mut len8 = [0u8; 8];
+    f.read_exact(&mut len8)
+        .map_err(|e| PrtError::file(path, format!("reading header: {e}")))?;
+    let header_len = u64::from_le_bytes(len8);
+    let mut header = vec![0u8; header_len as usize];
+    f.read_exact(&mut header)
+        .map_err(|e| PrtError::file(path, format!("reading header: {e}")))?;
+    let json: serde_json::Value = serde_json::from_slice(&header)
+        .map_err(|e| PrtError::file(path, format!("header is not JSON: {e}")))?;
+    // A tensor's element count and its bytes, from the header (sizes checked before reading).
+    let mut tensor = |name: &str, width: usize| -> Result<(usize, Vec<u8>)> {
+        let t = json
+            .get(name)
+            .ok_or_else(|| PrtError::file(path, format!("no tensor `{name}`")))?;
+        let shape: Vec<usize> = t
+            .get("shape")
+            .and_then(|s| s.as_array())
+            .map(|a| {
+                a.iter()
+                    .filter_map(|v| v.as_u64())
+                    .map(|v| v as usize)
+                    .collect()
+            })
+            .unwrap_or_default();
+        let count = shape.iter().try_fold(1usize, |a, &d| a.checked_mul(d));
+        let offsets = t.get("data_offsets").and_then(|o| o.as_array());
+        let (start, end) = match offsets.map(|o| {
+            (
+                o.first().and_then(|v| v.as_u64()),
+                o.get(1).and_then(|v| v.as_u64()),
+            )
+        }) {
+            Some((Some(a), Some(b))) if a <= b => (a, b),
+            _ => {
+                return Err(PrtError::file(
+                    path,
+                    format!("tensor `{name}`: bad data_offsets"),
+                ));
+            }
+        };
+        let count = count.ok_or_else(|| PrtError::file(path, format!("tensor `{name}`: shape")))?;
+        if width == 0 {
+            return Ok((count, Vec::new()));
+        }
+        if count.checked_mul(width) != Some((end - start) as usize) {
+            return Err(PrtError::file(
+                path,
+                format!(
+                    "tensor `{name}`: {count} values do not fill {} bytes",
+                    end - start
+                ),
+            ));
+        }
+        let mut bytes = vec![0u8; (end - start) as usize];
+        f.seek(std::io::SeekFrom::Start(8 + header_len + start))
+            .and_then(|_| f.read_exact(&mut bytes))
+            .map_err(|e| PrtError::file(path, format!("reading `{name}`: {e}")))?;
+        Ok((count, bytes))
+    };
+    let words = |b: &[u8]| -> Vec<u32> {
+        b.chunks_exact(4)
+            .map(|c| u32::from_le_bytes(c.try_into().unwrap_or_default()))
+            .collect()
+    };
+    let (tiles, starts) = tensor("tile_row_start", 4)?;
+    let (rows, _) = tensor("row_pixel", 0)?;
+    let (nnz, _) = tensor("entry_row", 0)?;
+    let (_, counts) = tensor("col_count", 2)?;
+    let (tx, ty) = tile_grid(meta.width as usize, meta.height as usize);
+    if tiles != tx * ty + 1 {
+        return Err(PrtError::file(
+            path,
+            "tile tables do not match the image size",
+        ));
+    }
+    let (_, block_rows) =
+        block_tables(&words(&starts), rows).map_err(|m| PrtError::file(path, m))?;
+    let c = 6 * meta.cube_n as usize * meta.cube_n as usize;
+    let counts: Vec<u16> = counts
+        .chunks_exact(2)
+        .map(|b| u16::from_le_bytes([b[0], b[1]]))
+        .collect();
+    if counts.len() != (block_rows.len() - 1) * c {
+        return Err(PrtError::file(
+            path,
+            "column counts do not match the blocks and coefficients",
+        ));
+    }
+    column_pointers(&counts, &block_rows, c, nnz).map_err(|m| PrtError::file(path, m))?;
+    Ok(meta)
+}
+
 /// [`read_header_meta`] and the stored checksum.
 fn read_header(path: &Path) -> Result<(TransportMeta, String)> {
-    let mut f = std::fs::File::open(path).map_err(|e| PrtError::io(path, e))?;
-    let file_len = f.metadata().map_err(|e| PrtError::io(path, e))?.len();
+    let (mut f, file_len) = crate::files::open_regular(path, u64::MAX, "transport")?;
     let mut len8 = [0u8; 8];
     f.read_exact(&mut len8)
         .map_err(|_| PrtError::file(path, "too short to be a transport file"))?;
@@ -1201,6 +1391,7 @@ fn read_header(path: &Path) -> Result<(TransportMeta, String)> {
             ));
         }
     }
+    check_meta_seal(text).map_err(|m| PrtError::file(path, m))?;
     let header: FileHeader = serde_json::from_value(value)
         .map_err(|e| PrtError::file(path, format!("metadata `meta`: {e}")))?;
     let mut data_end = 0u64;
@@ -1225,14 +1416,59 @@ fn read_header(path: &Path) -> Result<(TransportMeta, String)> {
     Ok((header.meta, header.checksum))
 }
 
-/// The one metadata entry of a file: format, version, checksum and the [`TransportMeta`].
+/// The one metadata entry of a file: format, version, checksum and the [`TransportMeta`]
+/// (`meta_checksum` follows them in the text, see [`seal_meta`]).
 #[derive(Serialize, Deserialize)]
 struct FileHeader {
     format: String,
     format_version: u32,
+    /// Of the tensors (see [`checksum`]).
     checksum: String,
     #[serde(flatten)]
     meta: TransportMeta,
+}
+
+/// The last member of a sealed `meta` text, before its 16 hex digits and the closing `"}`.
+const META_CHECKSUM_KEY: &str = ",\"meta_checksum\":\"";
+
+/// Appends `"meta_checksum": "HEX"` to a JSON object's text as its last member: the
+/// [`checksum`] of the text before it, closed by `}`. So a reader in any language checks the
+/// metadata by cutting the member off, closing the brace and hashing the bytes.
+pub(crate) fn seal_meta(mut json: String) -> String {
+    let sum = checksum([json.as_bytes()]);
+    json.pop();
+    json.push_str(&format!("{META_CHECKSUM_KEY}{sum:016x}\"}}"));
+    json
+}
+
+/// Checks the `meta_checksum` of a `meta` text written by [`seal_meta`]. A text without one
+/// (written before it existed) passes; its fields are checked one by one all the same.
+pub(crate) fn check_meta_seal(text: &str) -> std::result::Result<(), String> {
+    if !text.contains("\"meta_checksum\"") {
+        return Ok(());
+    }
+    let sealed = text.strip_suffix("\"}").and_then(|body| {
+        let stored = body.get(body.len().checked_sub(16)?..)?;
+        let covered = body
+            .get(..body.len() - 16)?
+            .strip_suffix(META_CHECKSUM_KEY)?;
+        Some((stored, covered))
+    });
+    let Some((stored, covered)) = sealed else {
+        return Err(
+            "metadata `meta_checksum` is not the last member of `meta`: the header \
+                    is corrupted or was edited"
+                .into(),
+        );
+    };
+    let sum = format!("{:016x}", checksum([format!("{covered}}}").as_bytes()]));
+    if sum != stored {
+        return Err(format!(
+            "metadata checksum mismatch (stored {stored}, computed {sum}): the header is \
+             corrupted or was edited"
+        ));
+    }
+    Ok(())
 }
 
 fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
@@ -1248,6 +1484,30 @@ fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
     crate::cubemap::validate_n(m.cube_n as usize).map_err(|e| e.to_string())?;
     if m.sh_order == 0 || m.sh_order as usize > crate::sh::MAX_ORDER {
         return Err(format!("SH order {} out of range", m.sh_order));
+    }
+    if let Some([i, n]) = m.shard {
+        // A bake cuts at most one shard per band of tile rows.
+        let (_, bands) = tile_grid(m.width as usize, m.height as usize);
+        if n == 0 || i >= n || n as usize > bands {
+            return Err(format!(
+                "shard {i}/{n}: a shard is I/COUNT with I < COUNT <= {bands} (the image's \
+                 bands of tile rows)"
+            ));
+        }
+    }
+    if !(m.threshold.is_finite() && m.threshold >= 0.0) {
+        return Err(format!("threshold {} must be finite and >= 0", m.threshold));
+    }
+    let c = &m.camera;
+    if !c
+        .eye
+        .iter()
+        .chain(&c.target)
+        .chain(&c.up)
+        .all(|v| v.is_finite())
+        || !c.fov_y_deg.is_finite()
+    {
+        return Err("camera: every number must be finite".into());
     }
     Ok(())
 }
@@ -1272,7 +1532,7 @@ const TENSOR_NAMES: [&str; 13] = [
 /// A 64-bit checksum of byte slices taken in order: words mixed with the SplitMix64 finaliser,
 /// position-dependent, so any flipped bit changes it. Fast enough to run on every load
 /// (several GB/s).
-pub(crate) fn checksum<'a>(parts: impl IntoIterator<Item = &'a [u8]>) -> u64 {
+pub fn checksum<'a>(parts: impl IntoIterator<Item = &'a [u8]>) -> u64 {
     let mut h = 0x51_7c_c1_b7_27_22_0a_95u64;
     for part in parts {
         let mut chunks = part.chunks_exact(8);
@@ -1285,6 +1545,48 @@ pub(crate) fn checksum<'a>(parts: impl IntoIterator<Item = &'a [u8]>) -> u64 {
         h = crate::sampling::mix64(h ^ u64::from_le_bytes(tail) ^ (part.len() as u64) << 3);
     }
     h
+}
+
+/// Writes a safetensors file at `path` with one metadata entry `meta` holding `meta_json`:
+/// the header as the `safetensors` crate lays it out (tensors by descending dtype alignment, then
+/// name; the header padded to 8 bytes), then each tensor's bytes, straight into `path` (the
+/// caller's temporary file, which gets the umask's permissions).
+pub(crate) fn write_tensors(
+    path: &Path,
+    mut tensors: Vec<(&str, Tensor)>,
+    meta_json: String,
+) -> Result<()> {
+    use std::io::Write;
+    tensors.sort_by(|(ln, l), (rn, r)| r.dtype.cmp(&l.dtype).then(ln.cmp(rn)));
+    let mut offset = 0;
+    let mut infos = Vec::with_capacity(tensors.len());
+    for (name, t) in &tensors {
+        let info = safetensors::tensor::TensorInfo {
+            dtype: t.dtype,
+            shape: t.shape.clone(),
+            data_offsets: (offset, offset + t.bytes.len()),
+        };
+        offset += t.bytes.len();
+        infos.push((name.to_string(), info));
+    }
+    let info: HashMap<String, String> = [("meta".to_string(), meta_json)].into();
+    let metadata = safetensors::tensor::Metadata::new(Some(info), infos)
+        .map_err(|e| PrtError::file(path, format!("tensor layout: {e}")))?;
+    let mut header = serde_json::to_string(&metadata)
+        .map_err(|e| PrtError::file(path, format!("header: {e}")))?
+        .into_bytes();
+    header.resize(header.len().next_multiple_of(8), b' ');
+    let file = std::fs::File::create(path).map_err(|e| PrtError::io(path, e))?;
+    let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
+    let io = |e| PrtError::io(path, e);
+    w.write_all(&(header.len() as u64).to_le_bytes())
+        .map_err(io)?;
+    w.write_all(&header).map_err(io)?;
+    for (_, t) in &tensors {
+        w.write_all(t.bytes).map_err(io)?;
+    }
+    w.flush().map_err(io)?;
+    Ok(())
 }
 
 /// A borrowed tensor for safetensors serialisation.

@@ -654,6 +654,15 @@ impl Engine {
         progress: &dyn Fn(u64, u64),
     ) -> Result<Engine, String> {
         let transport = Transport::load_with_progress(path, progress).map_err(|e| e.to_string())?;
+        Self::from_transport(path, transport, envs)
+    }
+
+    /// An engine on a transport already loaded from `path`.
+    pub fn from_transport(
+        path: &Path,
+        transport: Transport,
+        envs: Vec<EnvEntry>,
+    ) -> Result<Engine, String> {
         let ctx = LightContext::new(&transport).map_err(|e| e.to_string())?;
         Ok(Engine {
             path: path.to_path_buf(),
@@ -993,7 +1002,14 @@ pub fn error_heat_map(image: &Image, full: &Image, gain: f32) -> Vec<u8> {
 /// caption with its title (as the window shows them).
 pub fn screenshot(engine: &mut Engine, state: &ViewState, out: &Path) -> Result<Rendered, String> {
     let r = engine.render(state)?;
+    for p in &r.panes {
+        p.linear
+            .image
+            .check_finite(&p.linear.title)
+            .map_err(|e| e.to_string())?;
+    }
     let (w, h, rgb) = r.captioned(4);
-    crate::film::write_png(out, w, h, &rgb).map_err(|e| e.to_string())?;
+    crate::files::write_atomically(out, |tmp| crate::film::write_png(tmp, w, h, &rgb))
+        .map_err(|e| e.to_string())?;
     Ok(r)
 }

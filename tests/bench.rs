@@ -205,7 +205,7 @@ fn bad_lists_are_clear_errors() {
                 sh_orders: vec![5],
                 ..base.clone()
             },
-            "order 5",
+            "SH order: 5",
         ),
         (
             BenchOptions {

@@ -61,7 +61,7 @@ fn shards_that_do_not_belong_together_are_refused() {
     let e = Transport::merge(&[s0.clone(), foreign])
         .unwrap_err()
         .to_string();
-    assert!(e.contains("another scene"), "{e}");
+    assert!(e.contains("another scene than file 1"), "{e}");
     let e = Transport::merge(std::slice::from_ref(&s0))
         .unwrap_err()
         .to_string();

@@ -229,35 +229,57 @@ fn gpu_decodes_every_format_like_the_cpu() {
     }
 }
 
-/// `prt info` prints from the header alone: a file whose arrays were overwritten (same size) is
-/// still described, while loading it fails its checksum.
+/// `prt info` prints from the header and the small tables: a file whose entries and values were
+/// overwritten (same size) is still described, while loading it fails its checksum; a column
+/// count that disagrees with the entries is an error, found without reading them.
 #[test]
-fn info_reads_only_the_header() {
+fn info_reads_the_header_and_the_small_tables_only() {
     let dir = temp_dir("storage-info");
     let t = random_transport(20, 18, 2, Quantization::Q8, 5, 1.0);
     let p = dir.join("t.prt");
     t.save(&p).unwrap();
-    let mut bytes = std::fs::read(&p).unwrap();
-    let header = 8 + u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
-    for b in &mut bytes[header..] {
-        *b ^= 0x5a;
+    let bytes = std::fs::read(&p).unwrap();
+    let header_len = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + header_len]).unwrap();
+    let range = |name: &str| {
+        let o = &header[name]["data_offsets"];
+        let (a, b) = (
+            o[0].as_u64().unwrap() as usize,
+            o[1].as_u64().unwrap() as usize,
+        );
+        8 + header_len + a..8 + header_len + b
+    };
+    let info = |bytes: &[u8]| {
+        std::fs::write(&p, bytes).unwrap();
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_prt"))
+            .arg("info")
+            .arg(&p)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout).into_owned()
+            + &String::from_utf8_lossy(&out.stderr);
+        (out.status.code(), text)
+    };
+    let mut garbled = bytes.clone();
+    for name in ["entry_row", "entry_value"] {
+        for b in &mut garbled[range(name)] {
+            *b ^= 0x5a;
+        }
     }
-    std::fs::write(&p, &bytes).unwrap();
+    let (code, text) = info(&garbled);
     assert!(Transport::load(&p).is_err());
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_prt"))
-        .arg("info")
-        .arg(&p)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{text} {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_eq!(code, Some(0), "{text}");
     assert!(text.contains("image         20 x 18"), "{text}");
     assert!(
         text.contains(&format!("nonzeros      {}", t.meta.stats.nonzeros)),
         "{text}"
     );
+    // One more entry counted in the first column than stored.
+    let mut counted = bytes.clone();
+    let at = range("col_count").start;
+    let n = u16::from_le_bytes([counted[at], counted[at + 1]]) + 1;
+    counted[at..at + 2].copy_from_slice(&n.to_le_bytes());
+    let (code, text) = info(&counted);
+    assert_eq!(code, Some(1), "{text}");
+    assert!(text.contains("column counts add up"), "{text}");
 }

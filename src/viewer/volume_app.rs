@@ -186,17 +186,21 @@ pub fn volume_screenshot(
     out: &Path,
 ) -> Result<VolumeFrame, String> {
     let frame = engine.render(state)?;
+    frame
+        .image
+        .check_finite("volume image")
+        .map_err(|e| e.to_string())?;
     let tone = ToneMap {
         exposure: state.exposure,
         curve: state.tone,
     };
-    crate::film::write_png(
-        out,
+    let (w, h, rgb) = (
         frame.image.width,
         frame.image.height,
-        &frame.image.to_srgb8(tone),
-    )
-    .map_err(|e| e.to_string())?;
+        frame.image.to_srgb8(tone),
+    );
+    crate::files::write_atomically(out, |tmp| crate::film::write_png(tmp, w, h, &rgb))
+        .map_err(|e| e.to_string())?;
     Ok(frame)
 }
 

@@ -14,7 +14,6 @@ pub mod gpu;
 pub mod render;
 pub mod wavelet;
 
-use std::collections::HashMap;
 use std::path::Path;
 
 use glam::Vec3;
@@ -24,7 +23,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{PrtError, Result};
 use crate::medium::{DensityGrid, Medium, fibonacci_directions};
-use crate::transport::{CameraMeta, Tensor, checksum};
+use crate::transport::{CameraMeta, Tensor, check_meta_seal, checksum, seal_meta, write_tensors};
 
 pub use render::{PhaseLight, VolumeView, render_volume};
 
@@ -203,10 +202,21 @@ impl Sweeper {
         let [a, b, c] = layout.axes;
         let [na, nb, nc] = layout.n;
         let h = self.cell[a] / dir[a].abs();
-        let ob = h * dir[b] / self.cell[b];
-        let oc = h * dir[c] / self.cell[c];
-        let (fb, fc) = (ob.floor(), oc.floor());
-        let (wb, wc) = (ob - fb, oc - fc);
+        // The upstream point's offset in cells along b and c. Very flat voxels (a box far
+        // longer than its grid is fine) can put it many grids away: beyond one grid it only
+        // reads the empty padding, so it is cut there (and the padding stays small).
+        let offset = |o: f32, n: usize| -> (f32, f32) {
+            let limit = n as f32 + 1.0;
+            if o.abs() <= limit {
+                (o.floor(), o - o.floor())
+            } else if o > limit {
+                (limit, 0.0)
+            } else {
+                (-limit - 1.0, 0.0)
+            }
+        };
+        let (fb, wb) = offset(h * dir[b] / self.cell[b], nb);
+        let (fc, wc) = offset(h * dir[c] / self.cell[c], nc);
         let (ib, ic) = (fb as isize, fc as isize);
         let pad = [ib, ib + 1, ic, ic + 1]
             .iter()
@@ -335,13 +345,22 @@ pub struct VolumeMeta {
     pub scene_hash: String,
 }
 
+/// The one metadata entry of a volume file (`meta_checksum` follows in the text, as in a
+/// transport file).
 #[derive(Serialize, Deserialize)]
 struct FileHeader {
     format: String,
     format_version: u32,
+    /// Of the tensors, `density` then `transfer`.
     checksum: String,
     meta: VolumeMeta,
 }
+
+/// Largest volume file: [`crate::medium::MAX_VOXELS`] voxels of density and order-8 transfer,
+/// and a header.
+pub const MAX_VOLUME_BYTES: u64 =
+    crate::medium::MAX_VOXELS as u64 * 4 * (1 + (MAX_TRANSFER_ORDER * MAX_TRANSFER_ORDER) as u64)
+        + (16 << 20);
 
 /// A medium and its SH self-transfer.
 #[derive(Clone, Debug, PartialEq)]
@@ -437,17 +456,14 @@ impl VolumeTransfer {
         };
         let json = serde_json::to_string(&header)
             .map_err(|e| PrtError::file(path, format!("metadata: {e}")))?;
-        let info: HashMap<String, String> = [("meta".to_string(), json)].into();
-        crate::film::write_atomically(path, |tmp| {
-            safetensors::serialize_to_file(tensors, Some(info), tmp)
-                .map_err(|e| PrtError::file(tmp, format!("writing: {e}")))
-        })
+        crate::files::write_atomically(path, |tmp| write_tensors(tmp, tensors, seal_meta(json)))
     }
 
-    /// Reads and validates a volume transfer file.
+    /// Reads and validates a volume transfer file: every field of the metadata (the grid, the
+    /// medium, the default view) before the tensors are sized by it.
     pub fn load(path: &Path) -> Result<VolumeTransfer> {
         let bad = |m: String| PrtError::file(path, m);
-        let bytes = std::fs::read(path).map_err(|e| PrtError::io(path, e))?;
+        let bytes = crate::files::read_regular(path, MAX_VOLUME_BYTES, "volume")?;
         let (_, md) = safetensors::SafeTensors::read_metadata(&bytes)
             .map_err(|e| bad(format!("not a volume transfer file: {e}")))?;
         let json = md
@@ -466,6 +482,7 @@ impl VolumeTransfer {
                     .into(),
             ));
         }
+        check_meta_seal(json).map_err(bad)?;
         let header: FileHeader =
             serde_json::from_str(json).map_err(|e| bad(format!("metadata: {e}")))?;
         if header.format != FORMAT_NAME {
@@ -516,6 +533,19 @@ impl VolumeTransfer {
         if format!("{sum:016x}") != header.checksum {
             return Err(bad("checksum mismatch: the file is damaged".into()));
         }
+        if let Some(i) = transfer.iter().position(|v| !v.is_finite()) {
+            return Err(bad(format!(
+                "tensor `transfer`: value {} of voxel {} is not finite",
+                transfer[i],
+                i / (m.sh_order * m.sh_order)
+            )));
+        }
+        if !(16..=65536).contains(&m.directions) {
+            return Err(bad(format!(
+                "metadata: {} directions, outside 16 to 65536",
+                m.directions
+            )));
+        }
         let vt = VolumeTransfer {
             meta: header.meta,
             density,
@@ -524,6 +554,9 @@ impl VolumeTransfer {
         vt.medium()
             .validate()
             .map_err(|e| bad(format!("medium: {e}")))?;
+        // The default view is what `prt view` and `prt volume render` use unless told otherwise.
+        vt.camera(None, None, None)
+            .map_err(|e| bad(format!("metadata, the default view: {e}")))?;
         Ok(vt)
     }
 }
@@ -531,7 +564,7 @@ impl VolumeTransfer {
 /// Whether `path` is a volume transfer file (by its header, not its name).
 pub fn is_volume_file(path: &Path) -> bool {
     use std::io::Read;
-    let Ok(mut f) = std::fs::File::open(path) else {
+    let Ok((mut f, _)) = crate::files::open_regular(path, u64::MAX, "volume") else {
         return false;
     };
     let mut len = [0u8; 8];

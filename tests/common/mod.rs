@@ -262,3 +262,124 @@ pub fn random_transport(
     )
     .unwrap()
 }
+
+/// A safetensors file (a transport or volume file) taken apart for editing: the `meta` JSON and
+/// the tensors in name order. [`StFile::write`] can reseal it, recomputing the tensors' checksum
+/// and `meta_checksum` as a careful editor would, so a test reaches the checks behind them.
+#[derive(Clone, Debug)]
+pub struct StFile {
+    pub meta: serde_json::Value,
+    /// The `meta` text as read.
+    pub meta_text: String,
+    /// (name, dtype as written, shape, bytes), sorted by name.
+    pub tensors: Vec<(String, String, Vec<usize>, Vec<u8>)>,
+}
+
+impl StFile {
+    pub fn read(path: &Path) -> StFile {
+        let bytes = std::fs::read(path).unwrap();
+        let st = safetensors::SafeTensors::deserialize(&bytes).unwrap();
+        let (_, md) = safetensors::SafeTensors::read_metadata(&bytes).unwrap();
+        let text = md.metadata().as_ref().unwrap()["meta"].clone();
+        let meta = serde_json::from_str(&text).unwrap();
+        let meta_text = text.clone();
+        let mut tensors: Vec<_> = st
+            .tensors()
+            .into_iter()
+            .map(|(name, t)| {
+                let dtype = serde_json::to_value(t.dtype()).unwrap();
+                (
+                    name,
+                    dtype.as_str().unwrap().to_string(),
+                    t.shape().to_vec(),
+                    t.data().to_vec(),
+                )
+            })
+            .collect();
+        tensors.sort_by(|a, b| a.0.cmp(&b.0));
+        StFile {
+            meta,
+            meta_text,
+            tensors,
+        }
+    }
+
+    /// The bytes of a file: with `reseal`, new checksums for the tensors and the metadata;
+    /// without, the stored ones (`meta` written anew, so `meta_checksum` no longer matches).
+    pub fn to_bytes(&self, reseal: bool) -> Vec<u8> {
+        let mut meta = self.meta.clone();
+        if let Some(m) = meta.as_object_mut()
+            && reseal
+        {
+            m.remove("meta_checksum");
+        }
+        if reseal {
+            let sum = wavelet_prt::transport::checksum(self.tensors.iter().map(|t| &t.3[..]));
+            meta["checksum"] = format!("{sum:016x}").into();
+        }
+        let mut text = serde_json::to_string(&meta).unwrap();
+        if reseal && text.ends_with('}') {
+            let sum = wavelet_prt::transport::checksum([text.as_bytes()]);
+            text.pop();
+            text.push_str(&format!(",\"meta_checksum\":\"{sum:016x}\"}}"));
+        }
+        self.assemble(&text)
+    }
+
+    /// The file with the `meta` text given as is.
+    pub fn assemble(&self, meta_text: &str) -> Vec<u8> {
+        let mut header = serde_json::Map::new();
+        header.insert(
+            "__metadata__".into(),
+            serde_json::json!({ "meta": meta_text }),
+        );
+        let mut offset = 0;
+        for (name, dtype, shape, bytes) in &self.tensors {
+            header.insert(
+                name.clone(),
+                serde_json::json!({
+                    "dtype": dtype,
+                    "shape": shape,
+                    "data_offsets": [offset, offset + bytes.len()],
+                }),
+            );
+            offset += bytes.len();
+        }
+        let mut h = serde_json::to_string(&header).unwrap().into_bytes();
+        h.resize(h.len().next_multiple_of(8), b' ');
+        let mut out = (h.len() as u64).to_le_bytes().to_vec();
+        out.extend_from_slice(&h);
+        for t in &self.tensors {
+            out.extend_from_slice(&t.3);
+        }
+        out
+    }
+
+    pub fn write(&self, path: &Path, reseal: bool) {
+        std::fs::write(path, self.to_bytes(reseal)).unwrap();
+    }
+
+    /// The bytes of tensor `name`.
+    pub fn tensor_mut(&mut self, name: &str) -> &mut Vec<u8> {
+        &mut self
+            .tensors
+            .iter_mut()
+            .find(|t| t.0 == name)
+            .unwrap_or_else(|| panic!("no tensor {name}"))
+            .3
+    }
+}
+
+/// Runs the `prt` binary with `args`; returns (exit code, stdout + stderr).
+pub fn prt(args: &[&str]) -> (i32, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_prt"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.code().unwrap_or(-1), text)
+}
