@@ -245,7 +245,7 @@ pub fn run_demo(
         columns,
         &cells,
         &format!(
-            "CUBE 6X{0}X{0}: SH ORDER (TERMS) VS K WAVELET TERMS ({1} WEIGHTING), REL. L2 ERROR VS FULL",
+            "CUBE 6X{0}X{0} - SH ORDER (TERMS) VS K WAVELET TERMS ({1}) - REL. L2 VS FULL",
             transport.meta.cube_n, DEMO_WEIGHTING
         ),
     )?;
