@@ -52,4 +52,6 @@
 //!
 //! # Error metrics
 //! Relative L2 of image A against reference R: `‖A − R‖₂ / ‖R‖₂` over every channel of the pixels that
-//! see geometry; RMSE and PSNR beside it.
+//! see geometry; RMSE and PSNR beside it. Images show the environment behind the scene in the pixels
+//! (or the parts of pixels) that see none, turned with the light ([`crate::background`]); metrics
+//! are taken before it is added.

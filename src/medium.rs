@@ -5,7 +5,7 @@
 //!
 //! Density is stored at voxel centres and is trilinear between them, falling to zero half a
 //! voxel outside the box (the lattice is padded with zeros). `sigma_t(x) = extinction · density(x)`
-//! and `sigma_s = albedo · sigma_t` (CONVENTIONS.md, "Volumes").
+//! and `sigma_s = albedo · sigma_t` (see [`crate::conventions`], volumes).
 
 use std::f32::consts::PI;
 use std::path::Path;

@@ -18,7 +18,8 @@ const SAME_VALUE_TOLERANCE: f64 = 1e-12;
 /// Rotated expansions summed over up to 32^2 terms after a 32-step matrix recurrence: rounding
 /// grows with the band, but stays orders of magnitude below any convention error (O(1)).
 const ROTATION_TOLERANCE_HIGH_BANDS: f64 = 1e-9;
-/// The CONVENTIONS.md clamped-cosine coefficients are printed to 6 significant digits.
+/// The clamped-cosine coefficients of the conventions (`crate::conventions`), printed to 6
+/// significant digits.
 const PRINTED_SIX_DIGITS: f64 = 1e-5;
 /// The hemisphere light is discontinuous, so its order-16 irradiance carries truncation error; the
 /// cosine kernel's coefficients fall as l^-5/2, which leaves well under 1 %.
@@ -231,7 +232,8 @@ fn matches_scipy_reference() {
 
 #[test]
 fn basis_matches_conventions_table() {
-    // The CONVENTIONS.md table, at a direction with all components distinct and non-zero.
+    // The table of the conventions (`crate::conventions`), at a direction with all components
+    // distinct and non-zero.
     let d = DVec3::new(0.3, -0.5, 0.7).normalize();
     let (x, y, z) = (d.x, d.y, d.z);
     let table = [

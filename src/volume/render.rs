@@ -8,7 +8,7 @@
 //! travel, `−w`, and the way to the eye, `−d`, has cosine `w·d`). `P(d)` depends on the view
 //! direction only, not on the voxel: [`PhaseLight`] tabulates it once per environment over a
 //! lat-long grid of directions and each pixel interpolates it. For an isotropic medium
-//! `P_i = L_i / (4π)`, the formula of CONVENTIONS.md, and the table is one entry.
+//! `P_i = L_i / (4π)`, the formula of [`crate::conventions`], and the table is one entry.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -33,7 +33,7 @@ pub struct PhaseLight {
     pub table: Vec<[f32; 3]>,
 }
 
-/// Lat-long coordinates of a direction in the table's convention (CONVENTIONS.md, lat-long:
+/// Lat-long coordinates of a direction in the table's convention ([`crate::conventions`], lat-long:
 /// u = 0 towards −Z, u = 1/4 towards +X, v = 0 up).
 #[inline]
 pub fn table_uv(d: Vec3) -> (f32, f32) {
