@@ -1,0 +1,802 @@
+//! The scene file: its TOML schema, span diagnostics that name the line and field of every
+//! problem, and the loader that flattens shapes into what the tracer needs.
+
+use super::obj::{MeshTransform, ObjData, flat_triangle, mesh_triangles, parse_obj};
+use super::*;
+
+// ---------------------------------------------------------------------------------------------
+// Scene file schema. Shapes and materials are flat structs with a `type` key rather than serde
+// tagged enums: tagged enums buffer their content, which loses the spans toml needs to point at
+// the offending line. Which keys apply to which type is checked by hand instead.
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    camera: CameraFile,
+    #[serde(default)]
+    material: BTreeMap<String, MaterialFile>,
+    #[serde(default)]
+    shape: Vec<ShapeFile>,
+    medium: Option<MediumFile>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Debug)]
+#[serde(rename_all = "lowercase")]
+enum MediumKind {
+    Ellipsoid,
+    Cloud,
+    Grid,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MediumFile {
+    r#type: MediumKind,
+    bounds: [[f32; 3]; 2],
+    resolution: Option<usize>,
+    extinction: f32,
+    albedo: Option<[f32; 3]>,
+    g: Option<f32>,
+    center: Option<[f32; 3]>,
+    radii: Option<[f32; 3]>,
+    falloff: Option<f32>,
+    seed: Option<u64>,
+    frequency: Option<f32>,
+    octaves: Option<u32>,
+    coverage: Option<f32>,
+    path: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraFile {
+    eye: [f32; 3],
+    target: [f32; 3],
+    up: [f32; 3],
+    fov_y_deg: f32,
+    width: u32,
+    height: u32,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum MaterialKind {
+    Diffuse,
+    Glossy,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialFile {
+    r#type: MaterialKind,
+    albedo: Option<[f32; 3]>,
+    specular: Option<[f32; 3]>,
+    roughness: Option<f32>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Debug)]
+#[serde(rename_all = "lowercase")]
+enum ShapeKind {
+    Quad,
+    Sphere,
+    Mesh,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ShapeFile {
+    r#type: ShapeKind,
+    material: String,
+    corners: Option<[[f32; 3]; 4]>,
+    center: Option<[f32; 3]>,
+    radius: Option<f32>,
+    path: Option<String>,
+    scale: Option<f32>,
+    rotate_y_deg: Option<f32>,
+    translate: Option<[f32; 3]>,
+    smooth_normals: Option<bool>,
+}
+
+impl ShapeFile {
+    /// The optional keys present in this table, for checking they suit its type.
+    fn present_keys(&self) -> [(&'static str, bool); 8] {
+        [
+            ("corners", self.corners.is_some()),
+            ("center", self.center.is_some()),
+            ("radius", self.radius.is_some()),
+            ("path", self.path.is_some()),
+            ("scale", self.scale.is_some()),
+            ("rotate_y_deg", self.rotate_y_deg.is_some()),
+            ("translate", self.translate.is_some()),
+            ("smooth_normals", self.smooth_normals.is_some()),
+        ]
+    }
+}
+
+impl ShapeKind {
+    fn name(self) -> &'static str {
+        match self {
+            ShapeKind::Quad => "quad",
+            ShapeKind::Sphere => "sphere",
+            ShapeKind::Mesh => "mesh",
+        }
+    }
+
+    fn allowed_keys(self) -> &'static [&'static str] {
+        match self {
+            ShapeKind::Quad => &["corners"],
+            ShapeKind::Sphere => &["center", "radius"],
+            ShapeKind::Mesh => &[
+                "path",
+                "scale",
+                "rotate_y_deg",
+                "translate",
+                "smooth_normals",
+            ],
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Where each key of the TOML document is, so that any error can name a field and a line.
+
+struct SpanEntry {
+    path: String,
+    /// The key (or, for an array element, the element itself): what a line number points at.
+    key: Range<usize>,
+    value: Range<usize>,
+}
+
+struct SourceMap {
+    file: PathBuf,
+    entries: Vec<SpanEntry>,
+    by_path: HashMap<String, usize>,
+    line_starts: Vec<usize>,
+}
+
+impl SourceMap {
+    /// Parses `text` for its key spans; a TOML syntax error comes back as a scene error.
+    fn new(text: &str, file: &Path) -> Result<SourceMap> {
+        let line_starts = std::iter::once(0)
+            .chain(text.match_indices('\n').map(|(i, _)| i + 1))
+            .collect();
+        let (table, errors) = toml::de::DeTable::parse_recoverable(text);
+        let mut map = SourceMap {
+            file: file.to_path_buf(),
+            entries: Vec::new(),
+            by_path: HashMap::new(),
+            line_starts,
+        };
+        map.collect_table(table.get_ref(), "");
+        if let Some(err) = errors.first() {
+            let span = err.span();
+            let field = span
+                .as_ref()
+                .and_then(|s| map.field_at(s.start))
+                .unwrap_or_else(|| "(syntax)".to_string());
+            return Err(PrtError::Scene {
+                path: map.file.clone(),
+                line: span.map(|s| map.line_at(s.start)),
+                field,
+                message: err.message().trim().to_string(),
+            });
+        }
+        Ok(map)
+    }
+
+    fn collect_table(&mut self, table: &toml::de::DeTable<'_>, prefix: &str) {
+        for (key, value) in table.iter() {
+            let path = if prefix.is_empty() {
+                key.get_ref().to_string()
+            } else {
+                format!("{prefix}.{}", key.get_ref())
+            };
+            self.push(path.clone(), key.span(), value.span());
+            self.collect_value(value.get_ref(), &path);
+        }
+    }
+
+    fn collect_value(&mut self, value: &toml::de::DeValue<'_>, path: &str) {
+        if let Some(table) = value.as_table() {
+            self.collect_table(table, path);
+        } else if let Some(array) = value.as_array() {
+            for (i, element) in array.iter().enumerate() {
+                let element_path = format!("{path}[{i}]");
+                self.push(element_path.clone(), element.span(), element.span());
+                self.collect_value(element.get_ref(), &element_path);
+            }
+        }
+    }
+
+    fn push(&mut self, path: String, key: Range<usize>, value: Range<usize>) {
+        self.by_path.insert(path.clone(), self.entries.len());
+        self.entries.push(SpanEntry { path, key, value });
+    }
+
+    /// 1-based line of a byte offset.
+    fn line_at(&self, offset: usize) -> usize {
+        self.line_starts.partition_point(|&start| start <= offset)
+    }
+
+    /// The innermost field whose key or value covers `offset`.
+    fn field_at(&self, offset: usize) -> Option<String> {
+        let covers = |r: &Range<usize>| r.start <= offset && (offset < r.end || r.is_empty());
+        self.entries
+            .iter()
+            .flat_map(|e| [(e, &e.key), (e, &e.value)])
+            .filter(|(_, r)| covers(r))
+            .min_by_key(|(e, r)| (r.len(), std::cmp::Reverse(e.path.len())))
+            .map(|(e, _)| e.path.clone())
+    }
+
+    /// Line of `field`, or of the nearest enclosing field present in the file (a defaulted key
+    /// has no line of its own).
+    fn line_of(&self, field: &str) -> Option<usize> {
+        let mut path = field;
+        loop {
+            if let Some(&i) = self.by_path.get(path) {
+                return Some(self.line_at(self.entries[i].key.start));
+            }
+            let cut = path.rfind(['.', '['])?;
+            path = &path[..cut];
+        }
+    }
+
+    fn error(&self, field: &str, message: impl Into<String>) -> PrtError {
+        PrtError::Scene {
+            path: self.file.clone(),
+            line: self.line_of(field),
+            field: field.to_string(),
+            message: message.into(),
+        }
+    }
+
+    /// Turns a schema error from serde (unknown key, wrong type, missing key) into a scene
+    /// error naming the field.
+    fn schema_error(&self, err: &toml::de::Error) -> PrtError {
+        let message = err.message().trim().to_string();
+        // An error spanning from the top of the document is about the document itself (a
+        // missing top-level table), not about the first key in it.
+        let located = err
+            .span()
+            .filter(|s| s.start > 0)
+            .and_then(|s| self.field_at(s.start));
+        // A missing key is reported at its table; name the key itself.
+        let missing = message
+            .strip_prefix("missing field `")
+            .and_then(|rest| rest.split('`').next());
+        let field = match (located, missing) {
+            (Some(table), Some(key)) => format!("{table}.{key}"),
+            (None, Some(key)) => key.to_string(),
+            (Some(field), None) => field,
+            (None, None) => "(document)".to_string(),
+        };
+        PrtError::Scene {
+            path: self.file.clone(),
+            line: err.span().map(|s| self.line_at(s.start)),
+            field,
+            message,
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+
+/// 64-bit FNV-1a, written out so the hash never changes with a dependency's version.
+pub(super) struct Fnv1a(pub(super) u64);
+
+impl Fnv1a {
+    const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+    const PRIME: u64 = 0x0000_0100_0000_01b3;
+
+    pub(super) fn new() -> Self {
+        Fnv1a(Self::OFFSET)
+    }
+
+    pub(super) fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 ^= u64::from(b);
+            self.0 = self.0.wrapping_mul(Self::PRIME);
+        }
+    }
+
+    /// Hashes a length-prefixed chunk, so that moving bytes from one input to the next changes
+    /// the hash.
+    fn write_chunk(&mut self, bytes: &[u8]) {
+        self.write(&(bytes.len() as u64).to_le_bytes());
+        self.write(bytes);
+    }
+}
+
+fn kind_name(k: &MaterialKind) -> &'static str {
+    match k {
+        MaterialKind::Diffuse => "diffuse",
+        MaterialKind::Glossy => "glossy",
+    }
+}
+
+fn finite3(map: &SourceMap, field: &str, v: [f32; 3]) -> Result<Vec3> {
+    let v = Vec3::from_array(v);
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(map.error(field, format!("must be finite, got {v}")))
+    }
+}
+
+/// Largest coordinate of a point in a scene (camera, shapes, medium), in scene units. The BVH
+/// builder and the ray tests multiply and sum extents, which overflow f32 near 1e19; at 1e9 an
+/// f32 still resolves 64 units, far beyond any scene that makes sense.
+pub const MAX_COORDINATE: f32 = 1e9;
+
+/// [`finite3`] for a position or size: finite and within ±[`MAX_COORDINATE`].
+fn position3(map: &SourceMap, field: &str, v: [f32; 3]) -> Result<Vec3> {
+    let v = finite3(map, field, v)?;
+    if v.abs().max_element() > MAX_COORDINATE {
+        return Err(map.error(
+            field,
+            format!("{v} lies beyond ±{MAX_COORDINATE:e} scene units"),
+        ));
+    }
+    Ok(v)
+}
+
+pub(super) struct Loader<'a> {
+    text: &'a str,
+    map: SourceMap,
+    base_dir: PathBuf,
+    hasher: Fnv1a,
+    /// OBJ files already read, by resolved path, so a mesh used twice is parsed once.
+    obj_cache: HashMap<PathBuf, (Vec<u8>, ObjData)>,
+    /// Files read besides the scene text (meshes, a grid), in load order.
+    inputs: Vec<PathBuf>,
+}
+
+impl<'a> Loader<'a> {
+    pub(super) fn new(text: &'a str, path: &Path) -> Result<Self> {
+        let map = SourceMap::new(text, path)?;
+        let base_dir = match path.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        Ok(Loader {
+            text,
+            map,
+            base_dir,
+            hasher: Fnv1a::new(),
+            obj_cache: HashMap::new(),
+            inputs: Vec::new(),
+        })
+    }
+
+    pub(super) fn load(mut self) -> Result<Scene> {
+        let file: SceneFile = toml::from_str(self.text).map_err(|e| self.map.schema_error(&e))?;
+        self.hasher.write_chunk(self.text.as_bytes());
+
+        let camera = self.camera(&file.camera)?;
+
+        let mut materials = Vec::with_capacity(file.material.len());
+        let mut material_names = Vec::with_capacity(file.material.len());
+        for (name, m) in &file.material {
+            materials.push(self.material(name, m)?);
+            material_names.push(name.clone());
+        }
+
+        let medium = match &file.medium {
+            Some(m) => Some(self.medium(m)?),
+            None => None,
+        };
+        if file.shape.is_empty() && medium.is_none() {
+            return Err(self.map.error(
+                "shape",
+                "the scene has no shapes and no medium; add a [[shape]] or a [medium]",
+            ));
+        }
+        let mut triangles = Vec::new();
+        let mut spheres = Vec::new();
+        for (i, shape) in file.shape.iter().enumerate() {
+            let field = |key: &str| format!("shape[{i}].{key}");
+            let material = material_names
+                .iter()
+                .position(|n| *n == shape.material)
+                .ok_or_else(|| {
+                    let known = if material_names.is_empty() {
+                        "none are defined".to_string()
+                    } else {
+                        format!("defined: {}", material_names.join(", "))
+                    };
+                    self.map.error(
+                        &field("material"),
+                        format!("unknown material `{}` ({known})", shape.material),
+                    )
+                })? as u32;
+            for (key, present) in shape.present_keys() {
+                if present && !shape.r#type.allowed_keys().contains(&key) {
+                    return Err(self.map.error(
+                        &field(key),
+                        format!("`{key}` does not apply to a {}", shape.r#type.name()),
+                    ));
+                }
+            }
+            let require = |key: &str, present: bool| {
+                if present {
+                    Ok(())
+                } else {
+                    Err(self.map.error(
+                        &field(key),
+                        format!("a {} needs `{key}`", shape.r#type.name()),
+                    ))
+                }
+            };
+            match shape.r#type {
+                ShapeKind::Sphere => {
+                    require("center", shape.center.is_some())?;
+                    require("radius", shape.radius.is_some())?;
+                    let center = position3(
+                        &self.map,
+                        &field("center"),
+                        shape.center.unwrap_or_default(),
+                    )?;
+                    let radius = shape.radius.unwrap_or_default();
+                    if !(radius.is_finite() && radius > 0.0 && radius <= MAX_COORDINATE) {
+                        return Err(self.map.error(
+                            &field("radius"),
+                            format!("must be a number > 0 and <= {MAX_COORDINATE:e}, got {radius}"),
+                        ));
+                    }
+                    spheres.push(Sphere {
+                        center,
+                        radius,
+                        material,
+                    });
+                }
+                ShapeKind::Quad => {
+                    require("corners", shape.corners.is_some())?;
+                    let mut c = [Vec3::ZERO; 4];
+                    for (k, corner) in shape.corners.unwrap_or_default().iter().enumerate() {
+                        c[k] = position3(&self.map, &field("corners"), *corner)?;
+                    }
+                    let before = triangles.len();
+                    for [a, b, d] in [[c[0], c[1], c[2]], [c[0], c[2], c[3]]] {
+                        if let Some(tri) = flat_triangle([a, b, d], material) {
+                            triangles.push(tri);
+                        }
+                    }
+                    if triangles.len() == before {
+                        return Err(self.map.error(&field("corners"), "the quad has zero area"));
+                    }
+                }
+                ShapeKind::Mesh => {
+                    require("path", shape.path.is_some())?;
+                    let mesh = self.mesh(i, shape, material)?;
+                    triangles.extend(mesh);
+                }
+            }
+        }
+
+        Ok(Scene {
+            camera,
+            materials,
+            material_names,
+            triangles,
+            spheres,
+            medium,
+            source_path: self.map.file.clone(),
+            input_files: std::iter::once(self.map.file.clone())
+                .chain(self.inputs)
+                .collect(),
+            content_hash: self.hasher.0,
+        })
+    }
+
+    fn camera(&self, c: &CameraFile) -> Result<Camera> {
+        let camera = Camera {
+            eye: position3(&self.map, "camera.eye", c.eye)?,
+            target: position3(&self.map, "camera.target", c.target)?,
+            up: finite3(&self.map, "camera.up", c.up)?,
+            fov_y_deg: c.fov_y_deg,
+            width: c.width,
+            height: c.height,
+        };
+        match camera.problem() {
+            None => Ok(camera),
+            Some((field, message)) => Err(self.map.error(&format!("camera.{field}"), message)),
+        }
+    }
+
+    fn material(&self, name: &str, m: &MaterialFile) -> Result<Material> {
+        let field = |key: &str| format!("material.{name}.{key}");
+        let reflectance = |key: &str, value: Option<[f32; 3]>| -> Result<Vec3> {
+            let Some(v) = value else {
+                return Err(self.map.error(
+                    &field(key),
+                    format!("a {} material needs `{key}`", kind_name(&m.r#type)),
+                ));
+            };
+            let v = finite3(&self.map, &field(key), v)?;
+            if !(v.cmpge(Vec3::ZERO).all() && v.cmple(Vec3::ONE).all()) {
+                return Err(self.map.error(
+                    &field(key),
+                    format!("each channel must be in [0, 1], got {v}"),
+                ));
+            }
+            Ok(v)
+        };
+        match m.r#type {
+            MaterialKind::Diffuse => {
+                for (key, set) in [
+                    ("specular", m.specular.is_some()),
+                    ("roughness", m.roughness.is_some()),
+                ] {
+                    if set {
+                        return Err(self.map.error(
+                            &field(key),
+                            "only a glossy material has it (set type = \"glossy\")",
+                        ));
+                    }
+                }
+                Ok(Material::Diffuse {
+                    albedo: reflectance("albedo", m.albedo)?,
+                })
+            }
+            MaterialKind::Glossy => {
+                let albedo = reflectance("albedo", m.albedo)?;
+                let specular = reflectance("specular", m.specular)?;
+                if (albedo + specular).cmpgt(Vec3::ONE).any() {
+                    return Err(self.map.error(
+                        &field("specular"),
+                        format!(
+                            "albedo + specular must be at most 1 per channel (energy), got {}",
+                            albedo + specular
+                        ),
+                    ));
+                }
+                let roughness = m.roughness.ok_or_else(|| {
+                    self.map
+                        .error(&field("roughness"), "a glossy material needs `roughness`")
+                })?;
+                if !(0.02..=1.0).contains(&roughness) {
+                    return Err(self.map.error(
+                        &field("roughness"),
+                        format!("it must be in [0.02, 1], got {roughness}"),
+                    ));
+                }
+                Ok(Material::Glossy {
+                    albedo,
+                    specular,
+                    roughness,
+                })
+            }
+        }
+    }
+
+    fn medium(&mut self, m: &MediumFile) -> Result<MediumSpec> {
+        let field = |key: &str| format!("medium.{key}");
+        let min = position3(&self.map, "medium.bounds", m.bounds[0])?;
+        let max = position3(&self.map, "medium.bounds", m.bounds[1])?;
+        if !min.cmplt(max).all() {
+            return Err(self.map.error(
+                "medium.bounds",
+                format!("[min, max] needs min < max on every axis, got {min} and {max}"),
+            ));
+        }
+        let resolution = m.resolution.unwrap_or(DEFAULT_MEDIUM_RESOLUTION);
+        if !(1..=512).contains(&resolution) {
+            return Err(self.map.error(
+                &field("resolution"),
+                format!("must be 1 to 512 voxels, got {resolution}"),
+            ));
+        }
+        if !(m.extinction.is_finite() && m.extinction >= 0.0) {
+            return Err(self.map.error(
+                &field("extinction"),
+                format!("must be finite and >= 0, got {}", m.extinction),
+            ));
+        }
+        let albedo = finite3(&self.map, &field("albedo"), m.albedo.unwrap_or([0.95; 3]))?;
+        if !(albedo.cmpge(Vec3::ZERO).all() && albedo.cmple(Vec3::ONE).all()) {
+            return Err(self.map.error(
+                &field("albedo"),
+                format!("each channel must be in [0, 1], got {albedo}"),
+            ));
+        }
+        let g = m.g.unwrap_or(0.0);
+        if !(g.is_finite() && g.abs() < 1.0) {
+            return Err(self
+                .map
+                .error(&field("g"), format!("must be in (-1, 1), got {g}")));
+        }
+        let present = [
+            ("center", m.center.is_some()),
+            ("radii", m.radii.is_some()),
+            ("falloff", m.falloff.is_some()),
+            ("seed", m.seed.is_some()),
+            ("frequency", m.frequency.is_some()),
+            ("octaves", m.octaves.is_some()),
+            ("coverage", m.coverage.is_some()),
+            ("path", m.path.is_some()),
+        ];
+        let (kind, allowed): (&str, &[&str]) = match m.r#type {
+            MediumKind::Ellipsoid => ("ellipsoid", &["center", "radii", "falloff"]),
+            MediumKind::Cloud => (
+                "cloud",
+                &[
+                    "center",
+                    "radii",
+                    "seed",
+                    "frequency",
+                    "octaves",
+                    "coverage",
+                ],
+            ),
+            MediumKind::Grid => ("grid", &["path"]),
+        };
+        if m.r#type == MediumKind::Grid && m.resolution.is_some() {
+            return Err(self.map.error(
+                "medium.resolution",
+                "a grid medium has its file's resolution (`prt volume bake --grid N` resamples it)",
+            ));
+        }
+        for (key, set) in present {
+            if set && !allowed.contains(&key) {
+                return Err(self.map.error(
+                    &field(key),
+                    format!("`{key}` does not apply to a {kind} medium"),
+                ));
+            }
+        }
+        let center = position3(
+            &self.map,
+            &field("center"),
+            m.center.unwrap_or(((min + max) * 0.5).to_array()),
+        )?;
+        let radii = position3(
+            &self.map,
+            &field("radii"),
+            m.radii.unwrap_or(((max - min) * 0.5).to_array()),
+        )?;
+        if !radii.cmpgt(Vec3::ZERO).all() {
+            return Err(self
+                .map
+                .error(&field("radii"), format!("must be > 0, got {radii}")));
+        }
+        let source = match m.r#type {
+            MediumKind::Ellipsoid => {
+                let falloff = m.falloff.unwrap_or(0.3);
+                if !(0.0..1.0).contains(&falloff) {
+                    return Err(self.map.error(
+                        &field("falloff"),
+                        format!("must be in [0, 1), got {falloff}"),
+                    ));
+                }
+                MediumSource::Procedural(DensitySource::Ellipsoid {
+                    center,
+                    radii,
+                    falloff,
+                })
+            }
+            MediumKind::Cloud => {
+                let frequency = m.frequency.unwrap_or(3.0);
+                let coverage = m.coverage.unwrap_or(0.6);
+                let octaves = m.octaves.unwrap_or(4);
+                if !(frequency.is_finite() && frequency > 0.0) {
+                    return Err(self
+                        .map
+                        .error(&field("frequency"), format!("must be > 0, got {frequency}")));
+                }
+                if !(coverage > 0.0 && coverage <= 1.0) {
+                    return Err(self.map.error(
+                        &field("coverage"),
+                        format!("must be in (0, 1], got {coverage}"),
+                    ));
+                }
+                if !(1..=8).contains(&octaves) {
+                    return Err(self
+                        .map
+                        .error(&field("octaves"), format!("must be 1 to 8, got {octaves}")));
+                }
+                MediumSource::Procedural(DensitySource::Cloud {
+                    center,
+                    radii,
+                    seed: m.seed.unwrap_or(1),
+                    frequency,
+                    octaves,
+                    coverage,
+                })
+            }
+            MediumKind::Grid => {
+                let rel = m.path.as_deref().ok_or_else(|| {
+                    self.map
+                        .error("medium.path", "a grid medium needs `path` (a .npy file)")
+                })?;
+                let path = self.base_dir.join(rel);
+                let bytes = crate::files::read_regular(
+                    &path,
+                    crate::medium::MAX_NPY_BYTES,
+                    "NumPy .npy grid",
+                )
+                .map_err(|e| self.map.error("medium.path", e.to_string()))?;
+                let grid = crate::medium::parse_npy(&bytes, &path, min, max)
+                    .map_err(|e| self.map.error("medium.path", e.to_string()))?;
+                self.hasher.write_chunk(&bytes);
+                self.inputs.push(path);
+                MediumSource::Grid(grid)
+            }
+        };
+        Ok(MediumSpec {
+            source,
+            min,
+            max,
+            resolution,
+            extinction: m.extinction,
+            albedo,
+            g,
+        })
+    }
+
+    fn mesh(&mut self, index: usize, shape: &ShapeFile, material: u32) -> Result<Vec<Triangle>> {
+        let field = |key: &str| format!("shape[{index}].{key}");
+        let scale = shape.scale.unwrap_or(1.0);
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(self.map.error(
+                &field("scale"),
+                format!("must be a finite number > 0, got {scale}"),
+            ));
+        }
+        let rotate_y_deg = shape.rotate_y_deg.unwrap_or(0.0);
+        if !rotate_y_deg.is_finite() {
+            return Err(self.map.error(
+                &field("rotate_y_deg"),
+                format!("must be finite, got {rotate_y_deg}"),
+            ));
+        }
+        let translate = position3(
+            &self.map,
+            &field("translate"),
+            shape.translate.unwrap_or_default(),
+        )?;
+        let rel = shape.path.as_deref().unwrap_or_default();
+        let path = self.base_dir.join(rel);
+        if !self.obj_cache.contains_key(&path) {
+            let bytes = crate::files::read_regular(&path, crate::files::MAX_MESH_BYTES, "mesh")?;
+            let obj = parse_obj(&bytes, &path)?;
+            self.obj_cache.insert(path.clone(), (bytes, obj));
+            self.inputs.push(path.clone());
+        }
+        let (bytes, obj) = &self.obj_cache[&path];
+        self.hasher.write_chunk(bytes);
+
+        let transform = MeshTransform {
+            scale,
+            rotation: Mat3::from_rotation_y(rotate_y_deg.to_radians()),
+            translate,
+        };
+        // Every vertex a face uses, placed in the scene, within the coordinate limit (checked
+        // before triangles are built: an overflowing one would only look like zero area).
+        if let Some(v) = obj
+            .triangles
+            .iter()
+            .flat_map(|t| t.positions)
+            .map(|i| transform.point(obj.positions[i as usize]))
+            .find(|v| !(v.is_finite() && v.abs().max_element() <= MAX_COORDINATE))
+        {
+            return Err(self.map.error(
+                &field("scale"),
+                format!("the placed mesh reaches {v}, beyond ±{MAX_COORDINATE:e} scene units"),
+            ));
+        }
+        let triangles = mesh_triangles(
+            obj,
+            &transform,
+            shape.smooth_normals.unwrap_or(false),
+            material,
+        );
+        if triangles.is_empty() {
+            return Err(self.map.error(
+                &field("path"),
+                format!("{} has no triangles with non-zero area", path.display()),
+            ));
+        }
+        Ok(triangles)
+    }
+}

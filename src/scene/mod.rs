@@ -1,0 +1,368 @@
+//! The scene to bake: a pinhole camera, named materials and world-space geometry, read from a
+//! TOML scene file and the OBJ meshes it names.
+//!
+//! Loading flattens every shape into what the tracer needs: world-space triangles with per-vertex
+//! shading normals (quads and meshes) and analytic spheres, each with a material index. Every
+//! problem in the input is reported as a [`PrtError`] naming the file, the line where the TOML
+//! gives one, and the field (`shape[2].material`, with 0-based shape indices); nothing here
+//! panics on bad input.
+
+use std::collections::{BTreeMap, HashMap};
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use glam::{Mat3, Vec3};
+use serde::Deserialize;
+
+use crate::error::{PrtError, Result};
+
+use crate::medium::{DensityGrid, DensitySource, Medium};
+use file::Loader;
+pub use file::MAX_COORDINATE;
+
+/// Largest accepted image width or height, in pixels. A per-pixel bake beyond this is surely a
+/// typo, and refusing it early avoids allocating absurd buffers.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
+/// A ray: origin and unit direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Where the ray starts.
+    pub origin: Vec3,
+    /// Unit direction.
+    pub dir: Vec3,
+}
+
+/// A pinhole camera looking from `eye` at `target`, with a vertical field of view.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    /// Centre of projection.
+    pub eye: Vec3,
+    /// A point the camera looks at; the view direction is `target - eye`.
+    pub target: Vec3,
+    /// Roughly upwards on the film; need not be orthogonal to the view direction.
+    pub up: Vec3,
+    /// Full vertical field of view, in degrees, in (0, 180).
+    pub fov_y_deg: f32,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+}
+
+impl Camera {
+    /// Checks that the camera defines a usable projection: finite vectors, `eye != target`, `up`
+    /// not parallel to the view direction, `fov_y_deg` in (0, 180) and an image size in
+    /// `1..=MAX_IMAGE_SIDE`.
+    pub fn validate(&self) -> Result<()> {
+        match self.problem() {
+            None => Ok(()),
+            Some((field, message)) => Err(PrtError::invalid(format!("camera.{field}"), message)),
+        }
+    }
+
+    /// The first thing wrong with the camera, as (field, message).
+    fn problem(&self) -> Option<(&'static str, String)> {
+        for (field, v) in [("eye", self.eye), ("target", self.target), ("up", self.up)] {
+            if !v.is_finite() {
+                return Some((field, format!("must be finite, got {v}")));
+            }
+        }
+        if !self.fov_y_deg.is_finite() || self.fov_y_deg <= 0.0 || self.fov_y_deg >= 180.0 {
+            return Some((
+                "fov_y_deg",
+                format!(
+                    "must be strictly between 0 and 180 degrees, got {}",
+                    self.fov_y_deg
+                ),
+            ));
+        }
+        for (field, v) in [("width", self.width), ("height", self.height)] {
+            if v == 0 || v > MAX_IMAGE_SIDE {
+                return Some((
+                    field,
+                    format!("must be between 1 and {MAX_IMAGE_SIDE} pixels, got {v}"),
+                ));
+            }
+        }
+        let view = self.target - self.eye;
+        let scale = 1.0
+            + self
+                .eye
+                .abs()
+                .max_element()
+                .max(self.target.abs().max_element());
+        let has_direction = view.length() > 1e-6 * scale;
+        if !has_direction {
+            return Some((
+                "target",
+                format!("coincides with the eye {}: no view direction", self.eye),
+            ));
+        }
+        let up = self.up.normalize_or_zero();
+        if up == Vec3::ZERO {
+            return Some(("up", "must not be the zero vector".to_string()));
+        }
+        // Below this sine of the angle between `up` and the view direction the film's
+        // orientation is numerically meaningless.
+        const MIN_SIN_UP_VIEW: f32 = 1e-4;
+        let oblique = view.normalize().cross(up).length() > MIN_SIN_UP_VIEW;
+        if !oblique {
+            return Some((
+                "up",
+                format!("{} is parallel to the view direction {}", self.up, view),
+            ));
+        }
+        None
+    }
+
+    /// Orthonormal camera frame: (forward, right, up on the film).
+    pub fn frame(&self) -> (Vec3, Vec3, Vec3) {
+        let forward = (self.target - self.eye).normalize();
+        let right = forward.cross(self.up).normalize();
+        let film_up = right.cross(forward);
+        (forward, right, film_up)
+    }
+
+    /// The primary ray through film position (`film_x`, `film_y`), in pixels: x grows to the
+    /// right, y grows downwards, and (x + 0.5, y + 0.5) is the centre of pixel (x, y). The ray
+    /// starts at the eye and has a unit direction. An invalid camera (see
+    /// [`Camera::validate`]) gives non-finite directions rather than a panic.
+    pub fn ray(&self, film_x: f32, film_y: f32) -> Ray {
+        let (forward, right, film_up) = self.frame();
+        let tan_half = (self.fov_y_deg.to_radians() * 0.5).tan();
+        let aspect = self.width as f32 / self.height as f32;
+        let sx = (2.0 * film_x / self.width as f32 - 1.0) * tan_half * aspect;
+        let sy = (1.0 - 2.0 * film_y / self.height as f32) * tan_half;
+        Ray {
+            origin: self.eye,
+            dir: (forward + sx * right + sy * film_up).normalize(),
+        }
+    }
+}
+
+/// How a surface reflects light; the scene file's `type` key selects the variant. BRDFs are in
+/// [`crate::brdf`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Material {
+    /// Lambertian reflector.
+    Diffuse {
+        /// Linear RGB reflectance, each channel in [0, 1].
+        albedo: Vec3,
+    },
+    /// A GGX microfacet lobe over a Lambertian base.
+    Glossy {
+        /// Reflectance of the Lambertian base.
+        albedo: Vec3,
+        /// Specular reflectance (scales the GGX lobe); `albedo + specular` is at most 1.
+        specular: Vec3,
+        /// Perceptual roughness in [0.02, 1]; the GGX width is its square.
+        roughness: f32,
+    },
+}
+
+impl Material {
+    /// Linear RGB reflectance of the material's diffuse part.
+    pub fn albedo(&self) -> Vec3 {
+        match self {
+            Material::Diffuse { albedo } | Material::Glossy { albedo, .. } => *albedo,
+        }
+    }
+
+    /// The specular colour and GGX width (roughness²) of a glossy material.
+    pub fn glossy_lobe(&self) -> Option<(Vec3, f32)> {
+        match self {
+            Material::Diffuse { .. } => None,
+            Material::Glossy {
+                specular,
+                roughness,
+                ..
+            } => Some((*specular, roughness * roughness)),
+        }
+    }
+}
+
+/// A world-space triangle with per-vertex shading normals.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Triangle {
+    /// Corner positions; their winding defines [`Triangle::geometric_normal`].
+    pub vertices: [Vec3; 3],
+    /// Unit shading normal at each corner (all equal to the geometric normal for flat shading).
+    pub normals: [Vec3; 3],
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+impl Triangle {
+    /// Unit normal of the triangle's plane, by right-handed winding of `vertices`; zero for a
+    /// degenerate triangle (loading never produces one).
+    pub fn geometric_normal(&self) -> Vec3 {
+        let [a, b, c] = self.vertices;
+        (b - a).cross(c - a).normalize_or_zero()
+    }
+}
+
+/// An analytic sphere.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sphere {
+    /// Centre in world space.
+    pub center: Vec3,
+    /// Radius, > 0.
+    pub radius: f32,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+/// A loaded scene: camera, materials and flattened world-space geometry.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The fixed camera the scene is baked for.
+    pub camera: Camera,
+    /// Materials, indexed by the `material` field of triangles and spheres.
+    pub materials: Vec<Material>,
+    /// Name of each material, parallel to `materials` (sorted by name).
+    pub material_names: Vec<String>,
+    /// All quads and meshes flattened into world-space triangles.
+    pub triangles: Vec<Triangle>,
+    /// Analytic spheres.
+    pub spheres: Vec<Sphere>,
+    /// A participating medium (`[medium]`), if any.
+    pub medium: Option<MediumSpec>,
+    /// The scene file this was loaded from (or named as such by [`Scene::from_toml_str`]).
+    pub source_path: PathBuf,
+    /// Every file the scene was read from: the scene file, then its meshes and density grid.
+    pub input_files: Vec<PathBuf>,
+    content_hash: u64,
+}
+
+impl Scene {
+    /// Reads and loads the scene file at `path`; OBJ paths in it are relative to its folder.
+    pub fn load(path: &Path) -> Result<Scene> {
+        let text = crate::files::read_regular_text(path, crate::files::MAX_SCENE_BYTES, "scene")?;
+        Scene::from_toml_str(&text, path)
+    }
+
+    /// Loads a scene from TOML text. `path_for_errors_and_relative_paths` names the file in
+    /// error messages, and its folder is where relative OBJ paths are looked up; the file itself
+    /// need not exist.
+    pub fn from_toml_str(text: &str, path_for_errors_and_relative_paths: &Path) -> Result<Scene> {
+        Loader::new(text, path_for_errors_and_relative_paths)?.load()
+    }
+
+    /// A stable 64-bit FNV-1a hash of the scene text and of the bytes of every OBJ file it
+    /// loaded, in load order: the same inputs give the same hash on every run and machine, so it
+    /// can key cached bakes.
+    pub fn content_hash(&self) -> u64 {
+        self.content_hash
+    }
+
+    /// Number of triangles after flattening quads and meshes.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Axis-aligned bounds (min, max) of all geometry; (0, 0) for a scene with none.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for tri in &self.triangles {
+            for v in tri.vertices {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+        for s in &self.spheres {
+            lo = lo.min(s.center - Vec3::splat(s.radius));
+            hi = hi.max(s.center + Vec3::splat(s.radius));
+        }
+        if lo.cmple(hi).all() {
+            (lo, hi)
+        } else {
+            (Vec3::ZERO, Vec3::ZERO)
+        }
+    }
+}
+
+/// Where a scene's medium densities come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MediumSource {
+    /// Evaluated at the voxel centres of the grid.
+    Procedural(DensitySource),
+    /// Read from a `.npy` file; another resolution resamples it trilinearly.
+    Grid(DensityGrid),
+}
+
+/// The `[medium]` of a scene: how to build its density grid and its optical parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MediumSpec {
+    pub source: MediumSource,
+    pub min: Vec3,
+    pub max: Vec3,
+    /// Voxels along the longest side of the box (others in proportion, cubic voxels).
+    pub resolution: usize,
+    pub extinction: f32,
+    pub albedo: Vec3,
+    pub g: f32,
+}
+
+/// Default voxels along the longest side of a medium's box.
+pub const DEFAULT_MEDIUM_RESOLUTION: usize = 64;
+
+impl MediumSpec {
+    /// The medium at the scene's resolution, or `resolution` voxels along the longest side.
+    pub fn build(&self, resolution: Option<usize>) -> Result<Medium> {
+        let extent = self.max - self.min;
+        let grid = match (&self.source, resolution) {
+            (MediumSource::Grid(g), None) => g.clone(),
+            (source, r) => {
+                let r = r.unwrap_or(self.resolution);
+                if !(1..=512).contains(&r) {
+                    return Err(PrtError::invalid(
+                        "medium resolution",
+                        format!("{r} voxels is outside 1 to 512"),
+                    ));
+                }
+                let longest = extent.max_element();
+                let dims = extent
+                    .to_array()
+                    .map(|e| ((e / longest * r as f32).round() as usize).max(1));
+                match source {
+                    MediumSource::Procedural(src) => {
+                        DensityGrid::from_fn(dims, self.min, self.max, |p| src.density(p))
+                    }
+                    MediumSource::Grid(g) => {
+                        DensityGrid::from_fn(dims, self.min, self.max, |p| g.density(p))
+                    }
+                }
+            }
+        };
+        // Thinner than 1e-3 optical depth across the whole box: nothing would show.
+        let densest = grid.data.iter().copied().fold(0.0f32, f32::max);
+        if densest * self.extinction * extent.length() < 1e-3 {
+            return Err(PrtError::invalid(
+                "medium",
+                format!(
+                    "practically empty (the densest voxel holds {densest:e}): is the medium's \
+                     `center` inside its `bounds`, and `extinction` above 0?"
+                ),
+            ));
+        }
+        let m = Medium {
+            grid,
+            extinction: self.extinction,
+            albedo: self.albedo,
+            g: self.g,
+        };
+        m.validate()?;
+        Ok(m)
+    }
+}
+
+mod file;
+mod obj;
+
+#[cfg(test)]
+pub(crate) mod test_support;
+
+#[cfg(test)]
+mod tests;
