@@ -289,17 +289,7 @@ impl EnvMap {
                 },
             )
             .map(|(acc, _)| acc)
-            .reduce(
-                || vec![[0.0f64; 3]; count],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(&b) {
-                        for c in 0..3 {
-                            x[c] += y[c];
-                        }
-                    }
-                    a
-                },
-            );
+            .reduce(|| vec![[0.0f64; 3]; count], crate::sh::add_rgb);
         Ok(coeffs)
     }
 }

@@ -297,6 +297,17 @@ pub fn eval_f32_into(order: usize, dir: Vec3, out: &mut [f32]) {
     for_each_basis(order, dir.as_dvec3(), |i, v| out[i] = v as f32);
 }
 
+/// Adds two RGB coefficient vectors of one length, element by element: the reduction of the
+/// parallel projections (per-thread accumulators summed into one).
+pub fn add_rgb(mut a: Vec<[f64; 3]>, b: Vec<[f64; 3]>) -> Vec<[f64; 3]> {
+    for (x, y) in a.iter_mut().zip(&b) {
+        for c in 0..3 {
+            x[c] += y[c];
+        }
+    }
+    a
+}
+
 /// Projects sampled values onto the basis: c_i = sum_k value_k weight_k Y_i(dir_k), where the
 /// weights are the samples' solid angles or quadrature weights. Samples are `(dir, value, weight)`.
 pub fn project(order: usize, samples: impl IntoIterator<Item = (DVec3, f64, f64)>) -> Vec<f64> {

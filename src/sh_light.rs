@@ -93,17 +93,7 @@ impl ShThroughLight {
                 },
             )
             .map(|(acc, _)| acc)
-            .reduce(
-                || vec![[0.0f64; 3]; count],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(&b) {
-                        for c in 0..3 {
-                            x[c] += y[c];
-                        }
-                    }
-                    a
-                },
-            );
+            .reduce(|| vec![[0.0f64; 3]; count], crate::sh::add_rgb);
         // Band sums of the texel averages.
         let mut bands = vec![[0.0f64; 3]; texel_count(n) * max_order];
         bands.par_chunks_mut(max_order).enumerate().for_each_init(
