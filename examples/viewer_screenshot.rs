@@ -20,7 +20,7 @@ fn main() {
         .cloned()
         .unwrap_or_else(|| "sun:25,70,2".into());
     let mut h = Harness::builder()
-        .with_size(egui::vec2(1280.0, 760.0))
+        .with_size(egui::vec2(1280.0, 800.0))
         .wgpu()
         .build_ui_state(
             |ui, app: &mut ViewerApp| app.show(ui),

@@ -93,17 +93,18 @@ fn at_the_default_window_size_every_panel_row_is_visible() {
     if common::gpu_or_skip("at_the_default_window_size_every_panel_row_is_visible").is_none() {
         return;
     }
-    // The window's default inner size (`run_viewer`), with the panel's longest content: a
-    // comparison, so two panes' numbers.
+    // The window's default inner size (`run_viewer`), with the panel's longest content: the
+    // procedural sun's sliders and a split comparison, so two panes' numbers.
     let mut h = Harness::builder()
         .with_size(egui::vec2(1280.0, 800.0))
         .wgpu()
         .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), sun_app());
     settle(&mut h);
     h.state_mut().state.compare = true;
+    h.state_mut().state.layout = Layout::Split;
     settle(&mut h);
     let last = h
-        .query_all_by_label_contains("relative L2 vs full")
+        .query_all_by_label_contains("L2 vs full")
         .map(|n| n.rect().max.y)
         .fold(0.0f32, f32::max);
     assert!(last > 0.0, "the numbers are shown");

@@ -525,12 +525,14 @@ impl ViewerApp {
             }
         });
         ui.separator();
-        ui.horizontal(|ui| {
-            let label = ui.label("Save as");
-            ui.text_edit_singleline(&mut self.save_stem)
-                .labelled_by(label.id);
-        });
-        let save = ui.button("Save PNG + EXR").clicked();
+        let save = ui
+            .horizontal(|ui| {
+                let label = ui.label("Save as");
+                ui.add(egui::TextEdit::singleline(&mut self.save_stem).desired_width(110.0))
+                    .labelled_by(label.id);
+                ui.button("Save PNG + EXR").clicked()
+            })
+            .inner;
         if auto {
             self.worker.send(Job::AutoExposure(self.state.clone()));
         }
@@ -565,13 +567,13 @@ impl ViewerApp {
                     l.terms,
                     l.nonzeros_touched as f64 * 1e-6
                 ));
-                ui.label(format!(
-                    "CPU relight: {:.2} ms (kernel {:.2} ms)",
-                    l.relight_seconds * 1e3,
-                    l.kernel_seconds * 1e3
-                ));
                 let mark = if stale { " (previous settings)" } else { "" };
-                ui.label(format!("relative L2 vs full: {:.4}{mark}", l.rel_l2));
+                ui.label(format!(
+                    "CPU {:.2} ms (kernel {:.2}), rel. L2 vs full {:.4}{mark}",
+                    l.relight_seconds * 1e3,
+                    l.kernel_seconds * 1e3,
+                    l.rel_l2
+                ));
             }
             if r.light_seconds > 0.0 {
                 ui.label(format!(
