@@ -83,6 +83,52 @@ pub fn pixel_solid_angle(width: usize, height: usize, y: usize) -> f64 {
     (2.0 * PI / width as f64) * ((PI * y as f64 / h).cos() - (PI * (y + 1) as f64 / h).cos())
 }
 
+/// A procedural sun given as `sun:ELEV,AZIM[,RADIUS]` (degrees; the radius defaults to 2): the one
+/// parser of that spec, for the command line and the viewer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SunSpec {
+    pub elevation: f64,
+    pub azimuth: f64,
+    pub radius: f64,
+}
+
+impl SunSpec {
+    /// Radius when the spec gives none, degrees.
+    pub const DEFAULT_RADIUS: f64 = 2.0;
+
+    /// `None` when `spec` is not a sun (a file path); else the sun, or an error naming the spec
+    /// when its numbers are missing, not numbers, or out of range (elevation in [-90, 90],
+    /// radius in [0.05, 45], azimuth finite).
+    pub fn parse(spec: &str) -> Option<Result<SunSpec>> {
+        let args = spec.strip_prefix("sun:")?;
+        let bad = |why: &str| PrtError::invalid("environment", format!("`{spec}`: {why}"));
+        let nums: std::result::Result<Vec<f64>, _> =
+            args.split(',').map(|v| v.trim().parse::<f64>()).collect();
+        let sun = match nums.as_deref() {
+            Ok(&[elevation, azimuth]) => SunSpec {
+                elevation,
+                azimuth,
+                radius: Self::DEFAULT_RADIUS,
+            },
+            Ok(&[elevation, azimuth, radius]) => SunSpec {
+                elevation,
+                azimuth,
+                radius,
+            },
+            _ => return Some(Err(bad("expected sun:ELEV,AZIM[,RADIUS]"))),
+        };
+        if !(-90.0..=90.0).contains(&sun.elevation)
+            || !(0.05..=45.0).contains(&sun.radius)
+            || !sun.azimuth.is_finite()
+        {
+            return Some(Err(bad(
+                "elevation must be in [-90, 90] and radius in [0.05, 45] degrees",
+            )));
+        }
+        Some(Ok(sun))
+    }
+}
+
 impl EnvMap {
     /// A map of constant radiance.
     pub fn constant(width: usize, height: usize, value: [f32; 3]) -> Self {
@@ -124,38 +170,14 @@ impl EnvMap {
     /// Opens an environment given on the command line: a file path, or `sun:ELEV,AZIM[,RADIUS]`
     /// for a procedural [`SunSky`] (degrees; radius defaults to 2) rendered at 1024 x 512.
     pub fn from_spec(spec: &str) -> Result<Self> {
-        let Some(args) = spec.strip_prefix("sun:") else {
-            return Self::load(Path::new(spec));
-        };
-        let nums: Vec<f64> = args
-            .split(',')
-            .map(|v| v.trim().parse::<f64>())
-            .collect::<std::result::Result<_, _>>()
-            .map_err(|_| {
-                PrtError::invalid(
-                    "environment",
-                    format!("`{spec}`: expected sun:ELEV,AZIM[,RADIUS]"),
-                )
-            })?;
-        let (el, az, r) = match nums[..] {
-            [el, az] => (el, az, 2.0),
-            [el, az, r] => (el, az, r),
-            _ => {
-                return Err(PrtError::invalid(
-                    "environment",
-                    format!("`{spec}`: expected sun:ELEV,AZIM[,RADIUS]"),
-                ));
+        match SunSpec::parse(spec) {
+            None => Self::load(Path::new(spec)),
+            Some(sun) => {
+                let sun = sun?;
+                Ok(SunSky::new(sun.elevation, sun.azimuth, sun.radius, 3.0)
+                    .to_latlong(1024, 512, 4))
             }
-        };
-        if !(-90.0..=90.0).contains(&el) || !(0.05..=45.0).contains(&r) || !az.is_finite() {
-            return Err(PrtError::invalid(
-                "environment",
-                format!(
-                    "`{spec}`: elevation must be in [-90, 90] and radius in [0.05, 45] degrees"
-                ),
-            ));
         }
-        Ok(SunSky::new(el, az, r, 3.0).to_latlong(1024, 512, 4))
     }
 
     /// Builds a map from raw pixels, applying the bad-pixel policy of this module.
@@ -447,6 +469,31 @@ impl SunSky {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sun_specs_parse_once_for_every_caller() {
+        let sun = SunSpec::parse("sun:25,70").unwrap().unwrap();
+        assert_eq!((sun.elevation, sun.azimuth, sun.radius), (25.0, 70.0, 2.0));
+        let sun = SunSpec::parse("sun: -10 , 400, 0.5").unwrap().unwrap();
+        assert_eq!(
+            (sun.elevation, sun.azimuth, sun.radius),
+            (-10.0, 400.0, 0.5)
+        );
+        assert!(SunSpec::parse("assets/envmaps/blender_city.exr").is_none());
+        for bad in [
+            "sun:",
+            "sun:10",
+            "sun:a,b",
+            "sun:95,0",
+            "sun:10,0,0",
+            "sun:10,inf",
+            "sun:1,2,3,4",
+        ] {
+            let e = SunSpec::parse(bad).unwrap().unwrap_err().to_string();
+            assert!(e.contains(bad), "{bad}: {e}");
+        }
+        assert!(EnvMap::from_spec("sun:10,0,0").is_err());
+    }
 
     #[test]
     fn latlong_directions_follow_the_convention() {

@@ -26,7 +26,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use crate::background::{composite, environment_behind};
-use crate::envmap::{EnvMap, EnvRotation};
+use crate::envmap::{EnvMap, EnvRotation, SunSpec};
 use crate::film::{Image, ToneCurve, ToneMap};
 use crate::gpu::{Gpu, GpuTransport};
 use crate::light::Weighting;
@@ -68,8 +68,10 @@ pub struct EnvEntry {
 /// The sun radius of the first `sun:ELEV,AZIM,RADIUS` on the command line, if it has one.
 pub fn cli_sun_radius(cli: &[String]) -> Option<f64> {
     cli.iter()
-        .find_map(|s| s.strip_prefix("sun:"))
-        .and_then(|a| a.split(',').nth(2)?.trim().parse().ok())
+        .find(|s| s.starts_with("sun:"))
+        .filter(|s| s.split(',').count() == 3)
+        .and_then(|s| SunSpec::parse(s)?.ok())
+        .map(|sun| sun.radius)
 }
 
 /// The environment picker (`label`), the sun's elevation, azimuth and radius sliders when the
@@ -157,13 +159,11 @@ pub fn env_entries(cli: &[String]) -> (Vec<EnvEntry>, (f64, f64), usize) {
     let mut first_cli = None;
     let mut sun_given = false;
     for spec in cli {
-        if let Some(args) = spec.strip_prefix("sun:") {
-            let nums: Vec<f64> = args
-                .split(',')
-                .filter_map(|v| v.trim().parse().ok())
-                .collect();
-            if nums.len() >= 2 && !sun_given {
-                sun = (nums[0].clamp(-90.0, 90.0), nums[1]);
+        if let Some(parsed) = SunSpec::parse(spec) {
+            if let Ok(s) = parsed
+                && !sun_given
+            {
+                sun = (s.elevation, s.azimuth);
                 sun_given = true;
             }
             first_cli.get_or_insert(usize::MAX);
