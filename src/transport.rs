@@ -390,7 +390,11 @@ impl Transport {
     /// [`Transport::load`], calling `progress(bytes read, file size)` as the file comes in (the
     /// viewer shows it; validation after the read is quick).
     pub fn load_with_progress(path: &Path, progress: &dyn Fn(u64, u64)) -> Result<Self> {
-        let (meta, stored) = read_header(path)?;
+        let Header {
+            meta,
+            checksum: stored,
+            ..
+        } = read_header(path)?;
         let buf = read_with_progress(path, progress)?;
         let st = safetensors::SafeTensors::deserialize(&buf)
             .map_err(|e| PrtError::file(path, format!("not a valid safetensors file: {e}")))?;
@@ -1221,7 +1225,7 @@ fn read_with_progress(path: &Path, progress: &dyn Fn(u64, u64)) -> Result<Vec<u8
 /// file exactly and that the format and version are ours; allocates nothing proportional to the
 /// data.
 pub fn read_header_meta(path: &Path) -> Result<TransportMeta> {
-    read_header(path).map(|(meta, _)| meta)
+    read_header(path).map(|h| h.meta)
 }
 
 /// The header and the small tables, for `prt info`: the metadata, checked as
@@ -1229,90 +1233,70 @@ pub fn read_header_meta(path: &Path) -> Result<TransportMeta> {
 /// against the entry count the header declares. The entries and values, nearly all of the file,
 /// are neither read nor checked (their checksum needs them all).
 pub fn read_summary(path: &Path) -> Result<TransportMeta> {
-    let meta = read_header_meta(path)?;
-    let (mut f, _) = crate::files::open_regular(path, u64::MAX, "transport")?;
-    let mut len8 = [0u8; 8];
-    f.read_exact(&mut len8)
-        .map_err(|e| PrtError::file(path, format!("reading header: {e}")))?;
-    let header_len = u64::from_le_bytes(len8);
-    let mut header = vec![0u8; header_len as usize];
-    f.read_exact(&mut header)
-        .map_err(|e| PrtError::file(path, format!("reading header: {e}")))?;
-    let json: serde_json::Value = serde_json::from_slice(&header)
-        .map_err(|e| PrtError::file(path, format!("header is not JSON: {e}")))?;
-    // A tensor's element count and its bytes, from the header (sizes checked before reading).
-    let mut tensor = |name: &str, width: usize| -> Result<(usize, Vec<u8>)> {
-        let t = json
-            .get(name)
-            .ok_or_else(|| PrtError::file(path, format!("no tensor `{name}`")))?;
-        let shape: Vec<usize> = t
+    let Header {
+        meta,
+        tensors,
+        data_start,
+        mut file,
+        ..
+    } = read_header(path)?;
+    // A tensor's element count and, when `read`, its bytes (the header's offsets were checked
+    // against the file's length, so the read is bounded by the file).
+    let mut tensor = |name: &str, dtype: &str, read: bool| -> Result<(usize, Vec<u8>)> {
+        let bad = |why: &str| PrtError::file(path, format!("tensor `{name}`: {why}"));
+        let t = tensors.get(name).ok_or_else(|| bad("missing"))?;
+        if t.get("dtype").and_then(|d| d.as_str()) != Some(dtype) {
+            return Err(bad(&format!("dtype is not {dtype}")));
+        }
+        let count = t
             .get("shape")
             .and_then(|s| s.as_array())
-            .map(|a| {
+            .and_then(|a| {
                 a.iter()
-                    .filter_map(|v| v.as_u64())
-                    .map(|v| v as usize)
-                    .collect()
+                    .try_fold(1usize, |n, d| n.checked_mul(d.as_u64()? as usize))
             })
-            .unwrap_or_default();
-        let count = shape.iter().try_fold(1usize, |a, &d| a.checked_mul(d));
+            .ok_or_else(|| bad("bad shape"))?;
         let offsets = t.get("data_offsets").and_then(|o| o.as_array());
-        let (start, end) = match offsets.map(|o| {
-            (
-                o.first().and_then(|v| v.as_u64()),
-                o.get(1).and_then(|v| v.as_u64()),
-            )
-        }) {
-            Some((Some(a), Some(b))) if a <= b => (a, b),
-            _ => {
-                return Err(PrtError::file(
-                    path,
-                    format!("tensor `{name}`: bad data_offsets"),
-                ));
-            }
+        let (start, end) =
+            match offsets.and_then(|o| Some((o.first()?.as_u64()?, o.get(1)?.as_u64()?))) {
+                Some((a, b)) if a <= b => (a, b),
+                _ => return Err(bad("bad data_offsets")),
+            };
+        let width = match dtype {
+            "U32" => 4,
+            "U16" => 2,
+            _ => 1,
         };
-        let count = count.ok_or_else(|| PrtError::file(path, format!("tensor `{name}`: shape")))?;
-        if width == 0 {
+        if count.checked_mul(width) != Some((end - start) as usize) {
+            return Err(bad(&format!(
+                "{count} values do not fill {} bytes",
+                end - start
+            )));
+        }
+        if !read {
             return Ok((count, Vec::new()));
         }
-        if count.checked_mul(width) != Some((end - start) as usize) {
-            return Err(PrtError::file(
-                path,
-                format!(
-                    "tensor `{name}`: {count} values do not fill {} bytes",
-                    end - start
-                ),
-            ));
-        }
         let mut bytes = vec![0u8; (end - start) as usize];
-        f.seek(std::io::SeekFrom::Start(8 + header_len + start))
-            .and_then(|_| f.read_exact(&mut bytes))
-            .map_err(|e| PrtError::file(path, format!("reading `{name}`: {e}")))?;
+        file.seek(std::io::SeekFrom::Start(data_start + start))
+            .and_then(|_| file.read_exact(&mut bytes))
+            .map_err(|e| bad(&format!("reading: {e}")))?;
         Ok((count, bytes))
     };
-    let words = |b: &[u8]| -> Vec<u32> {
-        b.chunks_exact(4)
-            .map(|c| u32::from_le_bytes(c.try_into().unwrap_or_default()))
-            .collect()
-    };
-    let (tiles, starts) = tensor("tile_row_start", 4)?;
-    let (rows, _) = tensor("row_pixel", 0)?;
-    let (nnz, _) = tensor("entry_row", 0)?;
-    let (_, counts) = tensor("col_count", 2)?;
+    let (tiles, starts) = tensor("tile_row_start", "U32", true)?;
+    let (rows, _) = tensor("row_pixel", "U32", false)?;
+    let (nnz, _) = tensor("entry_row", "U8", false)?;
+    let (_, counts) = tensor("col_count", "U16", true)?;
     let (tx, ty) = tile_grid(meta.width as usize, meta.height as usize);
-    if tiles != tx * ty + 1 {
+    let starts: Vec<u32> = bytemuck::pod_collect_to_vec(&starts);
+    if tiles != tx * ty + 1 || starts.len() != tiles {
         return Err(PrtError::file(
             path,
             "tile tables do not match the image size",
         ));
     }
-    let (_, block_rows) =
-        block_tables(&words(&starts), rows).map_err(|m| PrtError::file(path, m))?;
+    let (_, block_rows) = block_tables(&starts, rows).map_err(|m| PrtError::file(path, m))?;
     let c = 6 * meta.cube_n as usize * meta.cube_n as usize;
-    let counts: Vec<u16> = counts
-        .chunks_exact(2)
-        .map(|b| u16::from_le_bytes([b[0], b[1]]))
-        .collect();
+    let counts: Vec<u16> = bytemuck::pod_collect_to_vec(&counts);
     if counts.len() != (block_rows.len() - 1) * c {
         return Err(PrtError::file(
             path,
@@ -1323,8 +1307,19 @@ pub fn read_summary(path: &Path) -> Result<TransportMeta> {
     Ok(meta)
 }
 
-/// [`read_header_meta`] and the stored checksum.
-fn read_header(path: &Path) -> Result<(TransportMeta, String)> {
+/// What [`read_header`] gives: the checked metadata, the stored tensor checksum, the header's
+/// tensor entries (name to dtype, shape and offsets), where the tensor data starts, and the open
+/// file.
+struct Header {
+    meta: TransportMeta,
+    checksum: String,
+    tensors: serde_json::Map<String, serde_json::Value>,
+    data_start: u64,
+    file: std::fs::File,
+}
+
+/// [`read_header_meta`], with what the rest of a reader needs (see [`Header`]).
+fn read_header(path: &Path) -> Result<Header> {
     let (mut f, file_len) = crate::files::open_regular(path, u64::MAX, "transport")?;
     let mut len8 = [0u8; 8];
     f.read_exact(&mut len8)
@@ -1413,7 +1408,13 @@ fn read_header(path: &Path) -> Result<(TransportMeta, String)> {
         ));
     }
     check_meta(&header.meta).map_err(|m| PrtError::file(path, m))?;
-    Ok((header.meta, header.checksum))
+    Ok(Header {
+        meta: header.meta,
+        checksum: header.checksum,
+        tensors: obj.clone(),
+        data_start: 8 + header_len,
+        file: f,
+    })
 }
 
 /// The one metadata entry of a file: format, version, checksum and the [`TransportMeta`]
