@@ -75,7 +75,9 @@ struct GpuDisplay {
     render_state: eframe::egui_wgpu::RenderState,
     transport: Option<Arc<GpuTransport>>,
     uploading: bool,
-    views: Vec<(GpuView, egui::TextureId)>,
+    /// Each view, its texture in egui, and the environment behind the scene it holds (uploaded
+    /// again only when the light brings a new one).
+    views: Vec<(GpuView, egui::TextureId, Option<Arc<Image>>)>,
     /// What the views show, and how long each took.
     shown: Option<ViewState>,
     timings: Vec<GpuTiming>,
@@ -323,7 +325,7 @@ impl ViewerApp {
         let t = &loaded.transport;
         let (w, h) = (t.meta.width, t.meta.height);
         let requests = self.state.requests(loaded.limits);
-        g.views.retain(|(v, _)| (v.width, v.height) == (w, h));
+        g.views.retain(|(v, _, _)| (v.width, v.height) == (w, h));
         while g.views.len() < requests.len() {
             let view = GpuView::new(&g.render_state.device, w, h);
             let id = g.render_state.renderer.write().register_native_texture(
@@ -331,11 +333,14 @@ impl ViewerApp {
                 &view.display.create_view(&Default::default()),
                 wgpu::FilterMode::Linear,
             );
-            g.views.push((view, id));
+            g.views.push((view, id, None));
         }
         g.timings.clear();
-        for ((_, request), (view, _)) in requests.iter().zip(&g.views) {
-            view.set_behind(&g.render_state.queue, behind);
+        for ((_, request), (view, _, held)) in requests.iter().zip(&mut g.views) {
+            if !held.as_ref().is_some_and(|h| Arc::ptr_eq(h, behind)) {
+                view.set_behind(&g.render_state.queue, behind);
+                *held = Some(behind.clone());
+            }
             let timing = relight_into_view(
                 &g.gpu,
                 &gt,
@@ -649,7 +654,7 @@ impl ViewerApp {
                 .collect(),
         };
         let ids: Vec<egui::TextureId> = match &self.gpu {
-            Some(g) if self.showing_gpu() => g.views.iter().map(|(_, id)| *id).collect(),
+            Some(g) if self.showing_gpu() => g.views.iter().map(|(_, id, _)| *id).collect(),
             _ => self.textures.iter().map(|t| t.id()).collect(),
         };
         ids.into_iter().zip(titles).collect()
