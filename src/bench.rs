@@ -131,17 +131,14 @@ impl BenchPoint {
     }
 }
 
-/// Relights once per timing run and keeps the median time.
+/// Runs a relight once per timing run and keeps the median kernel time.
 fn timed(
-    t: &Transport,
-    ctx: &LightContext,
-    light: &crate::relight::PreparedLight,
-    req: &RelightRequest,
+    mut run: impl FnMut() -> Result<(Image, RelightStats)>,
 ) -> Result<(Image, RelightStats, f64)> {
     let mut times = Vec::with_capacity(TIMING_RUNS);
     let mut last = None;
     for _ in 0..TIMING_RUNS {
-        let (img, stats) = relight(t, ctx, light, req)?;
+        let (img, stats) = run()?;
         times.push(stats.kernel_seconds * 1e3);
         last = Some((img, stats));
     }
@@ -199,7 +196,7 @@ pub fn run(
         let (full, _) = relight(t, &ctx, &light, &full_req)?;
         // One measured point: CPU (and GPU) timings and every error.
         let mut measure = |req: RelightRequest, light_rel_l2: Option<f64>| -> Result<()> {
-            let (img, stats, cpu_ms) = timed(t, &ctx, &light, &req)?;
+            let (img, stats, cpu_ms) = timed(|| relight(t, &ctx, &light, &req))?;
             let gpu_ms = match extras.gpu {
                 Some((gpu, g)) => Some(timed_gpu(gpu, g, t, &ctx, &light, &req)?),
                 None => None,
@@ -256,15 +253,7 @@ pub fn run(
             let cube = env.to_cube(t.meta.cube_n as usize, EnvRotation::default())?;
             let projected = crate::sh_light::ShThroughLight::new(&cube, most)?;
             for &o in &opts.sh_light_orders {
-                let mut times = Vec::with_capacity(TIMING_RUNS);
-                let mut last = None;
-                for _ in 0..TIMING_RUNS {
-                    let (img, stats) = crate::sh_light::relight(t, &projected, o)?;
-                    times.push(stats.kernel_seconds * 1e3);
-                    last = Some((img, stats));
-                }
-                times.sort_by(f64::total_cmp);
-                let (img, stats) = last.ok_or_else(|| PrtError::invalid("bench", "no run"))?;
+                let (img, stats, cpu_ms) = timed(|| crate::sh_light::relight(t, &projected, o))?;
                 points.push(BenchPoint {
                     env: name.clone(),
                     method: Method::Sh,
@@ -277,7 +266,7 @@ pub fn run(
                         Some(r) => Some(relative_l2(&img, r, mask)?),
                         None => None,
                     },
-                    cpu_ms: times[times.len() / 2],
+                    cpu_ms,
                     gpu_ms: None,
                     bytes_touched: stats.bytes_touched,
                 });
