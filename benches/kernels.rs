@@ -16,14 +16,14 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use wavelet_prt::app::demo::write_assets;
 use wavelet_prt::bake::{BakeSettings, bake, load_if_baked_with};
-use wavelet_prt::demo::write_assets;
-use wavelet_prt::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::haar;
-use wavelet_prt::light::{WaveletLight, Weighting};
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::light::select::{WaveletLight, Weighting};
+use wavelet_prt::math::haar;
 use wavelet_prt::relight::{LightContext, light_sh_order, relight_sh, relight_wavelet};
 use wavelet_prt::scene::Scene;
-use wavelet_prt::transport::Transport;
+use wavelet_prt::store::transport::Transport;
 
 fn assets() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("assets")
@@ -188,7 +188,7 @@ fn csc_of(t: &Transport) -> sprs::CsMatI<f32, u32> {
 /// are for the record, not for comparison with a real GPU). Times include the upload of the kept
 /// terms and the image readback.
 fn relight_gpu(c: &mut Criterion) {
-    let gpu = match wavelet_prt::gpu::Gpu::new() {
+    let gpu = match wavelet_prt::relight::gpu::Gpu::new() {
         Ok(g) => g,
         Err(e) => {
             eprintln!("relight_gpu: skipped: {e}");
@@ -197,7 +197,7 @@ fn relight_gpu(c: &mut Criterion) {
     };
     eprintln!("relight_gpu: on {}", gpu.adapter);
     let t = transport();
-    let g = wavelet_prt::gpu::GpuTransport::upload(&gpu, &t, None).unwrap();
+    let g = wavelet_prt::relight::gpu::GpuTransport::upload(&gpu, &t, None).unwrap();
     let ctx = LightContext::new(&t).unwrap();
     let light = ctx.prepare(&sunrise(), EnvRotation::default()).unwrap();
     let mut group = c.benchmark_group(format!("relight_gpu_{}", t.meta.width));
@@ -270,7 +270,7 @@ fn volume(c: &mut Criterion) {
             g: medium.g,
             sh_order: 3,
             directions: 512,
-            camera: wavelet_prt::transport::CameraMeta {
+            camera: wavelet_prt::store::transport::CameraMeta {
                 eye: [0.0, 0.3, 3.2],
                 target: [0.0; 3],
                 up: [0.0, 1.0, 0.0],
@@ -292,7 +292,7 @@ fn volume(c: &mut Criterion) {
     g.bench_function("phase_light_table_n32_order3", |b| {
         b.iter(|| PhaseLight::new(&cube, 3, medium.g))
     });
-    if let Ok(gpu) = wavelet_prt::gpu::Gpu::new() {
+    if let Ok(gpu) = wavelet_prt::relight::gpu::Gpu::new() {
         eprintln!("volume: GPU march on {}", gpu.adapter);
         let mut gv = wavelet_prt::volume::gpu::GpuVolume::new(&gpu, &vt).unwrap();
         g.bench_function("march_gpu_512x512_order3", |b| {

@@ -1,6 +1,6 @@
 //! Criterion benchmarks of light preparation (environment -> cube map -> Haar, and the SH light)
 //! on blender_sunrise at N = 32 and 64, SH order 8 (the demo bake's), before and after the cached
-//! resampling of [`wavelet_prt::resample`]:
+//! resampling of [`wavelet_prt::light::resample`]:
 //!
 //! - `exact_prepare`: what `LightContext::prepare` did before, the direct splat for the unturned
 //!   cube (SH) and for the turned one (wavelets);
@@ -16,11 +16,11 @@ use std::path::Path;
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use wavelet_prt::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::light::WaveletLight;
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::light::resample;
+use wavelet_prt::light::select::WaveletLight;
+use wavelet_prt::math::sh;
 use wavelet_prt::relight::{LightContext, PreparedLight};
-use wavelet_prt::resample;
-use wavelet_prt::sh;
 
 /// SH order of the demo bake.
 const SH_ORDER: usize = 8;

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use eframe::egui;
 use egui_kittest::Harness;
-use wavelet_prt::viewer::{Layout, ViewerApp};
+use wavelet_prt::app::viewer::{Layout, ViewerApp};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();

@@ -26,7 +26,7 @@
 //! `+X: (1, −t, −s)  −X: (−1, −t, s)  +Y: (s, 1, t)  −Y: (s, −1, −t)  +Z: (s, −t, 1)  −Z: (−s, −t, −1)`
 //! (the OpenGL / Vulkan / wgpu convention). Linear texel index: `face·N² + row·N + col`. Texel solid
 //! angles are exact (corner formula `atan2(ab, sqrt(a² + b² + 1))`) and sum to 4π. A texel light holds
-//! the **average** radiance over its solid angle (area resampling, see [`crate::cubemap`]).
+//! the **average** radiance over its solid angle (area resampling, see [`crate::math::cubemap`]).
 //!
 //! # Light vector and transport
 //! Texel light j carries radiance L_j. Outgoing radiance at pixel p is `Σ_j T[p][j] L_j`, where T[p][j]
@@ -36,7 +36,7 @@
 //! # Haar wavelets
 //! Orthonormal **non-standard** 2-D Haar transform of each face on its own, down to one scaling
 //! coefficient per face (6 N² coefficients, Parseval exact). Light and transport rows use the same
-//! basis, so `T l = (T Wᵀ)(W l)`. Coefficient layout inside a face is given in [`crate::haar`].
+//! basis, so `T l = (T Wᵀ)(W l)`. Coefficient layout inside a face is given in [`crate::math::haar`].
 //!
 //! # Spherical harmonics
 //! Real SH, index `i = l(l + 1) + m`, orthonormal, Condon–Shortley phase included, evaluated on the
@@ -53,5 +53,5 @@
 //! # Error metrics
 //! Relative L2 of image A against reference R: `‖A − R‖₂ / ‖R‖₂` over every channel of the pixels that
 //! see geometry; RMSE and PSNR beside it. Images show the environment behind the scene in the pixels
-//! (or the parts of pixels) that see none, turned with the light ([`crate::background`]); metrics
+//! (or the parts of pixels) that see none, turned with the light ([`crate::relight::background`]); metrics
 //! are taken before it is added.

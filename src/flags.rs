@@ -7,7 +7,7 @@ use crate::error::{PrtError, Result};
 
 /// Kept wavelet terms K: from 1 to all 6 N² coefficients of a cube of face size `n`.
 pub fn terms(k: usize, n: usize) -> Result<()> {
-    let total = crate::cubemap::texel_count(n);
+    let total = crate::math::cubemap::texel_count(n);
     if k == 0 || k > total {
         return Err(PrtError::invalid(
             "term count",

@@ -17,40 +17,19 @@
 //!
 //! Every numeric convention (axes, lat-long, cube faces, SH, Haar) is fixed in [`conventions`].
 
-pub mod background;
+pub mod app;
 pub mod bake;
-pub mod bench;
-pub mod brdf;
-pub mod budget;
-#[cfg(feature = "app")]
-pub mod cli;
 pub mod conventions;
-pub mod cubemap;
-pub mod demo;
-pub mod envmap;
 pub mod error;
 pub mod files;
-pub mod film;
 pub mod flags;
-pub mod gpu;
-pub mod haar;
 pub mod light;
+pub mod math;
 pub mod medium;
-pub mod metrics;
-pub mod plot;
-pub mod quant;
-pub mod reference;
+pub mod output;
 pub mod relight;
-pub mod resample;
-pub mod sampling;
 pub mod scene;
-pub mod sh;
-pub mod sh_light;
-pub mod sheet;
-pub mod trace;
-pub mod transport;
-#[cfg(feature = "app")]
-pub mod viewer;
+pub mod store;
 pub mod volume;
 
 pub use error::{PrtError, Result};

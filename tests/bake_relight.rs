@@ -8,20 +8,20 @@ mod common;
 use common::{SPHERE_ON_PLANE, assets, plane_from_above, random_transport, scene_from, temp_dir};
 
 use glam::DVec3;
+use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::cubemap::{CubeMap, texel_count, texel_dirs, texel_index};
-use wavelet_prt::envmap::{EnvMap, EnvRotation, SunSky};
-use wavelet_prt::film::Image;
-use wavelet_prt::light::{SparseLight, WaveletLight, Weighting};
-use wavelet_prt::metrics::relative_l2;
-use wavelet_prt::reference::render_reference;
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation, SunSky};
+use wavelet_prt::light::select::{SparseLight, WaveletLight, Weighting};
+use wavelet_prt::math::cubemap::{CubeMap, texel_count, texel_dirs, texel_index};
+use wavelet_prt::math::sampling::Rng;
+use wavelet_prt::math::sh;
+use wavelet_prt::output::film::Image;
+use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::{
     LightContext, Method, RelightRequest, relight, relight_dense_reference, relight_sh,
     relight_wavelet,
 };
-use wavelet_prt::sampling::Rng;
-use wavelet_prt::sh;
-use wavelet_prt::transport::{Quantization, Transport};
+use wavelet_prt::store::transport::{Quantization, Transport};
 
 /// Float sums over a few thousand texels in a different order: the same value to ~1e-6.
 const SAME_SUM: f64 = 1e-5;
@@ -131,7 +131,7 @@ fn one_texel_light_casts_the_analytic_sphere_shadow() {
     // One texel of the +Y face, off-centre, so the shadow falls sideways.
     let j = texel_index(n, 2, 2, 5);
     let d = texel_dirs(n)[j];
-    let omega = wavelet_prt::cubemap::solid_angles(n)[j];
+    let omega = wavelet_prt::math::cubemap::solid_angles(n)[j];
     let mut cube = CubeMap::constant(n, [0.0; 3]).unwrap();
     cube.texels[j] = [10.0, 10.0, 10.0];
     let (img, _) = relight_wavelet(&t, &full_light(&cube)).unwrap();
@@ -215,11 +215,12 @@ fn lossless_relight_equals_the_brute_force_reference() {
     // The reference traces the bake's camera sub-samples, so it sees the same coverage, and
     // reports every row done.
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let with = wavelet_prt::reference::render_reference_with(&scene, &cube, &settings, &|d, n| {
-        assert!(d <= n);
-        done.fetch_max(d, std::sync::atomic::Ordering::Relaxed);
-    })
-    .unwrap();
+    let with =
+        wavelet_prt::bake::reference::render_reference_with(&scene, &cube, &settings, &|d, n| {
+            assert!(d <= n);
+            done.fetch_max(d, std::sync::atomic::Ordering::Relaxed);
+        })
+        .unwrap();
     assert_eq!(with.image, brute);
     assert_eq!(with.coverage, t.coverage);
     assert_eq!(done.into_inner(), scene.camera.height as usize);

@@ -5,16 +5,16 @@ mod common;
 
 use std::path::PathBuf;
 
-use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::bench::{
+use wavelet_prt::app::bench::{
     BenchExtras, BenchOptions, compression_sweep, csv, run, summary, terms_to_reach,
     write_compression, write_report,
 };
-use wavelet_prt::envmap::{EnvMap, EnvRotation, SunSky};
-use wavelet_prt::light::Weighting;
-use wavelet_prt::reference::render_reference;
+use wavelet_prt::bake::reference::render_reference;
+use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation, SunSky};
+use wavelet_prt::light::select::Weighting;
 use wavelet_prt::relight::Method;
-use wavelet_prt::transport::Transport;
+use wavelet_prt::store::transport::Transport;
 
 fn tiny_transport(name: &str) -> Transport {
     let scene = common::scene_from(common::SPHERE_ON_PLANE, &format!("bench-{name}"));

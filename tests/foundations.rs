@@ -11,11 +11,11 @@ use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DVec3};
 use wavelet_prt::PrtError;
-use wavelet_prt::cubemap::{self, CubeMap};
-use wavelet_prt::envmap::{EnvMap, EnvRotation, SunSky};
-use wavelet_prt::haar::{self, Band};
-use wavelet_prt::light::select_top_k;
-use wavelet_prt::sh;
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation, SunSky};
+use wavelet_prt::light::select::select_top_k;
+use wavelet_prt::math::cubemap::{self, CubeMap};
+use wavelet_prt::math::haar::{self, Band};
+use wavelet_prt::math::sh;
 
 // ---------------------------------------------------------------------------------------------
 // Tolerances

@@ -9,12 +9,12 @@ mod common;
 
 use common::{SPHERE_ON_PLANE, assets, scene_from};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::gpu::{Gpu, GpuTransport};
-use wavelet_prt::light::Weighting;
-use wavelet_prt::metrics::relative_l2;
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::light::select::Weighting;
+use wavelet_prt::output::metrics::relative_l2;
+use wavelet_prt::relight::gpu::{Gpu, GpuTransport};
 use wavelet_prt::relight::{LightContext, light_sh_order, relight_sh, relight_wavelet};
-use wavelet_prt::transport::Transport;
+use wavelet_prt::store::transport::Transport;
 
 /// GPU and CPU add the same products in a different order, in f32: they agree to ~1e-6; the
 /// issue asks for 1e-4.
@@ -33,7 +33,7 @@ fn bakes() -> Vec<Transport> {
         ..base.clone()
     };
     let q16 = BakeSettings {
-        quantization: wavelet_prt::quant::Quantization::Q16,
+        quantization: wavelet_prt::store::quant::Quantization::Q16,
         ..base.clone()
     };
     vec![
@@ -97,9 +97,9 @@ fn gpu_equals_cpu_when_split_across_bindings() {
     for t in bakes() {
         // Small enough that the entries of a few tiles fill a binding.
         let device_bytes = match t.meta.quantization {
-            wavelet_prt::quant::Quantization::Q8 => 2,
-            wavelet_prt::quant::Quantization::Q16 => 4,
-            wavelet_prt::quant::Quantization::F32 => 8,
+            wavelet_prt::store::quant::Quantization::Q8 => 2,
+            wavelet_prt::store::quant::Quantization::Q16 => 4,
+            wavelet_prt::store::quant::Quantization::F32 => 8,
         };
         let limit =
             (t.entry_row.len() as u64 * device_bytes / 3).max(t.row_pixel.len() as u64 * 16);
@@ -119,7 +119,7 @@ fn bad_lights_are_errors_on_the_gpu_too() {
     };
     let t = &bakes()[1];
     let g = GpuTransport::upload(&gpu, t, None).unwrap();
-    let bad = wavelet_prt::light::SparseLight {
+    let bad = wavelet_prt::light::select::SparseLight {
         indices: vec![t.coeff_count() as u32],
         values: vec![[1.0; 3]],
     };

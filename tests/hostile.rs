@@ -9,10 +9,10 @@ use std::path::{Path, PathBuf};
 
 use common::{SPHERE_ON_PLANE, StFile, fog_scene, prt, random_transport, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::relight::{LightContext, Method, RelightRequest, relight};
 use wavelet_prt::scene::Scene;
-use wavelet_prt::transport::{Quantization, Transport};
+use wavelet_prt::store::transport::{Quantization, Transport};
 use wavelet_prt::volume::{TransferSettings, VolumeTransfer, bake_volume};
 
 fn s(p: &Path) -> &str {
@@ -245,7 +245,7 @@ fn an_environment_too_bright_for_f32_is_an_error_not_nan() {
     let req = RelightRequest {
         method: Method::Full,
         terms: 0,
-        weighting: wavelet_prt::light::Weighting::Area,
+        weighting: wavelet_prt::light::select::Weighting::Area,
         sh_order: 2,
     };
     let image = |env: &EnvMap| {

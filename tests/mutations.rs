@@ -27,12 +27,12 @@ use std::path::{Path, PathBuf};
 
 use common::{SPHERE_ON_PLANE, StFile, fog_scene, random_transport, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::envmap::{EnvMap, EnvRotation, SunSky};
-use wavelet_prt::light::Weighting;
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation, SunSky};
+use wavelet_prt::light::select::Weighting;
+use wavelet_prt::math::sampling::Rng;
 use wavelet_prt::relight::{LightContext, Method, PreparedLight, RelightRequest, relight};
-use wavelet_prt::sampling::Rng;
 use wavelet_prt::scene::Scene;
-use wavelet_prt::transport::{Quantization, Transport};
+use wavelet_prt::store::transport::{Quantization, Transport};
 use wavelet_prt::volume::{
     PhaseLight, TransferSettings, VolumeTransfer, VolumeView, bake_volume, render_volume,
 };
@@ -495,7 +495,7 @@ fn check_transport(
     env: &EnvMap,
     lights: &mut HashMap<(u32, u32), (LightContext, PreparedLight)>,
 ) -> Result<bool, String> {
-    let _ = wavelet_prt::transport::read_header_meta(path);
+    let _ = wavelet_prt::store::transport::read_header_meta(path);
     let Ok(t) = Transport::load(path) else {
         return Ok(true);
     };
@@ -620,7 +620,7 @@ fn mutated_shards_merge_or_are_refused() {
 
 /// Renders a loaded volume every way `volume render` and `view` do, small.
 fn exercise_volume(vt: &VolumeTransfer, env: &EnvMap) -> Result<(), String> {
-    let state = wavelet_prt::viewer::VolumeState::initial(vt);
+    let state = wavelet_prt::app::viewer::VolumeState::initial(vt);
     let _ = state.camera(vt);
     let camera = vt
         .camera(None, None, Some((8, 6)))
@@ -1048,7 +1048,7 @@ fn mutated_grids_are_errors_or_render() {
 
 /// Loads a mutated map, prepares its light for a small transport and relights with it.
 fn check_env(path: &Path, t: &Transport) -> Result<bool, String> {
-    let _ = wavelet_prt::film::Image::load_exr(path);
+    let _ = wavelet_prt::output::film::Image::load_exr(path);
     let Ok(env) = EnvMap::load(path) else {
         return Ok(true);
     };

@@ -6,11 +6,11 @@ mod common;
 
 use common::{SPHERE_ON_PLANE, scene_from};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::cubemap::{CubeMap, solid_angles, texel_count, texel_dirs};
-use wavelet_prt::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::metrics::relative_l2;
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::math::cubemap::{CubeMap, solid_angles, texel_count, texel_dirs};
+use wavelet_prt::output::metrics::relative_l2;
+use wavelet_prt::relight::sh_light::{ShThroughLight, relight};
 use wavelet_prt::relight::{relight_sh, relight_wavelet};
-use wavelet_prt::sh_light::{ShThroughLight, relight};
 
 fn cube_of(n: usize, f: impl Fn(glam::DVec3) -> [f32; 3]) -> CubeMap {
     CubeMap {
@@ -119,8 +119,8 @@ fn through_the_light_agrees_with_the_baked_sh_path() {
     let (baked, _) = relight_sh(&t, &sh.coeffs[..1]).unwrap();
     assert!(relative_l2(&through, &baked, mask).unwrap() < 1e-5);
     // And with every term the light is itself: full relighting, up to the order's error.
-    let all = wavelet_prt::light::WaveletLight::from_cube(&cube).unwrap();
-    let full = wavelet_prt::light::SparseLight {
+    let all = wavelet_prt::light::select::WaveletLight::from_cube(&cube).unwrap();
+    let full = wavelet_prt::light::select::SparseLight {
         indices: (0..texel_count(n) as u32).collect(),
         values: all.coeffs,
     };

@@ -5,7 +5,7 @@ mod common;
 
 use common::{SPHERE_ON_PLANE, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::transport::Transport;
+use wavelet_prt::store::transport::Transport;
 
 fn settings(shard: Option<[u32; 2]>) -> BakeSettings {
     BakeSettings {

@@ -7,12 +7,12 @@ mod common;
 
 use common::{random_transport, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::SparseLight;
-use wavelet_prt::metrics::relative_l2;
-use wavelet_prt::quant::Quantization;
+use wavelet_prt::light::select::SparseLight;
+use wavelet_prt::math::sampling::Rng;
+use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::{relight_dense_reference, relight_wavelet};
-use wavelet_prt::sampling::Rng;
-use wavelet_prt::transport::Transport;
+use wavelet_prt::store::quant::Quantization;
+use wavelet_prt::store::transport::Transport;
 
 /// A glossy sphere beside a diffuse one on the ground, with two materials seen by some pixels'
 /// sub-samples: tiles with more than 256 rows (several blocks) and rows of very different size.
@@ -135,7 +135,7 @@ fn no_stored_value_is_subnormal() {
         assert!(
             scales_used
                 .iter()
-                .all(|&c| wavelet_prt::quant::scale_of(c).is_normal())
+                .all(|&c| wavelet_prt::store::quant::scale_of(c).is_normal())
         );
         let mut smallest = f32::MAX;
         for (_, v) in decoded(&t) {
@@ -204,7 +204,7 @@ fn gpu_decodes_every_format_like_the_cpu() {
     for q in [Quantization::Q8, Quantization::Q16, Quantization::F32] {
         let t = random_transport(37, 29, 4, q, 13, 1e-5);
         let c = t.coeff_count();
-        let g = wavelet_prt::gpu::GpuTransport::upload(&gpu, &t, None).unwrap();
+        let g = wavelet_prt::relight::gpu::GpuTransport::upload(&gpu, &t, None).unwrap();
         let mut rng = Rng::new(6, 0);
         for k in [3, 40, c] {
             let mut indices: Vec<u32> = (0..c as u32).collect();

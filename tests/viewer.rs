@@ -2,8 +2,8 @@
 
 mod common;
 
+use wavelet_prt::app::viewer::{Engine, EnvEntry, EnvSource, ViewState, env_entries, screenshot};
 use wavelet_prt::relight::Method;
-use wavelet_prt::viewer::{Engine, EnvEntry, EnvSource, ViewState, env_entries, screenshot};
 
 /// An engine on the test bake with a sun (index 0) and the first bundled map, if any.
 fn engine() -> Engine {
@@ -188,7 +188,7 @@ fn comparisons_are_captioned_with_what_each_side_shows() {
         assert!(lit > 20, "caption {i}: {lit} lit pixels");
     }
     // A split pair is one image, captioned left | right.
-    s.layout = wavelet_prt::viewer::Layout::Split;
+    s.layout = wavelet_prt::app::viewer::Layout::Split;
     let r = e.render(&s).unwrap();
     let captions = r.captions();
     assert_eq!(captions.len(), 1);
@@ -202,7 +202,7 @@ fn a_bad_file_is_an_error_not_a_panic() {
     std::fs::write(&bad, b"not a transport").unwrap();
     assert!(Engine::open(&bad, Vec::new()).is_err());
     // The window loads on its worker thread and shows the error once it arrives.
-    let mut app = wavelet_prt::viewer::ViewerApp::new(&bad, &[]);
+    let mut app = wavelet_prt::app::viewer::ViewerApp::new(&bad, &[]);
     assert!(app.wait_idle(std::time::Duration::from_secs(60)));
     app.poll(&eframe::egui::Context::default());
     assert!(!app.is_loaded());
@@ -225,7 +225,7 @@ fn gpu_relight_matches_the_cpu() {
         let cpu = e.render(&s).unwrap().panes[0].linear.clone();
         s.gpu = true;
         let gpu = e.render(&s).unwrap().panes[0].linear.clone();
-        let d = wavelet_prt::metrics::relative_l2(&gpu.image, &cpu.image, None).unwrap();
+        let d = wavelet_prt::output::metrics::relative_l2(&gpu.image, &cpu.image, None).unwrap();
         assert!(d < 1e-4, "{method}: GPU differs from CPU by {d}");
         assert!((gpu.rel_l2 - cpu.rel_l2).abs() < 1e-4);
     }
@@ -251,7 +251,7 @@ fn gpu_texture_path_shows_what_the_cpu_path_shows() {
         for pane in &r.panes {
             let g = e.gpu().unwrap();
             let view =
-                wavelet_prt::viewer::GpuView::new(&g.device, r.width as u32, r.height as u32);
+                wavelet_prt::app::viewer::GpuView::new(&g.device, r.width as u32, r.height as u32);
             let (_, _, behind) = e.current_light().unwrap();
             view.set_behind(&g.queue, &behind);
             e.relight_to_view(&pane.linear.request, &view, s.tone_map())
@@ -304,11 +304,11 @@ fn save_writes_the_png_and_the_linear_exr() {
     let dir = std::env::temp_dir().join(format!("viewer-save-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let stem = dir.join("view");
-    wavelet_prt::viewer::save_view(&mut e, &s, &stem).unwrap();
+    wavelet_prt::app::viewer::save_view(&mut e, &s, &stem).unwrap();
     let png = image::open(stem.with_extension("png")).unwrap();
-    let exr = wavelet_prt::film::Image::load_exr(&stem.with_extension("exr")).unwrap();
+    let exr = wavelet_prt::output::film::Image::load_exr(&stem.with_extension("exr")).unwrap();
     // The PNG is the image under its caption strip.
-    let strip = wavelet_prt::sheet::CAPTION_HEIGHT as u32;
+    let strip = wavelet_prt::output::sheet::CAPTION_HEIGHT as u32;
     assert_eq!(
         (exr.width as u32, exr.height as u32 + strip),
         (png.width(), png.height())
@@ -323,7 +323,7 @@ fn split_composite_takes_sh_left_of_the_cut_and_wavelet_right() {
     let mut s = sun_state(&mut e);
     s.compare = true;
     s.terms = 4;
-    s.layout = wavelet_prt::viewer::Layout::Split;
+    s.layout = wavelet_prt::app::viewer::Layout::Split;
     s.split = 0.25;
     let r = e.render(&s).unwrap();
     assert_eq!(r.panes.len(), 2);
@@ -344,13 +344,13 @@ fn split_composite_takes_sh_left_of_the_cut_and_wavelet_right() {
         }
     }
     // Side by side, the same panes make a double-width image.
-    s.layout = wavelet_prt::viewer::Layout::SideBySide;
+    s.layout = wavelet_prt::app::viewer::Layout::SideBySide;
     assert_eq!(e.render(&s).unwrap().composite(4).0, 2 * r.width + 4);
 }
 
 #[test]
 fn tone_curve_and_sun_size_change_what_they_should() {
-    use wavelet_prt::film::ToneCurve;
+    use wavelet_prt::output::film::ToneCurve;
     let mut e = engine();
     let mut s = sun_state(&mut e);
     s.exposure = 2.0;
@@ -359,13 +359,14 @@ fn tone_curve_and_sun_size_change_what_they_should() {
     let reinhard = e.render(&s).unwrap();
     // Only the display changes: the same linear image and error, darker highlights.
     assert_eq!(clip.panes[0].linear.image, reinhard.panes[0].linear.image);
-    let sum =
-        |r: &wavelet_prt::viewer::Rendered| r.panes[0].rgb.iter().map(|&v| v as u64).sum::<u64>();
+    let sum = |r: &wavelet_prt::app::viewer::Rendered| {
+        r.panes[0].rgb.iter().map(|&v| v as u64).sum::<u64>()
+    };
     assert!(sum(&reinhard) < sum(&clip));
     // A larger sun of the same irradiance softens shadows: the image changes but keeps its
     // overall brightness within a few percent.
     s.tone = ToneCurve::Clip;
-    let mean = |r: &wavelet_prt::viewer::Rendered| {
+    let mean = |r: &wavelet_prt::app::viewer::Rendered| {
         let p = &r.panes[0].linear.image.pixels;
         p.iter().map(|c| (c[0] + c[1] + c[2]) as f64).sum::<f64>() / p.len() as f64
     };

@@ -7,8 +7,8 @@ use std::time::Duration;
 use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
+use wavelet_prt::app::viewer::{Layout, ViewerApp};
 use wavelet_prt::relight::Method;
-use wavelet_prt::viewer::{Layout, ViewerApp};
 
 fn harness(app: ViewerApp) -> Harness<'static, ViewerApp> {
     Harness::builder()
@@ -308,7 +308,7 @@ fn volume_file() -> std::path::PathBuf {
     out
 }
 
-fn settle_volume(h: &mut Harness<'static, wavelet_prt::viewer::VolumeApp>) {
+fn settle_volume(h: &mut Harness<'static, wavelet_prt::app::viewer::VolumeApp>) {
     h.run_ok();
     for _ in 0..20 {
         assert!(h.state().wait_idle(Duration::from_secs(120)));
@@ -322,7 +322,7 @@ fn settle_volume(h: &mut Harness<'static, wavelet_prt::viewer::VolumeApp>) {
 
 #[test]
 fn volume_window_orbits_on_drag_and_switches_views() {
-    use wavelet_prt::viewer::VolumeApp;
+    use wavelet_prt::app::viewer::VolumeApp;
     use wavelet_prt::volume::{VolumeTransfer, VolumeView};
     if common::gpu_or_skip("volume_window_orbits_on_drag_and_switches_views").is_none() {
         return;

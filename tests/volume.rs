@@ -6,13 +6,13 @@ mod common;
 
 use common::{scene_from, temp_dir};
 use glam::Vec3;
+use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::cubemap::{CubeMap, texel_dirs};
-use wavelet_prt::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::film::Image;
-use wavelet_prt::light::Weighting;
-use wavelet_prt::metrics::relative_l2;
-use wavelet_prt::reference::render_reference;
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::light::select::Weighting;
+use wavelet_prt::math::cubemap::{CubeMap, texel_dirs};
+use wavelet_prt::output::film::Image;
+use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::{LightContext, Method, RelightRequest, relight};
 use wavelet_prt::scene::Scene;
 use wavelet_prt::volume::{PhaseLight, TransferSettings, VolumeView, bake_volume, render_volume};
@@ -341,7 +341,7 @@ fn scene_mistakes_around_a_medium_are_named() {
     .unwrap();
     let prtv = dir.join("fog.prtv");
     vt.save(&prtv).unwrap();
-    let e = wavelet_prt::transport::Transport::load(&prtv)
+    let e = wavelet_prt::store::transport::Transport::load(&prtv)
         .unwrap_err()
         .to_string();
     assert!(

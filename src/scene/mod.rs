@@ -142,7 +142,7 @@ impl Camera {
 }
 
 /// How a surface reflects light; the scene file's `type` key selects the variant. BRDFs are in
-/// [`crate::brdf`].
+/// [`crate::scene::brdf`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Material {
     /// Lambertian reflector.
@@ -358,8 +358,10 @@ impl MediumSpec {
     }
 }
 
+pub mod brdf;
 mod file;
 mod obj;
+pub mod trace;
 
 #[cfg(test)]
 pub(crate) mod test_support;

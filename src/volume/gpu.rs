@@ -7,8 +7,8 @@ use wgpu::util::DeviceExt;
 
 use super::{PhaseLight, VolumeTransfer, VolumeView};
 use crate::error::{PrtError, Result};
-use crate::film::Image;
-use crate::gpu::Gpu;
+use crate::output::film::Image;
+use crate::relight::gpu::Gpu;
 use crate::scene::Camera;
 
 /// The layout of `Params` in `shaders/volume_march.wgsl`.
@@ -216,7 +216,7 @@ impl GpuVolume {
         let start = std::time::Instant::now();
         gpu.queue.submit([encoder.finish()]);
         let (pixels, seconds) =
-            crate::gpu::wait_and_read(device, &readback, start, "the volume march")?;
+            crate::relight::gpu::wait_and_read(device, &readback, start, "the volume march")?;
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!("volume march: {e}")));
         }

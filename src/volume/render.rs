@@ -14,9 +14,9 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::VolumeTransfer;
-use crate::cubemap::{CubeMap, solid_angles, texel_dirs};
-use crate::film::Image;
+use crate::math::cubemap::{CubeMap, solid_angles, texel_dirs};
 use crate::medium::{MarchSample, henyey_greenstein};
+use crate::output::film::Image;
 use crate::scene::Camera;
 
 /// Lat-long size of the [`PhaseLight`] table of an anisotropic medium.
@@ -54,7 +54,7 @@ impl PhaseLight {
             .zip(&omega)
             .zip(&cube.texels)
             .map(|((d, o), l)| {
-                crate::sh::eval_vec(order, *d)
+                crate::math::sh::eval_vec(order, *d)
                     .into_iter()
                     .map(|y| l.map(|c| (c as f64 * o * y) as f32))
                     .collect()
@@ -82,7 +82,7 @@ impl PhaseLight {
             .into_par_iter()
             .flat_map_iter(|k| {
                 let (u, v) = ((k % w) as f64 + 0.5, (k / w) as f64 + 0.5);
-                let d = crate::envmap::latlong_dir(u / w as f64, v / h as f64).as_vec3();
+                let d = crate::light::envmap::latlong_dir(u / w as f64, v / h as f64).as_vec3();
                 let mut out = vec![[0.0f32; 3]; n2];
                 for (wt, td) in weighted.iter().zip(&dirs_f) {
                     let p = henyey_greenstein(g, td.dot(d));

@@ -1,5 +1,6 @@
 use super::*;
-use crate::medium::{DensitySource, Medium};
+use crate::medium::sweep::Sweeper;
+use crate::medium::{DensityGrid, DensitySource, Medium};
 
 fn medium(dims: [usize; 3], f: impl Fn(Vec3) -> f32, extinction: f32) -> Medium {
     Medium {

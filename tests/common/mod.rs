@@ -6,10 +6,10 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::cubemap::texel_count;
-use wavelet_prt::sampling::Rng;
+use wavelet_prt::math::cubemap::texel_count;
+use wavelet_prt::math::sampling::Rng;
 use wavelet_prt::scene::Scene;
-use wavelet_prt::transport::{
+use wavelet_prt::store::transport::{
     BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, tile_grid,
 };
 
@@ -148,8 +148,8 @@ pub fn viewer_transport_path() -> PathBuf {
 
 /// A GPU for the tests: `None` (after printing why) when no adapter exists, unless
 /// `PRT_REQUIRE_GPU=1`, when the test fails instead.
-pub fn gpu_or_skip(test: &str) -> Option<wavelet_prt::gpu::Gpu> {
-    match wavelet_prt::gpu::Gpu::new() {
+pub fn gpu_or_skip(test: &str) -> Option<wavelet_prt::relight::gpu::Gpu> {
+    match wavelet_prt::relight::gpu::Gpu::new() {
         Ok(g) => {
             eprintln!("{test}: on {}", g.adapter);
             Some(g)
@@ -314,12 +314,13 @@ impl StFile {
             m.remove("meta_checksum");
         }
         if reseal {
-            let sum = wavelet_prt::transport::checksum(self.tensors.iter().map(|t| &t.3[..]));
+            let sum =
+                wavelet_prt::store::container::checksum(self.tensors.iter().map(|t| &t.3[..]));
             meta["checksum"] = format!("{sum:016x}").into();
         }
         let mut text = serde_json::to_string(&meta).unwrap();
         if reseal && text.ends_with('}') {
-            let sum = wavelet_prt::transport::checksum([text.as_bytes()]);
+            let sum = wavelet_prt::store::container::checksum([text.as_bytes()]);
             text.pop();
             text.push_str(&format!(",\"meta_checksum\":\"{sum:016x}\"}}"));
         }

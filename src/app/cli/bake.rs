@@ -1,0 +1,275 @@
+//! `prt bake`, `prt merge`, `prt info` and `prt demo`: making transport files and reading what they hold.
+
+use super::*;
+
+#[derive(Args, Debug)]
+pub struct BakeArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Output transport file (.prt).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub sampling: SamplingArgs,
+    /// SH order of the SH transport (n² coefficients, 1 to 10).
+    #[arg(long, default_value_t = 6)]
+    pub sh_order: usize,
+    /// L2 error allowed per transport row when dropping small Haar coefficients, relative to an
+    /// unshadowed row's norm.
+    #[arg(long, default_value_t = 0.01, conflicts_with = "lossless")]
+    pub threshold: f32,
+    /// Keep every coefficient in 32-bit floats.
+    #[arg(long)]
+    pub lossless: bool,
+    /// How the threshold weighs coefficients: l2 (the row's L2 error), area (support solid
+    /// angle), sun (the error at any one texel) or absolute (drop |v| < threshold · norm).
+    #[arg(long, default_value = "l2", conflicts_with = "lossless")]
+    pub budget: crate::store::budget::Budget,
+    /// Stored values: q8 (8-bit integers against per-column scales) or q16.
+    #[arg(long, default_value = "q8", conflicts_with = "lossless")]
+    pub quantization: crate::store::quant::Quantization,
+    /// Bake only shard I of COUNT (bands of tile rows), e.g. 0/4; join them with `prt merge`.
+    #[arg(long, value_name = "I/COUNT")]
+    pub shard: Option<String>,
+}
+
+fn available_memory_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Parses `I/COUNT`.
+fn parse_shard(s: &str) -> Result<[u32; 2]> {
+    let bad = || PrtError::invalid("shard", format!("`{s}`; expected I/COUNT, e.g. 0/4"));
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    Ok([
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    ])
+}
+
+pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
+    let mut settings = settings_from(&a.sampling, a.sh_order, a.threshold, a.lossless);
+    settings.budget = a.budget;
+    settings.quantization = a.quantization;
+    settings.shard = a.shard.as_deref().map(parse_shard).transpose()?;
+    settings.validate()?;
+    crate::files::check_output(&a.output, &["prt"], "a transport file", &[])?;
+    let scene = Scene::load(&a.scene)?;
+    let inputs: Vec<&std::path::Path> = scene.input_files.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(&a.output, &["prt"], "a transport file", &inputs)?;
+    // A run killed while writing left its temporary file; this one takes its place.
+    crate::files::remove_stale_partials(&a.output);
+    // Resuming: a finished output of this very bake (or shard) is kept, not redone.
+    if crate::bake::load_if_baked_with(&a.output, &scene, &settings).is_some() {
+        eprintln!(
+            "{} already holds this bake (same scene and settings): kept",
+            a.output.display()
+        );
+        return Ok(());
+    }
+    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
+    let worst = worst_case_bytes(w, h, &settings);
+    let plural =
+        |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
+    eprintln!(
+        "baking {} ({}, {}{}) at {w}x{h}, N = {}, SH order {}, {} spp, {} samples/texel",
+        a.scene.display(),
+        plural(scene.triangle_count(), "triangle", "triangles"),
+        plural(scene.spheres.len(), "sphere", "spheres"),
+        if scene.medium.is_some() {
+            ", a medium"
+        } else {
+            ""
+        },
+        settings.cube_n,
+        settings.sh_order,
+        settings.spp,
+        settings.texel_samples
+    );
+    eprintln!(
+        "memory: at most {:.1} MiB if every coefficient were kept{}",
+        worst as f64 / 1048576.0,
+        if settings.lossless {
+            " (lossless keeps them all)"
+        } else {
+            ""
+        }
+    );
+    if let Some(avail) = available_memory_bytes() {
+        // Lossless bakes keep everything; thresholded ones typically keep a few percent.
+        let expected = if settings.lossless { worst } else { worst / 5 };
+        if expected > avail {
+            return Err(PrtError::invalid(
+                "bake",
+                format!(
+                    "it needs about {:.1} GiB but {:.1} GiB are available: lower the resolution, --cube or raise --threshold",
+                    expected as f64 / (1u64 << 30) as f64,
+                    avail as f64 / (1u64 << 30) as f64
+                ),
+            ));
+        }
+    }
+    let start = Instant::now();
+    let t = bake_with_progress(&scene, &settings)?;
+    let seconds = start.elapsed().as_secs_f64();
+    t.save(&a.output)?;
+    print_info(&a.output, &t.meta);
+    println!(
+        "bake time     {seconds:.1} s ({:.2} M shadow rays/s)",
+        t.meta.stats.shadow_rays as f64 / seconds.max(1e-9) / 1e6
+    );
+    Ok(())
+}
+
+pub(super) fn merge_cmd(shards: Vec<PathBuf>, output: PathBuf) -> Result<()> {
+    let inputs: Vec<&std::path::Path> = shards.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(&output, &["prt"], "a transport file", &inputs)?;
+    let total: u64 = shards
+        .iter()
+        .map(|p| std::fs::metadata(p).map(|m| m.len()).unwrap_or(0))
+        .sum();
+    let progress = bar(total, "bytes read");
+    let mut loaded = Vec::with_capacity(shards.len());
+    let mut before = 0;
+    for p in &shards {
+        progress.set_message(p.display().to_string());
+        loaded.push(Transport::load_with_progress(p, &|read, _| {
+            progress.set_position(before + read)
+        })?);
+        before += std::fs::metadata(p).map(|m| m.len()).unwrap_or(0);
+    }
+    progress.set_message(format!("merging and writing {}", output.display()));
+    let names: Vec<String> = shards.iter().map(|p| p.display().to_string()).collect();
+    let t = Transport::merge_named(&loaded, &names)?;
+    t.save(&output)?;
+    progress.finish_and_clear();
+    print_info(&output, &t.meta);
+    Ok(())
+}
+
+fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta) {
+    let s = &m.stats;
+    let bytes = std::fs::metadata(path).map(|x| x.len()).unwrap_or(0);
+    let dense_bytes = s.dense_entries as f64 * 4.0;
+    println!("file          {}", path.display());
+    println!("scene         {} (hash {})", m.scene_path, m.scene_hash);
+    println!(
+        "image         {} x {} ({} tiles of {}²)",
+        m.width,
+        m.height,
+        {
+            let (tx, ty) = crate::store::transport::tile_grid(m.width as usize, m.height as usize);
+            tx * ty
+        },
+        m.tile
+    );
+    println!(
+        "cube          N = {} ({} coefficients per row)",
+        m.cube_n,
+        6 * m.cube_n as usize * m.cube_n as usize
+    );
+    println!(
+        "SH order      {} ({} coefficients per row)",
+        m.sh_order,
+        (m.sh_order as usize).pow(2)
+    );
+    println!(
+        "sampling      {} spp, {} samples/texel, seed {}{}",
+        m.spp,
+        m.texel_samples,
+        m.seed,
+        if m.unshadowed { ", unshadowed" } else { "" }
+    );
+    println!(
+        "sparsify      threshold {} ({} budget, {} values)",
+        m.threshold, m.budget, m.quantization
+    );
+    println!("rows          {}", s.rows);
+    println!(
+        "nonzeros      {} ({:.2}% of dense)",
+        s.nonzeros,
+        100.0 * s.nonzeros as f64 / s.dense_entries.max(1) as f64
+    );
+    println!(
+        "size          {:.2} MiB file, {:.2}% of the dense f32 matrix, {:.1} bytes/pixel",
+        bytes as f64 / 1048576.0,
+        100.0 * bytes as f64 / dense_bytes.max(1.0),
+        bytes as f64 / (m.width as usize * m.height as usize).max(1) as f64
+    );
+    println!(
+        "dropped       {:.3}% of transport energy (relative L2 {:.3}%)",
+        100.0 * s.dropped_energy_fraction,
+        100.0 * s.dropped_energy_fraction.sqrt()
+    );
+    println!("shadow rays   {}", s.shadow_rays);
+    if let Some([i, n]) = m.shard {
+        println!("shard         {i}/{n} (join all {n} with `prt merge`)");
+    }
+}
+
+pub(super) fn info(file: PathBuf) -> Result<()> {
+    if crate::volume::is_volume_file(&file) {
+        let v = crate::volume::VolumeTransfer::load(&file)?;
+        let m = &v.meta;
+        let [nx, ny, nz] = m.dims;
+        println!("file          {} (volume transfer)", file.display());
+        println!(
+            "grid          {nx} x {ny} x {nz} voxels over {:?} to {:?}",
+            m.min, m.max
+        );
+        println!(
+            "medium        extinction {}, albedo {:?}, g {}",
+            m.extinction, m.albedo, m.g
+        );
+        println!(
+            "transfer      SH order {} ({} coefficients per voxel), {} directions",
+            m.sh_order,
+            v.sh_count(),
+            m.directions
+        );
+        println!(
+            "default view  eye {:?}, target {:?}, {} x {}",
+            m.camera.eye, m.camera.target, m.width, m.height
+        );
+        return Ok(());
+    }
+    // The header holds everything printed; the small tables are read and checked, the entries
+    // and values are not.
+    let meta = crate::store::transport::read_summary(&file)?;
+    print_info(&file, &meta);
+    Ok(())
+}
+
+pub(super) fn demo(out: PathBuf) -> Result<()> {
+    let start = Instant::now();
+    let bar = std::sync::Mutex::new(None::<ProgressBar>);
+    let report =
+        crate::app::demo::run_demo(&out, &mut |line| eprintln!("{line}"), &|p: BakeProgress| {
+            let mut guard = bar.lock().unwrap_or_else(|e| e.into_inner());
+            let b = guard.get_or_insert_with(|| progress_bar(p.pixels_total));
+            b.set_position(p.pixels_done as u64);
+            if p.pixels_done == p.pixels_total {
+                b.finish_and_clear();
+            }
+        })?;
+    println!("{}", crate::app::demo::markdown_table(&report.rows));
+    println!(
+        "bake {} ({:.1} s); everything in {:.1} s",
+        if report.reused_bake { "reused" } else { "done" },
+        report.bake_seconds,
+        start.elapsed().as_secs_f64()
+    );
+    println!("contact sheet  {}", report.sheet_path.display());
+    println!("table          {}", report.table_path.display());
+    println!("transport      {}", report.transport_path.display());
+    println!(
+        "volume         {} (SH self-transfer baked in {:.2} s; images in {})",
+        out.join("volume_sheet.png").display(),
+        report.volume_bake_seconds,
+        out.join("volume").display()
+    );
+    Ok(())
+}

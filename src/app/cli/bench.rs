@@ -1,0 +1,201 @@
+//! `prt bench`: the sparsity-versus-error sweeps, with the references and the compression curve.
+
+use super::*;
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Transport file.
+    pub file: PathBuf,
+    /// Environments (.exr/.hdr files or sun:ELEV,AZIM[,RADIUS]), one or more.
+    #[arg(long, required = true, num_args = 1..)]
+    pub env: Vec<String>,
+    /// Output directory for bench.csv, summary.md and the plots.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Wavelet term counts, comma-separated (default: 1, 2, 5, 10, ... up to 6·N²).
+    #[arg(long, value_delimiter = ',')]
+    pub terms: Option<Vec<usize>>,
+    /// SH orders, comma-separated (default: 1 to the baked order).
+    #[arg(long, value_delimiter = ',')]
+    pub sh_orders: Option<Vec<usize>>,
+    /// SH orders through the light, comma-separated, up to 128: the light projected to n² terms
+    /// and relit with the full transport (default: 1, 2, 3, 4, 6, ... 100; `none` for none).
+    #[arg(long, value_delimiter = ',')]
+    pub sh_light_orders: Option<Vec<String>>,
+    /// Weightings, comma-separated (default: none,area,transport).
+    #[arg(long, value_delimiter = ',')]
+    pub weightings: Option<Vec<String>>,
+    /// auto (the GPU when an adapter exists), cpu, or gpu: times the GPU kernels beside the CPU.
+    #[arg(long, default_value = "auto")]
+    pub device: String,
+    /// Also render the brute-force reference of the scene and report every point against it.
+    #[arg(long)]
+    pub reference: bool,
+    /// Thresholds for the compression curve, comma-separated: the scene is baked at each and
+    /// the error sparsification adds is measured.
+    #[arg(long, value_delimiter = ',')]
+    pub compression: Option<Vec<f32>>,
+    /// Scene file for --reference and --compression (default: the one the file was baked from).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+}
+
+pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
+    let t = Transport::load(&a.file)?;
+    let mut opts = crate::app::bench::BenchOptions::defaults_for(&t);
+    if let Some(k) = a.terms {
+        opts.terms = k;
+    }
+    if let Some(o) = a.sh_light_orders {
+        opts.sh_light_orders = if o.iter().any(|v| v == "none") {
+            Vec::new()
+        } else {
+            o.iter()
+                .map(|v| {
+                    v.trim().parse().map_err(|_| {
+                        PrtError::invalid(
+                            "--sh-light-orders",
+                            format!("'{v}' is not an order (or `none`)"),
+                        )
+                    })
+                })
+                .collect::<Result<_>>()?
+        };
+    }
+    if let Some(o) = a.sh_orders {
+        opts.sh_orders = o;
+    }
+    if let Some(w) = a.weightings {
+        opts.weightings = w.iter().map(|s| s.parse()).collect::<Result<_>>()?;
+    }
+    opts.validate(&t)?;
+    let mut envs = Vec::new();
+    for spec in &a.env {
+        let name: String = std::path::Path::new(spec)
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or(spec)
+            .chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        envs.push((name, load_env(spec)?));
+    }
+    let points_bar = bar(0, "points");
+    let gpu = match a.device.as_str() {
+        "cpu" => None,
+        "gpu" => Some(crate::relight::gpu::Gpu::new()?),
+        "auto" => crate::relight::gpu::Gpu::new()
+            .map_err(|e| eprintln!("note: timing the CPU only: {e}"))
+            .ok(),
+        other => {
+            return Err(PrtError::invalid(
+                "device",
+                format!("`{other}`; expected auto, cpu or gpu"),
+            ));
+        }
+    };
+    let device = match &gpu {
+        Some(g) => {
+            eprintln!("gpu: {}", g.adapter);
+            Some((g, crate::relight::gpu::GpuTransport::upload(g, &t, None)?))
+        }
+        None => None,
+    };
+    let settings = BakeSettings {
+        cube_n: t.meta.cube_n as usize,
+        sh_order: t.meta.sh_order as usize,
+        spp: t.meta.spp,
+        texel_samples: t.meta.texel_samples,
+        threshold: t.meta.threshold,
+        budget: t.meta.budget,
+        quantization: match t.meta.quantization {
+            crate::store::quant::Quantization::F32 => crate::store::quant::Quantization::Q8,
+            q => q,
+        },
+        lossless: true,
+        unshadowed: t.meta.unshadowed,
+        seed: t.meta.seed,
+        shard: None,
+        bounces: t.meta.bounces,
+        paths: t.meta.paths.max(1),
+    };
+    let scene = if a.reference || a.compression.is_some() {
+        let path = a
+            .scene
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(&t.meta.scene_path));
+        let scene = Scene::load(&path)?;
+        if format!("{:016x}", scene.content_hash()) != t.meta.scene_hash {
+            return Err(PrtError::invalid(
+                "scene",
+                format!(
+                    "{} is not the scene {} was baked from (content hash differs)",
+                    path.display(),
+                    a.file.display()
+                ),
+            ));
+        }
+        Some(scene)
+    } else {
+        None
+    };
+    let references = match (&scene, a.reference) {
+        (Some(scene), true) => {
+            let mut refs = Vec::new();
+            let rows = bar(
+                (envs.len() * scene.camera.height as usize) as u64,
+                "reference rows",
+            );
+            for (i, (name, env)) in envs.iter().enumerate() {
+                rows.set_message(format!("brute force under {name}"));
+                let cube = env.to_cube(settings.cube_n, EnvRotation::default())?;
+                let before = (i * scene.camera.height as usize) as u64;
+                let r = crate::bake::reference::render_reference_with(
+                    scene,
+                    &cube,
+                    &settings,
+                    &|done, _| rows.set_position(before + done as u64),
+                )?;
+                refs.push(r.image);
+            }
+            rows.finish_and_clear();
+            Some(refs)
+        }
+        _ => None,
+    };
+    let extras = crate::app::bench::BenchExtras {
+        gpu: device.as_ref().map(|(g, gt)| (*g, gt)),
+        references: references.as_deref(),
+    };
+    let points = crate::app::bench::run(&t, &envs, &opts, &extras, &mut |done, total| {
+        points_bar.set_length(total as u64);
+        points_bar.set_position(done as u64);
+    })?;
+    points_bar.finish_and_clear();
+    let mut written = crate::app::bench::write_report(&a.out, &points)?;
+    if let (Some(scene), Some(thresholds)) = (&scene, &a.compression) {
+        let sweep = progress_bar(0);
+        let progress = bake_progress(&sweep, Instant::now());
+        let curve = crate::app::bench::compression_sweep(
+            scene,
+            &settings,
+            thresholds,
+            &envs,
+            &mut |l| sweep.println(l),
+            &progress,
+        )?;
+        sweep.finish_and_clear();
+        written.extend(crate::app::bench::write_compression(&a.out, &curve)?);
+    }
+    println!("{}", crate::app::bench::summary(&points));
+    for p in written {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}

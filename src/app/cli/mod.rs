@@ -1,0 +1,335 @@
+//! The `prt` command line: argument parsing, progress bars and printing. Everything else is the
+//! library; this module is the only place that writes to the terminal.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::bake::{BakeProgress, BakeSettings, bake, worst_case_bytes};
+use crate::error::{PrtError, Result};
+use crate::light::envmap::{EnvMap, EnvRotation};
+use crate::light::select::{WaveletLight, Weighting};
+use crate::output::film::ToneMap;
+use crate::relight::background::Background;
+use crate::relight::{LightContext, Method, RelightRequest, relight};
+use crate::scene::Scene;
+use crate::store::transport::Transport;
+
+mod bake;
+mod bench;
+mod relight;
+mod view;
+mod volume;
+
+pub use bake::BakeArgs;
+use bake::{bake_cmd, demo, info, merge_cmd};
+pub use bench::BenchArgs;
+use bench::bench_cmd;
+pub use relight::{EnvArgs, ReferenceArgs, RelightArgs};
+use relight::{compare_cmd, env_cmd, reference_cmd, relight_cmd};
+pub use view::ViewArgs;
+use view::view_cmd;
+pub use volume::{VolumeBakeArgs, VolumeRenderArgs};
+use volume::{volume_bake_cmd, volume_render_cmd};
+
+/// All-frequency relighting: bake a view, relight it under any HDR environment with Haar wavelets
+/// or spherical harmonics.
+#[derive(Parser, Debug)]
+#[command(name = "prt", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Bake the demo scene and relight it under every bundled environment (the main job).
+    Demo {
+        /// Output directory (the bake is cached there).
+        #[arg(long, default_value = "prt-demo")]
+        out: PathBuf,
+    },
+    /// Bake a scene's per-pixel transport into a file.
+    Bake(BakeArgs),
+    /// Join the shards of a sharded bake into one transport file.
+    Merge {
+        /// Shard files, in any order.
+        #[arg(required = true, num_args = 1..)]
+        shards: Vec<PathBuf>,
+        /// Output transport file (.prt).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Print a transport or volume file's metadata and statistics.
+    Info {
+        /// Transport (.prt) or volume (.prtv) file.
+        file: PathBuf,
+    },
+    /// Relight a baked view under an environment.
+    Relight(RelightArgs),
+    /// Render the brute-force reference (no matrix) under an environment's cube map.
+    Reference(ReferenceArgs),
+    /// Describe an environment map: size, power, SH coefficients, Haar energy compaction.
+    Env(EnvArgs),
+    /// Sweep error against kept terms for SH and wavelets; write a CSV, plots and a summary.
+    Bench(BenchArgs),
+    /// Open the interactive viewer (SH versus wavelet, kept terms, environments, rotation), or
+    /// with --screenshot render the image it would show to a PNG and exit.
+    View(ViewArgs),
+    /// Participating media: bake SH self-transfer over a grid, relight it by ray marching.
+    #[command(subcommand)]
+    Volume(VolumeCommand),
+    /// Compare two linear EXR images: relative L2, RMSE, PSNR, gradient error, 1 - SSIM.
+    Compare {
+        /// Image to judge (.exr).
+        image: PathBuf,
+        /// Reference image (.exr).
+        reference: PathBuf,
+        /// Only count the pixels a transport file's view covers.
+        #[arg(long)]
+        mask: Option<PathBuf>,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+pub enum VolumeCommand {
+    /// Bake the SH self-transfer of a scene's [medium] into a volume file (.prtv).
+    Bake(VolumeBakeArgs),
+    /// Relight a volume file under an environment by ray marching, from any camera.
+    Render(VolumeRenderArgs),
+}
+
+/// Options shared by the bake and the reference: how the transport is sampled.
+#[derive(Args, Debug, Clone)]
+pub struct SamplingArgs {
+    /// Cube face size N of the texel lights (power of two).
+    #[arg(long, default_value_t = 32)]
+    pub cube: usize,
+    /// Sub-pixel samples per pixel.
+    #[arg(long, default_value_t = 1)]
+    pub spp: u32,
+    /// Shadow-ray directions per texel (rounded up to a square).
+    #[arg(long, default_value_t = 1)]
+    pub texel_samples: u32,
+    /// Ignore visibility (no shadows).
+    #[arg(long)]
+    pub unshadowed: bool,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Interreflection bounces added to the direct light (path traced, binned by the texel each
+    /// path leaves through).
+    #[arg(long, default_value_t = 0)]
+    pub bounces: u32,
+    /// Paths per camera sub-sample for --bounces.
+    #[arg(long, default_value_t = 64)]
+    pub paths: u32,
+}
+
+/// Runs the command line; returns the process exit code.
+pub fn main() -> i32 {
+    let cli = Cli::parse();
+    match run(cli.command) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e}");
+            1
+        }
+    }
+}
+
+fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Demo { out } => demo(out),
+        Command::Bake(a) => bake_cmd(a),
+        Command::Info { file } => info(file),
+        Command::Merge { shards, output } => merge_cmd(shards, output),
+        Command::Relight(a) => relight_cmd(a),
+        Command::Reference(a) => reference_cmd(a),
+        Command::Env(a) => env_cmd(a),
+        Command::Bench(a) => bench_cmd(a),
+        Command::View(a) => view_cmd(a),
+        Command::Volume(VolumeCommand::Bake(a)) => volume_bake_cmd(a),
+        Command::Volume(VolumeCommand::Render(a)) => volume_render_cmd(a),
+        Command::Compare {
+            image,
+            reference,
+            mask,
+        } => compare_cmd(image, reference, mask),
+    }
+}
+
+fn load_env(spec: &str) -> Result<EnvMap> {
+    let env = EnvMap::from_spec(spec)?;
+    if env.negatives_clamped > 0 {
+        // Lossy HDR encoders leave slightly negative samples; radiance cannot be negative.
+        eprintln!(
+            "note: {}: {} slightly negative samples (the lowest {:.2e}) read as 0",
+            env.source, env.negatives_clamped, env.lowest_negative
+        );
+    }
+    Ok(env)
+}
+
+/// The files among environment specs (not the procedural `sun:` ones), for the output checks.
+fn env_files(specs: &[String]) -> Vec<PathBuf> {
+    specs
+        .iter()
+        .filter(|s| !s.starts_with("sun:"))
+        .map(PathBuf::from)
+        .collect()
+}
+
+/// Image outputs: `.exr` (linear) or `.png` (tone-mapped), none of `inputs`.
+fn check_image_output(output: &std::path::Path, inputs: &[PathBuf]) -> Result<()> {
+    let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(
+        output,
+        &["exr", "png"],
+        "an image (.exr linear, .png tone-mapped)",
+        &inputs,
+    )
+}
+
+/// The flags every relighting command shares, checked before any work.
+fn check_light_flags(yaw: f64, pitch: f64, exposure: Option<f32>) -> Result<()> {
+    crate::flags::angle("yaw", yaw)?;
+    crate::flags::angle("pitch", pitch)?;
+    if let Some(e) = exposure {
+        crate::flags::exposure(e)?;
+    }
+    Ok(())
+}
+
+/// A progress bar over `total` `unit`s with the elapsed time, the rate to three significant
+/// digits, a message and the time left.
+fn bar(total: u64, unit: &str) -> ProgressBar {
+    let bar = ProgressBar::new(total);
+    let template = format!(
+        "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {unit}  {{rate}}  {{msg}}  ETA {{eta}}"
+    );
+    bar.set_style(
+        ProgressStyle::with_template(&template)
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .with_key(
+                "rate",
+                |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+                    let _ = write!(w, "{}/s", three_significant(s.per_sec()));
+                },
+            )
+            .progress_chars("=> "),
+    );
+    bar
+}
+
+/// `x` to three significant digits with a k, M or G suffix: 16,694.7 is "16.7k".
+pub fn three_significant(x: f64) -> String {
+    if !(x.is_finite() && x > 0.0) {
+        return "0".into();
+    }
+    let (v, suffix) = match x {
+        x if x >= 1e9 => (x / 1e9, "G"),
+        x if x >= 1e6 => (x / 1e6, "M"),
+        x if x >= 1e3 => (x / 1e3, "k"),
+        x => (x, ""),
+    };
+    let decimals = if v >= 99.95 {
+        0
+    } else if v >= 9.995 {
+        1
+    } else {
+        2
+    };
+    format!("{v:.decimals$}{suffix}")
+}
+
+fn progress_bar(total: usize) -> ProgressBar {
+    bar(total as u64, "px")
+}
+
+/// The bake's own progress as a bar: pixels, shadow rays per second, the medium's first stage.
+fn bake_progress(bar: &ProgressBar, start: Instant) -> impl Fn(BakeProgress) + Sync + '_ {
+    move |p: BakeProgress| {
+        if p.medium_texels[1] > 0 {
+            bar.set_message(format!(
+                "medium rows: {}/{} texel lights",
+                p.medium_texels[0], p.medium_texels[1]
+            ));
+            return;
+        }
+        bar.set_length(p.pixels_total as u64);
+        bar.set_position(p.pixels_done as u64);
+        let secs = start.elapsed().as_secs_f64().max(1e-3);
+        bar.set_message(format!(
+            "{} shadow rays/s",
+            three_significant(p.shadow_rays as f64 / secs)
+        ));
+    }
+}
+
+fn bake_with_progress(scene: &Scene, settings: &BakeSettings) -> Result<Transport> {
+    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
+    let bar = progress_bar(w * h);
+    let t = bake(scene, settings, &bake_progress(&bar, Instant::now()))?;
+    bar.finish_and_clear();
+    Ok(t)
+}
+
+fn settings_from(
+    s: &SamplingArgs,
+    sh_order: usize,
+    threshold: f32,
+    lossless: bool,
+) -> BakeSettings {
+    BakeSettings {
+        cube_n: s.cube,
+        sh_order,
+        spp: s.spp,
+        texel_samples: s.texel_samples,
+        threshold,
+        lossless,
+        unshadowed: s.unshadowed,
+        seed: s.seed,
+        shard: None,
+        bounces: s.bounces,
+        paths: s.paths,
+        ..BakeSettings::default()
+    }
+}
+
+fn parse_tone(t: &str) -> Result<crate::output::film::ToneCurve> {
+    Ok(match t.to_ascii_lowercase().as_str() {
+        "clip" => crate::output::film::ToneCurve::Clip,
+        "reinhard" => crate::output::film::ToneCurve::Reinhard,
+        "aces" => crate::output::film::ToneCurve::Aces,
+        _ => {
+            return Err(PrtError::invalid(
+                "viewer",
+                format!("--tone {t}: expected clip, reinhard or aces"),
+            ));
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::three_significant;
+
+    #[test]
+    fn rates_have_three_significant_digits() {
+        for (x, want) in [
+            (16_694.735_2, "16.7k"),
+            (1234.0, "1.23k"),
+            (523.4, "523"),
+            (52.34, "52.3"),
+            (5.234, "5.23"),
+            (12_860_000.0, "12.9M"),
+            (0.0, "0"),
+            (f64::NAN, "0"),
+        ] {
+            assert_eq!(three_significant(x), want, "{x}");
+        }
+    }
+}

@@ -1,0 +1,313 @@
+//! `prt relight`, `prt reference`, `prt env` and `prt compare`: images from a transport, from the
+//! brute-force reference, and their comparison.
+
+use super::*;
+
+#[derive(Args, Debug)]
+pub struct RelightArgs {
+    /// Transport file.
+    pub file: PathBuf,
+    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    #[arg(long)]
+    pub env: String,
+    /// Output image (.exr linear, .png tone-mapped).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// wavelet, sh or full.
+    #[arg(long, default_value = "wavelet")]
+    pub method: String,
+    /// Kept wavelet terms K.
+    #[arg(long, default_value_t = 200)]
+    pub terms: usize,
+    /// Wavelet term selection: none, area or transport.
+    #[arg(long, default_value = "transport")]
+    pub weighting: String,
+    /// SH order (at most the baked order; default: the baked order).
+    #[arg(long)]
+    pub sh_order: Option<usize>,
+    /// Turn the environment about +Y, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub yaw: f64,
+    /// Turn the environment about +X after the yaw, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub pitch: f64,
+    /// cpu or gpu (wgpu; a software adapter such as Mesa's lavapipe works too).
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
+    /// PNG exposure in stops (default: automatic).
+    #[arg(long, allow_negative_numbers = true)]
+    pub exposure: Option<f32>,
+    /// What pixels that see no geometry show: env (the environment behind the scene, turned
+    /// with it) or black.
+    #[arg(long, default_value = "env")]
+    pub background: String,
+}
+
+#[derive(Args, Debug)]
+pub struct ReferenceArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    #[arg(long)]
+    pub env: String,
+    /// Output image (.exr linear, .png tone-mapped).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub sampling: SamplingArgs,
+    /// Turn the environment about +Y, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub yaw: f64,
+    /// Turn the environment about +X after the yaw, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub pitch: f64,
+    /// What pixels that see no geometry show: env (the environment behind the scene, turned
+    /// with it) or black.
+    #[arg(long, default_value = "env")]
+    pub background: String,
+}
+
+#[derive(Args, Debug)]
+pub struct EnvArgs {
+    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    pub env: String,
+    /// Cube face size for the Haar statistics.
+    #[arg(long, default_value_t = 32)]
+    pub cube: usize,
+    /// SH order of the printed coefficients.
+    #[arg(long, default_value_t = 3)]
+    pub sh: usize,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
+    let method: Method = a.method.parse()?;
+    let weighting: Weighting = a.weighting.parse()?;
+    let background: Background = a.background.parse()?;
+    check_light_flags(a.yaw, a.pitch, a.exposure)?;
+    let mut inputs = env_files(std::slice::from_ref(&a.env));
+    inputs.push(a.file.clone());
+    check_image_output(&a.output, &inputs)?;
+    let gpu = match a.device.as_str() {
+        "cpu" => None,
+        "gpu" => Some(crate::relight::gpu::Gpu::new()?),
+        other => {
+            return Err(PrtError::invalid(
+                "device",
+                format!("`{other}`; expected cpu or gpu"),
+            ));
+        }
+    };
+    let t = Transport::load(&a.file)?;
+    if let Some(o) = a.sh_order {
+        crate::flags::sh_order(o, t.meta.sh_order as usize)?;
+    }
+    if method == Method::Wavelet {
+        crate::flags::terms(a.terms, t.meta.cube_n as usize)?;
+    }
+    let env = load_env(&a.env)?;
+    let ctx = LightContext::new(&t)?;
+    let start = Instant::now();
+    let rotation = EnvRotation {
+        yaw_deg: a.yaw,
+        pitch_deg: a.pitch,
+    };
+    let light = ctx.prepare(&env, rotation)?;
+    let light_ms = start.elapsed().as_secs_f64() * 1e3;
+    let req = RelightRequest {
+        method,
+        terms: a.terms,
+        weighting,
+        sh_order: a.sh_order.unwrap_or(t.meta.sh_order as usize),
+    };
+    let (img, stats) = match &gpu {
+        None => relight(&t, &ctx, &light, &req)?,
+        Some(gpu) => {
+            let upload = Instant::now();
+            let g = crate::relight::gpu::GpuTransport::upload(gpu, &t, None)?;
+            eprintln!(
+                "gpu: {} ({} chunk(s), {} bytes per nonzero, upload {:.0} ms)",
+                gpu.adapter,
+                g.chunk_count(),
+                g.bytes_per_nonzero(),
+                upload.elapsed().as_secs_f64() * 1e3
+            );
+            match method {
+                Method::Sh => g.relight_sh(
+                    gpu,
+                    &crate::relight::light_sh_order(
+                        &light.sh,
+                        req.sh_order,
+                        t.meta.sh_order as usize,
+                    )?,
+                )?,
+                _ => {
+                    let sparse = crate::relight::select_light(&t, &ctx, &light, &req)?;
+                    let (img, mut stats) = g.relight_wavelet(gpu, &sparse)?;
+                    stats.nonzeros_touched = crate::relight::nonzeros_touched(&t, &sparse);
+                    stats.bytes_touched = stats.nonzeros_touched * g.bytes_per_nonzero()
+                        + (t.tile_count() * sparse.len() * 8) as u64;
+                    (img, stats)
+                }
+            }
+        }
+    };
+    img.check_finite("relit image")?;
+    let tone = match a.exposure {
+        Some(e) => ToneMap::exposure(e),
+        None => ToneMap::auto(&img, Some(&t.coverage)),
+    };
+    let img = match background {
+        Background::Environment => crate::relight::background::composite(
+            &img,
+            &crate::relight::background::environment_behind(&t.meta, &t.coverage, &env, rotation)?,
+        ),
+        Background::Black => img,
+    };
+    img.save(&a.output, tone)?;
+    println!(
+        "{method}: {} terms{}, {} nonzeros touched ({:.1} MiB), light {:.1} ms, kernel {:.2} ms on the {} -> {}",
+        stats.terms,
+        if method == Method::Wavelet {
+            format!(" ({weighting} weighting)")
+        } else {
+            String::new()
+        },
+        stats.nonzeros_touched,
+        stats.bytes_touched as f64 / 1048576.0,
+        light_ms,
+        stats.kernel_seconds * 1e3,
+        a.device,
+        a.output.display()
+    );
+    Ok(())
+}
+
+pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
+    let settings = settings_from(&a.sampling, 1, 0.0, true);
+    settings.validate()?;
+    let background: Background = a.background.parse()?;
+    check_light_flags(a.yaw, a.pitch, None)?;
+    let mut inputs = env_files(std::slice::from_ref(&a.env));
+    check_image_output(&a.output, &inputs)?;
+    let scene = Scene::load(&a.scene)?;
+    inputs.extend(scene.input_files.iter().cloned());
+    check_image_output(&a.output, &inputs)?;
+    let env = load_env(&a.env)?;
+    let rotation = EnvRotation {
+        yaw_deg: a.yaw,
+        pitch_deg: a.pitch,
+    };
+    let cube = env.to_cube(settings.cube_n, rotation)?;
+    let start = Instant::now();
+    let rows = bar(scene.camera.height as u64, "rows");
+    let r = crate::bake::reference::render_reference_with(&scene, &cube, &settings, &|done, _| {
+        rows.set_position(done as u64)
+    })?;
+    rows.finish_and_clear();
+    r.image.check_finite("reference image")?;
+    let tone = ToneMap::auto(&r.image, Some(&r.coverage));
+    let img = match background {
+        Background::Environment => crate::relight::background::composite(
+            &r.image,
+            &crate::relight::background::environment_behind_camera(
+                &scene.camera,
+                &r.coverage,
+                &env,
+                rotation,
+            )?,
+        ),
+        Background::Black => r.image,
+    };
+    img.save(&a.output, tone)?;
+    println!(
+        "reference: {}x{}, N = {}, {:.1} s -> {}",
+        img.width,
+        img.height,
+        settings.cube_n,
+        start.elapsed().as_secs_f64(),
+        a.output.display()
+    );
+    Ok(())
+}
+
+pub(super) fn env_cmd(a: EnvArgs) -> Result<()> {
+    let env = load_env(&a.env)?;
+    let power = env.power();
+    let sh = env.project_sh(a.sh, EnvRotation::default())?;
+    let cube = env.to_cube(a.cube, EnvRotation::default())?;
+    let light = WaveletLight::from_cube(&cube)?;
+    let energy: Vec<f64> = light
+        .coeffs
+        .iter()
+        .map(|c| c.iter().map(|v| (*v as f64).powi(2)).sum())
+        .collect();
+    let total: f64 = energy.iter().sum();
+    let mut sorted = energy.clone();
+    sorted.sort_by(|a, b| b.total_cmp(a));
+    let ks: Vec<usize> = [1, 10, 50, 200, 1000]
+        .into_iter()
+        .filter(|&k| k <= sorted.len())
+        .collect();
+    let captured: Vec<(usize, f64)> = ks
+        .iter()
+        .map(|&k| {
+            (
+                k,
+                sorted[..k].iter().sum::<f64>() / total.max(f64::MIN_POSITIVE),
+            )
+        })
+        .collect();
+    if a.json {
+        let obj = serde_json::json!({
+            "source": env.source,
+            "width": env.width,
+            "height": env.height,
+            "negatives_clamped": env.negatives_clamped,
+            "power": power,
+            "sh_order": a.sh,
+            "sh": sh,
+            "cube_n": a.cube,
+            "haar_energy_captured": captured.iter().map(|(k, f)| serde_json::json!({"k": k, "fraction": f})).collect::<Vec<_>>(),
+        });
+        println!("{obj}");
+        return Ok(());
+    }
+    println!("environment   {}", env.source);
+    println!("size          {} x {}", env.width, env.height);
+    println!(
+        "power         R {:.4}  G {:.4}  B {:.4}  (Σ L Ω)",
+        power[0], power[1], power[2]
+    );
+    println!("SH order {}    L_i = ∫ L Y_i dω, index l(l+1)+m:", a.sh);
+    for (i, c) in sh.iter().enumerate() {
+        let l = (i as f64).sqrt() as usize;
+        let m = i as i64 - (l * (l + 1)) as i64;
+        println!(
+            "  l={l} m={m:+}  {:>12.5} {:>12.5} {:>12.5}",
+            c[0], c[1], c[2]
+        );
+    }
+    println!("Haar energy captured by the best K terms (N = {}):", a.cube);
+    for (k, f) in captured {
+        println!("  K = {k:>5}  {:.4}%", 100.0 * f);
+    }
+    Ok(())
+}
+
+pub(super) fn compare_cmd(image: PathBuf, reference: PathBuf, mask: Option<PathBuf>) -> Result<()> {
+    let a = crate::output::film::Image::load_exr(&image)?;
+    let r = crate::output::film::Image::load_exr(&reference)?;
+    let mask = match mask {
+        Some(p) => Some(Transport::load(&p)?.coverage),
+        None => None,
+    };
+    let e = crate::output::metrics::compare(&a, &r, mask.as_deref())?;
+    println!(
+        "rel_l2 {:.6}  rmse {:.6}  psnr {:.2} dB  rel_h1 {:.6}  dssim {:.6}",
+        e.rel_l2, e.rmse, e.psnr_db, e.rel_h1, e.dssim
+    );
+    Ok(())
+}

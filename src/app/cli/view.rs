@@ -1,0 +1,219 @@
+//! `prt view`: the window, or with `--screenshot` the image it would show.
+
+use super::*;
+
+#[derive(Args, Debug)]
+pub struct ViewArgs {
+    /// Transport file (.prt), or a volume file (.prtv) for the volume path.
+    pub file: PathBuf,
+    /// Extra environments (.exr/.hdr or sun:ELEV,AZIM), besides the bundled ones.
+    #[arg(long, num_args = 1..)]
+    pub env: Vec<String>,
+    /// Render one frame to this PNG without opening a window, then exit.
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+    /// wavelet, sh or full (with --screenshot).
+    #[arg(long)]
+    pub method: Option<String>,
+    /// Kept wavelet terms K (with --screenshot).
+    #[arg(long)]
+    pub terms: Option<usize>,
+    /// none, area or transport (with --screenshot).
+    #[arg(long)]
+    pub weighting: Option<String>,
+    /// SH order (with --screenshot).
+    #[arg(long)]
+    pub sh_order: Option<usize>,
+    /// Environment yaw, degrees (with --screenshot).
+    #[arg(long, allow_negative_numbers = true)]
+    pub yaw: Option<f64>,
+    /// Environment pitch, degrees (with --screenshot).
+    #[arg(long, allow_negative_numbers = true)]
+    pub pitch: Option<f64>,
+    /// Exposure in stops (with --screenshot; default automatic).
+    #[arg(long, allow_negative_numbers = true)]
+    pub exposure: Option<f32>,
+    /// SH and wavelet side by side (with --screenshot).
+    #[arg(long)]
+    pub compare: bool,
+    /// SH and wavelet as one image split at this fraction of the width, SH on the left
+    /// (with --screenshot; implies --compare).
+    #[arg(long)]
+    pub split: Option<f32>,
+    /// Display curve after the exposure: clip, reinhard or aces (with --screenshot).
+    #[arg(long)]
+    pub tone: Option<String>,
+    /// Add the error heat map against full beside each image (with --screenshot).
+    #[arg(long)]
+    pub error_map: bool,
+}
+
+pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
+    use crate::app::viewer::{Engine, env_entries, screenshot};
+    let err = |m: String| PrtError::invalid("viewer", m);
+    let Some(out) = a.screenshot.clone() else {
+        if a.method.is_some()
+            || a.terms.is_some()
+            || a.compare
+            || a.error_map
+            || a.split.is_some()
+            || a.tone.is_some()
+        {
+            return Err(PrtError::invalid(
+                "viewer",
+                "--method, --terms, ... apply to --screenshot only",
+            ));
+        }
+        if !a.file.exists() {
+            return Err(PrtError::io(
+                &a.file,
+                std::io::Error::from(std::io::ErrorKind::NotFound),
+            ));
+        }
+        return crate::app::viewer::run(&a.file, &a.env).map_err(|e| {
+            let text = e.to_string();
+            if text.contains("DISPLAY") {
+                PrtError::invalid(
+                    "display",
+                    "no display to open a window on (neither WAYLAND_DISPLAY nor DISPLAY is \
+                     set): use --screenshot OUT.png to render the view to a file",
+                )
+            } else {
+                err(text)
+            }
+        });
+    };
+    let mut inputs = env_files(&a.env);
+    inputs.push(a.file.clone());
+    let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(
+        &out,
+        &["png"],
+        "a tone-mapped PNG (`prt relight -o IMG.exr` writes linear radiance)",
+        &inputs,
+    )?;
+    check_light_flags(a.yaw.unwrap_or(0.0), a.pitch.unwrap_or(0.0), a.exposure)?;
+    if let Some(f) = a.split {
+        crate::flags::fraction("split", f)?;
+    }
+    if crate::volume::is_volume_file(&a.file) {
+        if a.method.is_some()
+            || a.terms.is_some()
+            || a.weighting.is_some()
+            || a.compare
+            || a.error_map
+            || a.split.is_some()
+        {
+            return Err(PrtError::invalid(
+                "viewer",
+                "--method, --terms, --weighting, --compare, --split and --error-map apply to \
+                 transport files; for a volume's views and cameras use `prt volume render`",
+            ));
+        }
+        return volume_screenshot_cmd(&a, &out);
+    }
+    let (entries, sun, selected) = env_entries(&a.env);
+    let transport = Transport::load(&a.file)?;
+    let mut engine = Engine::from_transport(&a.file, transport, entries).map_err(err)?;
+    let mut state = engine.initial_state(selected, sun);
+    if let Some(r) = crate::app::viewer::cli_sun_radius(&a.env) {
+        state.sun_radius = r;
+    }
+    state.compare = a.compare || a.split.is_some();
+    state.error_map = a.error_map;
+    if let Some(f) = a.split {
+        state.layout = crate::app::viewer::Layout::Split;
+        state.split = f;
+    }
+    if let Some(t) = &a.tone {
+        state.tone = parse_tone(t)?;
+    }
+    if let Some(m) = &a.method {
+        state.method = m.parse()?;
+    }
+    // Given flags are checked as `relight` checks them; only the defaults are fitted to the file.
+    let limits = engine.limits();
+    if let Some(k) = a.terms {
+        crate::flags::terms(k, engine.transport.meta.cube_n as usize)?;
+        state.terms = k;
+    }
+    if let Some(w) = &a.weighting {
+        state.weighting = w.parse()?;
+    }
+    if let Some(o) = a.sh_order {
+        crate::flags::sh_order(o, limits.sh_order)?;
+        state.sh_order = o;
+    }
+    if let Some(y) = a.yaw {
+        state.yaw = y;
+    }
+    if let Some(p) = a.pitch {
+        state.pitch = p;
+    }
+    state.exposure = match a.exposure {
+        Some(e) => e,
+        None => engine.auto_exposure(&state).map_err(err)?,
+    };
+    let r = screenshot(&mut engine, &state, &out).map_err(err)?;
+    for n in &r.notes {
+        eprintln!("note: {n}");
+    }
+    for p in &r.panes {
+        let l = &p.linear;
+        println!(
+            "{}: {} terms, {:.2} M nonzeros touched, relight {:.2} ms, relative L2 vs full {:.4}",
+            l.title,
+            l.terms,
+            l.nonzeros_touched as f64 * 1e-6,
+            l.relight_seconds * 1e3,
+            l.rel_l2
+        );
+    }
+    println!("wrote {}", out.display());
+    Ok(())
+}
+
+/// `prt view FILE.prtv --screenshot OUT.png`: the volume window's first frame.
+fn volume_screenshot_cmd(a: &ViewArgs, out: &std::path::Path) -> Result<()> {
+    use crate::app::viewer::{VolumeEngine, VolumeState, env_entries, volume_screenshot};
+    let err = |m: String| PrtError::invalid("viewer", m);
+    let vt = crate::volume::VolumeTransfer::load(&a.file)?;
+    let (entries, sun, selected) = env_entries(&a.env);
+    let mut state = VolumeState::initial(&vt);
+    state.env = selected;
+    (state.sun_elev, state.sun_azim) = sun;
+    if let Some(r) = crate::app::viewer::cli_sun_radius(&a.env) {
+        state.sun_radius = r;
+    }
+    if let Some(y) = a.yaw {
+        state.yaw = y;
+    }
+    if let Some(p) = a.pitch {
+        state.pitch = p;
+    }
+    if let Some(o) = a.sh_order {
+        crate::flags::sh_order(o, vt.meta.sh_order)?;
+        state.sh_order = o;
+    }
+    if let Some(t) = &a.tone {
+        state.tone = parse_tone(t)?;
+    }
+    let mut engine = VolumeEngine::new(vt, entries);
+    state.exposure = match a.exposure {
+        Some(e) => e,
+        None => {
+            let f = engine.render(&state).map_err(err)?;
+            ToneMap::auto(&f.image, None).exposure
+        }
+    };
+    let f = volume_screenshot(&mut engine, &state, out).map_err(err)?;
+    println!(
+        "volume {} view, SH order {}: march {:.1} ms on {}",
+        state.view.name(),
+        state.sh_order,
+        f.march_seconds * 1e3,
+        f.device
+    );
+    println!("wrote {}", out.display());
+    Ok(())
+}

@@ -1,0 +1,178 @@
+//! `prt volume bake` and `prt volume render`: the SH self-transfer of a medium and its ray march.
+
+use super::*;
+
+#[derive(Args, Debug)]
+pub struct VolumeBakeArgs {
+    /// Scene file (TOML) with a [medium].
+    pub scene: PathBuf,
+    /// Output volume file (.prtv).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Voxels along the longest side of the medium's box (default: the scene's resolution,
+    /// 64 unless it says otherwise; a .npy grid keeps its own unless this is given).
+    #[arg(long)]
+    pub grid: Option<usize>,
+    /// SH order n of the transfer (n² coefficients per voxel, 1 to 8).
+    #[arg(long, default_value_t = 3)]
+    pub sh_order: usize,
+    /// Directions D of the projection (a Fibonacci sphere).
+    #[arg(long, default_value_t = 512)]
+    pub directions: usize,
+}
+
+#[derive(Args, Debug)]
+pub struct VolumeRenderArgs {
+    /// Volume file (.prtv).
+    pub file: PathBuf,
+    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    #[arg(long)]
+    pub env: String,
+    /// Output image (.exr linear, .png tone-mapped).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Camera position X,Y,Z (default: the scene's camera).
+    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true)]
+    pub eye: Option<glam::Vec3>,
+    /// Point the camera looks at, X,Y,Z (default: the scene's target).
+    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true)]
+    pub target: Option<glam::Vec3>,
+    /// Image width (default: the scene's).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height (default: the scene's).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// full, inscatter, transmittance or dc (the self-shadow map).
+    #[arg(long, default_value = "full")]
+    pub view: String,
+    /// SH order to relight with (default: the baked order).
+    #[arg(long)]
+    pub sh_order: Option<usize>,
+    /// Environment yaw, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub yaw: f64,
+    /// Environment pitch, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub pitch: f64,
+    /// Cube face size the environment is resampled to for the light.
+    #[arg(long, default_value_t = 32)]
+    pub cube: usize,
+    /// cpu or gpu.
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
+    /// Exposure in stops for a .png (default automatic).
+    #[arg(long, allow_negative_numbers = true)]
+    pub exposure: Option<f32>,
+}
+
+fn parse_vec3(s: &str) -> std::result::Result<glam::Vec3, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| format!("`{s}`: expected X,Y,Z"))?;
+    match v[..] {
+        [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => {
+            Ok(glam::Vec3::new(x, y, z))
+        }
+        _ => Err(format!("`{s}`: expected three finite numbers X,Y,Z")),
+    }
+}
+
+pub(super) fn volume_bake_cmd(a: VolumeBakeArgs) -> Result<()> {
+    use crate::volume::{TransferSettings, bake_volume};
+    crate::files::check_output(&a.output, &["prtv"], "a volume file", &[])?;
+    let scene = Scene::load(&a.scene)?;
+    let inputs: Vec<&std::path::Path> = scene.input_files.iter().map(PathBuf::as_path).collect();
+    crate::files::check_output(&a.output, &["prtv"], "a volume file", &inputs)?;
+    let settings = TransferSettings {
+        sh_order: a.sh_order,
+        directions: a.directions,
+    };
+    settings.validate()?;
+    let bar = ProgressBar::new(settings.directions as u64);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} directions  ETA {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    let start = Instant::now();
+    let vt = bake_volume(&scene, a.grid, &settings, &|done, _| {
+        bar.set_position(done as u64)
+    })?;
+    bar.finish_and_clear();
+    let seconds = start.elapsed().as_secs_f64();
+    vt.save(&a.output)?;
+    let [nx, ny, nz] = vt.meta.dims;
+    println!(
+        "baked {nx}x{ny}x{nz} voxels x {} directions at SH order {} in {seconds:.2} s ({:.1} M voxel-directions/s)",
+        settings.directions,
+        settings.sh_order,
+        (vt.voxel_count() * settings.directions) as f64 / seconds / 1e6
+    );
+    println!("wrote {}", a.output.display());
+    Ok(())
+}
+
+pub(super) fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
+    use crate::volume::{PhaseLight, VolumeTransfer, VolumeView, render_volume};
+    let view: VolumeView = a.view.parse()?;
+    check_light_flags(a.yaw, a.pitch, a.exposure)?;
+    let mut inputs = env_files(std::slice::from_ref(&a.env));
+    inputs.push(a.file.clone());
+    check_image_output(&a.output, &inputs)?;
+    let vt = VolumeTransfer::load(&a.file)?;
+    let size = match (a.width, a.height) {
+        (None, None) => None,
+        (w, h) => Some((w.unwrap_or(vt.meta.width), h.unwrap_or(vt.meta.height))),
+    };
+    let camera = vt.camera(a.eye, a.target, size)?;
+    let order = a.sh_order.unwrap_or(vt.meta.sh_order);
+    crate::flags::sh_order(order, vt.meta.sh_order)?;
+    crate::math::cubemap::validate_n(a.cube)?;
+    let env = load_env(&a.env)?;
+    let start = Instant::now();
+    let cube = env.to_cube(
+        a.cube,
+        EnvRotation {
+            yaw_deg: a.yaw,
+            pitch_deg: a.pitch,
+        },
+    )?;
+    let light = PhaseLight::new(&cube, order, vt.meta.g);
+    let light_ms = start.elapsed().as_secs_f64() * 1e3;
+    let start = Instant::now();
+    let (img, device) = match a.device.as_str() {
+        "cpu" => (render_volume(&vt, &light, &camera, view), "cpu".to_string()),
+        "gpu" => {
+            let gpu = crate::relight::gpu::Gpu::new()?;
+            let mut gv = crate::volume::gpu::GpuVolume::new(&gpu, &vt)?;
+            let (img, _) = gv.render(&gpu, &light, &camera, view)?;
+            (img, gpu.adapter.clone())
+        }
+        other => {
+            return Err(PrtError::invalid(
+                "device",
+                format!("`{other}`; expected cpu or gpu"),
+            ));
+        }
+    };
+    let march_ms = start.elapsed().as_secs_f64() * 1e3;
+    img.check_finite("volume image")?;
+    let tone = match a.exposure {
+        Some(e) => ToneMap::exposure(e),
+        None => ToneMap::auto(&img, None),
+    };
+    img.save(&a.output, tone)?;
+    println!(
+        "{}x{} {} view at SH order {order} on {device}: environment to light {light_ms:.0} ms, march {march_ms:.1} ms",
+        camera.width,
+        camera.height,
+        view.name()
+    );
+    println!("wrote {}", a.output.display());
+    Ok(())
+}

@@ -1,0 +1,376 @@
+//! The embedded default, end to end: the bundled demo scene and environments are written out, the
+//! scene is baked (or the cached bake reused when scene and settings are unchanged), and it is
+//! relit under every bundled environment with SH, wavelets at several K, and every term. The
+//! result is a set of images, a labelled contact sheet, and a markdown table of error and time.
+//! Then the volume path: the bundled cloud's SH self-transfer is baked and the cloud ray-marched
+//! under every environment from a free camera.
+
+use std::path::{Path, PathBuf};
+
+use crate::bake::{BakeProgress, BakeSettings, bake, load_if_baked_with};
+use crate::error::{PrtError, Result};
+use crate::light::envmap::{EnvMap, EnvRotation};
+use crate::light::select::Weighting;
+use crate::output::film::{Image, ToneMap};
+use crate::output::metrics::relative_l2;
+use crate::output::sheet::{Cell, downsample, write_sheet};
+use crate::relight::background::{composite, environment_behind};
+use crate::relight::{LightContext, Method, RelightRequest, relight};
+use crate::scene::Scene;
+
+/// A file bundled into the binary: its path under the demo's `assets/` and its bytes.
+pub struct Asset {
+    pub path: &'static str,
+    pub bytes: &'static [u8],
+}
+
+macro_rules! asset {
+    ($p:literal) => {
+        Asset {
+            path: $p,
+            bytes: include_bytes!(concat!("../../assets/", $p)),
+        }
+    };
+}
+
+/// Everything the demo needs, embedded so it runs from any directory.
+pub const ASSETS: &[Asset] = &[
+    asset!("scenes/demo.toml"),
+    asset!("scenes/spheres.toml"),
+    asset!("scenes/cloud.toml"),
+    asset!("scenes/fog.toml"),
+    asset!("meshes/bunny.obj"),
+    asset!("meshes/teapot.obj"),
+    asset!("meshes/suzanne.obj"),
+    asset!("envmaps/blender_sunrise.exr"),
+    asset!("envmaps/blender_city.exr"),
+    asset!("envmaps/blender_interior.exr"),
+    asset!("envmaps/blender_night.exr"),
+    asset!("envmaps/blender_studio.exr"),
+    asset!("envmaps/pmndrs_city_overcast.exr"),
+];
+
+/// SH orders the demo shows.
+pub const DEMO_SH_ORDERS: [usize; 3] = [2, 4, 8];
+/// Kept wavelet terms the demo shows.
+pub const DEMO_TERMS: [usize; 4] = [10, 50, 200, 1000];
+/// Weighting of the demo's wavelet selection.
+pub const DEMO_WEIGHTING: Weighting = Weighting::Transport;
+
+/// The demo's bake settings: the CLI defaults with SH up to order 8.
+pub fn demo_settings() -> BakeSettings {
+    BakeSettings {
+        sh_order: 8,
+        ..BakeSettings::default()
+    }
+}
+
+/// One relit image of the demo.
+#[derive(Clone, Debug)]
+pub struct DemoRow {
+    pub env: String,
+    pub method: Method,
+    /// K for wavelets, n² for SH, 6 N² for full.
+    pub terms: usize,
+    /// Relative L2 against `full` under the same environment.
+    pub rel_l2: f64,
+    pub relight_ms: f64,
+}
+
+/// What the demo produced.
+pub struct DemoReport {
+    pub rows: Vec<DemoRow>,
+    pub transport_path: PathBuf,
+    pub sheet_path: PathBuf,
+    pub table_path: PathBuf,
+    pub reused_bake: bool,
+    /// Time to bake (or to load the cached bake).
+    pub bake_seconds: f64,
+    /// The volume path: transfer bake time, and per environment the march time (ms).
+    pub volume_bake_seconds: f64,
+    pub volume_rows: Vec<(String, f64)>,
+}
+
+/// Writes the bundled assets under `dir/assets` (leaving files that already match).
+pub fn write_assets(dir: &Path) -> Result<PathBuf> {
+    let root = dir.join("assets");
+    for a in ASSETS {
+        let p = root.join(a.path);
+        if std::fs::read(&p).is_ok_and(|b| b == a.bytes) {
+            continue;
+        }
+        let parent = p.parent().unwrap_or(&root);
+        std::fs::create_dir_all(parent).map_err(|e| PrtError::io(parent, e))?;
+        crate::output::film::write_atomically(&p, |tmp| {
+            std::fs::write(tmp, a.bytes).map_err(|e| PrtError::io(tmp, e))
+        })?;
+    }
+    Ok(root)
+}
+
+/// Runs the demo into `dir`. `log` receives one line per step; `progress` follows the bake.
+pub fn run_demo(
+    dir: &Path,
+    log: &mut dyn FnMut(&str),
+    progress: &(dyn Fn(BakeProgress) + Sync),
+) -> Result<DemoReport> {
+    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
+    let assets = write_assets(dir)?;
+    let scene = Scene::load(&assets.join("scenes/demo.toml"))?;
+    let settings = demo_settings();
+    let transport_path = dir.join("demo.prt");
+    let bake_start = std::time::Instant::now();
+    let (transport, reused) = match load_if_baked_with(&transport_path, &scene, &settings) {
+        Some(t) => {
+            log(&format!(
+                "reusing the bake in {} (scene and settings unchanged)",
+                transport_path.display()
+            ));
+            (t, true)
+        }
+        None => {
+            log(&format!(
+                "baking {} at {}x{}, N = {}, SH order {} ...",
+                scene.source_path.display(),
+                scene.camera.width,
+                scene.camera.height,
+                settings.cube_n,
+                settings.sh_order
+            ));
+            let t = bake(&scene, &settings, progress)?;
+            t.save(&transport_path)?;
+            (t, false)
+        }
+    };
+    let bake_seconds = bake_start.elapsed().as_secs_f64();
+    let ctx = LightContext::new(&transport)?;
+    let images = dir.join("images");
+    std::fs::create_dir_all(&images).map_err(|e| PrtError::io(&images, e))?;
+    let mut rows = Vec::new();
+    let mut thumbs: Vec<(Image, ToneMap, [String; 2])> = Vec::new();
+    for a in ASSETS.iter().filter(|a| a.path.starts_with("envmaps/")) {
+        let name = Path::new(a.path)
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("env")
+            .to_string();
+        let env = EnvMap::load(&assets.join(a.path))?;
+        let light = ctx.prepare(&env, EnvRotation::default())?;
+        // Shown and saved over the environment behind the scene; errors are taken before.
+        let behind = environment_behind(
+            &transport.meta,
+            &transport.coverage,
+            &env,
+            EnvRotation::default(),
+        )?;
+        let shown = |img: &Image| composite(img, &behind);
+        let full_req = RelightRequest {
+            method: Method::Full,
+            terms: 0,
+            weighting: DEMO_WEIGHTING,
+            sh_order: settings.sh_order,
+        };
+        let (full, full_stats) = relight(&transport, &ctx, &light, &full_req)?;
+        let tone = ToneMap::auto(&full, Some(&transport.coverage));
+        let mut requests: Vec<RelightRequest> = DEMO_SH_ORDERS
+            .iter()
+            .map(|&o| RelightRequest {
+                method: Method::Sh,
+                sh_order: o,
+                ..full_req
+            })
+            .collect();
+        requests.extend(DEMO_TERMS.iter().map(|&k| RelightRequest {
+            method: Method::Wavelet,
+            terms: k,
+            ..full_req
+        }));
+        for req in &requests {
+            let (img, stats) = relight(&transport, &ctx, &light, req)?;
+            let err = relative_l2(&img, &full, Some(&transport.coverage))?;
+            let label = match req.method {
+                Method::Sh => format!("sh_order{}", req.sh_order),
+                _ => format!("wavelet{}", req.terms),
+            };
+            let img = shown(&img);
+            img.save(&images.join(format!("{name}_{label}.png")), tone)?;
+            thumbs.push((
+                downsample(&img, 2),
+                tone,
+                [
+                    match req.method {
+                        Method::Sh => format!("SH {} ({})", req.sh_order, req.sh_order.pow(2)),
+                        _ => format!("WAV K={}", req.terms),
+                    },
+                    format!("ERR {:.1}%", 100.0 * err),
+                ],
+            ));
+            rows.push(DemoRow {
+                env: name.clone(),
+                method: req.method,
+                terms: stats.terms,
+                rel_l2: err,
+                relight_ms: stats.kernel_seconds * 1e3,
+            });
+        }
+        let full = shown(&full);
+        full.save(&images.join(format!("{name}_full.png")), tone)?;
+        full.save(&images.join(format!("{name}_full.exr")), tone)?;
+        thumbs.push((
+            downsample(&full, 2),
+            tone,
+            ["FULL".into(), short_name(&name).to_uppercase()],
+        ));
+        rows.push(DemoRow {
+            env: name.clone(),
+            method: Method::Full,
+            terms: full_stats.terms,
+            rel_l2: 0.0,
+            relight_ms: full_stats.kernel_seconds * 1e3,
+        });
+        log(&format!("relit under {name}"));
+    }
+    let columns = DEMO_SH_ORDERS.len() + DEMO_TERMS.len() + 1;
+    let cells: Vec<Cell> = thumbs
+        .iter()
+        .map(|(image, tone, caption)| Cell {
+            image,
+            tone: *tone,
+            caption: caption.clone(),
+        })
+        .collect();
+    let sheet_path = dir.join("contact_sheet.png");
+    write_sheet(
+        &sheet_path,
+        columns,
+        &cells,
+        &format!(
+            "CUBE 6X{0}X{0} - SH ORDER (TERMS) VS K WAVELET TERMS ({1}) - REL. L2 VS FULL",
+            transport.meta.cube_n, DEMO_WEIGHTING
+        ),
+    )?;
+    let (volume_bake_seconds, volume_rows) = run_volume_demo(dir, &assets, log)?;
+    let table_path = dir.join("summary.md");
+    let mut table = markdown_table(&rows);
+    table.push_str(&format!(
+        "\nVolume (`assets/scenes/cloud.toml`, SH order 3, 512 directions): transfer baked in \
+         {volume_bake_seconds:.2} s; `volume/` holds the cloud marched under each environment.\n\n\
+         | environment | CPU march (ms) |\n|---|---:|\n"
+    ));
+    for (env, ms) in &volume_rows {
+        table.push_str(&format!("| {env} | {ms:.1} |\n"));
+    }
+    crate::output::film::write_atomically(&table_path, |tmp| {
+        std::fs::write(tmp, &table).map_err(|e| PrtError::io(tmp, e))
+    })?;
+    Ok(DemoReport {
+        rows,
+        transport_path,
+        sheet_path,
+        table_path,
+        reused_bake: reused,
+        bake_seconds,
+        volume_bake_seconds,
+        volume_rows,
+    })
+}
+
+/// The volume half of the demo: bakes the cloud's SH self-transfer into `dir/cloud.prtv` and
+/// marches it under every bundled environment from a three-quarter view into `dir/volume/`.
+fn run_volume_demo(
+    dir: &Path,
+    assets: &Path,
+    log: &mut dyn FnMut(&str),
+) -> Result<(f64, Vec<(String, f64)>)> {
+    use crate::volume::{PhaseLight, TransferSettings, VolumeView, bake_volume, render_volume};
+    let scene = Scene::load(&assets.join("scenes/cloud.toml"))?;
+    let start = std::time::Instant::now();
+    let vt = bake_volume(&scene, None, &TransferSettings::default(), &|_, _| {})?;
+    let bake_seconds = start.elapsed().as_secs_f64();
+    vt.save(&dir.join("cloud.prtv"))?;
+    log(&format!(
+        "baked the cloud's SH self-transfer ({:?} voxels) in {bake_seconds:.2} s",
+        vt.meta.dims
+    ));
+    let out = dir.join("volume");
+    std::fs::create_dir_all(&out).map_err(|e| PrtError::io(&out, e))?;
+    let camera = vt.camera(
+        Some(glam::Vec3::new(2.1, 2.1, 2.3)),
+        Some(glam::Vec3::new(0.0, 1.4, 0.0)),
+        Some((256, 192)),
+    )?;
+    let mut rows = Vec::new();
+    let mut shots: Vec<(Image, ToneMap, [String; 2])> = Vec::new();
+    for a in ASSETS.iter().filter(|a| a.path.starts_with("envmaps/")) {
+        let name = Path::new(a.path)
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("env")
+            .to_string();
+        let env = EnvMap::load(&assets.join(a.path))?;
+        let cube = env.to_cube(32, EnvRotation::default())?;
+        let light = PhaseLight::new(&cube, vt.meta.sh_order, vt.meta.g);
+        let start = std::time::Instant::now();
+        let img = render_volume(&vt, &light, &camera, VolumeView::Full);
+        rows.push((name.clone(), start.elapsed().as_secs_f64() * 1e3));
+        let tone = ToneMap::auto(&img, None);
+        img.save(&out.join(format!("cloud_{name}.png")), tone)?;
+        // The self-shadow map once, beside the first environment.
+        if shots.is_empty() {
+            let dc = render_volume(&vt, &light, &camera, VolumeView::TransferDc);
+            let dc_tone = ToneMap::auto(&dc, None);
+            dc.save(&out.join("cloud_self_shadow.png"), dc_tone)?;
+            shots.push((dc, dc_tone, ["SELF-SHADOW".into(), "T0 / 2 SQRT PI".into()]));
+        }
+        shots.push((
+            img,
+            tone,
+            ["SH ORDER 3".into(), short_name(&name).to_uppercase()],
+        ));
+    }
+    let cells: Vec<Cell> = shots
+        .iter()
+        .map(|(image, tone, caption)| Cell {
+            image,
+            tone: *tone,
+            caption: caption.clone(),
+        })
+        .collect();
+    write_sheet(
+        &dir.join("volume_sheet.png"),
+        4,
+        &cells,
+        "CLOUD: SH SELF-TRANSFER, RAY MARCHED FROM A FREE CAMERA",
+    )?;
+    log(&format!(
+        "marched the cloud under {} environments",
+        rows.len()
+    ));
+    Ok((bake_seconds, rows))
+}
+
+/// A name that fits under a thumbnail: `blender_sunrise` -> `sunrise`.
+fn short_name(name: &str) -> String {
+    let s = name
+        .trim_start_matches("blender_")
+        .trim_start_matches("pmndrs_city_");
+    s.chars().take(10).collect()
+}
+
+/// The demo's results as a markdown table.
+pub fn markdown_table(rows: &[DemoRow]) -> String {
+    let mut s = String::from(
+        "| environment | method | terms | rel. L2 vs full | relight (ms) |\n|---|---|---:|---:|---:|\n",
+    );
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {} | {} | {:.2}% | {:.2} |\n",
+            r.env,
+            r.method,
+            r.terms,
+            100.0 * r.rel_l2,
+            r.relight_ms
+        ));
+    }
+    s
+}

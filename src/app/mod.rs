@@ -1,0 +1,10 @@
+//! The application around the library: the `prt` command line, the demo, the benchmark sweeps and
+//! the window. The command line and the window need the `app` feature (clap, indicatif, eframe);
+//! the demo and the sweeps are plain library code that they call.
+
+pub mod bench;
+#[cfg(feature = "app")]
+pub mod cli;
+pub mod demo;
+#[cfg(feature = "app")]
+pub mod viewer;

@@ -1,0 +1,840 @@
+//! The window: the side panel of controls and numbers, and the images with zoom, pan and the
+//! split view. Every change is drawn at once by the GPU kernels (when the window has a device
+//! and the transport is on it); the worker thread computes the CPU images and the errors against
+//! `full` behind it, and the panel shows them when they arrive.
+
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+use eframe::{egui, wgpu};
+
+use super::worker::{Job, Loaded, Reply, Worker};
+use super::{
+    GpuTiming, GpuView, Layout, LightKey, Rendered, ViewState, relight_into_view,
+    sh_order_for_terms,
+};
+use crate::light::select::Weighting;
+use crate::output::film::Image;
+use crate::relight::gpu::{Gpu, GpuTransport};
+use crate::relight::{Method, PreparedLight};
+
+/// Zoom and pan of the images: `zoom` 1 fits the image, `center` is the texture coordinate
+/// shown at the middle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Viewport {
+    pub zoom: f32,
+    pub center: egui::Pos2,
+}
+
+impl Default for Viewport {
+    fn default() -> Self {
+        Viewport {
+            zoom: 1.0,
+            center: egui::pos2(0.5, 0.5),
+        }
+    }
+}
+
+impl Viewport {
+    pub const MAX_ZOOM: f32 = 64.0;
+
+    /// The part of the texture shown, in texture coordinates, with the centre kept inside.
+    pub fn uv(&self) -> egui::Rect {
+        let half = 0.5 / self.zoom.clamp(1.0, Self::MAX_ZOOM);
+        let c = egui::pos2(
+            self.center.x.clamp(half, 1.0 - half),
+            self.center.y.clamp(half, 1.0 - half),
+        );
+        egui::Rect::from_center_size(c, egui::vec2(2.0 * half, 2.0 * half))
+    }
+
+    /// Zooms by `factor` keeping the texture point under `at` (a fraction of the shown rect)
+    /// where it is.
+    pub fn zoom_at(&mut self, factor: f32, at: egui::Vec2) {
+        let uv = self.uv();
+        let point = uv.min + at * uv.width();
+        self.zoom = (self.zoom * factor).clamp(1.0, Self::MAX_ZOOM);
+        let size = 1.0 / self.zoom;
+        self.center = point - at * size + egui::vec2(0.5 * size, 0.5 * size);
+        self.center = self.uv().center();
+    }
+
+    /// Moves the view by a drag of `delta` screen points over a rect `size` points wide.
+    pub fn pan(&mut self, delta: egui::Vec2, size: egui::Vec2) {
+        let uv = self.uv();
+        self.center = uv.center() - delta / size * uv.width();
+        self.center = self.uv().center();
+    }
+}
+
+/// The GPU display: the device, the transport once uploaded, one view per pane.
+struct GpuDisplay {
+    gpu: Gpu,
+    render_state: eframe::egui_wgpu::RenderState,
+    transport: Option<Arc<GpuTransport>>,
+    uploading: bool,
+    /// Each view, its texture in egui, and the environment behind the scene it holds (uploaded
+    /// again only when the light brings a new one).
+    views: Vec<(GpuView, egui::TextureId, Option<Arc<Image>>)>,
+    /// What the views show, and how long each took.
+    shown: Option<ViewState>,
+    timings: Vec<GpuTiming>,
+}
+
+/// The window.
+pub struct ViewerApp {
+    pub state: ViewState,
+    /// The last error of a render (a bad environment file, ...).
+    pub error: Option<String>,
+    /// Notes from clamping the state.
+    pub notes: Vec<String>,
+    /// Why the file could not be opened.
+    pub load_error: Option<String>,
+    /// The last message of a save.
+    pub saved: Option<String>,
+    pub viewport: Viewport,
+    worker: Worker,
+    loaded: Option<Loaded>,
+    /// The state last sent to the worker.
+    sent: Option<ViewState>,
+    /// The last CPU result, and its textures.
+    rendered: Option<Rendered>,
+    textures: Vec<egui::TextureHandle>,
+    light: Option<(LightKey, Arc<PreparedLight>, Arc<Image>)>,
+    gpu: Option<GpuDisplay>,
+    gpu_error: Option<String>,
+    /// Frame start times of the last second, for the frame rate.
+    frames: VecDeque<f64>,
+    path_edit: String,
+    /// Where "Save" writes: a `.png` (what is shown) and an `.exr` (the first image, linear).
+    pub save_stem: String,
+    cli_envs: Vec<String>,
+}
+
+impl ViewerApp {
+    /// Starts loading `file` on the worker thread; the window shows the progress, and a file that
+    /// does not load leaves a message.
+    pub fn new(file: &Path, envs: &[String]) -> ViewerApp {
+        ViewerApp {
+            state: ViewState::default(),
+            error: None,
+            notes: Vec::new(),
+            load_error: None,
+            saved: None,
+            viewport: Viewport::default(),
+            worker: Worker::start(file, envs),
+            loaded: None,
+            sent: None,
+            rendered: None,
+            textures: Vec::new(),
+            light: None,
+            gpu: None,
+            gpu_error: None,
+            frames: VecDeque::new(),
+            path_edit: file.display().to_string(),
+            save_stem: "prt-view".to_string(),
+            cli_envs: envs.to_vec(),
+        }
+    }
+
+    fn open(&mut self, file: &Path) {
+        let gpu = self.gpu.take();
+        let cli = self.cli_envs.clone();
+        *self = ViewerApp::new(file, &cli);
+        if let Some(g) = gpu {
+            self.attach_render_state(g.render_state);
+        }
+    }
+
+    /// Uses the window's wgpu device for relighting and draws GPU results without a readback.
+    pub fn attach_render_state(&mut self, rs: eframe::egui_wgpu::RenderState) {
+        let info = rs.adapter.get_info();
+        let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
+        match Gpu::from_device(rs.device.clone(), rs.queue.clone(), name) {
+            Ok(gpu) => {
+                self.gpu = Some(GpuDisplay {
+                    gpu,
+                    render_state: rs,
+                    transport: None,
+                    uploading: false,
+                    views: Vec::new(),
+                    shown: None,
+                    timings: Vec::new(),
+                });
+                // The window draws from the GPU kernels by default; the box in the panel turns
+                // it off.
+                self.state.gpu = true;
+                self.start_upload();
+            }
+            Err(e) => self.gpu_error = Some(e.to_string()),
+        }
+    }
+
+    fn start_upload(&mut self) {
+        if let (Some(g), Some(_)) = (&mut self.gpu, &self.loaded)
+            && g.transport.is_none()
+            && !g.uploading
+        {
+            g.uploading = true;
+            self.worker.send(Job::Upload(g.gpu.clone()));
+        }
+    }
+
+    /// Whether the worker has jobs in hand.
+    pub fn busy(&self) -> bool {
+        self.worker.busy()
+    }
+
+    /// Whether the file has loaded.
+    pub fn is_loaded(&self) -> bool {
+        self.loaded.is_some()
+    }
+
+    /// The latest CPU result (numbers, images).
+    pub fn rendered(&self) -> Option<&Rendered> {
+        self.rendered.as_ref()
+    }
+
+    /// GPU timings of the panes shown from the GPU (empty when the CPU images are shown).
+    pub fn gpu_timings(&self) -> &[GpuTiming] {
+        match &self.gpu {
+            Some(g) if self.showing_gpu() => &g.timings,
+            _ => &[],
+        }
+    }
+
+    /// Blocks until the worker has answered every job (for tests and scripts); the next frame
+    /// shows the results. Returns whether it became idle within `timeout`.
+    pub fn wait_idle(&self, timeout: Duration) -> bool {
+        self.worker.wait_idle(timeout)
+    }
+
+    /// Takes in what the worker finished (each frame does this first).
+    pub fn poll(&mut self, ctx: &egui::Context) {
+        while let Some(reply) = self.worker.try_recv() {
+            match reply {
+                Reply::Loaded(Ok(loaded)) => {
+                    let gpu = self.state.gpu;
+                    self.state = ViewState {
+                        gpu,
+                        ..loaded.state.clone()
+                    };
+                    self.loaded = Some(loaded);
+                    self.start_upload();
+                }
+                Reply::Loaded(Err(e)) => self.load_error = Some(e),
+                Reply::Light(key, light, behind) => {
+                    self.light = Some((key, light, behind));
+                    self.invalidate_gpu();
+                }
+                Reply::Rendered(Ok(r)) => {
+                    self.error = None;
+                    if !r.notes.is_empty() {
+                        self.notes = r.notes.clone();
+                    }
+                    self.upload_cpu_textures(ctx, &r);
+                    self.rendered = Some(r);
+                }
+                Reply::Rendered(Err(e)) => self.error = Some(e),
+                Reply::Exposure(Ok(e)) => self.state.exposure = e,
+                Reply::Exposure(Err(e)) => self.error = Some(e),
+                Reply::Saved(Ok(stem)) => {
+                    self.saved = Some(format!(
+                        "saved {} and {}",
+                        stem.with_extension("png").display(),
+                        stem.with_extension("exr").display()
+                    ))
+                }
+                Reply::Saved(Err(e)) => self.error = Some(e),
+                Reply::Uploaded(result) => {
+                    if let Some(g) = &mut self.gpu {
+                        g.uploading = false;
+                        match result {
+                            Ok(t) => g.transport = Some(t),
+                            Err(e) => self.gpu_error = Some(format!("GPU upload: {e}")),
+                        }
+                    }
+                    self.invalidate_gpu();
+                }
+            }
+        }
+    }
+
+    fn invalidate_gpu(&mut self) {
+        if let Some(g) = &mut self.gpu {
+            g.shown = None;
+        }
+    }
+
+    fn upload_cpu_textures(&mut self, ctx: &egui::Context, r: &Rendered) {
+        self.textures.truncate(r.panes.len());
+        for (i, p) in r.panes.iter().enumerate() {
+            let img = egui::ColorImage::from_rgb([r.width, r.height], &p.rgb);
+            if let Some(t) = self.textures.get_mut(i) {
+                t.set(img, egui::TextureOptions::LINEAR);
+            } else {
+                self.textures.push(ctx.load_texture(
+                    format!("pane {i}"),
+                    img,
+                    egui::TextureOptions::LINEAR,
+                ));
+            }
+        }
+    }
+
+    /// Whether the images come from the GPU: asked for, possible (no heat map), and drawn.
+    fn showing_gpu(&self) -> bool {
+        self.gpu_wanted()
+            && self
+                .gpu
+                .as_ref()
+                .is_some_and(|g| g.shown.as_ref() == Some(&self.state))
+    }
+
+    fn gpu_wanted(&self) -> bool {
+        self.state.gpu && !self.state.error_map && self.gpu.is_some()
+    }
+
+    /// Relights the current state on the GPU when it changed and its light is at hand; a failure
+    /// turns the GPU display off with a message.
+    fn draw_on_gpu(&mut self) {
+        if !self.gpu_wanted() {
+            return;
+        }
+        if let Err(e) = self.try_draw_on_gpu() {
+            self.gpu_error = Some(format!("GPU display: {e}"));
+            self.state.gpu = false;
+        }
+    }
+
+    fn try_draw_on_gpu(&mut self) -> Result<(), String> {
+        let (Some(loaded), Some((key, light, behind)), Some(g)) =
+            (&self.loaded, &self.light, &mut self.gpu)
+        else {
+            return Ok(());
+        };
+        let Some(gt) = g.transport.clone() else {
+            return Ok(());
+        };
+        if g.shown.as_ref() == Some(&self.state) || *key != LightKey::of(&loaded.envs, &self.state)
+        {
+            return Ok(());
+        }
+        let t = &loaded.transport;
+        let (w, h) = (t.meta.width, t.meta.height);
+        let requests = self.state.requests(loaded.limits);
+        g.views.retain(|(v, _, _)| (v.width, v.height) == (w, h));
+        while g.views.len() < requests.len() {
+            let view = GpuView::new(&g.render_state.device, w, h);
+            let id = g.render_state.renderer.write().register_native_texture(
+                &g.render_state.device,
+                &view.display.create_view(&Default::default()),
+                wgpu::FilterMode::Linear,
+            );
+            g.views.push((view, id, None));
+        }
+        g.timings.clear();
+        for ((_, request), (view, _, held)) in requests.iter().zip(&mut g.views) {
+            if !held.as_ref().is_some_and(|h| Arc::ptr_eq(h, behind)) {
+                view.set_behind(&g.render_state.queue, behind);
+                *held = Some(behind.clone());
+            }
+            let timing = relight_into_view(
+                &g.gpu,
+                &gt,
+                t,
+                &loaded.ctx,
+                light,
+                request,
+                view,
+                self.state.tone_map(),
+            )?;
+            g.timings.push(timing);
+        }
+        g.shown = Some(self.state.clone());
+        Ok(())
+    }
+
+    /// Keyboard shortcuts: `M` method, `+`/`-` terms, `E` environment, `C` compare, `0` fit.
+    fn keys(&mut self, ctx: &egui::Context) {
+        if ctx.egui_wants_keyboard_input() {
+            return;
+        }
+        let (m, plus, minus, e, c, fit) = ctx.input(|i| {
+            (
+                i.key_pressed(egui::Key::M),
+                i.key_pressed(egui::Key::Plus) || i.key_pressed(egui::Key::Equals),
+                i.key_pressed(egui::Key::Minus),
+                i.key_pressed(egui::Key::E),
+                i.key_pressed(egui::Key::C),
+                i.key_pressed(egui::Key::Num0),
+            )
+        });
+        let s = &mut self.state;
+        if m {
+            s.cycle_method();
+        }
+        if plus {
+            s.terms = s.terms.saturating_mul(2);
+        }
+        if minus {
+            s.terms = (s.terms / 2).max(1);
+        }
+        if c {
+            s.compare = !s.compare;
+        }
+        if fit {
+            self.viewport = Viewport::default();
+        }
+        if let Some(l) = &self.loaded {
+            if e {
+                s.env = (s.env + 1) % l.envs.len().max(1);
+            }
+            s.terms = s.terms.clamp(1, l.limits.coeffs);
+        }
+    }
+
+    fn controls(&mut self, ui: &mut egui::Ui) {
+        if self.file_controls(ui) {
+            return;
+        }
+        self.settings(ui);
+        ui.separator();
+        self.numbers(ui);
+    }
+
+    /// The file row; returns whether a new file was opened.
+    fn file_controls(&mut self, ui: &mut egui::Ui) -> bool {
+        ui.horizontal(|ui| {
+            let label = ui.label("File");
+            ui.text_edit_singleline(&mut self.path_edit)
+                .labelled_by(label.id);
+        });
+        if ui.button("Open").clicked() {
+            let p = PathBuf::from(self.path_edit.clone());
+            self.open(&p);
+            return true;
+        }
+        ui.separator();
+        false
+    }
+
+    /// Every setting of the view, from the method to saving (also what the panel snapshot
+    /// tests draw: no file path, no timings).
+    pub fn settings(&mut self, ui: &mut egui::Ui) {
+        let Some(loaded) = &self.loaded else {
+            if self.load_error.is_none() {
+                let (read, total) = self.worker.progress();
+                let fraction = if total > 0 {
+                    read as f32 / total as f32
+                } else {
+                    0.0
+                };
+                ui.label(format!(
+                    "Loading: {:.0} of {:.0} MiB",
+                    read as f64 / (1 << 20) as f64,
+                    total as f64 / (1 << 20) as f64
+                ));
+                ui.add(egui::ProgressBar::new(fraction).show_percentage());
+            }
+            return;
+        };
+        let limits = loaded.limits;
+        // The light the window shows is not yet the one the settings ask for.
+        let light_pending = self
+            .light
+            .as_ref()
+            .is_none_or(|(k, _, _)| *k != LightKey::of(&loaded.envs, &self.state));
+        let s = &mut self.state;
+        ui.heading("Method (M)");
+        ui.horizontal(|ui| {
+            ui.selectable_value(&mut s.method, Method::Wavelet, "Wavelet");
+            ui.selectable_value(&mut s.method, Method::Sh, "SH");
+            ui.selectable_value(&mut s.method, Method::Full, "Full");
+        });
+        ui.checkbox(&mut s.compare, "Compare SH | wavelet (C)");
+        if s.compare {
+            ui.horizontal(|ui| {
+                ui.selectable_value(&mut s.layout, Layout::SideBySide, "Side by side");
+                ui.selectable_value(&mut s.layout, Layout::Split, "Split");
+            });
+            if s.layout == Layout::Split {
+                ui.add(egui::Slider::new(&mut s.split, 0.0..=1.0).text("split (SH | wavelet)"));
+            }
+        }
+        ui.checkbox(&mut s.error_map, "Error heat map vs full");
+        match &self.gpu {
+            Some(g) => {
+                ui.checkbox(&mut s.gpu, "Relight on the GPU")
+                    .on_hover_text(g.gpu.adapter.clone());
+                if g.uploading {
+                    ui.horizontal(|ui| {
+                        ui.spinner();
+                        ui.label("uploading the transport to the GPU");
+                    });
+                }
+            }
+            None => {
+                ui.label("No GPU adapter: relighting on the CPU");
+            }
+        }
+        ui.separator();
+        ui.label(format!("Kept terms (+/-), 1 to {}", limits.coeffs));
+        ui.add(
+            egui::Slider::new(&mut s.terms, 1..=limits.coeffs)
+                .logarithmic(true)
+                .show_value(false)
+                .text("K"),
+        );
+        ui.horizontal(|ui| {
+            let label = ui.label("K =");
+            ui.add(egui::DragValue::new(&mut s.terms).range(1..=limits.coeffs))
+                .labelled_by(label.id);
+        });
+        egui::ComboBox::from_label("Weighting")
+            .selected_text(s.weighting.name())
+            .show_ui(ui, |ui| {
+                for w in Weighting::ALL {
+                    ui.selectable_value(&mut s.weighting, w, w.name());
+                }
+            });
+        ui.add(egui::Slider::new(&mut s.sh_order, 1..=limits.sh_order).text("SH order"));
+        if s.compare {
+            let n = sh_order_for_terms(s.terms, limits.sh_order);
+            ui.label(format!("compare uses SH order {n} ({} terms)", n * n));
+        }
+        ui.separator();
+        super::light_controls(
+            ui,
+            "Environment (E)",
+            &loaded.envs,
+            &mut s.env,
+            [&mut s.sun_elev, &mut s.sun_azim, &mut s.sun_radius],
+            [&mut s.yaw, &mut s.pitch],
+        );
+        if light_pending {
+            ui.horizontal(|ui| {
+                ui.spinner();
+                ui.label("preparing the light");
+            });
+        }
+        ui.separator();
+        super::tone_controls(ui, &mut s.exposure, &mut s.tone);
+        let auto = ui.button("Auto exposure").clicked();
+        ui.horizontal(|ui| {
+            ui.label(format!("zoom {:.1}x", self.viewport.zoom));
+            if ui.button("Fit (0)").clicked() {
+                self.viewport = Viewport::default();
+            }
+        });
+        ui.separator();
+        let save = ui
+            .horizontal(|ui| {
+                let label = ui.label("Save as");
+                ui.add(egui::TextEdit::singleline(&mut self.save_stem).desired_width(110.0))
+                    .labelled_by(label.id);
+                ui.button("Save PNG + EXR").clicked()
+            })
+            .inner;
+        if auto {
+            self.worker.send(Job::AutoExposure(self.state.clone()));
+        }
+        if save {
+            self.saved = None;
+            self.worker.send(Job::Save(
+                self.state.clone(),
+                PathBuf::from(&self.save_stem),
+            ));
+        }
+    }
+
+    /// Terms, nonzeros, times, frame rate and errors of what is shown.
+    fn numbers(&self, ui: &mut egui::Ui) {
+        let stale = self
+            .rendered
+            .as_ref()
+            .is_none_or(|r| r.state.relight_key() != self.state.relight_key());
+        if self.worker.busy() {
+            ui.horizontal(|ui| {
+                ui.spinner();
+                ui.label("CPU relight and errors updating");
+            });
+        }
+        if let Some(r) = &self.rendered {
+            let panes = r.panes.iter().take(r.state.requests(self.limits()).len());
+            for p in panes {
+                let l = &p.linear;
+                ui.strong(&l.title);
+                ui.label(format!(
+                    "terms used: {}, nonzeros touched: {:.2} M",
+                    l.terms,
+                    l.nonzeros_touched as f64 * 1e-6
+                ));
+                let mark = if stale { " (previous settings)" } else { "" };
+                ui.label(format!(
+                    "CPU {:.2} ms (kernel {:.2}), rel. L2 vs full {:.4}{mark}",
+                    l.relight_seconds * 1e3,
+                    l.kernel_seconds * 1e3,
+                    l.rel_l2
+                ));
+            }
+            if r.light_seconds > 0.0 {
+                ui.label(format!(
+                    "light prepared in {:.1} ms (full image for the errors {:.1} ms)",
+                    r.light_seconds * 1e3,
+                    r.full_seconds * 1e3
+                ));
+            }
+        }
+        for (i, t) in self.gpu_timings().iter().enumerate() {
+            let text = match t.kernel_seconds {
+                Some(k) => format!(
+                    "GPU pane {}: {:.2} ms (timestamps), {:.1} ms with tone map",
+                    i + 1,
+                    k * 1e3,
+                    t.wall_seconds * 1e3
+                ),
+                None => format!(
+                    "GPU pane {}: relight + tone map {:.2} ms (wall clock)",
+                    i + 1,
+                    t.wall_seconds * 1e3
+                ),
+            };
+            ui.label(text);
+        }
+        if let Some(fps) = self.frame_rate() {
+            ui.label(format!(
+                "window: {fps:.1} frames/s ({:.1} ms a frame)",
+                1e3 / fps.max(1e-9)
+            ));
+        }
+        for n in &self.notes {
+            ui.colored_label(egui::Color32::YELLOW, n);
+        }
+        if let Some(m) = &self.saved {
+            ui.label(m);
+        }
+        for e in [&self.error, &self.gpu_error].into_iter().flatten() {
+            ui.colored_label(egui::Color32::RED, e);
+        }
+    }
+
+    fn limits(&self) -> super::Limits {
+        self.loaded
+            .as_ref()
+            .map(|l| l.limits)
+            .unwrap_or(super::Limits {
+                coeffs: 1,
+                sh_order: 1,
+                envs: 1,
+            })
+    }
+
+    /// Frames per second over the last second, once there are a few frames.
+    fn frame_rate(&self) -> Option<f64> {
+        let (first, last) = (self.frames.front()?, self.frames.back()?);
+        (self.frames.len() >= 3 && last > first)
+            .then(|| (self.frames.len() - 1) as f64 / (last - first))
+    }
+
+    /// The textures to draw with their titles: the GPU views when they show the current state,
+    /// else the CPU images.
+    fn shown(&self) -> Vec<(egui::TextureId, String)> {
+        let titles: Vec<String> = match &self.rendered {
+            Some(r) if !self.showing_gpu() => {
+                r.panes.iter().map(|p| p.linear.title.clone()).collect()
+            }
+            _ => self
+                .state
+                .requests(self.limits())
+                .into_iter()
+                .map(|(t, _)| t)
+                .collect(),
+        };
+        let ids: Vec<egui::TextureId> = match &self.gpu {
+            Some(g) if self.showing_gpu() => g.views.iter().map(|(_, id, _)| *id).collect(),
+            _ => self.textures.iter().map(|t| t.id()).collect(),
+        };
+        ids.into_iter().zip(titles).collect()
+    }
+
+    fn images(&mut self, ui: &mut egui::Ui) {
+        if let Some(e) = &self.load_error {
+            ui.centered_and_justified(|ui| {
+                ui.colored_label(
+                    egui::Color32::RED,
+                    format!("Could not open the transport file:\n{e}"),
+                );
+            });
+            return;
+        }
+        let Some(loaded) = &self.loaded else {
+            ui.centered_and_justified(|ui| ui.spinner());
+            return;
+        };
+        let shown = self.shown();
+        if shown.is_empty() {
+            ui.spinner();
+            return;
+        }
+        // Groups drawn as one image: pairs under the split layout, else single panes.
+        let per = if self.state.split_pairs() { 2 } else { 1 };
+        let groups: Vec<&[(egui::TextureId, String)]> = shown.chunks(per).collect();
+        let n = groups.len() as f32;
+        let avail = ui.available_size();
+        let (w, h) = (
+            loaded.transport.meta.width as f32,
+            loaded.transport.meta.height as f32,
+        );
+        let (gap, title_h) = (8.0, 20.0);
+        let scale = (((avail.x - gap * (n - 1.0)) / n) / w)
+            .min((avail.y - title_h) / h)
+            .max(0.01);
+        let size = egui::vec2(w * scale, h * scale);
+        let uv = self.viewport.uv();
+        let split = self.state.split;
+        let mut viewport = self.viewport;
+        ui.horizontal_top(|ui| {
+            for group in &groups {
+                ui.vertical(|ui| {
+                    let title = match group {
+                        [(_, a), (_, b)] => format!("{a}  |  {b}"),
+                        _ => group[0].1.clone(),
+                    };
+                    ui.label(title);
+                    let (rect, response) = ui.allocate_exact_size(size, egui::Sense::drag());
+                    let painter = ui.painter_at(rect);
+                    let white = egui::Color32::WHITE;
+                    match group {
+                        [(a, _), (b, _)] => {
+                            let x = rect.min.x + split * rect.width();
+                            let u = uv.min.x + split * uv.width();
+                            let (left, right) = (
+                                egui::Rect::from_min_max(rect.min, egui::pos2(x, rect.max.y)),
+                                egui::Rect::from_min_max(egui::pos2(x, rect.min.y), rect.max),
+                            );
+                            let uv_left = egui::Rect::from_min_max(uv.min, egui::pos2(u, uv.max.y));
+                            let uv_right =
+                                egui::Rect::from_min_max(egui::pos2(u, uv.min.y), uv.max);
+                            painter.image(*a, left, uv_left, white);
+                            painter.image(*b, right, uv_right, white);
+                            painter.vline(x, rect.y_range(), egui::Stroke::new(1.0, white));
+                        }
+                        _ => {
+                            painter.image(group[0].0, rect, uv, white);
+                        }
+                    }
+                    if response.dragged() {
+                        viewport.pan(response.drag_delta(), rect.size());
+                    }
+                    if response.double_clicked() {
+                        viewport = Viewport::default();
+                    }
+                    if let Some(pos) = response.hover_pos() {
+                        let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+                        if scroll != 0.0 {
+                            let at = (pos - rect.min) / rect.size();
+                            viewport.zoom_at((scroll * 0.004).exp(), at);
+                        }
+                    }
+                });
+                ui.add_space(gap);
+            }
+        });
+        self.viewport = viewport;
+    }
+
+    /// The whole window, drawn into `ui` (also what the UI tests drive).
+    pub fn show(&mut self, ui: &mut egui::Ui) {
+        let ctx = ui.ctx().clone();
+        let now = ctx.input(|i| i.time);
+        self.frames.push_back(now);
+        while self.frames.front().is_some_and(|t| now - t > 1.0) {
+            self.frames.pop_front();
+        }
+        self.poll(&ctx);
+        self.keys(&ctx);
+        egui::Panel::left("controls")
+            .resizable(true)
+            .default_size(320.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
+            });
+        if let Some(l) = &self.loaded {
+            let notes = self.state.clamp(l.limits);
+            if self.sent.as_ref() != Some(&self.state) {
+                // What was clamped stays noted until the next change.
+                self.notes = notes;
+                self.sent = Some(self.state.clone());
+                self.worker.send(Job::Render(self.state.clone()));
+            }
+        }
+        self.draw_on_gpu();
+        egui::CentralPanel::default_margins().show(ui, |ui| self.images(ui));
+        if self.worker.busy() {
+            ctx.request_repaint_after(Duration::from_millis(30));
+        }
+    }
+}
+
+impl eframe::App for ViewerApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        self.show(ui);
+    }
+}
+
+/// Opens the window on `file` with the extra environments `envs`. The window's device asks for
+/// the adapter's full limits (large transports fit in fewer bindings) and for timestamp queries
+/// where the adapter has them.
+pub fn run(file: &Path, envs: &[String]) -> eframe::Result {
+    use eframe::egui_wgpu::{WgpuConfiguration, WgpuSetup, WgpuSetupCreateNew};
+    let mut setup = WgpuSetupCreateNew::without_display_handle();
+    setup.device_descriptor = Arc::new(|adapter: &wgpu::Adapter| wgpu::DeviceDescriptor {
+        label: Some("prt view"),
+        required_limits: adapter.limits(),
+        required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
+        ..Default::default()
+    });
+    let options = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_inner_size([1280.0, 800.0])
+            .with_title("wavelet-prt viewer"),
+        wgpu_options: WgpuConfiguration {
+            wgpu_setup: WgpuSetup::CreateNew(setup),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    if crate::volume::is_volume_file(file) {
+        // The volume path: load now (volume files are small), march on the window's device.
+        let vt = crate::volume::VolumeTransfer::load(file)
+            .map_err(|e| eframe::Error::AppCreation(Box::new(e)))?;
+        let envs = envs.to_vec();
+        return eframe::run_native(
+            "wavelet-prt volume viewer",
+            options,
+            Box::new(move |cc| {
+                let gpu = cc.wgpu_render_state.as_ref().and_then(|rs| {
+                    let info = rs.adapter.get_info();
+                    let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
+                    Gpu::from_device(rs.device.clone(), rs.queue.clone(), name).ok()
+                });
+                Ok(Box::new(super::VolumeApp::new(vt, &envs, gpu)))
+            }),
+        );
+    }
+    let app = ViewerApp::new(file, envs);
+    eframe::run_native(
+        "wavelet-prt viewer",
+        options,
+        Box::new(move |cc| {
+            let mut app = app;
+            if let Some(rs) = &cc.wgpu_render_state {
+                app.attach_render_state(rs.clone());
+            }
+            Ok(Box::new(app))
+        }),
+    )
+}

@@ -1,0 +1,264 @@
+//! The GPU display path: the relight kernels write linear radiance into an RGBA32F texture, and a
+//! small compute pass applies the exposure and the sRGB curve into an RGBA8 texture that egui
+//! samples directly (egui-wgpu expects gamma-encoded `Rgba8Unorm`). No image comes back to the
+//! CPU.
+
+use eframe::wgpu;
+
+use crate::output::film::{Image, ToneMap};
+
+const TONE_WGSL: &str = include_str!("../../../shaders/tonemap.wgsl");
+
+/// The two textures of one image size and the tone-mapping pass between them.
+pub struct GpuView {
+    pub width: u32,
+    pub height: u32,
+    /// Linear radiance, written by the relight kernels.
+    pub linear: wgpu::Texture,
+    /// Exposed, sRGB-encoded RGBA8, for display.
+    pub display: wgpu::Texture,
+    /// The environment behind the scene (RGBA32F), added before tone mapping; black until
+    /// [`GpuView::set_behind`].
+    pub behind: wgpu::Texture,
+    pipeline: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    group: wgpu::BindGroup,
+}
+
+impl GpuView {
+    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> GpuView {
+        let size = wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        };
+        let texture = |label, format, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let linear = texture(
+            "relit linear",
+            wgpu::TextureFormat::Rgba32Float,
+            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let display = texture(
+            "relit display",
+            wgpu::TextureFormat::Rgba8Unorm,
+            wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+        );
+        let behind = texture(
+            "environment behind",
+            wgpu::TextureFormat::Rgba32Float,
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        );
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("tone map"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    // RGBA32F is not filterable everywhere; the pass only loads texels.
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::StorageTexture {
+                        access: wgpu::StorageTextureAccess::WriteOnly,
+                        format: wgpu::TextureFormat::Rgba8Unorm,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 3,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("tone map"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("tone map"),
+            source: wgpu::ShaderSource::Wgsl(TONE_WGSL.into()),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("tone map"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("tone map params"),
+            size: 16,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let linear_view = linear.create_view(&Default::default());
+        let display_view = display.create_view(&Default::default());
+        let behind_view = behind.create_view(&Default::default());
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("tone map"),
+            layout: &layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&linear_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&display_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&behind_view),
+                },
+            ],
+        });
+        GpuView {
+            width,
+            height,
+            linear,
+            display,
+            behind,
+            pipeline,
+            params,
+            group,
+        }
+    }
+
+    /// Uploads the environment behind the scene (an image of this view's size; others are
+    /// ignored, leaving the last one).
+    pub fn set_behind(&self, queue: &wgpu::Queue, image: &Image) {
+        if (image.width, image.height) != (self.width as usize, self.height as usize) {
+            return;
+        }
+        let mut bytes = Vec::with_capacity(image.pixels.len() * 16);
+        for p in &image.pixels {
+            for v in [p[0], p[1], p[2], 0.0] {
+                bytes.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        queue.write_texture(
+            self.behind.as_image_copy(),
+            &bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(self.width * 16),
+                rows_per_image: None,
+            },
+            self.behind.size(),
+        );
+    }
+
+    /// Tone-maps `linear` plus `behind` into `display` as `tone` says.
+    pub fn tone_map(&self, device: &wgpu::Device, queue: &wgpu::Queue, tone: ToneMap) {
+        let mut words = [0u8; 16];
+        words[0..4].copy_from_slice(&tone.exposure.exp2().to_le_bytes());
+        words[12..16].copy_from_slice(&tone.curve.index().to_le_bytes());
+        words[4..8].copy_from_slice(&self.width.to_le_bytes());
+        words[8..12].copy_from_slice(&self.height.to_le_bytes());
+        queue.write_buffer(&self.params, 0, &words);
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("tone map"),
+        });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("tone map"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.group, &[]);
+            pass.dispatch_workgroups(self.width.div_ceil(16), self.height.div_ceil(16), 1);
+        }
+        queue.submit([encoder.finish()]);
+    }
+
+    /// Reads `display` back as RGB8 (for tests and checks).
+    pub fn read_rgb8(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Vec<u8>, String> {
+        let row = (self.width * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("display readback"),
+            size: (row * self.height) as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.copy_texture_to_buffer(
+            self.display.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row),
+                    rows_per_image: None,
+                },
+            },
+            self.display.size(),
+        );
+        queue.submit([encoder.finish()]);
+        let slice = buffer.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        device
+            .poll(wgpu::PollType::Wait {
+                submission_index: None,
+                timeout: None,
+            })
+            .map_err(|e| e.to_string())?;
+        rx.recv()
+            .map_err(|e| e.to_string())?
+            .map_err(|e| e.to_string())?;
+        let data = slice.get_mapped_range().map_err(|e| format!("{e:?}"))?;
+        let mut out = Vec::with_capacity((self.width * self.height * 3) as usize);
+        for y in 0..self.height {
+            let start = (y * row) as usize;
+            for px in data[start..start + (self.width * 4) as usize].chunks_exact(4) {
+                out.extend_from_slice(&px[..3]);
+            }
+        }
+        Ok(out)
+    }
+}

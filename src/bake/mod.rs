@@ -1,0 +1,715 @@
+//! The bake: for every pixel of the fixed view, its transport row over all 6 N² cube texel lights
+//! (visibility x BRDF x cosine integrated over each texel), the SH projection of the same row,
+//! then per-face Haar, thresholding and quantisation into the tiled layout of
+//! [`crate::store::transport`]. Parallel over pixel tiles with rayon; each tile is finished and compressed
+//! before the next is taken, so memory stays bounded by the output.
+
+pub mod medium_rows;
+pub mod reference;
+
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::bake::medium_rows::MediumRows;
+use crate::error::{PrtError, Result};
+use crate::light::select::TexelShBasis;
+use crate::math::cubemap::{texel_count, validate_n};
+use crate::math::haar;
+use crate::math::sampling::{TexelSamples, pixel_samples};
+use crate::medium::Medium;
+use crate::scene::Scene;
+use crate::scene::brdf;
+use crate::scene::trace::{Hit, Tracer};
+use crate::store::budget::{Budget, Thresholder};
+use crate::store::transport::{
+    BakeStats, CameraMeta, EncodedTile, Quantization, RowData, TILE, Transport, TransportMeta,
+    shard_of_band, tile_grid,
+};
+
+/// Settings of a bake; the defaults are the command line's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakeSettings {
+    /// Cube face size N of the texel lights.
+    pub cube_n: usize,
+    /// SH order of the SH transport (n² coefficients).
+    pub sh_order: usize,
+    /// Sub-pixel samples per pixel.
+    pub spp: u32,
+    /// Shadow-ray directions per texel (rounded up to a square).
+    pub texel_samples: u32,
+    /// Error allowed per row when dropping small Haar coefficients, relative to the L2 norm of
+    /// an unshadowed row (0 keeps all). One absolute budget for every row spends it where the
+    /// image is bright: shadowed rows become sparser than lit ones.
+    pub threshold: f32,
+    /// How the thresholding budget weighs coefficients.
+    pub budget: Budget,
+    /// How kept values are stored (unless `lossless`).
+    pub quantization: Quantization,
+    /// Keep every coefficient in 32-bit floats (for checks against the reference).
+    pub lossless: bool,
+    /// Ignore visibility (no shadows).
+    pub unshadowed: bool,
+    /// Seed of every random choice.
+    pub seed: u64,
+    /// `[index, count]`: bake only shard `index` of `count` (bands of tile rows).
+    pub shard: Option<[u32; 2]>,
+    /// Interreflection bounces added to the direct light (0: direct only).
+    pub bounces: u32,
+    /// Paths traced per camera sub-sample for the interreflections.
+    pub paths: u32,
+}
+
+impl Default for BakeSettings {
+    fn default() -> Self {
+        BakeSettings {
+            cube_n: 32,
+            sh_order: 6,
+            spp: 1,
+            texel_samples: 1,
+            threshold: 0.01,
+            budget: Budget::L2,
+            quantization: Quantization::Q8,
+            lossless: false,
+            unshadowed: false,
+            seed: 1,
+            shard: None,
+            bounces: 0,
+            paths: 64,
+        }
+    }
+}
+
+impl BakeSettings {
+    /// Checks ranges before any work.
+    pub fn validate(&self) -> Result<()> {
+        validate_n(self.cube_n)?;
+        if self.cube_n > 128 {
+            return Err(PrtError::invalid(
+                "cube size",
+                format!(
+                    "N = {}: per-pixel rows above N = 128 are not supported",
+                    self.cube_n
+                ),
+            ));
+        }
+        if !(1..=10).contains(&self.sh_order) {
+            return Err(PrtError::invalid(
+                "SH order",
+                format!("{}; it must be from 1 to 10", self.sh_order),
+            ));
+        }
+        if self.spp == 0 || self.spp > 4096 {
+            return Err(PrtError::invalid(
+                "spp",
+                format!("{}; it must be from 1 to 4096", self.spp),
+            ));
+        }
+        if self.texel_samples == 0 || self.texel_samples > 256 {
+            return Err(PrtError::invalid(
+                "texel samples",
+                format!("{}; it must be from 1 to 256", self.texel_samples),
+            ));
+        }
+        if let Some([i, count]) = self.shard
+            && (count == 0 || i >= count)
+        {
+            return Err(PrtError::invalid(
+                "shard",
+                format!("{i}/{count}; it must be I/COUNT with 0 <= I < COUNT"),
+            ));
+        }
+        if self.bounces > 16 || (self.bounces > 0 && !(1..=65536).contains(&self.paths)) {
+            return Err(PrtError::invalid(
+                "interreflections",
+                format!(
+                    "{} bounces with {} paths; bounces go up to 16, paths from 1 to 65536",
+                    self.bounces, self.paths
+                ),
+            ));
+        }
+        if !(0.0..1.0).contains(&self.threshold) {
+            return Err(PrtError::invalid(
+                "threshold",
+                format!("{}; it must be in [0, 1)", self.threshold),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The quantisation the settings imply.
+    pub fn quantization(&self) -> Quantization {
+        if self.lossless {
+            Quantization::F32
+        } else {
+            self.quantization
+        }
+    }
+}
+
+/// Progress of a running bake.
+#[derive(Clone, Copy, Debug)]
+pub struct BakeProgress {
+    pub pixels_done: usize,
+    pub pixels_total: usize,
+    pub shadow_rays: u64,
+    /// Texel lights done and in all for a scene's medium rows (a first stage; `[0, 0]` without a
+    /// medium).
+    pub medium_texels: [usize; 2],
+}
+
+/// Where the shading of one camera sub-sample happens: a hit point and its diffuse material.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadingPoint {
+    /// Origin for shadow rays, offset off the surface.
+    pub origin: Vec3,
+    /// Shading normal, facing the camera ray.
+    pub normal: Vec3,
+    /// Unit direction from the surface towards the viewer.
+    pub view: Vec3,
+    /// Material index.
+    pub material: u32,
+}
+
+/// Shades a camera hit seen along `ray_dir`: the offset origin for shadow rays, the normal and
+/// the direction back to the viewer.
+pub fn shading_point(tracer: &Tracer, hit: &Hit, ray_dir: Vec3) -> ShadingPoint {
+    ShadingPoint {
+        origin: tracer.offset_origin(hit, hit.normal),
+        normal: hit.normal,
+        view: -ray_dir,
+        material: hit.material,
+    }
+}
+
+/// Diffuse albedo of a material.
+pub fn albedo(scene: &Scene, material: u32) -> [f32; 3] {
+    scene.materials[material as usize].albedo().to_array()
+}
+
+/// For every texel sample ω, adds `scale · visibility · lobe(ω) · Ω_ω` to the rows (texel
+/// order): the Lambertian lobe ([`brdf::diffuse_cosine`]) to `diffuse` and, for a glossy
+/// material, the GGX lobe of width `alpha` ([`brdf::ggx_cosine`]) to `glossy`. One shadow ray
+/// serves both. Returns the shadow rays traced.
+#[allow(clippy::too_many_arguments)]
+pub fn accumulate_direct_rows(
+    tracer: &Tracer,
+    samples: &TexelSamples,
+    sp: &ShadingPoint,
+    unshadowed: bool,
+    medium: Option<&Medium>,
+    scale: f32,
+    diffuse: &mut [f32],
+    mut glossy: Option<(f32, &mut [f32])>,
+) -> u64 {
+    let m = samples.per_texel;
+    let mut rays = 0u64;
+    for (j, out) in diffuse.iter_mut().enumerate() {
+        let dirs = &samples.dirs[j * m..(j + 1) * m];
+        let weights = &samples.weights[j * m..(j + 1) * m];
+        let (mut acc, mut acc_glossy) = (0.0f32, 0.0f32);
+        for (d, w) in dirs.iter().zip(weights) {
+            if sp.normal.dot(*d) <= 0.0 {
+                continue;
+            }
+            let mut w = *w;
+            if !unshadowed {
+                rays += 1;
+                if tracer.occluded(sp.origin, *d, f32::INFINITY) {
+                    continue;
+                }
+                if let Some(m) = medium {
+                    w *= m.transmittance(sp.origin, *d, f32::INFINITY);
+                }
+            }
+            acc += brdf::diffuse_cosine(sp.normal, *d) * w;
+            if let Some((alpha, _)) = glossy {
+                acc_glossy += brdf::ggx_cosine(sp.normal, sp.view, *d, alpha) * w;
+            }
+        }
+        *out += acc * scale;
+        if let Some((_, row)) = glossy.as_mut() {
+            row[j] += acc_glossy * scale;
+        }
+    }
+    rays
+}
+
+/// The random stream of a camera sub-sample's interreflection paths.
+pub fn path_stream(pixel: u64, sub: usize, spp: u32) -> u64 {
+    pixel * spp.max(1) as u64 + sub as u64
+}
+
+/// Traces `settings.paths` paths of up to `settings.bounces` bounces from a camera hit and calls
+/// `emit(direction, throughput)` for every path that leaves the scene after at least one bounce:
+/// the light it brings is `throughput ⊙ L(direction)` per path. Directions are cosine-sampled, so
+/// a bounce multiplies the throughput by `π f cos / cos` (the albedo, plus the GGX lobe over its
+/// cosine). Paths that leave straight from the camera hit are direct light, which the texel rows
+/// already hold exactly. Seeded per stream; returns the rays traced.
+pub fn indirect_paths(
+    tracer: &Tracer,
+    scene: &Scene,
+    start: &ShadingPoint,
+    settings: &BakeSettings,
+    stream: u64,
+    emit: &mut dyn FnMut(Vec3, [f32; 3]),
+) -> u64 {
+    let mut rays = 0;
+    let mut rng = crate::math::sampling::Rng::new(settings.seed ^ 0x5eed_ba11, stream);
+    for _ in 0..settings.paths {
+        let mut throughput = [1.0f32; 3];
+        let mut at = *start;
+        for bounce in 0..=settings.bounces {
+            let (u1, u2) = (rng.next_f32(), rng.next_f32());
+            let (t, b) = at.normal.any_orthonormal_pair();
+            let (r, phi) = (u1.sqrt(), 2.0 * std::f32::consts::PI * u2);
+            let d = (t * (r * phi.cos())
+                + b * (r * phi.sin())
+                + at.normal * (1.0 - u1).max(0.0).sqrt())
+            .normalize();
+            let cos = at.normal.dot(d);
+            if cos <= 1e-6 {
+                break;
+            }
+            let m = &scene.materials[at.material as usize];
+            let weight = match m.glossy_lobe() {
+                Some((s, alpha)) => {
+                    let g =
+                        std::f32::consts::PI * brdf::ggx_cosine(at.normal, at.view, d, alpha) / cos;
+                    m.albedo() + s * g
+                }
+                None => m.albedo(),
+            };
+            for k in 0..3 {
+                throughput[k] *= weight[k];
+            }
+            rays += 1;
+            // The origin is offset to the side of the shading normal, where `d` points.
+            match tracer.closest_hit(at.origin, d, f32::INFINITY) {
+                None => {
+                    if bounce > 0 {
+                        emit(d, throughput);
+                    }
+                    break;
+                }
+                Some(hit) => {
+                    if bounce == settings.bounces {
+                        break;
+                    }
+                    at = shading_point(tracer, &hit, d);
+                }
+            }
+        }
+    }
+    rays
+}
+
+/// What one tile of the bake produces.
+struct TileOutput {
+    rows: Vec<RowData>,
+    /// (pixel, mean albedo over hit sub-samples, coverage).
+    pixels: Vec<(u32, [f32; 3], f32)>,
+    dropped_energy: f64,
+    total_energy: f64,
+    rays: u64,
+}
+
+/// Bakes `scene` with `settings`, calling `progress` after each tile.
+pub fn bake(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &(dyn Fn(BakeProgress) + Sync),
+) -> Result<Transport> {
+    settings.validate()?;
+    let tracer = Tracer::new(scene);
+    let cam = &scene.camera;
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let n = settings.cube_n;
+    let samples = TexelSamples::new(n, settings.texel_samples as usize, settings.seed);
+    let basis = TexelShBasis::new(n, settings.sh_order)?;
+    let (tx, ty) = tile_grid(w, h);
+    if let Some([_, count]) = settings.shard
+        && count as usize > ty
+    {
+        return Err(PrtError::invalid(
+            "shard",
+            format!("{count} shards for an image of only {ty} tile rows"),
+        ));
+    }
+    // A shard bakes only its band of tile rows; the other tiles stay empty.
+    let mine = |tile: usize| match settings.shard {
+        None => true,
+        Some([i, count]) => shard_of_band(tile / tx, ty, count as usize) == i as usize,
+    };
+    let pixels_total: usize = (0..tx * ty)
+        .filter(|&t| mine(t))
+        .map(|t| tile_pixels(w, h, t % tx, t / tx))
+        .sum();
+    let medium = match &scene.medium {
+        Some(spec) => Some(spec.build(None)?),
+        None => None,
+    };
+    if medium.is_some() && settings.bounces > 0 {
+        return Err(PrtError::invalid(
+            "bounces",
+            "interreflections are not traced through a medium; bake a scene with a [medium] \
+             with --bounces 0",
+        ));
+    }
+    let medium_rows = match &medium {
+        Some(m) => Some(MediumRows::bake(
+            m,
+            scene,
+            &tracer,
+            &samples,
+            settings.spp,
+            settings.seed,
+            &|p| mine((p / w / TILE) * tx + (p % w) / TILE),
+            &|done, total| {
+                progress(BakeProgress {
+                    pixels_done: 0,
+                    pixels_total,
+                    shadow_rays: 0,
+                    medium_texels: [done, total],
+                })
+            },
+        )?),
+        None => None,
+    };
+    let mut reference_haar = unoccluded_row(&samples);
+    let reference_energy: f64 = reference_haar.iter().map(|&v| (v as f64).powi(2)).sum();
+    haar::forward_face_all(&mut reference_haar, n, &mut Vec::new());
+    let ctx = TileContext {
+        scene,
+        tracer: &tracer,
+        settings,
+        reference_energy,
+        thresholder: Thresholder::new(
+            settings.budget,
+            if settings.lossless {
+                0.0
+            } else {
+                settings.threshold
+            },
+            n,
+            &reference_haar,
+        ),
+        samples: &samples,
+        basis: &basis,
+        medium: medium.as_ref(),
+        medium_rows: medium_rows.as_ref(),
+    };
+    let done = AtomicUsize::new(0);
+    let rays = AtomicU64::new(0);
+    let (c, shc, quantization) = (
+        texel_count(n),
+        settings.sh_order.pow(2),
+        settings.quantization(),
+    );
+    let outputs: Vec<Option<(TileOutput, EncodedTile)>> = (0..tx * ty)
+        .into_par_iter()
+        .map(|t| {
+            if !mine(t) {
+                return Ok(None);
+            }
+            let mut out = bake_tile(&ctx, t % tx, t / tx);
+            // Quantised here, in parallel, so the rows' floats are freed tile by tile.
+            let encoded = EncodedTile::encode(&out.rows, c, shc, quantization)?;
+            out.rows = Vec::new();
+            let px = out.pixels.len();
+            progress(BakeProgress {
+                pixels_done: done.fetch_add(px, Ordering::Relaxed) + px,
+                pixels_total,
+                shadow_rays: rays.fetch_add(out.rays, Ordering::Relaxed) + out.rays,
+                medium_texels: [0, 0],
+            });
+            Ok(Some((out, encoded)))
+        })
+        .collect::<Result<_>>()?;
+    let mut albedo = vec![[0.0f32; 3]; w * h];
+    let mut coverage = vec![0.0f32; w * h];
+    let mut tiles = Vec::with_capacity(outputs.len());
+    let mut tile_stats = Vec::with_capacity(outputs.len());
+    for out in outputs {
+        let Some((out, encoded)) = out else {
+            tiles.push(EncodedTile::encode(&[], c, shc, quantization)?);
+            tile_stats.push([0.0; 3]);
+            continue;
+        };
+        for (p, a, cov) in out.pixels {
+            albedo[p as usize] = a;
+            coverage[p as usize] = cov;
+        }
+        tile_stats.push([
+            out.dropped_energy + encoded.quantization_energy,
+            out.total_energy,
+            out.rays as f64,
+        ]);
+        tiles.push(encoded);
+    }
+    let meta = TransportMeta {
+        width: w as u32,
+        height: h as u32,
+        tile: TILE as u32,
+        cube_n: n as u32,
+        sh_order: settings.sh_order as u32,
+        scene_hash: format!("{:016x}", scene.content_hash()),
+        scene_path: scene.source_path.display().to_string(),
+        camera: CameraMeta {
+            eye: cam.eye.to_array(),
+            target: cam.target.to_array(),
+            up: cam.up.to_array(),
+            fov_y_deg: cam.fov_y_deg,
+        },
+        spp: settings.spp,
+        texel_samples: samples.per_texel as u32,
+        unshadowed: settings.unshadowed,
+        seed: settings.seed,
+        threshold: if settings.lossless {
+            0.0
+        } else {
+            settings.threshold
+        },
+        budget: settings.budget,
+        quantization: settings.quantization(),
+        shard: settings.shard,
+        bounces: settings.bounces,
+        paths: if settings.bounces > 0 {
+            settings.paths
+        } else {
+            0
+        },
+        stats: BakeStats::default(),
+    };
+    Transport::assemble_encoded(meta, &tiles, albedo, coverage, tile_stats)
+}
+
+fn tile_pixels(w: usize, h: usize, tx: usize, ty: usize) -> usize {
+    (w - tx * TILE).min(TILE) * (h - ty * TILE).min(TILE)
+}
+
+/// What every tile of a bake shares.
+struct TileContext<'a> {
+    scene: &'a Scene,
+    tracer: &'a Tracer,
+    settings: &'a BakeSettings,
+    samples: &'a TexelSamples,
+    basis: &'a TexelShBasis,
+    /// Energy of an unshadowed row, the scale of the thresholding budget.
+    reference_energy: f64,
+    /// The thresholding budget.
+    thresholder: Thresholder,
+    /// The scene's medium and its rows, if it has one.
+    medium: Option<&'a Medium>,
+    medium_rows: Option<&'a MediumRows>,
+}
+
+/// Bakes one tile: dense rows per (pixel, material), SH projection, Haar and thresholding.
+fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
+    let TileContext {
+        scene,
+        tracer,
+        settings,
+        samples,
+        basis,
+        reference_energy,
+        ref thresholder,
+        medium,
+        medium_rows,
+    } = *ctx;
+    let cam = &scene.camera;
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let n = settings.cube_n;
+    let c = texel_count(n);
+    let shc = settings.sh_order * settings.sh_order;
+    let mut out = TileOutput {
+        rows: Vec::new(),
+        pixels: Vec::new(),
+        dropped_energy: 0.0,
+        total_energy: 0.0,
+        rays: 0,
+    };
+    let mut order: Vec<(f32, u32)> = Vec::with_capacity(c);
+    let mut scratch = Vec::new();
+    for y in tile_y * TILE..((tile_y + 1) * TILE).min(h) {
+        for x in tile_x * TILE..((tile_x + 1) * TILE).min(w) {
+            let subs = pixel_samples(x as u32, y as u32, w as u32, settings.spp, settings.seed);
+            let inv_spp = 1.0 / subs.len() as f32;
+            // Dense rows of this pixel, one per material seen.
+            // Dense rows of this pixel per material seen: the diffuse lobe's and, for glossy
+            // materials, the GGX lobe's.
+            let mut dense: Vec<(u32, Vec<f32>, Option<Vec<f32>>)> = Vec::new();
+            // Interreflected light, one row per colour channel (colour bleeding mixes them).
+            let mut indirect: Option<[Vec<f32>; 3]> = None;
+            let mut hits = 0usize;
+            let mut covered = 0usize;
+            let mut albedo_sum = [0.0f32; 3];
+            let pixel_index = (y * w + x) as u64;
+            for (sub, (fx, fy)) in subs.into_iter().enumerate() {
+                let ray = cam.ray(fx, fy);
+                let found = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
+                // Through a medium, what the camera sees of the surface is attenuated.
+                let (seen, in_medium) = match medium {
+                    Some(m) => {
+                        let t = m.transmittance(
+                            ray.origin,
+                            ray.dir,
+                            found.map_or(f32::INFINITY, |h| h.t),
+                        );
+                        (t, t < 0.999)
+                    }
+                    None => (1.0, false),
+                };
+                if found.is_some() || in_medium {
+                    covered += 1;
+                }
+                let Some(hit) = found else {
+                    continue;
+                };
+                hits += 1;
+                let sp = shading_point(tracer, &hit, ray.dir);
+                let a = albedo(scene, sp.material);
+                for k in 0..3 {
+                    albedo_sum[k] += a[k];
+                }
+                let lobe = scene.materials[sp.material as usize].glossy_lobe();
+                let slot = match dense.iter().position(|(m, ..)| *m == sp.material) {
+                    Some(i) => i,
+                    None => {
+                        dense.push((sp.material, vec![0.0; c], lobe.map(|_| vec![0.0; c])));
+                        dense.len() - 1
+                    }
+                };
+                let (_, diffuse, glossy) = &mut dense[slot];
+                out.rays += accumulate_direct_rows(
+                    tracer,
+                    samples,
+                    &sp,
+                    settings.unshadowed,
+                    medium,
+                    inv_spp * seen,
+                    diffuse,
+                    lobe.zip(glossy.as_deref_mut())
+                        .map(|((_, alpha), row)| (alpha, row)),
+                );
+                if settings.bounces > 0 {
+                    let rows =
+                        indirect.get_or_insert_with(|| std::array::from_fn(|_| vec![0.0; c]));
+                    let scale = inv_spp / settings.paths as f32;
+                    out.rays += indirect_paths(
+                        tracer,
+                        scene,
+                        &sp,
+                        settings,
+                        path_stream(pixel_index, sub, settings.spp),
+                        &mut |dir, throughput| {
+                            let j = crate::math::cubemap::dir_to_texel(n, dir.as_dvec3());
+                            for k in 0..3 {
+                                rows[k][j] += throughput[k] * scale;
+                            }
+                        },
+                    );
+                }
+            }
+            let pixel = (y * w + x) as u32;
+            let mean_albedo = if hits > 0 {
+                albedo_sum.map(|v| v / hits as f32)
+            } else {
+                [0.0; 3]
+            };
+            out.pixels
+                .push((pixel, mean_albedo, covered as f32 * inv_spp));
+            let lobes = dense.into_iter().flat_map(|(material, diffuse, glossy)| {
+                let m = &scene.materials[material as usize];
+                let specular = m.glossy_lobe().map(|(s, _)| s.to_array());
+                std::iter::once((m.albedo().to_array(), diffuse))
+                    .chain(glossy.zip(specular).map(|(row, s)| (s, row)))
+            });
+            let channels = indirect.into_iter().flat_map(|rows| {
+                rows.into_iter()
+                    .enumerate()
+                    .map(|(k, row)| (std::array::from_fn(|i| (i == k) as u8 as f32), row))
+            });
+            // Every row with the scale of its thresholding budget.
+            let lobes = lobes
+                .chain(channels)
+                .map(|(weight, row)| (weight, row, reference_energy));
+            let scattered = medium.zip(medium_rows).and_then(|(m, rows)| {
+                let p = pixel as usize;
+                Some((m.albedo.to_array(), rows.row(p)?, rows.reference_energy(p)))
+            });
+            for (weight, mut row, budget_scale) in lobes.chain(scattered) {
+                let mut sh = vec![0.0f32; shc];
+                basis.project_row(&row, &mut sh);
+                haar::forward_face_all(&mut row, n, &mut scratch);
+                let (entries, dropped, total) =
+                    thresholder.sparsify(&row, budget_scale, &mut order);
+                out.dropped_energy += dropped;
+                out.total_energy += total;
+                out.rows.push(RowData {
+                    pixel,
+                    weight,
+                    entries,
+                    sh,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The row of an unshadowed surface facing +Y with unit albedo, in texel order: the row the
+/// thresholding budget is relative to (the same energy for every normal up to texel
+/// discretisation).
+fn unoccluded_row(samples: &TexelSamples) -> Vec<f32> {
+    let m = samples.per_texel;
+    (0..samples.dirs.len() / m)
+        .map(|j| {
+            ((j * m..(j + 1) * m)
+                .map(|k| samples.dirs[k].y.max(0.0) as f64 * samples.weights[k] as f64)
+                .sum::<f64>()
+                * std::f64::consts::FRAC_1_PI) as f32
+        })
+        .collect()
+}
+
+/// The transport at `path` when it exists, loads, and was baked from this scene (same content
+/// hash) with these settings; `None` otherwise. Lets callers reuse a cached bake.
+pub fn load_if_baked_with(
+    path: &std::path::Path,
+    scene: &Scene,
+    settings: &BakeSettings,
+) -> Option<Transport> {
+    let meta = crate::store::transport::read_header_meta(path).ok()?;
+    let side = (settings.texel_samples.max(1) as f64).sqrt().ceil() as u32;
+    let threshold = if settings.lossless {
+        0.0
+    } else {
+        settings.threshold
+    };
+    let same = meta.scene_hash == format!("{:016x}", scene.content_hash())
+        && meta.cube_n as usize == settings.cube_n
+        && meta.sh_order as usize == settings.sh_order
+        && meta.spp == settings.spp
+        && meta.texel_samples == side * side
+        && meta.threshold == threshold
+        && meta.quantization == settings.quantization()
+        && (settings.lossless || meta.budget == settings.budget)
+        && meta.unshadowed == settings.unshadowed
+        && meta.seed == settings.seed
+        && meta.shard == settings.shard
+        && meta.bounces == settings.bounces
+        && (settings.bounces == 0 || meta.paths == settings.paths);
+    if !same {
+        return None;
+    }
+    Transport::load(path).ok()
+}
+
+/// Bytes a bake's output will take at most (every coefficient kept), to warn or refuse up front.
+pub fn worst_case_bytes(width: usize, height: usize, settings: &BakeSettings) -> u64 {
+    let c = texel_count(settings.cube_n) as u64;
+    let value = settings.quantization().value_bytes() as u64;
+    (width * height) as u64 * c * (1 + value)
+}

@@ -1,0 +1,158 @@
+//! The brute-force reference: the scene ray traced under a cube map whose texels are
+//! piecewise-constant lights, with no transport matrix. It is the ground truth for tests and
+//! benchmarks, so it is written to be obviously right: for every camera sub-sample and every texel
+//! sample direction, visibility x BRDF x cos x solid angle x radiance, summed; with bounces, the
+//! same seeded paths as the bake, each bringing its throughput times its exit texel's radiance.
+//! A medium attenuates what the camera sees and every shadow ray, and adds single scattering along
+//! the camera ray: at every march sample and texel sample direction, the shadow ray's
+//! transmittance is marched through the medium directly (no sweep, no SH, no matrix).
+
+use rayon::prelude::*;
+
+use crate::bake::{BakeSettings, indirect_paths, path_stream, shading_point};
+use crate::error::{PrtError, Result};
+use crate::math::cubemap::CubeMap;
+use crate::math::sampling::{TexelSamples, pixel_samples};
+use crate::medium::henyey_greenstein;
+use crate::output::film::Image;
+use crate::scene::Scene;
+use crate::scene::brdf;
+use crate::scene::trace::Tracer;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Renders `scene` lit by `cube` with the sampling of `settings` (spp, texel samples, seed,
+/// unshadowed); the cube's N is the texel-light resolution.
+pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) -> Result<Image> {
+    Ok(render_reference_with(scene, cube, settings, &|_, _| {})?.image)
+}
+
+/// A reference image and, per pixel, the fraction of its camera sub-samples that hit geometry
+/// (as a bake's `coverage`).
+pub struct Reference {
+    pub image: Image,
+    pub coverage: Vec<f32>,
+}
+
+/// [`render_reference`], with the coverage, calling `progress(rows done, rows)` as rows finish.
+pub fn render_reference_with(
+    scene: &Scene,
+    cube: &CubeMap,
+    settings: &BakeSettings,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Reference> {
+    if cube.n != settings.cube_n {
+        return Err(PrtError::invalid(
+            "cube map",
+            format!(
+                "N = {} but the settings ask for N = {}",
+                cube.n, settings.cube_n
+            ),
+        ));
+    }
+    settings.validate()?;
+    let tracer = Tracer::new(scene);
+    let cam = &scene.camera;
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let samples = TexelSamples::new(cube.n, settings.texel_samples as usize, settings.seed);
+    let medium = match &scene.medium {
+        Some(spec) => Some(spec.build(None)?),
+        None => None,
+    };
+    let medium = medium.as_ref();
+    if medium.is_some() && settings.bounces > 0 {
+        return Err(PrtError::invalid(
+            "bounces",
+            "interreflections are not traced through a medium",
+        ));
+    }
+    let mut image = Image::new(w, h);
+    let mut coverage = vec![0.0f32; w * h];
+    let rows_done = AtomicUsize::new(0);
+    image
+        .pixels
+        .par_chunks_mut(w)
+        .zip(coverage.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (line, line_coverage))| {
+            for (x, (px, cov)) in line.iter_mut().zip(line_coverage).enumerate() {
+                let subs = pixel_samples(x as u32, y as u32, w as u32, settings.spp, settings.seed);
+                let inv_spp = 1.0 / subs.len() as f64;
+                let mut sum = [0.0f64; 3];
+                let mut march = Vec::new();
+                for (sub, (fx, fy)) in subs.into_iter().enumerate() {
+                    let ray = cam.ray(fx, fy);
+                    let found = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
+                    let t_hit = found.map_or(f32::INFINITY, |h| h.t);
+                    let mut seen = 1.0f64;
+                    if let Some(m) = medium {
+                        seen = m.transmittance(ray.origin, ray.dir, t_hit) as f64;
+                        m.march_camera(ray.origin, ray.dir, t_hit, &mut march);
+                        for s in &march {
+                            for (d, w) in samples.dirs.iter().zip(&samples.weights) {
+                                let tau = m.optical_depth(s.pos, *d, f32::INFINITY);
+                                let f = s.weight as f64
+                                    * henyey_greenstein(m.g, d.dot(ray.dir)) as f64
+                                    * *w as f64
+                                    * (-tau as f64).exp()
+                                    * inv_spp;
+                                let l = cube.lookup(d.as_dvec3());
+                                for k in 0..3 {
+                                    sum[k] += f * m.albedo[k] as f64 * l[k] as f64;
+                                }
+                            }
+                        }
+                    }
+                    let Some(hit) = found else {
+                        continue;
+                    };
+                    *cov += inv_spp as f32;
+                    let sp = shading_point(&tracer, &hit, ray.dir);
+                    let material = &scene.materials[sp.material as usize];
+                    let albedo = material.albedo();
+                    let glossy = material.glossy_lobe();
+                    for (d, w) in samples.dirs.iter().zip(&samples.weights) {
+                        if sp.normal.dot(*d) <= 0.0 {
+                            continue;
+                        }
+                        let mut visible = seen;
+                        if !settings.unshadowed {
+                            if tracer.occluded(sp.origin, *d, f32::INFINITY) {
+                                continue;
+                            }
+                            if let Some(m) = medium {
+                                visible *= m.transmittance(sp.origin, *d, f32::INFINITY) as f64;
+                            }
+                        }
+                        // f(ω, view) · cos: albedo / π · cos, plus the specular GGX lobe.
+                        let diffuse = brdf::diffuse_cosine(sp.normal, *d);
+                        let (specular, ggx) = match glossy {
+                            Some((s, alpha)) => {
+                                (s, brdf::ggx_cosine(sp.normal, sp.view, *d, alpha))
+                            }
+                            None => (glam::Vec3::ZERO, 0.0),
+                        };
+                        let l = cube.lookup(d.as_dvec3());
+                        for k in 0..3 {
+                            let f = albedo[k] * diffuse + specular[k] * ggx;
+                            sum[k] += f as f64 * *w as f64 * inv_spp * l[k] as f64 * visible;
+                        }
+                    }
+                    // Interreflections: every path that leaves the scene after a bounce brings
+                    // its throughput times the radiance of the texel it leaves through.
+                    if settings.bounces > 0 {
+                        let scale = inv_spp / settings.paths as f64;
+                        let stream = path_stream((y * w + x) as u64, sub, settings.spp);
+                        indirect_paths(&tracer, scene, &sp, settings, stream, &mut |d, tp| {
+                            let l = cube.lookup(d.as_dvec3());
+                            for k in 0..3 {
+                                sum[k] += tp[k] as f64 * l[k] as f64 * scale;
+                            }
+                        });
+                    }
+                }
+                *px = sum.map(|v| v as f32);
+            }
+            progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1, h);
+        });
+    Ok(Reference { image, coverage })
+}

@@ -1,0 +1,274 @@
+//! Optical depth of a whole density grid towards one direction at a time, swept slice by slice
+//! from the side the light comes from (see [`crate::volume`] for how the self-transfer bake and
+//! the per-pixel medium rows use it). Each voxel takes the optical depth of the point one slice
+//! upstream (bilinear in the previous slice, the same weights for the whole slice) plus the
+//! trapezoid of the density over that step.
+
+use glam::Vec3;
+
+use super::Medium;
+
+/// The grid in the layout of one sweep axis `a`: slices along `a`, rows along `b`, `c` fastest.
+struct AxisLayout {
+    axes: [usize; 3],
+    n: [usize; 3],
+    /// sigma_t at the voxel centres, in this layout.
+    sigma: Vec<f32>,
+    /// Local index of every voxel, by global index.
+    local_of_global: Vec<u32>,
+}
+
+/// Optical depth of a whole grid towards one direction at a time (see the module docs).
+pub struct Sweeper {
+    dims: [usize; 3],
+    cell: Vec3,
+    min: Vec3,
+    layouts: [AxisLayout; 3],
+}
+
+impl Sweeper {
+    /// Local index of every voxel in the layout of sweep axis `axis`, by global index: where
+    /// [`Sweeper::sweep`] writes the voxel `(z·ny + y)·nx + x`.
+    pub fn local_of_global(&self, axis: usize) -> &[u32] {
+        &self.layouts[axis].local_of_global
+    }
+}
+
+/// Optical depth at voxel centres towards one direction, in the layout of its sweep axis.
+pub struct DepthGrid<'a> {
+    sweeper: &'a Sweeper,
+    axis: usize,
+    pub tau: Vec<f32>,
+}
+
+impl Sweeper {
+    pub fn new(medium: &Medium) -> Sweeper {
+        let g = &medium.grid;
+        let dims = g.dims;
+        let layouts = [0usize, 1, 2].map(|a| {
+            let (b, c) = match a {
+                0 => (1, 2),
+                1 => (0, 2),
+                _ => (0, 1),
+            };
+            let n = [dims[a], dims[b], dims[c]];
+            let mut sigma = vec![0.0f32; g.voxel_count()];
+            let mut local_of_global = vec![0u32; g.voxel_count()];
+            for z in 0..dims[2] {
+                for y in 0..dims[1] {
+                    for x in 0..dims[0] {
+                        let p = [x, y, z];
+                        let global = (z * dims[1] + y) * dims[0] + x;
+                        let local = (p[a] * n[1] + p[b]) * n[2] + p[c];
+                        sigma[local] = medium.extinction * g.data[global];
+                        local_of_global[global] = local as u32;
+                    }
+                }
+            }
+            AxisLayout {
+                axes: [a, b, c],
+                n,
+                sigma,
+                local_of_global,
+            }
+        });
+        Sweeper {
+            dims,
+            cell: g.cell(),
+            min: g.min,
+            layouts,
+        }
+    }
+
+    /// The sweep axis of `dir`: its largest component.
+    pub fn axis_of(dir: Vec3) -> usize {
+        let a = dir.abs();
+        if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        }
+    }
+
+    /// Optical depth from every voxel centre out of the medium along `dir` (unit).
+    pub fn depth(&self, dir: Vec3) -> DepthGrid<'_> {
+        let axis = Self::axis_of(dir);
+        let mut tau = vec![0.0f32; self.layouts[axis].sigma.len()];
+        self.sweep(dir, &mut tau, |t| t);
+        DepthGrid {
+            sweeper: self,
+            axis,
+            tau,
+        }
+    }
+
+    /// Transmittance `exp(−tau)` from every voxel centre out of the medium along `dir`.
+    pub fn transmittance(&self, dir: Vec3) -> DepthGrid<'_> {
+        let axis = Self::axis_of(dir);
+        let mut tau = vec![0.0f32; self.layouts[axis].sigma.len()];
+        self.sweep(dir, &mut tau, |t| (-t).exp());
+        DepthGrid {
+            sweeper: self,
+            axis,
+            tau,
+        }
+    }
+
+    /// Where `p` falls in each axis layout: the base index of its trilinear cell and the
+    /// fractions along (a, b, c), clamped to the edge voxels. Locating march samples once makes
+    /// every later read of a grid ([`DepthGrid::at_located`]) eight loads and seven lerps.
+    pub fn locate(&self, p: Vec3) -> [Located; 3] {
+        let u = (p - self.min) / self.cell - 0.5;
+        std::array::from_fn(|axis| {
+            let layout = &self.layouts[axis];
+            let [a, b, c] = layout.axes;
+            let [na, nb, nc] = layout.n;
+            let coord = |v: f32, n: usize| -> (usize, f32) {
+                if n < 2 {
+                    return (0, 0.0);
+                }
+                let v = v.clamp(0.0, (n - 1) as f32);
+                let i = (v as usize).min(n - 2);
+                (i, v - i as f32)
+            };
+            let (ia, fa) = coord(u[a], na);
+            let (ib, fb) = coord(u[b], nb);
+            let (ic, fc) = coord(u[c], nc);
+            Located {
+                base: ((ia * nb + ib) * nc + ic) as u32,
+                frac: [fa, fb, fc],
+            }
+        })
+    }
+
+    /// Sweeps `dir`, writing `f(tau)` per voxel into `out` (the layout of `dir`'s axis).
+    pub fn sweep(&self, dir: Vec3, out: &mut [f32], f: impl Fn(f32) -> f32) {
+        let layout = &self.layouts[Self::axis_of(dir)];
+        let [a, b, c] = layout.axes;
+        let [na, nb, nc] = layout.n;
+        let h = self.cell[a] / dir[a].abs();
+        // The upstream point's offset in cells along b and c. Very flat voxels (a box far
+        // longer than its grid is fine) can put it many grids away: beyond one grid it only
+        // reads the empty padding, so it is cut there (and the padding stays small).
+        let offset = |o: f32, n: usize| -> (f32, f32) {
+            let limit = n as f32 + 1.0;
+            if o.abs() <= limit {
+                (o.floor(), o - o.floor())
+            } else if o > limit {
+                (limit, 0.0)
+            } else {
+                (-limit - 1.0, 0.0)
+            }
+        };
+        let (fb, wb) = offset(h * dir[b] / self.cell[b], nb);
+        let (fc, wc) = offset(h * dir[c] / self.cell[c], nc);
+        let (ib, ic) = (fb as isize, fc as isize);
+        let pad = [ib, ib + 1, ic, ic + 1]
+            .iter()
+            .map(|v| v.unsigned_abs())
+            .max()
+            .unwrap_or(1);
+        let (pb, pc) = (nb + 2 * pad, nc + 2 * pad);
+        let mut up = vec![0.0f32; pb * pc];
+        let mut next = vec![0.0f32; pb * pc];
+        let hh = 0.5 * h;
+        let slices: Box<dyn Iterator<Item = usize>> = if dir[a] > 0.0 {
+            Box::new((0..na).rev())
+        } else {
+            Box::new(0..na)
+        };
+        for s in slices {
+            let sig = &layout.sigma[s * nb * nc..(s + 1) * nb * nc];
+            let dst = &mut out[s * nb * nc..(s + 1) * nb * nc];
+            for jb in 0..nb {
+                let r0 = (jb as isize + pad as isize + ib) as usize;
+                let (row0, row1) = (
+                    &up[r0 * pc..(r0 + 1) * pc],
+                    &up[(r0 + 1) * pc..(r0 + 2) * pc],
+                );
+                let base = (pad as isize + ic) as usize;
+                let next_row = &mut next[(jb + pad) * pc + pad..(jb + pad) * pc + pad + nc];
+                for jc in 0..nc {
+                    let k = base + jc;
+                    let u = (1.0 - wb) * ((1.0 - wc) * row0[k] + wc * row0[k + 1])
+                        + wb * ((1.0 - wc) * row1[k] + wc * row1[k + 1]);
+                    let sg = hh * sig[jb * nc + jc];
+                    let tau = u + sg;
+                    next_row[jc] = tau + sg;
+                    dst[jb * nc + jc] = f(tau);
+                }
+            }
+            std::mem::swap(&mut up, &mut next);
+        }
+    }
+}
+
+/// A point located in one axis layout (see [`Sweeper::locate`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Located {
+    base: u32,
+    frac: [f32; 3],
+}
+
+impl DepthGrid<'_> {
+    /// The grid's value at a point located by [`Sweeper::locate`] (its entry for this grid's
+    /// axis), trilinear like [`DepthGrid::at`].
+    #[inline]
+    pub fn at_located(&self, loc: &[Located; 3]) -> f32 {
+        let l = &loc[self.axis];
+        let [_, nb, nc] = self.sweeper.layouts[self.axis].n;
+        // Steps to the next voxel along a, b and c (0 along a side of one voxel).
+        let sa = if self.sweeper.layouts[self.axis].n[0] > 1 {
+            nb * nc
+        } else {
+            0
+        };
+        let sb = if nb > 1 { nc } else { 0 };
+        let sc = usize::from(nc > 1);
+        let t = &self.tau;
+        let i = l.base as usize;
+        let [fa, fb, fc] = l.frac;
+        let lerp = |x: f32, y: f32, w: f32| x + (y - x) * w;
+        let p00 = lerp(t[i], t[i + sc], fc);
+        let p01 = lerp(t[i + sb], t[i + sb + sc], fc);
+        let p10 = lerp(t[i + sa], t[i + sa + sc], fc);
+        let p11 = lerp(t[i + sa + sb], t[i + sa + sb + sc], fc);
+        lerp(lerp(p00, p01, fb), lerp(p10, p11, fb), fa)
+    }
+
+    /// Optical depth at `p`, trilinear between voxel centres, clamped to the edge voxels.
+    #[inline]
+    pub fn at(&self, p: Vec3) -> f32 {
+        let s = self.sweeper;
+        let layout = &s.layouts[self.axis];
+        let u = (p - s.min) / s.cell - 0.5;
+        let [a, b, c] = layout.axes;
+        let [na, nb, nc] = layout.n;
+        let coord = |v: f32, n: usize| -> (usize, usize, f32) {
+            let v = v.clamp(0.0, (n - 1) as f32);
+            let i = (v as usize).min(n.saturating_sub(2));
+            let i1 = (i + 1).min(n - 1);
+            (i, i1, v - i as f32)
+        };
+        let (a0, a1, fa) = coord(u[a], na);
+        let (b0, b1, fb) = coord(u[b], nb);
+        let (c0, c1, fc) = coord(u[c], nc);
+        let t = &self.tau;
+        let at = |i: usize, j: usize, k: usize| t[(i * nb + j) * nc + k];
+        let lerp = |x: f32, y: f32, w: f32| x + (y - x) * w;
+        let p00 = lerp(at(a0, b0, c0), at(a0, b0, c1), fc);
+        let p01 = lerp(at(a0, b1, c0), at(a0, b1, c1), fc);
+        let p10 = lerp(at(a1, b0, c0), at(a1, b0, c1), fc);
+        let p11 = lerp(at(a1, b1, c0), at(a1, b1, c1), fc);
+        lerp(lerp(p00, p01, fb), lerp(p10, p11, fb), fa)
+    }
+
+    /// Optical depth at voxel `(x, y, z)`.
+    pub fn voxel(&self, x: usize, y: usize, z: usize) -> f32 {
+        let d = self.sweeper.dims;
+        let g = (z * d[1] + y) * d[0] + x;
+        self.tau[self.sweeper.layouts[self.axis].local_of_global[g] as usize]
+    }
+}

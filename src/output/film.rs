@@ -1,0 +1,265 @@
+//! Images the engine produces: linear RGB float pixels, written as OpenEXR (linear) or PNG
+//! (exposure, then the sRGB curve), atomically. Also the tone mapping shared by PNG output, the
+//! contact sheet and the viewer.
+
+use std::path::Path;
+
+use crate::error::{PrtError, Result};
+
+/// A linear RGB image, row-major, y growing downwards.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: usize,
+    pub height: usize,
+    pub pixels: Vec<[f32; 3]>,
+}
+
+/// How linear radiance becomes display values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToneMap {
+    /// Exposure in stops: values are multiplied by 2^exposure before the curve.
+    pub exposure: f32,
+    /// How exposed values above 1 are brought into range before the sRGB curve.
+    pub curve: ToneCurve,
+}
+
+impl Default for ToneMap {
+    fn default() -> Self {
+        ToneMap {
+            exposure: 0.0,
+            curve: ToneCurve::Clip,
+        }
+    }
+}
+
+impl ToneMap {
+    /// Exposure only, clipping at 1 (what PNG output and the contact sheet use).
+    pub fn exposure(exposure: f32) -> ToneMap {
+        ToneMap {
+            exposure,
+            curve: ToneCurve::Clip,
+        }
+    }
+}
+
+/// The display curve applied per channel to exposed linear values, before the sRGB encoding.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum ToneCurve {
+    /// Values above 1 clip: faithful below 1, what an error comparison wants.
+    #[default]
+    Clip,
+    /// Reinhard's x / (1 + x) (Reinhard et al. 2002): never clips, flattens highlights.
+    Reinhard,
+    /// Narkowicz's fit of the ACES filmic curve (2015): a toe and a soft shoulder.
+    Aces,
+}
+
+impl ToneCurve {
+    pub const ALL: [ToneCurve; 3] = [ToneCurve::Clip, ToneCurve::Reinhard, ToneCurve::Aces];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ToneCurve::Clip => "clip",
+            ToneCurve::Reinhard => "Reinhard",
+            ToneCurve::Aces => "ACES (fit)",
+        }
+    }
+
+    /// The index the display shader switches on (`shaders/tonemap.wgsl`).
+    pub fn index(self) -> u32 {
+        self as u32
+    }
+
+    /// The curve at an exposed linear value `x >= 0`.
+    #[inline]
+    pub fn apply(self, x: f32) -> f32 {
+        match self {
+            ToneCurve::Clip => x,
+            ToneCurve::Reinhard => x / (1.0 + x),
+            ToneCurve::Aces => {
+                (x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14)).clamp(0.0, 1.0)
+            }
+        }
+    }
+}
+
+/// The sRGB transfer curve of a linear value in [0, 1].
+#[inline]
+pub fn srgb_encode(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+impl ToneMap {
+    /// 8-bit sRGB of a linear pixel.
+    #[inline]
+    pub fn apply(&self, p: [f32; 3]) -> [u8; 3] {
+        let s = self.exposure.exp2();
+        p.map(|v| (srgb_encode(self.curve.apply((v * s).max(0.0))) * 255.0 + 0.5) as u8)
+    }
+
+    /// An exposure that maps the 99th percentile of luminance over `mask`ed pixels to 0.9, so a
+    /// few very bright pixels do not darken the rest.
+    pub fn auto(image: &Image, mask: Option<&[f32]>) -> ToneMap {
+        let mut lum: Vec<f32> = image
+            .pixels
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| mask.is_none_or(|m| m[*i] > 0.0))
+            .map(|(_, p)| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2])
+            .filter(|l| l.is_finite() && *l > 0.0)
+            .collect();
+        if lum.is_empty() {
+            return ToneMap::default();
+        }
+        let k = ((lum.len() as f32 * 0.99) as usize).min(lum.len() - 1);
+        let (_, v, _) = lum.select_nth_unstable_by(k, f32::total_cmp);
+        ToneMap::exposure((0.9 / *v).log2())
+    }
+}
+
+impl Image {
+    /// A black image.
+    pub fn new(width: usize, height: usize) -> Self {
+        Image {
+            width,
+            height,
+            pixels: vec![[0.0; 3]; width * height],
+        }
+    }
+
+    /// 8-bit sRGB bytes, RGB interleaved.
+    pub fn to_srgb8(&self, tone: ToneMap) -> Vec<u8> {
+        self.pixels.iter().flat_map(|p| tone.apply(*p)).collect()
+    }
+
+    /// The first pixel with a NaN or infinite channel, as (x, y, value).
+    pub fn first_non_finite(&self) -> Option<(usize, usize, f32)> {
+        let w = self.width.max(1);
+        self.pixels.iter().enumerate().find_map(|(i, p)| {
+            p.iter()
+                .find(|v| !v.is_finite())
+                .map(|&v| (i % w, i / w, v))
+        })
+    }
+
+    /// An error when a pixel is NaN or infinite: `what` names the image ("the relit image").
+    /// Inputs are finite, so such a pixel means an overflow of 32-bit floats on the way.
+    pub fn check_finite(&self, what: &str) -> Result<()> {
+        match self.first_non_finite() {
+            None => Ok(()),
+            Some((x, y, v)) => Err(PrtError::invalid(
+                what,
+                format!(
+                    "pixel (x = {x}, y = {y}) is {v}: the light or the transport overflows \
+                     32-bit floats (an environment far too bright, or a damaged file)"
+                ),
+            )),
+        }
+    }
+
+    /// Writes `.exr` (linear float) or `.png` (tone-mapped sRGB), chosen by the extension. An
+    /// image with a NaN or infinite pixel is refused, not written.
+    pub fn save(&self, path: &Path, tone: ToneMap) -> Result<()> {
+        if let Some((x, y, v)) = self.first_non_finite() {
+            return Err(PrtError::file(
+                path,
+                format!("not written: pixel (x = {x}, y = {y}) is {v}"),
+            ));
+        }
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("exr") => write_atomically(path, |tmp| self.write_exr(tmp)),
+            Some("png") => write_atomically(path, |tmp| {
+                write_png(tmp, self.width, self.height, &self.to_srgb8(tone))
+            }),
+            _ => Err(PrtError::file(
+                path,
+                "unknown image type: use a .exr (linear) or .png (tone-mapped) file name",
+            )),
+        }
+    }
+
+    fn write_exr(&self, path: &Path) -> Result<()> {
+        let w = self.width;
+        exr::prelude::write_rgb_file(path, self.width, self.height, |x, y| {
+            let p = self.pixels[y * w + x];
+            (p[0], p[1], p[2])
+        })
+        .map_err(|e| PrtError::file(path, format!("writing OpenEXR: {e}")))
+    }
+
+    /// Reads a linear image written by [`Image::save`] (EXR only).
+    pub fn load_exr(path: &Path) -> Result<Image> {
+        let (width, height, pixels) = crate::light::envmap::read_exr(path)?;
+        let img = Image {
+            width,
+            height,
+            pixels,
+        };
+        if let Some((x, y, v)) = img.first_non_finite() {
+            return Err(PrtError::file(
+                path,
+                format!("pixel (x = {x}, y = {y}) is {v}: an image must be finite"),
+            ));
+        }
+        Ok(img)
+    }
+}
+
+/// Writes 8-bit RGB bytes as a PNG (not atomic: callers go through [`write_atomically`]).
+pub fn write_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<()> {
+    image::save_buffer_with_format(
+        path,
+        rgb,
+        width as u32,
+        height as u32,
+        image::ColorType::Rgb8,
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| PrtError::file(path, format!("writing PNG: {e}")))
+}
+
+pub use crate::files::write_atomically;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tone_curves_are_monotone_and_map_zero_to_zero() {
+        for c in ToneCurve::ALL {
+            assert_eq!(c.apply(0.0), 0.0, "{c:?}");
+            let mut last = 0.0;
+            for i in 1..2000 {
+                let y = c.apply(i as f32 * 0.01);
+                assert!(y >= last, "{c:?} falls at {i}");
+                last = y;
+            }
+        }
+        assert_eq!(ToneCurve::Reinhard.apply(1.0), 0.5);
+        assert!(ToneCurve::Reinhard.apply(1e6) < 1.0);
+        // The ACES fit shoulders towards 1 without clipping early.
+        let a = ToneCurve::Aces;
+        assert!(a.apply(0.5) < 0.7 && a.apply(8.0) > 0.95);
+    }
+
+    #[test]
+    fn clip_curve_is_plain_exposure() {
+        let t = ToneMap::exposure(1.0);
+        assert_eq!(t.apply([0.25, 0.0, 10.0]), [188, 0, 255]);
+        let r = ToneMap {
+            curve: ToneCurve::Reinhard,
+            ..t
+        };
+        // 10 · 2 = 20 → 20/21 → 250 after the sRGB curve: below white, where clip gives 255.
+        assert_eq!(r.apply([10.0, 0.0, 0.0])[0], 250);
+    }
+}

@@ -1,0 +1,875 @@
+//! Relighting on the GPU (wgpu compute): the tiled sparse wavelet product and the SH product of
+//! [`crate::relight`], with the same inputs and the same results.
+//!
+//! One workgroup of [`WORKGROUP_SIZE`] threads relights one 16 x 16 tile (`shaders/common.wgsl`):
+//! for every kept light term it walks that coefficient's column in the tile, each thread taking
+//! every 256th entry. A column holds each row at most once, so the threads of one column never
+//! write the same accumulator, and a barrier between columns orders the rest: no float atomics.
+//! The accumulators sit in workgroup memory (up to 1024 rows per tile, 16 KiB; a tile usually has
+//! one row per pixel and material), in device memory beyond that. Then each thread owns one pixel
+//! and sums its rows. On a real GPU the entries of one column are contiguous, so a warp's loads
+//! coalesce; thousands of tiles keep every compute unit busy. The SH pipeline needs no
+//! cooperation: each thread dots its own pixel's SH rows with the SH light.
+//!
+//! The transport is uploaded once. Matrices larger than the device's storage-binding limit are
+//! split by tiles into chunks, each with its own buffers and dispatch. Per relight, only the kept
+//! light terms (16 bytes each) and a few parameters go up.
+
+use std::time::Instant;
+
+use wgpu::util::DeviceExt;
+
+use crate::error::{PrtError, Result};
+use crate::light::select::SparseLight;
+use crate::output::film::Image;
+use crate::relight::RelightStats;
+use crate::store::quant::{BLOCK_ROWS, Quantization};
+use crate::store::transport::{Transport, Values, tile_grid};
+
+/// Threads per workgroup: one per pixel of a tile. The shaders receive it as `WORKGROUP`.
+pub const WORKGROUP_SIZE: u32 =
+    (crate::store::transport::TILE * crate::store::transport::TILE) as u32;
+/// Most workgroups along one dispatch dimension (WebGPU's guaranteed minimum).
+const MAX_DISPATCH: u32 = 65535;
+
+/// Uniform parameters of one dispatch; the layout of `Params` in `shaders/common.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    tile_base: u32,
+    tile_count: u32,
+    dispatch_x: u32,
+    width: u32,
+    height: u32,
+    tiles_x: u32,
+    coeffs: u32,
+    terms: u32,
+    format: u32,
+    row_base: u32,
+    shared_rows: u32,
+    block_base: u32,
+    block_table: u32,
+    _pad: [u32; 3],
+}
+const _: () = assert!(std::mem::size_of::<Params>() == 64);
+
+/// `Params::format`: how entries are packed in the `entries` buffer (see
+/// `shaders/relight_wavelet.wgsl`).
+fn format_code(q: Quantization) -> u32 {
+    match q {
+        Quantization::Q8 => 0,
+        Quantization::Q16 => 1,
+        Quantization::F32 => 2,
+    }
+}
+
+/// Bytes `count` entries take on the device: two per word in q8, one word in q16, two words in
+/// f32.
+fn device_entry_bytes(q: Quantization, count: u64) -> u64 {
+    match q {
+        Quantization::Q8 => count.div_ceil(2) * 4,
+        Quantization::Q16 => count * 4,
+        Quantization::F32 => count * 8,
+    }
+}
+
+/// A device, its queue and the relight pipelines (cloning shares them).
+#[derive(Clone)]
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    /// Name, back-end and driver of the adapter, for messages.
+    pub adapter: String,
+    wavelet: wgpu::ComputePipeline,
+    sh: wgpu::ComputePipeline,
+    to_texture: wgpu::ComputePipeline,
+    /// The 256 scales of the stored values' codes (`crate::store::quant`), a uniform buffer.
+    scales: wgpu::Buffer,
+    /// Timestamp queries around the relight passes, where the device has them.
+    timer: Option<Timer>,
+}
+
+/// Two timestamps (start of the first relight pass, end of the last), resolved and copied to a
+/// mappable buffer in the same submission.
+#[derive(Clone)]
+struct Timer {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    period_ns: f64,
+}
+
+impl Timer {
+    fn new(device: &wgpu::Device, queue: &wgpu::Queue) -> Option<Timer> {
+        if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+            return None;
+        }
+        let set = device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("relight timestamps"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        });
+        let buffer = |label, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 16,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        Some(Timer {
+            set,
+            resolve: buffer(
+                "timestamps",
+                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            readback: buffer(
+                "timestamps readback",
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+            period_ns: queue.get_timestamp_period() as f64,
+        })
+    }
+
+    /// Timestamp writes for pass `i` of `n`: the start of the first, the end of the last.
+    fn writes(&self, i: usize, n: usize) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+        let (begin, end) = (i == 0, i + 1 == n);
+        (begin || end).then(|| wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: begin.then_some(0),
+            end_of_pass_write_index: end.then_some(1),
+        })
+    }
+
+    fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.resolve_query_set(&self.set, 0..2, &self.resolve, 0);
+        encoder.copy_buffer_to_buffer(&self.resolve, 0, &self.readback, 0, 16);
+    }
+
+    /// The time between the two stamps of the last finished submission, seconds.
+    fn read(&self, device: &wgpu::Device) -> Option<f64> {
+        let slice = self.readback.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        device
+            .poll(wgpu::PollType::Wait {
+                submission_index: None,
+                timeout: None,
+            })
+            .ok()?;
+        rx.recv().ok()?.ok()?;
+        let stamps: [u64; 2] = {
+            let view = slice.get_mapped_range().ok()?;
+            bytemuck::pod_read_unaligned(&view[..16])
+        };
+        self.readback.unmap();
+        // Some drivers stamp a pass that was skipped as 0; a reversed pair is no measurement.
+        (stamps[1] > stamps[0] && stamps[0] != 0)
+            .then(|| (stamps[1] - stamps[0]) as f64 * self.period_ns * 1e-9)
+    }
+}
+
+/// WGSL of a pipeline: the relight pipelines get the tile and workgroup sizes from here (the one
+/// place they are defined) and the shared part in `shaders/common.wgsl`.
+fn shader_source(pipeline: &str) -> String {
+    let relight = |specific: &str| {
+        format!(
+            "const TILE: u32 = {}u;\nconst WORKGROUP: u32 = {WORKGROUP_SIZE}u;\n\
+             const BLOCK_ROWS: u32 = {BLOCK_ROWS}u;\n{}\n{specific}",
+            crate::store::transport::TILE,
+            include_str!("../../shaders/common.wgsl"),
+        )
+    };
+    match pipeline {
+        "wavelet" => relight(include_str!("../../shaders/relight_wavelet.wgsl")),
+        "sh" => relight(include_str!("../../shaders/relight_sh.wgsl")),
+        _ => include_str!("../../shaders/to_texture.wgsl").to_string(),
+    }
+}
+
+impl Gpu {
+    /// Opens the first adapter wgpu finds (honouring `WGPU_BACKEND` and the other wgpu
+    /// environment variables) with its full limits. Without an adapter the error says what to
+    /// install.
+    pub fn new() -> Result<Gpu> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            ..Default::default()
+        }))
+        .map_err(|e| {
+            PrtError::Gpu(format!(
+                "no GPU adapter ({e}); without a GPU, install Mesa's software drivers \
+                 (Debian/Ubuntu: apt-get install mesa-vulkan-drivers) or use --device cpu"
+            ))
+        })?;
+        let info = adapter.get_info();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("wavelet-prt relight"),
+            required_limits: adapter.limits(),
+            required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
+            ..Default::default()
+        }))
+        .map_err(|e| PrtError::Gpu(format!("opening {}: {e}", info.name)))?;
+        let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
+        Gpu::from_device(device, queue, name)
+    }
+
+    /// Builds the pipelines on a device the caller already has (the viewer shares its own).
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, adapter: String) -> Result<Gpu> {
+        let make = |name: &str| {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(name),
+                source: wgpu::ShaderSource::Wgsl(shader_source(name).into()),
+            });
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: None,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let wavelet = make("wavelet");
+        let sh = make("sh");
+        let to_texture = make("to_texture");
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!(
+                "building the relight pipelines: {e}"
+            )));
+        }
+        let timer = Timer::new(&device, &queue);
+        let scales = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("value scales"),
+            contents: bytemuck::cast_slice(crate::store::quant::scale_table()),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        Ok(Gpu {
+            device,
+            queue,
+            adapter,
+            wavelet,
+            sh,
+            to_texture,
+            scales,
+            timer,
+        })
+    }
+
+    /// Whether relight times come from GPU timestamp queries (else from the wall clock).
+    pub fn has_timestamps(&self) -> bool {
+        self.timer.is_some()
+    }
+
+    /// The GPU time of the relight passes of the last finished relight, from timestamp queries;
+    /// `None` when the device has none. Call after the relight's submission has completed.
+    pub fn last_kernel_seconds(&self) -> Option<f64> {
+        self.timer.as_ref()?.read(&self.device)
+    }
+
+    /// The largest storage buffer one binding may hold on this device.
+    pub fn max_binding_bytes(&self) -> u64 {
+        let l = self.device.limits();
+        l.max_storage_buffer_binding_size.min(l.max_buffer_size)
+    }
+}
+
+/// Waits for the submissions, then reads `readback` (RGBA32F pixels) as RGB. Returns the pixels
+/// and the seconds from `start` until the GPU finished; `what` names the work in errors.
+pub(crate) fn wait_and_read(
+    device: &wgpu::Device,
+    readback: &wgpu::Buffer,
+    start: Instant,
+    what: &str,
+) -> Result<(Vec<[f32; 3]>, f64)> {
+    let slice = readback.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::Wait {
+            submission_index: None,
+            timeout: None,
+        })
+        .map_err(|e| PrtError::Gpu(format!("waiting for {what}: {e}")))?;
+    let seconds = start.elapsed().as_secs_f64();
+    rx.recv()
+        .map_err(|_| PrtError::Gpu("the readback was dropped".into()))?
+        .map_err(|e| PrtError::Gpu(format!("reading the image back: {e}")))?;
+    let pixels = {
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| PrtError::Gpu(format!("reading the image back: {e:?}")))?;
+        let data: &[[f32; 4]] = bytemuck::cast_slice(&view);
+        data.iter().map(|p| [p[0], p[1], p[2]]).collect()
+    };
+    readback.unmap();
+    Ok((pixels, seconds))
+}
+
+/// Tiles whose entries, column pointers and SH rows share one set of buffers.
+struct Chunk {
+    tiles: std::ops::Range<usize>,
+    params: wgpu::Buffer,
+    wavelet_group: wgpu::BindGroup,
+    sh_group: wgpu::BindGroup,
+}
+
+/// A transport resident on the GPU.
+pub struct GpuTransport {
+    width: usize,
+    height: usize,
+    coeffs: usize,
+    sh_count: usize,
+    rows: usize,
+    entries: u64,
+    entry_bytes: u64,
+    chunks: Vec<Chunk>,
+    light: wgpu::Buffer,
+    image: wgpu::Buffer,
+    readback: wgpu::Buffer,
+}
+
+fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    // Bindings may not be empty: pad to one vec4.
+    let mut data = bytes.to_vec();
+    if data.len() < 16 {
+        data.resize(16, 0);
+    }
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: &data,
+        usage: wgpu::BufferUsages::STORAGE,
+    })
+}
+
+impl GpuTransport {
+    /// Uploads `t`. `max_binding_bytes` caps every storage binding (default: the device's limit;
+    /// tests lower it to exercise the split into chunks).
+    pub fn upload(gpu: &Gpu, t: &Transport, max_binding_bytes: Option<u64>) -> Result<Self> {
+        let device = &gpu.device;
+        let limit = max_binding_bytes
+            .unwrap_or(u64::MAX)
+            .min(gpu.max_binding_bytes());
+        let (w, h) = (t.meta.width as usize, t.meta.height as usize);
+        let (tiles_x, _) = tile_grid(w, h);
+        let c = t.coeff_count();
+        let shc = t.sh_count();
+        let rows = t.row_pixel.len();
+        let quant = t.values.quantization();
+        // Per block: C + 1 column pointers, then the C scale codes packed four to a word.
+        let block_words = c + 1 + c.div_ceil(4);
+        let ptr_bytes = block_words as u64 * 4;
+        for (what, bytes) in [
+            ("row table", rows as u64 * 16),
+            ("image", (w * h) as u64 * 16),
+            ("tile pointers", ptr_bytes),
+        ] {
+            if bytes > limit {
+                return Err(PrtError::Gpu(format!(
+                    "the {what} needs {bytes} bytes in one binding; this device allows {limit}"
+                )));
+            }
+        }
+        // The tiles' row starts, then their block starts (at `Params::block_table`).
+        let tile_table: Vec<u32> = t
+            .tile_row_start
+            .iter()
+            .chain(&t.tile_block_start)
+            .copied()
+            .collect();
+        let tile_rows = storage(device, "tile rows", bytemuck::cast_slice(&tile_table));
+        let row_data: Vec<[f32; 4]> = t
+            .row_weight
+            .iter()
+            .zip(&t.row_pixel)
+            .map(|(wgt, p)| [wgt[0], wgt[1], wgt[2], f32::from_bits(*p)])
+            .collect();
+        let row_buf = storage(device, "rows", bytemuck::cast_slice(&row_data));
+        // The wavelet pass applies each row's value scale with its weight.
+        let scaled: Vec<[f32; 4]> = row_data
+            .iter()
+            .zip(&t.row_scale)
+            .map(|(r, s)| [r[0] * s, r[1] * s, r[2] * s, r[3]])
+            .collect();
+        let scaled_buf = storage(device, "scaled rows", bytemuck::cast_slice(&scaled));
+        let acc = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("row accumulators"),
+            size: (rows.max(1) * 16) as u64,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let image_bytes = (w * h * 16) as u64;
+        let image = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("image"),
+            size: image_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("image readback"),
+            size: image_bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let light = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("light terms"),
+            size: (c.max(shc) * 16) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        // Split the tiles into chunks whose entries, pointers and SH rows each fit one binding.
+        let mut chunks = Vec::new();
+        let tiles = t.tile_count();
+        let mut start = 0;
+        while start < tiles {
+            let mut end = start;
+            loop {
+                let next = end + 1;
+                let (b0, b1) = (t.tile_block_start[start], t.tile_block_start[next]);
+                let entries = t.block_entry_start[b1 as usize] - t.block_entry_start[b0 as usize];
+                let rows_in = (t.tile_row_start[next] - t.tile_row_start[start]) as u64;
+                let fits = device_entry_bytes(quant, entries) <= limit
+                    && (b1 - b0) as u64 * ptr_bytes <= limit
+                    && rows_in * shc as u64 * 4 <= limit;
+                if !fits {
+                    break;
+                }
+                end = next;
+                if end == tiles {
+                    break;
+                }
+            }
+            if end == start {
+                return Err(PrtError::Gpu(format!(
+                    "tile {start} alone does not fit a {limit}-byte binding"
+                )));
+            }
+            chunks.push(Self::chunk(
+                gpu,
+                t,
+                start..end,
+                tiles_x,
+                [&tile_rows, &row_buf, &scaled_buf, &acc, &image, &light],
+            )?);
+            start = end;
+        }
+        Ok(GpuTransport {
+            width: w,
+            height: h,
+            coeffs: c,
+            sh_count: shc,
+            rows,
+            entries: t.entry_row.len() as u64,
+            entry_bytes: device_entry_bytes(quant, 2) / 2,
+            chunks,
+            light,
+            image,
+            readback,
+        })
+    }
+
+    fn chunk(
+        gpu: &Gpu,
+        t: &Transport,
+        tiles: std::ops::Range<usize>,
+        tiles_x: usize,
+        [tile_rows, rows, scaled_rows, acc, image, light]: [&wgpu::Buffer; 6],
+    ) -> Result<Chunk> {
+        let device = &gpu.device;
+        let c = t.coeff_count();
+        let blocks =
+            t.tile_block_start[tiles.start] as usize..t.tile_block_start[tiles.end] as usize;
+        let (e0, e1) = (
+            t.block_entry_start[blocks.start] as usize,
+            t.block_entry_start[blocks.end] as usize,
+        );
+        let rows_of = &t.entry_row[e0..e1];
+        let entries: Vec<u32> = match &t.values {
+            // Two 16-bit halves per word: row in the low byte, the integer in the high byte.
+            Values::Q8(v) => {
+                let half = |i: usize| rows_of[i] as u32 | ((v[e0 + i] as u8 as u32) << 8);
+                (0..rows_of.len())
+                    .step_by(2)
+                    .map(|i| {
+                        let hi = if i + 1 < rows_of.len() {
+                            half(i + 1)
+                        } else {
+                            0
+                        };
+                        half(i) | hi << 16
+                    })
+                    .collect()
+            }
+            // Row in the low byte, the integer in the high 16 bits.
+            Values::Q16(v) => rows_of
+                .iter()
+                .zip(&v[e0..e1])
+                .map(|(&r, &q)| r as u32 | (q as u16 as u32) << 16)
+                .collect(),
+            Values::F32(v) => rows_of
+                .iter()
+                .zip(&v[e0..e1])
+                .flat_map(|(&r, x)| [r as u32, x.to_bits()])
+                .collect(),
+        };
+        // Per block: column pointers relative to the chunk's first entry, then the scale codes.
+        let mut ptrs = Vec::with_capacity(blocks.len() * (c + 1 + c.div_ceil(4)));
+        for b in blocks.clone() {
+            let base = (t.block_entry_start[b] as usize - e0) as u32;
+            ptrs.extend(
+                t.col_ptr[b * (c + 1)..(b + 1) * (c + 1)]
+                    .iter()
+                    .map(|p| p + base),
+            );
+            ptrs.extend(t.col_scale[b * c..(b + 1) * c].chunks(4).map(|codes| {
+                codes
+                    .iter()
+                    .enumerate()
+                    .fold(0u32, |w, (i, &code)| w | (code as u32) << (8 * i))
+            }));
+        }
+        let (r0, r1) = (
+            t.tile_row_start[tiles.start] as usize,
+            t.tile_row_start[tiles.end] as usize,
+        );
+        let shc = t.sh_count();
+        let entry_buf = storage(device, "entries", bytemuck::cast_slice(&entries));
+        let ptr_buf = storage(device, "column pointers", bytemuck::cast_slice(&ptrs));
+        let sh_buf = storage(
+            device,
+            "sh rows",
+            bytemuck::cast_slice(&t.sh[r0 * shc..r1 * shc]),
+        );
+        let count = tiles.len() as u32;
+        let dispatch_x = count.min(MAX_DISPATCH);
+        let params = Params {
+            tile_base: tiles.start as u32,
+            tile_count: count,
+            dispatch_x,
+            width: t.meta.width,
+            height: t.meta.height,
+            tiles_x: tiles_x as u32,
+            coeffs: c as u32,
+            terms: 0,
+            format: format_code(t.values.quantization()),
+            row_base: r0 as u32,
+            shared_rows: u32::MAX,
+            block_base: blocks.start as u32,
+            block_table: t.tile_row_start.len() as u32,
+            _pad: [0; 3],
+        };
+        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("params"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        });
+        let shared = [(0, &params), (1, tile_rows), (4, image)];
+        let group = |pipeline: &wgpu::ComputePipeline, extra: &[(u32, &wgpu::Buffer)]| {
+            let entries: Vec<wgpu::BindGroupEntry> = shared
+                .iter()
+                .chain(extra)
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: *i,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &entries,
+            })
+        };
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let wavelet_group = group(
+            &gpu.wavelet,
+            &[
+                (2, scaled_rows),
+                (3, acc),
+                (5, &entry_buf),
+                (6, &ptr_buf),
+                (7, light),
+                (8, &gpu.scales),
+            ],
+        );
+        let sh_group = group(&gpu.sh, &[(2, rows), (5, &sh_buf), (7, light)]);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!("binding the transport: {e}")));
+        }
+        Ok(Chunk {
+            tiles,
+            params,
+            wavelet_group,
+            sh_group,
+        })
+    }
+
+    /// Makes tiles with more than `rows` rows accumulate in device memory instead of workgroup
+    /// memory (the shader caps it at 1024). Tests set 0 to exercise that path.
+    pub fn set_shared_rows(&self, gpu: &Gpu, rows: u32) {
+        for chunk in &self.chunks {
+            gpu.queue
+                .write_buffer(&chunk.params, 40, bytemuck::bytes_of(&rows));
+        }
+    }
+
+    /// Number of chunks the transport was split into.
+    pub fn chunk_count(&self) -> usize {
+        self.chunks.len()
+    }
+
+    /// Bytes per stored nonzero on the device.
+    pub fn bytes_per_nonzero(&self) -> u64 {
+        self.entry_bytes
+    }
+
+    fn wavelet_terms(&self, light: &SparseLight) -> Result<Vec<[f32; 4]>> {
+        if light.indices.iter().any(|&j| j as usize >= self.coeffs)
+            || light.is_empty()
+            || light.indices.len() != light.values.len()
+        {
+            return Err(PrtError::invalid(
+                "light",
+                format!(
+                    "its terms do not fit a transport with {} coefficients",
+                    self.coeffs
+                ),
+            ));
+        }
+        Ok(light
+            .indices
+            .iter()
+            .zip(&light.values)
+            .map(|(j, v)| [v[0], v[1], v[2], f32::from_bits(*j)])
+            .collect())
+    }
+
+    fn sh_terms(&self, sh: &[[f64; 3]]) -> Result<Vec<[f32; 4]>> {
+        if sh.is_empty() || sh.len() > self.sh_count {
+            return Err(PrtError::invalid(
+                "SH light",
+                format!(
+                    "{} coefficients for a transport baked with {}",
+                    sh.len(),
+                    self.sh_count
+                ),
+            ));
+        }
+        Ok(sh
+            .iter()
+            .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32, 0.0])
+            .collect())
+    }
+
+    /// Wavelet relighting with the kept terms of `light`, read back.
+    pub fn relight_wavelet(&self, gpu: &Gpu, light: &SparseLight) -> Result<(Image, RelightStats)> {
+        let terms = self.wavelet_terms(light)?;
+        let (image, seconds) = self.run(gpu, &terms, true)?;
+        Ok((
+            image,
+            RelightStats {
+                terms: terms.len(),
+                // Not counted on the device; see `relight::nonzeros_touched`.
+                nonzeros_touched: 0,
+                bytes_touched: 0,
+                kernel_seconds: seconds,
+            },
+        ))
+    }
+
+    /// SH relighting with the first `sh.len()` SH coefficients of every row, read back.
+    pub fn relight_sh(&self, gpu: &Gpu, sh: &[[f64; 3]]) -> Result<(Image, RelightStats)> {
+        let terms = self.sh_terms(sh)?;
+        let (image, seconds) = self.run(gpu, &terms, false)?;
+        let touched = (self.rows * sh.len()) as u64;
+        Ok((
+            image,
+            RelightStats {
+                terms: sh.len(),
+                nonzeros_touched: touched,
+                bytes_touched: touched * 4,
+                kernel_seconds: seconds,
+            },
+        ))
+    }
+
+    /// Wavelet relighting into `texture` (RGBA32F, storage-binding usage, the image's size),
+    /// with no readback: for display.
+    pub fn relight_wavelet_to_texture(
+        &self,
+        gpu: &Gpu,
+        light: &SparseLight,
+        texture: &wgpu::Texture,
+    ) -> Result<()> {
+        let terms = self.wavelet_terms(light)?;
+        self.run_to_texture(gpu, &terms, true, texture)
+    }
+
+    /// SH relighting into `texture`, as [`GpuTransport::relight_wavelet_to_texture`].
+    pub fn relight_sh_to_texture(
+        &self,
+        gpu: &Gpu,
+        sh: &[[f64; 3]],
+        texture: &wgpu::Texture,
+    ) -> Result<()> {
+        let terms = self.sh_terms(sh)?;
+        self.run_to_texture(gpu, &terms, false, texture)
+    }
+
+    /// Uploads the terms and records one dispatch per chunk.
+    fn encode(
+        &self,
+        gpu: &Gpu,
+        terms: &[[f32; 4]],
+        wavelet: bool,
+        encoder: &mut wgpu::CommandEncoder,
+    ) {
+        gpu.queue
+            .write_buffer(&self.light, 0, bytemuck::cast_slice(terms));
+        let n = self.chunks.len();
+        for (i, chunk) in self.chunks.iter().enumerate() {
+            // `coeffs` (word 6 of Params) is the row stride: 6 N² for wavelets, n² for SH;
+            // `terms` is word 7.
+            let words = [
+                if wavelet { self.coeffs } else { self.sh_count } as u32,
+                terms.len() as u32,
+            ];
+            gpu.queue
+                .write_buffer(&chunk.params, 24, bytemuck::cast_slice(&words));
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("relight"),
+                timestamp_writes: gpu.timer.as_ref().and_then(|t| t.writes(i, n)),
+            });
+            let (pipeline, group) = if wavelet {
+                (&gpu.wavelet, &chunk.wavelet_group)
+            } else {
+                (&gpu.sh, &chunk.sh_group)
+            };
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
+            let count = chunk.tiles.len() as u32;
+            let x = count.min(MAX_DISPATCH);
+            pass.dispatch_workgroups(x, count.div_ceil(x), 1);
+        }
+        if let Some(t) = &gpu.timer {
+            t.resolve(encoder);
+        }
+        // Each chunk has its own parameter buffer, and queued writes land before the submission
+        // that follows them; chunks touch disjoint tiles, rows and pixels.
+    }
+
+    fn run_to_texture(
+        &self,
+        gpu: &Gpu,
+        terms: &[[f32; 4]],
+        wavelet: bool,
+        texture: &wgpu::Texture,
+    ) -> Result<()> {
+        let size = texture.size();
+        if (size.width as usize, size.height as usize) != (self.width, self.height)
+            || texture.format() != wgpu::TextureFormat::Rgba32Float
+        {
+            return Err(PrtError::invalid(
+                "texture",
+                format!(
+                    "{}x{} {:?}; expected {}x{} Rgba32Float",
+                    size.width,
+                    size.height,
+                    texture.format(),
+                    self.width,
+                    self.height
+                ),
+            ));
+        }
+        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("relight to texture"),
+            });
+        self.encode(gpu, terms, wavelet, &mut encoder);
+        let dims = [self.width as u32, self.height as u32];
+        let size_buf = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("texture size"),
+                contents: bytemuck::cast_slice(&dims),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let view = texture.create_view(&Default::default());
+        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("to texture"),
+            layout: &gpu.to_texture.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: size_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: self.image.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+            ],
+        });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("to texture"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&gpu.to_texture);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(dims[0].div_ceil(16), dims[1].div_ceil(16), 1);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!("relight to texture: {e}")));
+        }
+        Ok(())
+    }
+
+    /// Records the relight, reads the image back. Returns the image and the GPU time of the relight
+    /// passes (timestamp queries), or where the device has none the wall time from submission to
+    /// completion.
+    fn run(&self, gpu: &Gpu, terms: &[[f32; 4]], wavelet: bool) -> Result<(Image, f64)> {
+        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("relight"),
+            });
+        self.encode(gpu, terms, wavelet, &mut encoder);
+        encoder.copy_buffer_to_buffer(&self.image, 0, &self.readback, 0, self.image.size());
+        let start = Instant::now();
+        gpu.queue.submit([encoder.finish()]);
+        let (pixels, wall) = wait_and_read(&gpu.device, &self.readback, start, "the relight")?;
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!("relight: {e}")));
+        }
+        let seconds = gpu.last_kernel_seconds().unwrap_or(wall);
+        Ok((
+            Image {
+                width: self.width,
+                height: self.height,
+                pixels,
+            },
+            seconds,
+        ))
+    }
+
+    /// Entries on the device, for reporting.
+    pub fn nonzeros(&self) -> u64 {
+        self.entries
+    }
+}

@@ -1,0 +1,244 @@
+//! The thresholding budget of a bake: which of a row's Haar coefficients are kept.
+//!
+//! A row keeps its largest coefficients, by a weighted magnitude `w_j |v_j|`, and drops the rest
+//! while the weighted energy dropped, `Σ (w_j v_j)²`, stays within `threshold²` times the weighted
+//! energy of a reference row (an unshadowed surface facing up, see `bake`). The weights say what
+//! an error costs under real light:
+//! - [`Budget::L2`]: `w = 1`, the row's own L2 error (and so the relit error under a light whose
+//!   Haar coefficients are all alike).
+//! - [`Budget::Area`]: `w` = the solid angle of the coefficient's support, the weight Ng et al.
+//!   (2003) gave light coefficients: coarse terms matter most, as under smooth light.
+//! - [`Budget::Sun`]: `w = 1/s` for a support of s x s texels. Dropping coefficient j changes each
+//!   texel of its support by `|v_j| / s`, so this bounds the error of the row at any single texel,
+//!   which is what a small, bright source sees: a sun relights a pixel with the row's value at
+//!   the sun's few texels.
+//! - [`Budget::Absolute`]: Ng et al.'s plain threshold: every coefficient with
+//!   `|v_j| < threshold · ‖reference row‖` is dropped, whatever the rest of the row holds.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{PrtError, Result};
+use crate::math::haar::{coeff_info, support_solid_angles};
+
+/// How the thresholding budget weighs coefficients.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Budget {
+    /// Plain L2 error of the row.
+    #[default]
+    L2,
+    /// Weighted by the support solid angle.
+    Area,
+    /// Weighted by the reciprocal of the support's side: the error at any one texel.
+    Sun,
+    /// Ng et al.'s absolute threshold on each coefficient.
+    Absolute,
+}
+
+impl Budget {
+    /// Every budget, for sweeps.
+    pub const ALL: [Budget; 4] = [Budget::L2, Budget::Area, Budget::Sun, Budget::Absolute];
+
+    /// The name used on the command line and in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Budget::L2 => "l2",
+            Budget::Area => "area",
+            Budget::Sun => "sun",
+            Budget::Absolute => "absolute",
+        }
+    }
+
+    /// The weight of every coefficient of a cube of face size `n` (`None` for the absolute
+    /// threshold, which weighs nothing). Normalised to a largest weight of 1.
+    pub fn weights(self, n: usize) -> Option<Vec<f32>> {
+        let count = 6 * n * n;
+        let w: Vec<f64> = match self {
+            Budget::L2 => vec![1.0; count],
+            Budget::Area => support_solid_angles(n),
+            Budget::Sun => (0..count)
+                .map(|j| 1.0 / coeff_info(n, j).support as f64)
+                .collect(),
+            Budget::Absolute => return None,
+        };
+        let max = w.iter().cloned().fold(0.0f64, f64::max);
+        Some(w.iter().map(|v| (v / max) as f32).collect())
+    }
+}
+
+impl std::str::FromStr for Budget {
+    type Err = PrtError;
+    fn from_str(s: &str) -> Result<Self> {
+        Budget::ALL
+            .into_iter()
+            .find(|b| b.name() == s)
+            .ok_or_else(|| {
+                PrtError::invalid(
+                    "budget",
+                    format!("`{s}`; expected l2, area, sun or absolute"),
+                )
+            })
+    }
+}
+
+impl std::fmt::Display for Budget {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A budget prepared for one cube size: the weights and the weighted energy of the reference row
+/// per unit of its plain energy.
+#[derive(Clone, Debug)]
+pub struct Thresholder {
+    budget: Budget,
+    threshold: f32,
+    weights: Option<Vec<f32>>,
+    /// Weighted over plain energy of the reference row.
+    weighted_ratio: f64,
+}
+
+impl Thresholder {
+    /// For rows over a cube of face size `n`; `reference_haar` is the reference row's Haar
+    /// coefficients (its plain energy is the scale callers pass to [`Thresholder::sparsify`]).
+    pub fn new(budget: Budget, threshold: f32, n: usize, reference_haar: &[f32]) -> Self {
+        let weights = budget.weights(n);
+        let plain: f64 = reference_haar.iter().map(|&v| (v as f64).powi(2)).sum();
+        let weighted: f64 = match &weights {
+            Some(w) => reference_haar
+                .iter()
+                .zip(w)
+                .map(|(&v, &w)| (v as f64 * w as f64).powi(2))
+                .sum(),
+            None => plain,
+        };
+        Thresholder {
+            budget,
+            threshold,
+            weights,
+            weighted_ratio: if plain > 0.0 { weighted / plain } else { 1.0 },
+        }
+    }
+
+    /// Keeps a row's coefficients as the budget says, `reference_energy` being the plain energy
+    /// of the row the budget is relative to. Returns the kept (coefficient, value) pairs ascending
+    /// by coefficient, the plain energy dropped and the row's plain energy. `order` is scratch.
+    pub fn sparsify(
+        &self,
+        row: &[f32],
+        reference_energy: f64,
+        order: &mut Vec<(f32, u32)>,
+    ) -> (Vec<(u32, f32)>, f64, f64) {
+        let total: f64 = row.iter().map(|&v| (v as f64) * (v as f64)).sum();
+        let weight = |j: u32| self.weights.as_ref().map_or(1.0, |w| w[j as usize]);
+        order.clear();
+        order.extend(
+            row.iter()
+                .enumerate()
+                .filter(|(_, v)| **v != 0.0)
+                .map(|(j, v)| (v.abs() * weight(j as u32), j as u32)),
+        );
+        let mut dropped = 0.0f64;
+        let mut first_kept = 0;
+        if self.threshold > 0.0 {
+            order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            if self.budget == Budget::Absolute {
+                let eps = self.threshold as f64 * reference_energy.sqrt();
+                first_kept = order.partition_point(|&(m, _)| (m as f64) < eps);
+                dropped = order[..first_kept]
+                    .iter()
+                    .map(|&(m, _)| (m as f64).powi(2))
+                    .sum();
+            } else {
+                let budget =
+                    (self.threshold as f64).powi(2) * reference_energy * self.weighted_ratio;
+                let mut spent = 0.0f64;
+                while first_kept < order.len() {
+                    let e = (order[first_kept].0 as f64).powi(2);
+                    if spent + e > budget {
+                        break;
+                    }
+                    spent += e;
+                    let v = row[order[first_kept].1 as usize] as f64;
+                    dropped += v * v;
+                    first_kept += 1;
+                }
+            }
+        }
+        let mut kept: Vec<(u32, f32)> = order[first_kept..]
+            .iter()
+            .map(|&(_, j)| (j, row[j as usize]))
+            .collect();
+        kept.sort_unstable_by_key(|&(j, _)| j);
+        (kept, dropped, total)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(n: usize) -> Vec<f32> {
+        (0..6 * n * n)
+            .map(|j| ((j * 7919 % 1000) as f32 / 1000.0 - 0.5) * 0.01)
+            .collect()
+    }
+
+    /// Each budget keeps the dropped weighted energy within threshold² of the reference's, and
+    /// a larger threshold never keeps more.
+    #[test]
+    fn dropped_weighted_energy_stays_within_the_budget() {
+        let n = 8;
+        let r = row(n);
+        let energy: f64 = r.iter().map(|&v| (v as f64).powi(2)).sum();
+        for budget in [Budget::L2, Budget::Area, Budget::Sun] {
+            let mut last = usize::MAX;
+            for t in [0.01f32, 0.05, 0.2, 0.5] {
+                let th = Thresholder::new(budget, t, n, &r);
+                let (kept, dropped, total) = th.sparsify(&r, energy, &mut Vec::new());
+                assert!((total - energy).abs() < 1e-12);
+                let w = budget.weights(n).unwrap();
+                let kept_set: std::collections::HashSet<u32> = kept.iter().map(|k| k.0).collect();
+                let dropped_w: f64 = (0..r.len() as u32)
+                    .filter(|j| !kept_set.contains(j))
+                    .map(|j| (r[j as usize] as f64 * w[j as usize] as f64).powi(2))
+                    .sum();
+                let ref_w: f64 = r
+                    .iter()
+                    .zip(&w)
+                    .map(|(&v, &w)| (v as f64 * w as f64).powi(2))
+                    .sum();
+                assert!(dropped_w <= (t as f64).powi(2) * ref_w * (1.0 + 1e-9));
+                assert!(dropped <= energy);
+                assert!(kept.len() <= last, "{budget}: {t} keeps more");
+                last = kept.len();
+            }
+        }
+    }
+
+    #[test]
+    fn absolute_threshold_drops_exactly_the_small_values() {
+        let n = 4;
+        let r = row(n);
+        let energy: f64 = r.iter().map(|&v| (v as f64).powi(2)).sum();
+        let t = 0.02f32;
+        let th = Thresholder::new(Budget::Absolute, t, n, &r);
+        let (kept, _, _) = th.sparsify(&r, energy, &mut Vec::new());
+        let eps = t as f64 * energy.sqrt();
+        let want: Vec<u32> = (0..r.len() as u32)
+            .filter(|&j| r[j as usize] != 0.0 && (r[j as usize].abs() as f64) >= eps)
+            .collect();
+        assert_eq!(kept.iter().map(|k| k.0).collect::<Vec<_>>(), want);
+    }
+
+    #[test]
+    fn sun_weights_favour_fine_coefficients_and_area_coarse_ones() {
+        let n = 8;
+        let sun = Budget::Sun.weights(n).unwrap();
+        let area = Budget::Area.weights(n).unwrap();
+        // Coefficient 0 is a face's scaling term; the last is a finest-level diagonal detail.
+        let last = 6 * n * n - 1;
+        assert!(sun[last] > sun[0]);
+        assert!(area[last] < area[0]);
+    }
+}

@@ -1,0 +1,281 @@
+//! The volume transfer file (`.prtv`): a medium's density grid, its SH self-transfer and the
+//! baked view, in a safetensors container (see [`crate::store::container`]) validated before
+//! anything is sliced or allocated.
+
+use std::path::Path;
+
+use glam::Vec3;
+use safetensors::tensor::Dtype;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{PrtError, Result};
+use crate::medium::{DensityGrid, Medium};
+use crate::store::container::{self, Tensor, check_meta_seal, checksum};
+use crate::store::transport::CameraMeta;
+
+use super::{FORMAT_NAME, FORMAT_VERSION, MAX_TRANSFER_ORDER};
+
+/// Metadata of a volume transfer file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct VolumeMeta {
+    pub dims: [usize; 3],
+    pub min: [f32; 3],
+    pub max: [f32; 3],
+    pub extinction: f32,
+    pub albedo: [f32; 3],
+    pub g: f32,
+    pub sh_order: usize,
+    pub directions: usize,
+    /// The scene's camera and image size: the default view of `prt volume render`.
+    pub camera: CameraMeta,
+    pub width: u32,
+    pub height: u32,
+    /// Hash of the scene the medium came from.
+    pub scene_hash: String,
+}
+
+/// The one metadata entry of a volume file (`meta_checksum` follows in the text, as in a
+/// transport file).
+#[derive(Serialize, Deserialize)]
+struct FileHeader {
+    format: String,
+    format_version: u32,
+    /// Of the tensors, `density` then `transfer`.
+    checksum: String,
+    meta: VolumeMeta,
+}
+
+/// Largest volume file: [`crate::medium::MAX_VOXELS`] voxels of density and order-8 transfer,
+/// and a header.
+pub const MAX_VOLUME_BYTES: u64 =
+    crate::medium::MAX_VOXELS as u64 * 4 * (1 + (MAX_TRANSFER_ORDER * MAX_TRANSFER_ORDER) as u64)
+        + (16 << 20);
+
+/// A medium and its SH self-transfer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VolumeTransfer {
+    pub meta: VolumeMeta,
+    /// Densities, x fastest (the grid of [`VolumeTransfer::medium`]).
+    pub density: Vec<f32>,
+    /// `n²` SH coefficients per voxel, voxel-major.
+    pub transfer: Vec<f32>,
+}
+
+impl VolumeTransfer {
+    pub fn sh_count(&self) -> usize {
+        self.meta.sh_order * self.meta.sh_order
+    }
+
+    pub fn voxel_count(&self) -> usize {
+        self.meta.dims.iter().product()
+    }
+
+    /// The medium the transfer was baked for.
+    pub fn medium(&self) -> Medium {
+        Medium {
+            grid: DensityGrid {
+                dims: self.meta.dims,
+                min: Vec3::from(self.meta.min),
+                max: Vec3::from(self.meta.max),
+                data: self.density.clone(),
+            },
+            extinction: self.meta.extinction,
+            albedo: Vec3::from(self.meta.albedo),
+            g: self.meta.g,
+        }
+    }
+
+    /// The transfer vector at `p`, trilinear between voxel centres and clamped to the edge
+    /// voxels, into `out` (`n²` values).
+    pub fn transfer_at(&self, p: Vec3, out: &mut [f32]) {
+        let n = self.sh_count();
+        let d = self.meta.dims;
+        let (min, max) = (Vec3::from(self.meta.min), Vec3::from(self.meta.max));
+        let cell = (max - min) / Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
+        let u = (p - min) / cell - 0.5;
+        let axis = |v: f32, n: usize| -> (usize, usize, f32) {
+            let v = v.clamp(0.0, (n - 1) as f32);
+            let i = (v as usize).min(n.saturating_sub(2));
+            (i, (i + 1).min(n - 1), v - i as f32)
+        };
+        let (x0, x1, fx) = axis(u.x, d[0]);
+        let (y0, y1, fy) = axis(u.y, d[1]);
+        let (z0, z1, fz) = axis(u.z, d[2]);
+        out[..n].fill(0.0);
+        for (z, wz) in [(z0, 1.0 - fz), (z1, fz)] {
+            for (y, wy) in [(y0, 1.0 - fy), (y1, fy)] {
+                for (x, wx) in [(x0, 1.0 - fx), (x1, fx)] {
+                    let w = wx * wy * wz;
+                    if w == 0.0 {
+                        continue;
+                    }
+                    let v = (z * d[1] + y) * d[0] + x;
+                    for (o, t) in out.iter_mut().zip(&self.transfer[v * n..(v + 1) * n]) {
+                        *o += w * t;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Writes the file atomically: safetensors with `density` `[nz, ny, nx]` and `transfer`
+    /// `[voxels, n²]` (f32), and one metadata entry `meta` (JSON).
+    pub fn save(&self, path: &Path) -> Result<()> {
+        let [nx, ny, nz] = self.meta.dims;
+        let tensors = vec![
+            (
+                "density",
+                Tensor::new(Dtype::F32, vec![nz, ny, nx], &self.density),
+            ),
+            (
+                "transfer",
+                Tensor::new(
+                    Dtype::F32,
+                    vec![self.voxel_count(), self.sh_count()],
+                    &self.transfer,
+                ),
+            ),
+        ];
+        container::save(path, tensors, |checksum| {
+            serde_json::to_string(&FileHeader {
+                format: FORMAT_NAME.into(),
+                format_version: FORMAT_VERSION,
+                checksum,
+                meta: self.meta.clone(),
+            })
+        })
+    }
+
+    /// Reads and validates a volume transfer file: every field of the metadata (the grid, the
+    /// medium, the default view) before the tensors are sized by it.
+    pub fn load(path: &Path) -> Result<VolumeTransfer> {
+        let bad = |m: String| PrtError::file(path, m);
+        let bytes = crate::files::read_regular(path, MAX_VOLUME_BYTES, "volume")?;
+        let (_, md) = safetensors::SafeTensors::read_metadata(&bytes)
+            .map_err(|e| bad(format!("not a volume transfer file: {e}")))?;
+        let json = md
+            .metadata()
+            .as_ref()
+            .and_then(|m| m.get("meta"))
+            .ok_or_else(|| bad("no `meta` entry: not a volume transfer file".into()))?;
+        let format = serde_json::from_str::<serde_json::Value>(json)
+            .ok()
+            .and_then(|v| v.get("format")?.as_str().map(str::to_string));
+        if let Some(e) = container::other_format(path, format.as_deref(), container::VOLUME) {
+            return Err(e);
+        }
+        check_meta_seal(json).map_err(bad)?;
+        let header: FileHeader =
+            serde_json::from_str(json).map_err(|e| bad(format!("metadata: {e}")))?;
+        if header.format != FORMAT_NAME {
+            return Err(bad(format!(
+                "format `{}`, expected `{FORMAT_NAME}`",
+                header.format
+            )));
+        }
+        if header.format_version != FORMAT_VERSION {
+            return Err(bad(format!(
+                "format version {}, this build reads {FORMAT_VERSION}",
+                header.format_version
+            )));
+        }
+        let m = &header.meta;
+        if !(1..=MAX_TRANSFER_ORDER).contains(&m.sh_order) {
+            return Err(bad(format!("SH order {} out of range", m.sh_order)));
+        }
+        let voxels = m.dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d));
+        if voxels.is_none_or(|v| v == 0 || v > crate::medium::MAX_VOXELS) {
+            return Err(bad(format!("grid {:?} out of range", m.dims)));
+        }
+        let st = safetensors::SafeTensors::deserialize(&bytes)
+            .map_err(|e| bad(format!("not a valid safetensors file: {e}")))?;
+        let tensor = |name: &str, len: usize| -> Result<Vec<f32>> {
+            let t = st
+                .tensor(name)
+                .map_err(|_| bad(format!("tensor `{name}` is missing")))?;
+            if t.dtype() != Dtype::F32 || t.data().len() != len * 4 {
+                return Err(bad(format!(
+                    "tensor `{name}`: expected {len} f32 values, got {:?} of {} bytes",
+                    t.dtype(),
+                    t.data().len()
+                )));
+            }
+            Ok(t.data()
+                .chunks_exact(4)
+                .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                .collect())
+        };
+        let v = voxels.unwrap_or(0);
+        let density = tensor("density", v)?;
+        let transfer = tensor("transfer", v * m.sh_order * m.sh_order)?;
+        let sum = checksum([
+            bytemuck::cast_slice::<f32, u8>(&density),
+            bytemuck::cast_slice::<f32, u8>(&transfer),
+        ]);
+        if format!("{sum:016x}") != header.checksum {
+            return Err(bad("checksum mismatch: the file is damaged".into()));
+        }
+        if let Some(i) = transfer.iter().position(|v| !v.is_finite()) {
+            return Err(bad(format!(
+                "tensor `transfer`: value {} of voxel {} is not finite",
+                transfer[i],
+                i / (m.sh_order * m.sh_order)
+            )));
+        }
+        if !(16..=65536).contains(&m.directions) {
+            return Err(bad(format!(
+                "metadata: {} directions, outside 16 to 65536",
+                m.directions
+            )));
+        }
+        let vt = VolumeTransfer {
+            meta: header.meta,
+            density,
+            transfer,
+        };
+        vt.medium()
+            .validate()
+            .map_err(|e| bad(format!("medium: {e}")))?;
+        // The default view is what `prt view` and `prt volume render` use unless told otherwise.
+        vt.camera(None, None, None)
+            .map_err(|e| bad(format!("metadata, the default view: {e}")))?;
+        Ok(vt)
+    }
+}
+
+/// Whether `path` is a volume transfer file (by its header, not its name).
+pub fn is_volume_file(path: &Path) -> bool {
+    container::sniff(path) == Some(container::VOLUME)
+}
+
+impl VolumeTransfer {
+    /// The baked view's camera, optionally moved to `eye` looking at `target` and resized.
+    pub fn camera(
+        &self,
+        eye: Option<Vec3>,
+        target: Option<Vec3>,
+        size: Option<(u32, u32)>,
+    ) -> Result<crate::scene::Camera> {
+        let c = &self.meta.camera;
+        let (width, height) = size.unwrap_or((self.meta.width, self.meta.height));
+        let (eye, target) = (
+            eye.unwrap_or(Vec3::from(c.eye)),
+            target.unwrap_or(Vec3::from(c.target)),
+        );
+        // Looking along the baked up vector (straight down, say), take the other horizontal.
+        let mut up = Vec3::from(c.up);
+        if (target - eye).normalize_or_zero().cross(up).length() < 1e-3 {
+            up = Vec3::Z;
+        }
+        let cam = crate::scene::Camera {
+            eye,
+            target,
+            up,
+            fov_y_deg: c.fov_y_deg,
+            width,
+            height,
+        };
+        cam.validate()?;
+        Ok(cam)
+    }
+}
