@@ -9,15 +9,18 @@
 use std::f64::consts::PI;
 use std::path::Path;
 
-use glam::{DMat3, DVec3};
+use glam::DVec3;
 
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::{CubeMap, resample_latlong_exact};
+use crate::output::film::{check_image_size as check_size, read_exr};
+
+pub use super::latlong::{EnvRotation, latlong_dir, latlong_uv, pixel_solid_angle};
 
 /// Largest accepted lat-long map, checked from the header before any pixel is allocated.
-pub const MAX_ENV_PIXELS: usize = 32768 * 16384;
+pub const MAX_ENV_PIXELS: usize = crate::output::film::MAX_IMAGE_PIXELS;
 /// Largest accepted image file: the largest map in uncompressed 32-bit RGBA, and its header.
-pub const MAX_ENV_BYTES: u64 = MAX_ENV_PIXELS as u64 * 16 + (64 << 20);
+pub const MAX_ENV_BYTES: u64 = crate::output::film::MAX_IMAGE_BYTES;
 
 /// A lat-long radiance map, rows from the zenith down.
 #[derive(Clone, Debug)]
@@ -34,53 +37,6 @@ pub struct EnvMap {
     pub negatives_clamped: usize,
     /// The most negative of them (0 when there were none).
     pub lowest_negative: f32,
-}
-
-/// Orientation of an environment: world direction = R_x(pitch) · R_y(yaw) · map direction.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct EnvRotation {
-    /// Turn about +Y, right-hand rule, degrees.
-    pub yaw_deg: f64,
-    /// Turn about +X applied after the yaw, right-hand rule, degrees.
-    pub pitch_deg: f64,
-}
-
-impl EnvRotation {
-    /// A rotation by `yaw_deg` about +Y only.
-    pub fn yaw(yaw_deg: f64) -> Self {
-        EnvRotation {
-            yaw_deg,
-            pitch_deg: 0.0,
-        }
-    }
-
-    /// The matrix taking map directions to world directions.
-    pub fn world_from_map(&self) -> DMat3 {
-        DMat3::from_rotation_x(self.pitch_deg.to_radians())
-            * DMat3::from_rotation_y(self.yaw_deg.to_radians())
-    }
-}
-
-/// Unit direction of lat-long coordinates (u, v) in [0, 1]².
-#[inline]
-pub fn latlong_dir(u: f64, v: f64) -> DVec3 {
-    let (sin_u, cos_u) = (2.0 * PI * u).sin_cos();
-    let (sin_v, cos_v) = (PI * v).sin_cos();
-    DVec3::new(sin_u * sin_v, cos_v, -cos_u * sin_v)
-}
-
-/// Lat-long coordinates (u, v) of a unit direction; the inverse of [`latlong_dir`].
-#[inline]
-pub fn latlong_uv(d: DVec3) -> (f64, f64) {
-    let v = d.y.clamp(-1.0, 1.0).acos() / PI;
-    let u = d.x.atan2(-d.z) / (2.0 * PI);
-    (if u < 0.0 { u + 1.0 } else { u }, v)
-}
-
-/// Exact solid angle of one pixel of row `y` in a `width` x `height` map.
-pub fn pixel_solid_angle(width: usize, height: usize, y: usize) -> f64 {
-    let h = height as f64;
-    (2.0 * PI / width as f64) * ((PI * y as f64 / h).cos() - (PI * (y + 1) as f64 / h).cos())
 }
 
 /// A procedural sun given as `sun:ELEV,AZIM[,RADIUS]` (degrees; the radius defaults to 2): the one
@@ -316,37 +272,6 @@ impl EnvMap {
     }
 }
 
-/// Reads the first RGB(A) layer of an OpenEXR file, its size checked from the header before any
-/// pixel is allocated.
-pub(crate) fn read_exr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
-    crate::files::open_regular(path, MAX_ENV_BYTES, "OpenEXR image")?;
-    let exr_err = |e: exr::error::Error| PrtError::file(path, format!("OpenEXR: {e}"));
-    // Check the size from the header before any pixel memory is allocated.
-    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(exr_err)?;
-    let header = meta
-        .headers
-        .first()
-        .ok_or_else(|| PrtError::file(path, "OpenEXR file has no layer"))?;
-    let (w, h) = (header.layer_size.width(), header.layer_size.height());
-    check_size(path, w, h)?;
-    let image = exr::prelude::read_first_rgba_layer_from_file(
-        path,
-        |res, _| vec![[0.0f32; 3]; res.width() * res.height()],
-        move |px: &mut Vec<[f32; 3]>, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            px[pos.y() * w + pos.x()] = [r, g, b];
-        },
-    )
-    .map_err(exr_err)?;
-    let size = image.layer_data.size;
-    if (size.width(), size.height()) != (w, h) {
-        return Err(PrtError::file(
-            path,
-            "OpenEXR layer size changed while reading",
-        ));
-    }
-    Ok((w, h, image.layer_data.channel_data.pixels))
-}
-
 fn read_hdr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
     use image::ImageDecoder;
     let (file, _) = crate::files::open_regular(path, MAX_ENV_BYTES, "environment map")?;
@@ -359,16 +284,6 @@ fn read_hdr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
         .into_rgb32f();
     let pixels = img.pixels().map(|p| p.0).collect();
     Ok((w as usize, h as usize, pixels))
-}
-
-fn check_size(path: &Path, w: usize, h: usize) -> Result<()> {
-    if w == 0 || h == 0 || w.saturating_mul(h) > MAX_ENV_PIXELS {
-        return Err(PrtError::file(
-            path,
-            format!("image size {w} x {h} is empty or above {MAX_ENV_PIXELS} pixels"),
-        ));
-    }
-    Ok(())
 }
 
 /// A procedural clear sky with a disc sun: for tests, demos and the viewer's movable sun.

@@ -2,5 +2,6 @@
 //! map, and the Haar light with its K-term selection and SH projection.
 
 pub mod envmap;
+pub mod latlong;
 pub mod resample;
 pub mod select;

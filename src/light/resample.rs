@@ -48,7 +48,7 @@ use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvRotation, pixel_solid_angle};
+use crate::light::latlong::{EnvRotation, pixel_solid_angle};
 use crate::math::cubemap::{
     CubeMap, check_latlong, dir_to_face_st, dir_to_texel, solid_angles, splat_limits, texel_count,
     texel_dirs, texel_index, validate_n,

@@ -198,7 +198,7 @@ impl Image {
 
     /// Reads a linear image written by [`Image::save`] (EXR only).
     pub fn load_exr(path: &Path) -> Result<Image> {
-        let (width, height, pixels) = crate::light::envmap::read_exr(path)?;
+        let (width, height, pixels) = read_exr(path)?;
         let img = Image {
             width,
             height,
@@ -212,6 +212,54 @@ impl Image {
         }
         Ok(img)
     }
+}
+
+/// Largest accepted image (an environment map, or an EXR to compare), checked from the header
+/// before any pixel is allocated.
+pub const MAX_IMAGE_PIXELS: usize = 32768 * 16384;
+/// Largest accepted image file: the largest image in uncompressed 32-bit RGBA, and its header.
+pub const MAX_IMAGE_BYTES: u64 = MAX_IMAGE_PIXELS as u64 * 16 + (64 << 20);
+
+/// Reads the first RGB(A) layer of an OpenEXR file, its size checked from the header before any
+/// pixel is allocated.
+pub fn read_exr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
+    crate::files::open_regular(path, MAX_IMAGE_BYTES, "OpenEXR image")?;
+    let exr_err = |e: exr::error::Error| PrtError::file(path, format!("OpenEXR: {e}"));
+    // Check the size from the header before any pixel memory is allocated.
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(exr_err)?;
+    let header = meta
+        .headers
+        .first()
+        .ok_or_else(|| PrtError::file(path, "OpenEXR file has no layer"))?;
+    let (w, h) = (header.layer_size.width(), header.layer_size.height());
+    check_image_size(path, w, h)?;
+    let image = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |res, _| vec![[0.0f32; 3]; res.width() * res.height()],
+        move |px: &mut Vec<[f32; 3]>, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * w + pos.x()] = [r, g, b];
+        },
+    )
+    .map_err(exr_err)?;
+    let size = image.layer_data.size;
+    if (size.width(), size.height()) != (w, h) {
+        return Err(PrtError::file(
+            path,
+            "OpenEXR layer size changed while reading",
+        ));
+    }
+    Ok((w, h, image.layer_data.channel_data.pixels))
+}
+
+/// An image size is at least 1 x 1 and at most [`MAX_IMAGE_PIXELS`].
+pub fn check_image_size(path: &Path, w: usize, h: usize) -> Result<()> {
+    if w == 0 || h == 0 || w.saturating_mul(h) > MAX_IMAGE_PIXELS {
+        return Err(PrtError::file(
+            path,
+            format!("image size {w} x {h} is empty or above {MAX_IMAGE_PIXELS} pixels"),
+        ));
+    }
+    Ok(())
 }
 
 /// Writes 8-bit RGB bytes as a PNG (not atomic: callers go through [`write_atomically`]).
