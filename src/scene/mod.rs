@@ -359,6 +359,7 @@ impl MediumSpec {
 }
 
 pub mod brdf;
+mod diagnostics;
 mod file;
 mod obj;
 pub mod trace;

@@ -38,11 +38,14 @@
 //! constant under any yaw. Pitch, applied after the yaw, needs weights of its own.
 //!
 //! # Cache
-//! Weights are kept process-wide for the last few (W, H, N, pitch) asked for, under a lock that is
+//! Weights ([`cache`]) are kept process-wide for the last few (W, H, N, pitch) asked for, under a lock that is
 //! only held to look up and insert, so the viewer's worker thread and parallel tests share them.
 
+mod cache;
+
+pub use cache::{clear_cache, weights};
+
 use std::f64::consts::{PI, TAU};
-use std::sync::{Arc, Mutex};
 
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
@@ -57,13 +60,6 @@ use crate::math::cubemap::{
 /// Row bands per thread in the gather: each band scatters into a cube of its own (590 KiB at
 /// N = 64) that is then summed, so few bands; two leave some room to balance a busy machine.
 const BANDS_PER_THREAD: usize = 2;
-/// Most weight matrices kept at once: the viewer needs two per cube size (pitch 0 for the
-/// unturned SH light, the current pitch for the wavelet light); benchmarks and demos switch
-/// between two map sizes and two cube sizes.
-const CACHE_ENTRIES: usize = 8;
-/// Memory the cache may hold (a 1024 x 512 map takes about 8 MiB at N = 32 and 20 MiB at
-/// N = 64). The newest entry is always kept, whatever its size.
-const CACHE_BYTES: usize = 512 << 20;
 /// A yaw this close to a whole number of pixels (in pixels) is taken as whole, so whole-pixel yaws
 /// given in degrees are exact renumberings despite the rounding of yaw/360.
 const WHOLE_PIXEL_SNAP: f64 = 1e-9;
@@ -752,51 +748,6 @@ pub fn yaw_shift(width: usize, yaw_deg: f64) -> Result<(usize, f64)> {
     })
 }
 
-/// Cached weights of (`width`, `height`, `n`, `pitch_deg`), built on a miss. The lock is not held
-/// while building, so two threads missing the same key at once both build it (harmless).
-pub fn weights(
-    width: usize,
-    height: usize,
-    n: usize,
-    pitch_deg: f64,
-) -> Result<Arc<LatLongWeights>> {
-    // -0 and +0 are the same rotation.
-    let pitch_deg = pitch_deg + 0.0;
-    let key = |w: &LatLongWeights| {
-        (w.width, w.height, w.n, w.pitch_deg.to_bits()) == (width, height, n, pitch_deg.to_bits())
-    };
-    {
-        let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(i) = cache.iter().position(|w| key(w)) {
-            let hit = cache.remove(i);
-            cache.insert(0, hit.clone());
-            return Ok(hit);
-        }
-    }
-    let built = Arc::new(LatLongWeights::build(width, height, n, pitch_deg)?);
-    let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
-    cache.retain(|w| !key(w));
-    cache.insert(0, built.clone());
-    let mut bytes = 0;
-    let keep = cache
-        .iter()
-        .take_while(|w| {
-            bytes += w.bytes();
-            bytes <= CACHE_BYTES
-        })
-        .count();
-    cache.truncate(keep.clamp(1, CACHE_ENTRIES));
-    Ok(built)
-}
-
-/// Most recently used first.
-static CACHE: Mutex<Vec<Arc<LatLongWeights>>> = Mutex::new(Vec::new());
-
-/// Empties the weight cache (for benchmarks that time the first call).
-pub fn clear_cache() {
-    CACHE.lock().unwrap_or_else(|e| e.into_inner()).clear();
-}
-
 /// Resamples a `width` x `height` lat-long map into a cube of face size `n` turned by `rotation`:
 /// the cached weights of the pitch, gathered with the yaw's shift.
 pub fn resample_latlong(
@@ -816,6 +767,7 @@ pub fn resample_latlong(
 mod tests {
     use super::*;
     use crate::math::cubemap::resample_latlong_exact;
+    use std::sync::Arc;
 
     /// Fast vs exact splat under the same rotation (or a whole-pixel yaw): the shares are the
     /// exact splat's pieces rounded to f32 (2^-24 relative), texels are f32 too, and sums run in

@@ -1,0 +1,488 @@
+//! Assembling a transport: rows encoded tile by tile into the blocked column layout (bakes encode
+//! tiles in parallel), the per-coefficient tables finished from them, a tile's rows decoded back,
+//! and shards of one bake merged into the file a single bake would write.
+
+use super::*;
+use crate::error::{PrtError, Result};
+use crate::store::quant::{UNIT_SCALE_CODE, code_for, quantize, scale_of};
+
+/// One transport row before assembly: its pixel, RGB weight, sparse Haar entries (ascending by
+/// coefficient) and SH transport.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RowData {
+    pub pixel: u32,
+    pub weight: [f32; 3],
+    pub entries: Vec<(u32, f32)>,
+    pub sh: Vec<f32>,
+}
+
+/// One tile in the stored layout: its rows' pixels, weights and SH, and its blocks' counts,
+/// scale codes and entries. Bakes encode tiles in parallel; a merge copies them from shards.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EncodedTile {
+    pub row_pixel: Vec<u32>,
+    pub row_weight: Vec<[f32; 3]>,
+    pub row_scale: Vec<f32>,
+    pub sh: Vec<f32>,
+    /// `[blocks, C]` entry counts.
+    pub col_count: Vec<u16>,
+    /// `[blocks, C]` scale codes.
+    pub col_scale: Vec<u8>,
+    pub entry_row: Vec<u8>,
+    pub values: Values,
+    /// Squared error quantisation added (dropped values included).
+    pub quantization_energy: f64,
+}
+
+impl EncodedTile {
+    /// Lays out a tile's rows (in the order they should keep) in blocks and columns, quantising
+    /// each (block, coefficient) column against the smallest scale that holds its largest value.
+    /// Values that round to zero are dropped.
+    pub fn encode(rows: &[RowData], c: usize, shc: usize, q: Quantization) -> Result<Self> {
+        let mut tile = EncodedTile {
+            row_pixel: Vec::with_capacity(rows.len()),
+            row_weight: Vec::with_capacity(rows.len()),
+            row_scale: Vec::with_capacity(rows.len()),
+            sh: Vec::with_capacity(rows.len() * shc),
+            col_count: Vec::with_capacity(blocks_of(rows.len()) * c),
+            col_scale: Vec::with_capacity(blocks_of(rows.len()) * c),
+            entry_row: Vec::new(),
+            values: Values::empty(q),
+            quantization_energy: 0.0,
+        };
+        let q_max = q.q_max();
+        let mut ptr = vec![0u32; c + 1];
+        let mut col: Vec<(u8, f32)> = Vec::new();
+        for block in rows.chunks(BLOCK_ROWS) {
+            // Counting sort by coefficient; rows are visited in order, so every column's rows
+            // come out strictly increasing.
+            ptr.iter_mut().for_each(|p| *p = 0);
+            // Lossless rows keep scale 1, so their values stay bit-exact.
+            let row_scales: Vec<f32> = block
+                .iter()
+                .map(|row| {
+                    let m = row.entries.iter().fold(0.0f32, |m, e| m.max(e.1.abs()));
+                    if q == Quantization::F32 || !m.is_normal() {
+                        1.0
+                    } else {
+                        m
+                    }
+                })
+                .collect();
+            for row in block {
+                if row.sh.len() != shc {
+                    return Err(PrtError::invalid(
+                        "transport row",
+                        format!("{} SH values, expected {shc}", row.sh.len()),
+                    ));
+                }
+                for &(j, v) in &row.entries {
+                    if j as usize >= c {
+                        return Err(PrtError::invalid(
+                            "transport row",
+                            format!("coefficient {j} >= {c}"),
+                        ));
+                    }
+                    if !v.is_finite() {
+                        return Err(PrtError::invalid(
+                            "transport row",
+                            format!("non-finite value at coefficient {j}"),
+                        ));
+                    }
+                    ptr[j as usize + 1] += 1;
+                }
+            }
+            for j in 0..c {
+                ptr[j + 1] += ptr[j];
+            }
+            col.clear();
+            col.resize(ptr[c] as usize, (0, 0.0));
+            let mut fill = ptr.clone();
+            for (r, row) in block.iter().enumerate() {
+                for &(j, v) in &row.entries {
+                    col[fill[j as usize] as usize] = (r as u8, v / row_scales[r]);
+                    fill[j as usize] += 1;
+                }
+            }
+            for j in 0..c {
+                let entries = &col[ptr[j] as usize..ptr[j + 1] as usize];
+                let before = tile.entry_row.len();
+                if q == Quantization::F32 {
+                    tile.col_scale.push(UNIT_SCALE_CODE);
+                    for &(r, v) in entries.iter().filter(|(_, v)| *v != 0.0) {
+                        tile.entry_row.push(r);
+                        tile.values.push(v);
+                    }
+                } else {
+                    let max = entries.iter().fold(0.0f32, |m, e| m.max(e.1.abs()));
+                    let code = code_for(max, q_max).ok_or_else(|| {
+                        PrtError::invalid(
+                            "transport row",
+                            format!("coefficient {j}: {max} is too large to quantise"),
+                        )
+                    })?;
+                    let s = scale_of(code);
+                    tile.col_scale.push(code);
+                    for &(r, v) in entries {
+                        let k = quantize(v, s, q_max);
+                        let sr = row_scales[r as usize] as f64;
+                        tile.quantization_energy += ((v - k * s) as f64 * sr).powi(2);
+                        if k != 0.0 {
+                            tile.entry_row.push(r);
+                            tile.values.push(k);
+                        }
+                    }
+                }
+                tile.col_count.push((tile.entry_row.len() - before) as u16);
+            }
+            for (row, &sr) in block.iter().zip(&row_scales) {
+                tile.row_pixel.push(row.pixel);
+                tile.row_weight.push(row.weight);
+                tile.row_scale.push(sr);
+                tile.sh.extend_from_slice(&row.sh);
+            }
+        }
+        Ok(tile)
+    }
+}
+
+impl Transport {
+    /// Lays out rows given tile by tile (tiles in row-major order of the tile grid, each tile's
+    /// rows in the order they should keep) into the blocked column layout, quantised as
+    /// `meta.quantization` says. Per-pixel and per-coefficient tables are taken as given; the
+    /// energy quantisation drops is added to each tile's first statistic. Checks the result, so a
+    /// caller's mistake is an error, not a bad file.
+    pub fn assemble(
+        meta: TransportMeta,
+        tiles: Vec<Vec<RowData>>,
+        albedo: Vec<[f32; 3]>,
+        coverage: Vec<f32>,
+        mut tile_stats: Vec<[f64; 3]>,
+    ) -> Result<Transport> {
+        let c = 6 * (meta.cube_n as usize).pow(2);
+        let shc = (meta.sh_order as usize).pow(2);
+        let encoded = tiles
+            .iter()
+            .map(|rows| EncodedTile::encode(rows, c, shc, meta.quantization))
+            .collect::<Result<Vec<_>>>()?;
+        for (s, e) in tile_stats.iter_mut().zip(&encoded) {
+            s[0] += e.quantization_energy;
+        }
+        Self::assemble_encoded(meta, &encoded, albedo, coverage, tile_stats)
+    }
+
+    /// Joins encoded tiles (row-major over the tile grid) into a transport and derives its
+    /// statistics.
+    pub fn assemble_encoded(
+        meta: TransportMeta,
+        tiles: &[EncodedTile],
+        albedo: Vec<[f32; 3]>,
+        coverage: Vec<f32>,
+        tile_stats: Vec<[f64; 3]>,
+    ) -> Result<Transport> {
+        let c = 6 * (meta.cube_n as usize).pow(2);
+        let rows: usize = tiles.iter().map(|t| t.row_pixel.len()).sum();
+        let nnz: usize = tiles.iter().map(|t| t.entry_row.len()).sum();
+        let blocks: usize = tiles.iter().map(|t| t.col_count.len() / c.max(1)).sum();
+        let mut tile_row_start = Vec::with_capacity(tiles.len() + 1);
+        let mut row_pixel = Vec::with_capacity(rows);
+        let mut row_weight = Vec::with_capacity(rows);
+        let mut row_scale = Vec::with_capacity(rows);
+        let mut sh = Vec::new();
+        let mut counts = Vec::with_capacity(blocks * c);
+        let mut col_scale = Vec::with_capacity(blocks * c);
+        let mut entry_row = Vec::with_capacity(nnz);
+        let mut values = Values::empty(meta.quantization);
+        tile_row_start.push(0u32);
+        for t in tiles {
+            if t.values.quantization() != meta.quantization
+                || t.row_scale.len() != t.row_pixel.len()
+                || t.col_count.len() != blocks_of(t.row_pixel.len()) * c
+                || t.col_scale.len() != t.col_count.len()
+            {
+                return Err(PrtError::invalid(
+                    "transport tile",
+                    "its blocks do not match its rows or the quantisation",
+                ));
+            }
+            row_pixel.extend_from_slice(&t.row_pixel);
+            row_weight.extend_from_slice(&t.row_weight);
+            row_scale.extend_from_slice(&t.row_scale);
+            sh.extend_from_slice(&t.sh);
+            counts.extend_from_slice(&t.col_count);
+            col_scale.extend_from_slice(&t.col_scale);
+            entry_row.extend_from_slice(&t.entry_row);
+            values.extend_from(&t.values, 0..t.values.len());
+            tile_row_start.push(row_pixel.len() as u32);
+        }
+        let invalid = |m: String| PrtError::invalid("transport", m);
+        let (tile_block_start, block_row_start) =
+            block_tables(&tile_row_start, rows).map_err(invalid)?;
+        let (col_ptr, block_entry_start) =
+            column_pointers(&counts, &block_row_start, c, nnz).map_err(invalid)?;
+        let mut t = Transport {
+            meta,
+            tile_row_start,
+            row_pixel,
+            row_weight,
+            row_scale,
+            tile_block_start,
+            block_row_start,
+            block_entry_start,
+            col_ptr,
+            col_scale,
+            entry_row,
+            values,
+            sh,
+            albedo,
+            coverage,
+            transport_magnitude: vec![0.0; c],
+            tile_stats,
+        };
+        t.validate().map_err(invalid)?;
+        t.finish();
+        Ok(t)
+    }
+
+    /// Derives the per-coefficient transport magnitudes and the statistics from the tables, in
+    /// one fixed order (block, coefficient, row), so a bake and a merge of its shards give the
+    /// same bits.
+    pub fn finish(&mut self) {
+        let c = self.coeff_count();
+        let mut magnitude = vec![0.0f64; c];
+        for b in 0..self.block_count() {
+            let r0 = self.block_row_start[b] as usize;
+            for (j, m) in magnitude.iter_mut().enumerate() {
+                let s = self.scale(b, j) as f64;
+                for e in self.block_column(b, j) {
+                    let r = r0 + self.entry_row[e] as usize;
+                    *m += (self.values.raw(e).abs() as f64 * s * self.row_scale[r] as f64)
+                        * crate::light::select::rgb_magnitude(self.row_weight[r]) as f64;
+                }
+            }
+        }
+        let rows = self.row_pixel.len();
+        self.transport_magnitude = magnitude
+            .iter()
+            .map(|m| (m / rows.max(1) as f64) as f32)
+            .collect();
+        let (mut dropped, mut total, mut rays) = (0.0f64, 0.0f64, 0.0f64);
+        for s in &self.tile_stats {
+            dropped += s[0];
+            total += s[1];
+            rays += s[2];
+        }
+        self.meta.stats = BakeStats {
+            rows: rows as u64,
+            nonzeros: self.entry_row.len() as u64,
+            dense_entries: (rows * c) as u64,
+            dropped_energy_fraction: if total > 0.0 { dropped / total } else { 0.0 },
+            shadow_rays: rays as u64,
+        };
+    }
+
+    /// Tile `tile` in the stored layout, copied (for a merge).
+    fn encoded_tile(&self, tile: usize) -> EncodedTile {
+        let c = self.coeff_count();
+        let (r0, r1) = (
+            self.tile_row_start[tile] as usize,
+            self.tile_row_start[tile + 1] as usize,
+        );
+        let blocks = self.blocks(tile);
+        let (e0, e1) = (
+            self.block_entry_start[blocks.start] as usize,
+            self.block_entry_start[blocks.end] as usize,
+        );
+        let shc = self.sh_count();
+        let mut values = Values::empty(self.values.quantization());
+        values.extend_from(&self.values, e0..e1);
+        let counts = self.col_counts(blocks.clone());
+        EncodedTile {
+            row_pixel: self.row_pixel[r0..r1].to_vec(),
+            row_weight: self.row_weight[r0..r1].to_vec(),
+            row_scale: self.row_scale[r0..r1].to_vec(),
+            sh: self.sh[r0 * shc..r1 * shc].to_vec(),
+            col_count: counts,
+            col_scale: self.col_scale[blocks.start * c..blocks.end * c].to_vec(),
+            entry_row: self.entry_row[e0..e1].to_vec(),
+            values,
+            quantization_energy: 0.0,
+        }
+    }
+
+    /// The rows of tile `tile` as [`RowData`] with decoded values (for tests and tools).
+    pub fn tile_rows(&self, tile: usize) -> Vec<RowData> {
+        let (r0, r1) = (
+            self.tile_row_start[tile] as usize,
+            self.tile_row_start[tile + 1] as usize,
+        );
+        let shc = self.sh_count();
+        let mut rows: Vec<RowData> = (r0..r1)
+            .map(|r| RowData {
+                pixel: self.row_pixel[r],
+                weight: self.row_weight[r],
+                entries: Vec::new(),
+                sh: self.sh[r * shc..(r + 1) * shc].to_vec(),
+            })
+            .collect();
+        for b in self.blocks(tile) {
+            let local = self.block_row_start[b] as usize - r0;
+            for j in 0..self.coeff_count() {
+                for e in self.block_column(b, j) {
+                    rows[local + self.entry_row[e] as usize]
+                        .entries
+                        .push((j as u32, self.value(b, j, e)));
+                }
+            }
+        }
+        rows
+    }
+
+    /// Joins the shards of one bake (in any order) into the file a single bake would have
+    /// written. The shards must come from the same scene and settings and cover every band once.
+    /// Errors name a shard as "file K" (its place in `shards`, from 1).
+    pub fn merge(shards: &[Transport]) -> Result<Transport> {
+        let names: Vec<String> = (1..=shards.len()).map(|k| format!("file {k}")).collect();
+        Self::merge_named(shards, &names)
+    }
+
+    /// [`Transport::merge`], naming shard k as `names[k]` in errors (a path, say).
+    pub fn merge_named(shards: &[Transport], names: &[String]) -> Result<Transport> {
+        let name = |k: usize| {
+            names
+                .get(k)
+                .cloned()
+                .unwrap_or_else(|| format!("file {}", k + 1))
+        };
+        let first = shards
+            .first()
+            .ok_or_else(|| PrtError::invalid("merge", "no shard given"))?;
+        let Some([_, count]) = first.meta.shard else {
+            return Err(PrtError::invalid(
+                "merge",
+                format!("{} is not a shard", name(0)),
+            ));
+        };
+        let same = |m: &TransportMeta| TransportMeta {
+            shard: None,
+            stats: BakeStats::default(),
+            ..m.clone()
+        };
+        // Loading checked count <= the image's bands, so this is small.
+        let mut owner = vec![usize::MAX; count as usize];
+        for (k, s) in shards.iter().enumerate() {
+            if same(&s.meta) != same(&first.meta) {
+                return Err(PrtError::invalid(
+                    "merge",
+                    meta_difference(&same(&s.meta), &name(k), &same(&first.meta), &name(0)),
+                ));
+            }
+            match s.meta.shard {
+                Some([i, n]) if n == count && i < n && owner[i as usize] == usize::MAX => {
+                    owner[i as usize] = k
+                }
+                Some([i, n]) if n == count && i < n => {
+                    return Err(PrtError::invalid(
+                        "merge",
+                        format!(
+                            "shard {i}/{n} repeats: {} and {} are both shard {i}/{n}",
+                            name(owner[i as usize]),
+                            name(k)
+                        ),
+                    ));
+                }
+                Some([i, n]) => {
+                    return Err(PrtError::invalid(
+                        "merge",
+                        format!(
+                            "{} is shard {i}/{n}, which does not fit a set of {count} shards",
+                            name(k)
+                        ),
+                    ));
+                }
+                None => {
+                    return Err(PrtError::invalid(
+                        "merge",
+                        format!("{} is not a shard", name(k)),
+                    ));
+                }
+            }
+        }
+        if let Some(i) = owner.iter().position(|&o| o == usize::MAX) {
+            return Err(PrtError::invalid(
+                "merge",
+                format!("shard {i}/{count} is missing"),
+            ));
+        }
+        let (w, h) = (first.meta.width as usize, first.meta.height as usize);
+        let (tx, ty) = tile_grid(w, h);
+        // A shard holds nothing outside its own bands: a label that does not match the content
+        // (two shards' labels swapped, say) would otherwise merge into a mostly black image.
+        for (i, &k) in owner.iter().enumerate() {
+            let s = &shards[k];
+            for band in (0..ty).filter(|&b| shard_of_band(b, ty, count as usize) != i) {
+                let tiles = band * tx..(band + 1) * tx;
+                let pixels = band * TILE * w..((band + 1) * TILE * w).min(w * h);
+                let rows = s.tile_row_start[tiles.end] - s.tile_row_start[tiles.start];
+                let stats = s.tile_stats[tiles].iter().flatten().any(|v| *v != 0.0);
+                let seen = s.coverage[pixels.clone()].iter().any(|v| *v != 0.0)
+                    || s.albedo[pixels].iter().flatten().any(|v| *v != 0.0);
+                if rows > 0 || stats || seen {
+                    return Err(PrtError::invalid(
+                        "merge",
+                        format!(
+                            "{} is labelled shard {i}/{count} but holds data in tile row {band}, \
+                             which shard {}/{count} bakes: its `shard` label does not match its \
+                             content",
+                            name(k),
+                            shard_of_band(band, ty, count as usize)
+                        ),
+                    ));
+                }
+            }
+        }
+        let mut tiles = Vec::with_capacity(tx * ty);
+        let mut albedo = vec![[0.0f32; 3]; w * h];
+        let mut coverage = vec![0.0f32; w * h];
+        let mut tile_stats = Vec::with_capacity(tx * ty);
+        for band in 0..ty {
+            let s = &shards[owner[shard_of_band(band, ty, count as usize)]];
+            for tile in band * tx..(band + 1) * tx {
+                tiles.push(s.encoded_tile(tile));
+                tile_stats.push(s.tile_stats[tile]);
+            }
+            let pixels = band * TILE * w..((band + 1) * TILE * w).min(w * h);
+            albedo[pixels.clone()].copy_from_slice(&s.albedo[pixels.clone()]);
+            coverage[pixels.clone()].copy_from_slice(&s.coverage[pixels]);
+        }
+        Transport::assemble_encoded(same(&first.meta), &tiles, albedo, coverage, tile_stats)
+    }
+}
+
+/// How shard `a` (named `na`) differs from shard `b` (named `nb`): "A was baked from another
+/// scene than B (scene hash X against Y)", or the first setting that differs, "A was baked with
+/// seed 7, B with seed 1".
+fn meta_difference(a: &TransportMeta, na: &str, b: &TransportMeta, nb: &str) -> String {
+    if a.scene_hash != b.scene_hash {
+        return format!(
+            "{na} was baked from another scene than {nb} (scene hash {} against {})",
+            a.scene_hash, b.scene_hash
+        );
+    }
+    if let (Ok(serde_json::Value::Object(x)), Ok(serde_json::Value::Object(y))) =
+        (serde_json::to_value(a), serde_json::to_value(b))
+    {
+        for (key, va) in &x {
+            let vb = y.get(key).unwrap_or(&serde_json::Value::Null);
+            if va != vb {
+                return format!("{na} was baked with {key} {va}, {nb} with {key} {vb}");
+            }
+        }
+    }
+    format!("{na} was baked with other settings than {nb}")
+}
+
+/// The shard that bakes band (tile row) `band` of `bands` when a bake is split into `count`.
+pub fn shard_of_band(band: usize, bands: usize, count: usize) -> usize {
+    (band * count) / bands.max(1)
+}

@@ -1,0 +1,498 @@
+//! The transport file (format version 3, laid out in the [module docs](super)): writing it,
+//! reading and validating all of it, and reading only its header and small tables for
+//! `prt info`. Every size and index is checked before anything is sliced or allocated.
+
+use std::io::{Read, Seek};
+use std::path::Path;
+
+use safetensors::tensor::Dtype;
+use serde::{Deserialize, Serialize};
+
+use super::*;
+use crate::error::{PrtError, Result};
+use crate::store::container::{self, Tensor, check_meta_seal, checksum};
+
+impl Transport {
+    /// Writes the file atomically: a temporary file beside `path`, then a rename.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        let (w, h) = (self.meta.width as usize, self.meta.height as usize);
+        let tiles = self.tile_count();
+        let c = self.coeff_count();
+        let r = self.row_pixel.len();
+        let b = self.block_count();
+        let nnz = self.entry_row.len();
+        let counts = self.col_counts(0..self.block_count());
+        let mut tensors: Vec<(&str, Tensor)> = vec![
+            (
+                "tile_row_start",
+                Tensor::new(Dtype::U32, vec![tiles + 1], &self.tile_row_start),
+            ),
+            (
+                "row_pixel",
+                Tensor::new(Dtype::U32, vec![r], &self.row_pixel),
+            ),
+            (
+                "row_weight",
+                Tensor::new(Dtype::F32, vec![r, 3], &self.row_weight),
+            ),
+            (
+                "row_scale",
+                Tensor::new(Dtype::F32, vec![r], &self.row_scale),
+            ),
+            ("col_count", Tensor::new(Dtype::U16, vec![b, c], &counts)),
+            (
+                "col_scale",
+                Tensor::new(Dtype::U8, vec![b, c], &self.col_scale),
+            ),
+            (
+                "entry_row",
+                Tensor::new(Dtype::U8, vec![nnz], &self.entry_row),
+            ),
+            (
+                "sh",
+                Tensor::new(Dtype::F32, vec![r, self.sh_count()], &self.sh),
+            ),
+            (
+                "albedo",
+                Tensor::new(Dtype::F32, vec![h, w, 3], &self.albedo),
+            ),
+            (
+                "coverage",
+                Tensor::new(Dtype::F32, vec![h, w], &self.coverage),
+            ),
+            (
+                "transport_magnitude",
+                Tensor::new(Dtype::F32, vec![c], &self.transport_magnitude),
+            ),
+            (
+                "tile_stats",
+                Tensor::new(Dtype::F64, vec![tiles, 3], &self.tile_stats),
+            ),
+        ];
+        tensors.push(match &self.values {
+            Values::Q8(v) => ("entry_value", Tensor::new(Dtype::I8, vec![nnz], v)),
+            Values::Q16(v) => ("entry_value", Tensor::new(Dtype::I16, vec![nnz], v)),
+            Values::F32(v) => ("entry_value", Tensor::new(Dtype::F32, vec![nnz], v)),
+        });
+        tensors.sort_by_key(|(name, _)| *name);
+        debug_assert!(tensors.iter().map(|(n, _)| *n).eq(TENSOR_NAMES));
+        // One metadata key, so the header is the same bytes for the same content (the
+        // container keeps its metadata in a hash map, whose order varies between runs).
+        container::save(path, tensors, |checksum| {
+            serde_json::to_string(&FileHeader {
+                format: FORMAT_NAME.to_string(),
+                format_version: FORMAT_VERSION,
+                checksum,
+                meta: self.meta.clone(),
+            })
+        })
+    }
+
+    /// Reads and fully validates a transport file.
+    pub fn load(path: &Path) -> Result<Self> {
+        Self::load_with_progress(path, &|_, _| {})
+    }
+
+    /// [`Transport::load`], calling `progress(bytes read, file size)` as the file comes in (the
+    /// viewer shows it; validation after the read is quick).
+    pub fn load_with_progress(path: &Path, progress: &dyn Fn(u64, u64)) -> Result<Self> {
+        let Header {
+            meta,
+            checksum: stored,
+            ..
+        } = read_header(path)?;
+        let buf = container::read_with_progress(path, u64::MAX, "transport", progress)?;
+        let st = safetensors::SafeTensors::deserialize(&buf)
+            .map_err(|e| PrtError::file(path, format!("not a valid safetensors file: {e}")))?;
+        let mut parts = Vec::with_capacity(TENSOR_NAMES.len());
+        for name in TENSOR_NAMES {
+            let t = st
+                .tensor(name)
+                .map_err(|_| PrtError::file(path, format!("tensor `{name}` is missing")))?;
+            parts.push(t.data());
+        }
+        let sum = format!("{:016x}", checksum(parts));
+        if sum != stored {
+            return Err(PrtError::file(
+                path,
+                format!(
+                    "checksum mismatch (stored {stored}, computed {sum}): the file is corrupted"
+                ),
+            ));
+        }
+        let (w, h) = (meta.width as usize, meta.height as usize);
+        let (tx, ty) = tile_grid(w, h);
+        let tiles = tx * ty;
+        let c = 6 * (meta.cube_n as usize).pow(2);
+        let get = |name: &str, dtype: Dtype| -> Result<(Vec<usize>, &[u8])> {
+            let t = st
+                .tensor(name)
+                .map_err(|_| PrtError::file(path, format!("tensor `{name}` is missing")))?;
+            if t.dtype() != dtype {
+                return Err(PrtError::file(
+                    path,
+                    format!(
+                        "tensor `{name}` has dtype {:?}, expected {dtype:?}",
+                        t.dtype()
+                    ),
+                ));
+            }
+            Ok((t.shape().to_vec(), t.data()))
+        };
+        let expect = |name: &str, shape: &[usize], want: &[usize]| -> Result<()> {
+            if shape != want {
+                return Err(PrtError::file(
+                    path,
+                    format!("tensor `{name}` has shape {shape:?}, expected {want:?}"),
+                ));
+            }
+            Ok(())
+        };
+        let bad = |m: String| PrtError::file(path, m);
+        let (s, d) = get("tile_row_start", Dtype::U32)?;
+        expect("tile_row_start", &s, &[tiles + 1])?;
+        let tile_row_start: Vec<u32> = bytemuck::pod_collect_to_vec(d);
+        let (s, d) = get("row_pixel", Dtype::U32)?;
+        let r = s.first().copied().unwrap_or(0);
+        expect("row_pixel", &s, &[r])?;
+        let row_pixel: Vec<u32> = bytemuck::pod_collect_to_vec(d);
+        // The block tables follow from the tiles' row counts, checked before anything is sized
+        // by them.
+        let (tile_block_start, block_row_start) = block_tables(&tile_row_start, r).map_err(bad)?;
+        let blocks = block_row_start.len() - 1;
+        let (s, d) = get("row_weight", Dtype::F32)?;
+        expect("row_weight", &s, &[r, 3])?;
+        let row_weight: Vec<[f32; 3]> = bytemuck::pod_collect_to_vec(d);
+        let (s, d) = get("row_scale", Dtype::F32)?;
+        expect("row_scale", &s, &[r])?;
+        let row_scale: Vec<f32> = bytemuck::pod_collect_to_vec(d);
+        let (s, d) = get("col_count", Dtype::U16)?;
+        expect("col_count", &s, &[blocks, c])?;
+        let counts: Vec<u16> = bytemuck::pod_collect_to_vec(d);
+        let (s, d) = get("col_scale", Dtype::U8)?;
+        expect("col_scale", &s, &[blocks, c])?;
+        let col_scale: Vec<u8> = d.to_vec();
+        let (s, d) = get("entry_row", Dtype::U8)?;
+        let nnz = s.first().copied().unwrap_or(0);
+        expect("entry_row", &s, &[nnz])?;
+        let entry_row: Vec<u8> = d.to_vec();
+        let (col_ptr, block_entry_start) =
+            column_pointers(&counts, &block_row_start, c, nnz).map_err(bad)?;
+        let values = match meta.quantization {
+            Quantization::Q8 => {
+                let (s, d) = get("entry_value", Dtype::I8)?;
+                expect("entry_value", &s, &[nnz])?;
+                Values::Q8(bytemuck::pod_collect_to_vec(d))
+            }
+            Quantization::Q16 => {
+                let (s, d) = get("entry_value", Dtype::I16)?;
+                expect("entry_value", &s, &[nnz])?;
+                Values::Q16(bytemuck::pod_collect_to_vec(d))
+            }
+            Quantization::F32 => {
+                let (s, d) = get("entry_value", Dtype::F32)?;
+                expect("entry_value", &s, &[nnz])?;
+                Values::F32(bytemuck::pod_collect_to_vec(d))
+            }
+        };
+        let shc = (meta.sh_order as usize).pow(2);
+        let (s, d) = get("sh", Dtype::F32)?;
+        expect("sh", &s, &[r, shc])?;
+        let sh: Vec<f32> = bytemuck::pod_collect_to_vec(d);
+        let (s, d) = get("albedo", Dtype::F32)?;
+        expect("albedo", &s, &[h, w, 3])?;
+        let albedo: Vec<[f32; 3]> = bytemuck::pod_collect_to_vec(d);
+        let (s, d) = get("coverage", Dtype::F32)?;
+        expect("coverage", &s, &[h, w])?;
+        let coverage: Vec<f32> = bytemuck::pod_collect_to_vec(d);
+        let (s, d) = get("transport_magnitude", Dtype::F32)?;
+        expect("transport_magnitude", &s, &[c])?;
+        let transport_magnitude: Vec<f32> = bytemuck::pod_collect_to_vec(d);
+        let (s, d) = get("tile_stats", Dtype::F64)?;
+        expect("tile_stats", &s, &[tiles, 3])?;
+        let tile_stats: Vec<[f64; 3]> = bytemuck::pod_collect_to_vec(d);
+        let t = Transport {
+            meta,
+            tile_row_start,
+            row_pixel,
+            row_weight,
+            row_scale,
+            tile_block_start,
+            block_row_start,
+            block_entry_start,
+            col_ptr,
+            col_scale,
+            entry_row,
+            values,
+            sh,
+            albedo,
+            coverage,
+            transport_magnitude,
+            tile_stats,
+        };
+        t.validate().map_err(bad)?;
+        Ok(t)
+    }
+}
+
+/// Reads only the safetensors header and our metadata, checking that the declared tensors fill the
+/// file exactly and that the format and version are ours; allocates nothing proportional to the
+/// data.
+pub fn read_header_meta(path: &Path) -> Result<TransportMeta> {
+    read_header(path).map(|h| h.meta)
+}
+
+/// The header and the small tables, for `prt info`: the metadata, checked as
+/// [`read_header_meta`] does, and the tile and column-count tables, checked against each other and
+/// against the entry count the header declares. The entries and values, nearly all of the file,
+/// are neither read nor checked (their checksum needs them all).
+pub fn read_summary(path: &Path) -> Result<TransportMeta> {
+    let Header {
+        meta,
+        tensors,
+        data_start,
+        mut file,
+        ..
+    } = read_header(path)?;
+    // A tensor's element count and, when `read`, its bytes (the header's offsets were checked
+    // against the file's length, so the read is bounded by the file).
+    let mut tensor = |name: &str, dtype: &str, read: bool| -> Result<(usize, Vec<u8>)> {
+        let bad = |why: &str| PrtError::file(path, format!("tensor `{name}`: {why}"));
+        let t = tensors.get(name).ok_or_else(|| bad("missing"))?;
+        if t.get("dtype").and_then(|d| d.as_str()) != Some(dtype) {
+            return Err(bad(&format!("dtype is not {dtype}")));
+        }
+        let count = t
+            .get("shape")
+            .and_then(|s| s.as_array())
+            .and_then(|a| {
+                a.iter()
+                    .try_fold(1usize, |n, d| n.checked_mul(d.as_u64()? as usize))
+            })
+            .ok_or_else(|| bad("bad shape"))?;
+        let offsets = t.get("data_offsets").and_then(|o| o.as_array());
+        let (start, end) =
+            match offsets.and_then(|o| Some((o.first()?.as_u64()?, o.get(1)?.as_u64()?))) {
+                Some((a, b)) if a <= b => (a, b),
+                _ => return Err(bad("bad data_offsets")),
+            };
+        let width = match dtype {
+            "U32" => 4,
+            "U16" => 2,
+            _ => 1,
+        };
+        if count.checked_mul(width) != Some((end - start) as usize) {
+            return Err(bad(&format!(
+                "{count} values do not fill {} bytes",
+                end - start
+            )));
+        }
+        if !read {
+            return Ok((count, Vec::new()));
+        }
+        let mut bytes = vec![0u8; (end - start) as usize];
+        file.seek(std::io::SeekFrom::Start(data_start + start))
+            .and_then(|_| file.read_exact(&mut bytes))
+            .map_err(|e| bad(&format!("reading: {e}")))?;
+        Ok((count, bytes))
+    };
+    let (tiles, starts) = tensor("tile_row_start", "U32", true)?;
+    let (rows, _) = tensor("row_pixel", "U32", false)?;
+    let (nnz, _) = tensor("entry_row", "U8", false)?;
+    let (_, counts) = tensor("col_count", "U16", true)?;
+    let (tx, ty) = tile_grid(meta.width as usize, meta.height as usize);
+    let starts: Vec<u32> = bytemuck::pod_collect_to_vec(&starts);
+    if tiles != tx * ty + 1 || starts.len() != tiles {
+        return Err(PrtError::file(
+            path,
+            "tile tables do not match the image size",
+        ));
+    }
+    let (_, block_rows) = block_tables(&starts, rows).map_err(|m| PrtError::file(path, m))?;
+    let c = 6 * meta.cube_n as usize * meta.cube_n as usize;
+    let counts: Vec<u16> = bytemuck::pod_collect_to_vec(&counts);
+    if counts.len() != (block_rows.len() - 1) * c {
+        return Err(PrtError::file(
+            path,
+            "column counts do not match the blocks and coefficients",
+        ));
+    }
+    column_pointers(&counts, &block_rows, c, nnz).map_err(|m| PrtError::file(path, m))?;
+    Ok(meta)
+}
+
+/// What [`read_header`] gives: the checked metadata, the stored tensor checksum, the header's
+/// tensor entries (name to dtype, shape and offsets), where the tensor data starts, and the open
+/// file.
+struct Header {
+    meta: TransportMeta,
+    checksum: String,
+    tensors: serde_json::Map<String, serde_json::Value>,
+    data_start: u64,
+    file: std::fs::File,
+}
+
+/// [`read_header_meta`], with what the rest of a reader needs (see [`Header`]).
+fn read_header(path: &Path) -> Result<Header> {
+    let (mut f, file_len) = crate::files::open_regular(path, u64::MAX, "transport")?;
+    let mut len8 = [0u8; 8];
+    f.read_exact(&mut len8)
+        .map_err(|_| PrtError::file(path, "too short to be a transport file"))?;
+    let header_len = u64::from_le_bytes(len8);
+    if header_len > MAX_HEADER_BYTES || header_len + 8 > file_len {
+        return Err(PrtError::file(
+            path,
+            format!("header length {header_len} does not fit a file of {file_len} bytes"),
+        ));
+    }
+    let mut header = vec![0u8; header_len as usize];
+    f.read_exact(&mut header)
+        .map_err(|e| PrtError::file(path, format!("reading header: {e}")))?;
+    let json: serde_json::Value = serde_json::from_slice(&header)
+        .map_err(|e| PrtError::file(path, format!("header is not JSON: {e}")))?;
+    let obj = json
+        .as_object()
+        .ok_or_else(|| PrtError::file(path, "header is not a JSON object"))?;
+    let info = obj
+        .get("__metadata__")
+        .and_then(|m| m.as_object())
+        .ok_or_else(|| PrtError::file(path, "no metadata: not a wavelet-prt transport file"))?;
+    let text = info
+        .get("meta")
+        .and_then(|v| v.as_str())
+        .ok_or_else(|| PrtError::file(path, "not a wavelet-prt transport file (no `meta`)"))?;
+    let value: serde_json::Value = serde_json::from_str(text)
+        .map_err(|e| PrtError::file(path, format!("metadata `meta` is not JSON: {e}")))?;
+    let format = value.get("format").and_then(|v| v.as_str());
+    if let Some(e) = container::other_format(path, format, container::TRANSPORT) {
+        return Err(e);
+    }
+    if format != Some(FORMAT_NAME) {
+        return Err(PrtError::file(
+            path,
+            "not a wavelet-prt transport file (metadata `format`)",
+        ));
+    }
+    let version = value.get("format_version").and_then(|v| v.as_u64());
+    match version {
+        Some(v) if v == FORMAT_VERSION as u64 => {}
+        Some(v) if v < FORMAT_VERSION as u64 => {
+            return Err(PrtError::file(
+                path,
+                format!(
+                    "format_version {v} was written by an older build (16-bit float values); \
+                     this build reads version {FORMAT_VERSION}: bake the scene again with \
+                     `prt bake`"
+                ),
+            ));
+        }
+        _ => {
+            return Err(PrtError::file(
+                path,
+                format!(
+                    "format_version {}; this build reads version {FORMAT_VERSION}",
+                    version.map(|v| v.to_string()).unwrap_or("?".into())
+                ),
+            ));
+        }
+    }
+    check_meta_seal(text).map_err(|m| PrtError::file(path, m))?;
+    let header: FileHeader = serde_json::from_value(value)
+        .map_err(|e| PrtError::file(path, format!("metadata `meta`: {e}")))?;
+    let mut data_end = 0u64;
+    for (name, t) in obj.iter().filter(|(k, _)| *k != "__metadata__") {
+        let end = t
+            .get("data_offsets")
+            .and_then(|o| o.get(1))
+            .and_then(|e| e.as_u64())
+            .ok_or_else(|| PrtError::file(path, format!("tensor `{name}` has no data_offsets")))?;
+        data_end = data_end.max(end);
+    }
+    if 8 + header_len + data_end != file_len {
+        return Err(PrtError::file(
+            path,
+            format!(
+                "tensors need {} bytes but the file has {file_len}: truncated or padded",
+                8 + header_len + data_end
+            ),
+        ));
+    }
+    check_meta(&header.meta).map_err(|m| PrtError::file(path, m))?;
+    Ok(Header {
+        meta: header.meta,
+        checksum: header.checksum,
+        tensors: obj.clone(),
+        data_start: 8 + header_len,
+        file: f,
+    })
+}
+
+/// The one metadata entry of a file: format, version, checksum and the [`TransportMeta`]
+/// (`meta_checksum` follows them in the text, see [`container::seal_meta`]).
+#[derive(Serialize, Deserialize)]
+struct FileHeader {
+    format: String,
+    format_version: u32,
+    /// Of the tensors (see [`checksum`]).
+    checksum: String,
+    #[serde(flatten)]
+    meta: TransportMeta,
+}
+
+fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
+    if m.width == 0 || m.height == 0 || m.width > 16384 || m.height > 16384 {
+        return Err(format!(
+            "image size {} x {} out of range",
+            m.width, m.height
+        ));
+    }
+    if m.tile as usize != TILE {
+        return Err(format!("tile size {}; this build uses {TILE}", m.tile));
+    }
+    crate::math::cubemap::validate_n(m.cube_n as usize).map_err(|e| e.to_string())?;
+    if m.sh_order == 0 || m.sh_order as usize > crate::math::sh::MAX_ORDER {
+        return Err(format!("SH order {} out of range", m.sh_order));
+    }
+    if let Some([i, n]) = m.shard {
+        // A bake cuts at most one shard per band of tile rows.
+        let (_, bands) = tile_grid(m.width as usize, m.height as usize);
+        if n == 0 || i >= n || n as usize > bands {
+            return Err(format!(
+                "shard {i}/{n}: a shard is I/COUNT with I < COUNT <= {bands} (the image's \
+                 bands of tile rows)"
+            ));
+        }
+    }
+    if !(m.threshold.is_finite() && m.threshold >= 0.0) {
+        return Err(format!("threshold {} must be finite and >= 0", m.threshold));
+    }
+    let c = &m.camera;
+    if !c
+        .eye
+        .iter()
+        .chain(&c.target)
+        .chain(&c.up)
+        .all(|v| v.is_finite())
+        || !c.fov_y_deg.is_finite()
+    {
+        return Err("camera: every number must be finite".into());
+    }
+    Ok(())
+}
+
+/// Names of the tensors in a file, in the order the checksum covers them.
+const TENSOR_NAMES: [&str; 13] = [
+    "albedo",
+    "col_count",
+    "col_scale",
+    "coverage",
+    "entry_row",
+    "entry_value",
+    "row_pixel",
+    "row_scale",
+    "row_weight",
+    "sh",
+    "tile_row_start",
+    "tile_stats",
+    "transport_magnitude",
+];

@@ -1,0 +1,498 @@
+//! The transport store: the baked sparse Haar transport, the dense SH transport and per-pixel data
+//! of one fixed view, in memory and in a documented safetensors file.
+//!
+//! # Rows, tiles, blocks and columns
+//! The image is cut into [`TILE`] x [`TILE`] pixel tiles, row-major over the tile grid. A *row* is
+//! one transport vector over the 6 N² Haar coefficients together with the pixel it lights and an RGB
+//! weight: a pixel's radiance is `Σ_rows weight ⊙ (row · L)`. A diffuse pixel that sees one material
+//! has one row whose weight is the albedo; a pixel whose sub-samples see several materials has one
+//! row per material, so the split stays exact. Rows are grouped by tile.
+//!
+//! A tile's rows are cut into *blocks* of at most [`BLOCK_ROWS`] (256) consecutive rows, so a row
+//! index inside a block is one byte; a tile of one row per pixel is one block. Inside a block the
+//! rows' nonzero coefficients are stored column by column (coefficient-major): the entries of
+//! coefficient j, each a row index and an integer, rows strictly increasing, with the value
+//! `integer · scale(code[block, j]) · row_scale[row]` (see [`crate::store::quant`]). The row scale (the
+//! row's largest magnitude) puts rows of very different brightness, such as a glossy lobe beside a
+//! diffuse row, on one footing before a block's columns share a scale; the kernels apply it once per
+//! row, with the weight. So one worker owns a tile's rows
+//! with no atomics, a column touches each row at most once, and relighting with K terms reads only
+//! K columns of each block.
+//!
+//! # File (format version 3)
+//! A safetensors file (readable from Python with `safetensors.numpy.load_file`); its one metadata
+//! entry `meta` is JSON: `format = "wavelet-prt transport"`, `format_version`, `checksum` and the
+//! fields of [`TransportMeta`]. Tensors (T tiles, R rows, B blocks, C = 6 N² coefficients):
+//!
+//! | tensor | dtype, shape | what |
+//! |---|---|---|
+//! | `tile_row_start` | u32 [T+1] | tile t holds rows `tile_row_start[t] .. tile_row_start[t+1]`; its blocks are those rows in runs of 256 |
+//! | `row_pixel`, `row_weight` | u32 [R], f32 [R, 3] | the pixel (y · width + x) and RGB weight of each row |
+//! | `row_scale` | f32 [R] | each row's stored values are relative to this (its largest magnitude) |
+//! | `col_count` | u16 [B, C] | entries of coefficient j in block b; blocks in tile order, entries in (block, j) order |
+//! | `col_scale` | u8 [B, C] | the scale code of (b, j): `scale = 2^((code − 192) / 4)` |
+//! | `entry_row` | u8 [nnz] | the row inside its block |
+//! | `entry_value` | i8, i16 or f32 [nnz] | the integer (`quantization` q8, q16) or the value (f32, scale 1) |
+//! | `sh` | f32 [R, n²] | SH transport of each row |
+//! | `albedo`, `coverage` | f32 [H, W, 3], f32 [H, W] | per pixel: albedo seen, fraction of sub-samples that hit |
+//! | `transport_magnitude` | f32 [C] | mean magnitude of each coefficient over the rows (transport weighting) |
+//! | `tile_stats` | f64 [T, 3] | per tile: energy dropped by thresholding and quantisation, total energy, shadow rays |
+//!
+//! The `checksum` covers the tensors' bytes in name order and `meta_checksum` the metadata's
+//! fields (the JSON of `meta` without `meta_checksum`, as this build writes it), so a flipped bit
+//! anywhere is caught; files written before `meta_checksum` existed have none and are read as
+//! before. A checksum guards against accidents, not edits: loading checks the header, the sizes
+//! and every count, index and value (NaN or infinite floats included) before it allocates
+//! anything or trusts any offset, and allocates no more than the file's own tensors hold. Writing
+//! goes to a temporary file that is renamed into place ([`crate::files`]).
+
+mod assemble;
+mod file;
+
+use std::ops::Range;
+
+use serde::{Deserialize, Serialize};
+
+use crate::store::container;
+use crate::store::quant::scale_of;
+pub use crate::store::quant::{BLOCK_ROWS, Quantization};
+
+pub use assemble::{EncodedTile, RowData, shard_of_band};
+pub use file::{read_header_meta, read_summary};
+
+/// Pixels on a side of a tile.
+pub const TILE: usize = 16;
+/// Name written in every transport file.
+pub const FORMAT_NAME: &str = container::TRANSPORT.name;
+/// Version of the layout described in this module.
+pub const FORMAT_VERSION: u32 = 3;
+/// Largest safetensors header accepted (JSON text), checked before it is read.
+const MAX_HEADER_BYTES: u64 = 1 << 24;
+
+/// Camera of the baked view, as written in the file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CameraMeta {
+    pub eye: [f32; 3],
+    pub target: [f32; 3],
+    pub up: [f32; 3],
+    pub fov_y_deg: f32,
+}
+
+/// Figures of a bake.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct BakeStats {
+    /// Transport rows.
+    pub rows: u64,
+    /// Stored nonzero Haar coefficients.
+    pub nonzeros: u64,
+    /// rows x 6 N², what a dense matrix would hold.
+    pub dense_entries: u64,
+    /// Sum over rows of the squared norm of what thresholding and quantisation changed, over the
+    /// sum of squared norms: the relative L2 (squared) the storage removed from the transport.
+    pub dropped_energy_fraction: f64,
+    /// Shadow rays traced.
+    pub shadow_rays: u64,
+}
+
+/// Everything about a transport file but its arrays.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TransportMeta {
+    pub width: u32,
+    pub height: u32,
+    pub tile: u32,
+    pub cube_n: u32,
+    pub sh_order: u32,
+    /// FNV-1a hash of the scene text and its meshes, hex.
+    pub scene_hash: String,
+    /// The scene file as given to the bake.
+    pub scene_path: String,
+    pub camera: CameraMeta,
+    pub spp: u32,
+    pub texel_samples: u32,
+    pub unshadowed: bool,
+    pub seed: u64,
+    /// Thresholding parameter (0 = keep every nonzero); its meaning is `budget`'s.
+    pub threshold: f32,
+    /// How the thresholding budget weighs coefficients.
+    #[serde(default)]
+    pub budget: crate::store::budget::Budget,
+    pub quantization: Quantization,
+    /// `[index, count]` for one shard of a sharded bake (it holds only its band of tile rows);
+    /// absent for a whole bake or a merge of all shards.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<[u32; 2]>,
+    /// Interreflection bounces baked in (0: direct light only).
+    #[serde(default)]
+    pub bounces: u32,
+    /// Paths per camera sub-sample for the interreflections (0 without them).
+    #[serde(default)]
+    pub paths: u32,
+    /// Derived from the tables (see [`Transport::finish`]): the same for a bake and a merge.
+    pub stats: BakeStats,
+}
+
+/// Stored coefficient values: integers against their column's scale, or lossless floats.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Values {
+    Q8(Vec<i8>),
+    Q16(Vec<i16>),
+    F32(Vec<f32>),
+}
+
+impl Values {
+    /// Empty values of a quantisation.
+    pub fn empty(q: Quantization) -> Self {
+        match q {
+            Quantization::Q8 => Values::Q8(Vec::new()),
+            Quantization::Q16 => Values::Q16(Vec::new()),
+            Quantization::F32 => Values::F32(Vec::new()),
+        }
+    }
+    /// The quantisation these values are in.
+    pub fn quantization(&self) -> Quantization {
+        match self {
+            Values::Q8(_) => Quantization::Q8,
+            Values::Q16(_) => Quantization::Q16,
+            Values::F32(_) => Quantization::F32,
+        }
+    }
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        match self {
+            Values::Q8(v) => v.len(),
+            Values::Q16(v) => v.len(),
+            Values::F32(v) => v.len(),
+        }
+    }
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Bytes per value.
+    pub fn value_bytes(&self) -> usize {
+        self.quantization().value_bytes()
+    }
+    /// Stored value `i` (the integer, or the float) as f32, before its column's scale.
+    #[inline]
+    pub fn raw(&self, i: usize) -> f32 {
+        match self {
+            Values::Q8(v) => v[i] as f32,
+            Values::Q16(v) => v[i] as f32,
+            Values::F32(v) => v[i],
+        }
+    }
+    /// Appends the stored values `range` of `other` (same quantisation).
+    fn extend_from(&mut self, other: &Values, range: Range<usize>) {
+        match (self, other) {
+            (Values::Q8(a), Values::Q8(b)) => a.extend_from_slice(&b[range]),
+            (Values::Q16(a), Values::Q16(b)) => a.extend_from_slice(&b[range]),
+            (Values::F32(a), Values::F32(b)) => a.extend_from_slice(&b[range]),
+            _ => debug_assert!(false, "mixed quantisations"),
+        }
+    }
+    /// Appends one quantised value.
+    fn push(&mut self, q: f32) {
+        match self {
+            Values::Q8(a) => a.push(q as i8),
+            Values::Q16(a) => a.push(q as i16),
+            Values::F32(a) => a.push(q),
+        }
+    }
+}
+
+/// A baked view in memory, in the layout of this module. The block tables (`tile_block_start`,
+/// `block_row_start`, `block_entry_start`, `col_ptr`) are derived from `tile_row_start` and the
+/// file's `col_count`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Transport {
+    pub meta: TransportMeta,
+    pub tile_row_start: Vec<u32>,
+    pub row_pixel: Vec<u32>,
+    pub row_weight: Vec<[f32; 3]>,
+    /// Each row's values are stored relative to this.
+    pub row_scale: Vec<f32>,
+    /// Tile t holds blocks `tile_block_start[t] .. tile_block_start[t + 1]`.
+    pub tile_block_start: Vec<u32>,
+    /// Block b holds rows `block_row_start[b] .. block_row_start[b + 1]` (global row indices).
+    pub block_row_start: Vec<u32>,
+    /// Block b holds entries `block_entry_start[b] .. block_entry_start[b + 1]`.
+    pub block_entry_start: Vec<u64>,
+    /// `col_ptr[b (C + 1) + j] .. col_ptr[b (C + 1) + j + 1]`: block b's entries of coefficient j,
+    /// relative to the block's first entry.
+    pub col_ptr: Vec<u32>,
+    /// Scale code of every (block, coefficient).
+    pub col_scale: Vec<u8>,
+    /// Row of each entry inside its block.
+    pub entry_row: Vec<u8>,
+    pub values: Values,
+    pub sh: Vec<f32>,
+    pub albedo: Vec<[f32; 3]>,
+    pub coverage: Vec<f32>,
+    pub transport_magnitude: Vec<f32>,
+    /// Per tile: energy thresholding and quantisation dropped, the rows' total energy, shadow
+    /// rays traced.
+    pub tile_stats: Vec<[f64; 3]>,
+}
+
+/// Tiles along x and y for an image.
+pub fn tile_grid(width: usize, height: usize) -> (usize, usize) {
+    (width.div_ceil(TILE), height.div_ceil(TILE))
+}
+
+/// Blocks a tile of `rows` rows is cut into.
+pub fn blocks_of(rows: usize) -> usize {
+    rows.div_ceil(BLOCK_ROWS)
+}
+
+impl Transport {
+    /// Haar coefficients per row, 6 N².
+    pub fn coeff_count(&self) -> usize {
+        6 * (self.meta.cube_n as usize).pow(2)
+    }
+    /// Number of pixel tiles.
+    pub fn tile_count(&self) -> usize {
+        self.tile_row_start.len() - 1
+    }
+    /// Number of row blocks.
+    pub fn block_count(&self) -> usize {
+        self.block_row_start.len() - 1
+    }
+    /// Pixels in the image.
+    pub fn pixel_count(&self) -> usize {
+        self.meta.width as usize * self.meta.height as usize
+    }
+    /// SH coefficients per row.
+    pub fn sh_count(&self) -> usize {
+        (self.meta.sh_order as usize).pow(2)
+    }
+    /// The blocks of tile `t`.
+    #[inline]
+    pub fn blocks(&self, t: usize) -> Range<usize> {
+        self.tile_block_start[t] as usize..self.tile_block_start[t + 1] as usize
+    }
+    /// Entry range of coefficient `j` in block `b`, as absolute entry indices.
+    #[inline]
+    pub fn block_column(&self, b: usize, j: usize) -> Range<usize> {
+        let c = self.coeff_count() + 1;
+        let base = self.block_entry_start[b] as usize;
+        base + self.col_ptr[b * c + j] as usize..base + self.col_ptr[b * c + j + 1] as usize
+    }
+    /// The scale of coefficient `j` in block `b`.
+    #[inline]
+    pub fn scale(&self, b: usize, j: usize) -> f32 {
+        scale_of(self.col_scale[b * self.coeff_count() + j])
+    }
+    /// Stored value of entry `e` of block `b`, coefficient `j`, decoded.
+    #[inline]
+    pub fn value(&self, b: usize, j: usize, e: usize) -> f32 {
+        let row = self.block_row_start[b] as usize + self.entry_row[e] as usize;
+        self.values.raw(e) * self.scale(b, j) * self.row_scale[row]
+    }
+    /// Bytes of the sparse Haar matrix as stored in the file: entries (row and value), column
+    /// counts and scale codes.
+    pub fn haar_bytes(&self) -> usize {
+        self.entry_row.len() * (1 + self.values.value_bytes())
+            + self.block_count() * self.coeff_count() * 3
+    }
+    /// The per-column entry counts of `blocks`, as the file stores them, derived from the column
+    /// pointers.
+    fn col_counts(&self, blocks: Range<usize>) -> Vec<u16> {
+        let c = self.coeff_count();
+        let mut counts = Vec::with_capacity(blocks.len() * c);
+        for b in blocks {
+            let ptr = &self.col_ptr[b * (c + 1)..(b + 1) * (c + 1)];
+            counts.extend(ptr.windows(2).map(|w| (w[1] - w[0]) as u16));
+        }
+        counts
+    }
+
+    /// Checks every index and offset, so kernels may index without further checks. Returns a
+    /// message naming the first inconsistency.
+    pub fn validate(&self) -> std::result::Result<(), String> {
+        let m = &self.meta;
+        let (w, h) = (m.width as usize, m.height as usize);
+        let (tx, ty) = tile_grid(w, h);
+        let tiles = tx * ty;
+        let c = self.coeff_count();
+        let r = self.row_pixel.len();
+        if self.tile_row_start.len() != tiles + 1 || self.tile_block_start.len() != tiles + 1 {
+            return Err("tile tables do not match the image size".into());
+        }
+        let (tile_blocks, block_rows) = block_tables(&self.tile_row_start, r)?;
+        if tile_blocks != self.tile_block_start || block_rows != self.block_row_start {
+            return Err("block tables do not follow from the tiles' rows".into());
+        }
+        let blocks = self.block_count();
+        if self.col_ptr.len() != blocks * (c + 1)
+            || self.col_scale.len() != blocks * c
+            || self.block_entry_start.len() != blocks + 1
+        {
+            return Err("block tables have the wrong length".into());
+        }
+        if self.block_entry_start[0] != 0
+            || self.block_entry_start[blocks] != self.entry_row.len() as u64
+            || self.values.len() != self.entry_row.len()
+        {
+            return Err("block_entry_start does not span the entries".into());
+        }
+        if self.values.quantization() != m.quantization {
+            return Err(format!(
+                "values are {} but the header says {}",
+                self.values.quantization(),
+                m.quantization
+            ));
+        }
+        if self.row_weight.len() != r
+            || self.row_scale.len() != r
+            || self.sh.len() != r * self.sh_count()
+        {
+            return Err("row tables have different lengths".into());
+        }
+        for t in 0..tiles {
+            let (r0, r1) = (
+                self.tile_row_start[t] as usize,
+                self.tile_row_start[t + 1] as usize,
+            );
+            let (x0, y0) = ((t % tx) * TILE, (t / tx) * TILE);
+            for &p in &self.row_pixel[r0..r1] {
+                let (px, py) = (p as usize % w.max(1), p as usize / w.max(1));
+                if p as usize >= w * h || px < x0 || px >= x0 + TILE || py < y0 || py >= y0 + TILE {
+                    return Err(format!("tile {t}: row pixel {p} lies outside the tile"));
+                }
+            }
+        }
+        for b in 0..blocks {
+            let rows = (self.block_row_start[b + 1] - self.block_row_start[b]) as usize;
+            let (e0, e1) = (self.block_entry_start[b], self.block_entry_start[b + 1]);
+            let ptr = &self.col_ptr[b * (c + 1)..(b + 1) * (c + 1)];
+            if e1 < e0 || ptr[0] != 0 || ptr[c] as u64 != e1 - e0 {
+                return Err(format!(
+                    "block {b}: column pointers do not span its entries"
+                ));
+            }
+            // Every pointer is checked against the next before either slices anything.
+            if let Some(j) = (0..c).find(|&j| ptr[j + 1] < ptr[j]) {
+                return Err(format!(
+                    "block {b}: column pointers decrease at coefficient {j}"
+                ));
+            }
+            for j in 0..c {
+                let col = &self.entry_row
+                    [(e0 as usize + ptr[j] as usize)..(e0 as usize + ptr[j + 1] as usize)];
+                let mut last: i32 = -1;
+                for &row in col {
+                    if row as usize >= rows || row as i32 <= last {
+                        return Err(format!(
+                            "block {b}, coefficient {j}: row index {row} out of range or not increasing"
+                        ));
+                    }
+                    last = row as i32;
+                }
+            }
+        }
+        if let Values::F32(v) = &self.values
+            && !v.iter().all(|x| x.is_finite())
+        {
+            return Err("tensor `entry_value` holds NaN or infinite values".into());
+        }
+        if !self.sh.iter().all(|x| x.is_finite()) {
+            return Err("tensor `sh` holds NaN or infinite values".into());
+        }
+        if !self.row_weight.iter().flatten().all(|x| x.is_finite()) {
+            return Err("tensor `row_weight` holds NaN or infinite values".into());
+        }
+        if !self.row_scale.iter().all(|x| x.is_finite() && *x > 0.0) {
+            return Err("tensor `row_scale`: every row scale must be finite and positive".into());
+        }
+        if self.albedo.len() != w * h
+            || self.coverage.len() != w * h
+            || self.transport_magnitude.len() != c
+            || self.tile_stats.len() != tiles
+        {
+            return Err("per-pixel or per-coefficient tables have the wrong length".into());
+        }
+        for (name, finite) in [
+            (
+                "albedo",
+                self.albedo.iter().flatten().all(|x| x.is_finite()),
+            ),
+            ("coverage", self.coverage.iter().all(|x| x.is_finite())),
+            (
+                "transport_magnitude",
+                self.transport_magnitude.iter().all(|x| x.is_finite()),
+            ),
+            (
+                "tile_stats",
+                self.tile_stats.iter().flatten().all(|x| x.is_finite()),
+            ),
+        ] {
+            if !finite {
+                return Err(format!("tensor `{name}` holds NaN or infinite values"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The blocks of every tile and the rows of every block, from the tiles' row starts; checks that
+/// the starts begin at 0, never decrease and end at `rows`.
+fn block_tables(
+    tile_row_start: &[u32],
+    rows: usize,
+) -> std::result::Result<(Vec<u32>, Vec<u32>), String> {
+    if tile_row_start.first() != Some(&0) || *tile_row_start.last().unwrap_or(&0) as usize != rows {
+        return Err("tile_row_start does not span the rows".into());
+    }
+    if let Some(t) = tile_row_start.windows(2).position(|w| w[1] < w[0]) {
+        return Err(format!("tile {t}: row offsets decrease"));
+    }
+    let mut tile_blocks = Vec::with_capacity(tile_row_start.len());
+    let mut block_rows = vec![0u32];
+    tile_blocks.push(0u32);
+    for w in tile_row_start.windows(2) {
+        let mut start = w[0];
+        while start < w[1] {
+            start = (start + BLOCK_ROWS as u32).min(w[1]);
+            block_rows.push(start);
+        }
+        tile_blocks.push(block_rows.len() as u32 - 1);
+    }
+    Ok((tile_blocks, block_rows))
+}
+
+/// Column pointers and block entry starts from the file's per-(block, coefficient) counts;
+/// checks each count against its block's rows and the total against the entries.
+fn column_pointers(
+    counts: &[u16],
+    block_row_start: &[u32],
+    c: usize,
+    nnz: usize,
+) -> std::result::Result<(Vec<u32>, Vec<u64>), String> {
+    let blocks = block_row_start.len() - 1;
+    let mut col_ptr = Vec::with_capacity(blocks * (c + 1));
+    let mut starts = Vec::with_capacity(blocks + 1);
+    starts.push(0u64);
+    let mut total = 0u64;
+    for b in 0..blocks {
+        let rows = (block_row_start[b + 1] - block_row_start[b]) as u16;
+        let mut p = 0u32;
+        col_ptr.push(0);
+        for (j, &n) in counts[b * c..(b + 1) * c].iter().enumerate() {
+            if n > rows {
+                return Err(format!(
+                    "block {b}, coefficient {j}: {n} entries in a block of {rows} rows"
+                ));
+            }
+            p += n as u32;
+            col_ptr.push(p);
+        }
+        total += p as u64;
+        starts.push(total);
+    }
+    if total != nnz as u64 {
+        return Err(format!(
+            "column counts add up to {total} entries but the file stores {nnz}"
+        ));
+    }
+    Ok((col_ptr, starts))
+}
