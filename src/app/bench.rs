@@ -14,9 +14,8 @@ use crate::light::select::Weighting;
 use crate::output::film::Image;
 use crate::output::metrics::{ErrorReport, compare, relative_l2};
 use crate::output::plot::{self, PlotSpec, Series};
-use crate::relight::gpu::{Gpu, GpuTransport};
 use crate::relight::{
-    LightContext, Method, RelightRequest, RelightStats, light_sh_order, relight, select_light,
+    Backend, LightContext, Method, RelightRequest, RelightStats, relight, select_light,
 };
 use crate::scene::Scene;
 use crate::store::transport::Transport;
@@ -151,7 +150,8 @@ fn timed(
 /// environment, in order) to report every point's error against ground truth too.
 #[derive(Default)]
 pub struct BenchExtras<'a> {
-    pub gpu: Option<(&'a Gpu, &'a GpuTransport)>,
+    /// The GPU back-end, whose kernel times are reported beside the CPU's.
+    pub gpu: Option<&'a dyn Backend>,
     pub references: Option<&'a [Image]>,
 }
 
@@ -198,7 +198,7 @@ pub fn run(
         let mut measure = |req: RelightRequest, light_rel_l2: Option<f64>| -> Result<()> {
             let (img, stats, cpu_ms) = timed(|| relight(t, &ctx, &light, &req))?;
             let gpu_ms = match extras.gpu {
-                Some((gpu, g)) => Some(timed_gpu(gpu, g, t, &ctx, &light, &req)?),
+                Some(gpu) => Some(timed(|| gpu.relight(&ctx, &light, &req))?.2),
                 None => None,
             };
             points.push(BenchPoint {
@@ -276,33 +276,6 @@ pub fn run(
         }
     }
     Ok(points)
-}
-
-/// Median wall time of the GPU relight of `req` (upload of the terms, kernels, readback), ms.
-fn timed_gpu(
-    gpu: &Gpu,
-    g: &GpuTransport,
-    t: &Transport,
-    ctx: &LightContext,
-    light: &crate::relight::PreparedLight,
-    req: &RelightRequest,
-) -> Result<f64> {
-    let mut times = Vec::with_capacity(TIMING_RUNS);
-    for _ in 0..TIMING_RUNS {
-        let stats = match req.method {
-            Method::Sh => {
-                g.relight_sh(gpu, &light_sh_order(&light.sh, req.sh_order, ctx.sh_order)?)?
-                    .1
-            }
-            _ => {
-                g.relight_wavelet(gpu, &select_light(t, ctx, light, req)?)?
-                    .1
-            }
-        };
-        times.push(stats.kernel_seconds * 1e3);
-    }
-    times.sort_by(f64::total_cmp);
-    Ok(times[times.len() / 2])
 }
 
 /// The points as CSV, one line each. Empty fields: not applicable or not measured.

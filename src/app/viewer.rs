@@ -12,30 +12,27 @@
 //! and their errors, while the window draws the GPU relight of every change at once.
 
 mod app;
+mod engine;
 mod gpu_view;
 mod volume_app;
 mod worker;
 
-pub use app::{ViewerApp, run};
+pub use app::ViewerApp;
+pub use engine::{
+    ERROR_MAP_GAIN, Engine, GpuTiming, OnLight, error_heat_map, relight_into_view, save_view,
+    screenshot,
+};
 pub use gpu_view::GpuView;
 pub use volume_app::{VolumeApp, VolumeEngine, VolumeFrame, VolumeState, volume_screenshot};
 
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::time::Instant;
 
-use crate::light::envmap::{EnvMap, EnvRotation, SunSpec};
+use crate::light::envmap::SunSpec;
 use crate::light::select::Weighting;
 use crate::output::film::{Image, ToneCurve, ToneMap};
-use crate::output::metrics::relative_l2;
-use crate::relight::background::{composite, environment_behind};
-use crate::relight::gpu::{Gpu, GpuTransport};
-use crate::relight::{
-    LightContext, Method, PreparedLight, RelightRequest, RelightStats, light_sh_order, relight,
-    select_light,
-};
-use crate::store::transport::Transport;
+use crate::relight::gpu::Gpu;
+use crate::relight::{Method, RelightRequest};
 use eframe::{egui, wgpu};
 
 /// Where the bundled environment maps are looked for: `$PRT_ENVMAPS`, else the checkout this
@@ -575,441 +572,71 @@ impl Rendered {
     }
 }
 
-/// Wall and GPU time of one relight into a [`GpuView`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct GpuTiming {
-    /// From the first submission to the finished tone map, seconds.
-    pub wall_seconds: f64,
-    /// The relight passes alone, from GPU timestamp queries where the device has them.
-    pub kernel_seconds: Option<f64>,
-}
-
-/// Relights `request` under `light` with the transport already on the GPU into `view`, and
-/// tone-maps it there: the window's display path (no readback).
-#[allow(clippy::too_many_arguments)]
-pub fn relight_into_view(
-    gpu: &Gpu,
-    gt: &GpuTransport,
-    t: &Transport,
-    ctx: &LightContext,
-    light: &PreparedLight,
-    request: &RelightRequest,
-    view: &GpuView,
-    tone: ToneMap,
-) -> Result<GpuTiming, String> {
-    let start = Instant::now();
-    match request.method {
-        Method::Wavelet | Method::Full => {
-            let sparse = select_light(t, ctx, light, request).map_err(|e| e.to_string())?;
-            gt.relight_wavelet_to_texture(gpu, &sparse, &view.linear)
-        }
-        Method::Sh => {
-            let sh = light_sh_order(&light.sh, request.sh_order, ctx.sh_order)
-                .map_err(|e| e.to_string())?;
-            gt.relight_sh_to_texture(gpu, &sh, &view.linear)
-        }
-    }
-    .map_err(|e| e.to_string())?;
-    let kernel_seconds = gpu.last_kernel_seconds();
-    view.tone_map(&gpu.device, &gpu.queue, tone);
-    gpu.device
-        .poll(wgpu::PollType::Wait {
-            submission_index: None,
-            timeout: None,
-        })
-        .map_err(|e| e.to_string())?;
-    Ok(GpuTiming {
-        wall_seconds: start.elapsed().as_secs_f64(),
-        kernel_seconds,
-    })
-}
-
-/// Called with a newly prepared light, its key and the environment behind the scene.
-pub type OnLight<'a> = dyn FnMut(&LightKey, &Arc<PreparedLight>, &Arc<Image>) + 'a;
-
-/// A loaded transport, its environments and the caches behind [`Engine::render`].
-pub struct Engine {
-    pub path: PathBuf,
-    pub transport: Arc<Transport>,
-    pub ctx: Arc<LightContext>,
-    pub envs: Vec<EnvEntry>,
-    maps: HashMap<String, Arc<EnvMap>>,
-    /// The prepared light, the `full` image under it, and the environment behind the scene.
-    light: Option<(LightKey, Arc<PreparedLight>, Image, Arc<Image>)>,
-    last: Option<(ViewState, Vec<LinearPane>)>,
-    gpu: Option<Gpu>,
-    gpu_transport: Option<GpuTransport>,
-}
-
-impl Engine {
-    /// Loads a transport file; `envs` as on the command line (paths or `sun:ELEV,AZIM`).
-    pub fn open(path: &Path, envs: Vec<EnvEntry>) -> Result<Engine, String> {
-        Self::open_with_progress(path, envs, &|_, _| {})
-    }
-
-    /// [`Engine::open`], calling `progress(bytes read, file size)` while the file loads.
-    pub fn open_with_progress(
-        path: &Path,
-        envs: Vec<EnvEntry>,
-        progress: &dyn Fn(u64, u64),
-    ) -> Result<Engine, String> {
-        let transport = Transport::load_with_progress(path, progress).map_err(|e| e.to_string())?;
-        Self::from_transport(path, transport, envs)
-    }
-
-    /// An engine on a transport already loaded from `path`.
-    pub fn from_transport(
-        path: &Path,
-        transport: Transport,
-        envs: Vec<EnvEntry>,
-    ) -> Result<Engine, String> {
-        let ctx = LightContext::new(&transport).map_err(|e| e.to_string())?;
-        Ok(Engine {
-            path: path.to_path_buf(),
-            transport: Arc::new(transport),
-            ctx: Arc::new(ctx),
-            envs,
-            maps: HashMap::new(),
-            light: None,
-            last: None,
-            gpu: None,
-            gpu_transport: None,
-        })
-    }
-
-    /// Lets [`ViewState::gpu`] relight on `gpu` (the transport is uploaded on first use).
-    pub fn attach_gpu(&mut self, gpu: Gpu) {
-        self.gpu = Some(gpu);
-        self.gpu_transport = None;
-        self.last = None;
-    }
-
-    /// The attached GPU.
-    pub fn gpu(&self) -> Option<&Gpu> {
-        self.gpu.as_ref()
-    }
-
-    /// Name of the attached GPU adapter.
-    pub fn gpu_name(&self) -> Option<&str> {
-        self.gpu.as_ref().map(|g| g.adapter.as_str())
-    }
-
-    /// Relights `request` under the light of the last [`Engine::render`] into `view` and
-    /// tone-maps it there, on the attached GPU.
-    pub fn relight_to_view(
-        &mut self,
-        request: &RelightRequest,
-        view: &GpuView,
-        tone: ToneMap,
-    ) -> Result<GpuTiming, String> {
-        self.upload()?;
-        let gpu = self.gpu.as_ref().ok_or("no GPU attached")?;
-        let (_, light, _, _) = self.light.as_ref().ok_or("nothing rendered yet")?;
-        let gt = self.gpu_transport.as_ref().expect("uploaded");
-        relight_into_view(
-            gpu,
-            gt,
-            &self.transport,
-            &self.ctx,
-            light,
-            request,
-            view,
-            tone,
-        )
-    }
-
-    fn upload(&mut self) -> Result<(), String> {
-        let gpu = self.gpu.as_ref().ok_or("no GPU attached")?;
-        if self.gpu_transport.is_none() {
-            self.gpu_transport =
-                Some(GpuTransport::upload(gpu, &self.transport, None).map_err(|e| e.to_string())?);
-        }
-        Ok(())
-    }
-
-    fn relight_gpu(
-        &mut self,
-        light: &PreparedLight,
-        req: &RelightRequest,
-    ) -> Result<(Image, RelightStats), String> {
-        self.upload()?;
-        let gpu = self.gpu.as_ref().ok_or("no GPU attached")?;
-        let gt = self.gpu_transport.as_ref().expect("uploaded");
-        let t = &self.transport;
-        let out = match req.method {
-            Method::Wavelet | Method::Full => {
-                let sparse = select_light(t, &self.ctx, light, req).map_err(|e| e.to_string())?;
-                gt.relight_wavelet(gpu, &sparse)
-            }
-            Method::Sh => {
-                let sh = light_sh_order(&light.sh, req.sh_order, self.ctx.sh_order)
-                    .map_err(|e| e.to_string())?;
-                gt.relight_sh(gpu, &sh)
-            }
-        };
-        out.map_err(|e| e.to_string())
-    }
-
-    pub fn limits(&self) -> Limits {
-        Limits {
-            coeffs: self.transport.coeff_count(),
-            sh_order: self.ctx.sh_order,
-            envs: self.envs.len(),
-        }
-    }
-
-    /// A state that suits this file: the given environment, SH at the baked order, K = 1% of
-    /// 6 N² (at least 16), exposure from the `full` image.
-    pub fn initial_state(&mut self, env: usize, sun: (f64, f64)) -> ViewState {
-        let limits = self.limits();
-        let mut s = ViewState {
-            env,
-            sun_elev: sun.0,
-            sun_azim: sun.1,
-            sh_order: limits.sh_order,
-            terms: (limits.coeffs / 100).max(16).min(limits.coeffs),
-            ..ViewState::default()
-        };
-        s.clamp(limits);
-        if let Ok(e) = self.auto_exposure(&s) {
-            s.exposure = e;
-        }
-        s
-    }
-
-    /// The environment spec of `state` (a path, or `sun:ELEV,AZIM,RADIUS`).
-    pub fn env_spec(&self, state: &ViewState) -> String {
-        LightKey::of(&self.envs, state).spec
-    }
-
-    /// The prepared light of `state`, computing it (and the `full` image) when it changed;
-    /// `on_light` sees a new light before the `full` relight starts. Returns the seconds spent on
-    /// the light and on the `full` image.
-    fn prepare_with(
-        &mut self,
-        state: &ViewState,
-        on_light: &mut OnLight<'_>,
-    ) -> Result<(f64, f64), String> {
-        let key = LightKey::of(&self.envs, state);
-        if self.light.as_ref().is_some_and(|(k, _, _, _)| *k == key) {
-            return Ok((0.0, 0.0));
-        }
-        let start = Instant::now();
-        let map = match self.maps.get(&key.spec) {
-            Some(m) => m.clone(),
-            None => {
-                let m = Arc::new(EnvMap::from_spec(&key.spec).map_err(|e| e.to_string())?);
-                // Keep file maps; procedural suns change with every slider move.
-                if !key.spec.starts_with("sun:") {
-                    self.maps.insert(key.spec.clone(), m.clone());
-                }
-                m
-            }
-        };
-        let rotation = EnvRotation {
-            yaw_deg: key.yaw,
-            pitch_deg: key.pitch,
-        };
-        let light = Arc::new(
-            self.ctx
-                .prepare(&map, rotation)
-                .map_err(|e| e.to_string())?,
-        );
-        let behind = Arc::new(
-            environment_behind(
-                &self.transport.meta,
-                &self.transport.coverage,
-                &map,
-                rotation,
-            )
-            .map_err(|e| e.to_string())?,
-        );
-        let light_seconds = start.elapsed().as_secs_f64();
-        on_light(&key, &light, &behind);
-        let full_start = Instant::now();
-        let full_req = RelightRequest {
-            method: Method::Full,
-            terms: 0,
-            weighting: Weighting::Unweighted,
-            sh_order: 1,
-        };
-        let (full, _) =
-            relight(&self.transport, &self.ctx, &light, &full_req).map_err(|e| e.to_string())?;
-        self.light = Some((key, light, full, behind));
-        self.last = None;
-        Ok((light_seconds, full_start.elapsed().as_secs_f64()))
-    }
-
-    /// The light of the last render or exposure, its key, and the environment behind the scene.
-    pub fn current_light(&self) -> Option<(LightKey, Arc<PreparedLight>, Arc<Image>)> {
-        self.light
-            .as_ref()
-            .map(|(k, l, _, b)| (k.clone(), l.clone(), b.clone()))
-    }
-
-    fn prepare(&mut self, state: &ViewState) -> Result<(f64, f64), String> {
-        self.prepare_with(state, &mut |_, _, _| {})
-    }
-
-    /// The exposure [`ToneMap::auto`] picks for the `full` image under `state`'s light.
-    pub fn auto_exposure(&mut self, state: &ViewState) -> Result<f32, String> {
-        let mut s = state.clone();
-        s.clamp(self.limits());
-        self.prepare(&s)?;
-        let (_, _, full, _) = self.light.as_ref().expect("prepared");
-        Ok(ToneMap::auto(full, None).exposure)
-    }
-
-    fn relight_panes(
-        &mut self,
-        state: &ViewState,
-        limits: Limits,
-        light: &PreparedLight,
-        full: &Image,
-    ) -> Result<Vec<LinearPane>, String> {
-        let mut panes = Vec::new();
-        for (title, request) in state.requests(limits) {
-            let start = Instant::now();
-            let (image, stats) = if state.gpu && self.gpu.is_some() {
-                self.relight_gpu(light, &request)?
-            } else {
-                relight(&self.transport, &self.ctx, light, &request).map_err(|e| e.to_string())?
-            };
-            let relight_seconds = start.elapsed().as_secs_f64();
-            let rel_l2 = relative_l2(&image, full, None).map_err(|e| e.to_string())?;
-            panes.push(LinearPane {
-                title,
-                request,
-                image,
-                terms: stats.terms,
-                nonzeros_touched: stats.nonzeros_touched,
-                kernel_seconds: stats.kernel_seconds,
-                relight_seconds,
-                rel_l2,
-            });
-        }
-        Ok(panes)
-    }
-
-    /// Relights and tone-maps what `state` asks for. The same call serves the window, the
-    /// screenshot and the tests.
-    pub fn render(&mut self, state: &ViewState) -> Result<Rendered, String> {
-        self.render_with(state, &mut |_, _, _| {})
-    }
-
-    /// [`Engine::render`], handing a newly prepared light to `on_light` as soon as it exists
-    /// (before the CPU relights), so a GPU can draw it meanwhile.
-    pub fn render_with(
-        &mut self,
-        state: &ViewState,
-        on_light: &mut OnLight<'_>,
-    ) -> Result<Rendered, String> {
-        let mut state = state.clone();
-        let limits = self.limits();
-        let notes = state.clamp(limits);
-        let (light_seconds, full_seconds) = self.prepare_with(&state, on_light)?;
-        let key = state.relight_key();
-        let cached = self.last.as_ref().is_some_and(|(k, _)| *k == key);
-        if !cached {
-            // Taken out for the loop (the GPU path borrows the engine mutably), put back after.
-            let prepared = self.light.take().expect("prepared");
-            let panes = self.relight_panes(&state, limits, &prepared.1, &prepared.2);
-            self.light = Some(prepared);
-            self.last = Some((key, panes?));
-        }
-        let (_, linear) = self.last.as_ref().expect("relit");
-        let (_, _, full, behind) = self.light.as_ref().expect("prepared");
-        let tone = state.tone_map();
-        // Shown over the environment behind the scene; the errors were taken before.
-        let mut panes: Vec<Pane> = linear
-            .iter()
-            .map(|l| {
-                let shown = LinearPane {
-                    image: composite(&l.image, behind),
-                    ..l.clone()
-                };
-                Pane {
-                    rgb: shown.image.to_srgb8(tone),
-                    linear: shown,
-                }
-            })
-            .collect();
-        if state.error_map {
-            let maps: Vec<Pane> = panes
-                .iter()
-                .zip(linear)
-                .map(|(p, l)| Pane {
-                    rgb: error_heat_map(&l.image, full, ERROR_MAP_GAIN),
-                    linear: LinearPane {
-                        title: format!("error of {} x{ERROR_MAP_GAIN}", p.linear.title),
-                        ..p.linear.clone()
-                    },
-                })
-                .collect();
-            panes.extend(maps);
-        }
-        Ok(Rendered {
-            width: self.transport.meta.width as usize,
-            height: self.transport.meta.height as usize,
-            panes,
-            state,
-            notes,
-            light_seconds,
-            full_seconds,
-        })
-    }
-}
-
-/// Writes what `state` shows as `stem.png` (tone-mapped, side by side) and the first image as
-/// `stem.exr` (linear radiance).
-pub fn save_view(engine: &mut Engine, state: &ViewState, stem: &Path) -> Result<(), String> {
-    let r = screenshot(engine, state, &stem.with_extension("png"))?;
-    let first = r.panes.first().ok_or("nothing to save")?;
-    first
-        .linear
-        .image
-        .save(&stem.with_extension("exr"), ToneMap::default())
-        .map_err(|e| e.to_string())
-}
-
-/// How much the error heat map magnifies: a difference of 1/10 of the image's mean luminance
-/// shows at full heat.
-pub const ERROR_MAP_GAIN: f32 = 10.0;
-
-/// |image − full| in luminance, over the mean luminance of `full`, times `gain`, as a black →
-/// red → yellow → white heat map (RGB8).
-pub fn error_heat_map(image: &Image, full: &Image, gain: f32) -> Vec<u8> {
-    let lum = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-    let lit: Vec<f32> = full.pixels.iter().map(lum).filter(|l| *l > 0.0).collect();
-    let mean = if lit.is_empty() {
-        1.0
-    } else {
-        lit.iter().sum::<f32>() / lit.len() as f32
-    };
-    image
-        .pixels
+/// Opens the window on `file` with the extra environments `envs`. The window's device asks for
+/// the adapter's full limits (large transports fit in fewer bindings) and for timestamp queries
+/// where the adapter has them. Without a display to open it on, the error says so and what to do
+/// instead.
+pub fn run(file: &Path, envs: &[String]) -> crate::Result<()> {
+    let has_display = ["WAYLAND_DISPLAY", "DISPLAY"]
         .iter()
-        .zip(&full.pixels)
-        .flat_map(|(a, b)| {
-            let e = ((lum(a) - lum(b)).abs() / mean * gain).clamp(0.0, 1.0);
-            let ramp = |lo: f32| ((3.0 * e - lo).clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
-            [ramp(0.0), ramp(1.0), ramp(2.0)]
-        })
-        .collect()
+        .any(|v| std::env::var_os(v).is_some_and(|d| !d.is_empty()));
+    if !has_display {
+        return Err(crate::PrtError::invalid(
+            "display",
+            "no display to open a window on (neither WAYLAND_DISPLAY nor DISPLAY is set): use \
+             --screenshot OUT.png to render the view to a file",
+        ));
+    }
+    open_window(file, envs).map_err(|e| crate::PrtError::invalid("window", e.to_string()))
 }
 
-/// Renders `state` as the window would show it and writes it as a PNG, each image under a
-/// caption with its title (as the window shows them).
-pub fn screenshot(engine: &mut Engine, state: &ViewState, out: &Path) -> Result<Rendered, String> {
-    let r = engine.render(state)?;
-    for p in &r.panes {
-        p.linear
-            .image
-            .check_finite(&p.linear.title)
-            .map_err(|e| e.to_string())?;
+fn open_window(file: &Path, envs: &[String]) -> eframe::Result {
+    use eframe::egui_wgpu::{WgpuConfiguration, WgpuSetup, WgpuSetupCreateNew};
+    let mut setup = WgpuSetupCreateNew::without_display_handle();
+    setup.device_descriptor = Arc::new(|adapter: &wgpu::Adapter| wgpu::DeviceDescriptor {
+        label: Some("prt view"),
+        required_limits: adapter.limits(),
+        required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
+        ..Default::default()
+    });
+    let options = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_inner_size([1280.0, 800.0])
+            .with_title("wavelet-prt viewer"),
+        wgpu_options: WgpuConfiguration {
+            wgpu_setup: WgpuSetup::CreateNew(setup),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    if crate::volume::is_volume_file(file) {
+        // The volume path: load now (volume files are small), march on the window's device.
+        let vt = crate::volume::VolumeTransfer::load(file)
+            .map_err(|e| eframe::Error::AppCreation(Box::new(e)))?;
+        let envs = envs.to_vec();
+        return eframe::run_native(
+            "wavelet-prt volume viewer",
+            options,
+            Box::new(move |cc| {
+                let gpu = cc.wgpu_render_state.as_ref().and_then(|rs| {
+                    let info = rs.adapter.get_info();
+                    let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
+                    Gpu::from_device(rs.device.clone(), rs.queue.clone(), name).ok()
+                });
+                Ok(Box::new(VolumeApp::new(vt, &envs, gpu)))
+            }),
+        );
     }
-    let (w, h, rgb) = r.captioned(4);
-    crate::files::write_atomically(out, |tmp| crate::output::film::write_png(tmp, w, h, &rgb))
-        .map_err(|e| e.to_string())?;
-    Ok(r)
+    let app = ViewerApp::new(file, envs);
+    eframe::run_native(
+        "wavelet-prt viewer",
+        options,
+        Box::new(move |cc| {
+            let mut app = app;
+            if let Some(rs) = &cc.wgpu_render_state {
+                app.attach_render_state(rs.clone());
+            }
+            Ok(Box::new(app))
+        }),
+    )
 }

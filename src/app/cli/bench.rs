@@ -169,8 +169,12 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         }
         _ => None,
     };
+    let backend = match &device {
+        Some((g, gt)) => Some(crate::relight::gpu::GpuBackend::new(g, gt, &t)?),
+        None => None,
+    };
     let extras = crate::app::bench::BenchExtras {
-        gpu: device.as_ref().map(|(g, gt)| (*g, gt)),
+        gpu: backend.as_ref().map(|b| b as &dyn crate::relight::Backend),
         references: references.as_deref(),
     };
     let points = crate::app::bench::run(&t, &envs, &opts, &extras, &mut |done, total| {

@@ -2,6 +2,7 @@
 //! brute-force reference, and their comparison.
 
 use super::*;
+use crate::relight::Backend;
 
 #[derive(Args, Debug)]
 pub struct RelightArgs {
@@ -134,27 +135,9 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
                 g.bytes_per_nonzero(),
                 upload.elapsed().as_secs_f64() * 1e3
             );
-            match method {
-                Method::Sh => g.relight_sh(
-                    gpu,
-                    &crate::relight::light_sh_order(
-                        &light.sh,
-                        req.sh_order,
-                        t.meta.sh_order as usize,
-                    )?,
-                )?,
-                _ => {
-                    let sparse = crate::relight::select_light(&t, &ctx, &light, &req)?;
-                    let (img, mut stats) = g.relight_wavelet(gpu, &sparse)?;
-                    stats.nonzeros_touched = crate::relight::nonzeros_touched(&t, &sparse);
-                    stats.bytes_touched = stats.nonzeros_touched * g.bytes_per_nonzero()
-                        + (t.tile_count() * sparse.len() * 8) as u64;
-                    (img, stats)
-                }
-            }
+            crate::relight::gpu::GpuBackend::new(gpu, &g, &t)?.relight(&ctx, &light, &req)?
         }
     };
-    img.check_finite("relit image")?;
     let tone = match a.exposure {
         Some(e) => ToneMap::exposure(e),
         None => ToneMap::auto(&img, Some(&t.coverage)),

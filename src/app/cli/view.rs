@@ -50,7 +50,6 @@ pub struct ViewArgs {
 
 pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
     use crate::app::viewer::{Engine, env_entries, screenshot};
-    let err = |m: String| PrtError::invalid("viewer", m);
     let Some(out) = a.screenshot.clone() else {
         if a.method.is_some()
             || a.terms.is_some()
@@ -70,18 +69,7 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
                 std::io::Error::from(std::io::ErrorKind::NotFound),
             ));
         }
-        return crate::app::viewer::run(&a.file, &a.env).map_err(|e| {
-            let text = e.to_string();
-            if text.contains("DISPLAY") {
-                PrtError::invalid(
-                    "display",
-                    "no display to open a window on (neither WAYLAND_DISPLAY nor DISPLAY is \
-                     set): use --screenshot OUT.png to render the view to a file",
-                )
-            } else {
-                err(text)
-            }
-        });
+        return crate::app::viewer::run(&a.file, &a.env);
     };
     let mut inputs = env_files(&a.env);
     inputs.push(a.file.clone());
@@ -114,7 +102,7 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
     }
     let (entries, sun, selected) = env_entries(&a.env);
     let transport = Transport::load(&a.file)?;
-    let mut engine = Engine::from_transport(&a.file, transport, entries).map_err(err)?;
+    let mut engine = Engine::from_transport(&a.file, transport, entries)?;
     let mut state = engine.initial_state(selected, sun);
     if let Some(r) = crate::app::viewer::cli_sun_radius(&a.env) {
         state.sun_radius = r;
@@ -152,9 +140,9 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
     }
     state.exposure = match a.exposure {
         Some(e) => e,
-        None => engine.auto_exposure(&state).map_err(err)?,
+        None => engine.auto_exposure(&state)?,
     };
-    let r = screenshot(&mut engine, &state, &out).map_err(err)?;
+    let r = screenshot(&mut engine, &state, &out)?;
     for n in &r.notes {
         eprintln!("note: {n}");
     }
@@ -176,7 +164,6 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
 /// `prt view FILE.prtv --screenshot OUT.png`: the volume window's first frame.
 fn volume_screenshot_cmd(a: &ViewArgs, out: &std::path::Path) -> Result<()> {
     use crate::app::viewer::{VolumeEngine, VolumeState, env_entries, volume_screenshot};
-    let err = |m: String| PrtError::invalid("viewer", m);
     let vt = crate::volume::VolumeTransfer::load(&a.file)?;
     let (entries, sun, selected) = env_entries(&a.env);
     let mut state = VolumeState::initial(&vt);
@@ -202,11 +189,11 @@ fn volume_screenshot_cmd(a: &ViewArgs, out: &std::path::Path) -> Result<()> {
     state.exposure = match a.exposure {
         Some(e) => e,
         None => {
-            let f = engine.render(&state).map_err(err)?;
+            let f = engine.render(&state)?;
             ToneMap::auto(&f.image, None).exposure
         }
     };
-    let f = volume_screenshot(&mut engine, &state, out).map_err(err)?;
+    let f = volume_screenshot(&mut engine, &state, out)?;
     println!(
         "volume {} view, SH order {}: march {:.1} ms on {}",
         state.view.name(),

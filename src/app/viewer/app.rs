@@ -224,7 +224,7 @@ impl ViewerApp {
                     self.loaded = Some(loaded);
                     self.start_upload();
                 }
-                Reply::Loaded(Err(e)) => self.load_error = Some(e),
+                Reply::Loaded(Err(e)) => self.load_error = Some(e.to_string()),
                 Reply::Light(key, light, behind) => {
                     self.light = Some((key, light, behind));
                     self.invalidate_gpu();
@@ -237,9 +237,9 @@ impl ViewerApp {
                     self.upload_cpu_textures(ctx, &r);
                     self.rendered = Some(r);
                 }
-                Reply::Rendered(Err(e)) => self.error = Some(e),
+                Reply::Rendered(Err(e)) => self.error = Some(e.to_string()),
                 Reply::Exposure(Ok(e)) => self.state.exposure = e,
-                Reply::Exposure(Err(e)) => self.error = Some(e),
+                Reply::Exposure(Err(e)) => self.error = Some(e.to_string()),
                 Reply::Saved(Ok(stem)) => {
                     self.saved = Some(format!(
                         "saved {} and {}",
@@ -247,7 +247,7 @@ impl ViewerApp {
                         stem.with_extension("exr").display()
                     ))
                 }
-                Reply::Saved(Err(e)) => self.error = Some(e),
+                Reply::Saved(Err(e)) => self.error = Some(e.to_string()),
                 Reply::Uploaded(result) => {
                     if let Some(g) = &mut self.gpu {
                         g.uploading = false;
@@ -309,7 +309,7 @@ impl ViewerApp {
         }
     }
 
-    fn try_draw_on_gpu(&mut self) -> Result<(), String> {
+    fn try_draw_on_gpu(&mut self) -> crate::Result<()> {
         let (Some(loaded), Some((key, light, behind)), Some(g)) =
             (&self.loaded, &self.light, &mut self.gpu)
         else {
@@ -783,58 +783,4 @@ impl eframe::App for ViewerApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         self.show(ui);
     }
-}
-
-/// Opens the window on `file` with the extra environments `envs`. The window's device asks for
-/// the adapter's full limits (large transports fit in fewer bindings) and for timestamp queries
-/// where the adapter has them.
-pub fn run(file: &Path, envs: &[String]) -> eframe::Result {
-    use eframe::egui_wgpu::{WgpuConfiguration, WgpuSetup, WgpuSetupCreateNew};
-    let mut setup = WgpuSetupCreateNew::without_display_handle();
-    setup.device_descriptor = Arc::new(|adapter: &wgpu::Adapter| wgpu::DeviceDescriptor {
-        label: Some("prt view"),
-        required_limits: adapter.limits(),
-        required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
-        ..Default::default()
-    });
-    let options = eframe::NativeOptions {
-        viewport: egui::ViewportBuilder::default()
-            .with_inner_size([1280.0, 800.0])
-            .with_title("wavelet-prt viewer"),
-        wgpu_options: WgpuConfiguration {
-            wgpu_setup: WgpuSetup::CreateNew(setup),
-            ..Default::default()
-        },
-        ..Default::default()
-    };
-    if crate::volume::is_volume_file(file) {
-        // The volume path: load now (volume files are small), march on the window's device.
-        let vt = crate::volume::VolumeTransfer::load(file)
-            .map_err(|e| eframe::Error::AppCreation(Box::new(e)))?;
-        let envs = envs.to_vec();
-        return eframe::run_native(
-            "wavelet-prt volume viewer",
-            options,
-            Box::new(move |cc| {
-                let gpu = cc.wgpu_render_state.as_ref().and_then(|rs| {
-                    let info = rs.adapter.get_info();
-                    let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
-                    Gpu::from_device(rs.device.clone(), rs.queue.clone(), name).ok()
-                });
-                Ok(Box::new(super::VolumeApp::new(vt, &envs, gpu)))
-            }),
-        );
-    }
-    let app = ViewerApp::new(file, envs);
-    eframe::run_native(
-        "wavelet-prt viewer",
-        options,
-        Box::new(move |cc| {
-            let mut app = app;
-            if let Some(rs) = &cc.wgpu_render_state {
-                app.attach_render_state(rs.clone());
-            }
-            Ok(Box::new(app))
-        }),
-    )
 }

@@ -5,6 +5,7 @@
 
 use eframe::wgpu;
 
+use crate::error::Result;
 use crate::output::film::{Image, ToneMap};
 
 const TONE_WGSL: &str = include_str!("../../../shaders/tonemap.wgsl");
@@ -215,7 +216,7 @@ impl GpuView {
     }
 
     /// Reads `display` back as RGB8 (for tests and checks).
-    pub fn read_rgb8(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Vec<u8>, String> {
+    pub fn read_rgb8(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Vec<u8>> {
         let row = (self.width * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("display readback"),
@@ -237,28 +238,16 @@ impl GpuView {
             self.display.size(),
         );
         queue.submit([encoder.finish()]);
-        let slice = buffer.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        device
-            .poll(wgpu::PollType::Wait {
-                submission_index: None,
-                timeout: None,
-            })
-            .map_err(|e| e.to_string())?;
-        rx.recv()
-            .map_err(|e| e.to_string())?
-            .map_err(|e| e.to_string())?;
-        let data = slice.get_mapped_range().map_err(|e| format!("{e:?}"))?;
-        let mut out = Vec::with_capacity((self.width * self.height * 3) as usize);
-        for y in 0..self.height {
-            let start = (y * row) as usize;
-            for px in data[start..start + (self.width * 4) as usize].chunks_exact(4) {
-                out.extend_from_slice(&px[..3]);
+        let (width, height) = (self.width as usize, self.height as usize);
+        crate::relight::gpu::map_and_read(device, &buffer, "the display", |data| {
+            let mut out = Vec::with_capacity(width * height * 3);
+            for y in 0..height {
+                let start = y * row as usize;
+                for px in data[start..start + width * 4].chunks_exact(4) {
+                    out.extend_from_slice(&px[..3]);
+                }
             }
-        }
-        Ok(out)
+            out
+        })
     }
 }

@@ -13,6 +13,7 @@ use eframe::egui;
 use glam::Vec3;
 
 use super::{EnvEntry, EnvSource, env_entries};
+use crate::error::Result;
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::{Image, ToneCurve, ToneMap};
 use crate::relight::gpu::Gpu;
@@ -125,8 +126,8 @@ impl VolumeEngine {
     }
 
     /// Marches on `gpu` from now on when a state asks for it.
-    pub fn attach_gpu(&mut self, gpu: Gpu) -> Result<(), String> {
-        let gv = GpuVolume::new(&gpu, &self.vt).map_err(|e| e.to_string())?;
+    pub fn attach_gpu(&mut self, gpu: Gpu) -> Result<()> {
+        let gv = GpuVolume::new(&gpu, &self.vt)?;
         self.gpu = Some((gpu, gv));
         Ok(())
     }
@@ -136,20 +137,18 @@ impl VolumeEngine {
     }
 
     /// The linear frame of `state`.
-    pub fn render(&mut self, state: &VolumeState) -> Result<VolumeFrame, String> {
+    pub fn render(&mut self, state: &VolumeState) -> Result<VolumeFrame> {
         let key = state.light_key(&self.envs);
         let start = Instant::now();
         if self.light.as_ref().is_none_or(|(k, _)| *k != key) {
-            let env = EnvMap::from_spec(&key.0).map_err(|e| e.to_string())?;
-            let cube = env
-                .to_cube(
-                    LIGHT_CUBE,
-                    EnvRotation {
-                        yaw_deg: key.1,
-                        pitch_deg: key.2,
-                    },
-                )
-                .map_err(|e| e.to_string())?;
+            let env = EnvMap::from_spec(&key.0)?;
+            let cube = env.to_cube(
+                LIGHT_CUBE,
+                EnvRotation {
+                    yaw_deg: key.1,
+                    pitch_deg: key.2,
+                },
+            )?;
             let order = state.sh_order.clamp(1, self.vt.meta.sh_order);
             self.light = Some((key, PhaseLight::new(&cube, order, self.vt.meta.g)));
         }
@@ -159,9 +158,7 @@ impl VolumeEngine {
         let start = Instant::now();
         let (image, device) = match &mut self.gpu {
             Some((gpu, gv)) if state.gpu => (
-                gv.render(gpu, light, &camera, state.view)
-                    .map_err(|e| e.to_string())?
-                    .0,
+                gv.render(gpu, light, &camera, state.view)?.0,
                 gpu.adapter.clone(),
             ),
             _ => (
@@ -184,12 +181,9 @@ pub fn volume_screenshot(
     engine: &mut VolumeEngine,
     state: &VolumeState,
     out: &Path,
-) -> Result<VolumeFrame, String> {
+) -> Result<VolumeFrame> {
     let frame = engine.render(state)?;
-    frame
-        .image
-        .check_finite("volume image")
-        .map_err(|e| e.to_string())?;
+    frame.image.check_finite("volume image")?;
     let tone = ToneMap {
         exposure: state.exposure,
         curve: state.tone,
@@ -199,8 +193,7 @@ pub fn volume_screenshot(
         frame.image.height,
         frame.image.to_srgb8(tone),
     );
-    crate::files::write_atomically(out, |tmp| crate::output::film::write_png(tmp, w, h, &rgb))
-        .map_err(|e| e.to_string())?;
+    crate::files::write_atomically(out, |tmp| crate::output::film::write_png(tmp, w, h, &rgb))?;
     Ok(frame)
 }
 
@@ -218,7 +211,7 @@ pub struct VolumeApp {
     vt_meta_order: usize,
     has_gpu: bool,
     jobs: Sender<VolumeState>,
-    frames: Receiver<Result<VolumeFrame, String>>,
+    frames: Receiver<Result<VolumeFrame>>,
     pending: Arc<Pending>,
     sent: Option<VolumeState>,
     last: Option<VolumeFrame>,
@@ -315,7 +308,7 @@ impl VolumeApp {
                     self.error = None;
                     self.last = Some(f);
                 }
-                Err(e) => self.error = Some(e),
+                Err(e) => self.error = Some(e.to_string()),
             }
         }
     }

@@ -10,6 +10,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 
 use super::{Engine, EnvEntry, LightKey, Limits, Rendered, ViewState, env_entries, save_view};
+use crate::error::{PrtError, Result};
 use crate::output::film::Image;
 use crate::relight::gpu::{Gpu, GpuTransport};
 use crate::relight::{LightContext, PreparedLight};
@@ -35,12 +36,12 @@ pub struct Loaded {
 
 /// What the worker answers.
 pub enum Reply {
-    Loaded(Result<Loaded, String>),
+    Loaded(Result<Loaded>),
     Light(LightKey, Arc<PreparedLight>, Arc<Image>),
-    Rendered(Result<Rendered, String>),
-    Exposure(Result<f32, String>),
-    Saved(Result<PathBuf, String>),
-    Uploaded(Result<Arc<GpuTransport>, String>),
+    Rendered(Result<Rendered>),
+    Exposure(Result<f32>),
+    Saved(Result<PathBuf>),
+    Uploaded(Result<Arc<GpuTransport>>),
 }
 
 /// Jobs sent and not yet answered, with a condition to wait on.
@@ -89,8 +90,9 @@ impl Worker {
         if let Err(e) = spawned {
             // No thread: report it as a load failure through a channel of our own.
             let (tx, rx) = channel();
-            let _ = tx.send(Reply::Loaded(Err(format!(
-                "starting the worker thread: {e}"
+            let _ = tx.send(Reply::Loaded(Err(PrtError::invalid(
+                "viewer",
+                format!("starting the worker thread: {e}"),
             ))));
             pending.done(1);
             return Worker {
@@ -210,9 +212,7 @@ fn run(
                     save_view(&mut engine, &state, &stem).map(|()| stem),
                 )),
                 Job::Upload(gpu) => Some(Reply::Uploaded(
-                    GpuTransport::upload(&gpu, &engine.transport, None)
-                        .map(Arc::new)
-                        .map_err(|e| e.to_string()),
+                    GpuTransport::upload(&gpu, &engine.transport, None).map(Arc::new),
                 )),
             };
             if let Some(r) = reply

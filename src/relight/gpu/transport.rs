@@ -1,34 +1,19 @@
-//! Relighting on the GPU (wgpu compute): the tiled sparse wavelet product and the SH product of
-//! [`crate::relight`], with the same inputs and the same results.
-//!
-//! One workgroup of [`WORKGROUP_SIZE`] threads relights one 16 x 16 tile (`shaders/common.wgsl`):
-//! for every kept light term it walks that coefficient's column in the tile, each thread taking
-//! every 256th entry. A column holds each row at most once, so the threads of one column never
-//! write the same accumulator, and a barrier between columns orders the rest: no float atomics.
-//! The accumulators sit in workgroup memory (up to 1024 rows per tile, 16 KiB; a tile usually has
-//! one row per pixel and material), in device memory beyond that. Then each thread owns one pixel
-//! and sums its rows. On a real GPU the entries of one column are contiguous, so a warp's loads
-//! coalesce; thousands of tiles keep every compute unit busy. The SH pipeline needs no
-//! cooperation: each thread dots its own pixel's SH rows with the SH light.
-//!
-//! The transport is uploaded once. Matrices larger than the device's storage-binding limit are
-//! split by tiles into chunks, each with its own buffers and dispatch. Per relight, only the kept
-//! light terms (16 bytes each) and a few parameters go up.
+//! A transport resident on the GPU: its entries, column pointers and SH rows uploaded once (split
+//! by tiles into chunks where a binding would exceed the device's limit), relit per request by
+//! the wavelet and SH pipelines into a buffer read back, or into a texture for display.
 
 use std::time::Instant;
 
 use wgpu::util::DeviceExt;
 
+use super::{Gpu, wait_and_read};
 use crate::error::{PrtError, Result};
 use crate::light::select::SparseLight;
 use crate::output::film::Image;
-use crate::relight::RelightStats;
-use crate::store::quant::{BLOCK_ROWS, Quantization};
+use crate::relight::{Backend, RelightStats, Terms};
+use crate::store::quant::Quantization;
 use crate::store::transport::{Transport, Values, tile_grid};
 
-/// Threads per workgroup: one per pixel of a tile. The shaders receive it as `WORKGROUP`.
-pub const WORKGROUP_SIZE: u32 =
-    (crate::store::transport::TILE * crate::store::transport::TILE) as u32;
 /// Most workgroups along one dispatch dimension (WebGPU's guaranteed minimum).
 const MAX_DISPATCH: u32 = 65535;
 
@@ -71,248 +56,6 @@ fn device_entry_bytes(q: Quantization, count: u64) -> u64 {
         Quantization::Q16 => count * 4,
         Quantization::F32 => count * 8,
     }
-}
-
-/// A device, its queue and the relight pipelines (cloning shares them).
-#[derive(Clone)]
-pub struct Gpu {
-    pub device: wgpu::Device,
-    pub queue: wgpu::Queue,
-    /// Name, back-end and driver of the adapter, for messages.
-    pub adapter: String,
-    wavelet: wgpu::ComputePipeline,
-    sh: wgpu::ComputePipeline,
-    to_texture: wgpu::ComputePipeline,
-    /// The 256 scales of the stored values' codes (`crate::store::quant`), a uniform buffer.
-    scales: wgpu::Buffer,
-    /// Timestamp queries around the relight passes, where the device has them.
-    timer: Option<Timer>,
-}
-
-/// Two timestamps (start of the first relight pass, end of the last), resolved and copied to a
-/// mappable buffer in the same submission.
-#[derive(Clone)]
-struct Timer {
-    set: wgpu::QuerySet,
-    resolve: wgpu::Buffer,
-    readback: wgpu::Buffer,
-    period_ns: f64,
-}
-
-impl Timer {
-    fn new(device: &wgpu::Device, queue: &wgpu::Queue) -> Option<Timer> {
-        if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
-            return None;
-        }
-        let set = device.create_query_set(&wgpu::QuerySetDescriptor {
-            label: Some("relight timestamps"),
-            ty: wgpu::QueryType::Timestamp,
-            count: 2,
-        });
-        let buffer = |label, usage| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: 16,
-                usage,
-                mapped_at_creation: false,
-            })
-        };
-        Some(Timer {
-            set,
-            resolve: buffer(
-                "timestamps",
-                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-            ),
-            readback: buffer(
-                "timestamps readback",
-                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            ),
-            period_ns: queue.get_timestamp_period() as f64,
-        })
-    }
-
-    /// Timestamp writes for pass `i` of `n`: the start of the first, the end of the last.
-    fn writes(&self, i: usize, n: usize) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
-        let (begin, end) = (i == 0, i + 1 == n);
-        (begin || end).then(|| wgpu::ComputePassTimestampWrites {
-            query_set: &self.set,
-            beginning_of_pass_write_index: begin.then_some(0),
-            end_of_pass_write_index: end.then_some(1),
-        })
-    }
-
-    fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
-        encoder.resolve_query_set(&self.set, 0..2, &self.resolve, 0);
-        encoder.copy_buffer_to_buffer(&self.resolve, 0, &self.readback, 0, 16);
-    }
-
-    /// The time between the two stamps of the last finished submission, seconds.
-    fn read(&self, device: &wgpu::Device) -> Option<f64> {
-        let slice = self.readback.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        device
-            .poll(wgpu::PollType::Wait {
-                submission_index: None,
-                timeout: None,
-            })
-            .ok()?;
-        rx.recv().ok()?.ok()?;
-        let stamps: [u64; 2] = {
-            let view = slice.get_mapped_range().ok()?;
-            bytemuck::pod_read_unaligned(&view[..16])
-        };
-        self.readback.unmap();
-        // Some drivers stamp a pass that was skipped as 0; a reversed pair is no measurement.
-        (stamps[1] > stamps[0] && stamps[0] != 0)
-            .then(|| (stamps[1] - stamps[0]) as f64 * self.period_ns * 1e-9)
-    }
-}
-
-/// WGSL of a pipeline: the relight pipelines get the tile and workgroup sizes from here (the one
-/// place they are defined) and the shared part in `shaders/common.wgsl`.
-fn shader_source(pipeline: &str) -> String {
-    let relight = |specific: &str| {
-        format!(
-            "const TILE: u32 = {}u;\nconst WORKGROUP: u32 = {WORKGROUP_SIZE}u;\n\
-             const BLOCK_ROWS: u32 = {BLOCK_ROWS}u;\n{}\n{specific}",
-            crate::store::transport::TILE,
-            include_str!("../../shaders/common.wgsl"),
-        )
-    };
-    match pipeline {
-        "wavelet" => relight(include_str!("../../shaders/relight_wavelet.wgsl")),
-        "sh" => relight(include_str!("../../shaders/relight_sh.wgsl")),
-        _ => include_str!("../../shaders/to_texture.wgsl").to_string(),
-    }
-}
-
-impl Gpu {
-    /// Opens the first adapter wgpu finds (honouring `WGPU_BACKEND` and the other wgpu
-    /// environment variables) with its full limits. Without an adapter the error says what to
-    /// install.
-    pub fn new() -> Result<Gpu> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            force_fallback_adapter: false,
-            compatible_surface: None,
-            ..Default::default()
-        }))
-        .map_err(|e| {
-            PrtError::Gpu(format!(
-                "no GPU adapter ({e}); without a GPU, install Mesa's software drivers \
-                 (Debian/Ubuntu: apt-get install mesa-vulkan-drivers) or use --device cpu"
-            ))
-        })?;
-        let info = adapter.get_info();
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("wavelet-prt relight"),
-            required_limits: adapter.limits(),
-            required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
-            ..Default::default()
-        }))
-        .map_err(|e| PrtError::Gpu(format!("opening {}: {e}", info.name)))?;
-        let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
-        Gpu::from_device(device, queue, name)
-    }
-
-    /// Builds the pipelines on a device the caller already has (the viewer shares its own).
-    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, adapter: String) -> Result<Gpu> {
-        let make = |name: &str| {
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(name),
-                source: wgpu::ShaderSource::Wgsl(shader_source(name).into()),
-            });
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(name),
-                layout: None,
-                module: &module,
-                entry_point: Some("main"),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let wavelet = make("wavelet");
-        let sh = make("sh");
-        let to_texture = make("to_texture");
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(PrtError::Gpu(format!(
-                "building the relight pipelines: {e}"
-            )));
-        }
-        let timer = Timer::new(&device, &queue);
-        let scales = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("value scales"),
-            contents: bytemuck::cast_slice(crate::store::quant::scale_table()),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-        Ok(Gpu {
-            device,
-            queue,
-            adapter,
-            wavelet,
-            sh,
-            to_texture,
-            scales,
-            timer,
-        })
-    }
-
-    /// Whether relight times come from GPU timestamp queries (else from the wall clock).
-    pub fn has_timestamps(&self) -> bool {
-        self.timer.is_some()
-    }
-
-    /// The GPU time of the relight passes of the last finished relight, from timestamp queries;
-    /// `None` when the device has none. Call after the relight's submission has completed.
-    pub fn last_kernel_seconds(&self) -> Option<f64> {
-        self.timer.as_ref()?.read(&self.device)
-    }
-
-    /// The largest storage buffer one binding may hold on this device.
-    pub fn max_binding_bytes(&self) -> u64 {
-        let l = self.device.limits();
-        l.max_storage_buffer_binding_size.min(l.max_buffer_size)
-    }
-}
-
-/// Waits for the submissions, then reads `readback` (RGBA32F pixels) as RGB. Returns the pixels
-/// and the seconds from `start` until the GPU finished; `what` names the work in errors.
-pub(crate) fn wait_and_read(
-    device: &wgpu::Device,
-    readback: &wgpu::Buffer,
-    start: Instant,
-    what: &str,
-) -> Result<(Vec<[f32; 3]>, f64)> {
-    let slice = readback.slice(..);
-    let (tx, rx) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    device
-        .poll(wgpu::PollType::Wait {
-            submission_index: None,
-            timeout: None,
-        })
-        .map_err(|e| PrtError::Gpu(format!("waiting for {what}: {e}")))?;
-    let seconds = start.elapsed().as_secs_f64();
-    rx.recv()
-        .map_err(|_| PrtError::Gpu("the readback was dropped".into()))?
-        .map_err(|e| PrtError::Gpu(format!("reading the image back: {e}")))?;
-    let pixels = {
-        let view = slice
-            .get_mapped_range()
-            .map_err(|e| PrtError::Gpu(format!("reading the image back: {e:?}")))?;
-        let data: &[[f32; 4]] = bytemuck::cast_slice(&view);
-        data.iter().map(|p| [p[0], p[1], p[2]]).collect()
-    };
-    readback.unmap();
-    Ok((pixels, seconds))
 }
 
 /// Tiles whose entries, column pointers and SH rows share one set of buffers.
@@ -724,6 +467,19 @@ impl GpuTransport {
         self.run_to_texture(gpu, &terms, false, texture)
     }
 
+    /// Relights with `terms` into `texture`, as [`GpuTransport::relight_wavelet_to_texture`].
+    pub fn relight_terms_to_texture(
+        &self,
+        gpu: &Gpu,
+        terms: &Terms,
+        texture: &wgpu::Texture,
+    ) -> Result<()> {
+        match terms {
+            Terms::Wavelet(light) => self.relight_wavelet_to_texture(gpu, light, texture),
+            Terms::Sh(sh) => self.relight_sh_to_texture(gpu, sh, texture),
+        }
+    }
+
     /// Uploads the terms and records one dispatch per chunk.
     fn encode(
         &self,
@@ -871,5 +627,59 @@ impl GpuTransport {
     /// Entries on the device, for reporting.
     pub fn nonzeros(&self) -> u64 {
         self.entries
+    }
+}
+
+/// The wgpu kernels as a [`Backend`]: a device and a transport resident on it, with the
+/// transport in memory for the statistics the device does not count.
+pub struct GpuBackend<'a> {
+    gpu: &'a Gpu,
+    resident: &'a GpuTransport,
+    transport: &'a Transport,
+}
+
+impl<'a> GpuBackend<'a> {
+    /// `resident` must be `transport` uploaded to `gpu`.
+    pub fn new(gpu: &'a Gpu, resident: &'a GpuTransport, transport: &'a Transport) -> Result<Self> {
+        let m = &transport.meta;
+        if (resident.width, resident.height, resident.coeffs)
+            != (m.width as usize, m.height as usize, transport.coeff_count())
+        {
+            return Err(PrtError::invalid(
+                "GPU transport",
+                "it was uploaded from another transport".to_string(),
+            ));
+        }
+        Ok(GpuBackend {
+            gpu,
+            resident,
+            transport,
+        })
+    }
+}
+
+impl Backend for GpuBackend<'_> {
+    fn transport(&self) -> &Transport {
+        self.transport
+    }
+
+    fn name(&self) -> String {
+        self.gpu.adapter.clone()
+    }
+
+    fn relight_terms(&self, terms: &Terms) -> Result<(Image, RelightStats)> {
+        match terms {
+            Terms::Wavelet(light) => {
+                let (image, mut stats) = self.resident.relight_wavelet(self.gpu, light)?;
+                // Counted from the transport in memory: the same column lengths the CPU kernel
+                // reads, at the device's bytes per entry, plus two column pointers per term and
+                // tile.
+                stats.nonzeros_touched = crate::relight::nonzeros_touched(self.transport, light);
+                stats.bytes_touched = stats.nonzeros_touched * self.resident.bytes_per_nonzero()
+                    + (self.transport.tile_count() * light.len() * 8) as u64;
+                Ok((image, stats))
+            }
+            Terms::Sh(sh) => self.resident.relight_sh(self.gpu, sh),
+        }
     }
 }

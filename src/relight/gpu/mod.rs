@@ -1,0 +1,158 @@
+//! Relighting on the GPU (wgpu compute): the tiled sparse wavelet product and the SH product of
+//! [`crate::relight`], with the same inputs and the same results.
+//!
+//! One workgroup of [`WORKGROUP_SIZE`] threads relights one 16 x 16 tile (`shaders/common.wgsl`):
+//! for every kept light term it walks that coefficient's column in the tile, each thread taking
+//! every 256th entry. A column holds each row at most once, so the threads of one column never
+//! write the same accumulator, and a barrier between columns orders the rest: no float atomics.
+//! The accumulators sit in workgroup memory (up to 1024 rows per tile, 16 KiB; a tile usually has
+//! one row per pixel and material), in device memory beyond that. Then each thread owns one pixel
+//! and sums its rows. On a real GPU the entries of one column are contiguous, so a warp's loads
+//! coalesce; thousands of tiles keep every compute unit busy. The SH pipeline needs no
+//! cooperation: each thread dots its own pixel's SH rows with the SH light.
+//!
+//! The transport is uploaded once. Matrices larger than the device's storage-binding limit are
+//! split by tiles into chunks, each with its own buffers and dispatch. Per relight, only the kept
+//! light terms (16 bytes each) and a few parameters go up.
+
+mod readback;
+mod transport;
+
+use wgpu::util::DeviceExt;
+
+use crate::error::{PrtError, Result};
+use crate::store::quant::BLOCK_ROWS;
+
+use readback::Timer;
+pub use readback::map_and_read;
+pub(crate) use readback::wait_and_read;
+pub use transport::{GpuBackend, GpuTransport};
+
+/// Threads per workgroup: one per pixel of a tile. The shaders receive it as `WORKGROUP`.
+pub const WORKGROUP_SIZE: u32 =
+    (crate::store::transport::TILE * crate::store::transport::TILE) as u32;
+/// A device, its queue and the relight pipelines (cloning shares them).
+#[derive(Clone)]
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    /// Name, back-end and driver of the adapter, for messages.
+    pub adapter: String,
+    pub(crate) wavelet: wgpu::ComputePipeline,
+    pub(crate) sh: wgpu::ComputePipeline,
+    pub(crate) to_texture: wgpu::ComputePipeline,
+    /// The 256 scales of the stored values' codes (`crate::store::quant`), a uniform buffer.
+    pub(crate) scales: wgpu::Buffer,
+    /// Timestamp queries around the relight passes, where the device has them.
+    pub(crate) timer: Option<Timer>,
+}
+
+/// WGSL of a pipeline: the relight pipelines get the tile and workgroup sizes from here (the one
+/// place they are defined) and the shared part in `shaders/common.wgsl`.
+fn shader_source(pipeline: &str) -> String {
+    let relight = |specific: &str| {
+        format!(
+            "const TILE: u32 = {}u;\nconst WORKGROUP: u32 = {WORKGROUP_SIZE}u;\n\
+             const BLOCK_ROWS: u32 = {BLOCK_ROWS}u;\n{}\n{specific}",
+            crate::store::transport::TILE,
+            include_str!("../../../shaders/common.wgsl"),
+        )
+    };
+    match pipeline {
+        "wavelet" => relight(include_str!("../../../shaders/relight_wavelet.wgsl")),
+        "sh" => relight(include_str!("../../../shaders/relight_sh.wgsl")),
+        _ => include_str!("../../../shaders/to_texture.wgsl").to_string(),
+    }
+}
+
+impl Gpu {
+    /// Opens the first adapter wgpu finds (honouring `WGPU_BACKEND` and the other wgpu
+    /// environment variables) with its full limits. Without an adapter the error says what to
+    /// install.
+    pub fn new() -> Result<Gpu> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            ..Default::default()
+        }))
+        .map_err(|e| {
+            PrtError::Gpu(format!(
+                "no GPU adapter ({e}); without a GPU, install Mesa's software drivers \
+                 (Debian/Ubuntu: apt-get install mesa-vulkan-drivers) or use --device cpu"
+            ))
+        })?;
+        let info = adapter.get_info();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("wavelet-prt relight"),
+            required_limits: adapter.limits(),
+            required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
+            ..Default::default()
+        }))
+        .map_err(|e| PrtError::Gpu(format!("opening {}: {e}", info.name)))?;
+        let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
+        Gpu::from_device(device, queue, name)
+    }
+
+    /// Builds the pipelines on a device the caller already has (the viewer shares its own).
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, adapter: String) -> Result<Gpu> {
+        let make = |name: &str| {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(name),
+                source: wgpu::ShaderSource::Wgsl(shader_source(name).into()),
+            });
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: None,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let wavelet = make("wavelet");
+        let sh = make("sh");
+        let to_texture = make("to_texture");
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!(
+                "building the relight pipelines: {e}"
+            )));
+        }
+        let timer = Timer::new(&device, &queue);
+        let scales = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("value scales"),
+            contents: bytemuck::cast_slice(crate::store::quant::scale_table()),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        Ok(Gpu {
+            device,
+            queue,
+            adapter,
+            wavelet,
+            sh,
+            to_texture,
+            scales,
+            timer,
+        })
+    }
+
+    /// Whether relight times come from GPU timestamp queries (else from the wall clock).
+    pub fn has_timestamps(&self) -> bool {
+        self.timer.is_some()
+    }
+
+    /// The GPU time of the relight passes of the last finished relight, from timestamp queries;
+    /// `None` when the device has none. Call after the relight's submission has completed.
+    pub fn last_kernel_seconds(&self) -> Option<f64> {
+        self.timer.as_ref()?.read(&self.device)
+    }
+
+    /// The largest storage buffer one binding may hold on this device.
+    pub fn max_binding_bytes(&self) -> u64 {
+        let l = self.device.limits();
+        l.max_storage_buffer_binding_size.min(l.max_buffer_size)
+    }
+}

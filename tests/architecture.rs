@@ -1,0 +1,237 @@
+//! The house rules of ARCHITECTURE.md, checked on the source: every `crate::` path in library code
+//! runs from a stage to the same stage or one before it, the modules import each other without a
+//! loop, and no source file outgrows about 800 lines (its test module aside).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// The stages in import order: a module may use its own stage and those before it. `app` may
+/// use everything; nothing else may use `app`.
+const STAGES: [&[&str]; 11] = [
+    &["error", "files", "conventions"],
+    &["math"],
+    &["flags"],
+    &["output"],
+    &["medium"],
+    &["scene"],
+    &["light"],
+    &["store"],
+    &["bake"],
+    &["relight", "volume"],
+    &["app"],
+];
+
+const MAX_LINES: usize = 800;
+
+fn stage_rank(module: &str) -> Option<usize> {
+    let top = module.split("::").next()?;
+    STAGES.iter().position(|s| s.contains(&top))
+}
+
+/// Every `.rs` file under `dir`.
+fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            sources(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// `src/light/envmap.rs` -> `light::envmap`, `src/store/mod.rs` -> `store`.
+fn module_of(src: &Path, file: &Path) -> String {
+    let rel = file.strip_prefix(src).unwrap().with_extension("");
+    let parts: Vec<String> = rel
+        .components()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .filter(|c| c != "mod")
+        .collect();
+    parts.join("::")
+}
+
+/// The library code of a file: its lines up to an inline `#[cfg(test)]` module, comments
+/// dropped. Test files and test helpers are not library code.
+fn library_lines(text: &str) -> Vec<&str> {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = Vec::new();
+    for (i, l) in lines.iter().enumerate() {
+        let t = l.trim_start();
+        if t.starts_with("#[cfg(test)]")
+            && lines
+                .get(i + 1)
+                .is_some_and(|n| n.trim_start().starts_with("mod tests {"))
+        {
+            break;
+        }
+        if !t.starts_with("//") {
+            out.push(*l);
+        }
+    }
+    out
+}
+
+fn is_test_file(module: &str) -> bool {
+    module.ends_with("tests") || module.ends_with("test_support")
+}
+
+/// The module a `crate::a::b::c` path names: the longest known module that prefixes it.
+fn target_of<'a>(path: &str, modules: &'a BTreeSet<String>) -> Option<&'a String> {
+    modules
+        .iter()
+        .filter(|m| path == m.as_str() || path.starts_with(&format!("{m}::")))
+        .max_by_key(|m| m.len())
+}
+
+struct House {
+    /// Module -> (line, the module it uses) for every `crate::` path in library code.
+    uses: BTreeMap<String, Vec<(usize, String)>>,
+    /// Module -> library lines (test module aside, comments included).
+    lengths: BTreeMap<String, usize>,
+}
+
+fn house() -> House {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    sources(&src, &mut files);
+    let modules: BTreeSet<String> = files.iter().map(|f| module_of(&src, f)).collect();
+    let mut uses = BTreeMap::new();
+    let mut lengths = BTreeMap::new();
+    for f in &files {
+        let module = module_of(&src, f);
+        if is_test_file(&module) || module == "main" || module == "lib" {
+            continue;
+        }
+        let text = std::fs::read_to_string(f).unwrap();
+        let test_start = text
+            .lines()
+            .collect::<Vec<_>>()
+            .windows(2)
+            .position(|w| w[0].trim() == "#[cfg(test)]" && w[1].trim() == "mod tests {")
+            .unwrap_or(usize::MAX);
+        lengths.insert(module.clone(), text.lines().count().min(test_start));
+        let mut found = Vec::new();
+        for (n, line) in library_lines(&text).into_iter().enumerate() {
+            let mut rest = line;
+            while let Some(i) = rest.find("crate::") {
+                let tail = &rest[i + "crate::".len()..];
+                let end = tail
+                    .find(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'))
+                    .unwrap_or(tail.len());
+                let path = tail[..end].trim_end_matches(':');
+                if let Some(t) = target_of(path, &modules)
+                    && *t != module
+                {
+                    found.push((n + 1, t.clone()));
+                }
+                rest = &tail[end..];
+            }
+        }
+        uses.insert(module, found);
+    }
+    House { uses, lengths }
+}
+
+#[test]
+fn every_module_belongs_to_a_stage() {
+    let h = house();
+    let strays: Vec<&String> = h.uses.keys().filter(|m| stage_rank(m).is_none()).collect();
+    assert!(
+        strays.is_empty(),
+        "modules in no stage of ARCHITECTURE.md: {strays:?}"
+    );
+}
+
+#[test]
+fn no_stage_imports_a_later_one() {
+    let h = house();
+    let mut wrong = Vec::new();
+    for (m, uses) in &h.uses {
+        let (Some(from), true) = (stage_rank(m), !m.starts_with("app")) else {
+            continue;
+        };
+        for (line, t) in uses {
+            if stage_rank(t).is_some_and(|to| to > from) {
+                wrong.push(format!("{m} (line {line}) uses {t}"));
+            }
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "imports against the stage order:\n{}",
+        wrong.join("\n")
+    );
+}
+
+#[test]
+fn modules_import_each_other_without_a_loop() {
+    let h = house();
+    let graph: BTreeMap<&str, BTreeSet<&str>> = h
+        .uses
+        .iter()
+        .map(|(m, u)| (m.as_str(), u.iter().map(|(_, t)| t.as_str()).collect()))
+        .collect();
+    // Depth-first search with colours; a grey target is a loop.
+    fn visit<'a>(
+        m: &'a str,
+        graph: &BTreeMap<&'a str, BTreeSet<&'a str>>,
+        colour: &mut BTreeMap<&'a str, u8>,
+        stack: &mut Vec<&'a str>,
+        loops: &mut Vec<String>,
+    ) {
+        colour.insert(m, 1);
+        stack.push(m);
+        for &t in graph.get(m).into_iter().flatten() {
+            match colour.get(t) {
+                Some(1) => {
+                    let at = stack.iter().position(|s| *s == t).unwrap_or(0);
+                    loops.push(format!("{} -> {t}", stack[at..].join(" -> ")));
+                }
+                Some(_) => {}
+                None => visit(t, graph, colour, stack, loops),
+            }
+        }
+        stack.pop();
+        colour.insert(m, 2);
+    }
+    let mut colour = BTreeMap::new();
+    let mut loops = Vec::new();
+    for &m in graph.keys() {
+        if !colour.contains_key(m) {
+            visit(m, &graph, &mut colour, &mut Vec::new(), &mut loops);
+        }
+    }
+    assert!(loops.is_empty(), "import loops:\n{}", loops.join("\n"));
+}
+
+#[test]
+fn no_source_file_outgrows_the_limit() {
+    let h = house();
+    let long: Vec<String> = h
+        .lengths
+        .iter()
+        .filter(|(_, n)| **n > MAX_LINES)
+        .map(|(m, n)| format!("{m}: {n} lines"))
+        .collect();
+    assert!(
+        long.is_empty(),
+        "files over {MAX_LINES} lines (test modules aside):\n{}",
+        long.join("\n")
+    );
+}
+
+#[test]
+fn the_checker_sees_a_planted_violation() {
+    // The rules above must be able to fail: a later stage named from an earlier one, and a
+    // test module's imports ignored.
+    let text = "use crate::app::demo;\n#[cfg(test)]\nmod tests {\nuse crate::app::cli;\n}\n";
+    let lines = library_lines(text);
+    assert_eq!(lines, vec!["use crate::app::demo;"]);
+    assert!(stage_rank("app::demo") > stage_rank("math::sh"));
+    let modules: BTreeSet<String> = ["app".into(), "app::demo".into()].into();
+    assert_eq!(
+        target_of("app::demo::write_assets", &modules).map(String::as_str),
+        Some("app::demo")
+    );
+}
