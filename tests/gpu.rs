@@ -255,3 +255,47 @@ fn timestamp_queries_time_the_relight_passes_when_the_device_has_them() {
         }
     }
 }
+
+#[test]
+fn both_backends_give_the_same_image_and_statistics_for_every_method() {
+    use wavelet_prt::relight::gpu::GpuBackend;
+    use wavelet_prt::relight::{Backend, Cpu, Method, RelightRequest};
+    let Some(gpu) = common::gpu_or_skip("back-ends") else {
+        return;
+    };
+    let bakes = bakes();
+    let t = &bakes[1];
+    let g = GpuTransport::upload(&gpu, t, None).unwrap();
+    let ctx = LightContext::new(t).unwrap();
+    let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
+    let light = ctx.prepare(&env, EnvRotation::yaw(30.0)).unwrap();
+    let backends: [&dyn Backend; 2] = [&Cpu(t), &GpuBackend::new(&gpu, &g, t).unwrap()];
+    assert_eq!(backends[0].name(), "cpu");
+    assert_eq!(backends[1].name(), gpu.adapter);
+    let mask = Some(t.coverage.as_slice());
+    for (method, terms, sh_order) in [
+        (Method::Wavelet, 20, 1),
+        (Method::Full, 0, 1),
+        (Method::Sh, 0, 3),
+    ] {
+        let req = RelightRequest {
+            method,
+            terms,
+            weighting: Weighting::Area,
+            sh_order,
+        };
+        let (cpu, cs) = backends[0].relight(&ctx, &light, &req).unwrap();
+        let (dev, gs) = backends[1].relight(&ctx, &light, &req).unwrap();
+        assert!(
+            relative_l2(&dev, &cpu, mask).unwrap() < GPU_MATCH,
+            "{method}"
+        );
+        assert_eq!(gs.terms, cs.terms, "{method}");
+        assert_eq!(gs.nonzeros_touched, cs.nonzeros_touched, "{method}");
+        assert!(gs.nonzeros_touched > 0 && gs.bytes_touched > 0, "{method}");
+    }
+    // A resident transport answers only for a transport of its own size.
+    let mut other = t.clone();
+    other.meta.width += 16;
+    assert!(GpuBackend::new(&gpu, &g, &other).is_err());
+}

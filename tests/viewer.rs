@@ -437,3 +437,18 @@ fn the_first_view_is_a_low_sun_with_hard_shadows() {
     let (entries, _, selected) = env_entries(&["sun:40,10".to_string()]);
     assert!(matches!(entries[selected].source, EnvSource::Sun));
 }
+
+#[test]
+fn without_a_display_the_window_says_what_to_do_instead() {
+    let t = common::viewer_transport_path();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_prt"))
+        .args(["view", t.to_str().unwrap()])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(text.contains("no display to open a window on"), "{text}");
+    assert!(text.contains("--screenshot OUT.png"), "{text}");
+}
