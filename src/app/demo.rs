@@ -148,13 +148,8 @@ pub fn run_demo(
     std::fs::create_dir_all(&images).map_err(|e| PrtError::io(&images, e))?;
     let mut rows = Vec::new();
     let mut thumbs: Vec<(Image, ToneMap, [String; 2])> = Vec::new();
-    for a in ASSETS.iter().filter(|a| a.path.starts_with("envmaps/")) {
-        let name = Path::new(a.path)
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .unwrap_or("env")
-            .to_string();
-        let env = EnvMap::load(&assets.join(a.path))?;
+    for entry in bundled_envs(&assets) {
+        let (name, env) = entry?;
         let light = ctx.prepare(&env, EnvRotation::default())?;
         // Shown and saved over the environment behind the scene; errors are taken before.
         let behind = environment_behind(
@@ -301,13 +296,8 @@ fn run_volume_demo(
     )?;
     let mut rows = Vec::new();
     let mut shots: Vec<(Image, ToneMap, [String; 2])> = Vec::new();
-    for a in ASSETS.iter().filter(|a| a.path.starts_with("envmaps/")) {
-        let name = Path::new(a.path)
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .unwrap_or("env")
-            .to_string();
-        let env = EnvMap::load(&assets.join(a.path))?;
+    for entry in bundled_envs(assets) {
+        let (name, env) = entry?;
         let cube = env.to_cube(32, EnvRotation::default())?;
         let light = PhaseLight::new(&cube, vt.meta.sh_order, vt.meta.g);
         let start = std::time::Instant::now();
@@ -373,4 +363,20 @@ pub fn markdown_table(rows: &[DemoRow]) -> String {
         ));
     }
     s
+}
+
+/// The bundled environment maps, each loaded from the written assets when its turn comes, with
+/// its file stem.
+fn bundled_envs(assets: &Path) -> impl Iterator<Item = Result<(String, EnvMap)>> + '_ {
+    ASSETS
+        .iter()
+        .filter(|a| a.path.starts_with("envmaps/"))
+        .map(move |a| {
+            let name = Path::new(a.path)
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or("env")
+                .to_string();
+            Ok((name, EnvMap::load(&assets.join(a.path))?))
+        })
 }

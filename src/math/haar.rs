@@ -38,36 +38,29 @@ impl HaarValue for f32 {
     }
 }
 
-impl HaarValue for [f32; 3] {
-    #[inline]
-    fn add(self, o: Self) -> Self {
-        [self[0] + o[0], self[1] + o[1], self[2] + o[2]]
-    }
-    #[inline]
-    fn sub(self, o: Self) -> Self {
-        [self[0] - o[0], self[1] - o[1], self[2] - o[2]]
-    }
-    #[inline]
-    fn scale(self, f: f32) -> Self {
-        [self[0] * f, self[1] * f, self[2] * f]
-    }
+/// RGB triples of `f32` or `f64`, channel by channel (the scale is applied at the triple's
+/// precision).
+macro_rules! haar_rgb {
+    ($t:ty) => {
+        impl HaarValue for [$t; 3] {
+            #[inline]
+            fn add(self, o: Self) -> Self {
+                [self[0] + o[0], self[1] + o[1], self[2] + o[2]]
+            }
+            #[inline]
+            fn sub(self, o: Self) -> Self {
+                [self[0] - o[0], self[1] - o[1], self[2] - o[2]]
+            }
+            #[inline]
+            fn scale(self, f: f32) -> Self {
+                let f = <$t>::from(f);
+                [self[0] * f, self[1] * f, self[2] * f]
+            }
+        }
+    };
 }
-
-impl HaarValue for [f64; 3] {
-    #[inline]
-    fn add(self, o: Self) -> Self {
-        [self[0] + o[0], self[1] + o[1], self[2] + o[2]]
-    }
-    #[inline]
-    fn sub(self, o: Self) -> Self {
-        [self[0] - o[0], self[1] - o[1], self[2] - o[2]]
-    }
-    #[inline]
-    fn scale(self, f: f32) -> Self {
-        let f = f as f64;
-        [self[0] * f, self[1] * f, self[2] * f]
-    }
-}
+haar_rgb!(f32);
+haar_rgb!(f64);
 
 /// Forward transform of one N x N face in place; `scratch` is reused between calls.
 pub fn forward_face<T: HaarValue>(face: &mut [T], n: usize, scratch: &mut Vec<T>) {

@@ -62,31 +62,6 @@ impl Rng {
     }
 }
 
-/// The canonical scene of the scene-file documentation, without the mesh.
-pub const CANONICAL: &str = r#"[camera]
-eye = [0.0, 1.5, 4.0]
-target = [0.0, 0.5, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y_deg = 40.0
-width = 256
-height = 256
-
-[material.ground]
-type = "diffuse"
-albedo = [0.8, 0.8, 0.8]
-
-[material.clay]
-type = "diffuse"
-albedo = [0.8, 0.3, 0.2]
-
-[[shape]]
-type = "quad"
-corners = [[-2.0, 0.0, -2.0], [-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]]
-material = "ground"
-
-[[shape]]
-type = "sphere"
-center = [0.0, 0.6, 0.0]
-radius = 0.6
-material = "clay"
-"#;
+#[path = "../../tests/common/scenes.rs"]
+mod scenes;
+pub use scenes::CANONICAL;

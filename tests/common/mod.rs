@@ -2,6 +2,10 @@
 
 #![allow(dead_code)]
 
+mod scenes;
+#[allow(unused_imports)]
+pub use scenes::SPHERE_ON_PLANE;
+
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -35,36 +39,6 @@ pub fn scene_from(text: &str, name: &str) -> Scene {
 pub fn assets() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("assets")
 }
-
-/// The canonical sphere on a ground plane, at an image size 16-pixel tiles do not divide.
-pub const SPHERE_ON_PLANE: &str = r#"
-[camera]
-eye = [0.0, 1.5, 4.0]
-target = [0.0, 0.5, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y_deg = 40.0
-width = 37
-height = 21
-
-[material.ground]
-type = "diffuse"
-albedo = [0.8, 0.7, 0.6]
-
-[material.clay]
-type = "diffuse"
-albedo = [0.8, 0.3, 0.2]
-
-[[shape]]
-type = "quad"
-corners = [[-2.0, 0.0, -2.0], [-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]]
-material = "ground"
-
-[[shape]]
-type = "sphere"
-center = [0.0, 0.6, 0.0]
-radius = 0.6
-material = "clay"
-"#;
 
 /// A square quad of half-size `half` at y = 0 with albedo `albedo`, seen straight from above by a
 /// `width` x `height` camera: every pixel sees the plane, whose normal is +Y.
