@@ -45,8 +45,16 @@ struct Params {
 
 const NO_PIXEL: u32 = 0xffffffffu;
 
+const NO_TILE: u32 = 0xffffffffu;
+
+// The global tile workgroup `wid` relights, or NO_TILE for the spare workgroups of the dispatch's
+// last row. The same for every thread of a workgroup, so returning on it keeps barriers uniform.
 fn tile_of(wid: vec3<u32>) -> u32 {
-    return wid.x + wid.y * params.dispatch_x;
+    let local_tile = wid.x + wid.y * params.dispatch_x;
+    if (local_tile >= params.tile_count) {
+        return NO_TILE;
+    }
+    return params.tile_base + local_tile;
 }
 
 // The image pixel thread `lid` of `tile` owns, or NO_PIXEL past the image's edge.

@@ -8,11 +8,10 @@
 
 @compute @workgroup_size(WORKGROUP)
 fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    let local_tile = tile_of(wid);
-    if (local_tile >= params.tile_count) {
+    let tile = tile_of(wid);
+    if (tile == NO_TILE) {
         return;
     }
-    let tile = params.tile_base + local_tile;
     let pixel = pixel_of(tile, lid);
     if (pixel == NO_PIXEL) {
         return;

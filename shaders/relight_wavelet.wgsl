@@ -41,11 +41,10 @@ fn entry(e: u32) -> vec2<f32> {
 
 @compute @workgroup_size(WORKGROUP)
 fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    let local_tile = tile_of(wid);
-    if (local_tile >= params.tile_count) {
+    let tile = tile_of(wid);
+    if (tile == NO_TILE) {
         return;
     }
-    let tile = params.tile_base + local_tile;
     let r0 = tile_rows[tile];
     let n = tile_rows[tile + 1u] - r0;
     let b0 = tile_rows[params.block_table + tile];

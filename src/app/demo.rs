@@ -226,14 +226,7 @@ pub fn run_demo(
         log(&format!("relit under {name}"));
     }
     let columns = DEMO_SH_ORDERS.len() + DEMO_TERMS.len() + 1;
-    let cells: Vec<Cell> = thumbs
-        .iter()
-        .map(|(image, tone, caption)| Cell {
-            image,
-            tone: *tone,
-            caption: caption.clone(),
-        })
-        .collect();
+    let cells = cells_of(&thumbs);
     let sheet_path = dir.join("contact_sheet.png");
     write_sheet(
         &sheet_path,
@@ -318,14 +311,7 @@ fn run_volume_demo(
             ["SH ORDER 3".into(), short_name(&name).to_uppercase()],
         ));
     }
-    let cells: Vec<Cell> = shots
-        .iter()
-        .map(|(image, tone, caption)| Cell {
-            image,
-            tone: *tone,
-            caption: caption.clone(),
-        })
-        .collect();
+    let cells = cells_of(&shots);
     write_sheet(
         &dir.join("volume_sheet.png"),
         4,
@@ -379,4 +365,16 @@ fn bundled_envs(assets: &Path) -> impl Iterator<Item = Result<(String, EnvMap)>>
                 .to_string();
             Ok((name, EnvMap::load(&assets.join(a.path))?))
         })
+}
+
+/// Contact-sheet cells of images kept with their tone maps and captions.
+fn cells_of(shots: &[(Image, ToneMap, [String; 2])]) -> Vec<Cell<'_>> {
+    shots
+        .iter()
+        .map(|(image, tone, caption)| Cell {
+            image,
+            tone: *tone,
+            caption: caption.clone(),
+        })
+        .collect()
 }

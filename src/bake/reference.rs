@@ -40,15 +40,7 @@ pub fn render_reference_with(
     settings: &BakeSettings,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Reference> {
-    if cube.n != settings.cube_n {
-        return Err(PrtError::invalid(
-            "cube map",
-            format!(
-                "N = {} but the settings ask for N = {}",
-                cube.n, settings.cube_n
-            ),
-        ));
-    }
+    cube.expect_n(settings.cube_n, "the settings ask for")?;
     settings.validate()?;
     let tracer = Tracer::new(scene);
     let cam = &scene.camera;

@@ -223,15 +223,7 @@ impl TexelShBasis {
 
     /// SH light vector of a cube map, `L_i = Σ_j L_j Ω_j Y_i(d_j)`.
     pub fn project_light(&self, cube: &CubeMap) -> Result<Vec<[f64; 3]>> {
-        if cube.n != self.n {
-            return Err(PrtError::invalid(
-                "cube map",
-                format!(
-                    "N = {} but the SH basis was made for N = {}",
-                    cube.n, self.n
-                ),
-            ));
-        }
+        cube.expect_n(self.n, "the SH basis was made for")?;
         let count = self.order * self.order;
         // One accumulator per channel, so the loop over coefficients is a plain multiply-add
         // over contiguous values; texels are split across threads in chunks.

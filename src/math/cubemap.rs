@@ -122,6 +122,17 @@ pub struct CubeMap {
 }
 
 impl CubeMap {
+    /// An error unless the face size is `n`: "N = 8 but {wanted} N = 16".
+    pub fn expect_n(&self, n: usize, wanted: &str) -> Result<()> {
+        if self.n != n {
+            return Err(PrtError::invalid(
+                "cube map",
+                format!("N = {} but {wanted} N = {n}", self.n),
+            ));
+        }
+        Ok(())
+    }
+
     /// A cube map with every texel set to `value`.
     pub fn constant(n: usize, value: [f32; 3]) -> Result<Self> {
         validate_n(n)?;

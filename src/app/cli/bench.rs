@@ -26,8 +26,8 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',')]
     pub weightings: Option<Vec<String>>,
     /// auto (the GPU when an adapter exists), cpu, or gpu: times the GPU kernels beside the CPU.
-    #[arg(long, default_value = "auto")]
-    pub device: String,
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    pub device: DeviceChoice,
     /// Also render the brute-force reference of the scene and report every point against it.
     #[arg(long)]
     pub reference: bool,
@@ -87,18 +87,12 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         envs.push((name, load_env(spec)?));
     }
     let points_bar = bar(0, "points");
-    let gpu = match a.device.as_str() {
-        "cpu" => None,
-        "gpu" => Some(crate::relight::gpu::Gpu::new()?),
-        "auto" => crate::relight::gpu::Gpu::new()
+    let gpu = match a.device {
+        DeviceChoice::Cpu => None,
+        DeviceChoice::Gpu => Some(crate::relight::gpu::Gpu::new()?),
+        DeviceChoice::Auto => crate::relight::gpu::Gpu::new()
             .map_err(|e| eprintln!("note: timing the CPU only: {e}"))
             .ok(),
-        other => {
-            return Err(PrtError::invalid(
-                "device",
-                format!("`{other}`; expected auto, cpu or gpu"),
-            ));
-        }
     };
     let device = match &gpu {
         Some(g) => {

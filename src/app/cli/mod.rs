@@ -2,6 +2,7 @@
 //! library; this module is the only place that writes to the terminal.
 
 use std::path::PathBuf;
+use std::str::FromStr;
 use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
@@ -11,11 +12,12 @@ use crate::bake::{BakeProgress, BakeSettings, bake, worst_case_bytes};
 use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::light::select::{WaveletLight, Weighting};
-use crate::output::film::ToneMap;
+use crate::output::film::{ToneCurve, ToneMap};
 use crate::relight::background::Background;
 use crate::relight::{LightContext, Method, RelightRequest, relight};
 use crate::scene::Scene;
 use crate::store::transport::Transport;
+use crate::volume::VolumeView;
 
 mod bake;
 mod bench;
@@ -297,6 +299,55 @@ fn settings_from(
         paths: s.paths,
         ..BakeSettings::default()
     }
+}
+
+/// How the environment is turned, for every command that lights with one.
+#[derive(Args, Clone, Copy, Debug)]
+pub struct TurnArgs {
+    /// Turn the environment about +Y, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub yaw: f64,
+    /// Turn the environment about +X after the yaw, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub pitch: f64,
+}
+
+impl TurnArgs {
+    pub fn rotation(&self) -> EnvRotation {
+        EnvRotation {
+            yaw_deg: self.yaw,
+            pitch_deg: self.pitch,
+        }
+    }
+}
+
+/// Where a command's kernels run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Device {
+    /// The CPU kernels (rayon).
+    Cpu,
+    /// The wgpu kernels (a software adapter such as Mesa's lavapipe works too).
+    Gpu,
+}
+
+impl std::fmt::Display for Device {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Device::Cpu => "cpu",
+            Device::Gpu => "gpu",
+        })
+    }
+}
+
+/// Where `prt bench` times the kernels: the CPU, and the GPU beside it when asked or found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum DeviceChoice {
+    /// The GPU when an adapter exists, else the CPU only.
+    Auto,
+    /// The CPU kernels only.
+    Cpu,
+    /// The CPU and the GPU kernels; an error without an adapter.
+    Gpu,
 }
 
 fn parse_tone(t: &str) -> Result<crate::output::film::ToneCurve> {

@@ -15,33 +15,29 @@ pub struct RelightArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// wavelet, sh or full.
-    #[arg(long, default_value = "wavelet")]
-    pub method: String,
+    #[arg(long, default_value = "wavelet", value_parser = Method::from_str)]
+    pub method: Method,
     /// Kept wavelet terms K.
     #[arg(long, default_value_t = 200)]
     pub terms: usize,
     /// Wavelet term selection: none, area or transport.
-    #[arg(long, default_value = "transport")]
-    pub weighting: String,
+    #[arg(long, default_value = "transport", value_parser = Weighting::from_str)]
+    pub weighting: Weighting,
     /// SH order (at most the baked order; default: the baked order).
     #[arg(long)]
     pub sh_order: Option<usize>,
-    /// Turn the environment about +Y, degrees.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub yaw: f64,
-    /// Turn the environment about +X after the yaw, degrees.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub pitch: f64,
+    #[command(flatten)]
+    pub turn: TurnArgs,
     /// cpu or gpu (wgpu; a software adapter such as Mesa's lavapipe works too).
-    #[arg(long, default_value = "cpu")]
-    pub device: String,
+    #[arg(long, value_enum, default_value_t = Device::Cpu)]
+    pub device: Device,
     /// PNG exposure in stops (default: automatic).
     #[arg(long, allow_negative_numbers = true)]
     pub exposure: Option<f32>,
     /// What pixels that see no geometry show: env (the environment behind the scene, turned
     /// with it) or black.
-    #[arg(long, default_value = "env")]
-    pub background: String,
+    #[arg(long, default_value = "env", value_parser = Background::from_str)]
+    pub background: Background,
 }
 
 #[derive(Args, Debug)]
@@ -56,16 +52,12 @@ pub struct ReferenceArgs {
     pub output: PathBuf,
     #[command(flatten)]
     pub sampling: SamplingArgs,
-    /// Turn the environment about +Y, degrees.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub yaw: f64,
-    /// Turn the environment about +X after the yaw, degrees.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub pitch: f64,
+    #[command(flatten)]
+    pub turn: TurnArgs,
     /// What pixels that see no geometry show: env (the environment behind the scene, turned
     /// with it) or black.
-    #[arg(long, default_value = "env")]
-    pub background: String,
+    #[arg(long, default_value = "env", value_parser = Background::from_str)]
+    pub background: Background,
 }
 
 #[derive(Args, Debug)]
@@ -84,22 +76,14 @@ pub struct EnvArgs {
 }
 
 pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
-    let method: Method = a.method.parse()?;
-    let weighting: Weighting = a.weighting.parse()?;
-    let background: Background = a.background.parse()?;
-    check_light_flags(a.yaw, a.pitch, a.exposure)?;
+    let (method, weighting, background) = (a.method, a.weighting, a.background);
+    check_light_flags(a.turn.yaw, a.turn.pitch, a.exposure)?;
     let mut inputs = env_files(std::slice::from_ref(&a.env));
     inputs.push(a.file.clone());
     check_image_output(&a.output, &inputs)?;
-    let gpu = match a.device.as_str() {
-        "cpu" => None,
-        "gpu" => Some(crate::relight::gpu::Gpu::new()?),
-        other => {
-            return Err(PrtError::invalid(
-                "device",
-                format!("`{other}`; expected cpu or gpu"),
-            ));
-        }
+    let gpu = match a.device {
+        Device::Cpu => None,
+        Device::Gpu => Some(crate::relight::gpu::Gpu::new()?),
     };
     let t = Transport::load(&a.file)?;
     if let Some(o) = a.sh_order {
@@ -111,10 +95,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let env = load_env(&a.env)?;
     let ctx = LightContext::new(&t)?;
     let start = Instant::now();
-    let rotation = EnvRotation {
-        yaw_deg: a.yaw,
-        pitch_deg: a.pitch,
-    };
+    let rotation = a.turn.rotation();
     let light = ctx.prepare(&env, rotation)?;
     let light_ms = start.elapsed().as_secs_f64() * 1e3;
     let req = RelightRequest {
@@ -171,18 +152,15 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
 pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     let settings = settings_from(&a.sampling, 1, 0.0, true);
     settings.validate()?;
-    let background: Background = a.background.parse()?;
-    check_light_flags(a.yaw, a.pitch, None)?;
+    let background = a.background;
+    check_light_flags(a.turn.yaw, a.turn.pitch, None)?;
     let mut inputs = env_files(std::slice::from_ref(&a.env));
     check_image_output(&a.output, &inputs)?;
     let scene = Scene::load(&a.scene)?;
     inputs.extend(scene.input_files.iter().cloned());
     check_image_output(&a.output, &inputs)?;
     let env = load_env(&a.env)?;
-    let rotation = EnvRotation {
-        yaw_deg: a.yaw,
-        pitch_deg: a.pitch,
-    };
+    let rotation = a.turn.rotation();
     let cube = env.to_cube(settings.cube_n, rotation)?;
     let start = Instant::now();
     let rows = bar(scene.camera.height as u64, "rows");

@@ -13,14 +13,14 @@ pub struct ViewArgs {
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
     /// wavelet, sh or full (with --screenshot).
-    #[arg(long)]
-    pub method: Option<String>,
+    #[arg(long, value_parser = Method::from_str)]
+    pub method: Option<Method>,
     /// Kept wavelet terms K (with --screenshot).
     #[arg(long)]
     pub terms: Option<usize>,
     /// none, area or transport (with --screenshot).
-    #[arg(long)]
-    pub weighting: Option<String>,
+    #[arg(long, value_parser = Weighting::from_str)]
+    pub weighting: Option<Weighting>,
     /// SH order (with --screenshot).
     #[arg(long)]
     pub sh_order: Option<usize>,
@@ -41,8 +41,8 @@ pub struct ViewArgs {
     #[arg(long)]
     pub split: Option<f32>,
     /// Display curve after the exposure: clip, reinhard or aces (with --screenshot).
-    #[arg(long)]
-    pub tone: Option<String>,
+    #[arg(long, value_parser = parse_tone)]
+    pub tone: Option<ToneCurve>,
     /// Add the error heat map against full beside each image (with --screenshot).
     #[arg(long)]
     pub error_map: bool,
@@ -114,10 +114,10 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
         state.split = f;
     }
     if let Some(t) = &a.tone {
-        state.tone = parse_tone(t)?;
+        state.tone = *t;
     }
     if let Some(m) = &a.method {
-        state.method = m.parse()?;
+        state.method = *m;
     }
     // Given flags are checked as `relight` checks them; only the defaults are fitted to the file.
     let limits = engine.limits();
@@ -126,7 +126,7 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
         state.terms = k;
     }
     if let Some(w) = &a.weighting {
-        state.weighting = w.parse()?;
+        state.weighting = *w;
     }
     if let Some(o) = a.sh_order {
         crate::flags::sh_order(o, limits.sh_order)?;
@@ -183,7 +183,7 @@ fn volume_screenshot_cmd(a: &ViewArgs, out: &std::path::Path) -> Result<()> {
         state.sh_order = o;
     }
     if let Some(t) = &a.tone {
-        state.tone = parse_tone(t)?;
+        state.tone = *t;
     }
     let mut engine = VolumeEngine::new(vt, entries);
     state.exposure = match a.exposure {

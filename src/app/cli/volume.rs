@@ -44,23 +44,19 @@ pub struct VolumeRenderArgs {
     #[arg(long)]
     pub height: Option<u32>,
     /// full, inscatter, transmittance or dc (the self-shadow map).
-    #[arg(long, default_value = "full")]
-    pub view: String,
+    #[arg(long, default_value = "full", value_parser = VolumeView::from_str)]
+    pub view: VolumeView,
     /// SH order to relight with (default: the baked order).
     #[arg(long)]
     pub sh_order: Option<usize>,
-    /// Environment yaw, degrees.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub yaw: f64,
-    /// Environment pitch, degrees.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub pitch: f64,
+    #[command(flatten)]
+    pub turn: TurnArgs,
     /// Cube face size the environment is resampled to for the light.
     #[arg(long, default_value_t = 32)]
     pub cube: usize,
     /// cpu or gpu.
-    #[arg(long, default_value = "cpu")]
-    pub device: String,
+    #[arg(long, value_enum, default_value_t = Device::Cpu)]
+    pub device: Device,
     /// Exposure in stops for a .png (default automatic).
     #[arg(long, allow_negative_numbers = true)]
     pub exposure: Option<f32>,
@@ -118,9 +114,9 @@ pub(super) fn volume_bake_cmd(a: VolumeBakeArgs) -> Result<()> {
 }
 
 pub(super) fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
-    use crate::volume::{PhaseLight, VolumeTransfer, VolumeView, render_volume};
-    let view: VolumeView = a.view.parse()?;
-    check_light_flags(a.yaw, a.pitch, a.exposure)?;
+    use crate::volume::{PhaseLight, VolumeTransfer, render_volume};
+    let view = a.view;
+    check_light_flags(a.turn.yaw, a.turn.pitch, a.exposure)?;
     let mut inputs = env_files(std::slice::from_ref(&a.env));
     inputs.push(a.file.clone());
     check_image_output(&a.output, &inputs)?;
@@ -135,29 +131,17 @@ pub(super) fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
     crate::math::cubemap::validate_n(a.cube)?;
     let env = load_env(&a.env)?;
     let start = Instant::now();
-    let cube = env.to_cube(
-        a.cube,
-        EnvRotation {
-            yaw_deg: a.yaw,
-            pitch_deg: a.pitch,
-        },
-    )?;
+    let cube = env.to_cube(a.cube, a.turn.rotation())?;
     let light = PhaseLight::new(&cube, order, vt.meta.g);
     let light_ms = start.elapsed().as_secs_f64() * 1e3;
     let start = Instant::now();
-    let (img, device) = match a.device.as_str() {
-        "cpu" => (render_volume(&vt, &light, &camera, view), "cpu".to_string()),
-        "gpu" => {
+    let (img, device) = match a.device {
+        Device::Cpu => (render_volume(&vt, &light, &camera, view), "cpu".to_string()),
+        Device::Gpu => {
             let gpu = crate::relight::gpu::Gpu::new()?;
             let mut gv = crate::volume::gpu::GpuVolume::new(&gpu, &vt)?;
             let (img, _) = gv.render(&gpu, &light, &camera, view)?;
             (img, gpu.adapter.clone())
-        }
-        other => {
-            return Err(PrtError::invalid(
-                "device",
-                format!("`{other}`; expected cpu or gpu"),
-            ));
         }
     };
     let march_ms = start.elapsed().as_secs_f64() * 1e3;
