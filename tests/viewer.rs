@@ -176,14 +176,15 @@ fn comparisons_are_captioned_with_what_each_side_shows() {
     let (cw, ch, rgb) = r.captioned(4);
     assert_eq!(cw, w);
     assert!(ch > h);
-    // The images sit unchanged under the strip, and the strip holds light caption pixels over
-    // each image.
+    // The images sit unchanged under the strip, and the strip holds caption text over each
+    // image: antialiased glyphs, brighter than the strip's dark grey (24) by more than a blend
+    // of a glyph's edge would be.
     assert_eq!(&rgb[(ch - h) * w * 3..], &plain[..]);
     for i in 0..2 {
         let x0 = i * (r.width + 4);
         let lit = (0..ch - h)
             .flat_map(|y| (x0..x0 + r.width).map(move |x| (y, x)))
-            .filter(|&(y, x)| rgb[(y * w + x) * 3] > 200)
+            .filter(|&(y, x)| rgb[(y * w + x) * 3] > 120)
             .count();
         assert!(lit > 20, "caption {i}: {lit} lit pixels");
     }
@@ -308,7 +309,7 @@ fn save_writes_the_png_and_the_linear_exr() {
     let png = image::open(stem.with_extension("png")).unwrap();
     let exr = wavelet_prt::output::film::Image::load_exr(&stem.with_extension("exr")).unwrap();
     // The PNG is the image under its caption strip.
-    let strip = wavelet_prt::output::sheet::CAPTION_HEIGHT as u32;
+    let strip = wavelet_prt::output::text::CAPTION_HEIGHT as u32;
     assert_eq!(
         (exr.width as u32, exr.height as u32 + strip),
         (png.width(), png.height())

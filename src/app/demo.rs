@@ -194,10 +194,10 @@ pub fn run_demo(
                 tone,
                 [
                     match req.method {
-                        Method::Sh => format!("SH {} ({})", req.sh_order, req.sh_order.pow(2)),
-                        _ => format!("WAV K={}", req.terms),
+                        Method::Sh => format!("SH order {}", req.sh_order),
+                        _ => format!("K = {}", req.terms),
                     },
-                    format!("ERR {:.1}%", 100.0 * err),
+                    format!("L2 error {:.1}%", 100.0 * err),
                 ],
             ));
             rows.push(DemoRow {
@@ -214,7 +214,7 @@ pub fn run_demo(
         thumbs.push((
             downsample(&full, 2),
             tone,
-            ["FULL".into(), short_name(&name).to_uppercase()],
+            ["full".into(), short_name(&name)],
         ));
         rows.push(DemoRow {
             env: name.clone(),
@@ -233,7 +233,7 @@ pub fn run_demo(
         columns,
         &cells,
         &format!(
-            "CUBE 6X{0}X{0} - SH ORDER (TERMS) VS K WAVELET TERMS ({1}) - REL. L2 VS FULL",
+            "Cube 6x{0}x{0}: SH order n (n² terms) against K wavelet terms ({1} weighting); relative L2 error against full",
             transport.meta.cube_n, DEMO_WEIGHTING
         ),
     )?;
@@ -303,20 +303,16 @@ fn run_volume_demo(
             let dc = render_volume(&vt, &light, &camera, VolumeView::TransferDc);
             let dc_tone = ToneMap::auto(&dc, None);
             dc.save(&out.join("cloud_self_shadow.png"), dc_tone)?;
-            shots.push((dc, dc_tone, ["SELF-SHADOW".into(), "T0 / 2 SQRT PI".into()]));
+            shots.push((dc, dc_tone, ["self-shadow".into(), "T0 / 2√π".into()]));
         }
-        shots.push((
-            img,
-            tone,
-            ["SH ORDER 3".into(), short_name(&name).to_uppercase()],
-        ));
+        shots.push((img, tone, ["SH order 3".into(), short_name(&name)]));
     }
     let cells = cells_of(&shots);
     write_sheet(
         &dir.join("volume_sheet.png"),
         4,
         &cells,
-        "CLOUD: SH SELF-TRANSFER, RAY MARCHED FROM A FREE CAMERA",
+        "Cloud: SH self-transfer, ray marched from a free camera",
     )?;
     log(&format!(
         "marched the cloud under {} environments",

@@ -560,13 +560,13 @@ impl Rendered {
     /// [`Rendered::composite`] under a dark strip that names each image.
     pub fn captioned(&self, gap: usize) -> (usize, usize, Vec<u8>) {
         let (w, h, rgb) = self.composite(gap);
-        let strip = crate::output::sheet::CAPTION_HEIGHT;
+        let strip = crate::output::text::CAPTION_HEIGHT;
         let mut out = vec![24u8; w * (h + strip) * 3];
         out[w * strip * 3..].copy_from_slice(&rgb);
         for (i, caption) in self.captions().iter().enumerate() {
             let x = i * (self.width + gap) + 4;
-            let text = crate::output::sheet::fit_text(caption, self.width.saturating_sub(8));
-            crate::output::sheet::draw_text(&mut out, w, x, 4, &text, [235, 235, 235]);
+            let text = crate::output::text::fit_text(caption, self.width.saturating_sub(8));
+            crate::output::text::draw_text(&mut out, w, x, 4, &text, [235, 235, 235]);
         }
         (w, h + strip, out)
     }

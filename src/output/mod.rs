@@ -6,3 +6,4 @@ pub mod film;
 pub mod metrics;
 pub mod plot;
 pub mod sheet;
+pub mod text;

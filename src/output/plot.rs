@@ -1,15 +1,19 @@
-//! Line plots rendered straight to PNG, for error-versus-terms curves in benchmark reports.
+//! Line plots for the benchmark reports (error and time against terms), drawn with `plotters` and
+//! written as PNG. Text is set by [`crate::output::text`] (antialiased); the whole plot is drawn at twice its size and averaged down, so lines and
+//! markers are antialiased too.
 //!
-//! No plotting or font crate: lines and markers are rasterised here, text uses the 5 x 7 bitmap
-//! font of [`crate::output::sheet`]. Either axis may be logarithmic; log axes span whole decades and tick at
-//! powers of ten, linear axes tick at about five round values. A legend sits in the upper-right
-//! corner inside the frame.
+//! Either axis may be logarithmic. A log axis spans whole decades, labels powers of ten and draws
+//! light lines at 2..9 times each; a linear axis ticks at about five round values. A legend sits in
+//! the upper-right corner inside the frame.
 
 use std::path::Path;
 
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
 use crate::error::{PrtError, Result};
 use crate::output::film::{write_atomically, write_png};
-use crate::output::sheet::draw_text;
+use crate::output::text::FONT;
 
 /// One curve.
 pub struct Series {
@@ -42,64 +46,22 @@ pub const PALETTE: [[u8; 3]; 8] = [
     [23, 190, 207],
 ];
 
-const BACKGROUND: [u8; 3] = [255, 255, 255];
-const PLOT_BG: [u8; 3] = [255, 255, 255];
-const GRID: [u8; 3] = [225, 225, 225];
-const FRAME: [u8; 3] = [70, 70, 70];
-const TEXT: [u8; 3] = [25, 25, 25];
-const LEGEND_BORDER: [u8; 3] = [170, 170, 170];
-
-/// Horizontal advance and height of one character of the sheet font.
-const CHAR_W: usize = 12;
-const CHAR_H: usize = 14;
-/// Outer margin of the image.
-const MARGIN: usize = 10;
-/// Distance between the frame and the nearest data point, so markers never sit on the frame.
-const INSET: f64 = 8.0;
-const TICK: usize = 5;
-const MINOR_TICK: usize = 3;
-/// Gap between tick marks and their labels.
-const LABEL_GAP: usize = 4;
-const DASH_ON: f64 = 6.0;
-const DASH_PERIOD: f64 = 10.0;
-const MARKER_HALF: i64 = 2;
+const GRID: RGBColor = RGBColor(225, 225, 225);
+const MINOR_GRID: RGBColor = RGBColor(240, 240, 240);
+const FRAME: RGBColor = RGBColor(70, 70, 70);
+const TEXT: RGBColor = RGBColor(25, 25, 25);
+const LEGEND_BORDER: RGBColor = RGBColor(170, 170, 170);
 const MIN_SIZE: usize = 160;
-const MAX_SIZE: usize = 16384;
-
-/// Renders to RGB8 bytes (width*height*3), white background.
-///
-/// Points with a non-finite coordinate, or a non-positive one on a log axis, are skipped; a
-/// series left with no points is neither drawn nor listed in the legend. If no series has a point
-/// left, this is an error naming the plot.
-pub fn render(spec: &PlotSpec, series: &[Series]) -> Result<Vec<u8>> {
-    let layout = Layout::new(spec, series)?;
-    let mut canvas = Canvas::new(spec.width, spec.height, BACKGROUND);
-    layout.draw_axes(&mut canvas, spec);
-    for (s, pts) in series.iter().zip(&layout.points) {
-        layout.draw_series(&mut canvas, s, pts);
-    }
-    layout.draw_legend(&mut canvas, series);
-    Ok(canvas.rgb)
-}
-
-/// Renders and writes a PNG atomically.
-pub fn write(path: &Path, spec: &PlotSpec, series: &[Series]) -> Result<()> {
-    let rgb = render(spec, series)?;
-    write_atomically(path, |tmp| write_png(tmp, spec.width, spec.height, &rgb))
-}
-
-/// Width in pixels of `text` in the sheet font, without the spacing after the last character.
-fn text_width(text: &str) -> usize {
-    (text.chars().count() * CHAR_W).saturating_sub(2)
-}
-
-/// A tick label for the power of ten `10^e`: plain digits near 1, `1E<e>` beyond.
+const MAX_SIZE: usize = 8192;
+/// Drawn at this multiple of the output size, then averaged down.
+const SUPERSAMPLE: usize = 2;
+/// A tick label for the power of ten `10^e`: plain digits near 1, `1e<e>` beyond.
 fn decade_label(e: i32) -> String {
     match e {
         -2 => "0.01".into(),
         -1 => "0.1".into(),
         0..=3 => 10u32.pow(e as u32).to_string(),
-        _ => format!("1E{e}"),
+        _ => format!("1e{e}"),
     }
 }
 
@@ -109,7 +71,7 @@ fn floor_log10(x: f64) -> i32 {
 }
 
 /// A tick label for `v` on a linear axis whose ticks are `step` apart: fixed-point with as many
-/// decimals as the step needs, or `<mantissa>E<exponent>` for very large or very fine values.
+/// decimals as the step needs, or `<mantissa>e<exponent>` for very large or very fine values.
 fn linear_label(v: f64, step: f64) -> String {
     if v.abs() < step * 1e-6 {
         return "0".into();
@@ -127,7 +89,7 @@ fn linear_label(v: f64, step: f64) -> String {
     } else {
         mantissa
     };
-    format!("{mantissa}E{exp}")
+    format!("{mantissa}e{exp}")
 }
 
 /// A "nice" step (1, 2 or 5 times a power of ten) near `raw`.
@@ -146,108 +108,6 @@ fn nice_step(raw: f64) -> f64 {
     m * mag
 }
 
-/// One axis: its range in plotted coordinates (log10 of the value on a log axis), the pixel
-/// positions of the two ends of that range, and its ticks.
-struct Axis {
-    lo: f64,
-    hi: f64,
-    p_lo: f64,
-    p_hi: f64,
-    /// (plotted coordinate, label).
-    ticks: Vec<(f64, String)>,
-    /// Plotted coordinates of unlabelled minor ticks.
-    minor: Vec<f64>,
-}
-
-impl Axis {
-    /// Chooses the range and ticks for data spanning `[dmin, dmax]` (plotted coordinates) drawn
-    /// between pixels `p_lo` and `p_hi`, such that neighbouring ticks are at least
-    /// `min_spacing(labels)` pixels apart.
-    fn new(
-        log: bool,
-        dmin: f64,
-        dmax: f64,
-        p_lo: f64,
-        p_hi: f64,
-        min_spacing: impl Fn(&[(f64, String)]) -> f64,
-    ) -> Axis {
-        let span_px = (p_hi - p_lo).abs();
-        if log {
-            let (mut lo, mut hi) = (dmin.floor(), dmax.ceil());
-            if hi - lo < 1.0 {
-                lo -= 1.0;
-                hi += 1.0;
-            }
-            let decade_px = span_px / (hi - lo);
-            let (lo_i, hi_i) = (lo as i32, hi as i32);
-            let mut ticks = Vec::new();
-            for k in [1, 2, 3, 4, 5, 10, 20, 50, 100] {
-                ticks = (lo_i..=hi_i)
-                    .filter(|e| e.rem_euclid(k) == 0)
-                    .map(|e| (e as f64, decade_label(e)))
-                    .collect();
-                if k as f64 * decade_px >= min_spacing(&ticks) {
-                    break;
-                }
-            }
-            let mut minor = Vec::new();
-            if decade_px >= 40.0 && (hi_i - lo_i) as usize + 1 == ticks.len() {
-                for e in lo_i..hi_i {
-                    minor.extend((2..10).map(|m| e as f64 + (m as f64).log10()));
-                }
-            }
-            Axis {
-                lo,
-                hi,
-                p_lo,
-                p_hi,
-                ticks,
-                minor,
-            }
-        } else {
-            let (dmin, dmax) = if dmax > dmin {
-                (dmin, dmax)
-            } else if dmin == 0.0 {
-                (-1.0, 1.0)
-            } else {
-                (dmin - 0.5 * dmin.abs(), dmax + 0.5 * dmax.abs())
-            };
-            let mut best = None;
-            for target in (2..=5).rev() {
-                let step = nice_step((dmax - dmin) / target as f64);
-                let (i_lo, i_hi) = ((dmin / step).floor() as i64, (dmax / step).ceil() as i64);
-                let ticks: Vec<(f64, String)> = (i_lo..=i_hi)
-                    .map(|i| {
-                        let v = i as f64 * step;
-                        (v, linear_label(v, step))
-                    })
-                    .collect();
-                let (lo, hi) = (i_lo as f64 * step, i_hi as f64 * step);
-                let spacing = span_px * step / (hi - lo);
-                let fits = spacing >= min_spacing(&ticks);
-                best = Some((lo, hi, ticks));
-                if fits {
-                    break;
-                }
-            }
-            let (lo, hi, ticks) = best.expect("at least one tick candidate");
-            Axis {
-                lo,
-                hi,
-                p_lo,
-                p_hi,
-                ticks,
-                minor: Vec::new(),
-            }
-        }
-    }
-
-    /// Pixel position of a plotted coordinate.
-    fn px(&self, t: f64) -> f64 {
-        self.p_lo + (t - self.lo) / (self.hi - self.lo) * (self.p_hi - self.p_lo)
-    }
-}
-
 /// Plotted coordinate of a data value on a linear or log axis, or None if it cannot be shown.
 fn plotted(log: bool, v: f64) -> Option<f64> {
     match (v.is_finite(), log) {
@@ -258,329 +118,260 @@ fn plotted(log: bool, v: f64) -> Option<f64> {
     }
 }
 
-/// Where everything goes: the frame (pixel columns/rows of its lines), both axes, and each
-/// series' points in pixel coordinates.
-struct Layout {
-    fx0: usize,
-    fx1: usize,
-    fy0: usize,
-    fy1: usize,
-    x: Axis,
-    y: Axis,
-    points: Vec<Vec<(f64, f64)>>,
+/// One axis in plotted coordinates (log10 of the value on a log axis): its range, the step
+/// between labelled ticks, and the unlabelled minor lines.
+#[derive(Debug)]
+struct Axis {
+    log: bool,
+    lo: f64,
+    hi: f64,
+    step: f64,
+    minor: Vec<f64>,
 }
 
-impl Layout {
-    fn new(spec: &PlotSpec, series: &[Series]) -> Result<Layout> {
-        let (w, h) = (spec.width, spec.height);
-        if !(MIN_SIZE..=MAX_SIZE).contains(&w) || !(MIN_SIZE..=MAX_SIZE).contains(&h) {
-            return Err(PrtError::invalid(
-                format!("plot \"{}\"", spec.title),
-                format!("size {w}x{h} is outside {MIN_SIZE}..={MAX_SIZE} pixels per side"),
-            ));
-        }
-        let plotted_pts: Vec<Vec<(f64, f64)>> = series
-            .iter()
-            .map(|s| {
-                s.points
-                    .iter()
-                    .filter_map(|&(x, y)| Some((plotted(spec.log_x, x)?, plotted(spec.log_y, y)?)))
+impl Axis {
+    /// The range and ticks for data spanning `[dmin, dmax]` (plotted coordinates).
+    fn new(log: bool, dmin: f64, dmax: f64) -> Axis {
+        if log {
+            let (mut lo, mut hi) = (dmin.floor(), dmax.ceil());
+            if hi - lo < 1.0 {
+                lo -= 1.0;
+                hi += 1.0;
+            }
+            // Every decade labelled while there are at most 8, else every 2nd, 5th, ...
+            let step = [1.0, 2.0, 5.0, 10.0, 20.0, 50.0]
+                .into_iter()
+                .find(|s| (hi - lo) / s <= 8.0)
+                .unwrap_or(100.0);
+            let minor = if step == 1.0 {
+                (lo as i32..hi as i32)
+                    .flat_map(|e| (2..10).map(move |m| e as f64 + (m as f64).log10()))
                     .collect()
-            })
-            .collect();
-        let all = || plotted_pts.iter().flatten();
-        if all().next().is_none() {
-            let need = match (spec.log_x, spec.log_y) {
-                (false, false) => "finite",
-                _ => "finite and positive on log axes",
+            } else {
+                Vec::new()
             };
-            return Err(PrtError::invalid(
-                format!("plot \"{}\"", spec.title),
-                format!("no point to draw: every series is empty or has no {need} point"),
-            ));
+            return Axis {
+                log,
+                lo,
+                hi,
+                step,
+                minor,
+            };
         }
-        let fold = |f: fn(&(f64, f64)) -> f64| {
-            all()
-                .map(f)
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                    (a.min(v), b.max(v))
-                })
+        let (dmin, dmax) = if dmax > dmin {
+            (dmin, dmax)
+        } else if dmin == 0.0 {
+            (-1.0, 1.0)
+        } else {
+            (dmin - 0.5 * dmin.abs(), dmax + 0.5 * dmax.abs())
         };
-        let (xmin, xmax) = fold(|p| p.0);
-        let (ymin, ymax) = fold(|p| p.1);
+        let step = nice_step((dmax - dmin) / 5.0);
+        Axis {
+            log,
+            lo: (dmin / step).floor() * step,
+            hi: (dmax / step).ceil() * step,
+            step,
+            minor: Vec::new(),
+        }
+    }
 
-        let top = if spec.title.is_empty() {
-            2 * MARGIN
+    /// Labelled tick positions.
+    fn ticks(&self) -> Vec<f64> {
+        let n = ((self.hi - self.lo) / self.step).round() as i64;
+        (0..=n).map(|i| self.lo + i as f64 * self.step).collect()
+    }
+
+    fn label(&self, v: f64) -> String {
+        if self.log {
+            decade_label(v.round() as i32)
         } else {
-            MARGIN + CHAR_H + 2 * MARGIN
-        };
-        let x_label_h = if spec.x_label.is_empty() {
-            0
-        } else {
-            CHAR_H + MARGIN
-        };
-        let bottom = TICK + LABEL_GAP + CHAR_H + x_label_h + MARGIN;
-        let (fy0, fy1) = (top, h.saturating_sub(bottom + 1));
-        let y = Axis::new(
-            spec.log_y,
-            ymin,
-            ymax,
-            fy1 as f64 - INSET,
-            fy0 as f64 + INSET,
-            |_| (CHAR_H + 6) as f64,
-        );
-        let y_tick_w = y.ticks.iter().map(|t| text_width(&t.1)).max().unwrap_or(0);
-        let y_label_w = if spec.y_label.is_empty() {
-            0
-        } else {
-            CHAR_H + MARGIN
-        };
-        let fx0 = MARGIN + y_label_w + y_tick_w + LABEL_GAP + TICK;
-        let fx1 = w.saturating_sub(2 * MARGIN + 1);
-        if fx1 < fx0 + 4 * INSET as usize || fy1 < fy0 + 4 * INSET as usize {
-            return Err(PrtError::invalid(
-                format!("plot \"{}\"", spec.title),
-                format!("size {w}x{h} leaves no room for the plot area"),
-            ));
+            linear_label(v, self.step)
         }
-        let x = Axis::new(
-            spec.log_x,
-            xmin,
-            xmax,
-            fx0 as f64 + INSET,
-            fx1 as f64 - INSET,
-            |ticks| {
-                let widest = ticks.iter().map(|t| text_width(&t.1)).max().unwrap_or(0);
-                (widest + 2 * CHAR_W) as f64
-            },
-        );
-        let points = plotted_pts
-            .into_iter()
-            .map(|pts| pts.into_iter().map(|(a, b)| (x.px(a), y.px(b))).collect())
-            .collect();
-        Ok(Layout {
-            fx0,
-            fx1,
-            fy0,
-            fy1,
-            x,
-            y,
-            points,
+    }
+
+    /// The range with a margin, so markers never sit on the frame.
+    fn padded(&self) -> std::ops::Range<f64> {
+        let pad = 0.03 * (self.hi - self.lo);
+        self.lo - pad..self.hi + pad
+    }
+}
+
+/// Renders to RGB8 bytes (width*height*3), white background.
+///
+/// Points with a non-finite coordinate, or a non-positive one on a log axis, are skipped; a
+/// series left with no points is neither drawn nor listed in the legend. If no series has a point
+/// left, this is an error naming the plot.
+pub fn render(spec: &PlotSpec, series: &[Series]) -> Result<Vec<u8>> {
+    let (w, h) = (spec.width, spec.height);
+    let named = |message: String| PrtError::invalid(format!("plot \"{}\"", spec.title), message);
+    if !(MIN_SIZE..=MAX_SIZE).contains(&w) || !(MIN_SIZE..=MAX_SIZE).contains(&h) {
+        return Err(named(format!(
+            "size {w}x{h} is outside {MIN_SIZE}..={MAX_SIZE} pixels per side"
+        )));
+    }
+    let points: Vec<Vec<(f64, f64)>> = series
+        .iter()
+        .map(|s| {
+            s.points
+                .iter()
+                .filter_map(|&(x, y)| Some((plotted(spec.log_x, x)?, plotted(spec.log_y, y)?)))
+                .collect()
         })
+        .collect();
+    let all = || points.iter().flatten();
+    if all().next().is_none() {
+        let need = match (spec.log_x, spec.log_y) {
+            (false, false) => "finite",
+            _ => "finite and positive on log axes",
+        };
+        return Err(named(format!(
+            "no point to draw: every series is empty or has no {need} point"
+        )));
     }
-
-    /// Plot-area fill, grid, frame, ticks with labels, title and axis labels.
-    fn draw_axes(&self, c: &mut Canvas, spec: &PlotSpec) {
-        let (fx0, fx1, fy0, fy1) = (self.fx0, self.fx1, self.fy0, self.fy1);
-        c.fill(fx0, fy0, fx1 + 1, fy1 + 1, PLOT_BG);
-        for (t, _) in &self.x.ticks {
-            let px = self.x.px(*t).round() as usize;
-            c.fill(px, fy0 + 1, px + 1, fy1, GRID);
-        }
-        for (t, _) in &self.y.ticks {
-            let py = self.y.px(*t).round() as usize;
-            c.fill(fx0 + 1, py, fx1, py + 1, GRID);
-        }
-        c.fill(fx0, fy0, fx1 + 1, fy0 + 1, FRAME);
-        c.fill(fx0, fy1, fx1 + 1, fy1 + 1, FRAME);
-        c.fill(fx0, fy0, fx0 + 1, fy1 + 1, FRAME);
-        c.fill(fx1, fy0, fx1 + 1, fy1 + 1, FRAME);
-
-        for (t, label) in &self.x.ticks {
-            let px = self.x.px(*t).round() as usize;
-            c.fill(px, fy1 + 1, px + 1, fy1 + 1 + TICK, FRAME);
-            let lw = text_width(label);
-            let lx = px.saturating_sub(lw / 2).min(c.w.saturating_sub(lw + 1));
-            c.text(lx, fy1 + 1 + TICK + LABEL_GAP, label, TEXT);
-        }
-        for t in &self.x.minor {
-            let px = self.x.px(*t).round() as usize;
-            c.fill(px, fy1 + 1, px + 1, fy1 + 1 + MINOR_TICK, FRAME);
-        }
-        for (t, label) in &self.y.ticks {
-            let py = self.y.px(*t).round() as usize;
-            c.fill(fx0 - TICK, py, fx0, py + 1, FRAME);
-            let lx = (fx0 - TICK - LABEL_GAP).saturating_sub(text_width(label));
-            c.text(lx, py.saturating_sub(CHAR_H / 2 - 1), label, TEXT);
-        }
-        for t in &self.y.minor {
-            let py = self.y.px(*t).round() as usize;
-            c.fill(fx0 - MINOR_TICK, py, fx0, py + 1, FRAME);
-        }
-
-        let cx = (fx0 + fx1) / 2;
-        if !spec.title.is_empty() {
-            let tw = text_width(&spec.title);
-            c.text(cx.saturating_sub(tw / 2), MARGIN, &spec.title, TEXT);
-        }
-        if !spec.x_label.is_empty() {
-            let tw = text_width(&spec.x_label);
-            let ty = fy1 + 1 + TICK + LABEL_GAP + CHAR_H + MARGIN;
-            c.text(cx.saturating_sub(tw / 2), ty, &spec.x_label, TEXT);
-        }
-        if !spec.y_label.is_empty() {
-            let tw = text_width(&spec.y_label);
-            let cy = (fy0 + fy1) / 2;
-            c.text_up(MARGIN, cy + tw / 2, &spec.y_label, TEXT);
-        }
-    }
-
-    /// The polyline (2 px thick, dashed if asked) and a 5 x 5 marker at each point, clipped to
-    /// the inside of the frame.
-    fn draw_series(&self, c: &mut Canvas, s: &Series, pts: &[(f64, f64)]) {
-        let clip = (self.fx0 + 1, self.fy0 + 1, self.fx1, self.fy1);
-        let mut dist = 0.0;
-        for seg in pts.windows(2) {
-            let ((x0, y0), (x1, y1)) = (seg[0], seg[1]);
-            let len = (x1 - x0).hypot(y1 - y0);
-            let n = (len * 2.0).ceil().max(1.0) as usize;
-            for i in 0..=n {
-                let t = i as f64 / n as f64;
-                if s.dashed && (dist + t * len) % DASH_PERIOD >= DASH_ON {
-                    continue;
-                }
-                let (x, y) = (x0 + t * (x1 - x0), y0 + t * (y1 - y0));
-                let (ix, iy) = ((x - 0.5).floor() as i64, (y - 0.5).floor() as i64);
-                c.rect_clipped(ix, iy, ix + 2, iy + 2, s.color, clip);
-            }
-            dist += len;
-        }
-        for &(x, y) in pts {
-            let (ix, iy) = (x.round() as i64, y.round() as i64);
-            c.rect_clipped(
-                ix - MARKER_HALF,
-                iy - MARKER_HALF,
-                ix + MARKER_HALF + 1,
-                iy + MARKER_HALF + 1,
-                s.color,
-                clip,
-            );
-        }
-    }
-
-    /// A boxed legend in the upper-right corner inside the frame: a line-and-marker swatch and
-    /// the label for every drawn series.
-    fn draw_legend(&self, c: &mut Canvas, series: &[Series]) {
-        let shown: Vec<&Series> = series
-            .iter()
-            .zip(&self.points)
-            .filter(|(_, p)| !p.is_empty())
-            .map(|(s, _)| s)
-            .collect();
-        if shown.is_empty() {
-            return;
-        }
-        const PAD: usize = 8;
-        const SWATCH: usize = 30;
-        const ROW: usize = CHAR_H + 6;
-        let label_w = shown
-            .iter()
-            .map(|s| text_width(&s.label))
-            .max()
-            .unwrap_or(0);
-        let bw = PAD + SWATCH + PAD + label_w + PAD;
-        let bh = PAD + shown.len() * ROW - 6 + PAD;
-        let bx1 = self.fx1.saturating_sub(PAD);
-        let bx0 = bx1.saturating_sub(bw).max(self.fx0 + 1);
-        let by0 = self.fy0 + PAD;
-        let by1 = (by0 + bh).min(self.fy1);
-        c.fill(bx0, by0, bx1, by1, PLOT_BG);
-        c.fill(bx0, by0, bx1, by0 + 1, LEGEND_BORDER);
-        c.fill(bx0, by1 - 1, bx1, by1, LEGEND_BORDER);
-        c.fill(bx0, by0, bx0 + 1, by1, LEGEND_BORDER);
-        c.fill(bx1 - 1, by0, bx1, by1, LEGEND_BORDER);
-        let clip = (bx0 + 1, by0 + 1, bx1 - 1, by1 - 1);
-        for (i, s) in shown.iter().enumerate() {
-            let ty = by0 + PAD + i * ROW;
-            let sy = (ty + CHAR_H / 2) as i64;
-            let sx0 = (bx0 + PAD) as i64;
-            for dx in 0..SWATCH as i64 {
-                if s.dashed && (dx as f64) % DASH_PERIOD >= DASH_ON {
-                    continue;
-                }
-                c.rect_clipped(sx0 + dx, sy - 1, sx0 + dx + 1, sy + 1, s.color, clip);
-            }
-            let mx = sx0 + SWATCH as i64 / 2;
-            c.rect_clipped(
-                mx - MARKER_HALF,
-                sy - 1 - MARKER_HALF,
-                mx + MARKER_HALF + 1,
-                sy + MARKER_HALF,
-                s.color,
-                clip,
-            );
-            if ty + CHAR_H < by1 {
-                c.text(bx0 + PAD + SWATCH + PAD, ty, &s.label, TEXT);
-            }
-        }
-    }
+    let range = |f: fn(&(f64, f64)) -> f64| {
+        all()
+            .map(f)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(v), b.max(v))
+            })
+    };
+    let ((x0, x1), (y0, y1)) = (range(|p| p.0), range(|p| p.1));
+    let (xa, ya) = (Axis::new(spec.log_x, x0, x1), Axis::new(spec.log_y, y0, y1));
+    crate::output::text::register()?;
+    let s = SUPERSAMPLE;
+    let mut big = vec![255u8; w * s * h * s * 3];
+    draw(spec, series, &points, &xa, &ya, &mut big).map_err(|e| named(e.to_string()))?;
+    Ok(average_down(&big, w, h, s))
 }
 
-/// An RGB8 image being drawn.
-struct Canvas {
-    w: usize,
-    h: usize,
-    rgb: Vec<u8>,
+/// Draws the plot at [`SUPERSAMPLE`] times its size into `buffer`.
+fn draw(
+    spec: &PlotSpec,
+    series: &[Series],
+    points: &[Vec<(f64, f64)>],
+    xa: &Axis,
+    ya: &Axis,
+    buffer: &mut [u8],
+) -> std::result::Result<(), Box<dyn std::error::Error>> {
+    let s = SUPERSAMPLE as u32;
+    let size = (
+        (spec.width * SUPERSAMPLE) as u32,
+        (spec.height * SUPERSAMPLE) as u32,
+    );
+    let root = BitMapBackend::with_buffer(buffer, size).into_drawing_area();
+    root.fill(&WHITE)?;
+    let text = |pt: u32| (FONT, (pt * s) as f64).into_font().color(&TEXT);
+    let mut chart = ChartBuilder::on(&root)
+        .caption(&spec.title, text(15))
+        .margin(10 * s)
+        .x_label_area_size(38 * s)
+        .y_label_area_size(56 * s)
+        .build_cartesian_2d(xa.padded(), ya.padded())?;
+    let (x_ticks, y_ticks) = (xa.ticks(), ya.ticks());
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(spec.x_label.as_str())
+        .y_desc(spec.y_label.as_str())
+        .axis_desc_style(text(13))
+        .label_style(text(12))
+        .axis_style(FRAME.stroke_width(s))
+        .x_labels(0)
+        .y_labels(0)
+        .draw()?;
+    // Grid lines and tick labels at our own ticks (whole decades on log axes).
+    let (xr, yr) = (xa.padded(), ya.padded());
+    let thin = |c: RGBColor| c.stroke_width(s);
+    for &m in &xa.minor {
+        chart.draw_series(LineSeries::new(
+            [(m, yr.start), (m, yr.end)],
+            thin(MINOR_GRID),
+        ))?;
+    }
+    for &m in &ya.minor {
+        chart.draw_series(LineSeries::new(
+            [(xr.start, m), (xr.end, m)],
+            thin(MINOR_GRID),
+        ))?;
+    }
+    for &t in &x_ticks {
+        chart.draw_series(LineSeries::new([(t, yr.start), (t, yr.end)], thin(GRID)))?;
+    }
+    for &t in &y_ticks {
+        chart.draw_series(LineSeries::new([(xr.start, t), (xr.end, t)], thin(GRID)))?;
+    }
+    let area = chart.plotting_area();
+    let (px0, py1) = area.map_coordinate(&(xr.start, yr.start));
+    let label = text(12);
+    for &t in &x_ticks {
+        let (px, _) = area.map_coordinate(&(t, yr.start));
+        let style = label.pos(Pos::new(HPos::Center, VPos::Top));
+        root.draw_text(&xa.label(t), &style, (px, py1 + 6 * s as i32))?;
+    }
+    for &t in &y_ticks {
+        let (_, py) = area.map_coordinate(&(xr.start, t));
+        let style = label.pos(Pos::new(HPos::Right, VPos::Center));
+        root.draw_text(&ya.label(t), &style, (px0 - 6 * s as i32, py))?;
+    }
+    for (ser, pts) in series.iter().zip(points) {
+        if pts.is_empty() {
+            continue;
+        }
+        let [r, g, b] = ser.color;
+        let color = RGBColor(r, g, b);
+        let line = color.stroke_width(2 * s);
+        let drawn = if ser.dashed {
+            chart.draw_series(DashedLineSeries::new(
+                pts.iter().copied(),
+                6 * s,
+                4 * s,
+                line,
+            ))?
+        } else {
+            chart.draw_series(LineSeries::new(pts.iter().copied(), line))?
+        };
+        drawn
+            .label(ser.label.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18 * s as i32, y)], line));
+        chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3 * s, color.filled())))?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .label_font(text(12))
+        .legend_area_size(26 * s)
+        .background_style(WHITE.mix(0.9))
+        .border_style(LEGEND_BORDER)
+        .draw()?;
+    root.present()?;
+    Ok(())
 }
 
-impl Canvas {
-    fn new(w: usize, h: usize, color: [u8; 3]) -> Canvas {
-        Canvas {
-            w,
-            h,
-            rgb: color.repeat(w * h),
-        }
-    }
-
-    /// Fills the half-open rectangle [x0, x1) x [y0, y1), clipped to the image.
-    fn fill(&mut self, x0: usize, y0: usize, x1: usize, y1: usize, color: [u8; 3]) {
-        for y in y0..y1.min(self.h) {
-            for x in x0..x1.min(self.w) {
-                self.rgb[(y * self.w + x) * 3..(y * self.w + x) * 3 + 3].copy_from_slice(&color);
+/// Averages `factor` x `factor` blocks of an RGB8 image of `w·factor` x `h·factor` pixels.
+fn average_down(big: &[u8], w: usize, h: usize, factor: usize) -> Vec<u8> {
+    let bw = w * factor;
+    let n = (factor * factor) as u32;
+    let mut out = vec![0u8; w * h * 3];
+    for y in 0..h {
+        for x in 0..w {
+            for c in 0..3 {
+                let mut sum = 0u32;
+                for dy in 0..factor {
+                    for dx in 0..factor {
+                        sum += big[((y * factor + dy) * bw + x * factor + dx) * 3 + c] as u32;
+                    }
+                }
+                out[(y * w + x) * 3 + c] = ((sum + n / 2) / n) as u8;
             }
         }
     }
+    out
+}
 
-    /// Fills [x0, x1) x [y0, y1) clipped to the half-open rectangle `clip` = (x0, y0, x1, y1).
-    fn rect_clipped(
-        &mut self,
-        x0: i64,
-        y0: i64,
-        x1: i64,
-        y1: i64,
-        color: [u8; 3],
-        clip: (usize, usize, usize, usize),
-    ) {
-        let cx = |v: i64| v.clamp(clip.0 as i64, clip.2 as i64) as usize;
-        let cy = |v: i64| v.clamp(clip.1 as i64, clip.3 as i64) as usize;
-        self.fill(cx(x0), cy(y0), cx(x1), cy(y1), color);
-    }
-
-    fn text(&mut self, x: usize, y: usize, text: &str, color: [u8; 3]) {
-        draw_text(&mut self.rgb, self.w, x, y, text, color);
-    }
-
-    /// Draws `text` rotated a quarter turn counter-clockwise (reading bottom to top), its first
-    /// character's baseline-left corner at (x, y_bottom).
-    fn text_up(&mut self, x: usize, y_bottom: usize, text: &str, color: [u8; 3]) {
-        let tw = text_width(text);
-        if tw == 0 {
-            return;
-        }
-        let mut tmp = vec![0u8; tw * CHAR_H * 3];
-        draw_text(&mut tmp, tw, 0, 0, text, [255, 255, 255]);
-        for ty in 0..CHAR_H {
-            for tx in 0..tw {
-                if tmp[(ty * tw + tx) * 3] == 0 {
-                    continue;
-                }
-                let (dx, dy) = (x + ty, y_bottom as i64 - tx as i64);
-                if dy >= 0 {
-                    self.fill(dx, dy as usize, dx + 1, dy as usize + 1, color);
-                }
-            }
-        }
-    }
+/// Renders and writes a PNG atomically.
+pub fn write(path: &Path, spec: &PlotSpec, series: &[Series]) -> Result<()> {
+    let rgb = render(spec, series)?;
+    write_atomically(path, |tmp| write_png(tmp, spec.width, spec.height, &rgb))
 }
 
 #[cfg(test)]
@@ -608,13 +399,11 @@ mod tests {
         }
     }
 
-    fn pixel(rgb: &[u8], w: usize, x: usize, y: usize) -> [u8; 3] {
-        let i = (y * w + x) * 3;
-        [rgb[i], rgb[i + 1], rgb[i + 2]]
-    }
-
+    /// Pixels within a small distance of `color` (antialiased edges blend towards white).
     fn count(rgb: &[u8], color: [u8; 3]) -> usize {
-        rgb.chunks_exact(3).filter(|p| *p == color).count()
+        rgb.chunks_exact(3)
+            .filter(|p| (0..3).all(|c| (p[c] as i32 - color[c] as i32).abs() <= 12))
+            .count()
     }
 
     fn two_curves() -> Vec<Series> {
@@ -641,57 +430,42 @@ mod tests {
         let s = two_curves();
         let rgb = render(&spec, &s).unwrap();
         assert_eq!(rgb.len(), spec.width * spec.height * 3);
-        let layout = Layout::new(&spec, &s).unwrap();
-        for (si, pts) in s.iter().zip(&layout.points) {
+        for si in &s {
             // Far more pixels of the colour than the legend swatch alone holds.
-            assert!(
-                count(&rgb, si.color) > 300,
-                "series {} barely drawn: {} pixels",
-                si.label,
-                count(&rgb, si.color)
-            );
-            // The marker of a middle point is there in the series' colour.
-            let (x, y) = pts[2];
-            let got = pixel(&rgb, spec.width, x.round() as usize, y.round() as usize);
-            assert_eq!(got, si.color, "marker of {} at ({x}, {y})", si.label);
+            let n = count(&rgb, si.color);
+            assert!(n > 300, "series {} barely drawn: {n} pixels", si.label);
         }
-        // Plot-area background between the frame and the first point.
-        let (fx0, fy1) = (layout.fx0, layout.fy1);
-        assert_eq!(pixel(&rgb, spec.width, fx0 + 3, fy1 - 3), PLOT_BG);
-        assert_eq!(pixel(&rgb, spec.width, fx0, fy1), FRAME);
+        // Mostly white, some of it the frame's and the text's dark grey.
+        assert!(count(&rgb, [255, 255, 255]) > spec.width * spec.height / 2);
+        assert!(count(&rgb, [70, 70, 70]) + count(&rgb, [25, 25, 25]) > 500);
     }
 
     #[test]
-    fn data_extremes_map_inside_the_frame() {
-        for log in [true, false] {
-            let spec = spec(log);
-            let s = vec![series(
-                "a",
-                PALETTE[2],
-                false,
-                vec![(1.0, 1e-4), (7.0, 0.3), (5000.0, 2.5), (12.0, 0.02)],
-            )];
-            let l = Layout::new(&spec, &s).unwrap();
-            for &(x, y) in &l.points[0] {
-                assert!(
-                    x > l.fx0 as f64 + 2.0 && x < l.fx1 as f64 - 2.0,
-                    "log {log}: x {x} not inside {}..{}",
-                    l.fx0,
-                    l.fx1
-                );
-                assert!(
-                    y > l.fy0 as f64 + 2.0 && y < l.fy1 as f64 - 2.0,
-                    "log {log}: y {y} not inside {}..{}",
-                    l.fy0,
-                    l.fy1
-                );
-            }
-            // The extremes are the outermost points, left/right and bottom/top.
-            let xs: Vec<f64> = l.points[0].iter().map(|p| p.0).collect();
-            let ys: Vec<f64> = l.points[0].iter().map(|p| p.1).collect();
-            assert!(xs[0] < xs[1] && xs[2] > xs[3]);
-            assert!(ys[0] > ys[1] && ys[2] < ys[1]);
-        }
+    fn text_is_antialiased() {
+        let rgb = render(&spec(true), &two_curves()).unwrap();
+        // Glyph edges blend: grey levels strictly between the text colour and white.
+        let greys = rgb
+            .chunks_exact(3)
+            .filter(|p| p[0] == p[1] && p[1] == p[2] && p[0] > 60 && p[0] < 220)
+            .count();
+        assert!(greys > 200, "{greys} intermediate grey pixels");
+    }
+
+    #[test]
+    fn axes_span_whole_decades_and_round_steps() {
+        let a = Axis::new(true, -3.7, 0.2);
+        assert_eq!((a.lo, a.hi, a.step), (-4.0, 1.0, 1.0));
+        assert_eq!(a.minor.len(), 5 * 8);
+        let wide = Axis::new(true, -12.0, 3.0);
+        assert_eq!(wide.step, 2.0);
+        assert!(wide.minor.is_empty());
+        let lin = Axis::new(false, 0.13, 0.91);
+        assert!(lin.lo <= 0.13 && lin.hi >= 0.91);
+        assert!((lin.step - 0.2).abs() < 1e-12, "step {}", lin.step);
+        assert!((3..=7).contains(&lin.ticks().len()), "{:?}", lin.ticks());
+        // The data sit inside the padded range, never on the frame.
+        let r = lin.padded();
+        assert!(r.start < 0.13 && r.end > 0.91);
     }
 
     #[test]
@@ -735,23 +509,24 @@ mod tests {
         assert_eq!(
             labels,
             [
-                "1E-4", "1E-3", "0.01", "0.1", "1", "10", "100", "1000", "1E4", "1E5"
+                "1e-4", "1e-3", "0.01", "0.1", "1", "10", "100", "1000", "1e4", "1e5"
             ]
         );
         assert_eq!(linear_label(0.30000000000000004, 0.1), "0.3");
         assert_eq!(linear_label(-1e-17, 0.1), "0");
         assert_eq!(linear_label(40.0, 20.0), "40");
-        assert_eq!(linear_label(2.5e-4, 5e-5), "2.5E-4");
-        assert_eq!(linear_label(3e6, 1e6), "3E6");
+        assert_eq!(linear_label(2.5e-4, 5e-5), "2.5e-4");
+        assert_eq!(linear_label(3e6, 1e6), "3e6");
     }
 
     #[test]
-    fn linear_axis_ticks_are_round_and_cover_the_data() {
-        let a = Axis::new(false, 0.13, 0.91, 0.0, 500.0, |_| 40.0);
-        assert!(a.lo <= 0.13 && a.hi >= 0.91);
-        assert!((3..=7).contains(&a.ticks.len()), "{:?}", a.ticks);
-        let step = a.ticks[1].0 - a.ticks[0].0;
-        assert!((step - 0.2).abs() < 1e-12, "step {step}");
+    fn averaging_down_keeps_flat_colours_and_blends_edges() {
+        // 4 x 2 at factor 2 -> 2 x 1: a black block and a half-black block.
+        let mut big = vec![255u8; 4 * 2 * 3];
+        for (x, y) in [(0, 0), (1, 0), (0, 1), (1, 1), (2, 0), (2, 1)] {
+            big[(y * 4 + x) * 3..(y * 4 + x) * 3 + 3].fill(0);
+        }
+        assert_eq!(average_down(&big, 2, 1, 2), vec![0, 0, 0, 128, 128, 128]);
     }
 
     #[test]
