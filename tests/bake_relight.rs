@@ -5,7 +5,10 @@
 use std::f64::consts::PI;
 mod common;
 
-use common::{SPHERE_ON_PLANE, assets, plane_from_above, random_transport, scene_from, temp_dir};
+use common::{
+    SPHERE_ON_PLANE, assert_rel_close, assets, plane_from_above, random_transport, scene_from,
+    temp_dir,
+};
 
 use glam::DVec3;
 use wavelet_prt::bake::reference::render_reference;
@@ -27,15 +30,6 @@ use wavelet_prt::store::transport::{Quantization, Transport};
 const SAME_SUM: f64 = 1e-5;
 /// The brute-force reference and the relight of a lossless bake agree to float rounding.
 const REFERENCE_MATCH: f64 = 1e-4;
-
-fn assert_close(what: &str, got: f64, want: f64, rel: f64) {
-    let diff = (got - want).abs();
-    assert!(
-        diff <= rel * want.abs().max(1e-12),
-        "{what}: got {got}, want {want}, difference {diff} (relative {})",
-        diff / want.abs().max(1e-30)
-    );
-}
 
 fn lossless(n: usize, sh_order: usize) -> BakeSettings {
     BakeSettings {
@@ -100,8 +94,8 @@ material = "m"
             covered += 1;
             let albedo = [0.5, 0.25, 1.0];
             for k in 0..3 {
-                assert_close(
-                    &format!("{name} channel {k}"),
+                assert_rel_close(
+                    format!("{name} channel {k}"),
                     p[k] as f64,
                     albedo[k] * c[k] as f64,
                     QUADRATURE,
@@ -288,7 +282,7 @@ fn sh_relight_of_an_unshadowed_plane_is_the_analytic_irradiance() {
     const SH_QUADRATURE: f64 = 2e-3;
     for p in &img.pixels {
         for k in 0..3 {
-            assert_close("SH irradiance", p[k] as f64, e[k] / PI, SH_QUADRATURE);
+            assert_rel_close("SH irradiance", p[k] as f64, e[k] / PI, SH_QUADRATURE);
         }
     }
 }
@@ -536,7 +530,7 @@ fn thresholded_bake_is_sparser_and_close_to_lossless() {
     // largest first: the error stays far below the per-row budget.
     let e = relative_l2(&b, &a, Some(&exact.coverage)).unwrap();
     assert!(e < 0.05, "{e}");
-    assert_close(
+    assert_rel_close(
         "same rows",
         sparse.row_pixel.len() as f64,
         exact.row_pixel.len() as f64,
@@ -647,12 +641,12 @@ material = "wall"
     let (a_g, a_w) = (0.5, [0.8, 0.4, 0.2]);
     for (k, wall) in a_w.iter().enumerate() {
         // Quadrature of the texel-sampled sky and the wall's finite size: 1%.
-        assert_close("direct", mean(&d, k), a_g * c as f64 / 2.0, 1e-2);
+        assert_rel_close("direct", mean(&d, k), a_g * c as f64 / 2.0, 1e-2);
         // 4096 paths a sub-sample over 16 pixels: the Monte Carlo error of the added light is
         // about 0.5%; the wall is seen slightly under half from 0.12 away: a few percent.
         let added = mean(&b, k) - mean(&d, k);
-        assert_close(
-            &format!("one bounce, channel {k}"),
+        assert_rel_close(
+            format!("one bounce, channel {k}"),
             added,
             a_g * wall * c as f64 / 4.0,
             5e-2,

@@ -5,8 +5,10 @@
 //! Reference values in `tests/data/*.json` were computed independently (scipy, PyWavelets); the
 //! conventions they follow are the ones in `src/conventions.rs`.
 
+mod common;
+
+use common::{Rng, assert_close};
 use std::f64::consts::PI;
-use std::fmt::Display;
 use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DVec3};
@@ -90,51 +92,6 @@ const CLI_SH_EXACT_REL: f64 = 1e-12;
 // ---------------------------------------------------------------------------------------------
 // Helpers
 // ---------------------------------------------------------------------------------------------
-
-/// Asserts |got − want| ≤ tol, printing both values and the difference otherwise.
-#[track_caller]
-fn assert_close(got: f64, want: f64, tol: f64, what: impl Display) {
-    let diff = (got - want).abs();
-    assert!(
-        diff <= tol,
-        "{what}: got {got:.12e}, want {want:.12e}, |diff| = {diff:.3e} > tol {tol:.3e}"
-    );
-}
-
-/// splitmix64: a tiny, seeded, reproducible random source.
-struct Rng(u64);
-
-impl Rng {
-    fn new(seed: u64) -> Self {
-        Rng(seed)
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in [lo, hi).
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-
-    /// Uniform unit direction on the sphere.
-    fn direction(&mut self) -> DVec3 {
-        let z = self.range(-1.0, 1.0);
-        let phi = self.range(0.0, 2.0 * PI);
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        DVec3::new(r * phi.cos(), r * phi.sin(), z)
-    }
-}
 
 fn load_json(name: &str) -> serde_json::Value {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -275,35 +232,35 @@ fn cube_texels_match_reference() {
         let by_index = dirs[index];
         for c in 0..3 {
             let what = format!("texel_dir(face {face}, row {row}, col {col})[{c}]");
-            assert_close(got[c], want_dir[c], TEXEL_TOL, &what);
+            assert_close(&what, got[c], want_dir[c], TEXEL_TOL);
             assert_close(
+                format!("texel_dirs[{index}][{c}]"),
                 by_index[c],
                 want_dir[c],
                 TEXEL_TOL,
-                format!("texel_dirs[{index}][{c}]"),
             );
         }
         assert_close(
+            format!("texel_solid_angle(face {face}, row {row}, col {col})"),
             cubemap::texel_solid_angle(n, row, col),
             want_omega,
             TEXEL_TOL,
-            format!("texel_solid_angle(face {face}, row {row}, col {col})"),
         );
         assert_close(
+            format!("solid_angles[{index}]"),
             omegas[index],
             want_omega,
             TEXEL_TOL,
-            format!("solid_angles[{index}]"),
         );
     }
     assert!(seen.iter().all(|s| *s), "some texel index never produced");
     assert_close(
+        "reference total",
         total,
         as_f64(&data["total_solid_angle"]),
         TEXEL_TOL,
-        "reference total",
     );
-    assert_close(total, 4.0 * PI, TEXEL_TOL, "reference total vs 4π");
+    assert_close("reference total vs 4π", total, 4.0 * PI, TEXEL_TOL);
 }
 
 #[test]
@@ -316,14 +273,14 @@ fn texel_solid_angles_sum_to_four_pi() {
             "N = {n}: non-positive solid angle"
         );
         let total: f64 = omega.iter().sum();
-        assert_close(total, 4.0 * PI, FOUR_PI_SUM_TOL, format!("Σ Ω at N = {n}"));
+        assert_close(format!("Σ Ω at N = {n}"), total, 4.0 * PI, FOUR_PI_SUM_TOL);
         for face in 0..6 {
             let s: f64 = omega[face * n * n..(face + 1) * n * n].iter().sum();
             assert_close(
+                format!("face {face} at N = {n}"),
                 s,
                 4.0 * PI / 6.0,
                 FOUR_PI_SUM_TOL,
-                format!("face {face} at N = {n}"),
             );
         }
     }
@@ -416,10 +373,10 @@ fn haar_round_trip_and_parseval() {
         haar::forward_cube(&mut c, n).unwrap();
         let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs() as f64));
         assert_close(
+            format!("Parseval, scalar, N = {n}"),
             sum_sq_f32(&c),
             sum_sq_f32(&x),
             HAAR_F32_REL * sum_sq_f32(&x),
-            format!("Parseval, scalar, N = {n}"),
         );
         if n > 1 {
             assert_ne!(c, x, "N = {n}: forward transform left the data unchanged");
@@ -427,10 +384,10 @@ fn haar_round_trip_and_parseval() {
         haar::inverse_cube(&mut c, n).unwrap();
         for (i, (a, b)) in c.iter().zip(&x).enumerate() {
             assert_close(
+                format!("round trip, scalar, N = {n}, [{i}]"),
                 *a as f64,
                 *b as f64,
                 HAAR_F32_REL * scale,
-                format!("round trip, scalar, N = {n}, [{i}]"),
             );
         }
 
@@ -448,10 +405,10 @@ fn haar_round_trip_and_parseval() {
         let mut c = x.clone();
         haar::forward_cube(&mut c, n).unwrap();
         assert_close(
+            format!("Parseval, RGB, N = {n}"),
             sum_sq_rgb(&c),
             sum_sq_rgb(&x),
             HAAR_F32_REL * sum_sq_rgb(&x),
-            format!("Parseval, RGB, N = {n}"),
         );
         // Each channel transforms on its own: channel 2 of the RGB transform equals the scalar
         // transform of channel 2.
@@ -471,10 +428,10 @@ fn haar_round_trip_and_parseval() {
         for (i, (a, b)) in c.iter().zip(&x).enumerate() {
             for ch in 0..3 {
                 assert_close(
+                    format!("round trip, RGB, N = {n}, [{i}][{ch}]"),
                     a[ch] as f64,
                     b[ch] as f64,
                     HAAR_F32_REL * scale,
-                    format!("round trip, RGB, N = {n}, [{i}][{ch}]"),
                 );
             }
         }
@@ -519,13 +476,13 @@ fn haar_best_k_terms_match_pywavelets() {
         got.sort_by(|a, b| b.total_cmp(a));
         let tol = want[0] * HAAR_SORTED_REL_TO_MAX;
         for (i, (g, w)) in got.iter().zip(&want).enumerate() {
-            assert_close(*g, *w, tol, format!("{name}: sorted |coefficient| #{i}"));
+            assert_close(format!("{name}: sorted |coefficient| #{i}"), *g, *w, tol);
         }
         assert_close(
+            format!("{name}: coefficient norm vs signal norm"),
             sum_sq_f32(&coeffs).sqrt(),
             as_f64(&case["signal_l2_norm"]),
             KTERM_REL * as_f64(&case["signal_l2_norm"]),
-            format!("{name}: coefficient norm vs signal norm"),
         );
 
         // Best K-term approximations, residual measured in texel space.
@@ -554,10 +511,10 @@ fn haar_best_k_terms_match_pywavelets() {
                 KTERM_REL * want
             };
             assert_close(
+                format!("{name}: L2 residual with K = {k}"),
                 residual,
                 want,
                 tol,
-                format!("{name}: L2 residual with K = {k}"),
             );
         }
     }
@@ -614,10 +571,10 @@ fn haar_coefficient_supports_tile_faces() {
                 "N = {n}: face {face} level {level} {band:?} does not tile the face once: {counts:?}"
             );
             assert_close(
+                format!("N = {n}: support area of face {face} level {level} {band:?}"),
                 *area,
                 4.0 * PI / 6.0,
                 TEXEL_TOL,
-                format!("N = {n}: support area of face {face} level {level} {band:?}"),
             );
         }
     }
@@ -670,10 +627,10 @@ fn haar_basis_functions_live_on_their_supports() {
                 sign * amp
             };
             assert_close(
+                format!("basis {i} ({info:?}) at face {face} row {r} col {c}"),
                 *got as f64,
                 want as f64,
                 1e-6,
-                format!("basis {i} ({info:?}) at face {face} row {r} col {c}"),
             );
         }
     }
@@ -689,10 +646,10 @@ fn constant_map_resamples_to_constant_cube() {
     let env = EnvMap::constant(64, 32, value);
     for (c, (p, v)) in env.power().iter().zip(value).enumerate() {
         assert_close(
+            format!("constant map power, channel {c}"),
             *p,
             4.0 * PI * v as f64,
             1e-12 * 4.0 * PI * 3.0,
-            format!("constant map power, channel {c}"),
         );
     }
     // Every size is checked before failing, so a failure lists all of them.
@@ -753,10 +710,10 @@ fn resampling_keeps_total_power() {
             let got = env.to_cube(n, rotation).unwrap().power();
             for c in 0..3 {
                 assert_close(
+                    format!("N = {n}, {rotation:?}, channel {c}"),
                     got[c],
                     want[c],
                     POWER_REL * want[c],
-                    format!("N = {n}, {rotation:?}, channel {c}"),
                 );
             }
         }
@@ -786,10 +743,10 @@ fn check_sun_in_cube(cube: &CubeMap, env_power: f64, dir: DVec3, what: &str) {
     let powers = texel_powers(cube);
     let total: f64 = powers.iter().sum();
     assert_close(
+        format!("{what}: cube power"),
         total,
         env_power,
         SUN_POWER_REL * env_power,
-        format!("{what}: cube power"),
     );
     let dirs = cubemap::texel_dirs(n);
     let near: f64 = powers
@@ -907,10 +864,10 @@ fn fast_resampling_of_a_bundled_map_matches_the_exact_splat() {
         let got = fast.power();
         for c in 0..3 {
             assert_close(
+                format!("yaw {yaw}, channel {c}: power"),
                 got[c],
                 want[c],
                 FAST_RESAMPLE_POWER_REL * want[c],
-                format!("yaw {yaw}, channel {c}: power"),
             );
         }
     }
@@ -925,17 +882,17 @@ fn sh_projection_of_a_constant_map() {
     for c in 0..3 {
         let want = value[c] * 2.0 * PI.sqrt();
         assert_close(
+            format!("L00 channel {c}"),
             sh[0][c],
             want,
             SH_CONSTANT_REL * want,
-            format!("L00 channel {c}"),
         );
         for (i, coeff) in sh.iter().enumerate().skip(1) {
             assert_close(
+                format!("L[{i}] channel {c}"),
                 coeff[c],
                 0.0,
                 SH_CONSTANT_ABS,
-                format!("L[{i}] channel {c}"),
             );
         }
     }
@@ -952,17 +909,17 @@ fn sh_projection_of_a_constant_map() {
     for c in 0..3 {
         let want = value[c] * 2.0 * PI.sqrt();
         assert_close(
+            format!("rotated L00 channel {c}"),
             turned[0][c],
             want,
             SH_CONSTANT_REL * want,
-            format!("rotated L00 channel {c}"),
         );
         for (i, coeff) in turned.iter().enumerate().skip(1) {
             assert_close(
+                format!("rotated L[{i}] channel {c}"),
                 coeff[c],
                 0.0,
                 SH_CONSTANT_ABS,
-                format!("rotated L[{i}] channel {c}"),
             );
         }
     }
@@ -989,10 +946,10 @@ fn sun_only_sky_delivers_the_requested_irradiance() {
     // Disc solid angle × radiance is the requested irradiance, by construction.
     let disc = 2.0 * PI * (1.0 - radius.to_radians().cos());
     assert_close(
+        "disc × radiance",
         sky.sun_radiance[0] as f64 * disc,
         irradiance as f64,
         1e-6 * irradiance as f64,
-        "disc × radiance",
     );
 
     let env = sky.to_latlong(1024, 512, 4);
@@ -1001,10 +958,10 @@ fn sun_only_sky_delivers_the_requested_irradiance() {
     for c in 0..3 {
         let want = irradiance as f64 * ratios[c];
         assert_close(
+            format!("sun power, channel {c}"),
             power[c],
             want,
             SUN_IRRADIANCE_REL * want,
-            format!("sun power, channel {c}"),
         );
     }
     let sh1 = env.project_sh(1, EnvRotation::default()).unwrap();
@@ -1014,10 +971,10 @@ fn sun_only_sky_delivers_the_requested_irradiance() {
         assert!(sh1[0][c] > 0.0, "L00 channel {c} = {}", sh1[0][c]);
         // Y00 is constant, so L00 is exactly Y00 × power.
         assert_close(
+            format!("L00 vs Y00·power, channel {c}"),
             sh1[0][c],
             y00 * power[c],
             1e-9 * power[c],
-            format!("L00 vs Y00·power, channel {c}"),
         );
     }
     // Band 1 points at the sun: (L1-1, L10, L11) = −0.488603 (y, z, x) × power for a small disc.
@@ -1027,10 +984,10 @@ fn sun_only_sky_delivers_the_requested_irradiance() {
     for (i, want) in [(1, -k1 * d.y), (2, k1 * d.z), (3, -k1 * d.x)] {
         let want = want * power[0];
         assert_close(
+            format!("band-1 coefficient {i}"),
             sh2[i][0],
             want,
             1e-2 * k1 * power[0],
-            format!("band-1 coefficient {i}"),
         );
     }
 }
@@ -1080,10 +1037,10 @@ fn check_rotation_commutes(env: &EnvMap, what: &str) {
             let tol = SH_ROTATION_REL_L00 * base[0][c].abs();
             for i in 0..order * order {
                 assert_close(
+                    format!("{what}, {rotation:?}: coefficient {i} channel {c}"),
                     rotated[i][c],
                     reprojected[i][c],
                     tol,
-                    format!("{what}, {rotation:?}: coefficient {i} channel {c}"),
                 );
             }
         }
@@ -1310,12 +1267,12 @@ fn hand_written_sh_matches_scipy() {
         for i in 0..9 {
             let want = as_f64(&v[i]);
             assert_close(
+                format!("closed-form Y[{i}] at {d:?}"),
                 mine[i],
                 want,
                 TEXEL_TOL,
-                format!("closed-form Y[{i}] at {d:?}"),
             );
-            assert_close(lib[i], want, TEXEL_TOL, format!("sh::eval Y[{i}] at {d:?}"));
+            assert_close(format!("sh::eval Y[{i}] at {d:?}"), lib[i], want, TEXEL_TOL);
         }
     }
 }
@@ -1362,9 +1319,9 @@ fn prt_env_prints_sh_of_a_constant_map() {
     for (i, t) in got.iter().enumerate() {
         for (c, v) in t.iter().enumerate() {
             if i == 0 {
-                assert_close(*v, l00, CLI_SH_REL * l00, format!("sh[0][{c}]"));
+                assert_close(format!("sh[0][{c}]"), *v, l00, CLI_SH_REL * l00);
             } else {
-                assert_close(*v, 0.0, CLI_SH_ABS, format!("sh[{i}][{c}]"));
+                assert_close(format!("sh[{i}][{c}]"), *v, 0.0, CLI_SH_ABS);
             }
         }
     }
@@ -1384,10 +1341,10 @@ fn prt_env_prints_sh_of_a_constant_map() {
     for (i, t) in got.iter().enumerate() {
         for (c, v) in t.iter().enumerate() {
             assert_close(
+                format!("sh[{i}][{c}] vs midpoint sum"),
                 *v,
                 want[i],
                 CLI_SH_EXACT_REL * l00,
-                format!("sh[{i}][{c}] vs midpoint sum"),
             );
         }
     }

@@ -717,9 +717,9 @@ material = \"clay\"
         const RAYS: usize = 20_000;
         for i in 0..RAYS {
             let origin = Vec3::new(
-                rng.range(-2.5, 2.5),
-                rng.range(-0.5, 2.0),
-                rng.range(-2.5, 2.5),
+                rng.range_f32(-2.5, 2.5),
+                rng.range_f32(-0.5, 2.0),
+                rng.range_f32(-2.5, 2.5),
             );
             // Every seventh ray is axis-aligned: their zero (and -0.0) components are the
             // edge case of the BVH's slab tests.
@@ -733,13 +733,13 @@ material = \"clay\"
             let t_max = if i % 3 == 0 {
                 f32::INFINITY
             } else {
-                rng.range(0.05, 3.0)
+                rng.range_f32(0.05, 3.0)
             };
             let expected = brute_force_t(&scene, origin, dir, t_max);
             let got = tracer.closest_hit(origin, dir, t_max);
             match (got, expected) {
                 (Some(h), Some(t)) => {
-                    assert_close(&format!("ray {i} t"), h.t, t, T_TOL * t.max(1.0));
+                    assert_close(format!("ray {i} t"), h.t, t, T_TOL * t.max(1.0));
                     assert_vec_close(&format!("ray {i} point"), h.point, origin + dir * t, 1e-4);
                     assert!(h.normal.dot(dir) <= 0.0 && h.geometric_normal.dot(dir) <= 0.0);
                     hits += 1;
@@ -770,8 +770,8 @@ material = \"clay\"
         // Camera-like rays onto sphere and ground, then shadow rays leaving the hit point on its
         // own side: none may re-hit the surface it starts on at t ≈ 0.
         for _ in 0..2000 {
-            let origin = Vec3::new(rng.range(-3.0, 3.0), 3.0, rng.range(-3.0, 3.0));
-            let target = Vec3::new(rng.range(-1.0, 1.0), 0.0, rng.range(-1.0, 1.0));
+            let origin = Vec3::new(rng.range_f32(-3.0, 3.0), 3.0, rng.range_f32(-3.0, 3.0));
+            let target = Vec3::new(rng.range_f32(-1.0, 1.0), 0.0, rng.range_f32(-1.0, 1.0));
             let Some(hit) = tracer.closest_hit(origin, target - origin, f32::INFINITY) else {
                 continue;
             };

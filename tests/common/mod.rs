@@ -2,27 +2,20 @@
 
 #![allow(dead_code)]
 
-mod scenes;
+mod shared;
 #[allow(unused_imports)]
-pub use scenes::SPHERE_ON_PLANE;
+pub use shared::{Rng, SPHERE_ON_PLANE, assert_close, assert_rel_close, temp_dir};
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::math::cubemap::texel_count;
-use wavelet_prt::math::sampling::Rng;
+use wavelet_prt::math::sampling::Rng as SampleRng;
 use wavelet_prt::scene::Scene;
 use wavelet_prt::store::transport::{
     BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, tile_grid,
 };
-
-/// A fresh directory under the system temp dir, unique to this process and `name`.
-pub fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("prt-test-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// Writes `text` as a scene file in its own temp dir and loads it. Every call gets a directory
 /// of its own: tests of one binary run in parallel and may load the same scene at once.
@@ -173,7 +166,7 @@ pub fn random_transport(
     seed: u64,
     scale: f32,
 ) -> Transport {
-    let mut rng = Rng::new(seed, 0);
+    let mut rng = SampleRng::new(seed, 0);
     let c = texel_count(n);
     let (tx, ty) = tile_grid(w, h);
     let mut tiles = Vec::new();

@@ -792,22 +792,10 @@ mod tests {
     /// small differences between neighbouring cells. Measured at most 1.6e-4.
     const FRACTIONAL_SMOOTH_L2: f64 = 5e-4;
 
-    /// A deterministic generator (64-bit LCG, high bits).
-    struct Rng(u64);
-    impl Rng {
-        fn unit(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-    }
-
     /// A `width` x `height` map: noisy sky, and with `sun` a 2 x 2-pixel source 5000 times
     /// brighter.
     fn test_map(width: usize, height: usize, sun: bool) -> Vec<[f32; 3]> {
-        let mut rng = Rng(0x5eed_0123);
+        let mut rng = crate::scene::test_support::Rng(0x5eed_0123);
         let mut pixels: Vec<[f32; 3]> = (0..width * height)
             .map(|_| {
                 let b = 0.5 + rng.unit();

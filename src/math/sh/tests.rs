@@ -27,48 +27,25 @@ const HEMISPHERE_TRUNCATION: f64 = 0.01 * PI;
 /// f32 storage of values up to ~2 in magnitude.
 const F32_ROUNDING: f64 = 1e-6;
 
-/// Fails with both values and their difference when |actual - expected| > tolerance.
-#[track_caller]
-fn assert_close(what: &str, actual: f64, expected: f64, tolerance: f64) {
-    let diff = (actual - expected).abs();
-    assert!(
-        diff <= tolerance,
-        "{what}: actual {actual:e}, expected {expected:e}, difference {diff:e} > tolerance {tolerance:e}"
-    );
+use crate::scene::test_support::assert_close;
+
+use crate::scene::test_support::Rng;
+
+/// The SH tests' random inputs, from the shared seeded generator.
+trait ShSamples {
+    fn symmetric(&mut self) -> f64;
+    fn rotation(&mut self) -> DMat3;
+    fn coefficients(&mut self, order: usize) -> Vec<f64>;
 }
 
-/// splitmix64: a seeded, dependency-free generator so every run sees the same samples.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1) from the top 53 bits.
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-
+impl ShSamples for Rng {
     fn symmetric(&mut self) -> f64 {
-        2.0 * self.uniform() - 1.0
-    }
-
-    /// Uniform on the sphere (Archimedes: z uniform in [-1, 1]).
-    fn direction(&mut self) -> DVec3 {
-        let z = self.symmetric();
-        let phi = 2.0 * PI * self.uniform();
-        let r = (1.0 - z * z).max(0.0).sqrt();
-        DVec3::new(r * phi.cos(), r * phi.sin(), z)
+        2.0 * self.unit() - 1.0
     }
 
     /// Uniform on SO(3) (Shoemake's unit quaternion from three uniforms).
     fn rotation(&mut self) -> DMat3 {
-        let (u1, u2, u3) = (self.uniform(), self.uniform(), self.uniform());
+        let (u1, u2, u3) = (self.unit(), self.unit(), self.unit());
         let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
         let q = DQuat::from_xyzw(
             a * (2.0 * PI * u2).sin(),
@@ -160,7 +137,7 @@ fn project_fn(order: usize, points: &[(DVec3, f64)], f: impl Fn(DVec3) -> f64) -
 fn assert_all_close(what: &str, actual: &[f64], expected: &[f64], tolerance: f64) {
     assert_eq!(actual.len(), expected.len(), "{what}: lengths differ");
     for (i, (a, e)) in actual.iter().zip(expected).enumerate() {
-        assert_close(&format!("{what} [{i}]"), *a, *e, tolerance);
+        assert_close(format!("{what} [{i}]"), *a, *e, tolerance);
     }
 }
 
@@ -282,7 +259,7 @@ fn gram_deviation(order: usize) -> (f64, usize, usize) {
 fn orthonormal_up_to_band_8() {
     let (dev, i, j) = gram_deviation(9);
     assert_close(
-        &format!("Gram[{i}][{j}] - identity"),
+        format!("Gram[{i}][{j}] - identity"),
         dev,
         0.0,
         EXACT_QUADRATURE_TOLERANCE,
@@ -293,7 +270,7 @@ fn orthonormal_up_to_band_8() {
 fn orthonormal_up_to_max_order() {
     let (dev, i, j) = gram_deviation(MAX_ORDER);
     assert_close(
-        &format!("Gram[{i}][{j}] - identity"),
+        format!("Gram[{i}][{j}] - identity"),
         dev,
         0.0,
         EXACT_QUADRATURE_TOLERANCE,
@@ -317,7 +294,7 @@ fn addition_theorem_up_to_max_order() {
                 .map(|(p, q)| p * q)
                 .sum();
             let expected = (2 * l + 1) as f64 / (4.0 * PI) * legendre_pair(l, a.dot(b)).0;
-            assert_close(&format!("band {l}"), sum, expected, SAME_VALUE_TOLERANCE);
+            assert_close(format!("band {l}"), sum, expected, SAME_VALUE_TOLERANCE);
         }
     }
 }
@@ -437,7 +414,7 @@ fn check_rotation_is_rotated_function(order: usize, seed: u64, tolerance: f64) {
         rotation.apply(&f, &mut g);
         for w in test_directions(&mut rng, 40) {
             assert_close(
-                &format!("order {order}, rotated function at {w}"),
+                format!("order {order}, rotated function at {w}"),
                 reconstruct(&g, w),
                 reconstruct(&f, r.transpose() * w),
                 tolerance,
@@ -479,7 +456,7 @@ fn identity_rotation_is_identity() {
         let n = 2 * l + 1;
         for (k, &v) in rotation.band(l).iter().enumerate() {
             let expected = if k / n == k % n { 1.0 } else { 0.0 };
-            assert_close(&format!("band {l} entry {k}"), v, expected, 0.0);
+            assert_close(format!("band {l} entry {k}"), v, expected, 0.0);
         }
     }
 }
@@ -519,7 +496,7 @@ fn rotation_preserves_band_energy() {
         let band = l * l..(l + 1) * (l + 1);
         let energy = |c: &[f64]| c[band.clone()].iter().map(|x| x * x).sum::<f64>();
         assert_close(
-            &format!("band {l} energy"),
+            format!("band {l} energy"),
             energy(&g),
             energy(&f),
             ROTATION_TOLERANCE_HIGH_BANDS,
@@ -629,7 +606,7 @@ fn constant_radiance_gives_irradiance_pi() {
     convolve(&mut radiance, &clamped_cosine_zonal(order));
     for n in test_directions(&mut rng, 20) {
         assert_close(
-            &format!("irradiance at {n}"),
+            format!("irradiance at {n}"),
             reconstruct(&radiance, n),
             PI,
             SAME_VALUE_TOLERANCE,
