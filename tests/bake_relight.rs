@@ -691,3 +691,71 @@ fn relight_with_bounces_equals_the_reference_with_the_same_paths() {
         "interreflections add light: {with} vs {without}"
     );
 }
+
+/// Adaptive antialiasing: pixels whose corners see different things take `edge_spp`
+/// sub-samples, the rest one. At an edge pixel the relit value is the mean of the brute-force
+/// values of its sub-samples (the reference rendered with that many samples at every pixel takes
+/// the same ones there); elsewhere it is the one-sample reference.
+#[test]
+fn edge_pixels_take_the_mean_of_their_subsamples_and_others_one_sample() {
+    use wavelet_prt::bake::is_edge_pixel;
+    use wavelet_prt::scene::trace::Tracer;
+    let scene = scene_from(SPHERE_ON_PLANE, "edges");
+    let adaptive = BakeSettings {
+        spp: 1,
+        edge_spp: 16,
+        texel_samples: 4,
+        ..lossless(8, 2)
+    };
+    let t = bake(&scene, &adaptive, &|_| {}).unwrap();
+    assert_eq!(t.meta.edge_spp, 16);
+    let env = EnvMap::from_spec("sun:35,60,4").unwrap();
+    let ctx = LightContext::new(&t).unwrap();
+    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
+    let req = RelightRequest {
+        method: Method::Full,
+        terms: 0,
+        weighting: Weighting::Unweighted,
+        sh_order: 2,
+    };
+    let (relit, _) = relight(&t, &ctx, &light, &req).unwrap();
+    let cube = env.to_cube(8, EnvRotation::default()).unwrap();
+    let uniform = |spp| {
+        let s = BakeSettings {
+            spp,
+            edge_spp: 0,
+            ..adaptive.clone()
+        };
+        render_reference(&scene, &cube, &s).unwrap()
+    };
+    let (one, sixteen) = (uniform(1), uniform(16));
+    let tracer = Tracer::new(&scene);
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let mut edges = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let edge = is_edge_pixel(&tracer, &scene.camera, x, y);
+            let want = if edge { &sixteen } else { &one };
+            let i = (y * w + x) as usize;
+            let (got, want) = (relit.pixels[i], want.pixels[i]);
+            for c in 0..3 {
+                let scale = want[c].abs().max(1e-3) as f64;
+                assert!(
+                    ((got[c] - want[c]) as f64).abs() <= REFERENCE_MATCH * scale,
+                    "pixel ({x}, {y}), edge {edge}, channel {c}: {} against {}",
+                    got[c],
+                    want[c]
+                );
+            }
+            edges += edge as usize;
+        }
+    }
+    // The sphere's outline, the ground's border and the sphere's contact: some pixels, not most.
+    let total = (w * h) as usize;
+    assert!(
+        edges > 20 && edges < total / 3,
+        "{edges} edge pixels of {total}"
+    );
+    // Sub-samples that miss the ground leave fractional coverage only where they were taken.
+    assert!(t.coverage.iter().any(|c| *c > 0.0 && *c < 1.0));
+}

@@ -5,8 +5,10 @@
 //! before the next is taken, so memory stays bounded by the output.
 
 pub mod medium_rows;
+mod pixels;
 pub mod reference;
 
+pub use pixels::{edge_pixel_count, is_edge_pixel, pixel_subsamples, sample_stride};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 use glam::Vec3;
@@ -17,7 +19,7 @@ use crate::error::{PrtError, Result};
 use crate::light::select::TexelShBasis;
 use crate::math::cubemap::{texel_count, validate_n};
 use crate::math::haar;
-use crate::math::sampling::{TexelSamples, pixel_samples};
+use crate::math::sampling::TexelSamples;
 use crate::medium::Medium;
 use crate::scene::Scene;
 use crate::scene::brdf;
@@ -37,6 +39,9 @@ pub struct BakeSettings {
     pub sh_order: usize,
     /// Sub-pixel samples per pixel.
     pub spp: u32,
+    /// Sub-pixel samples of an edge pixel, one whose corners see different things (see
+    /// [`is_edge_pixel`]); 0 (or no more than `spp`) samples every pixel alike.
+    pub edge_spp: u32,
     /// Shadow-ray directions per texel (rounded up to a square).
     pub texel_samples: u32,
     /// Error allowed per row when dropping small Haar coefficients, relative to the L2 norm of
@@ -67,6 +72,7 @@ impl Default for BakeSettings {
             cube_n: 32,
             sh_order: 6,
             spp: 1,
+            edge_spp: 0,
             texel_samples: 1,
             threshold: 0.01,
             budget: Budget::L2,
@@ -82,6 +88,15 @@ impl Default for BakeSettings {
 }
 
 impl BakeSettings {
+    /// The edge samples as a file records them: 0 where they add nothing to `spp`.
+    pub fn stored_edge_spp(&self) -> u32 {
+        if self.edge_spp > self.spp {
+            self.edge_spp
+        } else {
+            0
+        }
+    }
+
     /// Checks ranges before any work.
     pub fn validate(&self) -> Result<()> {
         validate_n(self.cube_n)?;
@@ -104,6 +119,12 @@ impl BakeSettings {
             return Err(PrtError::invalid(
                 "spp",
                 format!("{}; it must be from 1 to 4096", self.spp),
+            ));
+        }
+        if self.edge_spp > 4096 {
+            return Err(PrtError::invalid(
+                "edge spp",
+                format!("{}; it must be from 0 (off) to 4096", self.edge_spp),
             ));
         }
         if self.texel_samples == 0 || self.texel_samples > 256 {
@@ -463,6 +484,7 @@ pub fn bake(
             fov_y_deg: cam.fov_y_deg,
         },
         spp: settings.spp,
+        edge_spp: settings.stored_edge_spp(),
         texel_samples: samples.per_texel as u32,
         unshadowed: settings.unshadowed,
         seed: settings.seed,
@@ -534,7 +556,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
     let mut scratch = Vec::new();
     for y in tile_y * TILE..((tile_y + 1) * TILE).min(h) {
         for x in tile_x * TILE..((tile_x + 1) * TILE).min(w) {
-            let subs = pixel_samples(x as u32, y as u32, w as u32, settings.spp, settings.seed);
+            let subs = pixel_subsamples(tracer, cam, settings, x as u32, y as u32);
             let inv_spp = 1.0 / subs.len() as f32;
             // Dense rows of this pixel, one per material seen.
             // Dense rows of this pixel per material seen: the diffuse lobe's and, for glossy
@@ -602,7 +624,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                         scene,
                         &sp,
                         settings,
-                        path_stream(pixel_index, sub, settings.spp),
+                        path_stream(pixel_index, sub, sample_stride(settings)),
                         &mut |dir, throughput| {
                             let j = crate::math::cubemap::dir_to_texel(n, dir.as_dvec3());
                             for k in 0..3 {
@@ -692,6 +714,7 @@ pub fn load_if_baked_with(
         && meta.cube_n as usize == settings.cube_n
         && meta.sh_order as usize == settings.sh_order
         && meta.spp == settings.spp
+        && meta.edge_spp == settings.stored_edge_spp()
         && meta.texel_samples == side * side
         && meta.threshold == threshold
         && meta.quantization == settings.quantization()

@@ -9,10 +9,12 @@
 
 use rayon::prelude::*;
 
-use crate::bake::{BakeSettings, indirect_paths, path_stream, shading_point};
+use crate::bake::{
+    BakeSettings, indirect_paths, path_stream, pixel_subsamples, sample_stride, shading_point,
+};
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
-use crate::math::sampling::{TexelSamples, pixel_samples};
+use crate::math::sampling::TexelSamples;
 use crate::medium::henyey_greenstein;
 use crate::output::film::Image;
 use crate::scene::Scene;
@@ -67,7 +69,7 @@ pub fn render_reference_with(
         .enumerate()
         .for_each(|(y, (line, line_coverage))| {
             for (x, (px, cov)) in line.iter_mut().zip(line_coverage).enumerate() {
-                let subs = pixel_samples(x as u32, y as u32, w as u32, settings.spp, settings.seed);
+                let subs = pixel_subsamples(&tracer, cam, settings, x as u32, y as u32);
                 let inv_spp = 1.0 / subs.len() as f64;
                 let mut sum = [0.0f64; 3];
                 let mut march = Vec::new();
@@ -133,7 +135,7 @@ pub fn render_reference_with(
                     // its throughput times the radiance of the texel it leaves through.
                     if settings.bounces > 0 {
                         let scale = inv_spp / settings.paths as f64;
-                        let stream = path_stream((y * w + x) as u64, sub, settings.spp);
+                        let stream = path_stream((y * w + x) as u64, sub, sample_stride(settings));
                         indirect_paths(&tracer, scene, &sp, settings, stream, &mut |d, tp| {
                             let l = cube.lookup(d.as_dvec3());
                             for k in 0..3 {

@@ -209,6 +209,7 @@ pub fn random_transport(
             fov_y_deg: 40.0,
         },
         spp: 1,
+        edge_spp: 0,
         texel_samples: 1,
         unshadowed: false,
         seed,

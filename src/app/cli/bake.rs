@@ -121,6 +121,15 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         "bake time     {seconds:.1} s ({:.2} M shadow rays/s)",
         t.meta.stats.shadow_rays as f64 / seconds.max(1e-9) / 1e6
     );
+    if t.meta.edge_spp > 0 {
+        let edges = crate::bake::edge_pixel_count(&scene);
+        let pixels = scene.camera.width as usize * scene.camera.height as usize;
+        println!(
+            "edge pixels   {edges} of {pixels} ({:.1}%) took {} samples",
+            100.0 * edges as f64 / pixels as f64,
+            t.meta.edge_spp
+        );
+    }
     Ok(())
 }
 
@@ -176,8 +185,13 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
         m.sh_order,
         (m.sh_order as usize).pow(2)
     );
+    let edges = if m.edge_spp > 0 {
+        format!(" ({} at edges)", m.edge_spp)
+    } else {
+        String::new()
+    };
     println!(
-        "sampling      {} spp, {} samples/texel, seed {}{}",
+        "sampling      {} spp{edges}, {} samples/texel, seed {}{}",
         m.spp,
         m.texel_samples,
         m.seed,

@@ -105,6 +105,7 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         cube_n: t.meta.cube_n as usize,
         sh_order: t.meta.sh_order as usize,
         spp: t.meta.spp,
+        edge_spp: t.meta.edge_spp,
         texel_samples: t.meta.texel_samples,
         threshold: t.meta.threshold,
         budget: t.meta.budget,

@@ -112,6 +112,10 @@ pub struct SamplingArgs {
     /// Sub-pixel samples per pixel.
     #[arg(long, default_value_t = 1)]
     pub spp: u32,
+    /// Sub-pixel samples of the pixels whose corners see different things (silhouettes,
+    /// material edges, creases): antialiasing where it shows, one sample elsewhere. 0: off.
+    #[arg(long, default_value_t = 0)]
+    pub edge_spp: u32,
     /// Shadow-ray directions per texel (rounded up to a square).
     #[arg(long, default_value_t = 1)]
     pub texel_samples: u32,
@@ -289,6 +293,7 @@ fn settings_from(
         cube_n: s.cube,
         sh_order,
         spp: s.spp,
+        edge_spp: s.edge_spp,
         texel_samples: s.texel_samples,
         threshold,
         lossless,

@@ -108,6 +108,10 @@ pub struct TransportMeta {
     pub scene_path: String,
     pub camera: CameraMeta,
     pub spp: u32,
+    /// Sub-pixel samples of the pixels whose corners see different things (0: every pixel took
+    /// `spp`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub edge_spp: u32,
     pub texel_samples: u32,
     pub unshadowed: bool,
     pub seed: u64,
@@ -495,4 +499,8 @@ fn column_pointers(
         ));
     }
     Ok((col_ptr, starts))
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
