@@ -38,7 +38,7 @@
 //! constant under any yaw. Pitch, applied after the yaw, needs weights of its own.
 //!
 //! # Cache
-//! Weights ([`cache`]) are kept process-wide for the last few (W, H, N, pitch) asked for, under a lock that is
+//! Weights (the `cache` module) are kept process-wide for the last few (W, H, N, pitch) asked for, under a lock that is
 //! only held to look up and insert, so the viewer's worker thread and parallel tests share them.
 
 mod cache;
