@@ -146,3 +146,47 @@ fn through_the_light_agrees_with_the_baked_sh_path() {
 /// value by about (l h)²/24: 0.4% at l = 3, with either sign from texel to texel, so the image,
 /// which sums many texels, differs less (3.8e-4 measured).
 const TRANSPORT_SIDE_BOUND: f64 = 2e-3;
+
+/// `--method sh-light` goes through the one relight interface: its terms are every Haar
+/// coefficient of the light reconstructed from n² SH terms, so the CPU back-end gives the image
+/// of `sh_light::relight` on the same light, at orders above the baked one too.
+#[test]
+fn the_sh_light_method_relights_through_the_backend_as_sh_light_does() {
+    use wavelet_prt::light::select::Weighting;
+    use wavelet_prt::relight::{Backend, Cpu, LightContext, Method, RelightRequest};
+    let scene = scene_from(SPHERE_ON_PLANE, "sh-light-method");
+    let settings = BakeSettings {
+        cube_n: 8,
+        sh_order: 2,
+        lossless: true,
+        ..BakeSettings::default()
+    };
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    let env = EnvMap::from_spec("sun:30,40,6").unwrap();
+    let ctx = LightContext::new(&t).unwrap();
+    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
+    let cube = env.to_cube(8, EnvRotation::default()).unwrap();
+    let mask = Some(t.coverage.as_slice());
+    for order in [1, 3, 7] {
+        let req = RelightRequest {
+            method: Method::ShLight,
+            terms: 0,
+            weighting: Weighting::Unweighted,
+            sh_order: order,
+        };
+        let (got, stats) = Cpu(&t).relight(&ctx, &light, &req).unwrap();
+        let (want, _) = relight(&t, &ShThroughLight::new(&cube, order).unwrap(), order).unwrap();
+        let err = relative_l2(&got, &want, mask).unwrap();
+        assert!(err < 1e-5, "order {order}: {err}");
+        assert_eq!(stats.terms, texel_count(8));
+    }
+    // An order beyond any SH light is refused, naming it.
+    let req = RelightRequest {
+        method: Method::ShLight,
+        terms: 0,
+        weighting: Weighting::Unweighted,
+        sh_order: 129,
+    };
+    let e = Cpu(&t).relight(&ctx, &light, &req).unwrap_err().to_string();
+    assert!(e.contains("129"), "{e}");
+}

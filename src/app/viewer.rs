@@ -359,7 +359,7 @@ impl ViewState {
         self.method = match self.method {
             Method::Wavelet => Method::Sh,
             Method::Sh => Method::Full,
-            Method::Full => Method::Wavelet,
+            Method::Full | Method::ShLight => Method::Wavelet,
         };
     }
 
@@ -401,6 +401,11 @@ impl ViewState {
                     self.sh_order.pow(2)
                 ),
                 Method::Full => format!("full ({} terms)", limits.coeffs),
+                Method::ShLight => format!(
+                    "SH order {} through the light ({} terms)",
+                    self.sh_order,
+                    self.sh_order.pow(2)
+                ),
             };
             vec![(title, base)]
         }

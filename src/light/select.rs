@@ -140,6 +140,16 @@ impl WaveletLight {
         Ok(WaveletLight { n: cube.n, coeffs })
     }
 
+    /// The cube map these are the coefficients of (the inverse transform, in f64).
+    pub fn to_cube(&self) -> Result<CubeMap> {
+        let mut wide: Vec<[f64; 3]> = self.coeffs.iter().map(|c| c.map(f64::from)).collect();
+        haar::inverse_cube(&mut wide, self.n)?;
+        Ok(CubeMap {
+            n: self.n,
+            texels: wide.iter().map(|t| t.map(|v| v as f32)).collect(),
+        })
+    }
+
     /// Keeps the `k` best terms by `weighting`. `transport_magnitude` (one value per coefficient)
     /// is needed for [`Weighting::Transport`]; `support_area` (see
     /// [`haar::support_solid_angles`]) for [`Weighting::Area`].

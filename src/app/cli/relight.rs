@@ -14,7 +14,7 @@ pub struct RelightArgs {
     /// Output image (.exr linear, .png tone-mapped).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// wavelet, sh or full.
+    /// wavelet, sh, full or sh-light (SH through the light, at any --sh-order up to 128).
     #[arg(long, default_value = "wavelet", value_parser = Method::from_str)]
     pub method: Method,
     /// Kept wavelet terms K.
@@ -23,7 +23,8 @@ pub struct RelightArgs {
     /// Wavelet term selection: none, area or transport.
     #[arg(long, default_value = "transport", value_parser = Weighting::from_str)]
     pub weighting: Weighting,
-    /// SH order (at most the baked order; default: the baked order).
+    /// SH order: for sh, at most the baked order (default: the baked order); for sh-light, up
+    /// to 128 (n² terms of the light, relit with every stored term).
     #[arg(long)]
     pub sh_order: Option<usize>,
     #[command(flatten)]
@@ -86,7 +87,9 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         Device::Gpu => Some(crate::relight::gpu::Gpu::new()?),
     };
     let t = Transport::load(&a.file)?;
-    if let Some(o) = a.sh_order {
+    if let Some(o) = a.sh_order
+        && method != Method::ShLight
+    {
         crate::flags::sh_order(o, t.meta.sh_order as usize)?;
     }
     if method == Method::Wavelet {
@@ -134,10 +137,14 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     println!(
         "{method}: {} terms{}, {} nonzeros touched ({:.1} MiB), light {:.1} ms, kernel {:.2} ms on the {} -> {}",
         stats.terms,
-        if method == Method::Wavelet {
-            format!(" ({weighting} weighting)")
-        } else {
-            String::new()
+        match method {
+            Method::Wavelet => format!(" ({weighting} weighting)"),
+            Method::ShLight => format!(
+                " (the light through SH order {}, {} SH terms)",
+                req.sh_order,
+                req.sh_order * req.sh_order
+            ),
+            _ => String::new(),
         },
         stats.nonzeros_touched,
         stats.bytes_touched as f64 / 1048576.0,

@@ -12,7 +12,7 @@ pub struct ViewArgs {
     /// Render one frame to this PNG without opening a window, then exit.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
-    /// wavelet, sh or full (with --screenshot).
+    /// wavelet, sh, full or sh-light (with --screenshot).
     #[arg(long, value_parser = Method::from_str)]
     pub method: Option<Method>,
     /// Kept wavelet terms K (with --screenshot).
