@@ -582,10 +582,19 @@ impl Rendered {
 /// where the adapter has them. Without a display to open it on, the error says so and what to do
 /// instead.
 pub fn run(file: &Path, envs: &[String]) -> crate::Result<()> {
-    let has_display = ["WAYLAND_DISPLAY", "DISPLAY"]
+    // X11 and Wayland name their display in the environment; macOS and Windows always have one.
+    let named_display = ["WAYLAND_DISPLAY", "DISPLAY"]
         .iter()
         .any(|v| std::env::var_os(v).is_some_and(|d| !d.is_empty()));
-    if !has_display {
+    let uses_x11_or_wayland = cfg!(all(
+        unix,
+        not(any(
+            target_os = "macos",
+            target_os = "ios",
+            target_os = "android"
+        ))
+    ));
+    if uses_x11_or_wayland && !named_display {
         return Err(crate::PrtError::invalid(
             "display",
             "no display to open a window on (neither WAYLAND_DISPLAY nor DISPLAY is set): use \
