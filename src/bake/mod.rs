@@ -4,7 +4,9 @@
 //! [`crate::store::transport`]. Parallel over pixel tiles with rayon; each tile is finished and compressed
 //! before the next is taken, so memory stays bounded by the output.
 
+pub mod bounce;
 pub mod medium_rows;
+pub mod path_tracer;
 mod pixels;
 pub mod reference;
 
@@ -64,6 +66,10 @@ pub struct BakeSettings {
     pub bounces: u32,
     /// Paths traced per camera sub-sample for the interreflections.
     pub paths: u32,
+    /// Where the visibility of the interreflections' path vertices comes from.
+    pub bounce_visibility: bounce::BounceVisibility,
+    /// Width of a surface cache cell, in pixel footprints at the view's median depth.
+    pub cache_spacing: f32,
 }
 
 impl Default for BakeSettings {
@@ -83,6 +89,8 @@ impl Default for BakeSettings {
             shard: None,
             bounces: 0,
             paths: 64,
+            bounce_visibility: bounce::BounceVisibility::Cache,
+            cache_spacing: 2.0,
         }
     }
 }
@@ -150,6 +158,15 @@ impl BakeSettings {
                 ),
             ));
         }
+        if !(0.25..=256.0).contains(&self.cache_spacing) {
+            return Err(PrtError::invalid(
+                "cache spacing",
+                format!(
+                    "{} pixel footprints; it must be from 0.25 to 256",
+                    self.cache_spacing
+                ),
+            ));
+        }
         if !(0.0..1.0).contains(&self.threshold) {
             return Err(PrtError::invalid(
                 "threshold",
@@ -178,6 +195,9 @@ pub struct BakeProgress {
     /// Texel lights done and in all for a scene's medium rows (a first stage; `[0, 0]` without a
     /// medium).
     pub medium_texels: [usize; 2],
+    /// Surface cache points traced and in all for the interreflections (a first stage; `[0, 0]`
+    /// without it).
+    pub cache_points: [usize; 2],
 }
 
 /// Where the shading of one camera sub-sample happens: a hit point and its diffuse material.
@@ -262,70 +282,6 @@ pub fn path_stream(pixel: u64, sub: usize, spp: u32) -> u64 {
     pixel * spp.max(1) as u64 + sub as u64
 }
 
-/// Traces `settings.paths` paths of up to `settings.bounces` bounces from a camera hit and calls
-/// `emit(direction, throughput)` for every path that leaves the scene after at least one bounce:
-/// the light it brings is `throughput ⊙ L(direction)` per path. Directions are cosine-sampled, so
-/// a bounce multiplies the throughput by `π f cos / cos` (the albedo, plus the GGX lobe over its
-/// cosine). Paths that leave straight from the camera hit are direct light, which the texel rows
-/// already hold exactly. Seeded per stream; returns the rays traced.
-pub fn indirect_paths(
-    tracer: &Tracer,
-    scene: &Scene,
-    start: &ShadingPoint,
-    settings: &BakeSettings,
-    stream: u64,
-    emit: &mut dyn FnMut(Vec3, [f32; 3]),
-) -> u64 {
-    let mut rays = 0;
-    let mut rng = crate::math::sampling::Rng::new(settings.seed ^ 0x5eed_ba11, stream);
-    for _ in 0..settings.paths {
-        let mut throughput = [1.0f32; 3];
-        let mut at = *start;
-        for bounce in 0..=settings.bounces {
-            let (u1, u2) = (rng.next_f32(), rng.next_f32());
-            let (t, b) = at.normal.any_orthonormal_pair();
-            let (r, phi) = (u1.sqrt(), 2.0 * std::f32::consts::PI * u2);
-            let d = (t * (r * phi.cos())
-                + b * (r * phi.sin())
-                + at.normal * (1.0 - u1).max(0.0).sqrt())
-            .normalize();
-            let cos = at.normal.dot(d);
-            if cos <= 1e-6 {
-                break;
-            }
-            let m = &scene.materials[at.material as usize];
-            let weight = match m.glossy_lobe() {
-                Some((s, alpha)) => {
-                    let g =
-                        std::f32::consts::PI * brdf::ggx_cosine(at.normal, at.view, d, alpha) / cos;
-                    m.albedo() + s * g
-                }
-                None => m.albedo(),
-            };
-            for k in 0..3 {
-                throughput[k] *= weight[k];
-            }
-            rays += 1;
-            // The origin is offset to the side of the shading normal, where `d` points.
-            match tracer.closest_hit(at.origin, d, f32::INFINITY) {
-                None => {
-                    if bounce > 0 {
-                        emit(d, throughput);
-                    }
-                    break;
-                }
-                Some(hit) => {
-                    if bounce == settings.bounces {
-                        break;
-                    }
-                    at = shading_point(tracer, &hit, d);
-                }
-            }
-        }
-    }
-    rays
-}
-
 /// What one tile of the bake produces.
 struct TileOutput {
     rows: Vec<RowData>,
@@ -393,11 +349,40 @@ pub fn bake(
                     pixels_total,
                     shadow_rays: 0,
                     medium_texels: [done, total],
+                    cache_points: [0, 0],
                 })
             },
         )?),
         None => None,
     };
+    let mut bounces = bounce::Bounces {
+        scene,
+        tracer: &tracer,
+        settings,
+        samples: &samples,
+        cache: None,
+    };
+    let cache = if settings.bounces > 0
+        && !settings.unshadowed
+        && settings.bounce_visibility == bounce::BounceVisibility::Cache
+    {
+        bounce::VisibilityCache::build(
+            &bounces,
+            &|p| mine((p / w / TILE) * tx + (p % w) / TILE),
+            &|done, total| {
+                progress(BakeProgress {
+                    pixels_done: 0,
+                    pixels_total,
+                    shadow_rays: 0,
+                    medium_texels: [0, 0],
+                    cache_points: [done, total],
+                })
+            },
+        )?
+    } else {
+        None
+    };
+    bounces.cache = cache.as_ref();
     let mut reference_haar = unoccluded_row(&samples);
     let reference_energy: f64 = reference_haar.iter().map(|&v| (v as f64).powi(2)).sum();
     haar::forward_face_all(&mut reference_haar, n, &mut Vec::new());
@@ -420,6 +405,7 @@ pub fn bake(
         basis: &basis,
         medium: medium.as_ref(),
         medium_rows: medium_rows.as_ref(),
+        bounces: &bounces,
     };
     let done = AtomicUsize::new(0);
     let rays = AtomicU64::new(0);
@@ -444,6 +430,7 @@ pub fn bake(
                 pixels_total,
                 shadow_rays: rays.fetch_add(out.rays, Ordering::Relaxed) + out.rays,
                 medium_texels: [0, 0],
+                cache_points: [0, 0],
             });
             Ok(Some((out, encoded)))
         })
@@ -502,6 +489,11 @@ pub fn bake(
         } else {
             0
         },
+        indirect: (settings.bounces > 0).then(|| crate::store::transport::IndirectMeta {
+            visibility: settings.bounce_visibility,
+            cache_spacing: settings.cache_spacing,
+            cache_points: cache.as_ref().map_or(0, |c| c.points as u64),
+        }),
         stats: BakeStats::default(),
     };
     Transport::assemble_encoded(meta, &tiles, albedo, coverage, tile_stats)
@@ -525,6 +517,8 @@ struct TileContext<'a> {
     /// The scene's medium and its rows, if it has one.
     medium: Option<&'a Medium>,
     medium_rows: Option<&'a MediumRows>,
+    /// The interreflections' paths and vertex rows.
+    bounces: &'a bounce::Bounces<'a>,
 }
 
 /// Bakes one tile: dense rows per (pixel, material), SH projection, Haar and thresholding.
@@ -539,6 +533,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
         ref thresholder,
         medium,
         medium_rows,
+        bounces,
     } = *ctx;
     let cam = &scene.camera;
     let (w, h) = (cam.width as usize, cam.height as usize);
@@ -619,19 +614,8 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     let rows =
                         indirect.get_or_insert_with(|| std::array::from_fn(|_| vec![0.0; c]));
                     let scale = inv_spp / settings.paths as f32;
-                    out.rays += indirect_paths(
-                        tracer,
-                        scene,
-                        &sp,
-                        settings,
-                        path_stream(pixel_index, sub, sample_stride(settings)),
-                        &mut |dir, throughput| {
-                            let j = crate::math::cubemap::dir_to_texel(n, dir.as_dvec3());
-                            for k in 0..3 {
-                                rows[k][j] += throughput[k] * scale;
-                            }
-                        },
-                    );
+                    let stream = path_stream(pixel_index, sub, sample_stride(settings));
+                    out.rays += bounces.add_rows(&sp, stream, scale, rows);
                 }
             }
             let pixel = (y * w + x) as u32;
@@ -723,7 +707,12 @@ pub fn load_if_baked_with(
         && meta.seed == settings.seed
         && meta.shard == settings.shard
         && meta.bounces == settings.bounces
-        && (settings.bounces == 0 || meta.paths == settings.paths);
+        && (settings.bounces == 0
+            || (meta.paths == settings.paths
+                && meta.indirect.as_ref().is_some_and(|i| {
+                    i.visibility == settings.bounce_visibility
+                        && i.cache_spacing == settings.cache_spacing
+                })));
     if !same {
         return None;
     }

@@ -2,16 +2,17 @@
 //! piecewise-constant lights, with no transport matrix. It is the ground truth for tests and
 //! benchmarks, so it is written to be obviously right: for every camera sub-sample and every texel
 //! sample direction, visibility x BRDF x cos x solid angle x radiance, summed; with bounces, the
-//! same seeded paths as the bake, each bringing its throughput times its exit texel's radiance.
+//! same seeded paths and surface cache as the bake, each vertex bringing its throughput times its
+//! own direct light (so this checks the matrix's bookkeeping; the independent check of the
+//! interreflections is [`crate::bake::path_tracer`]).
 //! A medium attenuates what the camera sees and every shadow ray, and adds single scattering along
 //! the camera ray: at every march sample and texel sample direction, the shadow ray's
 //! transmittance is marched through the medium directly (no sweep, no SH, no matrix).
 
 use rayon::prelude::*;
 
-use crate::bake::{
-    BakeSettings, indirect_paths, path_stream, pixel_subsamples, sample_stride, shading_point,
-};
+use crate::bake::bounce::{BounceVisibility, Bounces, VisibilityCache};
+use crate::bake::{BakeSettings, path_stream, pixel_subsamples, sample_stride, shading_point};
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
 use crate::math::sampling::TexelSamples;
@@ -59,6 +60,23 @@ pub fn render_reference_with(
             "interreflections are not traced through a medium",
         ));
     }
+    // The bake's own paths and surface cache, so that this checks the matrix's bookkeeping.
+    let mut bounces = Bounces {
+        scene,
+        tracer: &tracer,
+        settings,
+        samples: &samples,
+        cache: None,
+    };
+    let cache = if settings.bounces > 0
+        && !settings.unshadowed
+        && settings.bounce_visibility == BounceVisibility::Cache
+    {
+        VisibilityCache::build(&bounces, &|_| true, &|_, _| {})?
+    } else {
+        None
+    };
+    bounces.cache = cache.as_ref();
     let mut image = Image::new(w, h);
     let mut coverage = vec![0.0f32; w * h];
     let rows_done = AtomicUsize::new(0);
@@ -131,17 +149,14 @@ pub fn render_reference_with(
                             sum[k] += f as f64 * *w as f64 * inv_spp * l[k] as f64 * visible;
                         }
                     }
-                    // Interreflections: every path that leaves the scene after a bounce brings
-                    // its throughput times the radiance of the texel it leaves through.
+                    // Interreflections: every vertex of the bake's paths brings its throughput
+                    // times its own direct light.
                     if settings.bounces > 0 {
-                        let scale = inv_spp / settings.paths as f64;
                         let stream = path_stream((y * w + x) as u64, sub, sample_stride(settings));
-                        indirect_paths(&tracer, scene, &sp, settings, stream, &mut |d, tp| {
-                            let l = cube.lookup(d.as_dvec3());
-                            for k in 0..3 {
-                                sum[k] += tp[k] as f64 * l[k] as f64 * scale;
-                            }
-                        });
+                        let l = bounces.radiance(&sp, stream, cube);
+                        for k in 0..3 {
+                            sum[k] += l[k] * inv_spp;
+                        }
                     }
                 }
                 *px = sum.map(|v| v as f32);

@@ -2,6 +2,7 @@
 //! map, and the Haar light with its K-term selection and SH projection.
 
 pub mod envmap;
+pub mod importance;
 pub mod latlong;
 pub mod resample;
 pub mod select;

@@ -219,6 +219,7 @@ pub fn random_transport(
         shard: None,
         bounces: 0,
         paths: 0,
+        indirect: None,
         stats: BakeStats::default(),
     };
     Transport::assemble(

@@ -197,6 +197,20 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
         m.seed,
         if m.unshadowed { ", unshadowed" } else { "" }
     );
+    if m.bounces > 0 {
+        let how = match &m.indirect {
+            Some(i) if i.visibility == crate::bake::bounce::BounceVisibility::Cache => format!(
+                "next-event rows, surface cache of {} points {} px apart",
+                i.cache_points, i.cache_spacing
+            ),
+            Some(_) => "next-event rows, exact visibility".to_string(),
+            None => "each path binned in the texel it leaves by (an older bake)".to_string(),
+        };
+        println!(
+            "bounces       {} ({} paths per sample; {how})",
+            m.bounces, m.paths
+        );
+    }
     println!(
         "sparsify      threshold {} ({} budget, {} values)",
         m.threshold, m.budget, m.quantization

@@ -119,6 +119,16 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         shard: None,
         bounces: t.meta.bounces,
         paths: t.meta.paths.max(1),
+        bounce_visibility: t
+            .meta
+            .indirect
+            .as_ref()
+            .map_or(Default::default(), |i| i.visibility),
+        cache_spacing: t
+            .meta
+            .indirect
+            .as_ref()
+            .map_or(BakeSettings::default().cache_spacing, |i| i.cache_spacing),
     };
     let scene = if a.reference || a.compression.is_some() {
         let path = a

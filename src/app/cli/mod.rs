@@ -8,6 +8,7 @@ use std::time::Instant;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::bake::bounce::BounceVisibility;
 use crate::bake::{BakeProgress, BakeSettings, bake, worst_case_bytes};
 use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
@@ -21,6 +22,7 @@ use crate::volume::VolumeView;
 
 mod bake;
 mod bench;
+mod bounces;
 mod relight;
 mod view;
 mod volume;
@@ -29,6 +31,8 @@ pub use bake::BakeArgs;
 use bake::{bake_cmd, demo, info, merge_cmd};
 pub use bench::BenchArgs;
 use bench::bench_cmd;
+pub use bounces::BouncesArgs;
+use bounces::bounces_cmd;
 pub use relight::{EnvArgs, ReferenceArgs, RelightArgs};
 use relight::{compare_cmd, env_cmd, reference_cmd, relight_cmd};
 pub use view::ViewArgs;
@@ -77,6 +81,9 @@ pub enum Command {
     Env(EnvArgs),
     /// Sweep error against kept terms for SH and wavelets; write a CSV, plots and a summary.
     Bench(BenchArgs),
+    /// Bake a scene with 0 to B interreflection bounces and compare each with the path tracer:
+    /// a contact sheet and a table of time, size and error.
+    Bounces(BouncesArgs),
     /// Open the interactive viewer (SH versus wavelet, kept terms, environments, rotation), or
     /// with --screenshot render the image it would show to a PNG and exit.
     View(ViewArgs),
@@ -132,6 +139,13 @@ pub struct SamplingArgs {
     /// Paths per camera sub-sample for --bounces.
     #[arg(long, default_value_t = 64)]
     pub paths: u32,
+    /// Visibility at the bounces' path vertices: cache (bits at surface points a few pixels
+    /// apart) or exact (6 N² shadow rays at every vertex).
+    #[arg(long, default_value = "cache", value_parser = BounceVisibility::from_str)]
+    pub bounce_visibility: BounceVisibility,
+    /// Width of a surface cache cell, in pixel footprints at the view's median depth.
+    #[arg(long, default_value_t = 2.0)]
+    pub cache_spacing: f32,
 }
 
 /// Runs the command line; returns the process exit code.
@@ -156,6 +170,7 @@ fn run(command: Command) -> Result<()> {
         Command::Reference(a) => reference_cmd(a),
         Command::Env(a) => env_cmd(a),
         Command::Bench(a) => bench_cmd(a),
+        Command::Bounces(a) => bounces_cmd(a),
         Command::View(a) => view_cmd(a),
         Command::Volume(VolumeCommand::Bake(a)) => volume_bake_cmd(a),
         Command::Volume(VolumeCommand::Render(a)) => volume_render_cmd(a),
@@ -258,6 +273,13 @@ fn progress_bar(total: usize) -> ProgressBar {
 /// The bake's own progress as a bar: pixels, shadow rays per second, the medium's first stage.
 fn bake_progress(bar: &ProgressBar, start: Instant) -> impl Fn(BakeProgress) + Sync + '_ {
     move |p: BakeProgress| {
+        if p.cache_points[1] > 0 {
+            bar.set_message(format!(
+                "surface cache: {}/{} points",
+                p.cache_points[0], p.cache_points[1]
+            ));
+            return;
+        }
         if p.medium_texels[1] > 0 {
             bar.set_message(format!(
                 "medium rows: {}/{} texel lights",
@@ -302,6 +324,8 @@ fn settings_from(
         shard: None,
         bounces: s.bounces,
         paths: s.paths,
+        bounce_visibility: s.bounce_visibility,
+        cache_spacing: s.cache_spacing,
         ..BakeSettings::default()
     }
 }

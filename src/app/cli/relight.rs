@@ -59,6 +59,35 @@ pub struct ReferenceArgs {
     /// with it) or black.
     #[arg(long, default_value = "env", value_parser = Background::from_str)]
     pub background: Background,
+    /// How the light is integrated: texels (every texel sample direction at every camera hit,
+    /// and with --bounces the bake's own paths: the check of a bake's bookkeeping) or path (an
+    /// independent path tracer with light and material sampling). Default: texels without
+    /// bounces, path with them.
+    #[arg(long, value_parser = Estimator::from_str)]
+    pub estimator: Option<Estimator>,
+    /// Paths per pixel of the path tracer.
+    #[arg(long, default_value_t = 1024)]
+    pub samples: u32,
+}
+
+/// How `prt reference` integrates the light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Estimator {
+    /// Every texel sample direction; with bounces, the bake's own paths and surface cache.
+    Texels,
+    /// The independent path tracer of `bake::path_tracer`.
+    Path,
+}
+
+impl FromStr for Estimator {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "texels" => Ok(Estimator::Texels),
+            "path" => Ok(Estimator::Path),
+            _ => Err(format!("unknown estimator '{s}': use texels or path")),
+        }
+    }
 }
 
 #[derive(Args, Debug)]
@@ -171,9 +200,33 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     let cube = env.to_cube(settings.cube_n, rotation)?;
     let start = Instant::now();
     let rows = bar(scene.camera.height as u64, "rows");
-    let r = crate::bake::reference::render_reference_with(&scene, &cube, &settings, &|done, _| {
-        rows.set_position(done as u64)
-    })?;
+    let estimator = a.estimator.unwrap_or(if settings.bounces > 0 {
+        Estimator::Path
+    } else {
+        Estimator::Texels
+    });
+    let mut noise = None;
+    let r = match estimator {
+        Estimator::Texels => {
+            crate::bake::reference::render_reference_with(&scene, &cube, &settings, &|done, _| {
+                rows.set_position(done as u64)
+            })?
+        }
+        Estimator::Path => {
+            let p = crate::bake::path_tracer::path_trace(
+                &scene,
+                &cube,
+                &settings,
+                a.samples,
+                &|done, _| rows.set_position(done as u64),
+            )?;
+            noise = Some(p.relative_noise(None));
+            crate::bake::reference::Reference {
+                image: p.image,
+                coverage: p.coverage,
+            }
+        }
+    };
     rows.finish_and_clear();
     r.image.check_finite("reference image")?;
     let tone = ToneMap::auto(&r.image, Some(&r.coverage));
@@ -198,6 +251,15 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
         start.elapsed().as_secs_f64(),
         a.output.display()
     );
+    if let Some(noise) = noise {
+        println!(
+            "path traced: {} paths per pixel, {} bounces; standard error {:.3}% of the image \
+             (relative L2)",
+            a.samples,
+            settings.bounces,
+            100.0 * noise
+        );
+    }
     Ok(())
 }
 

@@ -94,6 +94,51 @@ pub struct BakeStats {
     pub shadow_rays: u64,
 }
 
+/// Where the visibility of an interreflection vertex comes from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BounceVisibility {
+    /// One bit per texel sample at surface cache points a few pixel footprints apart.
+    #[default]
+    Cache,
+    /// 6 N² shadow rays traced at every vertex.
+    Exact,
+}
+
+impl std::str::FromStr for BounceVisibility {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "cache" => Ok(BounceVisibility::Cache),
+            "exact" => Ok(BounceVisibility::Exact),
+            _ => Err(format!(
+                "unknown bounce visibility '{s}': use cache or exact"
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for BounceVisibility {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(match self {
+            BounceVisibility::Cache => "cache",
+            BounceVisibility::Exact => "exact",
+        })
+    }
+}
+
+/// How a bake's interreflections were estimated: next-event estimation into the row at every
+/// path vertex (see `bake::bounce`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct IndirectMeta {
+    /// Where each vertex's visibility came from.
+    pub visibility: BounceVisibility,
+    /// Width of a cache cell in pixel footprints at the view's median depth.
+    pub cache_spacing: f32,
+    /// Cache points over the whole image (0 for exact visibility).
+    pub cache_points: u64,
+}
+
 /// Everything about a transport file but its arrays.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TransportMeta {
@@ -131,6 +176,10 @@ pub struct TransportMeta {
     /// Paths per camera sub-sample for the interreflections (0 without them).
     #[serde(default)]
     pub paths: u32,
+    /// How the interreflections were estimated (absent without them, and in files baked before
+    /// next-event estimation, whose paths each brought the light of the one texel they left by).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub indirect: Option<IndirectMeta>,
     /// Derived from the tables (see [`Transport::finish`]): the same for a bake and a merge.
     pub stats: BakeStats,
 }

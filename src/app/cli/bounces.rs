@@ -1,0 +1,218 @@
+//! `prt bounces`: the interreflections of a scene, bounce by bounce, against the independent path
+//! tracer. Bakes the scene with 0 to B bounces at the given sampling, relights each with every
+//! term, path traces the reference at each bounce count, and writes a contact sheet (bakes over
+//! references) and a markdown table of time, size and error.
+
+use super::*;
+use crate::bake::path_tracer::path_trace;
+use crate::output::metrics::compare;
+use crate::output::sheet::{Cell, write_sheet};
+
+#[derive(Args, Debug)]
+pub struct BouncesArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    #[arg(long)]
+    pub env: String,
+    /// Output directory for bounces.md, bounces_sheet.png and the images.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Most bounces: bakes are made with 0, 1, ... up to this many.
+    #[arg(long, default_value_t = 2)]
+    pub max_bounces: u32,
+    /// Paths per pixel of the path-traced references.
+    #[arg(long, default_value_t = 4096)]
+    pub samples: u32,
+    /// Sampling of the bakes; --bounces is ignored (every count up to --max-bounces is baked).
+    #[command(flatten)]
+    pub sampling: SamplingArgs,
+    #[command(flatten)]
+    pub turn: TurnArgs,
+}
+
+/// One bounce count's figures.
+struct Row {
+    bounces: u32,
+    bake_seconds: f64,
+    file_bytes: u64,
+    nonzero_fraction: f64,
+    cache_points: u64,
+    rel_l2: f64,
+    rel_h1: f64,
+    reference_seconds: f64,
+    reference_noise: f64,
+}
+
+pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
+    if a.max_bounces > 16 {
+        return Err(PrtError::invalid(
+            "--max-bounces",
+            format!("{}; it goes up to 16", a.max_bounces),
+        ));
+    }
+    check_light_flags(a.turn.yaw, a.turn.pitch, None)?;
+    let scene = Scene::load(&a.scene)?;
+    let env = load_env(&a.env)?;
+    let base = settings_from(&a.sampling, BakeSettings::default().sh_order, 0.01, false);
+    BakeSettings {
+        bounces: a.max_bounces,
+        ..base.clone()
+    }
+    .validate()?;
+    let cube = env.to_cube(base.cube_n, a.turn.rotation())?;
+    let dir = &a.out;
+    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
+    let full = |t: &Transport| -> Result<crate::output::film::Image> {
+        let ctx = LightContext::new(t)?;
+        let light = ctx.prepare(&env, a.turn.rotation())?;
+        let req = RelightRequest {
+            method: Method::Full,
+            terms: 0,
+            weighting: Weighting::Unweighted,
+            sh_order: 1,
+        };
+        Ok(relight(t, &ctx, &light, &req)?.0)
+    };
+    let mut rows = Vec::new();
+    let mut shots = Vec::new();
+    let mut coverage = None;
+    for bounces in 0..=a.max_bounces {
+        let settings = BakeSettings {
+            bounces,
+            ..base.clone()
+        };
+        eprintln!("baking with {bounces} bounces");
+        let start = Instant::now();
+        let t = bake_with_progress(&scene, &settings)?;
+        let bake_seconds = start.elapsed().as_secs_f64();
+        let path = dir.join(format!("bounces_{bounces}.prt"));
+        t.save(&path)?;
+        let file_bytes = std::fs::metadata(&path)
+            .map_err(|e| PrtError::io(&path, e))?
+            .len();
+        let img = full(&t)?;
+        eprintln!("path tracing the reference with {bounces} bounces");
+        let start = Instant::now();
+        let rows_bar = bar(scene.camera.height as u64, "rows");
+        let traced = path_trace(&scene, &cube, &settings, a.samples, &|done, _| {
+            rows_bar.set_position(done as u64)
+        })?;
+        rows_bar.finish_and_clear();
+        let reference_seconds = start.elapsed().as_secs_f64();
+        let mask: Vec<bool> = t.coverage.iter().map(|&c| c > 0.0).collect();
+        let e = compare(&img, &traced.image, Some(&t.coverage))?;
+        let tone = ToneMap::auto(&traced.image, Some(&t.coverage));
+        img.save(&dir.join(format!("bake_{bounces}.exr")), tone)?;
+        traced
+            .image
+            .save(&dir.join(format!("reference_{bounces}.exr")), tone)?;
+        let row = Row {
+            bounces,
+            bake_seconds,
+            file_bytes,
+            nonzero_fraction: t.meta.stats.nonzeros as f64
+                / t.meta.stats.dense_entries.max(1) as f64,
+            cache_points: t.meta.indirect.as_ref().map_or(0, |i| i.cache_points),
+            rel_l2: e.rel_l2,
+            rel_h1: e.rel_h1,
+            reference_seconds,
+            reference_noise: traced.relative_noise(Some(&mask)),
+        };
+        println!(
+            "{bounces} bounces: bake {:.1} s, {:.1} MiB; against the path tracer L2 {:.2}%, H1 \
+             {:.2}% (reference noise {:.2}%, {:.1} s)",
+            row.bake_seconds,
+            row.file_bytes as f64 / 1048576.0,
+            100.0 * row.rel_l2,
+            100.0 * row.rel_h1,
+            100.0 * row.reference_noise,
+            row.reference_seconds
+        );
+        coverage.get_or_insert(t.coverage.clone());
+        shots.push((img, traced.image, row.rel_l2, row.reference_noise));
+        rows.push(row);
+    }
+    // One tone map for the whole sheet (the brightest reference's), so the rows compare.
+    let tone = shots
+        .last()
+        .map(|(_, r, ..)| ToneMap::auto(r, coverage.as_deref()))
+        .expect("at least one bounce count");
+    let name = |b: u32| match b {
+        0 => "direct".to_string(),
+        1 => "1 bounce".to_string(),
+        b => format!("{b} bounces"),
+    };
+    let mut cells: Vec<Cell> = shots
+        .iter()
+        .enumerate()
+        .map(|(b, (img, _, err, _))| Cell {
+            image: img,
+            tone,
+            caption: [
+                format!("bake, {}", name(b as u32)),
+                format!("L2 {:.1}% vs path traced", 100.0 * err),
+            ],
+        })
+        .collect();
+    cells.extend(shots.iter().enumerate().map(|(b, (_, r, _, noise))| Cell {
+        image: r,
+        tone,
+        caption: [
+            format!("path traced, {}", name(b as u32)),
+            format!("{} spp, noise {:.2}%", a.samples, 100.0 * noise),
+        ],
+    }));
+    let sheet = dir.join("bounces_sheet.png");
+    write_sheet(
+        &sheet,
+        shots.len(),
+        &cells,
+        &format!(
+            "Bakes (6x{0}x{0}, {1} paths) relit with every term, over the path tracer",
+            base.cube_n, base.paths
+        ),
+    )?;
+    let table = markdown(&rows, &a, &base);
+    let table_path = dir.join("bounces.md");
+    crate::output::film::write_atomically(&table_path, |tmp| {
+        std::fs::write(tmp, &table).map_err(|e| PrtError::io(tmp, e))
+    })?;
+    println!("wrote {} and {}", sheet.display(), table_path.display());
+    Ok(())
+}
+
+fn markdown(rows: &[Row], a: &BouncesArgs, base: &BakeSettings) -> String {
+    let mut s = format!(
+        "Scene `{}` under `{}`, cube 6x{}x{}, {} spp, {} paths per sample, cache spacing {} px \
+         ({} visibility). Each bake is relit with every term and compared with the path tracer \
+         at the same bounce count ({} paths per pixel) over the covered pixels.\n\n\
+         | bounces | bake (s) | file (MiB) | nonzeros | cache points | L2 vs path traced | H1 vs \
+         path traced | reference noise | reference (s) |\n\
+         |---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        a.scene.display(),
+        a.env,
+        base.cube_n,
+        base.cube_n,
+        base.spp,
+        base.paths,
+        base.cache_spacing,
+        base.bounce_visibility,
+        a.samples
+    );
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {:.1} | {:.1} | {:.2}% | {} | {:.2}% | {:.2}% | {:.2}% | {:.1} |\n",
+            r.bounces,
+            r.bake_seconds,
+            r.file_bytes as f64 / 1048576.0,
+            100.0 * r.nonzero_fraction,
+            r.cache_points,
+            100.0 * r.rel_l2,
+            100.0 * r.rel_h1,
+            100.0 * r.reference_noise,
+            r.reference_seconds
+        ));
+    }
+    s
+}

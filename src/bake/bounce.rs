@@ -1,0 +1,425 @@
+//! Interreflections by next-event estimation into the row.
+//!
+//! From every camera hit, `paths` paths of up to `bounces` bounces are drawn by importance
+//! ([`Lobes::sample`]: cosine and GGX mixed by multiple importance sampling). At every vertex a
+//! path reaches, the path's throughput times that vertex's own direct row (visibility x f x cos x
+//! solid angle to every texel sample) is added to the pixel's three colour rows: the interreflected
+//! transfer of Sloan et al. 2002, per pixel. A path that leaves the scene adds nothing, since the
+//! row of the vertex it left from already holds that light. Every vertex thus sends light to every
+//! texel, and a light concentrated in a few texels (a small sun) costs no more noise than a smooth
+//! sky; binning each path into the one texel it leaves through, as a plain path tracer would, turns
+//! such a light into fireflies and missing light.
+//!
+//! The visibility of a vertex comes from a surface cache ([`VisibilityCache`]) by default: one bit
+//! per texel sample at cache points, one point per cell of a grid a few pixel footprints wide, per
+//! normal direction and material. Cosine and BRDF are evaluated exactly at the vertex itself. With
+//! [`BounceVisibility::Exact`] every vertex traces its own 6 N² shadow rays instead.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{
+    BakeSettings, ShadingPoint, path_stream, pixel_subsamples, sample_stride, shading_point,
+};
+use crate::error::{PrtError, Result};
+use crate::math::cubemap::CubeMap;
+use crate::math::sampling::{Rng, TexelSamples};
+use crate::scene::Scene;
+use crate::scene::brdf::Lobes;
+use crate::scene::trace::Tracer;
+pub use crate::store::transport::BounceVisibility;
+
+/// Where the visibility of one vertex comes from.
+#[derive(Clone, Copy)]
+enum Visibility<'a> {
+    /// Every direction above the surface sees the light (an unshadowed bake).
+    All,
+    /// One bit per texel sample, from the cache.
+    Bits(&'a [u64]),
+    /// Shadow rays traced from the vertex.
+    Trace,
+}
+
+/// A cache cell: grid cell, octahedral normal bin and material.
+#[derive(Clone, Copy, Debug, Hash, PartialEq, Eq)]
+struct CellKey {
+    cell: [i64; 3],
+    normal: u8,
+    material: u32,
+}
+
+/// Normal bins per side of the octahedral map (8 x 8 bins, about 25° wide).
+const NORMAL_BINS: f32 = 8.0;
+
+fn normal_bin(n: Vec3) -> u8 {
+    let p = n / (n.x.abs() + n.y.abs() + n.z.abs()).max(1e-20);
+    let (mut u, mut v) = (p.x, p.y);
+    if p.z < 0.0 {
+        (u, v) = (
+            (1.0 - p.y.abs()) * p.x.signum(),
+            (1.0 - p.x.abs()) * p.y.signum(),
+        );
+    }
+    let bin = |x: f32| (((x + 1.0) * 0.5 * NORMAL_BINS) as i32).clamp(0, NORMAL_BINS as i32 - 1);
+    (bin(u) * NORMAL_BINS as i32 + bin(v)) as u8
+}
+
+/// Visibility bits at surface points, shared by the bounce vertices near them.
+///
+/// The points are chosen before the bake: every path the bake will trace is walked once (the
+/// paths are seeded per pixel, so the walk is the bake's own), and each occupied cell keeps the
+/// first vertex that fell in it, first in (pixel, sub-sample, path, bounce) order. The choice is
+/// therefore the same for a whole bake and for each of its shards, which keeps shards identical to
+/// the whole; a shard traces the bits of the cells its own pixels reach.
+pub struct VisibilityCache {
+    cell: f32,
+    index: HashMap<CellKey, u32>,
+    bits: Vec<u64>,
+    words: usize,
+    /// Cache points of the whole image.
+    pub points: usize,
+    /// Points whose bits this bake traced (all of them, or a shard's).
+    pub traced: usize,
+    /// Shadow rays the cache traced.
+    pub rays: u64,
+}
+
+/// First vertex found in a cell.
+#[derive(Clone, Copy)]
+struct Candidate {
+    order: u128,
+    origin: Vec3,
+    normal: Vec3,
+    mine: bool,
+}
+
+impl VisibilityCache {
+    /// Width of a cache cell: `spacing` pixel footprints at the median depth of the view, and at
+    /// most `spacing` / 512 of the scene's diagonal (so that a small image does not get a coarse
+    /// cache).
+    pub fn cell_size(scene: &Scene, tracer: &Tracer, spacing: f32) -> Option<f32> {
+        let cam = &scene.camera;
+        let per_unit = 2.0 * (cam.fov_y_deg.to_radians() * 0.5).tan() / cam.height as f32;
+        let mut depths: Vec<f32> = (0..cam.height)
+            .step_by(4)
+            .flat_map(|y| (0..cam.width).step_by(4).map(move |x| (x, y)))
+            .filter_map(|(x, y)| {
+                let ray = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+                tracer
+                    .closest_hit(ray.origin, ray.dir, f32::INFINITY)
+                    .map(|h| h.t)
+            })
+            .collect();
+        if depths.is_empty() {
+            return None;
+        }
+        let mid = depths.len() / 2;
+        let (_, median, _) = depths.select_nth_unstable_by(mid, f32::total_cmp);
+        let (lo, hi) = scene.bounds();
+        let cap = (hi - lo).length() * spacing / 512.0;
+        Some(
+            (*median * per_unit * spacing)
+                .min(cap)
+                .max(tracer.spawn_offset() * 16.0),
+        )
+    }
+
+    fn key(&self, at: &ShadingPoint) -> CellKey {
+        let c = (at.origin / self.cell).floor();
+        CellKey {
+            cell: [c.x as i64, c.y as i64, c.z as i64],
+            normal: normal_bin(at.normal),
+            material: at.material,
+        }
+    }
+
+    /// Walks every path of the bake, picks the cache points, and traces the bits of those that
+    /// pixels with `mine(pixel)` reach. `progress(done, total)` follows the tracing.
+    pub fn build(
+        bounces: &Bounces,
+        mine: &(dyn Fn(usize) -> bool + Sync),
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<Option<VisibilityCache>> {
+        let Bounces {
+            scene,
+            tracer,
+            settings,
+            samples,
+            ..
+        } = *bounces;
+        let Some(cell) = Self::cell_size(scene, tracer, settings.cache_spacing) else {
+            return Ok(None);
+        };
+        let mut cache = VisibilityCache {
+            cell,
+            index: HashMap::new(),
+            bits: Vec::new(),
+            words: samples.dirs.len().div_ceil(64),
+            points: 0,
+            traced: 0,
+            rays: 0,
+        };
+        let cam = &scene.camera;
+        let (w, h) = (cam.width as usize, cam.height as usize);
+        let stride = sample_stride(settings);
+        let found: HashMap<CellKey, Candidate> = (0..h)
+            .into_par_iter()
+            .fold(HashMap::new, |mut map, y| {
+                for x in 0..w {
+                    let pixel = y * w + x;
+                    let is_mine = mine(pixel);
+                    let subs = pixel_subsamples(tracer, cam, settings, x as u32, y as u32);
+                    for (sub, (fx, fy)) in subs.into_iter().enumerate() {
+                        let ray = cam.ray(fx, fy);
+                        let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY)
+                        else {
+                            continue;
+                        };
+                        let start = shading_point(tracer, &hit, ray.dir);
+                        let stream = path_stream(pixel as u64, sub, stride);
+                        bounces.walk(&start, stream, &mut |path, bounce, at, _| {
+                            let order = ((pixel as u128) << 64)
+                                | ((sub as u128) << 40)
+                                | ((path as u128) << 8)
+                                | bounce as u128;
+                            let candidate = Candidate {
+                                order,
+                                origin: at.origin,
+                                normal: at.normal,
+                                mine: is_mine,
+                            };
+                            map.entry(cache.key(at))
+                                .and_modify(|c: &mut Candidate| {
+                                    c.mine |= is_mine;
+                                    if order < c.order {
+                                        *c = Candidate {
+                                            mine: c.mine,
+                                            ..candidate
+                                        };
+                                    }
+                                })
+                                .or_insert(candidate);
+                        });
+                    }
+                }
+                map
+            })
+            .reduce(HashMap::new, |mut a, b| {
+                for (k, c) in b {
+                    a.entry(k)
+                        .and_modify(|e| {
+                            let mine = e.mine | c.mine;
+                            if c.order < e.order {
+                                *e = c;
+                            }
+                            e.mine = mine;
+                        })
+                        .or_insert(c);
+                }
+                a
+            });
+        cache.points = found.len();
+        let mut chosen: Vec<(CellKey, Candidate)> =
+            found.into_iter().filter(|(_, c)| c.mine).collect();
+        chosen.sort_by_key(|(_, c)| c.order);
+        cache.traced = chosen.len();
+        let total_bytes = chosen.len() as u64 * cache.words as u64 * 8;
+        if total_bytes > 16 << 30 {
+            return Err(PrtError::invalid(
+                "cache spacing",
+                format!(
+                    "the surface cache would take {:.1} GiB ({} points); raise --cache-spacing",
+                    total_bytes as f64 / (1u64 << 30) as f64,
+                    chosen.len()
+                ),
+            ));
+        }
+        let done = AtomicUsize::new(0);
+        let traced: Vec<(Vec<u64>, u64)> = chosen
+            .par_iter()
+            .map(|(_, c)| {
+                let mut bits = vec![0u64; cache.words];
+                let mut rays = 0;
+                for (s, d) in samples.dirs.iter().enumerate() {
+                    if c.normal.dot(*d) > 0.0 {
+                        rays += 1;
+                        if !tracer.occluded(c.origin, *d, f32::INFINITY) {
+                            bits[s / 64] |= 1 << (s % 64);
+                        }
+                    }
+                }
+                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+                if n.is_multiple_of(256) || n == chosen.len() {
+                    progress(n, chosen.len());
+                }
+                (bits, rays)
+            })
+            .collect();
+        cache.bits.reserve_exact(chosen.len() * cache.words);
+        for (i, ((key, _), (bits, rays))) in chosen.iter().zip(traced).enumerate() {
+            cache.index.insert(*key, i as u32);
+            cache.bits.extend_from_slice(&bits);
+            cache.rays += rays;
+        }
+        Ok(Some(cache))
+    }
+
+    /// The bits of the cache point for a vertex, if the vertex's cell has one.
+    fn lookup(&self, at: &ShadingPoint) -> Option<&[u64]> {
+        let i = *self.index.get(&self.key(at))? as usize;
+        Some(&self.bits[i * self.words..(i + 1) * self.words])
+    }
+
+    /// Bytes the cache holds.
+    pub fn bytes(&self) -> usize {
+        self.bits.len() * 8 + self.index.len() * (std::mem::size_of::<CellKey>() + 8)
+    }
+}
+
+/// What the interreflections of a bake (or of its reference with the same paths) share.
+pub struct Bounces<'a> {
+    pub scene: &'a Scene,
+    pub tracer: &'a Tracer,
+    pub settings: &'a BakeSettings,
+    pub samples: &'a TexelSamples,
+    pub cache: Option<&'a VisibilityCache>,
+}
+
+impl Bounces<'_> {
+    /// Walks the `paths` paths of one camera sub-sample from `start` and calls
+    /// `visit(path, bounce, vertex, throughput)` at every vertex reached (bounce 1 to `bounces`);
+    /// the throughput is the product of `f cos / pdf` along the way. Seeded per stream; returns the
+    /// rays traced.
+    pub fn walk(
+        &self,
+        start: &ShadingPoint,
+        stream: u64,
+        visit: &mut dyn FnMut(u32, u32, &ShadingPoint, Vec3),
+    ) -> u64 {
+        let mut rays = 0;
+        let mut rng = Rng::new(self.settings.seed ^ 0x5eed_ba11, stream);
+        for path in 0..self.settings.paths {
+            let mut throughput = Vec3::ONE;
+            let mut at = *start;
+            for bounce in 1..=self.settings.bounces {
+                let lobes = Lobes::of(&self.scene.materials[at.material as usize]);
+                let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+                let Some(s) = lobes.sample(at.normal, at.view, u) else {
+                    break;
+                };
+                throughput *= s.weight;
+                rays += 1;
+                let Some(hit) = self.tracer.closest_hit(at.origin, s.dir, f32::INFINITY) else {
+                    break;
+                };
+                at = shading_point(self.tracer, &hit, s.dir);
+                visit(path, bounce, &at, throughput);
+            }
+        }
+        rays
+    }
+
+    fn visibility(&self, at: &ShadingPoint) -> Visibility<'_> {
+        if self.settings.unshadowed {
+            return Visibility::All;
+        }
+        match self.cache.and_then(|c| c.lookup(at)) {
+            Some(bits) => Visibility::Bits(bits),
+            None => Visibility::Trace,
+        }
+    }
+
+    /// The direct row of a vertex times `throughput`: for every visible texel sample ω,
+    /// `out(texel, throughput ⊙ f(ω, view) cos Ω_ω)`. Returns the shadow rays traced.
+    fn vertex_row(
+        &self,
+        at: &ShadingPoint,
+        throughput: Vec3,
+        out: &mut impl FnMut(usize, Vec3),
+    ) -> u64 {
+        let lobes = Lobes::of(&self.scene.materials[at.material as usize]);
+        let (dirs, weights) = (&self.samples.dirs, &self.samples.weights);
+        let m = self.samples.per_texel;
+        let diffuse = throughput * lobes.albedo * std::f32::consts::FRAC_1_PI;
+        let glossy = lobes.specular != Vec3::ZERO;
+        let mut emit = |s: usize, cos: f32| {
+            let value = if glossy {
+                throughput * lobes.eval_cosine(at.normal, at.view, dirs[s])
+            } else {
+                diffuse * cos
+            };
+            out(s / m, value * weights[s]);
+        };
+        let mut rays = 0;
+        match self.visibility(at) {
+            Visibility::Bits(bits) => {
+                for (wi, &word) in bits.iter().enumerate() {
+                    let mut word = word;
+                    while word != 0 {
+                        let s = wi * 64 + word.trailing_zeros() as usize;
+                        word &= word - 1;
+                        let cos = at.normal.dot(dirs[s]);
+                        if cos > 0.0 {
+                            emit(s, cos);
+                        }
+                    }
+                }
+            }
+            vis => {
+                for (s, d) in dirs.iter().enumerate() {
+                    let cos = at.normal.dot(*d);
+                    if cos <= 0.0 {
+                        continue;
+                    }
+                    if matches!(vis, Visibility::Trace) {
+                        rays += 1;
+                        if self.tracer.occluded(at.origin, *d, f32::INFINITY) {
+                            continue;
+                        }
+                    }
+                    emit(s, cos);
+                }
+            }
+        }
+        rays
+    }
+
+    /// Adds `scale` times the interreflected rows of a camera sub-sample to `rows` (one per colour
+    /// channel, texel order). Returns the rays traced.
+    pub fn add_rows(
+        &self,
+        start: &ShadingPoint,
+        stream: u64,
+        scale: f32,
+        rows: &mut [Vec<f32>; 3],
+    ) -> u64 {
+        let mut shadow = 0;
+        let rays = self.walk(start, stream, &mut |_, _, at, throughput| {
+            shadow += self.vertex_row(at, throughput * scale, &mut |j, v| {
+                rows[0][j] += v.x;
+                rows[1][j] += v.y;
+                rows[2][j] += v.z;
+            });
+        });
+        rays + shadow
+    }
+
+    /// The interreflected radiance of a camera sub-sample lit by `cube`, through the same paths
+    /// and vertex rows as [`Bounces::add_rows`] but with no matrix: the bookkeeping check of the
+    /// brute-force reference.
+    pub fn radiance(&self, start: &ShadingPoint, stream: u64, cube: &CubeMap) -> [f64; 3] {
+        let mut sum = [0.0f64; 3];
+        self.walk(start, stream, &mut |_, _, at, throughput| {
+            self.vertex_row(at, throughput, &mut |j, v| {
+                let l = cube.texels[j];
+                for k in 0..3 {
+                    sum[k] += v[k] as f64 * l[k] as f64;
+                }
+            });
+        });
+        sum.map(|v| v / self.settings.paths as f64)
+    }
+}

@@ -1,0 +1,199 @@
+//! The independent reference for interreflections: a path tracer that lights the scene with the
+//! cube map directly, with no rows, no surface cache and none of the bake's paths.
+//!
+//! At every path vertex it draws one light direction from the map by importance
+//! ([`CubeSampler`]) and one direction from the material ([`Lobes::sample`]), and weighs the two
+//! by multiple importance sampling with the power heuristic (Veach 1997), as pbrt-v4's path
+//! integrator does. The map is the same piecewise-constant cube of texels the bake is lit by, so
+//! a converged image differs from the bake's with every term only by the bake's own errors (its
+//! per-texel quadrature, its surface cache, its path noise). Each pixel's estimate comes with its
+//! standard error, so agreement can be judged against the reference's own noise.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::bake::{BakeSettings, pixel_subsamples, shading_point};
+use crate::error::{PrtError, Result};
+use crate::light::importance::CubeSampler;
+use crate::math::cubemap::CubeMap;
+use crate::math::sampling::Rng;
+use crate::output::film::Image;
+use crate::scene::Scene;
+use crate::scene::brdf::Lobes;
+use crate::scene::trace::Tracer;
+
+/// A path-traced image with its per-pixel standard error.
+pub struct PathTraced {
+    pub image: Image,
+    /// Fraction of each pixel's camera sub-samples that hit geometry.
+    pub coverage: Vec<f32>,
+    /// Standard error of each pixel's mean, per channel.
+    pub std_error: Vec<[f32; 3]>,
+    /// Samples asked for per pixel (a pixel takes a multiple of its sub-samples at least as large).
+    pub samples: u32,
+}
+
+impl PathTraced {
+    /// The image's noise as a relative L2: the root sum of squared standard errors over the root
+    /// sum of squared values, over the pixels `mask` keeps (all when `None`).
+    pub fn relative_noise(&self, mask: Option<&[bool]>) -> f64 {
+        let (mut noise, mut value) = (0.0f64, 0.0f64);
+        for (i, (p, e)) in self.image.pixels.iter().zip(&self.std_error).enumerate() {
+            if mask.is_some_and(|m| !m[i]) {
+                continue;
+            }
+            for k in 0..3 {
+                noise += (e[k] as f64).powi(2);
+                value += (p[k] as f64).powi(2);
+            }
+        }
+        if value > 0.0 {
+            (noise / value).sqrt()
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Power heuristic weight of a strategy with density `a` against one with density `b`.
+#[inline]
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
+}
+
+/// Path traces `scene` under `cube` with `samples` paths per pixel (rounded up to a multiple of
+/// the pixel's camera sub-samples, which it cycles through), up to `settings.bounces` bounces
+/// after the camera hit. Uses the bake's camera sub-samples, seed and `unshadowed`; calls
+/// `progress(rows done, rows)`.
+pub fn path_trace(
+    scene: &Scene,
+    cube: &CubeMap,
+    settings: &BakeSettings,
+    samples: u32,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<PathTraced> {
+    settings.validate()?;
+    if scene.medium.is_some() {
+        return Err(PrtError::invalid(
+            "reference",
+            "the path tracer does not trace media; use --estimator texels for a scene with a \
+             [medium]",
+        ));
+    }
+    if !(1..=1 << 20).contains(&samples) {
+        return Err(PrtError::invalid(
+            "samples",
+            format!("{samples}; it must be from 1 to 1048576"),
+        ));
+    }
+    let tracer = Tracer::new(scene);
+    let cam = &scene.camera;
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let sampler = CubeSampler::new(cube);
+    let mut image = Image::new(w, h);
+    let mut coverage = vec![0.0f32; w * h];
+    let mut std_error = vec![[0.0f32; 3]; w * h];
+    let rows_done = AtomicUsize::new(0);
+    image
+        .pixels
+        .par_chunks_mut(w)
+        .zip(coverage.par_chunks_mut(w))
+        .zip(std_error.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, ((line, line_coverage), line_error))| {
+            for x in 0..w {
+                let subs = pixel_subsamples(&tracer, cam, settings, x as u32, y as u32);
+                let count = samples.div_ceil(subs.len() as u32) as usize * subs.len();
+                let mut rng = Rng::new(settings.seed ^ 0x9a7b_7ace, (y * w + x) as u64);
+                let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
+                let mut hits = 0usize;
+                for i in 0..count {
+                    let (fx, fy) = subs[i % subs.len()];
+                    let ray = cam.ray(fx, fy);
+                    let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
+                        continue;
+                    };
+                    hits += 1;
+                    let l = radiance(
+                        scene,
+                        &tracer,
+                        cube,
+                        sampler.as_ref(),
+                        settings,
+                        shading_point(&tracer, &hit, ray.dir),
+                        &mut rng,
+                    );
+                    for k in 0..3 {
+                        sum[k] += l[k] as f64;
+                        sum_sq[k] += (l[k] as f64).powi(2);
+                    }
+                }
+                let c = count as f64;
+                line[x] = sum.map(|s| (s / c) as f32);
+                line_coverage[x] = hits as f32 / c as f32;
+                line_error[x] = std::array::from_fn(|k| {
+                    let mean = sum[k] / c;
+                    let var = (sum_sq[k] / c - mean * mean).max(0.0) * c / (c - 1.0).max(1.0);
+                    (var / c).sqrt() as f32
+                });
+            }
+            progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1, h);
+        });
+    Ok(PathTraced {
+        image,
+        coverage,
+        std_error,
+        samples,
+    })
+}
+
+/// Radiance leaving the camera hit `start` towards the camera, by one path.
+fn radiance(
+    scene: &Scene,
+    tracer: &Tracer,
+    cube: &CubeMap,
+    sampler: Option<&CubeSampler>,
+    settings: &BakeSettings,
+    start: crate::bake::ShadingPoint,
+    rng: &mut Rng,
+) -> Vec3 {
+    let env = |d: Vec3| Vec3::from(cube.lookup(d.as_dvec3()));
+    let mut total = Vec3::ZERO;
+    let mut throughput = Vec3::ONE;
+    let mut at = start;
+    for depth in 0..=settings.bounces {
+        let lobes = Lobes::of(&scene.materials[at.material as usize]);
+        let (n, v) = (at.normal, at.view);
+        // Light sampling.
+        if let Some(sampler) = sampler {
+            let (d, p_light) = sampler.sample([rng.next_f64(), rng.next_f64(), rng.next_f64()]);
+            if p_light > 0.0
+                && n.dot(d) > 0.0
+                && (settings.unshadowed || !tracer.occluded(at.origin, d, f32::INFINITY))
+            {
+                let f = lobes.eval_cosine(n, v, d);
+                let w = power_heuristic(p_light, lobes.pdf(n, v, d));
+                total += throughput * f * env(d) * (w / p_light);
+            }
+        }
+        // Material sampling: light where the path escapes, and the next vertex.
+        let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+        let Some(s) = lobes.sample(n, v, u) else {
+            break;
+        };
+        let hit = tracer.closest_hit(at.origin, s.dir, f32::INFINITY);
+        if hit.is_none() || settings.unshadowed {
+            let p_light = sampler.map_or(0.0, |c| c.pdf(s.dir));
+            total += throughput * s.weight * env(s.dir) * power_heuristic(s.pdf, p_light);
+        }
+        throughput *= s.weight;
+        match hit {
+            Some(hit) if depth < settings.bounces => at = shading_point(tracer, &hit, s.dir),
+            _ => break,
+        }
+    }
+    total
+}
