@@ -281,17 +281,65 @@ impl VisibilityCache {
 
 /// What the interreflections of a bake (or of its reference with the same paths) share.
 pub struct Bounces<'a> {
-    pub scene: &'a Scene,
-    pub tracer: &'a Tracer,
-    pub settings: &'a BakeSettings,
-    pub samples: &'a TexelSamples,
-    pub cache: Option<&'a VisibilityCache>,
+    scene: &'a Scene,
+    tracer: &'a Tracer,
+    settings: &'a BakeSettings,
+    samples: &'a TexelSamples,
+    cache: Option<VisibilityCache>,
+    /// The texel sample directions times their solid angles, by coordinate: `max(0, n·ω) Ω` is
+    /// `max(0, n·(ω Ω))`, which a loop over these vectorises.
+    weighted: [Vec<f32>; 3],
 }
 
-impl Bounces<'_> {
+impl<'a> Bounces<'a> {
+    /// The paths of a bake with `settings`, without a cache yet.
+    pub fn new(
+        scene: &'a Scene,
+        tracer: &'a Tracer,
+        settings: &'a BakeSettings,
+        samples: &'a TexelSamples,
+    ) -> Self {
+        let weighted = std::array::from_fn(|k| {
+            samples
+                .dirs
+                .iter()
+                .zip(&samples.weights)
+                .map(|(d, w)| d[k] * w)
+                .collect()
+        });
+        Bounces {
+            scene,
+            tracer,
+            settings,
+            samples,
+            cache: None,
+            weighted,
+        }
+    }
+
+    /// Builds the surface cache when the settings call for one (bounces, shadows, cache
+    /// visibility), tracing the points that pixels with `mine(pixel)` reach.
+    pub fn with_cache(
+        mut self,
+        mine: &(dyn Fn(usize) -> bool + Sync),
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<Self> {
+        let s = self.settings;
+        if s.bounces > 0 && !s.unshadowed && s.bounce_visibility == BounceVisibility::Cache {
+            self.cache = VisibilityCache::build(&self, mine, progress)?;
+        }
+        Ok(self)
+    }
+
+    /// The surface cache, if the bake has one.
+    pub fn cache(&self) -> Option<&VisibilityCache> {
+        self.cache.as_ref()
+    }
+
     /// Walks the `paths` paths of one camera sub-sample from `start` and calls
     /// `visit(path, bounce, vertex, throughput)` at every vertex reached (bounce 1 to `bounces`);
-    /// the throughput is the product of `f cos / pdf` along the way. Seeded per stream; returns the
+    /// the throughput is the product of `f cos / pdf` along the way. The first bounce is
+    /// stratified over the paths (a jittered grid of ⌊√P⌋² cells). Seeded per stream; returns the
     /// rays traced.
     pub fn walk(
         &self,
@@ -301,12 +349,19 @@ impl Bounces<'_> {
     ) -> u64 {
         let mut rays = 0;
         let mut rng = Rng::new(self.settings.seed ^ 0x5eed_ba11, stream);
+        let strata = (self.settings.paths as f64).sqrt() as u32;
         for path in 0..self.settings.paths {
             let mut throughput = Vec3::ONE;
             let mut at = *start;
             for bounce in 1..=self.settings.bounces {
                 let lobes = Lobes::of(&self.scene.materials[at.material as usize]);
-                let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+                let mut u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+                if bounce == 1 && path < strata * strata {
+                    // The first bounce's directions on a jittered grid: the paths of a sample
+                    // cover its hemisphere evenly.
+                    u[1] = ((path % strata) as f32 + u[1]) / strata as f32;
+                    u[2] = ((path / strata) as f32 + u[2]) / strata as f32;
+                }
                 let Some(s) = lobes.sample(at.normal, at.view, u) else {
                     break;
                 };
@@ -326,7 +381,7 @@ impl Bounces<'_> {
         if self.settings.unshadowed {
             return Visibility::All;
         }
-        match self.cache.and_then(|c| c.lookup(at)) {
+        match self.cache.as_ref().and_then(|c| c.lookup(at)) {
             Some(bits) => Visibility::Bits(bits),
             None => Visibility::Trace,
         }
@@ -398,13 +453,56 @@ impl Bounces<'_> {
     ) -> u64 {
         let mut shadow = 0;
         let rays = self.walk(start, stream, &mut |_, _, at, throughput| {
-            shadow += self.vertex_row(at, throughput * scale, &mut |j, v| {
-                rows[0][j] += v.x;
-                rows[1][j] += v.y;
-                rows[2][j] += v.z;
-            });
+            let material = &self.scene.materials[at.material as usize];
+            match self.visibility(at) {
+                Visibility::Bits(bits)
+                    if material.glossy_lobe().is_none() && self.samples.per_texel == 1 =>
+                {
+                    let c = throughput * scale * material.albedo() * std::f32::consts::FRAC_1_PI;
+                    self.add_lambertian(bits, at.normal, c, rows);
+                }
+                _ => {
+                    shadow += self.vertex_row(at, throughput * scale, &mut |j, v| {
+                        rows[0][j] += v.x;
+                        rows[1][j] += v.y;
+                        rows[2][j] += v.z;
+                    });
+                }
+            }
         });
         rays + shadow
+    }
+
+    /// The fast case of [`Bounces::vertex_row`]: a Lambertian vertex, one sample a texel,
+    /// visibility from the cache. Adds `c max(0, n·ω) Ω` to the rows at every visible texel, 64
+    /// texels a word, without branches, so that the loop vectorises.
+    fn add_lambertian(&self, bits: &[u64], n: Vec3, c: Vec3, rows: &mut [Vec<f32>; 3]) {
+        let [wx, wy, wz] = &self.weighted;
+        let [r0, r1, r2] = rows;
+        let chunks = wx.chunks(64).zip(wy.chunks(64)).zip(wz.chunks(64)).zip(
+            r0.chunks_mut(64)
+                .zip(r1.chunks_mut(64))
+                .zip(r2.chunks_mut(64)),
+        );
+        for (&word, (((x, y), z), ((o0, o1), o2))) in bits.iter().zip(chunks) {
+            if word == 0 {
+                continue;
+            }
+            let len = x
+                .len()
+                .min(y.len())
+                .min(z.len())
+                .min(o0.len())
+                .min(o1.len())
+                .min(o2.len());
+            for j in 0..len {
+                let bit = ((word >> j) & 1) as f32;
+                let cos = (n.x * x[j] + n.y * y[j] + n.z * z[j]).max(0.0) * bit;
+                o0[j] += c.x * cos;
+                o1[j] += c.y * cos;
+                o2[j] += c.z * cos;
+            }
+        }
     }
 
     /// The interreflected radiance of a camera sub-sample lit by `cube`, through the same paths

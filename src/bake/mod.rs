@@ -88,9 +88,9 @@ impl Default for BakeSettings {
             seed: 1,
             shard: None,
             bounces: 0,
-            paths: 64,
+            paths: 256,
             bounce_visibility: bounce::BounceVisibility::Cache,
-            cache_spacing: 2.0,
+            cache_spacing: 4.0,
         }
     }
 }
@@ -355,34 +355,18 @@ pub fn bake(
         )?),
         None => None,
     };
-    let mut bounces = bounce::Bounces {
-        scene,
-        tracer: &tracer,
-        settings,
-        samples: &samples,
-        cache: None,
-    };
-    let cache = if settings.bounces > 0
-        && !settings.unshadowed
-        && settings.bounce_visibility == bounce::BounceVisibility::Cache
-    {
-        bounce::VisibilityCache::build(
-            &bounces,
-            &|p| mine((p / w / TILE) * tx + (p % w) / TILE),
-            &|done, total| {
-                progress(BakeProgress {
-                    pixels_done: 0,
-                    pixels_total,
-                    shadow_rays: 0,
-                    medium_texels: [0, 0],
-                    cache_points: [done, total],
-                })
-            },
-        )?
-    } else {
-        None
-    };
-    bounces.cache = cache.as_ref();
+    let bounces = bounce::Bounces::new(scene, &tracer, settings, &samples).with_cache(
+        &|p| mine((p / w / TILE) * tx + (p % w) / TILE),
+        &|done, total| {
+            progress(BakeProgress {
+                pixels_done: 0,
+                pixels_total,
+                shadow_rays: 0,
+                medium_texels: [0, 0],
+                cache_points: [done, total],
+            })
+        },
+    )?;
     let mut reference_haar = unoccluded_row(&samples);
     let reference_energy: f64 = reference_haar.iter().map(|&v| (v as f64).powi(2)).sum();
     haar::forward_face_all(&mut reference_haar, n, &mut Vec::new());
@@ -492,7 +476,7 @@ pub fn bake(
         indirect: (settings.bounces > 0).then(|| crate::store::transport::IndirectMeta {
             visibility: settings.bounce_visibility,
             cache_spacing: settings.cache_spacing,
-            cache_points: cache.as_ref().map_or(0, |c| c.points as u64),
+            cache_points: bounces.cache().map_or(0, |c| c.points as u64),
         }),
         stats: BakeStats::default(),
     };

@@ -11,7 +11,7 @@
 
 use rayon::prelude::*;
 
-use crate::bake::bounce::{BounceVisibility, Bounces, VisibilityCache};
+use crate::bake::bounce::Bounces;
 use crate::bake::{BakeSettings, path_stream, pixel_subsamples, sample_stride, shading_point};
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
@@ -61,22 +61,8 @@ pub fn render_reference_with(
         ));
     }
     // The bake's own paths and surface cache, so that this checks the matrix's bookkeeping.
-    let mut bounces = Bounces {
-        scene,
-        tracer: &tracer,
-        settings,
-        samples: &samples,
-        cache: None,
-    };
-    let cache = if settings.bounces > 0
-        && !settings.unshadowed
-        && settings.bounce_visibility == BounceVisibility::Cache
-    {
-        VisibilityCache::build(&bounces, &|_| true, &|_, _| {})?
-    } else {
-        None
-    };
-    bounces.cache = cache.as_ref();
+    let bounces =
+        Bounces::new(scene, &tracer, settings, &samples).with_cache(&|_| true, &|_, _| {})?;
     let mut image = Image::new(w, h);
     let mut coverage = vec![0.0f32; w * h];
     let rows_done = AtomicUsize::new(0);

@@ -137,14 +137,14 @@ pub struct SamplingArgs {
     #[arg(long, default_value_t = 0)]
     pub bounces: u32,
     /// Paths per camera sub-sample for --bounces.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = 256)]
     pub paths: u32,
     /// Visibility at the bounces' path vertices: cache (bits at surface points a few pixels
     /// apart) or exact (6 N² shadow rays at every vertex).
     #[arg(long, default_value = "cache", value_parser = BounceVisibility::from_str)]
     pub bounce_visibility: BounceVisibility,
     /// Width of a surface cache cell, in pixel footprints at the view's median depth.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 4.0)]
     pub cache_spacing: f32,
 }
 
