@@ -218,10 +218,10 @@ fn bad_lists_are_clear_errors() {
         ),
         (
             BenchOptions {
-                sh_light_orders: vec![4, 129],
+                sh_light_orders: vec![4, 143],
                 ..base.clone()
             },
-            "order 129",
+            "order 143",
         ),
     ] {
         let e = opts.validate(&t).unwrap_err().to_string();
@@ -279,4 +279,38 @@ fn compression_curve_trades_size_for_error() {
     assert!(cells[5].ends_with('%'), "{row}");
     let e = compression_sweep(&scene, &base, &[], &envs, &mut |_| {}, &|_| {}).unwrap_err();
     assert!(e.to_string().contains("empty"));
+}
+
+#[test]
+fn paper_run_writes_every_table_and_the_picture_row() {
+    // The paper-scale run at a toy size: two scenes at two cubes, the sweep at the larger.
+    use wavelet_prt::app::paper::{PaperOptions, run_paper};
+    let dir = common::temp_dir("paper");
+    let opts = PaperOptions {
+        size: 24,
+        cubes: vec![4, 8],
+    };
+    let report = run_paper(&dir, &opts, &mut |_| {}, &|_| {}).unwrap();
+    let text = std::fs::read_to_string(&report.markdown).unwrap();
+    assert!(report.picture.is_file());
+    let rows = |prefix: &str| text.lines().filter(|l| l.starts_with(prefix)).count();
+    // Table 1: two scenes at two cubes; then per scene three environments, twice.
+    assert_eq!(rows("| diffuse | 6x"), 2, "{text}");
+    assert_eq!(rows("| glossy teapot | 6x"), 2, "{text}");
+    assert_eq!(rows("| diffuse | blender_"), 4, "{text}");
+    assert_eq!(
+        rows("| glossy teapot | pmndrs_city_overcast |"),
+        2,
+        "{text}"
+    );
+    assert!(text.contains("at 24² with the default"), "{text}");
+    assert!(text.contains("SH against wavelets at 6x8x8"), "{text}");
+    let comparison: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("| diffuse | blender_sunrise |"))
+        .collect();
+    // W(200) and SH(200) exist; SH(2,000) and SH(20,000) do not fit 384 texels.
+    assert_eq!(comparison[0].matches('—').count(), 4, "{}", comparison[0]);
+    // Every bake is kept for the viewer and the bench.
+    assert!(dir.join("diffuse_8.prt").is_file() && dir.join("glossy_teapot_4.prt").is_file());
 }

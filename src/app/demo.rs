@@ -37,6 +37,7 @@ macro_rules! asset {
 pub const ASSETS: &[Asset] = &[
     asset!("scenes/demo.toml"),
     asset!("scenes/spheres.toml"),
+    asset!("scenes/teapot.toml"),
     asset!("scenes/cloud.toml"),
     asset!("scenes/fog.toml"),
     asset!("meshes/bunny.obj"),

@@ -6,5 +6,6 @@ pub mod bench;
 #[cfg(feature = "app")]
 pub mod cli;
 pub mod demo;
+pub mod paper;
 #[cfg(feature = "app")]
 pub mod viewer;

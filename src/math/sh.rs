@@ -19,10 +19,10 @@ use crate::error::{PrtError, Result};
 /// [`Rotation`] (about 4/3 n^3 matrix entries) and is the range the tests check the recurrence over.
 pub const MAX_ORDER: usize = 32;
 
-/// Largest order of SH lighting through the light ([`crate::relight::sh_light`]): 16,384 terms, past the
-/// 10,000 of Ng et al. 2003's comparison at a 6x64x64 cube. The recurrence's factors are tabled
+/// Largest order of SH lighting through the light ([`crate::relight::sh_light`]): 20,164 terms, past the
+/// 20,000 of Ng et al. 2003's comparison at a 6x64x64 cube. The recurrence's factors are tabled
 /// up to it.
-pub const MAX_LIGHT_ORDER: usize = 128;
+pub const MAX_LIGHT_ORDER: usize = 142;
 
 /// Bands written by the hand-written closed forms in [`eval`]; higher bands come from the recurrence.
 const CLOSED_FORM_BANDS: usize = 4;

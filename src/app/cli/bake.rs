@@ -271,6 +271,36 @@ pub(super) fn info(file: PathBuf) -> Result<()> {
     Ok(())
 }
 
+pub(super) fn paper(out: PathBuf) -> Result<()> {
+    let start = Instant::now();
+    let bar = std::sync::Mutex::new(None::<ProgressBar>);
+    let report = crate::app::paper::run_paper(
+        &out,
+        &Default::default(),
+        &mut |line| eprintln!("{line}"),
+        &|p: BakeProgress| {
+            let mut guard = bar.lock().unwrap_or_else(|e| e.into_inner());
+            if p.pixels_total == 0 {
+                return;
+            }
+            let b = guard.get_or_insert_with(|| progress_bar(p.pixels_total));
+            b.set_length(p.pixels_total as u64);
+            b.set_position(p.pixels_done as u64);
+            if p.pixels_done == p.pixels_total {
+                b.finish_and_clear();
+                *guard = None;
+            }
+        },
+    )?;
+    println!(
+        "everything in {:.1} s\nreport   {}\npicture  {}",
+        start.elapsed().as_secs_f64(),
+        report.markdown.display(),
+        report.picture.display()
+    );
+    Ok(())
+}
+
 pub(super) fn demo(out: PathBuf) -> Result<()> {
     let start = Instant::now();
     let bar = std::sync::Mutex::new(None::<ProgressBar>);

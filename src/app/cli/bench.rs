@@ -18,7 +18,7 @@ pub struct BenchArgs {
     /// SH orders, comma-separated (default: 1 to the baked order).
     #[arg(long, value_delimiter = ',')]
     pub sh_orders: Option<Vec<usize>>,
-    /// SH orders through the light, comma-separated, up to 128: the light projected to n² terms
+    /// SH orders through the light, comma-separated, up to 142: the light projected to n² terms
     /// and relit with the full transport (default: 1, 2, 3, 4, 6, ... 100; `none` for none).
     #[arg(long, value_delimiter = ',')]
     pub sh_light_orders: Option<Vec<String>>,

@@ -14,7 +14,7 @@ pub struct RelightArgs {
     /// Output image (.exr linear, .png tone-mapped).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// wavelet, sh, full or sh-light (SH through the light, at any --sh-order up to 128).
+    /// wavelet, sh, full or sh-light (SH through the light, at any --sh-order up to 142).
     #[arg(long, default_value = "wavelet", value_parser = Method::from_str)]
     pub method: Method,
     /// Kept wavelet terms K.
