@@ -6,15 +6,15 @@ use std::f64::consts::PI;
 mod common;
 
 use common::{
-    SPHERE_ON_PLANE, assert_rel_close, assets, plane_from_above, random_transport, scene_from,
-    temp_dir,
+    SPHERE_ON_PLANE, assert_rel_close, assets, full_light, plane_from_above, random_transport,
+    scene_from, temp_dir,
 };
 
 use glam::DVec3;
 use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation, SunSky};
-use wavelet_prt::light::select::{SparseLight, WaveletLight, Weighting};
+use wavelet_prt::light::select::{SparseLight, Weighting};
 use wavelet_prt::math::cubemap::{CubeMap, texel_count, texel_dirs, texel_index};
 use wavelet_prt::math::sampling::Rng;
 use wavelet_prt::math::sh;
@@ -37,14 +37,6 @@ fn lossless(n: usize, sh_order: usize) -> BakeSettings {
         sh_order,
         lossless: true,
         ..BakeSettings::default()
-    }
-}
-
-fn full_light(cube: &CubeMap) -> SparseLight {
-    let w = WaveletLight::from_cube(cube).unwrap();
-    SparseLight {
-        indices: (0..w.coeffs.len() as u32).collect(),
-        values: w.coeffs,
     }
 }
 

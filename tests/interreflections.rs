@@ -4,27 +4,18 @@
 
 mod common;
 
-use common::{SPHERE_ON_PLANE, scene_from};
+use common::{SPHERE_ON_PLANE, full_light, scene_from};
 
 use wavelet_prt::bake::bounce::BounceVisibility;
 use wavelet_prt::bake::path_tracer::path_trace;
 use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::light::select::{SparseLight, WaveletLight};
 use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::relight_wavelet;
 use wavelet_prt::store::transport::Transport;
-
-fn full_light(cube: &CubeMap) -> SparseLight {
-    let w = WaveletLight::from_cube(cube).unwrap();
-    SparseLight {
-        indices: (0..w.coeffs.len() as u32).collect(),
-        values: w.coeffs,
-    }
-}
 
 fn relit(t: &Transport, cube: &CubeMap) -> Image {
     relight_wavelet(t, &full_light(cube)).unwrap().0

@@ -334,6 +334,17 @@ pub fn bake(
              with --bounces 0",
         ));
     }
+    // Whether a pixel is this bake's (its tile is), and the progress of a first stage.
+    let mine_pixel = |p: usize| mine((p / w / TILE) * tx + (p % w) / TILE);
+    let stage = |medium_texels: [usize; 2], cache_points: [usize; 2]| {
+        progress(BakeProgress {
+            pixels_done: 0,
+            pixels_total,
+            shadow_rays: 0,
+            medium_texels,
+            cache_points,
+        })
+    };
     let medium_rows = match &medium {
         Some(m) => Some(MediumRows::bake(
             m,
@@ -342,31 +353,13 @@ pub fn bake(
             &samples,
             settings.spp,
             settings.seed,
-            &|p| mine((p / w / TILE) * tx + (p % w) / TILE),
-            &|done, total| {
-                progress(BakeProgress {
-                    pixels_done: 0,
-                    pixels_total,
-                    shadow_rays: 0,
-                    medium_texels: [done, total],
-                    cache_points: [0, 0],
-                })
-            },
+            &mine_pixel,
+            &|done, total| stage([done, total], [0, 0]),
         )?),
         None => None,
     };
-    let bounces = bounce::Bounces::new(scene, &tracer, settings, &samples).with_cache(
-        &|p| mine((p / w / TILE) * tx + (p % w) / TILE),
-        &|done, total| {
-            progress(BakeProgress {
-                pixels_done: 0,
-                pixels_total,
-                shadow_rays: 0,
-                medium_texels: [0, 0],
-                cache_points: [done, total],
-            })
-        },
-    )?;
+    let bounces = bounce::Bounces::new(scene, &tracer, settings, &samples)
+        .with_cache(&mine_pixel, &|done, total| stage([0, 0], [done, total]))?;
     let mut reference_haar = unoccluded_row(&samples);
     let reference_energy: f64 = reference_haar.iter().map(|&v| (v as f64).powi(2)).sum();
     haar::forward_face_all(&mut reference_haar, n, &mut Vec::new());

@@ -17,6 +17,17 @@ use wavelet_prt::store::transport::{
     BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, tile_grid,
 };
 
+/// Every Haar term of a cube map's light: relighting with it is the full product.
+pub fn full_light(
+    cube: &wavelet_prt::math::cubemap::CubeMap,
+) -> wavelet_prt::light::select::SparseLight {
+    let w = wavelet_prt::light::select::WaveletLight::from_cube(cube).unwrap();
+    wavelet_prt::light::select::SparseLight {
+        indices: (0..w.coeffs.len() as u32).collect(),
+        values: w.coeffs,
+    }
+}
+
 /// Writes `text` as a scene file in its own temp dir and loads it. Every call gets a directory
 /// of its own: tests of one binary run in parallel and may load the same scene at once.
 pub fn scene_from(text: &str, name: &str) -> Scene {
