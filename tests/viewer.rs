@@ -134,6 +134,32 @@ fn sh_order_above_baked_is_clamped_with_a_note() {
 }
 
 #[test]
+fn sh_through_the_light_goes_past_the_baked_order_up_to_the_texel_count() {
+    // VIEWER_N = 8: 384 texels, so SH through the light goes to order 19 (361 terms), past the
+    // baked order; the M key passes through it.
+    let mut e = engine();
+    let mut s = sun_state(&mut e);
+    s.method = Method::ShLight;
+    s.sh_order = common::VIEWER_SH_ORDER + 5;
+    let r = e.render(&s).unwrap();
+    assert_eq!(r.state.sh_order, common::VIEWER_SH_ORDER + 5);
+    assert!(r.notes.is_empty(), "{:?}", r.notes);
+    assert_eq!(r.panes[0].linear.request.method, Method::ShLight);
+    s.sh_order = 1000;
+    let r = e.render(&s).unwrap();
+    assert_eq!(r.state.sh_order, 19);
+    assert_eq!(r.notes.len(), 1, "{:?}", r.notes);
+    let mut cycled = ViewState {
+        method: Method::Full,
+        ..ViewState::default()
+    };
+    cycled.cycle_method();
+    assert_eq!(cycled.method, Method::ShLight);
+    cycled.cycle_method();
+    assert_eq!(cycled.method, Method::Wavelet);
+}
+
+#[test]
 fn compare_shows_sh_and_wavelet_at_matching_term_counts() {
     let mut e = engine();
     let mut s = sun_state(&mut e);

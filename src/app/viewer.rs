@@ -300,6 +300,9 @@ pub struct Limits {
     pub coeffs: usize,
     /// Baked SH order.
     pub sh_order: usize,
+    /// Highest SH order through the light: no more terms than texels, at most
+    /// [`crate::math::sh::MAX_LIGHT_ORDER`].
+    pub sh_light_order: usize,
     /// Entries in the environment list.
     pub envs: usize,
 }
@@ -316,7 +319,17 @@ impl ViewState {
             ));
             self.terms = k;
         }
-        if self.sh_order == 0 || self.sh_order > limits.sh_order {
+        if self.method == Method::ShLight {
+            let most = limits.sh_light_order.max(1);
+            if self.sh_order == 0 || self.sh_order > most {
+                let n = self.sh_order.clamp(1, most);
+                notes.push(format!(
+                    "SH order {} clamped to {n} (through the light, up to order {most})",
+                    self.sh_order
+                ));
+                self.sh_order = n;
+            }
+        } else if self.sh_order == 0 || self.sh_order > limits.sh_order {
             let n = self.sh_order.clamp(1, limits.sh_order.max(1));
             notes.push(format!(
                 "SH order {} clamped to {n} (this file was baked up to order {})",
@@ -359,7 +372,8 @@ impl ViewState {
         self.method = match self.method {
             Method::Wavelet => Method::Sh,
             Method::Sh => Method::Full,
-            Method::Full | Method::ShLight => Method::Wavelet,
+            Method::Full => Method::ShLight,
+            Method::ShLight => Method::Wavelet,
         };
     }
 

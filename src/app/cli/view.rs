@@ -129,7 +129,20 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
         state.weighting = *w;
     }
     if let Some(o) = a.sh_order {
-        crate::flags::sh_order(o, limits.sh_order)?;
+        if state.method == Method::ShLight {
+            if o == 0 || o > limits.sh_light_order {
+                return Err(PrtError::invalid(
+                    "SH order",
+                    format!(
+                        "{o}; through the light this file goes up to order {} (no more terms \
+                         than its texels)",
+                        limits.sh_light_order
+                    ),
+                ));
+            }
+        } else {
+            crate::flags::sh_order(o, limits.sh_order)?;
+        }
         state.sh_order = o;
     }
     if let Some(y) = a.yaw {

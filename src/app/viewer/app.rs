@@ -453,6 +453,8 @@ impl ViewerApp {
             ui.selectable_value(&mut s.method, Method::Wavelet, "Wavelet");
             ui.selectable_value(&mut s.method, Method::Sh, "SH");
             ui.selectable_value(&mut s.method, Method::Full, "Full");
+            ui.selectable_value(&mut s.method, Method::ShLight, "SH (light)")
+                .on_hover_text("SH of any order through the light, relit with every stored term");
         });
         ui.checkbox(&mut s.compare, "Compare SH | wavelet (C)");
         if s.compare {
@@ -500,7 +502,11 @@ impl ViewerApp {
                     ui.selectable_value(&mut s.weighting, w, w.name());
                 }
             });
-        ui.add(egui::Slider::new(&mut s.sh_order, 1..=limits.sh_order).text("SH order"));
+        let most = match s.method {
+            Method::ShLight => limits.sh_light_order,
+            _ => limits.sh_order,
+        };
+        ui.add(egui::Slider::new(&mut s.sh_order, 1..=most).text("SH order"));
         if s.compare {
             let n = sh_order_for_terms(s.terms, limits.sh_order);
             ui.label(format!("compare uses SH order {n} ({} terms)", n * n));
@@ -628,6 +634,7 @@ impl ViewerApp {
             .unwrap_or(super::Limits {
                 coeffs: 1,
                 sh_order: 1,
+                sh_light_order: 1,
                 envs: 1,
             })
     }

@@ -180,6 +180,8 @@ impl Engine {
         Limits {
             coeffs: self.transport.coeff_count(),
             sh_order: self.ctx.sh_order,
+            sh_light_order: crate::math::sh::MAX_LIGHT_ORDER
+                .min((self.transport.coeff_count() as f64).sqrt() as usize),
             envs: self.envs.len(),
         }
     }
