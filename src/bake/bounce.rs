@@ -387,11 +387,13 @@ impl<'a> Bounces<'a> {
         }
     }
 
-    /// The direct row of a vertex times `throughput`: for every visible texel sample ω,
-    /// `out(texel, throughput ⊙ f(ω, view) cos Ω_ω)`. Returns the shadow rays traced.
+    /// The direct row of a vertex seeing the light as `visibility` says, times `throughput`: for
+    /// every visible texel sample ω, `out(texel, throughput ⊙ f(ω, view) cos Ω_ω)`. Returns the
+    /// shadow rays traced.
     fn vertex_row(
         &self,
         at: &ShadingPoint,
+        visibility: Visibility,
         throughput: Vec3,
         out: &mut impl FnMut(usize, Vec3),
     ) -> u64 {
@@ -409,7 +411,7 @@ impl<'a> Bounces<'a> {
             out(s / m, value * weights[s]);
         };
         let mut rays = 0;
-        match self.visibility(at) {
+        match visibility {
             Visibility::Bits(bits) => {
                 for (wi, &word) in bits.iter().enumerate() {
                     let mut word = word;
@@ -461,8 +463,8 @@ impl<'a> Bounces<'a> {
                     let c = throughput * scale * material.albedo() * std::f32::consts::FRAC_1_PI;
                     self.add_lambertian(bits, at.normal, c, rows);
                 }
-                _ => {
-                    shadow += self.vertex_row(at, throughput * scale, &mut |j, v| {
+                visibility => {
+                    shadow += self.vertex_row(at, visibility, throughput * scale, &mut |j, v| {
                         rows[0][j] += v.x;
                         rows[1][j] += v.y;
                         rows[2][j] += v.z;
@@ -511,7 +513,7 @@ impl<'a> Bounces<'a> {
     pub fn radiance(&self, start: &ShadingPoint, stream: u64, cube: &CubeMap) -> [f64; 3] {
         let mut sum = [0.0f64; 3];
         self.walk(start, stream, &mut |_, _, at, throughput| {
-            self.vertex_row(at, throughput, &mut |j, v| {
+            self.vertex_row(at, self.visibility(at), throughput, &mut |j, v| {
                 let l = cube.texels[j];
                 for k in 0..3 {
                     sum[k] += v[k] as f64 * l[k] as f64;
