@@ -107,3 +107,30 @@ fn shards_that_do_not_belong_together_are_refused() {
         .to_string();
     assert!(e.contains("tile rows"), "{e}");
 }
+
+#[test]
+fn per_vertex_shards_merge_byte_identically() {
+    // 0.25 splits the ground and the sphere into enough vertices for several bands of tiles.
+    let scene = scene_from(SPHERE_ON_PLANE, "shards-vertices");
+    let with = |shard| BakeSettings {
+        spp: 1,
+        per_vertex: Some(0.25),
+        ..settings(shard)
+    };
+    let whole = bake(&scene, &with(None), &|_| {}).unwrap();
+    let bands = whole.meta.height as usize / 16;
+    assert!(bands >= 3, "{bands} bands");
+    let shards: Vec<Transport> = [2, 0, 1]
+        .iter()
+        .map(|&i| bake(&scene, &with(Some([i, 3])), &|_| {}).unwrap())
+        .collect();
+    let merged = Transport::merge(&shards).unwrap();
+    let dir = temp_dir("shards-vertices");
+    whole.save(&dir.join("whole.prt")).unwrap();
+    merged.save(&dir.join("merged.prt")).unwrap();
+    assert!(
+        std::fs::read(dir.join("whole.prt")).unwrap()
+            == std::fs::read(dir.join("merged.prt")).unwrap(),
+        "merged file differs from the single bake"
+    );
+}

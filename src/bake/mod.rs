@@ -25,11 +25,12 @@ use crate::math::sampling::TexelSamples;
 use crate::medium::Medium;
 use crate::scene::Scene;
 use crate::scene::brdf;
+use crate::scene::tessellate::VertexMesh;
 use crate::scene::trace::{Hit, Tracer};
 use crate::store::budget::{Budget, Thresholder};
 use crate::store::transport::{
-    BakeStats, CameraMeta, EncodedTile, Quantization, RowData, TILE, Transport, TransportMeta,
-    shard_of_band, tile_grid,
+    BakeStats, CameraMeta, EncodedTile, PerVertexMeta, Quantization, RowData, TILE, Transport,
+    TransportMeta, shard_of_band, tile_grid,
 };
 
 /// Settings of a bake; the defaults are the command line's.
@@ -70,6 +71,9 @@ pub struct BakeSettings {
     pub bounce_visibility: bounce::BounceVisibility,
     /// Width of a surface cache cell, in pixel footprints at the view's median depth.
     pub cache_spacing: f32,
+    /// Bake one row per vertex of the scene tessellated to this longest edge (scene units),
+    /// instead of one per pixel of the camera's view ([`crate::scene::tessellate`]).
+    pub per_vertex: Option<f32>,
 }
 
 impl Default for BakeSettings {
@@ -91,6 +95,7 @@ impl Default for BakeSettings {
             paths: 256,
             bounce_visibility: bounce::BounceVisibility::Cache,
             cache_spacing: 4.0,
+            per_vertex: None,
         }
     }
 }
@@ -166,6 +171,21 @@ impl BakeSettings {
                     self.cache_spacing
                 ),
             ));
+        }
+        if let Some(e) = self.per_vertex {
+            if !(e.is_finite() && e > 0.0) {
+                return Err(PrtError::invalid(
+                    "edge length",
+                    format!("{e}; it must be a finite length > 0 (scene units)"),
+                ));
+            }
+            if self.bounces > 0 {
+                return Err(PrtError::invalid(
+                    "per-vertex bake",
+                    "interreflections are baked per pixel only; bake per vertex with \
+                     --bounces 0",
+                ));
+            }
         }
         if !(0.0..1.0).contains(&self.threshold) {
             return Err(PrtError::invalid(
@@ -301,7 +321,22 @@ pub fn bake(
     settings.validate()?;
     let tracer = Tracer::new(scene);
     let cam = &scene.camera;
-    let (w, h) = (cam.width as usize, cam.height as usize);
+    if scene.medium.is_some() && settings.per_vertex.is_some() {
+        return Err(PrtError::invalid(
+            "per-vertex bake",
+            "a scene with a [medium] is baked per pixel only (the medium lies between the \
+             camera and every surface)",
+        ));
+    }
+    let mesh = match settings.per_vertex {
+        Some(edge) => Some(VertexMesh::tessellate(scene, edge)?),
+        None => None,
+    };
+    // Vertex v is pixel v of an image one tile wide.
+    let (w, h) = match &mesh {
+        Some(m) => (TILE, m.vertex_count().div_ceil(TILE)),
+        None => (cam.width as usize, cam.height as usize),
+    };
     let n = settings.cube_n;
     let samples = TexelSamples::new(n, settings.texel_samples as usize, settings.seed);
     let basis = TexelShBasis::new(n, settings.sh_order)?;
@@ -321,7 +356,13 @@ pub fn bake(
     };
     let pixels_total: usize = (0..tx * ty)
         .filter(|&t| mine(t))
-        .map(|t| tile_pixels(w, h, t % tx, t / tx))
+        .map(|t| match &mesh {
+            Some(m) => m
+                .vertex_count()
+                .saturating_sub(t * TILE * TILE)
+                .min(TILE * TILE),
+            None => tile_pixels(w, h, t % tx, t / tx),
+        })
         .sum();
     let medium = match &scene.medium {
         Some(spec) => Some(spec.build(None)?),
@@ -365,6 +406,9 @@ pub fn bake(
     haar::forward_face_all(&mut reference_haar, n, &mut Vec::new());
     let ctx = TileContext {
         scene,
+        width: w,
+        height: h,
+        mesh: mesh.as_ref(),
         tracer: &tracer,
         settings,
         reference_energy,
@@ -471,9 +515,69 @@ pub fn bake(
             cache_spacing: settings.cache_spacing,
             cache_points: bounces.cache().map_or(0, |c| c.points as u64),
         }),
+        per_vertex: mesh.as_ref().map(|m| PerVertexMeta {
+            edge_length: settings.per_vertex.unwrap_or_default(),
+            vertices: m.vertex_count() as u32,
+            triangles: m.triangles.len() as u32,
+        }),
         stats: BakeStats::default(),
     };
-    Transport::assemble_encoded(meta, &tiles, albedo, coverage, tile_stats)
+    Transport::assemble_encoded(meta, &tiles, albedo, coverage, tile_stats, mesh)
+}
+
+/// One camera sub-sample of a pixel, or a mesh vertex: where it shades (`None` where it sees no
+/// surface), the fraction of its light that reaches the camera, and whether it counts towards
+/// the pixel's coverage.
+struct Visit {
+    point: Option<ShadingPoint>,
+    seen: f32,
+    covered: bool,
+}
+
+/// The visits of pixel (x, y): its camera sub-samples, or for a per-vertex bake its vertex
+/// (none past the last vertex).
+fn visits(ctx: &TileContext, x: usize, y: usize) -> Vec<Visit> {
+    let (tracer, medium) = (ctx.tracer, ctx.medium);
+    if let Some(mesh) = ctx.mesh {
+        let v = y * ctx.width + x;
+        if v >= mesh.vertex_count() {
+            return Vec::new();
+        }
+        let normal = mesh.normals[v];
+        let point = ShadingPoint {
+            origin: mesh.positions[v] + normal * tracer.spawn_offset(),
+            normal,
+            view: normal,
+            material: mesh.materials[v],
+        };
+        return vec![Visit {
+            point: Some(point),
+            seen: 1.0,
+            covered: true,
+        }];
+    }
+    let cam = &ctx.scene.camera;
+    pixel_subsamples(tracer, cam, ctx.settings, x as u32, y as u32)
+        .into_iter()
+        .map(|(fx, fy)| {
+            let ray = cam.ray(fx, fy);
+            let found = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
+            // Through a medium, what the camera sees of the surface is attenuated.
+            let (seen, in_medium) = match medium {
+                Some(m) => {
+                    let t =
+                        m.transmittance(ray.origin, ray.dir, found.map_or(f32::INFINITY, |h| h.t));
+                    (t, t < 0.999)
+                }
+                None => (1.0, false),
+            };
+            Visit {
+                point: found.map(|hit| shading_point(tracer, &hit, ray.dir)),
+                seen,
+                covered: found.is_some() || in_medium,
+            }
+        })
+        .collect()
 }
 
 fn tile_pixels(w: usize, h: usize, tx: usize, ty: usize) -> usize {
@@ -483,6 +587,11 @@ fn tile_pixels(w: usize, h: usize, tx: usize, ty: usize) -> usize {
 /// What every tile of a bake shares.
 struct TileContext<'a> {
     scene: &'a Scene,
+    /// Size of the image the rows belong to: the view's, or one tile wide for a mesh.
+    width: usize,
+    height: usize,
+    /// The mesh of a per-vertex bake: pixel v is vertex v.
+    mesh: Option<&'a VertexMesh>,
     tracer: &'a Tracer,
     settings: &'a BakeSettings,
     samples: &'a TexelSamples,
@@ -502,6 +611,9 @@ struct TileContext<'a> {
 fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
     let TileContext {
         scene,
+        width: w,
+        height: h,
+        mesh,
         tracer,
         settings,
         samples,
@@ -512,8 +624,6 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
         medium_rows,
         bounces,
     } = *ctx;
-    let cam = &scene.camera;
-    let (w, h) = (cam.width as usize, cam.height as usize);
     let n = settings.cube_n;
     let c = texel_count(n);
     let shc = settings.sh_order * settings.sh_order;
@@ -528,9 +638,11 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
     let mut scratch = Vec::new();
     for y in tile_y * TILE..((tile_y + 1) * TILE).min(h) {
         for x in tile_x * TILE..((tile_x + 1) * TILE).min(w) {
-            let subs = pixel_subsamples(tracer, cam, settings, x as u32, y as u32);
-            let inv_spp = 1.0 / subs.len() as f32;
-            // Dense rows of this pixel, one per material seen.
+            let visits = visits(ctx, x, y);
+            if visits.is_empty() {
+                continue;
+            }
+            let inv_spp = 1.0 / visits.len() as f32;
             // Dense rows of this pixel per material seen: the diffuse lobe's and, for glossy
             // materials, the GGX lobe's.
             let mut dense: Vec<(u32, Vec<f32>, Option<Vec<f32>>)> = Vec::new();
@@ -540,34 +652,21 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             let mut covered = 0usize;
             let mut albedo_sum = [0.0f32; 3];
             let pixel_index = (y * w + x) as u64;
-            for (sub, (fx, fy)) in subs.into_iter().enumerate() {
-                let ray = cam.ray(fx, fy);
-                let found = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
-                // Through a medium, what the camera sees of the surface is attenuated.
-                let (seen, in_medium) = match medium {
-                    Some(m) => {
-                        let t = m.transmittance(
-                            ray.origin,
-                            ray.dir,
-                            found.map_or(f32::INFINITY, |h| h.t),
-                        );
-                        (t, t < 0.999)
-                    }
-                    None => (1.0, false),
-                };
-                if found.is_some() || in_medium {
-                    covered += 1;
-                }
-                let Some(hit) = found else {
+            for (sub, visit) in visits.into_iter().enumerate() {
+                covered += visit.covered as usize;
+                let Some(sp) = visit.point else {
                     continue;
                 };
+                let seen = visit.seen;
                 hits += 1;
-                let sp = shading_point(tracer, &hit, ray.dir);
                 let a = albedo(scene, sp.material);
                 for k in 0..3 {
                     albedo_sum[k] += a[k];
                 }
-                let lobe = scene.materials[sp.material as usize].glossy_lobe();
+                // A vertex is seen from every side: only the diffuse lobe holds for all.
+                let lobe = scene.materials[sp.material as usize]
+                    .glossy_lobe()
+                    .filter(|_| mesh.is_none());
                 let slot = match dense.iter().position(|(m, ..)| *m == sp.material) {
                     Some(i) => i,
                     None => {
@@ -605,7 +704,10 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                 .push((pixel, mean_albedo, covered as f32 * inv_spp));
             let lobes = dense.into_iter().flat_map(|(material, diffuse, glossy)| {
                 let m = &scene.materials[material as usize];
-                let specular = m.glossy_lobe().map(|(s, _)| s.to_array());
+                let specular = m
+                    .glossy_lobe()
+                    .filter(|_| mesh.is_none())
+                    .map(|(s, _)| s.to_array());
                 std::iter::once((m.albedo().to_array(), diffuse))
                     .chain(glossy.zip(specular).map(|(row, s)| (s, row)))
             });
@@ -684,6 +786,7 @@ pub fn load_if_baked_with(
         && meta.seed == settings.seed
         && meta.shard == settings.shard
         && meta.bounces == settings.bounces
+        && meta.per_vertex.as_ref().map(|p| p.edge_length) == settings.per_vertex
         && (settings.bounces == 0
             || (meta.paths == settings.paths
                 && meta.indirect.as_ref().is_some_and(|i| {

@@ -13,6 +13,8 @@ use super::*;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SceneFile {
+    /// Longest triangle edge of a per-vertex bake.
+    edge_length: Option<f32>,
     camera: CameraFile,
     #[serde(default)]
     material: BTreeMap<String, MaterialFile>,
@@ -250,9 +252,19 @@ impl<'a> Loader<'a> {
                 "the scene has no shapes and no medium; add a [[shape]] or a [medium]",
             ));
         }
+        if let Some(e) = file.edge_length
+            && !(e.is_finite() && e > 0.0 && e <= MAX_COORDINATE)
+        {
+            return Err(self.map.error(
+                "edge_length",
+                format!("must be a length > 0 and <= {MAX_COORDINATE:e}, got {e}"),
+            ));
+        }
         let mut triangles = Vec::new();
         let mut spheres = Vec::new();
+        let mut surfaces = Vec::new();
         for (i, shape) in file.shape.iter().enumerate() {
+            let first_triangle = triangles.len();
             let field = |key: &str| format!("shape[{i}].{key}");
             let material = material_names
                 .iter()
@@ -330,6 +342,9 @@ impl<'a> Loader<'a> {
                     triangles.extend(mesh);
                 }
             }
+            if triangles.len() > first_triangle {
+                surfaces.push(first_triangle..triangles.len());
+            }
         }
 
         Ok(Scene {
@@ -337,6 +352,8 @@ impl<'a> Loader<'a> {
             materials,
             material_names,
             triangles,
+            surfaces,
+            edge_length: file.edge_length,
             spheres,
             medium,
             source_path: self.map.file.clone(),

@@ -200,6 +200,12 @@ impl Triangle {
         let [a, b, c] = self.vertices;
         (b - a).cross(c - a).normalize_or_zero()
     }
+
+    /// Area of the triangle.
+    pub fn area(&self) -> f32 {
+        let [a, b, c] = self.vertices;
+        0.5 * (b - a).cross(c - a).length()
+    }
 }
 
 /// An analytic sphere.
@@ -224,6 +230,10 @@ pub struct Scene {
     pub material_names: Vec<String>,
     /// All quads and meshes flattened into world-space triangles.
     pub triangles: Vec<Triangle>,
+    /// The triangles of each quad and mesh shape, in the scene file's order.
+    pub surfaces: Vec<Range<usize>>,
+    /// Longest triangle edge of a per-vertex bake (`edge_length`), if the file sets one.
+    pub edge_length: Option<f32>,
     /// Analytic spheres.
     pub spheres: Vec<Sphere>,
     /// A participating medium (`[medium]`), if any.
@@ -362,6 +372,7 @@ pub mod brdf;
 mod diagnostics;
 mod file;
 mod obj;
+pub mod tessellate;
 pub mod trace;
 
 #[cfg(test)]

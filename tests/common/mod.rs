@@ -231,6 +231,7 @@ pub fn random_transport(
         bounces: 0,
         paths: 0,
         indirect: None,
+        per_vertex: None,
         stats: BakeStats::default(),
     };
     Transport::assemble(

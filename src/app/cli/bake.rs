@@ -31,6 +31,25 @@ pub struct BakeArgs {
     /// Bake only shard I of COUNT (bands of tile rows), e.g. 0/4; join them with `prt merge`.
     #[arg(long, value_name = "I/COUNT")]
     pub shard: Option<String>,
+    /// Bake one row per mesh vertex instead of one per pixel, so that the camera can move
+    /// (`prt relight --eye`, the viewer's orbit). Diffuse light only: glossy materials keep
+    /// their diffuse base.
+    #[arg(long)]
+    pub per_vertex: bool,
+    /// Longest triangle edge of a per-vertex bake, in scene units: longer edges of quads,
+    /// spheres and meshes are split. Default: the scene's `edge_length`, else 1/160 of the
+    /// diagonal of its bounds.
+    #[arg(long, requires = "per_vertex")]
+    pub edge_length: Option<f32>,
+}
+
+/// The edge length of a per-vertex bake when none is given: the scene's `edge_length`, else
+/// 1/160 of the diagonal of its bounds (about 100,000 vertices for the demo scene).
+pub(super) fn default_edge_length(scene: &Scene) -> f32 {
+    scene.edge_length.unwrap_or_else(|| {
+        let (lo, hi) = scene.bounds();
+        ((hi - lo).length() / 160.0).max(1e-6)
+    })
 }
 
 fn available_memory_bytes() -> Option<u64> {
@@ -58,6 +77,16 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
     settings.validate()?;
     crate::files::check_output(&a.output, &["prt"], "a transport file", &[])?;
     let scene = Scene::load(&a.scene)?;
+    let mesh = if a.per_vertex {
+        let edge = a.edge_length.unwrap_or_else(|| default_edge_length(&scene));
+        settings.per_vertex = Some(edge);
+        settings.validate()?;
+        Some(crate::scene::tessellate::VertexMesh::tessellate(
+            &scene, edge,
+        )?)
+    } else {
+        None
+    };
     let inputs: Vec<&std::path::Path> = scene.input_files.iter().map(PathBuf::as_path).collect();
     crate::files::check_output(&a.output, &["prt"], "a transport file", &inputs)?;
     // A run killed while writing left its temporary file; this one takes its place.
@@ -70,12 +99,23 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         );
         return Ok(());
     }
-    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
+    let (w, h) = match &mesh {
+        Some(m) => (m.vertex_count(), 1),
+        None => (scene.camera.width as usize, scene.camera.height as usize),
+    };
     let worst = worst_case_bytes(w, h, &settings);
     let plural =
         |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
+    let at = match (&mesh, settings.per_vertex) {
+        (Some(m), Some(edge)) => format!(
+            "per vertex: {} vertices, {} triangles, edges up to {edge:.4}; spp does not apply",
+            m.vertex_count(),
+            m.triangles.len()
+        ),
+        _ => format!("at {w}x{h}, {} spp", settings.spp),
+    };
     eprintln!(
-        "baking {} ({}, {}{}) at {w}x{h}, N = {}, SH order {}, {} spp, {} samples/texel",
+        "baking {} ({}, {}{}) {at}, N = {}, SH order {}, {} samples/texel",
         a.scene.display(),
         plural(scene.triangle_count(), "triangle", "triangles"),
         plural(scene.spheres.len(), "sphere", "spheres"),
@@ -86,7 +126,6 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         },
         settings.cube_n,
         settings.sh_order,
-        settings.spp,
         settings.texel_samples
     );
     eprintln!(
@@ -113,7 +152,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         }
     }
     let start = Instant::now();
-    let t = bake_with_progress(&scene, &settings)?;
+    let t = bake_with_progress(&scene, &settings, w * h)?;
     let seconds = start.elapsed().as_secs_f64();
     t.save(&a.output)?;
     print_info(&a.output, &t.meta);
@@ -165,6 +204,14 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
     let dense_bytes = s.dense_entries as f64 * 4.0;
     println!("file          {}", path.display());
     println!("scene         {} (hash {})", m.scene_path, m.scene_hash);
+    match &m.per_vertex {
+        Some(pv) => println!(
+            "vertices      {} vertices, {} triangles, edges up to {} (a row per vertex, any camera; \
+             the file's camera is the scene's)",
+            pv.vertices, pv.triangles, pv.edge_length
+        ),
+        None => {}
+    }
     println!(
         "image         {} x {} ({} tiles of {}²)",
         m.width,

@@ -129,6 +129,7 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
             .indirect
             .as_ref()
             .map_or(BakeSettings::default().cache_spacing, |i| i.cache_spacing),
+        per_vertex: t.meta.per_vertex.as_ref().map(|p| p.edge_length),
     };
     let scene = if a.reference || a.compression.is_some() {
         let path = a

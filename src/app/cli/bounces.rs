@@ -96,7 +96,11 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
         };
         eprintln!("baking with {bounces} bounces");
         let start = Instant::now();
-        let t = bake_with_progress(&scene, &settings)?;
+        let t = bake_with_progress(
+            &scene,
+            &settings,
+            (scene.camera.width * scene.camera.height) as usize,
+        )?;
         let bake_seconds = start.elapsed().as_secs_f64();
         let path = dir.join(format!("bounces_{bounces}.prt"));
         t.save(&path)?;

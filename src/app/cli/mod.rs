@@ -304,9 +304,9 @@ fn bake_progress(bar: &ProgressBar, start: Instant) -> impl Fn(BakeProgress) + S
     }
 }
 
-fn bake_with_progress(scene: &Scene, settings: &BakeSettings) -> Result<Transport> {
-    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
-    let bar = progress_bar(w * h);
+/// Bakes with a progress bar over `rows`, the pixels or vertices the bake makes rows for.
+fn bake_with_progress(scene: &Scene, settings: &BakeSettings, rows: usize) -> Result<Transport> {
+    let bar = progress_bar(rows);
     let t = bake(scene, settings, &bake_progress(&bar, Instant::now()))?;
     bar.finish_and_clear();
     Ok(t)

@@ -168,7 +168,7 @@ impl Transport {
         for (s, e) in tile_stats.iter_mut().zip(&encoded) {
             s[0] += e.quantization_energy;
         }
-        Self::assemble_encoded(meta, &encoded, albedo, coverage, tile_stats)
+        Self::assemble_encoded(meta, &encoded, albedo, coverage, tile_stats, None)
     }
 
     /// Joins encoded tiles (row-major over the tile grid) into a transport and derives its
@@ -179,6 +179,7 @@ impl Transport {
         albedo: Vec<[f32; 3]>,
         coverage: Vec<f32>,
         tile_stats: Vec<[f64; 3]>,
+        mesh: Option<VertexMesh>,
     ) -> Result<Transport> {
         let c = 6 * (meta.cube_n as usize).pow(2);
         let rows: usize = tiles.iter().map(|t| t.row_pixel.len()).sum();
@@ -238,6 +239,7 @@ impl Transport {
             coverage,
             transport_magnitude: vec![0.0; c],
             tile_stats,
+            mesh,
         };
         t.validate().map_err(invalid)?;
         t.finish();
@@ -455,7 +457,20 @@ impl Transport {
             albedo[pixels.clone()].copy_from_slice(&s.albedo[pixels.clone()]);
             coverage[pixels.clone()].copy_from_slice(&s.coverage[pixels]);
         }
-        Transport::assemble_encoded(same(&first.meta), &tiles, albedo, coverage, tile_stats)
+        if let Some(k) = shards.iter().position(|s| s.mesh != first.mesh) {
+            return Err(PrtError::invalid(
+                "merge",
+                format!("{} holds another vertex mesh than {}", name(k), name(0)),
+            ));
+        }
+        Transport::assemble_encoded(
+            same(&first.meta),
+            &tiles,
+            albedo,
+            coverage,
+            tile_stats,
+            first.mesh.clone(),
+        )
     }
 }
 

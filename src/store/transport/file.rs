@@ -74,8 +74,34 @@ impl Transport {
             Values::Q16(v) => ("entry_value", Tensor::new(Dtype::I16, vec![nnz], v)),
             Values::F32(v) => ("entry_value", Tensor::new(Dtype::F32, vec![nnz], v)),
         });
+        if let Some(mesh) = &self.mesh {
+            let (v, t) = (mesh.vertex_count(), mesh.triangles.len());
+            tensors.extend([
+                (
+                    "mesh_position",
+                    Tensor::new(Dtype::F32, vec![v, 3], &mesh.positions),
+                ),
+                (
+                    "mesh_normal",
+                    Tensor::new(Dtype::F32, vec![v, 3], &mesh.normals),
+                ),
+                (
+                    "mesh_material",
+                    Tensor::new(Dtype::U32, vec![v], &mesh.materials),
+                ),
+                (
+                    "mesh_triangle",
+                    Tensor::new(Dtype::U32, vec![t, 3], &mesh.triangles),
+                ),
+            ]);
+        }
         tensors.sort_by_key(|(name, _)| *name);
-        debug_assert!(tensors.iter().map(|(n, _)| *n).eq(TENSOR_NAMES));
+        debug_assert!(
+            tensors
+                .iter()
+                .map(|(n, _)| *n)
+                .eq(tensor_names(self.mesh.is_some()))
+        );
         // One metadata key, so the header is the same bytes for the same content (the
         // container keeps its metadata in a hash map, whose order varies between runs).
         container::save(path, tensors, |checksum| {
@@ -104,8 +130,9 @@ impl Transport {
         let buf = container::read_with_progress(path, u64::MAX, "transport", progress)?;
         let st = safetensors::SafeTensors::deserialize(&buf)
             .map_err(|e| PrtError::file(path, format!("not a valid safetensors file: {e}")))?;
-        let mut parts = Vec::with_capacity(TENSOR_NAMES.len());
-        for name in TENSOR_NAMES {
+        let names = tensor_names(meta.per_vertex.is_some());
+        let mut parts = Vec::with_capacity(names.len());
+        for name in names {
             let t = st
                 .tensor(name)
                 .map_err(|_| PrtError::file(path, format!("tensor `{name}` is missing")))?;
@@ -211,6 +238,29 @@ impl Transport {
         let (s, d) = get("tile_stats", Dtype::F64)?;
         expect("tile_stats", &s, &[tiles, 3])?;
         let tile_stats: Vec<[f64; 3]> = bytemuck::pod_collect_to_vec(d);
+        let mesh = match &meta.per_vertex {
+            None => None,
+            Some(pv) => {
+                let (v, t) = (pv.vertices as usize, pv.triangles as usize);
+                let (s, d) = get("mesh_position", Dtype::F32)?;
+                expect("mesh_position", &s, &[v, 3])?;
+                let positions = bytemuck::pod_collect_to_vec(d);
+                let (s, d) = get("mesh_normal", Dtype::F32)?;
+                expect("mesh_normal", &s, &[v, 3])?;
+                let normals = bytemuck::pod_collect_to_vec(d);
+                let (s, d) = get("mesh_material", Dtype::U32)?;
+                expect("mesh_material", &s, &[v])?;
+                let materials: Vec<u32> = bytemuck::pod_collect_to_vec(d);
+                let (s, d) = get("mesh_triangle", Dtype::U32)?;
+                expect("mesh_triangle", &s, &[t, 3])?;
+                Some(VertexMesh {
+                    positions,
+                    normals,
+                    materials,
+                    triangles: bytemuck::pod_collect_to_vec(d),
+                })
+            }
+        };
         let t = Transport {
             meta,
             tile_row_start,
@@ -229,6 +279,7 @@ impl Transport {
             coverage,
             transport_magnitude,
             tile_stats,
+            mesh,
         };
         t.validate().map_err(bad)?;
         Ok(t)
@@ -440,7 +491,12 @@ struct FileHeader {
 }
 
 fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
-    if m.width == 0 || m.height == 0 || m.width > 16384 || m.height > 16384 {
+    // A per-vertex bake's image is one tile wide and as tall as its vertices need.
+    let tallest = match m.per_vertex {
+        Some(_) => crate::scene::tessellate::MAX_VERTICES.div_ceil(TILE) as u32,
+        None => 16384,
+    };
+    if m.width == 0 || m.height == 0 || m.width > 16384 || m.height > tallest {
         return Err(format!(
             "image size {} x {} out of range",
             m.width, m.height
@@ -480,7 +536,26 @@ fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
     Ok(())
 }
 
-/// Names of the tensors in a file, in the order the checksum covers them.
+/// Names of the tensors in a file, in the order the checksum covers them: those of every file,
+/// and a per-vertex bake's mesh.
+fn tensor_names(per_vertex: bool) -> Vec<&'static str> {
+    let mut names: Vec<&str> = TENSOR_NAMES.to_vec();
+    if per_vertex {
+        names.extend(MESH_TENSOR_NAMES);
+        names.sort();
+    }
+    names
+}
+
+/// The tensors of a per-vertex bake's mesh.
+const MESH_TENSOR_NAMES: [&str; 4] = [
+    "mesh_material",
+    "mesh_normal",
+    "mesh_position",
+    "mesh_triangle",
+];
+
+/// The tensors of every file.
 const TENSOR_NAMES: [&str; 13] = [
     "albedo",
     "col_count",

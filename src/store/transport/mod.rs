@@ -53,6 +53,7 @@ use std::ops::Range;
 
 use serde::{Deserialize, Serialize};
 
+use crate::scene::tessellate::VertexMesh;
 use crate::store::container;
 use crate::store::quant::scale_of;
 pub use crate::store::quant::{BLOCK_ROWS, Quantization};
@@ -139,6 +140,19 @@ pub struct IndirectMeta {
     pub cache_points: u64,
 }
 
+/// How a per-vertex bake placed its rows: one per vertex of a tessellated mesh (stored in the
+/// file), vertex `v` as "pixel" `v` of an image [`TILE`] wide, so that a tile is a block of
+/// [`TILE`]² consecutive vertices.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PerVertexMeta {
+    /// The longest edge the tessellation allowed, in scene units.
+    pub edge_length: f32,
+    /// Vertices of the mesh (the image's first pixels; the rest of its last row is empty).
+    pub vertices: u32,
+    /// Triangles of the mesh.
+    pub triangles: u32,
+}
+
 /// Everything about a transport file but its arrays.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TransportMeta {
@@ -180,6 +194,9 @@ pub struct TransportMeta {
     /// next-event estimation, whose paths each brought the light of the one texel they left by).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub indirect: Option<IndirectMeta>,
+    /// Present for a per-vertex bake, whose rows belong to mesh vertices, not pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub per_vertex: Option<PerVertexMeta>,
     /// Derived from the tables (see [`Transport::finish`]): the same for a bake and a merge.
     pub stats: BakeStats,
 }
@@ -285,6 +302,8 @@ pub struct Transport {
     /// Per tile: energy thresholding and quantisation dropped, the rows' total energy, shadow
     /// rays traced.
     pub tile_stats: Vec<[f64; 3]>,
+    /// The mesh of a per-vertex bake (vertex `v` is pixel `v`); `None` for a view.
+    pub mesh: Option<VertexMesh>,
 }
 
 /// Tiles along x and y for an image.
@@ -482,6 +501,44 @@ impl Transport {
             if !finite {
                 return Err(format!("tensor `{name}` holds NaN or infinite values"));
             }
+        }
+        self.validate_mesh()
+    }
+
+    /// A per-vertex bake's mesh against its header: one vertex per pixel up to the count, the
+    /// counts the header gives, and a consistent mesh; a view has neither mesh nor its header.
+    fn validate_mesh(&self) -> std::result::Result<(), String> {
+        let (pv, mesh) = match (&self.meta.per_vertex, &self.mesh) {
+            (None, None) => return Ok(()),
+            (Some(pv), Some(mesh)) => (pv, mesh),
+            (Some(_), None) => return Err("a per-vertex header without its mesh".into()),
+            (None, Some(_)) => return Err("a mesh without the per-vertex header".into()),
+        };
+        let v = pv.vertices as usize;
+        let pixels = (self.meta.width * self.meta.height) as usize;
+        if self.meta.width as usize != TILE || v > pixels || v + TILE <= pixels {
+            return Err(format!(
+                "{v} vertices do not fill an image {} x {} (it must be {TILE} wide, with only \
+                 its last row part empty)",
+                self.meta.width, self.meta.height
+            ));
+        }
+        if mesh.vertex_count() != v || mesh.triangles.len() != pv.triangles as usize {
+            return Err(format!(
+                "the mesh has {} vertices and {} triangles, the header says {v} and {}",
+                mesh.vertex_count(),
+                mesh.triangles.len(),
+                pv.triangles
+            ));
+        }
+        if !(pv.edge_length.is_finite() && pv.edge_length > 0.0) {
+            return Err(format!("edge length {}", pv.edge_length));
+        }
+        if let Some(p) = mesh.problem(u32::MAX as usize) {
+            return Err(format!("mesh: {p}"));
+        }
+        if let Some(r) = self.row_pixel.iter().find(|&&p| p as usize >= v) {
+            return Err(format!("a row of pixel {r}, past the {v} vertices"));
         }
         Ok(())
     }

@@ -1,0 +1,487 @@
+//! The scene as an indexed vertex mesh, for per-vertex transport: every quad and mesh welded into
+//! shared vertices (a corner keeps one vertex per distinct shading normal, so creases stay
+//! sharp), every sphere made an icosphere, and every edge longer than a target length split at
+//! its midpoint until none is, so that shadows have vertices to land on. Open shapes (with a
+//! boundary edge, such as a quad) get a twin of every vertex and triangle facing the other way,
+//! since surfaces are two-sided (CONVENTIONS.md) and the two sides see different light. Vertices
+//! are sorted in Morton order of their positions, so a block of consecutive vertices is a compact
+//! patch whose transport rows share coefficients.
+
+use std::collections::HashMap;
+
+use glam::Vec3;
+
+use super::{Scene, Triangle};
+use crate::error::{PrtError, Result};
+
+/// Most vertices a tessellation may make; a finer one is surely a typo in the edge length.
+pub const MAX_VERTICES: usize = 1 << 24;
+
+/// Rounds of edge splitting at most: each halves the longest edges, so 40 rounds refine any
+/// edge the coordinate limit allows to below a millionth of it.
+const MAX_ROUNDS: usize = 40;
+
+/// An indexed triangle mesh with a shading normal and a material per vertex.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VertexMesh {
+    /// World-space positions.
+    pub positions: Vec<Vec3>,
+    /// Unit shading normals: the side of the surface each vertex's light is baked for.
+    pub normals: Vec<Vec3>,
+    /// Index into [`Scene::materials`] of each vertex.
+    pub materials: Vec<u32>,
+    /// Corner indices, counter-clockwise seen from the side the normals face.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl VertexMesh {
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Welds, refines and orders the surfaces of `scene` so that no edge is longer than
+    /// `edge_length` (scene units).
+    pub fn tessellate(scene: &Scene, edge_length: f32) -> Result<VertexMesh> {
+        if !(edge_length.is_finite() && edge_length > 0.0) {
+            return Err(PrtError::invalid(
+                "edge length",
+                format!("{edge_length}; it must be a finite length > 0"),
+            ));
+        }
+        // About how many vertices the length asks for (a triangle's edges end between half the
+        // length and the length): refused before any work when far past the limit.
+        let area: f64 = scene
+            .triangles
+            .iter()
+            .map(|t| t.area() as f64)
+            .chain(
+                scene
+                    .spheres
+                    .iter()
+                    .map(|s| 4.0 * std::f64::consts::PI * (s.radius as f64).powi(2)),
+            )
+            .sum();
+        let estimate = area / (0.433 * (edge_length as f64 / 2.0).powi(2)) / 2.0;
+        if estimate > 4.0 * MAX_VERTICES as f64 {
+            return Err(PrtError::invalid(
+                "edge length",
+                format!(
+                    "{edge_length} is too fine for surfaces of area {area:.3e}: about {estimate:.1e} \
+                     vertices, past the limit of {MAX_VERTICES}"
+                ),
+            ));
+        }
+        let mut mesh = VertexMesh::default();
+        for range in &scene.surfaces {
+            let tris = &scene.triangles[range.clone()];
+            let open = has_boundary(tris);
+            let first = mesh.positions.len();
+            let corners = mesh.weld(tris);
+            let mut refine = Refiner::new(&mut mesh, edge_length, None);
+            let tris = refine.run(corners)?;
+            mesh.add_shape(first, tris, open);
+        }
+        for s in &scene.spheres {
+            let first = mesh.positions.len();
+            let corners = mesh.icosahedron(s.center, s.radius, s.material);
+            let mut refine = Refiner::new(&mut mesh, edge_length, Some((s.center, s.radius)));
+            let tris = refine.run(corners)?;
+            mesh.add_shape(first, tris, false);
+        }
+        if mesh.positions.is_empty() {
+            return Err(PrtError::invalid(
+                "per-vertex bake",
+                "the scene has no surfaces to put vertices on",
+            ));
+        }
+        Ok(mesh.morton_ordered())
+    }
+
+    /// Checks the mesh's own consistency (lengths, indices, finite unit normals, materials below
+    /// `materials`), as a loader must before using it: the first problem, in words.
+    pub fn problem(&self, materials: usize) -> Option<String> {
+        let v = self.positions.len();
+        if self.normals.len() != v || self.materials.len() != v {
+            return Some(format!(
+                "{v} positions but {} normals and {} materials",
+                self.normals.len(),
+                self.materials.len()
+            ));
+        }
+        if let Some(t) = self
+            .triangles
+            .iter()
+            .find(|t| t.iter().any(|&i| i as usize >= v))
+        {
+            return Some(format!("triangle {t:?} indexes past the {v} vertices"));
+        }
+        if let Some(m) = self.materials.iter().find(|&&m| m as usize >= materials) {
+            return Some(format!("material {m} of {materials}"));
+        }
+        if let Some(i) = (0..v).find(|&i| {
+            !self.positions[i].is_finite() || (self.normals[i].length() - 1.0).abs() > 1e-3
+        }) {
+            return Some(format!(
+                "vertex {i} is at {} with normal {}",
+                self.positions[i], self.normals[i]
+            ));
+        }
+        None
+    }
+
+    /// Adds a vertex and returns its index.
+    fn push(&mut self, position: Vec3, normal: Vec3, material: u32) -> u32 {
+        self.positions.push(position);
+        self.normals.push(normal);
+        self.materials.push(material);
+        (self.positions.len() - 1) as u32
+    }
+
+    /// The triangles of one shape as corner indices into shared vertices: corners with the same
+    /// position and normal become one vertex.
+    fn weld(&mut self, tris: &[Triangle]) -> Vec<[u32; 3]> {
+        let mut seen: HashMap<([u32; 3], [u32; 3]), u32> = HashMap::new();
+        tris.iter()
+            .map(|t| {
+                std::array::from_fn(|k| {
+                    let key = (bits(t.vertices[k]), bits(t.normals[k]));
+                    *seen
+                        .entry(key)
+                        .or_insert_with(|| self.push(t.vertices[k], t.normals[k], t.material))
+                })
+            })
+            .collect()
+    }
+
+    /// The 12 vertices and 20 faces of an icosahedron inscribed in a sphere.
+    fn icosahedron(&mut self, center: Vec3, radius: f32, material: u32) -> Vec<[u32; 3]> {
+        let g = (1.0 + 5f32.sqrt()) / 2.0;
+        let dirs = [
+            [-1.0, g, 0.0],
+            [1.0, g, 0.0],
+            [-1.0, -g, 0.0],
+            [1.0, -g, 0.0],
+            [0.0, -1.0, g],
+            [0.0, 1.0, g],
+            [0.0, -1.0, -g],
+            [0.0, 1.0, -g],
+            [g, 0.0, -1.0],
+            [g, 0.0, 1.0],
+            [-g, 0.0, -1.0],
+            [-g, 0.0, 1.0],
+        ];
+        let first = self.positions.len() as u32;
+        for d in dirs {
+            let n = Vec3::from(d).normalize();
+            self.push(center + radius * n, n, material);
+        }
+        const FACES: [[u32; 3]; 20] = [
+            [0, 11, 5],
+            [0, 5, 1],
+            [0, 1, 7],
+            [0, 7, 10],
+            [0, 10, 11],
+            [1, 5, 9],
+            [5, 11, 4],
+            [11, 10, 2],
+            [10, 7, 6],
+            [7, 1, 8],
+            [3, 9, 4],
+            [3, 4, 2],
+            [3, 2, 6],
+            [3, 6, 8],
+            [3, 8, 9],
+            [4, 9, 5],
+            [2, 4, 11],
+            [6, 2, 10],
+            [8, 6, 7],
+            [9, 8, 1],
+        ];
+        FACES.iter().map(|f| f.map(|i| first + i)).collect()
+    }
+
+    /// Appends a refined shape's triangles, and for an open shape a twin of each of its
+    /// vertices (from `first` on) with the normal reversed and of each triangle wound the other
+    /// way.
+    fn add_shape(&mut self, first: usize, tris: Vec<[u32; 3]>, open: bool) {
+        if open {
+            let end = self.positions.len();
+            let offset = (end - first) as u32;
+            for i in first..end {
+                self.push(self.positions[i], -self.normals[i], self.materials[i]);
+            }
+            let back: Vec<[u32; 3]> = tris
+                .iter()
+                .map(|&[a, b, c]| [a + offset, c + offset, b + offset])
+                .collect();
+            self.triangles.extend(tris);
+            self.triangles.extend(back);
+        } else {
+            self.triangles.extend(tris);
+        }
+    }
+
+    /// The same mesh with its vertices sorted by the Morton code of their positions (ties by
+    /// their previous order).
+    fn morton_ordered(self) -> VertexMesh {
+        let lo = self.positions.iter().fold(Vec3::INFINITY, |a, &p| a.min(p));
+        let hi = self
+            .positions
+            .iter()
+            .fold(Vec3::NEG_INFINITY, |a, &p| a.max(p));
+        let scale = ((1u32 << 21) - 1) as f32 / (hi - lo).max_element().max(f32::MIN_POSITIVE);
+        let code = |p: Vec3| {
+            let q = ((p - lo) * scale).to_array().map(|v| v as u64);
+            (0..21).fold(0u64, |c, b| {
+                c | ((q[0] >> b & 1) << (3 * b))
+                    | ((q[1] >> b & 1) << (3 * b + 1))
+                    | ((q[2] >> b & 1) << (3 * b + 2))
+            })
+        };
+        let mut order: Vec<u32> = (0..self.positions.len() as u32).collect();
+        order.sort_by_key(|&i| code(self.positions[i as usize]));
+        let mut new_index = vec![0u32; order.len()];
+        for (new, &old) in order.iter().enumerate() {
+            new_index[old as usize] = new as u32;
+        }
+        let pick = |v: &[Vec3]| order.iter().map(|&i| v[i as usize]).collect();
+        VertexMesh {
+            positions: pick(&self.positions),
+            normals: pick(&self.normals),
+            materials: order.iter().map(|&i| self.materials[i as usize]).collect(),
+            triangles: self
+                .triangles
+                .iter()
+                .map(|t| t.map(|i| new_index[i as usize]))
+                .collect(),
+        }
+    }
+}
+
+/// A vector's bit pattern, with −0 as +0, as a hash key.
+fn bits(v: Vec3) -> [u32; 3] {
+    (v + Vec3::ZERO).to_array().map(f32::to_bits)
+}
+
+/// Whether some edge of `tris` (by corner positions) belongs to only one triangle.
+fn has_boundary(tris: &[Triangle]) -> bool {
+    let mut edges: HashMap<([u32; 3], [u32; 3]), u32> = HashMap::new();
+    for t in tris {
+        for k in 0..3 {
+            let (a, b) = (bits(t.vertices[k]), bits(t.vertices[(k + 1) % 3]));
+            *edges.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    edges.values().any(|&n| n == 1)
+}
+
+/// Splits every edge longer than the target at its midpoint, once per edge (shared by the
+/// triangles on both sides, so the mesh stays watertight), until no edge is longer.
+struct Refiner<'a> {
+    mesh: &'a mut VertexMesh,
+    edge: f32,
+    /// A sphere's centre and radius: midpoints go onto it, with its exact normal.
+    sphere: Option<(Vec3, f32)>,
+    midpoints: HashMap<(u32, u32), u32>,
+}
+
+impl<'a> Refiner<'a> {
+    fn new(mesh: &'a mut VertexMesh, edge: f32, sphere: Option<(Vec3, f32)>) -> Self {
+        Refiner {
+            mesh,
+            edge,
+            sphere,
+            midpoints: HashMap::new(),
+        }
+    }
+
+    /// The midpoint vertex of edge (a, b) if the edge is too long.
+    fn split(&mut self, a: u32, b: u32) -> Option<u32> {
+        let (a, b) = (a.min(b), a.max(b));
+        let m = &self.mesh;
+        let (pa, pb) = (m.positions[a as usize], m.positions[b as usize]);
+        if pa.distance(pb) <= self.edge {
+            return None;
+        }
+        if let Some(&i) = self.midpoints.get(&(a, b)) {
+            return Some(i);
+        }
+        let mid = (pa + pb) * 0.5;
+        let (na, nb) = (m.normals[a as usize], m.normals[b as usize]);
+        let (p, n) = match self.sphere {
+            Some((c, r)) => {
+                let n = (mid - c).normalize_or(na);
+                (c + r * n, n)
+            }
+            None => (mid, (na + nb).normalize_or(na)),
+        };
+        let material = m.materials[a as usize];
+        let i = self.mesh.push(p, n, material);
+        self.midpoints.insert((a, b), i);
+        Some(i)
+    }
+
+    fn run(&mut self, mut tris: Vec<[u32; 3]>) -> Result<Vec<[u32; 3]>> {
+        for _ in 0..MAX_ROUNDS {
+            let mut next = Vec::with_capacity(tris.len() * 2);
+            let mut changed = false;
+            for t in tris {
+                let mids = [0, 1, 2].map(|k| self.split(t[k], t[(k + 1) % 3]));
+                let split = mids.iter().filter(|m| m.is_some()).count();
+                changed |= split > 0;
+                // Turned so that the split edges come first: edge k runs from corner k to k + 1.
+                let turn = match split {
+                    1 => mids.iter().position(Option::is_some).unwrap_or(0),
+                    2 => mids
+                        .iter()
+                        .position(Option::is_none)
+                        .map_or(0, |k| (k + 1) % 3),
+                    _ => 0,
+                };
+                let [a, b, c] = [0, 1, 2].map(|k| t[(k + turn) % 3]);
+                let [mab, mbc, mca] = [0, 1, 2].map(|k| mids[(k + turn) % 3].unwrap_or(u32::MAX));
+                match split {
+                    0 => next.push(t),
+                    1 => next.extend([[a, mab, c], [mab, b, c]]),
+                    2 => next.extend([[mab, b, mbc], [a, mab, mbc], [a, mbc, c]]),
+                    _ => {
+                        next.extend([[a, mab, mca], [mab, b, mbc], [mca, mbc, c], [mab, mbc, mca]])
+                    }
+                }
+            }
+            tris = next;
+            if self.mesh.positions.len() > MAX_VERTICES {
+                return Err(PrtError::invalid(
+                    "edge length",
+                    format!(
+                        "{} is too fine: the tessellation passes {MAX_VERTICES} vertices",
+                        self.edge
+                    ),
+                ));
+            }
+            if !changed {
+                return Ok(tris);
+            }
+        }
+        Ok(tris)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(shapes: &str) -> Scene {
+        let text = format!(
+            "[camera]\neye = [0.0, 2.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\n\
+             fov_y_deg = 40.0\nwidth = 8\nheight = 8\n\
+             [material.m]\ntype = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]\n{shapes}"
+        );
+        Scene::from_toml_str(&text, std::path::Path::new("t.toml")).unwrap()
+    }
+
+    const QUAD: &str = "[[shape]]\ntype = \"quad\"\ncorners = [[-1.0, 0.0, -1.0], [-1.0, 0.0, 1.0], \
+                        [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]]\nmaterial = \"m\"\n";
+    const SPHERE: &str =
+        "[[shape]]\ntype = \"sphere\"\ncenter = [0.0, 1.0, 0.0]\nradius = 0.5\nmaterial = \"m\"\n";
+
+    fn edges(m: &VertexMesh) -> impl Iterator<Item = (u32, u32)> + '_ {
+        m.triangles
+            .iter()
+            .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
+    }
+
+    fn area(m: &VertexMesh, t: &[u32; 3]) -> Vec3 {
+        let p = t.map(|i| m.positions[i as usize]);
+        0.5 * (p[1] - p[0]).cross(p[2] - p[0])
+    }
+
+    #[test]
+    fn a_quad_is_split_below_the_edge_length_on_both_sides_without_losing_area() {
+        let m = VertexMesh::tessellate(&scene(QUAD), 0.3).unwrap();
+        assert!(m.problem(1).is_none());
+        assert!(
+            edges(&m)
+                .all(|(a, b)| { m.positions[a as usize].distance(m.positions[b as usize]) <= 0.3 })
+        );
+        // Both sides tile the 2 x 2 quad: up-facing triangles sum to +4 Y, down-facing to −4 Y,
+        // each wound to face its vertices' normals.
+        let (mut up, mut down) = (Vec3::ZERO, Vec3::ZERO);
+        for t in &m.triangles {
+            let a = area(&m, t);
+            let n = m.normals[t[0] as usize];
+            assert!(a.dot(n) > 0.0, "a triangle wound against its normals");
+            assert!(t.iter().all(|&i| m.normals[i as usize] == n));
+            if n.y > 0.0 { up += a } else { down += a }
+        }
+        assert!((up - Vec3::new(0.0, 4.0, 0.0)).length() < 1e-4, "{up}");
+        assert!((down + Vec3::new(0.0, 4.0, 0.0)).length() < 1e-4, "{down}");
+        // Watertight: every interior edge of one side is shared by exactly two triangles.
+        let mut count: HashMap<(u32, u32), u32> = HashMap::new();
+        for (a, b) in edges(&m) {
+            *count.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+        let boundary: f32 = count
+            .iter()
+            .filter(|(_, n)| **n == 1)
+            .map(|((a, b), _)| m.positions[*a as usize].distance(m.positions[*b as usize]))
+            .sum();
+        assert!(
+            (boundary - 16.0).abs() < 1e-4,
+            "boundary length {boundary} (2 sides x 8)"
+        );
+        assert!(count.values().all(|&n| n <= 2));
+    }
+
+    #[test]
+    fn a_sphere_becomes_a_closed_icosphere_on_its_surface_with_exact_normals() {
+        let s = scene(SPHERE);
+        let m = VertexMesh::tessellate(&s, 0.1).unwrap();
+        let c = Vec3::new(0.0, 1.0, 0.0);
+        for (p, n) in m.positions.iter().zip(&m.normals) {
+            assert!(((*p - c).length() - 0.5).abs() < 1e-5);
+            assert!((*n - (*p - c) / 0.5).length() < 1e-4);
+        }
+        // Closed and outward: no twin, the triangles' vector areas sum to zero, and their volume
+        // is close to the sphere's.
+        let total: Vec3 = m.triangles.iter().map(|t| area(&m, t)).sum();
+        assert!(total.length() < 1e-3, "{total}");
+        let volume: f32 = m
+            .triangles
+            .iter()
+            .map(|t| area(&m, t).dot(m.positions[t[0] as usize] - c) / 3.0)
+            .sum();
+        let exact = 4.0 / 3.0 * std::f32::consts::PI * 0.125;
+        assert!(
+            volume > 0.95 * exact && volume < exact,
+            "{volume} of {exact}"
+        );
+        assert!(
+            edges(&m)
+                .all(|(a, b)| { m.positions[a as usize].distance(m.positions[b as usize]) <= 0.1 })
+        );
+    }
+
+    #[test]
+    fn vertices_come_in_morton_order_and_a_finer_length_makes_more() {
+        let s = scene(&format!("{QUAD}{SPHERE}"));
+        let coarse = VertexMesh::tessellate(&s, 0.5).unwrap();
+        let fine = VertexMesh::tessellate(&s, 0.1).unwrap();
+        assert!(fine.vertex_count() > 8 * coarse.vertex_count());
+        // Morton order keeps neighbours near: consecutive vertices are on average far closer
+        // than two random ones.
+        let step: f32 = fine
+            .positions
+            .windows(2)
+            .map(|w| w[0].distance(w[1]))
+            .sum::<f32>()
+            / (fine.vertex_count() - 1) as f32;
+        assert!(step < 0.1, "mean step {step}");
+        assert!(VertexMesh::tessellate(&s, 0.0).is_err());
+        assert!(
+            VertexMesh::tessellate(&s, 1e-6).is_err(),
+            "too many vertices"
+        );
+    }
+}

@@ -1,0 +1,189 @@
+//! Per-vertex transport: one row per vertex of the tessellated scene, checked against a direct
+//! integration of the light at each vertex, written and read back with its mesh, refused where it
+//! does not apply, and driven from the command line.
+
+mod common;
+
+use common::{SPHERE_ON_PLANE, StFile, assets, prt, scene_from, temp_dir};
+use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::light::select::Weighting;
+use wavelet_prt::math::cubemap::{solid_angles, texel_dirs};
+use wavelet_prt::relight::{LightContext, Method, RelightRequest, relight};
+use wavelet_prt::scene::trace::Tracer;
+use wavelet_prt::store::transport::{TILE, Transport};
+
+fn per_vertex(edge: f32) -> BakeSettings {
+    BakeSettings {
+        cube_n: 8,
+        sh_order: 2,
+        lossless: true,
+        per_vertex: Some(edge),
+        ..BakeSettings::default()
+    }
+}
+
+#[test]
+fn per_vertex_rows_equal_the_light_integrated_at_each_vertex() {
+    let scene = scene_from(SPHERE_ON_PLANE, "per-vertex-reference");
+    let t = bake(&scene, &per_vertex(0.5), &|_| {}).unwrap();
+    let mesh = t.mesh.as_ref().expect("a per-vertex bake keeps its mesh");
+    let v = mesh.vertex_count();
+    // Both sides of the ground quad and the sphere.
+    assert!(v > 200, "{v} vertices");
+    assert_eq!(t.meta.per_vertex.as_ref().unwrap().vertices as usize, v);
+    assert_eq!(
+        (t.meta.width as usize, t.meta.height as usize),
+        (TILE, v.div_ceil(TILE))
+    );
+    let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
+    let rotation = EnvRotation::yaw(60.0);
+    let ctx = LightContext::new(&t).unwrap();
+    let light = ctx.prepare(&env, rotation).unwrap();
+    let req = RelightRequest {
+        method: Method::Full,
+        terms: 0,
+        weighting: Weighting::Unweighted,
+        sh_order: 2,
+    };
+    let (image, _) = relight(&t, &ctx, &light, &req).unwrap();
+    // The light at each vertex, integrated over the cube's texels directly: radiance x
+    // visibility x albedo/π x cos x solid angle, from just off the surface on its normal's side.
+    let cube = env.to_cube(8, rotation).unwrap();
+    let (dirs, omega) = (texel_dirs(8), solid_angles(8));
+    let tracer = Tracer::new(&scene);
+    let mut brightest = 0.0f32;
+    let mut worst = 0.0f32;
+    let mut dark = 0;
+    for i in 0..v {
+        let (p, n) = (mesh.positions[i], mesh.normals[i]);
+        let origin = p + n * tracer.spawn_offset();
+        let albedo = scene.materials[mesh.materials[i] as usize].albedo();
+        let mut want = [0.0f64; 3];
+        for (j, d) in dirs.iter().enumerate() {
+            let d = d.normalize().as_vec3();
+            let cos = n.dot(d);
+            if cos <= 0.0 || tracer.occluded(origin, d, f32::INFINITY) {
+                continue;
+            }
+            for k in 0..3 {
+                want[k] +=
+                    (cube.texels[j][k] * albedo[k] * cos) as f64 * omega[j] / std::f64::consts::PI;
+            }
+        }
+        dark += (want.iter().sum::<f64>() < 1e-3) as usize;
+        for k in 0..3 {
+            let got = image.pixels[i][k];
+            brightest = brightest.max(want[k] as f32);
+            worst = worst.max((got - want[k] as f32).abs());
+        }
+    }
+    assert!(brightest > 0.1, "{brightest}");
+    assert!(worst <= 1e-4 * brightest, "off by {worst} of {brightest}");
+    // The ground under the sphere and the ground's underside facing the lower sky: not all
+    // black, not all lit.
+    assert!(dark < v / 2, "{dark} dark vertices of {v}");
+    // The pixels past the last vertex hold nothing.
+    assert!(image.pixels[v..].iter().all(|p| *p == [0.0; 3]));
+    assert!(t.coverage[..v].iter().all(|&c| c == 1.0));
+    assert!(t.coverage[v..].iter().all(|&c| c == 0.0));
+}
+
+#[test]
+fn a_per_vertex_file_keeps_its_mesh_and_a_broken_mesh_is_refused() {
+    let scene = scene_from(SPHERE_ON_PLANE, "per-vertex-file");
+    let settings = BakeSettings {
+        lossless: false,
+        ..per_vertex(0.8)
+    };
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    let dir = temp_dir("per-vertex-file");
+    let path = dir.join("v.prt");
+    t.save(&path).unwrap();
+    let back = Transport::load(&path).unwrap();
+    assert_eq!(back, t);
+    // The cached bake is found again only with the same edge length.
+    assert!(wavelet_prt::bake::load_if_baked_with(&path, &scene, &settings).is_some());
+    let other = BakeSettings {
+        per_vertex: Some(0.7),
+        ..settings.clone()
+    };
+    assert!(wavelet_prt::bake::load_if_baked_with(&path, &scene, &other).is_none());
+    // A triangle pointing past the vertices, with the checksum made to agree: refused by name.
+    let mut file = StFile::read(&path);
+    let triangles = file.tensor_mut("mesh_triangle");
+    triangles[0..4].copy_from_slice(&u32::MAX.to_le_bytes());
+    let bad = dir.join("bad.prt");
+    file.write(&bad, true);
+    let e = Transport::load(&bad).unwrap_err().to_string();
+    assert!(e.contains("bad.prt") && e.contains("triangle"), "{e}");
+    // A normal that is not a unit vector.
+    let mut file = StFile::read(&path);
+    file.tensor_mut("mesh_normal")[0..4].copy_from_slice(&7.0f32.to_le_bytes());
+    file.write(&bad, true);
+    let e = Transport::load(&bad).unwrap_err().to_string();
+    assert!(e.contains("normal"), "{e}");
+}
+
+#[test]
+fn per_vertex_bakes_refuse_what_they_cannot_hold() {
+    let scene = scene_from(SPHERE_ON_PLANE, "per-vertex-refusals");
+    let bounced = BakeSettings {
+        bounces: 1,
+        ..per_vertex(0.5)
+    };
+    let e = bake(&scene, &bounced, &|_| {}).unwrap_err().to_string();
+    assert!(e.contains("per pixel only"), "{e}");
+    let e = bake(&scene, &per_vertex(f32::NAN), &|_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("edge length"), "{e}");
+    let e = bake(&scene, &per_vertex(1e-7), &|_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("too fine"), "{e}");
+    let fog = scene_from(&common::fog_scene(0.0, 8, 8), "per-vertex-fog");
+    let e = bake(&fog, &per_vertex(0.5), &|_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("[medium]"), "{e}");
+}
+
+#[test]
+fn prt_bake_per_vertex_reports_its_vertices_and_info_reads_them() {
+    let dir = temp_dir("per-vertex-cli");
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, format!("edge_length = 0.6\n{SPHERE_ON_PLANE}")).unwrap();
+    let out = dir.join("v.prt");
+    let (code, text) = prt(&[
+        "bake",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--per-vertex",
+        "--cube",
+        "8",
+    ]);
+    assert_eq!(code, 0, "{text}");
+    assert!(
+        text.contains("per vertex") && text.contains("edges up to 0.6000"),
+        "{text}"
+    );
+    let t = Transport::load(&out).unwrap();
+    assert_eq!(t.meta.per_vertex.as_ref().unwrap().edge_length, 0.6);
+    let (code, text) = prt(&["info", out.to_str().unwrap()]);
+    assert_eq!(code, 0, "{text}");
+    let v = t.mesh.as_ref().unwrap().vertex_count();
+    assert!(text.contains(&format!("{v} vertices")), "{text}");
+    // The edge length is for per-vertex bakes only.
+    let (code, text) = prt(&[
+        "bake",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--edge-length",
+        "0.3",
+    ]);
+    assert_ne!(code, 0);
+    assert!(text.contains("--per-vertex"), "{text}");
+}
