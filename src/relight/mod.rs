@@ -2,12 +2,14 @@
 //! prepared light ([`prepare`]) becomes its light terms ([`Terms::of`]), and a [`Backend`] runs
 //! them: the CPU kernels ([`cpu`]) or the wgpu kernels ([`gpu`]), with the same inputs, the same
 //! image and the same statistics. SH through the light ([`sh_light`]) and the environment behind
-//! the scene ([`background`]) complete what a relit frame needs.
+//! the scene ([`background`]) complete what a relit frame needs; [`raster`] draws a mesh with one
+//! relit colour per vertex from any camera.
 
 pub mod background;
 pub mod cpu;
 pub mod gpu;
 pub mod prepare;
+pub mod raster;
 pub mod sh_light;
 
 pub use cpu::{nonzeros_touched, relight_dense_reference, relight_sh, relight_wavelet};

@@ -14,7 +14,10 @@
 //! The transport is uploaded once. Matrices larger than the device's storage-binding limit are
 //! split by tiles into chunks, each with its own buffers and dispatch. Per relight, only the kept
 //! light terms (16 bytes each) and a few parameters go up.
+//!
+//! [`raster`] draws a mesh with one colour per vertex, read from such a buffer, from any camera.
 
+pub mod raster;
 mod readback;
 mod transport;
 
@@ -23,6 +26,7 @@ use wgpu::util::DeviceExt;
 use crate::error::{PrtError, Result};
 use crate::store::quant::BLOCK_ROWS;
 
+pub use raster::{GpuMesh, GpuRaster, upload_colours};
 use readback::Timer;
 pub use readback::map_and_read;
 pub(crate) use readback::wait_and_read;

@@ -1,0 +1,497 @@
+//! Drawing a mesh with one colour per vertex on the GPU (a wgpu render pipeline,
+//! `shaders/raster.wgsl`): the twin of the CPU rasteriser [`crate::relight::raster`], with the
+//! same camera, culling, near plane and interpolation, so the two give the same pixels but at
+//! exact edges.
+//!
+//! The colours come from a storage buffer of `vec4<f32>` per vertex (vertex `i` at index `i`, the
+//! layout of the relight's output image buffer when vertex `i` is its pixel `i`), so relit
+//! colours need not leave the GPU. [`GpuRaster::draw`] renders offscreen and reads the image and
+//! coverage back; [`GpuRaster::render`] draws into a caller's texture for display.
+//!
+//! Conventions: clip space comes from [`clip_from_world`] (NDC y up is the film's top row, as
+//! wgpu's viewport puts NDC y = 1 on row 0, so no flip is needed), depth is reversed (`NEAR / w`
+//! in Depth32Float, cleared to 0, `Greater` wins: the first of two equal depths stays, as on the
+//! CPU) and triangles counter-clockwise in NDC are front faces, which is the CPU's rule that the
+//! right-handed winding normal points at the eye.
+
+use wgpu::util::DeviceExt;
+
+use super::{Gpu, map_and_read};
+use crate::error::{PrtError, Result};
+use crate::output::film::Image;
+use crate::relight::raster::{Raster, check_mesh, clip_from_world};
+use crate::scene::Camera;
+use glam::Vec3;
+
+/// The colour target's format: linear RGB and coverage in alpha, unclamped.
+pub const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Bytes of one pixel of [`COLOUR_FORMAT`], and of one vertex's colour in a colour buffer.
+const TEXEL_BYTES: u32 = 16;
+
+/// A mesh resident on the GPU: positions (a vertex buffer of f32 x, y, z) and triangle indices.
+pub struct GpuMesh {
+    positions: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    vertices: u32,
+    index_count: u32,
+}
+
+impl GpuMesh {
+    /// Uploads a mesh, checked as [`check_mesh`] checks it (finite positions, indices in range).
+    pub fn new(gpu: &Gpu, positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<GpuMesh> {
+        check_mesh(positions, triangles, None)?;
+        let index_count = u32::try_from(triangles.len() * 3).map_err(|_| {
+            PrtError::invalid(
+                "triangles",
+                format!("{} triangles: too many to draw at once", triangles.len()),
+            )
+        })?;
+        let max = gpu.device.limits().max_buffer_size;
+        let bytes = (positions.len() as u64 * 12).max(index_count as u64 * 4);
+        if bytes > max {
+            return Err(PrtError::invalid(
+                "mesh",
+                format!("{bytes} bytes in one buffer; the device allows {max}"),
+            ));
+        }
+        // wgpu rejects empty initialised buffers for some uses: keep at least one element.
+        let buffer = |label, contents: &[u8], usage| {
+            let mut data = contents.to_vec();
+            data.resize(data.len().max(16), 0);
+            gpu.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents: &data,
+                    usage,
+                })
+        };
+        Ok(GpuMesh {
+            positions: buffer(
+                "raster positions",
+                bytemuck::cast_slice(positions),
+                wgpu::BufferUsages::VERTEX,
+            ),
+            indices: buffer(
+                "raster indices",
+                bytemuck::cast_slice(triangles),
+                wgpu::BufferUsages::INDEX,
+            ),
+            vertices: positions.len() as u32,
+            index_count,
+        })
+    }
+
+    /// Vertices of the mesh: a colour buffer needs one `vec4<f32>` for each.
+    pub fn vertex_count(&self) -> usize {
+        self.vertices as usize
+    }
+
+    /// Triangles of the mesh.
+    pub fn triangle_count(&self) -> usize {
+        self.index_count as usize / 3
+    }
+}
+
+/// Uploads per-vertex colours into a storage buffer of `vec4<f32>` (alpha 1), the layout
+/// [`GpuRaster::draw`] reads. Non-finite colours are an error.
+pub fn upload_colours(gpu: &Gpu, colours: &[[f32; 3]]) -> Result<wgpu::Buffer> {
+    if let Some(i) = colours
+        .iter()
+        .position(|c| c.iter().any(|v| !v.is_finite()))
+    {
+        return Err(PrtError::invalid(
+            format!("colours[{i}]"),
+            format!("must be finite, got {:?}", colours[i]),
+        ));
+    }
+    let (bytes, max) = (
+        colours.len() as u64 * TEXEL_BYTES as u64,
+        gpu.max_binding_bytes(),
+    );
+    if bytes > max {
+        return Err(PrtError::invalid(
+            "colours",
+            format!("{bytes} bytes; the device binds at most {max}"),
+        ));
+    }
+    let mut data: Vec<[f32; 4]> = colours.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
+    if data.is_empty() {
+        data.push([0.0; 4]);
+    }
+    Ok(gpu
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("raster colours"),
+            contents: bytemuck::cast_slice(&data),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        }))
+}
+
+/// The textures of one image size: the offscreen colour target, the depth buffer and the buffer
+/// the colours are read back through (rows padded to wgpu's copy alignment).
+struct Targets {
+    width: u32,
+    height: u32,
+    colour: wgpu::Texture,
+    depth: wgpu::TextureView,
+    readback: wgpu::Buffer,
+    row_bytes: u32,
+}
+
+impl Targets {
+    fn new(device: &wgpu::Device, width: u32, height: u32) -> Targets {
+        let size = wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        };
+        let texture = |label, format, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let colour = texture(
+            "raster colour",
+            COLOUR_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
+        let depth = texture(
+            "raster depth",
+            DEPTH_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        )
+        .create_view(&Default::default());
+        let row_bytes = (width * TEXEL_BYTES).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("raster readback"),
+            size: row_bytes as u64 * height as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Targets {
+            width,
+            height,
+            colour,
+            depth,
+            readback,
+            row_bytes,
+        }
+    }
+}
+
+/// The render pipeline of `shaders/raster.wgsl`, its view uniform, and the targets of the last
+/// image size drawn.
+pub struct GpuRaster {
+    pipeline: wgpu::RenderPipeline,
+    view: wgpu::Buffer,
+    targets: Option<Targets>,
+}
+
+impl GpuRaster {
+    /// Builds the pipeline on `gpu`'s device.
+    pub fn new(gpu: &Gpu) -> Result<GpuRaster> {
+        let device = &gpu.device;
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("raster"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/raster.wgsl").into()),
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("raster"),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vertex"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: 12,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode: Some(wgpu::Face::Back),
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Greater),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fragment"),
+                compilation_options: Default::default(),
+                targets: &[Some(COLOUR_FORMAT.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let view = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("raster view"),
+            size: 64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!("building the raster pipeline: {e}")));
+        }
+        Ok(GpuRaster {
+            pipeline,
+            view,
+            targets: None,
+        })
+    }
+
+    /// Draws `mesh` with per-vertex colours read from `colours` (a storage buffer of
+    /// `vec4<f32>`, vertex `i`'s colour at index `i`, at least one per vertex) as `camera` sees
+    /// it, offscreen, and reads the image (RGB) and coverage (alpha: 1 drawn, 0 not) back.
+    pub fn draw(
+        &mut self,
+        gpu: &Gpu,
+        camera: &Camera,
+        mesh: &GpuMesh,
+        colours: &wgpu::Buffer,
+    ) -> Result<Raster> {
+        self.check(gpu, camera, mesh, colours)?;
+        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        self.targets_for(gpu, camera);
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("raster"),
+            });
+        let t = self.targets.as_ref().expect("targets were just made");
+        let colour = t.colour.create_view(&Default::default());
+        self.encode(gpu, camera, mesh, colours, &colour, &mut encoder);
+        encoder.copy_texture_to_buffer(
+            t.colour.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &t.readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(t.row_bytes),
+                    rows_per_image: None,
+                },
+            },
+            t.colour.size(),
+        );
+        gpu.queue.submit([encoder.finish()]);
+        let (w, h, row) = (t.width as usize, t.height as usize, t.row_bytes as usize);
+        let (pixels, coverage) = map_and_read(&gpu.device, &t.readback, "the raster", |bytes| {
+            let mut pixels = Vec::with_capacity(w * h);
+            let mut coverage = Vec::with_capacity(w * h);
+            for y in 0..h {
+                let texels: &[[f32; 4]] =
+                    bytemuck::cast_slice(&bytes[y * row..y * row + w * TEXEL_BYTES as usize]);
+                for p in texels {
+                    pixels.push([p[0], p[1], p[2]]);
+                    coverage.push(p[3]);
+                }
+            }
+            (pixels, coverage)
+        })?;
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!("raster: {e}")));
+        }
+        let image = Image {
+            width: w,
+            height: h,
+            pixels,
+        };
+        image.check_finite("rasterised image")?;
+        Ok(Raster { image, coverage })
+    }
+
+    /// Draws as [`GpuRaster::draw`] does into `target`, a [`COLOUR_FORMAT`] texture of the
+    /// camera's size with render-attachment usage, without reading anything back: RGB the
+    /// colours, alpha the coverage, cleared first.
+    pub fn render(
+        &mut self,
+        gpu: &Gpu,
+        camera: &Camera,
+        mesh: &GpuMesh,
+        colours: &wgpu::Buffer,
+        target: &wgpu::Texture,
+    ) -> Result<()> {
+        self.check(gpu, camera, mesh, colours)?;
+        let size = target.size();
+        if (size.width, size.height) != (camera.width, camera.height)
+            || target.format() != COLOUR_FORMAT
+            || !target
+                .usage()
+                .contains(wgpu::TextureUsages::RENDER_ATTACHMENT)
+        {
+            return Err(PrtError::invalid(
+                "texture",
+                format!(
+                    "{}x{} {:?} with usage {:?}; expected {}x{} {COLOUR_FORMAT:?} with \
+                     RENDER_ATTACHMENT",
+                    size.width,
+                    size.height,
+                    target.format(),
+                    target.usage(),
+                    camera.width,
+                    camera.height
+                ),
+            ));
+        }
+        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("raster to texture"),
+            });
+        self.targets_for(gpu, camera);
+        let view = target.create_view(&Default::default());
+        self.encode(gpu, camera, mesh, colours, &view, &mut encoder);
+        gpu.queue.submit([encoder.finish()]);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!("raster to texture: {e}")));
+        }
+        Ok(())
+    }
+
+    /// What both draws check before recording anything: the camera, the device's texture size
+    /// limit, and a colour buffer with storage usage and a colour for every vertex.
+    fn check(
+        &self,
+        gpu: &Gpu,
+        camera: &Camera,
+        mesh: &GpuMesh,
+        colours: &wgpu::Buffer,
+    ) -> Result<()> {
+        camera.validate()?;
+        let limits = gpu.device.limits();
+        let max = limits.max_texture_dimension_2d;
+        let readback = (camera.width * TEXEL_BYTES)
+            .next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) as u64
+            * camera.height as u64;
+        if camera.width.max(camera.height) > max || readback > limits.max_buffer_size {
+            return Err(PrtError::invalid(
+                "camera",
+                format!(
+                    "{}x{} image; the device draws at most {max} pixels a side and reads back \
+                     at most {} bytes",
+                    camera.width, camera.height, limits.max_buffer_size
+                ),
+            ));
+        }
+        let need = mesh.vertices as u64 * TEXEL_BYTES as u64;
+        if colours.size() < need
+            || need > gpu.max_binding_bytes()
+            || !colours.usage().contains(wgpu::BufferUsages::STORAGE)
+        {
+            return Err(PrtError::invalid(
+                "colours",
+                format!(
+                    "a buffer of {} bytes with usage {:?}; {} vertices need {need} bytes of \
+                     vec4<f32> with STORAGE usage, in one binding of at most {}",
+                    colours.size(),
+                    colours.usage(),
+                    mesh.vertices,
+                    gpu.max_binding_bytes()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Makes the targets for the camera's image size, unless the last ones have that size.
+    fn targets_for(&mut self, gpu: &Gpu, camera: &Camera) {
+        let (w, h) = (camera.width, camera.height);
+        if self
+            .targets
+            .as_ref()
+            .is_none_or(|t| (t.width, t.height) != (w, h))
+        {
+            self.targets = Some(Targets::new(&gpu.device, w, h));
+        }
+    }
+
+    /// Records the render pass into `colour` (with the depth buffer of the current targets).
+    fn encode(
+        &self,
+        gpu: &Gpu,
+        camera: &Camera,
+        mesh: &GpuMesh,
+        colours: &wgpu::Buffer,
+        colour: &wgpu::TextureView,
+        encoder: &mut wgpu::CommandEncoder,
+    ) {
+        let m = clip_from_world(camera);
+        gpu.queue
+            .write_buffer(&self.view, 0, bytemuck::cast_slice(&m.to_cols_array()));
+        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("raster"),
+            layout: &self.pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.view.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    // The vertices' colours only: the buffer may hold more (checked to hold as
+                    // many), and an empty mesh still binds one.
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: colours,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(
+                            (mesh.vertices.max(1) as u64 * TEXEL_BYTES as u64).min(colours.size()),
+                        ),
+                    }),
+                },
+            ],
+        });
+        let depth = &self
+            .targets
+            .as_ref()
+            .expect("targets are made before encoding")
+            .depth;
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("raster"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: colour,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(0.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        if mesh.index_count == 0 {
+            return;
+        }
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.set_vertex_buffer(0, mesh.positions.slice(..));
+        pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+    }
+}

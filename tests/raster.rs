@@ -1,0 +1,526 @@
+//! The two rasterisers of per-vertex colours against each other: the GPU render pipeline
+//! (`relight::gpu::raster`) draws what the CPU's ray-exact twin (`relight::raster`) draws, for
+//! cameras inside a ground that reaches behind the eye, a sphere and a two-sided panel; the GPU
+//! culls the same faces; the coverage fits the environment behind. Also the CPU twin's speed on
+//! 200k triangles (ignored: run with `--ignored`, in release).
+//!
+//! Without an adapter the GPU tests print why and pass, unless `PRT_REQUIRE_GPU=1`, when they fail.
+
+mod common;
+
+use common::{Rng, gpu_or_skip};
+use glam::Vec3;
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::relight::background::{composite, environment_behind_camera};
+use wavelet_prt::relight::gpu::{Gpu, GpuMesh, GpuRaster, map_and_read, upload_colours};
+use wavelet_prt::relight::raster::{Raster, rasterize};
+use wavelet_prt::scene::Camera;
+
+/// A mesh: positions and triangles.
+#[derive(Default)]
+struct Mesh {
+    positions: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// Adds a triangle, wound so that its right-handed normal points along `outward`'s side.
+    fn push(&mut self, corners: [Vec3; 3], outward: Vec3) {
+        let [a, b, c] = corners;
+        let n = self.positions.len() as u32;
+        self.positions.extend(corners);
+        if (b - a).cross(c - a).dot(outward) >= 0.0 {
+            self.triangles.push([n, n + 1, n + 2]);
+        } else {
+            self.triangles.push([n, n + 2, n + 1]);
+        }
+    }
+
+    /// A `side`-metre square at height `y`, facing up, in `cells` x `cells` quads of shared
+    /// vertices.
+    fn ground(&mut self, side: f32, cells: u32, y: f32) {
+        let base = self.positions.len() as u32;
+        for j in 0..=cells {
+            for i in 0..=cells {
+                let (u, v) = (i as f32 / cells as f32, j as f32 / cells as f32);
+                self.positions
+                    .push(Vec3::new((u - 0.5) * side, y, (v - 0.5) * side));
+            }
+        }
+        let at = |i: u32, j: u32| base + j * (cells + 1) + i;
+        for j in 0..cells {
+            for i in 0..cells {
+                // (b − a) × (c − a) = +z × +x = +y.
+                self.triangles.push([at(i, j), at(i, j + 1), at(i + 1, j)]);
+                self.triangles
+                    .push([at(i + 1, j), at(i, j + 1), at(i + 1, j + 1)]);
+            }
+        }
+    }
+
+    /// A UV sphere of `rings` x `segments` quads with shared vertices, wound outwards.
+    fn sphere(&mut self, centre: Vec3, radius: f32, rings: u32, segments: u32) {
+        let base = self.positions.len() as u32;
+        for r in 0..=rings {
+            let theta = std::f32::consts::PI * r as f32 / rings as f32;
+            for s in 0..=segments {
+                let phi = std::f32::consts::TAU * s as f32 / segments as f32;
+                let d = Vec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.cos(),
+                    theta.sin() * phi.sin(),
+                );
+                self.positions.push(centre + radius * d);
+            }
+        }
+        let at = |r: u32, s: u32| base + r * (segments + 1) + s;
+        for r in 0..rings {
+            for s in 0..segments {
+                for tri in [
+                    [at(r, s), at(r + 1, s), at(r + 1, s + 1)],
+                    [at(r, s), at(r + 1, s + 1), at(r, s + 1)],
+                ] {
+                    let [a, b, c] = tri.map(|v| self.positions[v as usize]);
+                    let n = (b - a).cross(c - a);
+                    if n.length_squared() < 1e-12 {
+                        continue; // the poles' collapsed triangles
+                    }
+                    if n.dot(a + b + c - 3.0 * centre) > 0.0 {
+                        self.triangles.push(tri);
+                    } else {
+                        self.triangles.push([tri[0], tri[2], tri[1]]);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The test scene: a 20 m ground of 24 x 24 cells, a sphere resting on it, and a two-sided
+/// panel (two triangles of opposite windings on the same corners, with their own vertices).
+fn scene() -> Mesh {
+    let mut m = Mesh::default();
+    m.ground(20.0, 24, 0.0);
+    m.sphere(Vec3::new(0.0, 0.6, 0.0), 0.6, 16, 24);
+    let panel = [
+        Vec3::new(-1.6, 0.0, -0.8),
+        Vec3::new(-0.4, 0.0, -1.4),
+        Vec3::new(-1.0, 1.5, -1.1),
+    ];
+    let normal = (panel[1] - panel[0]).cross(panel[2] - panel[0]);
+    m.push(panel, normal);
+    m.push(panel, -normal);
+    m
+}
+
+/// Random colours in [0.2, 1.2) per channel, one per vertex.
+fn colours(n: usize, seed: u64) -> Vec<[f32; 3]> {
+    let mut rng = Rng::new(seed);
+    (0..n)
+        .map(|_| std::array::from_fn(|_| rng.range_f32(0.2, 1.2)))
+        .collect()
+}
+
+/// Cameras inside the ground (which reaches behind the eye and under it), looking at the sphere
+/// and panel from several sides and at several aspects.
+fn cameras() -> Vec<Camera> {
+    let cam = |eye: [f32; 3], target: [f32; 3], width, height| Camera {
+        eye: Vec3::from(eye),
+        target: Vec3::from(target),
+        up: Vec3::Y,
+        fov_y_deg: 55.0,
+        width,
+        height,
+    };
+    vec![
+        cam([3.0, 1.2, 4.0], [0.0, 0.6, 0.0], 160, 120),
+        cam([-2.5, 0.8, -3.5], [-0.5, 0.5, 0.0], 96, 128),
+        cam([0.4, 4.0, 1.5], [0.0, 0.0, -0.5], 128, 128),
+        cam([1.0, 0.3, 1.6], [0.0, 0.5, 0.0], 150, 100),
+    ]
+}
+
+/// How two rasters of one scene differ: pixels covered by one only, and pixels covered by both
+/// whose colours differ by more than `rel` (relative, per channel), out of all pixels.
+struct Difference {
+    coverage: usize,
+    colour: usize,
+    both: usize,
+    pixels: usize,
+    worst_agreeing: f32,
+    /// The first few pixels whose colours differ.
+    examples: Vec<String>,
+}
+
+fn compare(a: &Raster, b: &Raster, rel: f32) -> Difference {
+    let mut d = Difference {
+        coverage: 0,
+        colour: 0,
+        both: 0,
+        pixels: a.coverage.len(),
+        worst_agreeing: 0.0,
+        examples: Vec::new(),
+    };
+    for i in 0..a.coverage.len() {
+        let (ca, cb) = (a.coverage[i] == 1.0, b.coverage[i] == 1.0);
+        assert!(a.coverage[i] == 0.0 || ca, "coverage {}", a.coverage[i]);
+        assert!(b.coverage[i] == 0.0 || cb, "coverage {}", b.coverage[i]);
+        if ca != cb {
+            d.coverage += 1;
+            continue;
+        }
+        if !ca {
+            assert_eq!(a.image.pixels[i], [0.0; 3], "uncovered pixel {i}");
+            assert_eq!(b.image.pixels[i], [0.0; 3], "uncovered pixel {i}");
+            continue;
+        }
+        d.both += 1;
+        let (pa, pb) = (a.image.pixels[i], b.image.pixels[i]);
+        let err = (0..3)
+            .map(|k| (pa[k] - pb[k]).abs() / pb[k].abs())
+            .fold(0.0, f32::max);
+        if err > rel {
+            if d.examples.len() < 8 {
+                d.examples
+                    .push(format!("pixel {i}: {pa:?} vs {pb:?} ({err:.1e})"));
+            }
+            d.colour += 1;
+        } else {
+            d.worst_agreeing = d.worst_agreeing.max(err);
+        }
+    }
+    d
+}
+
+fn gpu_draw(gpu: &Gpu, cam: &Camera, mesh: &Mesh, colours: &[[f32; 3]]) -> Raster {
+    let m = GpuMesh::new(gpu, &mesh.positions, &mesh.triangles).unwrap();
+    let buffer = upload_colours(gpu, colours).unwrap();
+    GpuRaster::new(gpu)
+        .unwrap()
+        .draw(gpu, cam, &m, &buffer)
+        .unwrap()
+}
+
+/// Colours an affine function of position: what perspective-correct interpolation reproduces
+/// exactly at every hit point, whatever the triangle.
+fn affine_colours(positions: &[Vec3]) -> Vec<[f32; 3]> {
+    positions
+        .iter()
+        .map(|p| {
+            [
+                0.7 + 0.05 * p.x,
+                0.6 + 0.1 * p.y - 0.02 * p.z,
+                0.8 + 0.03 * p.z - 0.04 * p.x,
+            ]
+        })
+        .collect()
+}
+
+/// Draws the scene with `colours` from every camera on both rasterisers and bounds how many
+/// pixels differ: in coverage, or in colour by more than 1e-4 relative. Only pixels whose centres
+/// lie on an edge, to the rasterisers' precision, may differ in coverage or in which surface they
+/// show; `colour_slack` more may differ in colour by interpolation precision.
+fn check_against_cpu(gpu: &Gpu, mesh: &Mesh, colours: &[[f32; 3]], colour_slack: usize) {
+    let m = GpuMesh::new(gpu, &mesh.positions, &mesh.triangles).unwrap();
+    let buffer = upload_colours(gpu, colours).unwrap();
+    let mut raster = GpuRaster::new(gpu).unwrap();
+    for (k, cam) in cameras().iter().enumerate() {
+        let cpu = rasterize(cam, &mesh.positions, &mesh.triangles, colours).unwrap();
+        let dev = raster.draw(gpu, cam, &m, &buffer).unwrap();
+        let d = compare(&dev, &cpu, 1e-4);
+        eprintln!(
+            "camera {k}: {} of {} pixels covered by both; coverage differs on {}, colour on {}; \
+             worst agreeing colour {:.2e}",
+            d.both, d.pixels, d.coverage, d.colour, d.worst_agreeing
+        );
+        // The scene fills much of every view, the ground reaching the bottom rows.
+        assert!(d.both > d.pixels / 3, "camera {k}: {} covered", d.both);
+        // The edges' share: 0.1% of the pixels.
+        assert!(
+            (d.coverage + d.colour) * 1000 <= d.pixels + colour_slack * 1000,
+            "camera {k}: {} pixels differ in coverage, {} in colour, of {}: {:#?}",
+            d.coverage,
+            d.colour,
+            d.pixels,
+            d.examples
+        );
+    }
+}
+
+#[test]
+fn gpu_draws_what_the_cpu_draws() {
+    let Some(gpu) = gpu_or_skip("gpu_draws_what_the_cpu_draws") else {
+        return;
+    };
+    let mesh = scene();
+    check_against_cpu(&gpu, &mesh, &affine_colours(&mesh.positions), 0);
+}
+
+#[test]
+fn gpu_draws_what_the_cpu_draws_with_unrelated_vertex_colours() {
+    let Some(gpu) = gpu_or_skip("gpu_draws_what_the_cpu_draws_with_unrelated_vertex_colours")
+    else {
+        return;
+    };
+    // Each vertex its own random colour: a GPU interpolates over its triangle with corners
+    // snapped to its sub-pixel grid (1/256 pixel on llvmpipe and most hardware), so on triangles
+    // a few pixels wide with unrelated corner colours a few pixels differ by up to ~1e-3; allow
+    // 0.5% of the pixels in all.
+    let mesh = scene();
+    let colours = colours(mesh.positions.len(), 7);
+    let pixels = cameras().iter().map(|c| c.width * c.height).min().unwrap() as usize;
+    check_against_cpu(&gpu, &mesh, &colours, pixels * 4 / 1000);
+}
+
+#[test]
+fn gpu_culls_the_faces_the_cpu_culls() {
+    let Some(gpu) = gpu_or_skip("gpu_culls_the_faces_the_cpu_culls") else {
+        return;
+    };
+    let cam = &cameras()[0];
+    let corners = [
+        Vec3::new(-1.0, 0.2, 0.0),
+        Vec3::new(1.0, 0.2, 0.5),
+        Vec3::new(0.0, 1.4, 0.2),
+    ];
+    let towards_eye = cam.eye - corners[0];
+    let mut front = Mesh::default();
+    front.push(corners, towards_eye);
+    let mut back = Mesh::default();
+    back.push(corners, -towards_eye);
+    let flat = [[0.25, 0.5, 2.0]; 3];
+    let f = gpu_draw(&gpu, cam, &front, &flat);
+    let b = gpu_draw(&gpu, cam, &back, &flat);
+    let drawn = f.coverage.iter().filter(|&&c| c == 1.0).count();
+    assert!(drawn > 300, "{drawn} pixels of the front face");
+    assert!(b.coverage.iter().all(|&c| c == 0.0), "the back face drew");
+    // A flat colour comes out flat (to the rounding of barycentrics that sum to about 1).
+    for (p, &c) in f.image.pixels.iter().zip(&f.coverage) {
+        let want = if c == 1.0 { flat[0] } else { [0.0; 3] };
+        for k in 0..3 {
+            assert!(
+                (p[k] - want[k]).abs() <= 1e-6 * want[k],
+                "{p:?} for {want:?}"
+            );
+        }
+    }
+    let cpu = rasterize(cam, &front.positions, &front.triangles, &flat).unwrap();
+    let d = compare(&f, &cpu, 0.0);
+    assert!(d.coverage <= 20, "{} pixels differ", d.coverage);
+}
+
+#[test]
+fn gpu_clips_at_the_cpu_near_plane() {
+    let Some(gpu) = gpu_or_skip("gpu_clips_at_the_cpu_near_plane") else {
+        return;
+    };
+    // A floor 0.2 mm under the eye: the bottom rows meet it nearer than NEAR (1 mm), the rows
+    // between them and the horizon farther.
+    let cam = Camera {
+        eye: Vec3::ZERO,
+        target: Vec3::NEG_Z,
+        up: Vec3::Y,
+        fov_y_deg: 50.0,
+        width: 20,
+        height: 40,
+    };
+    let mut floor = Mesh::default();
+    let y = -2e-4;
+    floor.push(
+        [
+            Vec3::new(-5.0, y, 5.0),
+            Vec3::new(5.0, y, 5.0),
+            Vec3::new(0.0, y, -50.0),
+        ],
+        Vec3::Y,
+    );
+    let flat = [[1.0; 3]; 3];
+    let dev = gpu_draw(&gpu, &cam, &floor, &flat);
+    let cpu = rasterize(&cam, &floor.positions, &floor.triangles, &flat).unwrap();
+    let rows = |r: &Raster| -> Vec<f32> { r.coverage.chunks(20).map(|c| c.iter().sum()).collect() };
+    assert_eq!(rows(&dev), rows(&cpu));
+    assert_eq!(rows(&cpu)[28], 20.0);
+    assert_eq!(rows(&cpu)[29], 0.0);
+    // Rolled, the near plane crosses the film aslant.
+    let rolled = Camera {
+        up: Vec3::new(0.5, 1.0, 0.0),
+        ..cam
+    };
+    let dev = gpu_draw(&gpu, &rolled, &floor, &flat);
+    let cpu = rasterize(&rolled, &floor.positions, &floor.triangles, &flat).unwrap();
+    let d = compare(&dev, &cpu, 1e-6);
+    assert!(
+        d.coverage + d.colour <= 2,
+        "{} + {} pixels differ",
+        d.coverage,
+        d.colour
+    );
+    assert!(d.both > 100, "{} pixels drawn", d.both);
+}
+
+#[test]
+fn gpu_renders_into_a_texture_what_it_reads_back() {
+    let Some(gpu) = gpu_or_skip("gpu_renders_into_a_texture_what_it_reads_back") else {
+        return;
+    };
+    let mesh = scene();
+    let colours = colours(mesh.positions.len(), 3);
+    let cam = &cameras()[1];
+    let m = GpuMesh::new(&gpu, &mesh.positions, &mesh.triangles).unwrap();
+    let buffer = upload_colours(&gpu, &colours).unwrap();
+    let mut raster = GpuRaster::new(&gpu).unwrap();
+    let drawn = raster.draw(&gpu, cam, &m, &buffer).unwrap();
+    let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d {
+            width: cam.width,
+            height: cam.height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba32Float,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    raster.render(&gpu, cam, &m, &buffer, &texture).unwrap();
+    let row = (cam.width * 16).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+    let readback = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: (row * cam.height) as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    encoder.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &readback,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: None,
+            },
+        },
+        texture.size(),
+    );
+    gpu.queue.submit([encoder.finish()]);
+    let w = cam.width as usize;
+    let texels = map_and_read(&gpu.device, &readback, "test texture", |bytes| {
+        (0..cam.height as usize)
+            .flat_map(|y| {
+                bytemuck::cast_slice::<u8, [f32; 4]>(&bytes[y * row as usize..][..w * 16]).to_vec()
+            })
+            .collect::<Vec<_>>()
+    })
+    .unwrap();
+    for (i, t) in texels.iter().enumerate() {
+        assert_eq!([t[0], t[1], t[2]], drawn.image.pixels[i], "pixel {i}");
+        assert_eq!(t[3], drawn.coverage[i], "pixel {i}");
+    }
+    // A texture of the wrong size or format is refused.
+    let small = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d {
+            width: 8,
+            height: 8,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba32Float,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        view_formats: &[],
+    });
+    let e = raster.render(&gpu, cam, &m, &buffer, &small).unwrap_err();
+    assert!(e.to_string().contains("texture"), "{e}");
+}
+
+#[test]
+fn gpu_refuses_bad_meshes_and_colour_buffers() {
+    let Some(gpu) = gpu_or_skip("gpu_refuses_bad_meshes_and_colour_buffers") else {
+        return;
+    };
+    let mesh = scene();
+    let e = GpuMesh::new(&gpu, &mesh.positions[..3], &mesh.triangles)
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("out of range"), "{e}");
+    let m = GpuMesh::new(&gpu, &mesh.positions, &mesh.triangles).unwrap();
+    let short = upload_colours(&gpu, &colours(mesh.positions.len() - 1, 1)).unwrap();
+    let mut raster = GpuRaster::new(&gpu).unwrap();
+    let e = raster.draw(&gpu, &cameras()[0], &m, &short).unwrap_err();
+    assert!(e.to_string().contains("colours"), "{e}");
+    assert!(upload_colours(&gpu, &[[f32::NAN, 0.0, 0.0]]).is_err());
+    let bad = Camera {
+        fov_y_deg: 180.0,
+        ..cameras()[0].clone()
+    };
+    let full = upload_colours(&gpu, &colours(mesh.positions.len(), 1)).unwrap();
+    assert!(raster.draw(&gpu, &bad, &m, &full).is_err());
+    // A buffer with more colours than vertices (a relit image larger than the mesh) is drawn
+    // from its start.
+    let n = mesh.positions.len();
+    let long = upload_colours(&gpu, &colours(n + 37, 1)).unwrap();
+    let a = raster.draw(&gpu, &cameras()[0], &m, &full).unwrap();
+    let b = raster.draw(&gpu, &cameras()[0], &m, &long).unwrap();
+    assert_eq!(a, b);
+    // An empty mesh draws nothing.
+    let empty = GpuMesh::new(&gpu, &[], &[]).unwrap();
+    let r = raster.draw(&gpu, &cameras()[0], &empty, &full).unwrap();
+    assert!(r.coverage.iter().all(|&c| c == 0.0));
+}
+
+#[test]
+fn the_environment_shows_where_the_raster_leaves_the_film_open() {
+    let mesh = scene();
+    let cam = &cameras()[0];
+    let flat = vec![[0.5, 0.25, 0.125]; mesh.positions.len()];
+    let r = rasterize(cam, &mesh.positions, &mesh.triangles, &flat).unwrap();
+    let env = EnvMap::constant(32, 16, [4.0, 4.0, 4.0]);
+    let behind = environment_behind_camera(cam, &r.coverage, &env, EnvRotation::yaw(20.0)).unwrap();
+    let frame = composite(&r.image, &behind);
+    let open = r.coverage.iter().filter(|&&c| c == 0.0).count();
+    assert!(open > 100, "{open} open pixels");
+    for (p, &c) in frame.pixels.iter().zip(&r.coverage) {
+        assert_eq!(*p, if c == 1.0 { flat[0] } else { [4.0; 3] });
+    }
+}
+
+/// The CPU twin on ~200k triangles at 256 x 256: prints the median of several runs.
+#[test]
+#[ignore = "a timing: run with --release -- --ignored --nocapture"]
+fn cpu_raster_speed() {
+    let mut mesh = Mesh::default();
+    mesh.ground(20.0, 100, 0.0);
+    mesh.sphere(Vec3::new(0.0, 1.0, 0.0), 1.0, 220, 400);
+    let colours = colours(mesh.positions.len(), 5);
+    let cam = Camera {
+        eye: Vec3::new(2.5, 1.6, 3.0),
+        target: Vec3::new(0.0, 0.8, 0.0),
+        up: Vec3::Y,
+        fov_y_deg: 55.0,
+        width: 256,
+        height: 256,
+    };
+    let mut times = Vec::new();
+    let mut covered = 0.0;
+    for _ in 0..15 {
+        let start = std::time::Instant::now();
+        let r = rasterize(&cam, &mesh.positions, &mesh.triangles, &colours).unwrap();
+        times.push(start.elapsed().as_secs_f64());
+        covered = r.coverage.iter().sum::<f32>();
+    }
+    times.sort_by(f64::total_cmp);
+    eprintln!(
+        "{} triangles at 256 x 256 on {} threads: median {:.2} ms (min {:.2}, max {:.2}); \
+         {covered} pixels covered",
+        mesh.triangles.len(),
+        rayon::current_num_threads(),
+        times[times.len() / 2] * 1e3,
+        times[0] * 1e3,
+        times[times.len() - 1] * 1e3,
+    );
+}
