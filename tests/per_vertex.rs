@@ -187,3 +187,148 @@ fn prt_bake_per_vertex_reports_its_vertices_and_info_reads_them() {
     assert_ne!(code, 0);
     assert!(text.contains("--per-vertex"), "{text}");
 }
+
+/// A per-vertex bake of the sphere on the ground, relit under sunrise with every term: the
+/// transport and its vertex colours.
+fn relit_sphere(name: &str, edge: f32) -> (Transport, Vec<[f32; 3]>) {
+    let scene = scene_from(SPHERE_ON_PLANE, name);
+    let t = bake(&scene, &per_vertex(edge), &|_| {}).unwrap();
+    let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
+    let ctx = LightContext::new(&t).unwrap();
+    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
+    let req = RelightRequest {
+        method: Method::Wavelet,
+        terms: 100,
+        weighting: Weighting::Transport,
+        sh_order: 2,
+    };
+    let (image, _) = relight(&t, &ctx, &light, &req).unwrap();
+    let colours = wavelet_prt::relight::vertex::vertex_colours(&t, &image)
+        .unwrap()
+        .to_vec();
+    (t, colours)
+}
+
+#[test]
+fn the_orbit_moves_the_image_but_not_the_vertex_colours() {
+    use wavelet_prt::relight::vertex::{bake_camera, draw, orbit};
+    let (t, colours) = relit_sphere("per-vertex-orbit", 0.3);
+    let camera = bake_camera(&t).unwrap();
+    assert_eq!((camera.width, camera.height), (37, 21));
+    let front = draw(&t, &colours, &camera, None).unwrap();
+    let side = draw(&t, &colours, &orbit(&camera, 90.0, 0.0), None).unwrap();
+    // The colours are the relight's, whatever the camera: drawn again from the front after the
+    // turn, the image is the same.
+    let again = draw(&t, &colours, &camera, None).unwrap();
+    assert_eq!(front, again);
+    let moved = front
+        .image
+        .pixels
+        .iter()
+        .zip(&side.image.pixels)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        moved > front.image.pixels.len() / 4,
+        "{moved} pixels changed"
+    );
+    // Every drawn pixel lies within the range of the vertex colours (Gouraud interpolates).
+    let hi = colours.iter().flatten().fold(0.0f32, |a, &b| a.max(b));
+    for (p, c) in side.image.pixels.iter().zip(&side.coverage) {
+        assert!(
+            p.iter().all(|&v| v >= 0.0 && v <= hi * (1.0 + 1e-5)),
+            "{p:?}"
+        );
+        assert!(*c == 0.0 || *c == 1.0);
+    }
+}
+
+#[test]
+fn a_flat_lit_per_vertex_bake_draws_its_one_colour_everywhere_it_covers() {
+    // Unshadowed, under constant light, every up-facing vertex of a plane has albedo x L.
+    let scene = scene_from(
+        &common::plane_from_above(16, 16, [0.5, 0.25, 0.125], 1.0),
+        "per-vertex-flat",
+    );
+    let settings = BakeSettings {
+        unshadowed: true,
+        ..per_vertex(0.4)
+    };
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    let env = EnvMap::constant(64, 32, [2.0, 2.0, 2.0]);
+    let ctx = LightContext::new(&t).unwrap();
+    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
+    let req = RelightRequest {
+        method: Method::Full,
+        terms: 0,
+        weighting: Weighting::Unweighted,
+        sh_order: 2,
+    };
+    let (image, _) = relight(&t, &ctx, &light, &req).unwrap();
+    let colours = wavelet_prt::relight::vertex::vertex_colours(&t, &image).unwrap();
+    let camera = wavelet_prt::relight::vertex::bake_camera(&t).unwrap();
+    let drawn = wavelet_prt::relight::vertex::draw(&t, colours, &camera, None).unwrap();
+    // albedo x L, within the cosine's discretisation over the texels of a 6x8² cube (0.52%).
+    let want = [1.0f32, 0.5, 0.25];
+    let mesh = t.mesh.as_ref().unwrap();
+    for (c, n) in colours.iter().zip(&mesh.normals) {
+        if n.y > 0.0 {
+            for k in 0..3 {
+                assert!((c[k] - want[k]).abs() < 1e-2 * want[k], "{c:?}");
+            }
+        }
+    }
+    // The camera looks down on the plane's top: the drawn pixels are the top's colours, exactly
+    // interpolated between equal values.
+    let covered = drawn.coverage.iter().filter(|&&c| c == 1.0).count();
+    assert_eq!(covered, 16 * 16);
+    let top = colours[mesh.normals.iter().position(|n| n.y > 0.0).unwrap()];
+    for p in &drawn.image.pixels {
+        for k in 0..3 {
+            assert!(
+                (p[k] - top[k]).abs() <= 1e-5 * top[k],
+                "{p:?} against {top:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_gpu_draws_a_per_vertex_bake_as_the_cpu_does() {
+    use wavelet_prt::relight::gpu::{GpuMesh, GpuRaster, upload_colours};
+    use wavelet_prt::relight::vertex::{bake_camera, orbit};
+    let Some(gpu) = common::gpu_or_skip("the_gpu_draws_a_per_vertex_bake_as_the_cpu_does") else {
+        return;
+    };
+    let (t, colours) = relit_sphere("per-vertex-gpu", 0.3);
+    let mesh = t.mesh.as_ref().unwrap();
+    let g = GpuMesh::new(&gpu, &mesh.positions, &mesh.triangles).unwrap();
+    let c = upload_colours(&gpu, &colours).unwrap();
+    let mut raster = GpuRaster::new(&gpu).unwrap();
+    for az in [0.0, 135.0] {
+        let mut camera = orbit(&bake_camera(&t).unwrap(), az, 10.0);
+        (camera.width, camera.height) = (96, 64);
+        let cpu = wavelet_prt::relight::raster::rasterize(
+            &camera,
+            &mesh.positions,
+            &mesh.triangles,
+            &colours,
+        )
+        .unwrap();
+        let gpu_drawn = raster.draw(&gpu, &camera, &g, &c).unwrap();
+        let hi = colours.iter().flatten().fold(0.0f32, |a, &b| a.max(b));
+        let differ = (0..cpu.coverage.len())
+            .filter(|&i| {
+                cpu.coverage[i] != gpu_drawn.coverage[i]
+                    || (0..3).any(|k| {
+                        (cpu.image.pixels[i][k] - gpu_drawn.image.pixels[i][k]).abs() > 1e-4 * hi
+                    })
+            })
+            .count();
+        // Silhouette pixels where the two pick different surfaces at a tie, at most.
+        assert!(
+            differ <= cpu.coverage.len() / 200,
+            "{differ} pixels differ at {az}°"
+        );
+    }
+}

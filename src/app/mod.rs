@@ -6,6 +6,7 @@ pub mod bench;
 #[cfg(feature = "app")]
 pub mod cli;
 pub mod demo;
+pub mod orbit;
 pub mod paper;
 #[cfg(feature = "app")]
 pub mod viewer;

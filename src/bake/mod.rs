@@ -519,6 +519,7 @@ pub fn bake(
             edge_length: settings.per_vertex.unwrap_or_default(),
             vertices: m.vertex_count() as u32,
             triangles: m.triangles.len() as u32,
+            image: [cam.width, cam.height],
         }),
         stats: BakeStats::default(),
     };

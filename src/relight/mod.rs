@@ -11,6 +11,7 @@ pub mod gpu;
 pub mod prepare;
 pub mod raster;
 pub mod sh_light;
+pub mod vertex;
 
 pub use cpu::{nonzeros_touched, relight_dense_reference, relight_sh, relight_wavelet};
 pub use prepare::{LightContext, PreparedLight};

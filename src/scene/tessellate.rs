@@ -35,6 +35,15 @@ pub struct VertexMesh {
 }
 
 impl VertexMesh {
+    /// The edge length of a per-vertex bake when none is given: the scene's `edge_length`, else
+    /// 1/160 of the diagonal of its bounds (about 100,000 vertices for the demo scene).
+    pub fn default_edge_length(scene: &Scene) -> f32 {
+        scene.edge_length.unwrap_or_else(|| {
+            let (lo, hi) = scene.bounds();
+            ((hi - lo).length() / 160.0).max(1e-6)
+        })
+    }
+
     /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
         self.positions.len()

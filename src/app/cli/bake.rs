@@ -43,15 +43,6 @@ pub struct BakeArgs {
     pub edge_length: Option<f32>,
 }
 
-/// The edge length of a per-vertex bake when none is given: the scene's `edge_length`, else
-/// 1/160 of the diagonal of its bounds (about 100,000 vertices for the demo scene).
-pub(super) fn default_edge_length(scene: &Scene) -> f32 {
-    scene.edge_length.unwrap_or_else(|| {
-        let (lo, hi) = scene.bounds();
-        ((hi - lo).length() / 160.0).max(1e-6)
-    })
-}
-
 fn available_memory_bytes() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
@@ -78,7 +69,9 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
     crate::files::check_output(&a.output, &["prt"], "a transport file", &[])?;
     let scene = Scene::load(&a.scene)?;
     let mesh = if a.per_vertex {
-        let edge = a.edge_length.unwrap_or_else(|| default_edge_length(&scene));
+        let edge = a
+            .edge_length
+            .unwrap_or_else(|| crate::scene::tessellate::VertexMesh::default_edge_length(&scene));
         settings.per_vertex = Some(edge);
         settings.validate()?;
         Some(crate::scene::tessellate::VertexMesh::tessellate(
@@ -330,7 +323,14 @@ pub(super) fn paper(out: PathBuf) -> Result<()> {
             if p.pixels_total == 0 {
                 return;
             }
-            let b = guard.get_or_insert_with(|| progress_bar(p.pixels_total));
+            // One bar per bake: the per-pixel one, then the per-vertex one.
+            if guard
+                .as_ref()
+                .is_none_or(|b| b.length() != Some(p.pixels_total as u64))
+            {
+                *guard = Some(progress_bar(p.pixels_total));
+            }
+            let Some(b) = guard.as_mut() else { return };
             b.set_length(p.pixels_total as u64);
             b.set_position(p.pixels_done as u64);
             if p.pixels_done == p.pixels_total {
@@ -354,7 +354,14 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
     let report =
         crate::app::demo::run_demo(&out, &mut |line| eprintln!("{line}"), &|p: BakeProgress| {
             let mut guard = bar.lock().unwrap_or_else(|e| e.into_inner());
-            let b = guard.get_or_insert_with(|| progress_bar(p.pixels_total));
+            // One bar per bake: the per-pixel one, then the per-vertex one.
+            if guard
+                .as_ref()
+                .is_none_or(|b| b.length() != Some(p.pixels_total as u64))
+            {
+                *guard = Some(progress_bar(p.pixels_total));
+            }
+            let Some(b) = guard.as_mut() else { return };
             b.set_position(p.pixels_done as u64);
             if p.pixels_done == p.pixels_total {
                 b.finish_and_clear();
@@ -370,6 +377,17 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
     println!("contact sheet  {}", report.sheet_path.display());
     println!("table          {}", report.table_path.display());
     println!("transport      {}", report.transport_path.display());
+    let o = &report.orbit;
+    println!(
+        "orbit          {} ({} vertices baked in {:.1} s; a frame at K = {} in {:.1} ms on the \
+         CPU; {:.1}% from the per-pixel bake)",
+        o.sheet_path.display(),
+        o.vertices,
+        o.bake_seconds,
+        crate::app::orbit::ORBIT_TERMS,
+        o.frame_ms,
+        100.0 * o.interpolation_error
+    );
     println!(
         "volume         {} (SH self-transfer baked in {:.2} s; images in {})",
         out.join("volume_sheet.png").display(),

@@ -39,6 +39,49 @@ pub struct RelightArgs {
     /// with it) or black.
     #[arg(long, default_value = "env", value_parser = Background::from_str)]
     pub background: Background,
+    #[command(flatten)]
+    pub view: StillArgs,
+}
+
+/// Where a per-vertex bake is seen from (a per-pixel bake's view is fixed).
+#[derive(Args, Debug, Clone, Copy, Default)]
+pub struct StillArgs {
+    /// Per-vertex bakes: camera position X,Y,Z (default: the scene's camera).
+    #[arg(long, value_parser = super::volume::parse_vec3, allow_negative_numbers = true)]
+    pub eye: Option<glam::Vec3>,
+    /// Per-vertex bakes: the point the camera looks at, X,Y,Z (default: the scene's target).
+    #[arg(long, value_parser = super::volume::parse_vec3, allow_negative_numbers = true)]
+    pub target: Option<glam::Vec3>,
+    /// Per-vertex bakes: image width (default: the scene's).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Per-vertex bakes: image height (default: the scene's).
+    #[arg(long)]
+    pub height: Option<u32>,
+}
+
+impl StillArgs {
+    /// The camera of a still of `t`: the bake's camera with what was given replaced; an error
+    /// for a per-pixel bake given any of it.
+    pub fn camera(&self, t: &Transport) -> Result<Option<crate::scene::Camera>> {
+        let given = self.eye.is_some()
+            || self.target.is_some()
+            || self.width.is_some()
+            || self.height.is_some();
+        if t.mesh.is_none() {
+            if given {
+                crate::relight::vertex::mesh_of(t)?;
+            }
+            return Ok(None);
+        }
+        let mut c = crate::relight::vertex::bake_camera(t)?;
+        c.eye = self.eye.unwrap_or(c.eye);
+        c.target = self.target.unwrap_or(c.target);
+        c.width = self.width.unwrap_or(c.width);
+        c.height = self.height.unwrap_or(c.height);
+        c.validate()?;
+        Ok(Some(c))
+    }
 }
 
 #[derive(Args, Debug)]
@@ -116,6 +159,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         Device::Gpu => Some(crate::relight::gpu::Gpu::new()?),
     };
     let t = Transport::load(&a.file)?;
+    let still = a.view.camera(&t)?;
     if let Some(o) = a.sh_order
         && method != Method::ShLight
     {
@@ -151,16 +195,45 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
             crate::relight::gpu::GpuBackend::new(gpu, &g, &t)?.relight(&ctx, &light, &req)?
         }
     };
+    // A per-vertex bake's image holds its vertex colours: drawn from the camera asked for.
+    let (img, coverage) = match &still {
+        Some(camera) => {
+            let colours = crate::relight::vertex::vertex_colours(&t, &img)?;
+            let mesh = crate::relight::vertex::mesh_of(&t)?;
+            let r = match &gpu {
+                None => crate::relight::raster::rasterize(
+                    camera,
+                    &mesh.positions,
+                    &mesh.triangles,
+                    colours,
+                )?,
+                Some(gpu) => {
+                    use crate::relight::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
+                    let m = GpuMesh::new(gpu, &mesh.positions, &mesh.triangles)?;
+                    let c = upload_colours(gpu, colours)?;
+                    GpuRaster::new(gpu)?.draw(gpu, camera, &m, &c)?
+                }
+            };
+            (r.image, r.coverage)
+        }
+        None => (img, t.coverage.clone()),
+    };
     let tone = match a.exposure {
         Some(e) => ToneMap::exposure(e),
-        None => ToneMap::auto(&img, Some(&t.coverage)),
+        None => ToneMap::auto(&img, Some(&coverage)),
     };
-    let img = match background {
-        Background::Environment => crate::relight::background::composite(
+    let img = match (background, &still) {
+        (Background::Black, _) => img,
+        (Background::Environment, Some(camera)) => crate::relight::background::composite(
             &img,
-            &crate::relight::background::environment_behind(&t.meta, &t.coverage, &env, rotation)?,
+            &crate::relight::background::environment_behind_camera(
+                camera, &coverage, &env, rotation,
+            )?,
         ),
-        Background::Black => img,
+        (Background::Environment, None) => crate::relight::background::composite(
+            &img,
+            &crate::relight::background::environment_behind(&t.meta, &coverage, &env, rotation)?,
+        ),
     };
     img.save(&a.output, tone)?;
     println!(

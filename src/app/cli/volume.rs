@@ -62,7 +62,7 @@ pub struct VolumeRenderArgs {
     pub exposure: Option<f32>,
 }
 
-fn parse_vec3(s: &str) -> std::result::Result<glam::Vec3, String> {
+pub(super) fn parse_vec3(s: &str) -> std::result::Result<glam::Vec3, String> {
     let v: Vec<f32> = s
         .split(',')
         .map(|x| x.trim().parse::<f32>())

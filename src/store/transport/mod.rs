@@ -151,6 +151,9 @@ pub struct PerVertexMeta {
     pub vertices: u32,
     /// Triangles of the mesh.
     pub triangles: u32,
+    /// Width and height of the scene camera's image: the size a still is drawn at unless asked
+    /// otherwise.
+    pub image: [u32; 2],
 }
 
 /// Everything about a transport file but its arrays.
@@ -533,6 +536,9 @@ impl Transport {
         }
         if !(pv.edge_length.is_finite() && pv.edge_length > 0.0) {
             return Err(format!("edge length {}", pv.edge_length));
+        }
+        if pv.image.iter().any(|&s| s == 0 || s > 16384) {
+            return Err(format!("image size {:?}", pv.image));
         }
         if let Some(p) = mesh.problem(u32::MAX as usize) {
             return Err(format!("mesh: {p}"));

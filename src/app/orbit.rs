@@ -1,0 +1,215 @@
+//! The demo's orbit: the demo scene baked per vertex (at the default edge length), relit under
+//! one environment and drawn from four camera angles around it, then compared from the scene's
+//! own camera with the per-pixel bake: what interpolating between vertices costs, apart from the
+//! light's approximation. Also times a frame as the viewer makes it: relight at K terms, then
+//! draw.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::bake::{BakeProgress, BakeSettings, bake, load_if_baked_with};
+use crate::error::{PrtError, Result};
+use crate::light::envmap::{EnvMap, EnvRotation};
+use crate::output::film::{Image, ToneMap};
+use crate::output::metrics::relative_l2;
+use crate::output::sheet::{Cell, downsample, write_sheet};
+use crate::relight::vertex::{bake_camera, compose, orbit, vertex_colours};
+use crate::relight::{LightContext, Method, RelightRequest, relight};
+use crate::scene::Scene;
+use crate::scene::tessellate::VertexMesh;
+use crate::store::transport::Transport;
+
+/// Kept terms of the orbit's frames, as in the viewer's first frame.
+pub const ORBIT_TERMS: usize = 100;
+/// Azimuths of the orbit sheet's four views, degrees about +Y from the scene's camera.
+pub const ORBIT_AZIMUTHS: [f32; 4] = [0.0, 90.0, 180.0, 270.0];
+
+/// What the orbit produced.
+pub struct OrbitReport {
+    pub vertices: usize,
+    pub triangles: usize,
+    pub edge_length: f32,
+    pub bake_seconds: f64,
+    pub reused_bake: bool,
+    /// Median over a few frames at [`ORBIT_TERMS`] terms, on the CPU: the relight, the
+    /// drawing, and both.
+    pub relight_ms: f64,
+    pub draw_ms: f64,
+    pub frame_ms: f64,
+    /// From the scene's camera, every term: the per-vertex image against the per-pixel one, over
+    /// the pixels both cover with one diffuse row (glossy surfaces left out), relative L2.
+    pub interpolation_error: f64,
+    /// Relative L2 of [`ORBIT_TERMS`] terms against every term, per vertex.
+    pub light_error: f64,
+    pub sheet_path: PathBuf,
+}
+
+/// Bakes (or reuses) `scene` per vertex into `dir/demo_vertices.prt` with `settings` at the
+/// default edge length, relights it under `env`, writes `dir/orbit_sheet.png`, and compares it
+/// with `per_pixel`, the same scene's per-pixel bake.
+pub fn run_orbit(
+    dir: &Path,
+    scene: &Scene,
+    settings: &BakeSettings,
+    per_pixel: &Transport,
+    env: (&str, &EnvMap),
+    log: &mut dyn FnMut(&str),
+    progress: &(dyn Fn(BakeProgress) + Sync),
+) -> Result<OrbitReport> {
+    let settings = BakeSettings {
+        per_vertex: Some(VertexMesh::default_edge_length(scene)),
+        ..settings.clone()
+    };
+    let path = dir.join("demo_vertices.prt");
+    let start = Instant::now();
+    let (t, reused_bake) = match load_if_baked_with(&path, scene, &settings) {
+        Some(t) => (t, true),
+        None => {
+            log(&format!(
+                "baking {} per vertex (edges up to {:.3}) ...",
+                scene.source_path.display(),
+                settings.per_vertex.unwrap_or_default()
+            ));
+            let t = bake(scene, &settings, progress)?;
+            t.save(&path)?;
+            (t, false)
+        }
+    };
+    let bake_seconds = start.elapsed().as_secs_f64();
+    let pv = t
+        .meta
+        .per_vertex
+        .clone()
+        .ok_or_else(|| PrtError::invalid("orbit", "the bake is not per vertex"))?;
+    let (name, env) = env;
+    let rotation = EnvRotation::default();
+    let ctx = LightContext::new(&t)?;
+    let light = ctx.prepare(env, rotation)?;
+    let full_req = RelightRequest {
+        method: Method::Full,
+        terms: 0,
+        weighting: crate::app::demo::DEMO_WEIGHTING,
+        sh_order: settings.sh_order,
+    };
+    let k_req = RelightRequest {
+        method: Method::Wavelet,
+        terms: ORBIT_TERMS,
+        ..full_req
+    };
+    let (full, _) = relight(&t, &ctx, &light, &full_req)?;
+    let camera = bake_camera(&t)?;
+    let mesh = crate::relight::vertex::mesh_of(&t)?;
+    let draw = |colours: &[[f32; 3]], camera: &crate::scene::Camera| {
+        crate::relight::raster::rasterize(camera, &mesh.positions, &mesh.triangles, colours)
+    };
+    let drawn_full = draw(vertex_colours(&t, &full)?, &camera)?;
+    // The per-pixel bake from the same camera, every term, over the pixels both cover.
+    let pixel_ctx = LightContext::new(per_pixel)?;
+    let pixel_light = pixel_ctx.prepare(env, rotation)?;
+    let (pixel_full, _) = relight(per_pixel, &pixel_ctx, &pixel_light, &full_req)?;
+    // Pixels of glossy surfaces hold a second (GGX) row per pixel; a per-vertex bake keeps only
+    // their diffuse base, so they are left out of the comparison.
+    let mut rows = vec![0u32; per_pixel.coverage.len()];
+    for &p in &per_pixel.row_pixel {
+        rows[p as usize] += 1;
+    }
+    let both: Vec<f32> = drawn_full
+        .coverage
+        .iter()
+        .zip(&per_pixel.coverage)
+        .zip(&rows)
+        .map(|((a, b), &r)| (*a == 1.0 && *b == 1.0 && r == 1) as u8 as f32)
+        .collect();
+    let interpolation_error = relative_l2(&drawn_full.image, &pixel_full, Some(&both))?;
+    // Frames as the viewer makes them: relight at K terms, draw.
+    let mut times = Vec::new();
+    let (mut k_img, _) = relight(&t, &ctx, &light, &k_req)?;
+    for _ in 0..5 {
+        let t0 = Instant::now();
+        let (img, _) = relight(&t, &ctx, &light, &k_req)?;
+        let t1 = Instant::now();
+        let raster = draw(vertex_colours(&t, &img)?, &camera)?;
+        let t2 = Instant::now();
+        times.push([
+            (t1 - t0).as_secs_f64(),
+            (t2 - t1).as_secs_f64(),
+            (t2 - t0).as_secs_f64(),
+        ]);
+        drop(raster);
+        k_img = img;
+    }
+    let median = |k: usize| {
+        let mut v: Vec<f64> = times.iter().map(|t| t[k]).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2] * 1e3
+    };
+    let light_error = relative_l2(&k_img, &full, Some(&t.coverage))?;
+    let colours = vertex_colours(&t, &k_img)?;
+    let tone = ToneMap::auto(&drawn_full.image, Some(&drawn_full.coverage));
+    let mut shots: Vec<(Image, [String; 2])> = Vec::new();
+    for az in ORBIT_AZIMUTHS {
+        let cam = orbit(&camera, az, 0.0);
+        let shot = compose(draw(colours, &cam)?, &cam, Some((env, rotation)))?;
+        shots.push((
+            downsample(&shot.image, 2),
+            [format!("K = {ORBIT_TERMS}, turned {az}°"), name.to_string()],
+        ));
+    }
+    let behind = |r| compose(r, &camera, Some((env, rotation)));
+    let pixel_shown = crate::relight::background::composite(
+        &pixel_full,
+        &crate::relight::background::environment_behind(
+            &per_pixel.meta,
+            &per_pixel.coverage,
+            env,
+            rotation,
+        )?,
+    );
+    shots.push((
+        downsample(&pixel_shown, 2),
+        ["per pixel, every term".into(), "the scene's camera".into()],
+    ));
+    shots.push((
+        downsample(&behind(drawn_full)?.image, 2),
+        [
+            "per vertex, every term".into(),
+            format!("L2 {:.1}% vs per pixel", 100.0 * interpolation_error),
+        ],
+    ));
+    let cells: Vec<Cell> = shots
+        .iter()
+        .map(|(image, caption)| Cell {
+            image,
+            tone,
+            caption: caption.clone(),
+        })
+        .collect();
+    let sheet_path = dir.join("orbit_sheet.png");
+    write_sheet(
+        &sheet_path,
+        4,
+        &cells,
+        &format!(
+            "Per-vertex transport ({} vertices): one relight, any camera",
+            pv.vertices
+        ),
+    )?;
+    log(&format!(
+        "drew the per-vertex bake from {} angles; a frame at K = {ORBIT_TERMS} takes {:.1} ms",
+        ORBIT_AZIMUTHS.len(),
+        median(2)
+    ));
+    Ok(OrbitReport {
+        vertices: pv.vertices as usize,
+        triangles: pv.triangles as usize,
+        edge_length: pv.edge_length,
+        bake_seconds,
+        reused_bake,
+        relight_ms: median(0),
+        draw_ms: median(1),
+        frame_ms: median(2),
+        interpolation_error,
+        light_error,
+        sheet_path,
+    })
+}
