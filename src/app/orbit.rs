@@ -88,7 +88,8 @@ pub fn run_orbit(
     let full_req = RelightRequest {
         method: Method::Full,
         terms: 0,
-        weighting: crate::app::demo::DEMO_WEIGHTING,
+        // The demo's weighting.
+        weighting: crate::light::select::Weighting::Transport,
         sh_order: settings.sh_order,
     };
     let k_req = RelightRequest {

@@ -10,6 +10,7 @@ pub mod path_tracer;
 mod pixels;
 pub mod reference;
 
+use pixels::visits;
 pub use pixels::{edge_pixel_count, is_edge_pixel, pixel_subsamples, sample_stride};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
@@ -524,61 +525,6 @@ pub fn bake(
         stats: BakeStats::default(),
     };
     Transport::assemble_encoded(meta, &tiles, albedo, coverage, tile_stats, mesh)
-}
-
-/// One camera sub-sample of a pixel, or a mesh vertex: where it shades (`None` where it sees no
-/// surface), the fraction of its light that reaches the camera, and whether it counts towards
-/// the pixel's coverage.
-struct Visit {
-    point: Option<ShadingPoint>,
-    seen: f32,
-    covered: bool,
-}
-
-/// The visits of pixel (x, y): its camera sub-samples, or for a per-vertex bake its vertex
-/// (none past the last vertex).
-fn visits(ctx: &TileContext, x: usize, y: usize) -> Vec<Visit> {
-    let (tracer, medium) = (ctx.tracer, ctx.medium);
-    if let Some(mesh) = ctx.mesh {
-        let v = y * ctx.width + x;
-        if v >= mesh.vertex_count() {
-            return Vec::new();
-        }
-        let normal = mesh.normals[v];
-        let point = ShadingPoint {
-            origin: mesh.positions[v] + normal * tracer.spawn_offset(),
-            normal,
-            view: normal,
-            material: mesh.materials[v],
-        };
-        return vec![Visit {
-            point: Some(point),
-            seen: 1.0,
-            covered: true,
-        }];
-    }
-    let cam = &ctx.scene.camera;
-    pixel_subsamples(tracer, cam, ctx.settings, x as u32, y as u32)
-        .into_iter()
-        .map(|(fx, fy)| {
-            let ray = cam.ray(fx, fy);
-            let found = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
-            // Through a medium, what the camera sees of the surface is attenuated.
-            let (seen, in_medium) = match medium {
-                Some(m) => {
-                    let t =
-                        m.transmittance(ray.origin, ray.dir, found.map_or(f32::INFINITY, |h| h.t));
-                    (t, t < 0.999)
-                }
-                None => (1.0, false),
-            };
-            Visit {
-                point: found.map(|hit| shading_point(tracer, &hit, ray.dir)),
-                seen,
-                covered: found.is_some() || in_medium,
-            }
-        })
-        .collect()
 }
 
 fn tile_pixels(w: usize, h: usize, tx: usize, ty: usize) -> usize {

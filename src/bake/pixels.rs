@@ -1,9 +1,10 @@
 //! The camera sub-samples of a pixel, shared by the bake and the reference: `spp` of them, or
-//! `edge_spp` where the pixel's corners see different things (adaptive antialiasing).
+//! `edge_spp` where the pixel's corners see different things (adaptive antialiasing); and what one
+//! row of the bake is made from: those sub-samples, or in a per-vertex bake one vertex.
 
 use rayon::prelude::*;
 
-use super::BakeSettings;
+use super::{BakeSettings, ShadingPoint, TileContext, shading_point};
 use crate::math::sampling::pixel_samples;
 use crate::scene::trace::Tracer;
 use crate::scene::{Camera, Scene};
@@ -72,4 +73,59 @@ pub fn pixel_subsamples(
 /// Sub-samples a pixel may take at most: the stride of [`super::path_stream`].
 pub fn sample_stride(settings: &BakeSettings) -> u32 {
     settings.spp.max(settings.edge_spp)
+}
+
+/// One camera sub-sample of a pixel, or a mesh vertex: where it shades (`None` where it sees no
+/// surface), the fraction of its light that reaches the camera, and whether it counts towards
+/// the pixel's coverage.
+pub(super) struct Visit {
+    pub(super) point: Option<ShadingPoint>,
+    pub(super) seen: f32,
+    pub(super) covered: bool,
+}
+
+/// The visits of pixel (x, y): its camera sub-samples, or for a per-vertex bake its vertex
+/// (none past the last vertex).
+pub(super) fn visits(ctx: &TileContext, x: usize, y: usize) -> Vec<Visit> {
+    let (tracer, medium) = (ctx.tracer, ctx.medium);
+    if let Some(mesh) = ctx.mesh {
+        let v = y * ctx.width + x;
+        if v >= mesh.vertex_count() {
+            return Vec::new();
+        }
+        let normal = mesh.normals[v];
+        let point = ShadingPoint {
+            origin: mesh.positions[v] + normal * tracer.spawn_offset(),
+            normal,
+            view: normal,
+            material: mesh.materials[v],
+        };
+        return vec![Visit {
+            point: Some(point),
+            seen: 1.0,
+            covered: true,
+        }];
+    }
+    let cam = &ctx.scene.camera;
+    pixel_subsamples(tracer, cam, ctx.settings, x as u32, y as u32)
+        .into_iter()
+        .map(|(fx, fy)| {
+            let ray = cam.ray(fx, fy);
+            let found = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
+            // Through a medium, what the camera sees of the surface is attenuated.
+            let (seen, in_medium) = match medium {
+                Some(m) => {
+                    let t =
+                        m.transmittance(ray.origin, ray.dir, found.map_or(f32::INFINITY, |h| h.t));
+                    (t, t < 0.999)
+                }
+                None => (1.0, false),
+            };
+            Visit {
+                point: found.map(|hit| shading_point(tracer, &hit, ray.dir)),
+                seen,
+                covered: found.is_some() || in_medium,
+            }
+        })
+        .collect()
 }
