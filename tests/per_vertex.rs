@@ -72,10 +72,9 @@ fn per_vertex_rows_equal_the_light_integrated_at_each_vertex() {
             }
         }
         dark += (want.iter().sum::<f64>() < 1e-3) as usize;
-        for k in 0..3 {
-            let got = image.pixels[i][k];
-            brightest = brightest.max(want[k] as f32);
-            worst = worst.max((got - want[k] as f32).abs());
+        for (got, want) in image.pixels[i].iter().zip(want) {
+            brightest = brightest.max(want as f32);
+            worst = worst.max((got - want as f32).abs());
         }
     }
     assert!(brightest > 0.1, "{brightest}");

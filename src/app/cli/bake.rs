@@ -197,13 +197,12 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
     let dense_bytes = s.dense_entries as f64 * 4.0;
     println!("file          {}", path.display());
     println!("scene         {} (hash {})", m.scene_path, m.scene_hash);
-    match &m.per_vertex {
-        Some(pv) => println!(
+    if let Some(pv) = &m.per_vertex {
+        println!(
             "vertices      {} vertices, {} triangles, edges up to {} (a row per vertex, any camera; \
              the file's camera is the scene's)",
             pv.vertices, pv.triangles, pv.edge_length
-        ),
-        None => {}
+        );
     }
     println!(
         "image         {} x {} ({} tiles of {}²)",
