@@ -1,8 +1,7 @@
 //! The two rasterisers of per-vertex colours against each other: the GPU render pipeline
 //! (`relight::gpu::raster`) draws what the CPU's ray-exact twin (`relight::raster`) draws, for
 //! cameras inside a ground that reaches behind the eye, a sphere and a two-sided panel; the GPU
-//! culls the same faces; the coverage fits the environment behind. Also the CPU twin's speed on
-//! 200k triangles (ignored: run with `--ignored`, in release).
+//! culls the same faces; the coverage fits the environment behind.
 //!
 //! Without an adapter the GPU tests print why and pass, unless `PRT_REQUIRE_GPU=1`, when they fail.
 
@@ -487,40 +486,4 @@ fn the_environment_shows_where_the_raster_leaves_the_film_open() {
     for (p, &c) in frame.pixels.iter().zip(&r.coverage) {
         assert_eq!(*p, if c == 1.0 { flat[0] } else { [4.0; 3] });
     }
-}
-
-/// The CPU twin on ~200k triangles at 256 x 256: prints the median of several runs.
-#[test]
-#[ignore = "a timing: run with --release -- --ignored --nocapture"]
-fn cpu_raster_speed() {
-    let mut mesh = Mesh::default();
-    mesh.ground(20.0, 100, 0.0);
-    mesh.sphere(Vec3::new(0.0, 1.0, 0.0), 1.0, 220, 400);
-    let colours = colours(mesh.positions.len(), 5);
-    let cam = Camera {
-        eye: Vec3::new(2.5, 1.6, 3.0),
-        target: Vec3::new(0.0, 0.8, 0.0),
-        up: Vec3::Y,
-        fov_y_deg: 55.0,
-        width: 256,
-        height: 256,
-    };
-    let mut times = Vec::new();
-    let mut covered = 0.0;
-    for _ in 0..15 {
-        let start = std::time::Instant::now();
-        let r = rasterize(&cam, &mesh.positions, &mesh.triangles, &colours).unwrap();
-        times.push(start.elapsed().as_secs_f64());
-        covered = r.coverage.iter().sum::<f32>();
-    }
-    times.sort_by(f64::total_cmp);
-    eprintln!(
-        "{} triangles at 256 x 256 on {} threads: median {:.2} ms (min {:.2}, max {:.2}); \
-         {covered} pixels covered",
-        mesh.triangles.len(),
-        rayon::current_num_threads(),
-        times[times.len() / 2] * 1e3,
-        times[0] * 1e3,
-        times[times.len() - 1] * 1e3,
-    );
 }
