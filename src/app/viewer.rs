@@ -14,6 +14,7 @@
 mod app;
 mod engine;
 mod gpu_view;
+mod viewport;
 mod volume_app;
 mod worker;
 
@@ -23,6 +24,7 @@ pub use engine::{
     screenshot,
 };
 pub use gpu_view::GpuView;
+pub use viewport::Viewport;
 pub use volume_app::{VolumeApp, VolumeEngine, VolumeFrame, VolumeState, volume_screenshot};
 
 use std::path::{Path, PathBuf};
