@@ -1,5 +1,6 @@
 // Copies the relit image from its buffer into an RGBA32F storage texture, for display without a
-// round trip through the CPU. One thread per pixel.
+// round trip through the CPU. One thread per pixel. Alpha is 0: a per-pixel relight covers
+// nothing beyond what the environment behind it already leaves open (see tonemap.wgsl).
 
 struct Size {
     width: u32,
@@ -15,5 +16,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= size.width || id.y >= size.height) {
         return;
     }
-    textureStore(target_texture, vec2<i32>(i32(id.x), i32(id.y)), image[id.y * size.width + id.x]);
+    textureStore(target_texture, vec2<i32>(i32(id.x), i32(id.y)), vec4<f32>(image[id.y * size.width + id.x].rgb, 0.0));
 }

@@ -1,5 +1,5 @@
-// Display tone mapping: linear RGBA32F radiance plus the environment behind the scene (black where
-// geometry covers a pixel), times 2^exposure, a display curve (0 clip,
+// Display tone mapping: linear RGBA32F radiance plus the environment behind the scene weighted by
+// the part of the pixel the radiance leaves open (1 - alpha), times 2^exposure, a display curve (0 clip,
 // 1 Reinhard, 2 the ACES fit; `ToneCurve` in src/film.rs), then the sRGB curve, into the RGBA8
 // texture egui samples.
 struct Params {
@@ -40,6 +40,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= params.width || id.y >= params.height {
         return;
     }
-    let p = textureLoad(linear_image, vec2<i32>(id.xy), 0).rgb + textureLoad(behind, vec2<i32>(id.xy), 0).rgb;
+    // A per-pixel relight writes alpha 0 over a behind already weighted by its uncovered
+    // fraction; a drawn mesh writes its coverage over the whole environment.
+    let drawn = textureLoad(linear_image, vec2<i32>(id.xy), 0);
+    let p = drawn.rgb + (1.0 - drawn.a) * textureLoad(behind, vec2<i32>(id.xy), 0).rgb;
     textureStore(display, vec2<i32>(id.xy), vec4<f32>(display_value(p.r), display_value(p.g), display_value(p.b), 1.0));
 }

@@ -279,10 +279,7 @@ fn gpu_texture_path_shows_what_the_cpu_path_shows() {
             let g = e.gpu().unwrap();
             let view =
                 wavelet_prt::app::viewer::GpuView::new(&g.device, r.width as u32, r.height as u32);
-            let (_, _, behind) = e.current_light().unwrap();
-            view.set_behind(&g.queue, &behind);
-            e.relight_to_view(&pane.linear.request, &view, s.tone_map())
-                .unwrap();
+            e.relight_to_view(&pane.linear.request, &view, &s).unwrap();
             let g = e.gpu().unwrap();
             let shown = view.read_rgb8(&g.device, &g.queue).unwrap();
             assert_eq!(shown.len(), pane.rgb.len());
@@ -435,7 +432,7 @@ fn pixels_that_miss_the_geometry_show_the_environment_turned_with_it() {
         "the test view must see past the geometry somewhere"
     );
     let r = e.render(&s).unwrap();
-    let (_, _, behind) = e.current_light().unwrap();
+    let behind = e.current_light().unwrap().behind;
     let pane = &r.panes[0];
     for &i in &open {
         // Shown = relit (black there) + the environment behind, and never black under a sky.
@@ -446,7 +443,7 @@ fn pixels_that_miss_the_geometry_show_the_environment_turned_with_it() {
     // the ground half of the sky, which a yaw leaves alone: turn it upside down.
     s.pitch += 180.0;
     e.render(&s).unwrap();
-    let (_, _, turned) = e.current_light().unwrap();
+    let turned = e.current_light().unwrap().behind;
     assert!(open.iter().any(|&i| turned.pixels[i] != behind.pixels[i]));
 }
 
@@ -478,4 +475,180 @@ fn without_a_display_the_window_says_what_to_do_instead() {
     assert!(!out.status.success());
     assert!(text.contains("no display to open a window on"), "{text}");
     assert!(text.contains("--screenshot OUT.png"), "{text}");
+}
+
+/// An engine on the per-vertex test bake under the bundled sunrise.
+fn per_vertex_engine() -> (Engine, ViewState) {
+    let envs = vec![EnvEntry {
+        name: "sunrise".into(),
+        source: EnvSource::File(common::assets().join("envmaps/blender_sunrise.exr")),
+    }];
+    let mut e = Engine::open(&common::per_vertex_transport_path(), envs).unwrap();
+    let mut s = e.initial_state(0, (25.0, 60.0));
+    s.method = Method::Wavelet;
+    s.terms = 40;
+    (e, s)
+}
+
+#[test]
+fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
+    use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+    use wavelet_prt::relight::background::environment_behind_camera;
+    use wavelet_prt::relight::raster::rasterize;
+    use wavelet_prt::relight::vertex::{Orbit, bake_camera, vertex_colours};
+    use wavelet_prt::relight::{LightContext, RelightRequest, relight};
+    let (mut e, mut s) = per_vertex_engine();
+    let t = e.transport.clone();
+    let base = bake_camera(&t).unwrap();
+    let env = EnvMap::load(&common::assets().join("envmaps/blender_sunrise.exr")).unwrap();
+    let ctx = LightContext::new(&t).unwrap();
+    let light = ctx.prepare(&env, EnvRotation::yaw(30.0)).unwrap();
+    s.yaw = 30.0;
+    let request = RelightRequest {
+        method: Method::Wavelet,
+        terms: s.terms,
+        weighting: s.weighting,
+        sh_order: s.sh_order,
+    };
+    let (relit, _) = relight(&t, &ctx, &light, &request).unwrap();
+    let colours = vertex_colours(&t, &relit).unwrap();
+    let mesh = t.mesh.as_ref().unwrap();
+    let mut errors = Vec::new();
+    let mut images = Vec::new();
+    for orbit in [
+        Orbit::default(),
+        Orbit {
+            azimuth_deg: 70.0,
+            elevation_deg: 25.0,
+            distance: 0.8,
+        },
+    ] {
+        s.orbit = orbit;
+        let r = e.render(&s).unwrap();
+        let camera = orbit.camera(&base);
+        assert_eq!(
+            (r.width, r.height),
+            (camera.width as usize, camera.height as usize)
+        );
+        // Covered pixels are the drawn vertex colours; open pixels the environment along the
+        // camera's ray, turned with the light.
+        let drawn = rasterize(&camera, &mesh.positions, &mesh.triangles, colours).unwrap();
+        let open = vec![0.0; drawn.coverage.len()];
+        let sky = environment_behind_camera(&camera, &open, &env, EnvRotation::yaw(30.0)).unwrap();
+        let shown = &r.panes[0].linear.image;
+        let (mut covered, mut uncovered) = (0, 0);
+        for (i, p) in shown.pixels.iter().enumerate() {
+            let want = if drawn.coverage[i] == 1.0 {
+                covered += 1;
+                drawn.image.pixels[i]
+            } else {
+                uncovered += 1;
+                sky.pixels[i]
+            };
+            for k in 0..3 {
+                assert!(
+                    (p[k] - want[k]).abs() <= 1e-5 * want[k].abs().max(1.0),
+                    "{orbit:?} pixel {i}: {p:?} against {want:?}"
+                );
+            }
+        }
+        assert!(
+            covered > 100 && uncovered > 100,
+            "{covered} covered, {uncovered} open"
+        );
+        errors.push(r.panes[0].linear.rel_l2);
+        images.push(shown.clone());
+    }
+    assert_ne!(images[0], images[1], "the orbit moves the image");
+    // The numbers are the relight's, over the vertices: the camera does not change them.
+    assert_eq!(errors[0], errors[1]);
+    assert!(errors[0] > 0.0 && errors[0] < 0.5, "{}", errors[0]);
+}
+
+#[test]
+fn a_per_vertex_error_map_is_black_with_every_term() {
+    let (mut e, mut s) = per_vertex_engine();
+    s.orbit.azimuth_deg = -40.0;
+    s.error_map = true;
+    s.method = Method::Full;
+    let r = e.render(&s).unwrap();
+    assert_eq!(r.panes.len(), 2);
+    assert!(r.panes[1].rgb.iter().all(|&v| v == 0), "full against full");
+    s.method = Method::Wavelet;
+    s.terms = 4;
+    let r = e.render(&s).unwrap();
+    assert!(
+        r.panes[1].rgb.iter().any(|&v| v > 0),
+        "4 terms leave an error"
+    );
+}
+
+#[test]
+fn the_gpu_view_of_a_per_vertex_bake_shows_what_the_cpu_path_shows() {
+    let Some(gpu) = common::gpu_or_skip("per-vertex GPU view") else {
+        return;
+    };
+    let (mut e, mut s) = per_vertex_engine();
+    e.attach_gpu(gpu);
+    s.orbit.azimuth_deg = 50.0;
+    s.orbit.elevation_deg = 15.0;
+    for (method, compare) in [(Method::Wavelet, false), (Method::Sh, true)] {
+        s.method = method;
+        s.compare = compare;
+        let r = e.render(&s).unwrap();
+        for pane in &r.panes {
+            let g = e.gpu().unwrap();
+            let view =
+                wavelet_prt::app::viewer::GpuView::new(&g.device, r.width as u32, r.height as u32);
+            e.relight_to_view(&pane.linear.request, &view, &s).unwrap();
+            let g = e.gpu().unwrap();
+            let shown = view.read_rgb8(&g.device, &g.queue).unwrap();
+            assert_eq!(shown.len(), pane.rgb.len());
+            // Pixels whose centre falls on a triangle edge may go to either side.
+            let off = shown
+                .chunks(3)
+                .zip(pane.rgb.chunks(3))
+                .filter(|(a, b)| a.iter().zip(*b).any(|(x, y)| x.abs_diff(*y) > 1))
+                .count();
+            assert!(
+                off * 200 <= shown.len() / 3,
+                "{method}: {off} of {} pixels differ",
+                shown.len() / 3
+            );
+        }
+    }
+}
+
+#[test]
+fn orbit_on_the_command_line_turns_a_per_vertex_bake_and_is_refused_for_a_fixed_view() {
+    let dir = common::temp_dir("viewer-orbit-cli");
+    let file = common::per_vertex_transport_path();
+    let out = dir.join("orbit.png");
+    let env = common::assets().join("envmaps/blender_sunrise.exr");
+    let (code, text) = common::prt(&[
+        "view",
+        file.to_str().unwrap(),
+        "--env",
+        env.to_str().unwrap(),
+        "--screenshot",
+        out.to_str().unwrap(),
+        "--orbit",
+        "-60,20,1.2",
+    ]);
+    assert_eq!(code, 0, "{text}");
+    assert!(out.exists());
+    let fixed = common::viewer_transport_path();
+    let (code, text) = common::prt(&[
+        "view",
+        fixed.to_str().unwrap(),
+        "--screenshot",
+        dir.join("fixed.png").to_str().unwrap(),
+        "--orbit",
+        "30,0",
+    ]);
+    assert_ne!(code, 0);
+    assert!(text.contains("--per-vertex"), "{text}");
+    let (code, text) = common::prt(&["view", file.to_str().unwrap(), "--orbit", "30,0"]);
+    assert_ne!(code, 0);
+    assert!(text.contains("--screenshot"), "{text}");
 }

@@ -357,3 +357,57 @@ fn volume_window_orbits_on_drag_and_switches_views() {
     assert!(t.pixels.iter().any(|p| p[0] < 0.9), "the fog attenuates");
     h.query_by_label_contains("march ").expect("the march time");
 }
+
+#[test]
+fn a_per_vertex_window_orbits_on_drag_and_draws_on_the_gpu() {
+    if common::gpu_or_skip("a_per_vertex_window_orbits_on_drag_and_draws_on_the_gpu").is_none() {
+        return;
+    }
+    use egui_kittest::wgpu::{WgpuTestRenderer, create_render_state, default_wgpu_setup};
+    use wavelet_prt::relight::vertex::Orbit;
+    let rs = create_render_state(
+        default_wgpu_setup(),
+        eframe::egui_wgpu::RendererOptions::PREDICTABLE,
+    );
+    let mut app = ViewerApp::new(
+        &common::per_vertex_transport_path(),
+        &["sun:30,45".to_string()],
+    );
+    app.attach_render_state(rs.clone());
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1000.0, 700.0))
+        .renderer(WgpuTestRenderer::from_render_state(rs))
+        .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), app);
+    settle(&mut h);
+    assert!(h.state().error.is_none(), "{:?}", h.state().error);
+    h.query_by_label_contains("drag the image to orbit")
+        .expect("the camera controls of a per-vertex bake");
+    assert_eq!(h.state().state.orbit, Orbit::default());
+    assert_eq!(h.state().gpu_timings().len(), 1, "drawn on the GPU");
+    let error = rel_l2(&h);
+    let first = h.state().rendered().unwrap().panes[0].linear.image.clone();
+    let before = h.render().expect("render");
+    // Drag across the image: the camera turns, the vertex colours do not.
+    h.drag_at(egui::pos2(650.0, 350.0));
+    h.hover_at(egui::pos2(750.0, 330.0));
+    h.drop_at(egui::pos2(750.0, 330.0));
+    settle(&mut h);
+    let orbit = h.state().state.orbit;
+    assert!(orbit.azimuth_deg < -10.0, "{orbit:?}");
+    assert!(orbit.elevation_deg < 0.0, "{orbit:?}");
+    assert_eq!(
+        h.state().viewport.zoom,
+        1.0,
+        "a per-vertex view orbits, not zooms"
+    );
+    assert_ne!(h.state().rendered().unwrap().panes[0].linear.image, first);
+    assert_eq!(rel_l2(&h), error);
+    assert!(h.state().gpu_timings().len() == 1 && h.state().error.is_none());
+    let after = h.render().expect("render");
+    let (w, hgt) = after.dimensions();
+    let moved = (0..hgt)
+        .flat_map(|y| (400..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| before.get_pixel(x, y) != after.get_pixel(x, y))
+        .count();
+    assert!(moved > 1000, "the GPU view moved: {moved} pixels changed");
+}

@@ -14,6 +14,7 @@
 mod app;
 mod engine;
 mod gpu_view;
+mod mesh_view;
 mod viewport;
 mod volume_app;
 mod worker;
@@ -21,20 +22,22 @@ mod worker;
 pub use app::ViewerApp;
 pub use engine::{
     ERROR_MAP_GAIN, Engine, GpuTiming, OnLight, error_heat_map, relight_into_view, save_view,
-    screenshot,
+    screenshot, view_size,
 };
 pub use gpu_view::GpuView;
+pub use mesh_view::{MeshDisplay, draw_into_view};
 pub use viewport::Viewport;
 pub use volume_app::{VolumeApp, VolumeEngine, VolumeFrame, VolumeState, volume_screenshot};
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::light::envmap::SunSpec;
+use crate::light::envmap::{EnvMap, EnvRotation, SunSpec};
 use crate::light::select::Weighting;
 use crate::output::film::{Image, ToneCurve, ToneMap};
 use crate::relight::gpu::Gpu;
-use crate::relight::{Method, RelightRequest};
+use crate::relight::vertex::Orbit;
+use crate::relight::{Method, PreparedLight, RelightRequest};
 use eframe::{egui, wgpu};
 
 /// Where the bundled environment maps are looked for: `$PRT_ENVMAPS`, else the checkout this
@@ -232,6 +235,9 @@ pub struct ViewState {
     /// straight into a texture (the numbers still come from the CPU relight); in
     /// [`Engine::render`] the image is read back.
     pub gpu: bool,
+    /// The camera of a per-vertex bake, turned from the bake's own (ignored by a per-pixel bake,
+    /// whose view is fixed).
+    pub orbit: Orbit,
 }
 
 impl Default for ViewState {
@@ -254,6 +260,7 @@ impl Default for ViewState {
             split: 0.5,
             error_map: false,
             gpu: false,
+            orbit: Orbit::default(),
         }
     }
 }
@@ -291,6 +298,40 @@ impl LightKey {
             spec,
             yaw: state.yaw,
             pitch: state.pitch,
+        }
+    }
+}
+
+/// A prepared light as the window holds it.
+#[derive(Clone)]
+pub struct LightShown {
+    pub key: LightKey,
+    pub light: Arc<PreparedLight>,
+    /// The environment behind a per-pixel bake's view, weighted by each pixel's uncovered
+    /// fraction; empty for a per-vertex bake, whose backdrop depends on the camera (see
+    /// [`backdrop`]).
+    pub behind: Arc<Image>,
+    /// The map itself, as the key's environment gives it.
+    pub map: Arc<EnvMap>,
+}
+
+/// The whole environment seen through `camera`, turned as `key` says: what is behind a drawn
+/// per-vertex bake where it leaves a pixel open.
+pub fn backdrop(
+    camera: &crate::scene::Camera,
+    map: &EnvMap,
+    key: &LightKey,
+) -> crate::Result<Image> {
+    let open = vec![0.0; camera.width as usize * camera.height as usize];
+    crate::relight::background::environment_behind_camera(camera, &open, map, key.rotation())
+}
+
+impl LightKey {
+    /// The environment's rotation.
+    pub fn rotation(&self) -> EnvRotation {
+        EnvRotation {
+            yaw_deg: self.yaw,
+            pitch_deg: self.pitch,
         }
     }
 }
@@ -359,6 +400,8 @@ impl ViewState {
                 2.0
             };
         }
+        // Turning past a half turn wraps around: no note.
+        self.orbit.clamp();
         if !(0.0..=1.0).contains(&self.split) {
             self.split = if self.split.is_finite() {
                 self.split.clamp(0.0, 1.0)
@@ -427,9 +470,11 @@ impl ViewState {
         }
     }
 
-    /// Everything but the display settings: what the linear images depend on.
+    /// Everything but the display settings and the camera: what the relit values (pixels, or a
+    /// per-vertex bake's vertex colours) depend on.
     pub fn relight_key(&self) -> ViewState {
         ViewState {
+            orbit: Orbit::default(),
             exposure: 0.0,
             tone: ToneCurve::Clip,
             error_map: false,

@@ -45,23 +45,134 @@ pub fn bake_camera(t: &Transport) -> Result<Camera> {
     Ok(camera)
 }
 
+/// The highest elevation of an orbiting eye above (or below) its target, degrees: short of the
+/// pole, where the up axis would be undefined.
+pub const MAX_ELEVATION_DEG: f32 = 85.0;
+
+/// The elevation of `camera`'s eye above its target, degrees.
+pub fn elevation_deg(camera: &Camera) -> f32 {
+    let offset = camera.eye - camera.target;
+    (offset.y / offset.length().max(f32::MIN_POSITIVE))
+        .clamp(-1.0, 1.0)
+        .asin()
+        .to_degrees()
+}
+
 /// `camera` turned about its target: the eye swings `azimuth_deg` about the up axis (+Y) and
-/// rises `elevation_deg` (kept within 85° of the pole), at the same distance.
+/// rises `elevation_deg` (kept within [`MAX_ELEVATION_DEG`] of the horizon), at the same
+/// distance.
 pub fn orbit(camera: &Camera, azimuth_deg: f32, elevation_deg: f32) -> Camera {
     let offset = camera.eye - camera.target;
     let distance = offset.length();
     let flat = Vec3::new(offset.x, 0.0, offset.z);
-    let elevation = (offset.y / distance.max(f32::MIN_POSITIVE))
-        .clamp(-1.0, 1.0)
-        .asin();
-    let elevation =
-        (elevation + elevation_deg.to_radians()).clamp(-85f32.to_radians(), 85f32.to_radians());
+    let elevation = (self::elevation_deg(camera) + elevation_deg)
+        .clamp(-MAX_ELEVATION_DEG, MAX_ELEVATION_DEG)
+        .to_radians();
     let heading = Quat::from_rotation_y(azimuth_deg.to_radians()) * flat.normalize_or(Vec3::Z);
     let dir = heading * elevation.cos() + Vec3::Y * elevation.sin();
     Camera {
         eye: camera.target + dir * distance,
         up: Vec3::Y,
         ..camera.clone()
+    }
+}
+
+/// Where an orbiting camera is, relative to the bake's camera: turned `azimuth_deg` about the
+/// up axis and raised `elevation_deg` about the target (see [`orbit`]), at `distance` times the
+/// bake camera's distance from it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Orbit {
+    pub azimuth_deg: f32,
+    pub elevation_deg: f32,
+    pub distance: f32,
+}
+
+impl Default for Orbit {
+    /// The bake's own camera.
+    fn default() -> Self {
+        Orbit {
+            azimuth_deg: 0.0,
+            elevation_deg: 0.0,
+            distance: 1.0,
+        }
+    }
+}
+
+impl Orbit {
+    /// Nearest and farthest distance, as a multiple of the bake camera's.
+    pub const DISTANCE: std::ops::RangeInclusive<f32> = 0.1..=10.0;
+
+    /// Brings the angles and the distance into range: the azimuth into [-180, 180), the
+    /// elevation into [-180, 180] (the camera keeps [`orbit`]'s 85° from the poles), the distance
+    /// into [`Orbit::DISTANCE`]; a value that is not finite goes back to the default. Returns
+    /// whether anything changed.
+    pub fn clamp(&mut self) -> bool {
+        let before = *self;
+        let d = Orbit::default();
+        let finite = |v: f32, or: f32| if v.is_finite() { v } else { or };
+        self.azimuth_deg =
+            (finite(self.azimuth_deg, d.azimuth_deg) + 180.0).rem_euclid(360.0) - 180.0;
+        self.elevation_deg = finite(self.elevation_deg, d.elevation_deg).clamp(-180.0, 180.0);
+        self.distance = finite(self.distance, d.distance)
+            .clamp(*Orbit::DISTANCE.start(), *Orbit::DISTANCE.end());
+        *self != before
+    }
+
+    /// The elevations that move the eye of `base`: beyond them [`orbit`] stops at
+    /// [`MAX_ELEVATION_DEG`].
+    pub fn elevation_range(base: &Camera) -> std::ops::RangeInclusive<f32> {
+        let e = elevation_deg(base);
+        (-MAX_ELEVATION_DEG - e)..=(MAX_ELEVATION_DEG - e)
+    }
+
+    /// The camera this orbit makes of `base`.
+    pub fn camera(&self, base: &Camera) -> Camera {
+        let turned = orbit(base, self.azimuth_deg, self.elevation_deg);
+        Camera {
+            eye: turned.target + (turned.eye - turned.target) * self.distance,
+            ..turned
+        }
+    }
+}
+
+impl std::str::FromStr for Orbit {
+    type Err = PrtError;
+
+    /// `AZIMUTH,ELEVATION` in degrees, or `AZIMUTH,ELEVATION,DISTANCE` with the distance a
+    /// multiple of the bake camera's (within [`Orbit::DISTANCE`]).
+    fn from_str(s: &str) -> Result<Orbit> {
+        let bad = |why: &str| PrtError::invalid("orbit", format!("`{s}`: {why}"));
+        let v: Vec<f32> = s
+            .split(',')
+            .map(|x| x.trim().parse::<f32>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| bad("expected AZIMUTH,ELEVATION[,DISTANCE] in degrees"))?;
+        let (azimuth_deg, elevation_deg, distance) = match v[..] {
+            [a, e] => (a, e, 1.0),
+            [a, e, d] => (a, e, d),
+            _ => {
+                return Err(bad(
+                    "expected two or three numbers, AZIMUTH,ELEVATION[,DISTANCE]",
+                ));
+            }
+        };
+        if !v.iter().all(|x| x.is_finite()) {
+            return Err(bad("the numbers must be finite"));
+        }
+        if !Orbit::DISTANCE.contains(&distance) {
+            return Err(bad(&format!(
+                "the distance must be {} to {} times the bake camera's",
+                Orbit::DISTANCE.start(),
+                Orbit::DISTANCE.end()
+            )));
+        }
+        let mut orbit = Orbit {
+            azimuth_deg,
+            elevation_deg,
+            distance,
+        };
+        orbit.clamp();
+        Ok(orbit)
     }
 }
 
@@ -132,5 +243,58 @@ mod tests {
         assert!((up.eye.length() - 5.0).abs() < 1e-4);
         assert!((up.eye.y / 5.0 - 85f32.to_radians().sin()).abs() < 1e-4);
         assert!(up.validate().is_ok());
+    }
+
+    #[test]
+    fn an_orbit_moves_the_eye_by_its_distance_and_clamps_what_is_out_of_range() {
+        let c = Camera {
+            eye: Vec3::new(0.0, 0.0, 4.0),
+            target: Vec3::new(1.0, 0.0, 0.0),
+            up: Vec3::Y,
+            fov_y_deg: 40.0,
+            width: 8,
+            height: 8,
+        };
+        let o = Orbit {
+            azimuth_deg: 0.0,
+            elevation_deg: 0.0,
+            distance: 0.5,
+        };
+        let near = o.camera(&c);
+        assert!(
+            (near.eye - Vec3::new(0.5, 0.0, 2.0)).length() < 1e-5,
+            "{}",
+            near.eye
+        );
+        assert_eq!(near.target, c.target);
+        assert_eq!(Orbit::default().camera(&c).eye, orbit(&c, 0.0, 0.0).eye);
+        let mut wild = Orbit {
+            azimuth_deg: 540.0,
+            elevation_deg: f32::NAN,
+            distance: 1e9,
+        };
+        assert!(wild.clamp());
+        assert_eq!(
+            wild,
+            Orbit {
+                azimuth_deg: -180.0,
+                elevation_deg: 0.0,
+                distance: 10.0
+            }
+        );
+        assert!(!wild.clamp());
+        assert_eq!(
+            "30,-10".parse::<Orbit>().unwrap(),
+            Orbit {
+                azimuth_deg: 30.0,
+                elevation_deg: -10.0,
+                distance: 1.0
+            }
+        );
+        assert_eq!("30,-10,2".parse::<Orbit>().unwrap().distance, 2.0);
+        for bad in ["30", "1,2,3,4", "a,b", "1,inf", "1,2,0", "1,2,11"] {
+            let e = bad.parse::<Orbit>().unwrap_err().to_string();
+            assert!(e.contains("orbit"), "{bad}: {e}");
+        }
     }
 }

@@ -124,6 +124,31 @@ pub fn viewer_transport_path() -> PathBuf {
     .clone()
 }
 
+/// Path of a per-vertex bake of [`SPHERE_ON_PLANE`] (cube 8, SH order 2, every value kept),
+/// baked once per test process.
+pub fn per_vertex_transport_path() -> PathBuf {
+    static PATH: OnceLock<PathBuf> = OnceLock::new();
+    PATH.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("per-vertex-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene_path = dir.join("scene.toml");
+        std::fs::write(&scene_path, SPHERE_ON_PLANE).unwrap();
+        let scene = Scene::load(&scene_path).unwrap();
+        let settings = BakeSettings {
+            cube_n: 8,
+            sh_order: 2,
+            lossless: true,
+            per_vertex: Some(0.3),
+            ..BakeSettings::default()
+        };
+        let t = bake(&scene, &settings, &|_| {}).unwrap();
+        let out = dir.join("vertices.prt");
+        t.save(&out).unwrap();
+        out
+    })
+    .clone()
+}
+
 /// A GPU for the tests: `None` (after printing why) when no adapter exists, unless
 /// `PRT_REQUIRE_GPU=1`, when the test fails instead.
 pub fn gpu_or_skip(test: &str) -> Option<wavelet_prt::relight::gpu::Gpu> {

@@ -1,6 +1,7 @@
 //! `prt view`: the window, or with `--screenshot` the image it would show.
 
 use super::*;
+use crate::relight::vertex::Orbit;
 
 #[derive(Args, Debug)]
 pub struct ViewArgs {
@@ -46,6 +47,10 @@ pub struct ViewArgs {
     /// Add the error heat map against full beside each image (with --screenshot).
     #[arg(long)]
     pub error_map: bool,
+    /// A per-vertex bake's camera turned from the bake's: AZIMUTH,ELEVATION in degrees, and
+    /// optionally DISTANCE, a multiple of the bake camera's distance (with --screenshot).
+    #[arg(long, allow_hyphen_values = true, value_parser = Orbit::from_str)]
+    pub orbit: Option<Orbit>,
 }
 
 pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
@@ -57,10 +62,12 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
             || a.error_map
             || a.split.is_some()
             || a.tone.is_some()
+            || a.orbit.is_some()
         {
             return Err(PrtError::invalid(
                 "viewer",
-                "--method, --terms, ... apply to --screenshot only",
+                "--method, --terms, --orbit, ... apply to --screenshot only (in the window, drag \
+                 the image of a per-vertex bake to orbit)",
             ));
         }
         if !a.file.exists() {
@@ -91,10 +98,11 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
             || a.compare
             || a.error_map
             || a.split.is_some()
+            || a.orbit.is_some()
         {
             return Err(PrtError::invalid(
                 "viewer",
-                "--method, --terms, --weighting, --compare, --split and --error-map apply to \
+                "--method, --terms, --weighting, --compare, --split, --error-map and --orbit apply to \
                  transport files; for a volume's views and cameras use `prt volume render`",
             ));
         }
@@ -150,6 +158,10 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
     }
     if let Some(p) = a.pitch {
         state.pitch = p;
+    }
+    if let Some(o) = a.orbit {
+        crate::relight::vertex::mesh_of(&engine.transport)?;
+        state.orbit = o;
     }
     state.exposure = match a.exposure {
         Some(e) => e,

@@ -10,16 +10,17 @@ use std::time::Duration;
 
 use eframe::{egui, wgpu};
 
+use super::mesh_view::{self, MeshDisplay};
 use super::viewport::Viewport;
 use super::worker::{Job, Loaded, Reply, Worker};
 use super::{
-    GpuTiming, GpuView, Layout, LightKey, Rendered, ViewState, relight_into_view,
+    GpuTiming, GpuView, Layout, LightKey, LightShown, Rendered, ViewState, relight_into_view,
     sh_order_for_terms,
 };
 use crate::light::select::Weighting;
 use crate::output::film::Image;
+use crate::relight::Method;
 use crate::relight::gpu::{Gpu, GpuTransport};
-use crate::relight::{Method, PreparedLight};
 
 /// The GPU display: the device, the transport once uploaded, one view per pane.
 struct GpuDisplay {
@@ -30,6 +31,8 @@ struct GpuDisplay {
     /// Each view, its texture in egui, and the environment behind the scene it holds (uploaded
     /// again only when the light brings a new one).
     views: Vec<(GpuView, egui::TextureId, Option<Arc<Image>>)>,
+    /// A per-vertex bake's mesh and raster, once made.
+    mesh: Option<MeshDisplay>,
     /// What the views show, and how long each took.
     shown: Option<ViewState>,
     timings: Vec<GpuTiming>,
@@ -54,7 +57,7 @@ pub struct ViewerApp {
     /// The last CPU result, and its textures.
     rendered: Option<Rendered>,
     textures: Vec<egui::TextureHandle>,
-    light: Option<(LightKey, Arc<PreparedLight>, Arc<Image>)>,
+    light: Option<LightShown>,
     gpu: Option<GpuDisplay>,
     gpu_error: Option<String>,
     /// Frame start times of the last second, for the frame rate.
@@ -112,6 +115,7 @@ impl ViewerApp {
                     transport: None,
                     uploading: false,
                     views: Vec::new(),
+                    mesh: None,
                     shown: None,
                     timings: Vec::new(),
                 });
@@ -177,8 +181,8 @@ impl ViewerApp {
                     self.start_upload();
                 }
                 Reply::Loaded(Err(e)) => self.load_error = Some(e.to_string()),
-                Reply::Light(key, light, behind) => {
-                    self.light = Some((key, light, behind));
+                Reply::Light(light) => {
+                    self.light = Some(light);
                     self.invalidate_gpu();
                 }
                 Reply::Rendered(Ok(r)) => {
@@ -262,20 +266,31 @@ impl ViewerApp {
     }
 
     fn try_draw_on_gpu(&mut self) -> crate::Result<()> {
-        let (Some(loaded), Some((key, light, behind)), Some(g)) =
-            (&self.loaded, &self.light, &mut self.gpu)
-        else {
+        let (Some(loaded), Some(lit), Some(g)) = (&self.loaded, &self.light, &mut self.gpu) else {
             return Ok(());
         };
         let Some(gt) = g.transport.clone() else {
             return Ok(());
         };
-        if g.shown.as_ref() == Some(&self.state) || *key != LightKey::of(&loaded.envs, &self.state)
+        if g.shown.as_ref() == Some(&self.state)
+            || lit.key != LightKey::of(&loaded.envs, &self.state)
         {
             return Ok(());
         }
         let t = &loaded.transport;
-        let (w, h) = (t.meta.width, t.meta.height);
+        let camera = loaded.camera(&self.state);
+        // A per-vertex bake is drawn over the whole environment seen through its camera.
+        let behind = match &camera {
+            Some(camera) => {
+                if g.mesh.is_none() {
+                    g.mesh = Some(MeshDisplay::new(&g.gpu, t)?);
+                }
+                let mesh = g.mesh.as_mut().expect("made above");
+                mesh.backdrop(camera, lit)?
+            }
+            None => lit.behind.clone(),
+        };
+        let (w, h) = (loaded.size.0 as u32, loaded.size.1 as u32);
         let requests = self.state.requests(loaded.limits);
         g.views.retain(|(v, _, _)| (v.width, v.height) == (w, h));
         while g.views.len() < requests.len() {
@@ -289,20 +304,28 @@ impl ViewerApp {
         }
         g.timings.clear();
         for ((_, request), (view, _, held)) in requests.iter().zip(&mut g.views) {
-            if !held.as_ref().is_some_and(|h| Arc::ptr_eq(h, behind)) {
-                view.set_behind(&g.render_state.queue, behind);
+            if !held.as_ref().is_some_and(|h| Arc::ptr_eq(h, &behind)) {
+                view.set_behind(&g.render_state.queue, &behind);
                 *held = Some(behind.clone());
             }
-            let timing = relight_into_view(
-                &g.gpu,
-                &gt,
-                t,
-                &loaded.ctx,
-                light,
-                request,
-                view,
-                self.state.tone_map(),
-            )?;
+            let tone = self.state.tone_map();
+            let timing = match (&camera, &mut g.mesh) {
+                (Some(camera), Some(mesh)) => mesh_view::draw_into_view(
+                    &g.gpu,
+                    &gt,
+                    t,
+                    &loaded.ctx,
+                    &lit.light,
+                    request,
+                    mesh,
+                    camera,
+                    view,
+                    tone,
+                )?,
+                _ => {
+                    relight_into_view(&g.gpu, &gt, t, &loaded.ctx, &lit.light, request, view, tone)?
+                }
+            };
             g.timings.push(timing);
         }
         g.shown = Some(self.state.clone());
@@ -398,7 +421,7 @@ impl ViewerApp {
         let light_pending = self
             .light
             .as_ref()
-            .is_none_or(|(k, _, _)| *k != LightKey::of(&loaded.envs, &self.state));
+            .is_none_or(|l| l.key != LightKey::of(&loaded.envs, &self.state));
         let s = &mut self.state;
         ui.heading("Method (M)");
         ui.horizontal(|ui| {
@@ -478,15 +501,21 @@ impl ViewerApp {
                 ui.label("preparing the light");
             });
         }
+        if let Some(base) = &loaded.camera {
+            ui.separator();
+            mesh_view::camera_controls(ui, &mut s.orbit, base);
+        }
         ui.separator();
         super::tone_controls(ui, &mut s.exposure, &mut s.tone);
         let auto = ui.button("Auto exposure").clicked();
-        ui.horizontal(|ui| {
-            ui.label(format!("zoom {:.1}x", self.viewport.zoom));
-            if ui.button("Fit (0)").clicked() {
-                self.viewport = Viewport::default();
-            }
-        });
+        if loaded.camera.is_none() {
+            ui.horizontal(|ui| {
+                ui.label(format!("zoom {:.1}x", self.viewport.zoom));
+                if ui.button("Fit (0)").clicked() {
+                    self.viewport = Viewport::default();
+                }
+            });
+        }
         ui.separator();
         let save = ui
             .horizontal(|ui| {
@@ -643,10 +672,8 @@ impl ViewerApp {
         let groups: Vec<&[(egui::TextureId, String)]> = shown.chunks(per).collect();
         let n = groups.len() as f32;
         let avail = ui.available_size();
-        let (w, h) = (
-            loaded.transport.meta.width as f32,
-            loaded.transport.meta.height as f32,
-        );
+        let (w, h) = (loaded.size.0 as f32, loaded.size.1 as f32);
+        let base = loaded.camera.clone();
         let (gap, title_h) = (8.0, 20.0);
         let scale = (((avail.x - gap * (n - 1.0)) / n) / w)
             .min((avail.y - title_h) / h)
@@ -655,6 +682,7 @@ impl ViewerApp {
         let uv = self.viewport.uv();
         let split = self.state.split;
         let mut viewport = self.viewport;
+        let mut orbit = self.state.orbit;
         ui.horizontal_top(|ui| {
             for group in &groups {
                 ui.vertical(|ui| {
@@ -685,17 +713,34 @@ impl ViewerApp {
                             painter.image(group[0].0, rect, uv, white);
                         }
                     }
-                    if response.dragged() {
-                        viewport.pan(response.drag_delta(), rect.size());
-                    }
-                    if response.double_clicked() {
-                        viewport = Viewport::default();
-                    }
-                    if let Some(pos) = response.hover_pos() {
-                        let scroll = ui.input(|i| i.smooth_scroll_delta.y);
-                        if scroll != 0.0 {
-                            let at = (pos - rect.min) / rect.size();
-                            viewport.zoom_at((scroll * 0.004).exp(), at);
+                    // A per-vertex bake's camera orbits; a fixed view zooms and pans.
+                    let scroll = response
+                        .hover_pos()
+                        .map(|pos| (pos, ui.input(|i| i.smooth_scroll_delta.y)))
+                        .filter(|(_, s)| *s != 0.0);
+                    match &base {
+                        Some(base) => {
+                            if response.dragged() {
+                                mesh_view::drag(&mut orbit, base, response.drag_delta());
+                            }
+                            if response.double_clicked() {
+                                orbit = Default::default();
+                            }
+                            if let Some((_, scroll)) = scroll {
+                                mesh_view::dolly(&mut orbit, scroll);
+                            }
+                        }
+                        None => {
+                            if response.dragged() {
+                                viewport.pan(response.drag_delta(), rect.size());
+                            }
+                            if response.double_clicked() {
+                                viewport = Viewport::default();
+                            }
+                            if let Some((pos, scroll)) = scroll {
+                                let at = (pos - rect.min) / rect.size();
+                                viewport.zoom_at((scroll * 0.004).exp(), at);
+                            }
                         }
                     }
                 });
@@ -703,6 +748,7 @@ impl ViewerApp {
             }
         });
         self.viewport = viewport;
+        self.state.orbit = orbit;
     }
 
     /// The whole window, drawn into `ui` (also what the UI tests drive).

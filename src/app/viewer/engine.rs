@@ -16,9 +16,11 @@ use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::relight::background::{composite, environment_behind};
 use crate::relight::gpu::{Gpu, GpuBackend, GpuTransport};
+use crate::relight::vertex::{self, bake_camera};
 use crate::relight::{
     Backend, LightContext, Method, PreparedLight, RelightRequest, RelightStats, Terms, relight,
 };
+use crate::scene::Camera;
 use crate::store::transport::Transport;
 
 /// Wall and GPU time of one relight into a [`GpuView`].
@@ -60,8 +62,14 @@ pub fn relight_into_view(
     })
 }
 
-/// Called with a newly prepared light, its key and the environment behind the scene.
-pub type OnLight<'a> = dyn FnMut(&LightKey, &Arc<PreparedLight>, &Arc<Image>) + 'a;
+/// Called with a newly prepared light.
+pub type OnLight<'a> = dyn FnMut(&LightShown) + 'a;
+
+/// The prepared light and the `full` relight under it (the reference of the errors).
+struct Lit {
+    shown: LightShown,
+    full: Image,
+}
 
 /// A loaded transport, its environments and the caches behind [`Engine::render`].
 pub struct Engine {
@@ -70,11 +78,15 @@ pub struct Engine {
     pub ctx: Arc<LightContext>,
     pub envs: Vec<EnvEntry>,
     maps: HashMap<String, Arc<EnvMap>>,
-    /// The prepared light, the `full` image under it, and the environment behind the scene.
-    light: Option<(LightKey, Arc<PreparedLight>, Image, Arc<Image>)>,
+    light: Option<Lit>,
     last: Option<(ViewState, Vec<LinearPane>)>,
+    /// The camera a per-vertex bake was made with; `None` for a per-pixel bake.
+    base_camera: Option<Camera>,
+    /// The backdrop of the last per-vertex view: the camera and light it was drawn for.
+    backdrop: Option<(Camera, LightKey, Image)>,
     gpu: Option<Gpu>,
     gpu_transport: Option<GpuTransport>,
+    gpu_mesh: Option<MeshDisplay>,
 }
 
 impl Engine {
@@ -100,6 +112,10 @@ impl Engine {
         envs: Vec<EnvEntry>,
     ) -> Result<Engine> {
         let ctx = LightContext::new(&transport)?;
+        let base_camera = match transport.mesh {
+            Some(_) => Some(bake_camera(&transport)?),
+            None => None,
+        };
         Ok(Engine {
             path: path.to_path_buf(),
             transport: Arc::new(transport),
@@ -108,8 +124,11 @@ impl Engine {
             maps: HashMap::new(),
             light: None,
             last: None,
+            base_camera,
+            backdrop: None,
             gpu: None,
             gpu_transport: None,
+            gpu_mesh: None,
         })
     }
 
@@ -117,6 +136,7 @@ impl Engine {
     pub fn attach_gpu(&mut self, gpu: Gpu) {
         self.gpu = Some(gpu);
         self.gpu_transport = None;
+        self.gpu_mesh = None;
         self.last = None;
     }
 
@@ -130,30 +150,54 @@ impl Engine {
         self.gpu.as_ref().map(|g| g.adapter.as_str())
     }
 
-    /// Relights `request` under the light of the last [`Engine::render`] into `view` and
-    /// tone-maps it there, on the attached GPU.
+    /// Relights `request` under the light of the last [`Engine::render`] into `view`, over the
+    /// environment behind, and tone-maps it there as `state` says, on the attached GPU: what the
+    /// window shows. A per-vertex bake is drawn from `state`'s camera.
     pub fn relight_to_view(
         &mut self,
         request: &RelightRequest,
         view: &GpuView,
-        tone: ToneMap,
+        state: &ViewState,
     ) -> Result<GpuTiming> {
         self.upload()?;
+        let camera = self.camera(state);
         let gpu = self.gpu.as_ref().ok_or_else(no_gpu)?;
-        let (_, light, _, _) = self
+        let lit = &self
             .light
             .as_ref()
-            .ok_or_else(|| PrtError::invalid("view", "nothing rendered yet"))?;
+            .ok_or_else(|| PrtError::invalid("view", "nothing rendered yet"))?
+            .shown;
         let gt = self.gpu_transport.as_ref().ok_or_else(no_gpu)?;
-        relight_into_view(
+        let Some(camera) = camera else {
+            view.set_behind(&gpu.queue, &lit.behind);
+            return relight_into_view(
+                gpu,
+                gt,
+                &self.transport,
+                &self.ctx,
+                &lit.light,
+                request,
+                view,
+                state.tone_map(),
+            );
+        };
+        if self.gpu_mesh.is_none() {
+            self.gpu_mesh = Some(MeshDisplay::new(gpu, &self.transport)?);
+        }
+        let mesh = self.gpu_mesh.as_mut().expect("made above");
+        let behind = mesh.backdrop(&camera, lit)?;
+        view.set_behind(&gpu.queue, &behind);
+        draw_into_view(
             gpu,
             gt,
             &self.transport,
             &self.ctx,
-            light,
+            &lit.light,
             request,
+            mesh,
+            &camera,
             view,
-            tone,
+            state.tone_map(),
         )
     }
 
@@ -184,6 +228,17 @@ impl Engine {
                 .min((self.transport.coeff_count() as f64).sqrt() as usize),
             envs: self.envs.len(),
         }
+    }
+
+    /// The camera `state` looks through: a per-vertex bake's camera turned by
+    /// [`ViewState::orbit`]; `None` for a per-pixel bake, whose view is fixed.
+    pub fn camera(&self, state: &ViewState) -> Option<Camera> {
+        self.base_camera.as_ref().map(|c| state.orbit.camera(c))
+    }
+
+    /// Width and height of the images shown: the bake's, or a per-vertex bake's camera's.
+    pub fn view_size(&self) -> (usize, usize) {
+        view_size(&self.transport)
     }
 
     /// A state that suits this file: the given environment, SH at the baked order, K = 1% of
@@ -219,7 +274,7 @@ impl Engine {
         on_light: &mut OnLight<'_>,
     ) -> Result<(f64, f64)> {
         let key = LightKey::of(&self.envs, state);
-        if self.light.as_ref().is_some_and(|(k, _, _, _)| *k == key) {
+        if self.light.as_ref().is_some_and(|l| l.shown.key == key) {
             return Ok((0.0, 0.0));
         }
         let start = Instant::now();
@@ -239,14 +294,23 @@ impl Engine {
             pitch_deg: key.pitch,
         };
         let light = Arc::new(self.ctx.prepare(&map, rotation)?);
-        let behind = Arc::new(environment_behind(
-            &self.transport.meta,
-            &self.transport.coverage,
-            &map,
-            rotation,
-        )?);
+        let behind = Arc::new(match self.base_camera {
+            Some(_) => Image::new(0, 0),
+            None => environment_behind(
+                &self.transport.meta,
+                &self.transport.coverage,
+                &map,
+                rotation,
+            )?,
+        });
         let light_seconds = start.elapsed().as_secs_f64();
-        on_light(&key, &light, &behind);
+        let shown = LightShown {
+            key,
+            light,
+            behind,
+            map,
+        };
+        on_light(&shown);
         let full_start = Instant::now();
         let full_req = RelightRequest {
             method: Method::Full,
@@ -254,21 +318,19 @@ impl Engine {
             weighting: Weighting::Unweighted,
             sh_order: 1,
         };
-        let (full, _) = relight(&self.transport, &self.ctx, &light, &full_req)?;
-        self.light = Some((key, light, full, behind));
+        let (full, _) = relight(&self.transport, &self.ctx, &shown.light, &full_req)?;
+        self.light = Some(Lit { shown, full });
         self.last = None;
         Ok((light_seconds, full_start.elapsed().as_secs_f64()))
     }
 
-    /// The light of the last render or exposure, its key, and the environment behind the scene.
-    pub fn current_light(&self) -> Option<(LightKey, Arc<PreparedLight>, Arc<Image>)> {
-        self.light
-            .as_ref()
-            .map(|(k, l, _, b)| (k.clone(), l.clone(), b.clone()))
+    /// The light of the last render or exposure.
+    pub fn current_light(&self) -> Option<LightShown> {
+        self.light.as_ref().map(|l| l.shown.clone())
     }
 
     fn prepare(&mut self, state: &ViewState) -> Result<(f64, f64)> {
-        self.prepare_with(state, &mut |_, _, _| {})
+        self.prepare_with(state, &mut |_| {})
     }
 
     /// The exposure [`ToneMap::auto`] picks for the `full` image under `state`'s light.
@@ -276,7 +338,7 @@ impl Engine {
         let mut s = state.clone();
         s.clamp(self.limits());
         self.prepare(&s)?;
-        let (_, _, full, _) = self.light.as_ref().expect("prepared");
+        let full = &self.light.as_ref().expect("prepared").full;
         Ok(ToneMap::auto(full, None).exposure)
     }
 
@@ -314,7 +376,7 @@ impl Engine {
     /// Relights and tone-maps what `state` asks for. The same call serves the window, the
     /// screenshot and the tests.
     pub fn render(&mut self, state: &ViewState) -> Result<Rendered> {
-        self.render_with(state, &mut |_, _, _| {})
+        self.render_with(state, &mut |_| {})
     }
 
     /// [`Engine::render`], handing a newly prepared light to `on_light` as soon as it exists
@@ -333,50 +395,117 @@ impl Engine {
         if !cached {
             // Taken out for the loop (the GPU path borrows the engine mutably), put back after.
             let prepared = self.light.take().expect("prepared");
-            let panes = self.relight_panes(&state, limits, &prepared.1, &prepared.2);
+            let panes = self.relight_panes(&state, limits, &prepared.shown.light, &prepared.full);
             self.light = Some(prepared);
             self.last = Some((key, panes?));
         }
-        let (_, linear) = self.last.as_ref().expect("relit");
-        let (_, _, full, behind) = self.light.as_ref().expect("prepared");
         let tone = state.tone_map();
-        // Shown over the environment behind the scene; the errors were taken before.
-        let mut panes: Vec<Pane> = linear
-            .iter()
-            .map(|l| {
-                let shown = LinearPane {
-                    image: composite(&l.image, behind),
-                    ..l.clone()
-                };
-                Pane {
-                    rgb: shown.image.to_srgb8(tone),
-                    linear: shown,
-                }
-            })
-            .collect();
-        if state.error_map {
-            let maps: Vec<Pane> = panes
-                .iter()
-                .zip(linear)
-                .map(|(p, l)| Pane {
-                    rgb: error_heat_map(&l.image, full, ERROR_MAP_GAIN),
+        let (shown, full) = match self.camera(&state) {
+            Some(camera) => self.draw_panes(&state, &camera)?,
+            None => {
+                let (_, linear) = self.last.as_ref().expect("relit");
+                let lit = self.light.as_ref().expect("prepared");
+                // Shown over the environment behind the scene; the errors were taken before.
+                let shown = linear
+                    .iter()
+                    .map(|l| {
+                        let image = composite(&l.image, &lit.shown.behind);
+                        (l.clone(), l.image.clone(), image)
+                    })
+                    .collect();
+                (shown, lit.full.clone())
+            }
+        };
+        let mut panes: Vec<Pane> = Vec::new();
+        let mut maps: Vec<Pane> = Vec::new();
+        for (linear, relit, image) in shown {
+            if state.error_map {
+                maps.push(Pane {
+                    rgb: error_heat_map(&relit, &full, ERROR_MAP_GAIN),
                     linear: LinearPane {
-                        title: format!("error of {} x{ERROR_MAP_GAIN}", p.linear.title),
-                        ..p.linear.clone()
+                        title: format!("error of {} x{ERROR_MAP_GAIN}", linear.title),
+                        image: image.clone(),
+                        ..linear.clone()
                     },
-                })
-                .collect();
-            panes.extend(maps);
+                });
+            }
+            let linear = LinearPane { image, ..linear };
+            panes.push(Pane {
+                rgb: linear.image.to_srgb8(tone),
+                linear,
+            });
         }
+        panes.extend(maps);
+        let (width, height) = self.view_size();
         Ok(Rendered {
-            width: self.transport.meta.width as usize,
-            height: self.transport.meta.height as usize,
+            width,
+            height,
             panes,
             state,
             notes,
             light_seconds,
             full_seconds,
         })
+    }
+}
+
+impl Engine {
+    /// A per-vertex bake's relit panes drawn from `camera`: for each pane its numbers (taken on
+    /// the vertex colours), the drawn image and the drawn image over the backdrop; and `full`
+    /// drawn from the same camera (the error map's reference).
+    #[allow(clippy::type_complexity)]
+    fn draw_panes(
+        &mut self,
+        state: &ViewState,
+        camera: &Camera,
+    ) -> Result<(Vec<(LinearPane, Image, Image)>, Image)> {
+        let lit = self.light.as_ref().expect("prepared");
+        if !self
+            .backdrop
+            .as_ref()
+            .is_some_and(|(c, k, _)| c == camera && *k == lit.shown.key)
+        {
+            let image = backdrop(camera, &lit.shown.map, &lit.shown.key)?;
+            self.backdrop = Some((camera.clone(), lit.shown.key.clone(), image));
+        }
+        let (_, _, back) = self.backdrop.as_ref().expect("drawn");
+        let t = &self.transport;
+        let draw = |relit: &Image| -> Result<(Image, Image)> {
+            let raster = vertex::draw(t, vertex::vertex_colours(t, relit)?, camera, None)?;
+            let mut over = raster.image.clone();
+            for ((o, b), c) in over
+                .pixels
+                .iter_mut()
+                .zip(&back.pixels)
+                .zip(&raster.coverage)
+            {
+                for k in 0..3 {
+                    o[k] += (1.0 - c) * b[k];
+                }
+            }
+            Ok((raster.image, over))
+        };
+        let (_, linear) = self.last.as_ref().expect("relit");
+        let mut panes = Vec::with_capacity(linear.len());
+        for l in linear {
+            let (drawn, over) = draw(&l.image)?;
+            panes.push((l.clone(), drawn, over));
+        }
+        let full = if state.error_map {
+            draw(&lit.full)?.0
+        } else {
+            Image::new(0, 0)
+        };
+        Ok((panes, full))
+    }
+}
+
+/// Width and height of the images a viewer shows of `t`: the bake's, or for a per-vertex bake
+/// its camera's.
+pub fn view_size(t: &Transport) -> (usize, usize) {
+    match &t.meta.per_vertex {
+        Some(pv) => (pv.image[0] as usize, pv.image[1] as usize),
+        None => (t.meta.width as usize, t.meta.height as usize),
     }
 }
 

@@ -14,12 +14,13 @@ const TONE_WGSL: &str = include_str!("../../../shaders/tonemap.wgsl");
 pub struct GpuView {
     pub width: u32,
     pub height: u32,
-    /// Linear radiance, written by the relight kernels.
+    /// Linear radiance, written by the relight kernels (alpha 0) or drawn by the raster of a
+    /// per-vertex bake (alpha its coverage).
     pub linear: wgpu::Texture,
     /// Exposed, sRGB-encoded RGBA8, for display.
     pub display: wgpu::Texture,
-    /// The environment behind the scene (RGBA32F), added before tone mapping; black until
-    /// [`GpuView::set_behind`].
+    /// The environment behind the scene (RGBA32F), added before tone mapping where `linear`
+    /// leaves the pixel open (1 − alpha); black until [`GpuView::set_behind`].
     pub behind: wgpu::Texture,
     pipeline: wgpu::ComputePipeline,
     params: wgpu::Buffer,
@@ -48,7 +49,9 @@ impl GpuView {
         let linear = texture(
             "relit linear",
             wgpu::TextureFormat::Rgba32Float,
-            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+            wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::RENDER_ATTACHMENT,
         );
         let display = texture(
             "relit display",

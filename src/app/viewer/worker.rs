@@ -9,11 +9,11 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 
-use super::{Engine, EnvEntry, LightKey, Limits, Rendered, ViewState, env_entries, save_view};
+use super::{Engine, EnvEntry, LightShown, Limits, Rendered, ViewState, env_entries, save_view};
 use crate::error::{PrtError, Result};
-use crate::output::film::Image;
+use crate::relight::LightContext;
 use crate::relight::gpu::{Gpu, GpuTransport};
-use crate::relight::{LightContext, PreparedLight};
+use crate::scene::Camera;
 use crate::store::transport::Transport;
 
 /// What the window asks for.
@@ -32,12 +32,23 @@ pub struct Loaded {
     pub limits: Limits,
     /// A state that suits the file (see [`Engine::initial_state`]).
     pub state: ViewState,
+    /// The camera a per-vertex bake was made with; `None` for a per-pixel bake.
+    pub camera: Option<Camera>,
+    /// The size of the images shown.
+    pub size: (usize, usize),
+}
+
+impl Loaded {
+    /// The camera `state` looks through, as [`Engine::camera`] gives it.
+    pub fn camera(&self, state: &ViewState) -> Option<Camera> {
+        self.camera.as_ref().map(|c| state.orbit.camera(c))
+    }
 }
 
 /// What the worker answers.
 pub enum Reply {
     Loaded(Result<Loaded>),
-    Light(LightKey, Arc<PreparedLight>, Arc<Image>),
+    Light(LightShown),
     Rendered(Result<Rendered>),
     Exposure(Result<f32>),
     Saved(Result<PathBuf>),
@@ -171,13 +182,15 @@ fn run(
                 ctx: engine.ctx.clone(),
                 envs: engine.envs.clone(),
                 limits: engine.limits(),
+                camera: engine.camera(&ViewState::default()),
+                size: engine.view_size(),
                 state,
             };
             let _ = replies.send(Reply::Loaded(Ok(loaded)));
             // The initial state's light, prepared for its exposure: later lights come with the
             // renders that prepare them.
-            if let Some((key, light, behind)) = engine.current_light() {
-                let _ = replies.send(Reply::Light(key, light, behind));
+            if let Some(light) = engine.current_light() {
+                let _ = replies.send(Reply::Light(light));
             }
             pending.done(1);
             engine
@@ -201,9 +214,8 @@ fn run(
                         gpu: false,
                         ..state
                     };
-                    let r = engine.render_with(&cpu, &mut |key, light, behind| {
-                        let _ =
-                            replies.send(Reply::Light(key.clone(), light.clone(), behind.clone()));
+                    let r = engine.render_with(&cpu, &mut |light| {
+                        let _ = replies.send(Reply::Light(light.clone()));
                     });
                     Some(Reply::Rendered(r))
                 }

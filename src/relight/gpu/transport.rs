@@ -480,6 +480,33 @@ impl GpuTransport {
         }
     }
 
+    /// Relights with `terms` into this transport's own image buffer and submits, with no
+    /// readback: for a pass that reads [`GpuTransport::image_buffer`] next, such as the raster of
+    /// a per-vertex bake (whose pixel `v` is vertex `v`).
+    pub fn relight_terms_in_place(&self, gpu: &Gpu, terms: &Terms) -> Result<()> {
+        let (terms, wavelet) = match terms {
+            Terms::Wavelet(light) => (self.wavelet_terms(light)?, true),
+            Terms::Sh(sh) => (self.sh_terms(sh)?, false),
+        };
+        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let mut encoder = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("relight in place"),
+            });
+        self.encode(gpu, &terms, wavelet, &mut encoder);
+        gpu.queue.submit([encoder.finish()]);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(PrtError::Gpu(format!("relight in place: {e}")));
+        }
+        Ok(())
+    }
+
+    /// The relit image on the device: one `vec4<f32>` per pixel, pixel `y · width + x`, alpha 1.
+    pub fn image_buffer(&self) -> &wgpu::Buffer {
+        &self.image
+    }
+
     /// Uploads the terms and records one dispatch per chunk.
     fn encode(
         &self,
