@@ -64,6 +64,7 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
     let extras = BenchExtras {
         gpu: None,
         references: Some(&references),
+        reference_coverage: None,
     };
     let mut calls = 0;
     let points = run(&t, &envs, &opts, &extras, &mut |_, _| calls += 1).unwrap();
@@ -313,4 +314,67 @@ fn paper_run_writes_every_table_and_the_picture_row() {
     assert_eq!(comparison[0].matches('—').count(), 4, "{}", comparison[0]);
     // Every bake is kept for the viewer and the bench.
     assert!(dir.join("diffuse_8.prt").is_file() && dir.join("glossy_teapot_4.prt").is_file());
+}
+
+/// The bench of a per-vertex bake of `text` at edge length `edge` under `env`, against the
+/// per-pixel brute-force reference of the scene at its diffuse base: (the error of every term
+/// against the reference, its error against every term).
+fn per_vertex_bench(text: &str, name: &str, edge: f32, env: &EnvMap) -> (f64, f64) {
+    use wavelet_prt::bake::reference::render_reference_with;
+    let scene = common::scene_from(text, name);
+    let settings = BakeSettings {
+        cube_n: 8,
+        sh_order: 2,
+        lossless: true,
+        per_vertex: Some(edge),
+        ..BakeSettings::default()
+    };
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    let cube = env.to_cube(8, EnvRotation::default()).unwrap();
+    let per_pixel = BakeSettings {
+        per_vertex: None,
+        ..settings
+    };
+    let r = render_reference_with(
+        &scene.with_diffuse_materials(),
+        &cube,
+        &per_pixel,
+        &|_, _| {},
+    )
+    .unwrap();
+    let opts = BenchOptions {
+        terms: vec![8],
+        weightings: vec![Weighting::Transport],
+        sh_orders: vec![1],
+        sh_light_orders: Vec::new(),
+    };
+    let references = [r.image];
+    let extras = BenchExtras {
+        gpu: None,
+        references: Some(&references),
+        reference_coverage: Some(&r.coverage),
+    };
+    let envs = [("env".to_string(), env.clone())];
+    let points = run(&t, &envs, &opts, &extras, &mut |_, _| {}).unwrap();
+    let full = points.iter().find(|p| p.method == Method::Full).unwrap();
+    (full.reference_rel_l2.unwrap(), full.error.rel_l2)
+}
+
+#[test]
+fn a_per_vertex_bench_measures_the_interpolation_against_the_per_pixel_reference() {
+    let sun = SunSky::new(35.0, 20.0, 3.0, 3.0).to_latlong(256, 128, 2);
+    // Nothing shadows an open plane under distant light: every vertex has the same light, and
+    // interpolating it loses nothing.
+    let plane = common::plane_from_above(24, 16, [0.6, 0.5, 0.4], 2.0);
+    let (flat, light) = per_vertex_bench(&plane, "bench-pv-plane", 1.0, &sun);
+    assert!(flat < 1e-5, "flat plane: {flat}");
+    assert_eq!(light, 0.0);
+    // A sphere's shadow on the ground falls between vertices: finer edges follow it better.
+    let (coarse, _) = per_vertex_bench(common::SPHERE_ON_PLANE, "bench-pv-coarse", 0.8, &sun);
+    let (fine, _) = per_vertex_bench(common::SPHERE_ON_PLANE, "bench-pv-fine", 0.1, &sun);
+    assert!(
+        fine > 1e-3,
+        "a shadow is not exact at any tessellation: {fine}"
+    );
+    assert!(coarse > 1.5 * fine, "coarse {coarse} against fine {fine}");
 }

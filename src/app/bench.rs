@@ -153,6 +153,43 @@ pub struct BenchExtras<'a> {
     /// The GPU back-end, whose kernel times are reported beside the CPU's.
     pub gpu: Option<&'a dyn Backend>,
     pub references: Option<&'a [Image]>,
+    /// The references' coverage (one value per pixel, shared by every environment). A
+    /// per-vertex bake's points are drawn from its camera and compared over the pixels both the
+    /// drawing and the reference cover fully; per-pixel points use the transport's coverage.
+    pub reference_coverage: Option<&'a [f32]>,
+}
+
+/// Relative L2 of a relit image against a brute-force reference. A per-vertex bake's image
+/// (one colour per vertex) is drawn first from the bake's camera, and compared over the pixels
+/// both cover fully: so the error holds the interpolation between vertices.
+fn reference_error(
+    t: &Transport,
+    img: &Image,
+    reference: &Image,
+    reference_coverage: Option<&[f32]>,
+) -> Result<f64> {
+    if t.mesh.is_none() {
+        return relative_l2(img, reference, Some(&t.coverage));
+    }
+    let camera = crate::relight::vertex::bake_camera(t)?;
+    let colours = crate::relight::vertex::vertex_colours(t, img)?;
+    let drawn = crate::relight::vertex::draw(t, colours, &camera, None)?;
+    let both: Vec<f32> = match reference_coverage {
+        Some(c) if c.len() == drawn.coverage.len() => drawn
+            .coverage
+            .iter()
+            .zip(c)
+            .map(|(a, b)| (*a == 1.0 && *b == 1.0) as u8 as f32)
+            .collect(),
+        Some(c) => {
+            return Err(PrtError::invalid(
+                "reference coverage",
+                format!("{} values for {} pixels", c.len(), drawn.coverage.len()),
+            ));
+        }
+        None => drawn.coverage.clone(),
+    };
+    relative_l2(&drawn.image, reference, Some(&both))
 }
 
 /// Runs the sweep. `progress(done, total)` is called after every point.
@@ -210,7 +247,7 @@ pub fn run(
                 light_rel_l2,
                 error: compare(&img, &full, mask)?,
                 reference_rel_l2: match reference {
-                    Some(r) => Some(relative_l2(&img, r, mask)?),
+                    Some(r) => Some(reference_error(t, &img, r, extras.reference_coverage)?),
                     None => None,
                 },
                 cpu_ms,
@@ -264,7 +301,7 @@ pub fn run(
                     light_rel_l2: None,
                     error: compare(&img, &full, mask)?,
                     reference_rel_l2: match extras.references.map(|r| &r[e]) {
-                        Some(r) => Some(relative_l2(&img, r, mask)?),
+                        Some(r) => Some(reference_error(t, &img, r, extras.reference_coverage)?),
                         None => None,
                     },
                     cpu_ms,

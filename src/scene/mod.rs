@@ -266,6 +266,23 @@ impl Scene {
         self.content_hash
     }
 
+    /// This scene with every glossy material at its diffuse base: what a per-vertex bake, which
+    /// keeps only diffuse light, holds. Its content hash differs from this scene's, so that a
+    /// bake of one is never taken for a bake of the other.
+    pub fn with_diffuse_materials(&self) -> Scene {
+        let mut s = self.clone();
+        for m in &mut s.materials {
+            *m = Material::Diffuse { albedo: m.albedo() };
+        }
+        // FNV-1a over the source hash and a tag.
+        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        for b in self.content_hash.to_le_bytes().iter().chain(b"diffuse") {
+            h = (h ^ *b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        s.content_hash = h;
+        s
+    }
+
     /// Number of triangles after flattening quads and meshes.
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()

@@ -153,7 +153,24 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
     };
     let references = match (&scene, a.reference) {
         (Some(scene), true) => {
+            // A per-vertex bake holds the diffuse light at its vertices: its reference is the
+            // per-pixel brute force of the same scene with glossy materials at their diffuse base.
+            let diffuse;
+            let (scene, settings) = match t.mesh {
+                Some(_) => {
+                    diffuse = scene.with_diffuse_materials();
+                    (
+                        &diffuse,
+                        BakeSettings {
+                            per_vertex: None,
+                            ..settings.clone()
+                        },
+                    )
+                }
+                None => (scene, settings.clone()),
+            };
             let mut refs = Vec::new();
+            let mut coverage = Vec::new();
             let rows = bar(
                 (envs.len() * scene.camera.height as usize) as u64,
                 "reference rows",
@@ -169,9 +186,10 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
                     &|done, _| rows.set_position(before + done as u64),
                 )?;
                 refs.push(r.image);
+                coverage = r.coverage;
             }
             rows.finish_and_clear();
-            Some(refs)
+            Some((refs, coverage))
         }
         _ => None,
     };
@@ -181,7 +199,8 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
     };
     let extras = crate::app::bench::BenchExtras {
         gpu: backend.as_ref().map(|b| b as &dyn crate::relight::Backend),
-        references: references.as_deref(),
+        references: references.as_ref().map(|(r, _)| r.as_slice()),
+        reference_coverage: references.as_ref().map(|(_, c)| c.as_slice()),
     };
     let points = crate::app::bench::run(&t, &envs, &opts, &extras, &mut |done, total| {
         points_bar.set_length(total as u64);
@@ -204,6 +223,15 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         written.extend(crate::app::bench::write_compression(&a.out, &curve)?);
     }
     println!("{}", crate::app::bench::summary(&points));
+    if let Some(pv) = &t.meta.per_vertex {
+        println!(
+            "per vertex ({} vertices, edges up to {:.3}): the reference error is taken on the \
+             image drawn from the bake's camera, so that of every stored term is the \
+             interpolation between vertices; `rel_l2` (against every term, per vertex) is the \
+             light's approximation",
+            pv.vertices, pv.edge_length
+        );
+    }
     for p in written {
         println!("wrote {}", p.display());
     }
