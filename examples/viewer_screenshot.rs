@@ -1,7 +1,8 @@
 //! Renders the whole viewer window (panel and image) headless to a PNG, for documentation:
 //! `cargo run --release --example viewer_screenshot -- FILE.prt OUT.png [ENV]`. It opens FILE
-//! with the SH | wavelet split comparison under ENV (default a low sun) and draws the window on
-//! the first wgpu adapter (a software one will do).
+//! with the SH | wavelet split comparison under ENV (default a low sun), a per-vertex bake turned
+//! 35° about its target and raised 10°, and draws the window on the first wgpu adapter (a
+//! software one will do).
 
 use std::time::Duration;
 
@@ -46,6 +47,12 @@ fn main() {
     s.layout = Layout::Split;
     s.split = 0.5;
     s.terms = 64;
+    // Ignored by a per-pixel bake, whose view is fixed.
+    s.orbit = wavelet_prt::relight::vertex::Orbit {
+        azimuth_deg: 35.0,
+        elevation_deg: 10.0,
+        distance: 1.0,
+    };
     settle(&mut h);
     h.render()
         .expect("headless render")

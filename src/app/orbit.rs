@@ -1,8 +1,8 @@
-//! The demo's orbit: the demo scene baked per vertex (at the default edge length), relit under
-//! one environment and drawn from four camera angles around it, then compared from the scene's
-//! own camera with the per-pixel bake: what interpolating between vertices costs, apart from the
-//! light's approximation. Also times a frame as the viewer makes it: relight at K terms, then
-//! draw.
+//! The demo's orbit: the demo scene baked per vertex (at the default edge length, and at twice
+//! it), relit under one environment and drawn from four camera angles around it, then compared
+//! from the scene's own camera with the per-pixel bake: what interpolating between vertices
+//! costs at each tessellation, apart from the light's approximation. Also times a frame as the
+//! viewer makes it: relight at K terms, then draw.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -12,7 +12,7 @@ use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
-use crate::output::sheet::{Cell, downsample, write_sheet};
+use crate::output::sheet::{Cell, write_sheet};
 use crate::relight::vertex::{bake_camera, compose, orbit, vertex_colours};
 use crate::relight::{LightContext, Method, RelightRequest, relight};
 use crate::scene::Scene;
@@ -24,24 +24,65 @@ pub const ORBIT_TERMS: usize = 100;
 /// Azimuths of the orbit sheet's four views, degrees about +Y from the scene's camera.
 pub const ORBIT_AZIMUTHS: [f32; 4] = [0.0, 90.0, 180.0, 270.0];
 
-/// What the orbit produced.
-pub struct OrbitReport {
+/// The coarser tessellation's edge length, as a multiple of the default.
+pub const COARSE_EDGE_FACTOR: f32 = 2.0;
+
+/// One tessellation of the orbit: its size, bake and errors.
+#[derive(Clone, Debug)]
+pub struct Tessellation {
     pub vertices: usize,
     pub triangles: usize,
     pub edge_length: f32,
     pub bake_seconds: f64,
     pub reused_bake: bool,
-    /// Median over a few frames at [`ORBIT_TERMS`] terms, on the CPU: the relight, the
-    /// drawing, and both.
-    pub relight_ms: f64,
-    pub draw_ms: f64,
-    pub frame_ms: f64,
     /// From the scene's camera, every term: the per-vertex image against the per-pixel one, over
     /// the pixels both cover with one diffuse row (glossy surfaces left out), relative L2.
     pub interpolation_error: f64,
     /// Relative L2 of [`ORBIT_TERMS`] terms against every term, per vertex.
     pub light_error: f64,
+}
+
+/// What the orbit produced.
+pub struct OrbitReport {
+    /// The default tessellation (drawn around the orbit and timed).
+    pub fine: Tessellation,
+    /// At [`COARSE_EDGE_FACTOR`] times the default edge length.
+    pub coarse: Tessellation,
+    /// Median over a few frames at [`ORBIT_TERMS`] terms, on the CPU: the relight, the
+    /// drawing, and both.
+    pub relight_ms: f64,
+    pub draw_ms: f64,
+    pub frame_ms: f64,
     pub sheet_path: PathBuf,
+}
+
+/// Bakes (or reuses) `scene` per vertex at edge length `edge` into `path`.
+fn bake_vertices(
+    path: &Path,
+    scene: &Scene,
+    settings: &BakeSettings,
+    edge: f32,
+    log: &mut dyn FnMut(&str),
+    progress: &(dyn Fn(BakeProgress) + Sync),
+) -> Result<(Transport, bool, f64)> {
+    let settings = BakeSettings {
+        per_vertex: Some(edge),
+        ..settings.clone()
+    };
+    let start = Instant::now();
+    let (t, reused) = match load_if_baked_with(path, scene, &settings) {
+        Some(t) => (t, true),
+        None => {
+            log(&format!(
+                "baking {} per vertex (edges up to {edge:.3}) ...",
+                scene.source_path.display(),
+            ));
+            let t = bake(scene, &settings, progress)?;
+            t.save(path)?;
+            (t, false)
+        }
+    };
+    Ok((t, reused, start.elapsed().as_secs_f64()))
 }
 
 /// Bakes (or reuses) `scene` per vertex into `dir/demo_vertices.prt` with `settings` at the
@@ -56,35 +97,9 @@ pub fn run_orbit(
     log: &mut dyn FnMut(&str),
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<OrbitReport> {
-    let settings = BakeSettings {
-        per_vertex: Some(VertexMesh::default_edge_length(scene)),
-        ..settings.clone()
-    };
-    let path = dir.join("demo_vertices.prt");
-    let start = Instant::now();
-    let (t, reused_bake) = match load_if_baked_with(&path, scene, &settings) {
-        Some(t) => (t, true),
-        None => {
-            log(&format!(
-                "baking {} per vertex (edges up to {:.3}) ...",
-                scene.source_path.display(),
-                settings.per_vertex.unwrap_or_default()
-            ));
-            let t = bake(scene, &settings, progress)?;
-            t.save(&path)?;
-            (t, false)
-        }
-    };
-    let bake_seconds = start.elapsed().as_secs_f64();
-    let pv = t
-        .meta
-        .per_vertex
-        .clone()
-        .ok_or_else(|| PrtError::invalid("orbit", "the bake is not per vertex"))?;
+    let edge = VertexMesh::default_edge_length(scene);
     let (name, env) = env;
     let rotation = EnvRotation::default();
-    let ctx = LightContext::new(&t)?;
-    let light = ctx.prepare(env, rotation)?;
     let full_req = RelightRequest {
         method: Method::Full,
         terms: 0,
@@ -97,14 +112,7 @@ pub fn run_orbit(
         terms: ORBIT_TERMS,
         ..full_req
     };
-    let (full, _) = relight(&t, &ctx, &light, &full_req)?;
-    let camera = bake_camera(&t)?;
-    let mesh = crate::relight::vertex::mesh_of(&t)?;
-    let draw = |colours: &[[f32; 3]], camera: &crate::scene::Camera| {
-        crate::relight::raster::rasterize(camera, &mesh.positions, &mesh.triangles, colours)
-    };
-    let drawn_full = draw(vertex_colours(&t, &full)?, &camera)?;
-    // The per-pixel bake from the same camera, every term, over the pixels both cover.
+    // The per-pixel bake from the scene's camera, every term, to compare with.
     let pixel_ctx = LightContext::new(per_pixel)?;
     let pixel_light = pixel_ctx.prepare(env, rotation)?;
     let (pixel_full, _) = relight(per_pixel, &pixel_ctx, &pixel_light, &full_req)?;
@@ -114,17 +122,53 @@ pub fn run_orbit(
     for &p in &per_pixel.row_pixel {
         rows[p as usize] += 1;
     }
-    let both: Vec<f32> = drawn_full
-        .coverage
-        .iter()
-        .zip(&per_pixel.coverage)
-        .zip(&rows)
-        .map(|((a, b), &r)| (*a == 1.0 && *b == 1.0 && r == 1) as u8 as f32)
-        .collect();
-    let interpolation_error = relative_l2(&drawn_full.image, &pixel_full, Some(&both))?;
+    // One tessellation: baked, relit with every term and with K, drawn from the scene's camera.
+    let mut measure = |file: &str, edge: f32| -> Result<(Tessellation, Transport, Image, Image)> {
+        let (t, reused_bake, bake_seconds) =
+            bake_vertices(&dir.join(file), scene, settings, edge, log, progress)?;
+        let pv = t
+            .meta
+            .per_vertex
+            .clone()
+            .ok_or_else(|| PrtError::invalid("orbit", "the bake is not per vertex"))?;
+        let ctx = LightContext::new(&t)?;
+        let light = ctx.prepare(env, rotation)?;
+        let (full, _) = relight(&t, &ctx, &light, &full_req)?;
+        let (k_img, _) = relight(&t, &ctx, &light, &k_req)?;
+        let camera = bake_camera(&t)?;
+        let drawn = crate::relight::vertex::draw(&t, vertex_colours(&t, &full)?, &camera, None)?;
+        let both: Vec<f32> = drawn
+            .coverage
+            .iter()
+            .zip(&per_pixel.coverage)
+            .zip(&rows)
+            .map(|((a, b), &r)| (*a == 1.0 && *b == 1.0 && r == 1) as u8 as f32)
+            .collect();
+        let tess = Tessellation {
+            vertices: pv.vertices as usize,
+            triangles: pv.triangles as usize,
+            edge_length: pv.edge_length,
+            bake_seconds,
+            reused_bake,
+            interpolation_error: relative_l2(&drawn.image, &pixel_full, Some(&both))?,
+            light_error: relative_l2(&k_img, &full, Some(&t.coverage))?,
+        };
+        let shown = compose(drawn, &camera, Some((env, rotation)))?.image;
+        Ok((tess, t, k_img, shown))
+    };
+    let (fine, t, k_img, fine_shown) = measure("demo_vertices.prt", edge)?;
+    let (coarse, _, _, coarse_shown) =
+        measure("demo_vertices_coarse.prt", edge * COARSE_EDGE_FACTOR)?;
+    let ctx = LightContext::new(&t)?;
+    let light = ctx.prepare(env, rotation)?;
+    let camera = bake_camera(&t)?;
+    let mesh = crate::relight::vertex::mesh_of(&t)?;
+    let draw = |colours: &[[f32; 3]], camera: &crate::scene::Camera| {
+        crate::relight::raster::rasterize(camera, &mesh.positions, &mesh.triangles, colours)
+    };
     // Frames as the viewer makes them: relight at K terms, draw.
     let mut times = Vec::new();
-    let (mut k_img, _) = relight(&t, &ctx, &light, &k_req)?;
+    let mut k_img = k_img;
     for _ in 0..5 {
         let t0 = Instant::now();
         let (img, _) = relight(&t, &ctx, &light, &k_req)?;
@@ -144,19 +188,17 @@ pub fn run_orbit(
         v.sort_by(f64::total_cmp);
         v[v.len() / 2] * 1e3
     };
-    let light_error = relative_l2(&k_img, &full, Some(&t.coverage))?;
     let colours = vertex_colours(&t, &k_img)?;
-    let tone = ToneMap::auto(&drawn_full.image, Some(&drawn_full.coverage));
+    let tone = ToneMap::auto(&pixel_full, Some(&per_pixel.coverage));
     let mut shots: Vec<(Image, [String; 2])> = Vec::new();
     for az in ORBIT_AZIMUTHS {
         let cam = orbit(&camera, az, 0.0);
         let shot = compose(draw(colours, &cam)?, &cam, Some((env, rotation)))?;
         shots.push((
-            downsample(&shot.image, 2),
+            shot.image,
             [format!("K = {ORBIT_TERMS}, turned {az}°"), name.to_string()],
         ));
     }
-    let behind = |r| compose(r, &camera, Some((env, rotation)));
     let pixel_shown = crate::relight::background::composite(
         &pixel_full,
         &crate::relight::background::environment_behind(
@@ -167,16 +209,18 @@ pub fn run_orbit(
         )?,
     );
     shots.push((
-        downsample(&pixel_shown, 2),
+        pixel_shown,
         ["per pixel, every term".into(), "the scene's camera".into()],
     ));
-    shots.push((
-        downsample(&behind(drawn_full)?.image, 2),
-        [
-            "per vertex, every term".into(),
-            format!("L2 {:.1}% vs per pixel", 100.0 * interpolation_error),
-        ],
-    ));
+    for (tess, shown) in [(&fine, fine_shown), (&coarse, coarse_shown)] {
+        shots.push((
+            shown,
+            [
+                format!("per vertex, {} vertices", tess.vertices),
+                format!("L2 {:.1}% vs per pixel", 100.0 * tess.interpolation_error),
+            ],
+        ));
+    }
     let cells: Vec<Cell> = shots
         .iter()
         .map(|(image, caption)| Cell {
@@ -192,7 +236,7 @@ pub fn run_orbit(
         &cells,
         &format!(
             "Per-vertex transport ({} vertices): one relight, any camera",
-            pv.vertices
+            fine.vertices
         ),
     )?;
     log(&format!(
@@ -201,16 +245,11 @@ pub fn run_orbit(
         median(2)
     ));
     Ok(OrbitReport {
-        vertices: pv.vertices as usize,
-        triangles: pv.triangles as usize,
-        edge_length: pv.edge_length,
-        bake_seconds,
-        reused_bake,
+        fine,
+        coarse,
         relight_ms: median(0),
         draw_ms: median(1),
         frame_ms: median(2),
-        interpolation_error,
-        light_error,
         sheet_path,
     })
 }

@@ -378,14 +378,16 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
     println!("transport      {}", report.transport_path.display());
     let o = &report.orbit;
     println!(
-        "orbit          {} ({} vertices baked in {:.1} s; a frame at K = {} in {:.1} ms on the \
-         CPU; {:.1}% from the per-pixel bake)",
+        "orbit          {} ({} vertices baked in {:.1} s, {:.1}% from the per-pixel bake; {} \
+         vertices, {:.1}%; a frame at K = {} in {:.1} ms on the CPU)",
         o.sheet_path.display(),
-        o.vertices,
-        o.bake_seconds,
+        o.fine.vertices,
+        o.fine.bake_seconds,
+        100.0 * o.fine.interpolation_error,
+        o.coarse.vertices,
+        100.0 * o.coarse.interpolation_error,
         crate::app::orbit::ORBIT_TERMS,
         o.frame_ms,
-        100.0 * o.interpolation_error
     );
     println!(
         "volume         {} (SH self-transfer baked in {:.2} s; images in {})",

@@ -339,7 +339,16 @@ impl Engine {
         s.clamp(self.limits());
         self.prepare(&s)?;
         let full = &self.light.as_ref().expect("prepared").full;
-        Ok(ToneMap::auto(full, None).exposure)
+        // A per-vertex bake is exposed for what its camera sees, not for every vertex (the
+        // unlit undersides of two-sided surfaces among them).
+        Ok(match self.camera(&s) {
+            Some(camera) => {
+                let t = &self.transport;
+                let drawn = vertex::draw(t, vertex::vertex_colours(t, full)?, &camera, None)?;
+                ToneMap::auto(&drawn.image, Some(&drawn.coverage)).exposure
+            }
+            None => ToneMap::auto(full, None).exposure,
+        })
     }
 
     fn relight_panes(
