@@ -168,6 +168,34 @@ fn prt_bake_per_vertex_reports_its_vertices_and_info_reads_them() {
         text.contains("per vertex") && text.contains("edges up to 0.6000"),
         "{text}"
     );
+    assert!(
+        !text.contains("warning"),
+        "every material is diffuse: {text}"
+    );
+    // A glossy material keeps its diffuse base, and the bake says so by name.
+    let glossy = dir.join("glossy.toml");
+    std::fs::write(
+        &glossy,
+        format!("edge_length = 0.6\n{SPHERE_ON_PLANE}").replace(
+            "type = \"diffuse\"\nalbedo = [0.8, 0.3, 0.2]",
+            "type = \"glossy\"\nalbedo = [0.5, 0.3, 0.2]\nspecular = [0.3, 0.3, 0.3]\nroughness = 0.3",
+        ),
+    )
+    .unwrap();
+    let (code, text) = prt(&[
+        "bake",
+        glossy.to_str().unwrap(),
+        "-o",
+        dir.join("g.prt").to_str().unwrap(),
+        "--per-vertex",
+        "--cube",
+        "4",
+    ]);
+    assert_eq!(code, 0, "{text}");
+    assert!(
+        text.contains("warning") && text.contains("clay") && text.contains("diffuse base"),
+        "{text}"
+    );
     let t = Transport::load(&out).unwrap();
     assert_eq!(t.meta.per_vertex.as_ref().unwrap().edge_length, 0.6);
     let (code, text) = prt(&["info", out.to_str().unwrap()]);

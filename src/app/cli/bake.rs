@@ -74,6 +74,21 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
             .unwrap_or_else(|| crate::scene::tessellate::VertexMesh::default_edge_length(&scene));
         settings.per_vertex = Some(edge);
         settings.validate()?;
+        let glossy: Vec<&str> = scene
+            .materials
+            .iter()
+            .zip(&scene.material_names)
+            .filter(|(m, _)| m.glossy_lobe().is_some())
+            .map(|(_, n)| n.as_str())
+            .collect();
+        if !glossy.is_empty() {
+            eprintln!(
+                "warning: per vertex, the glossy material(s) {} keep only their diffuse base: a \
+                 glossy lobe depends on the direction to the camera, which moves (bake per pixel \
+                 for the fixed view's highlights)",
+                glossy.join(", ")
+            );
+        }
         Some(crate::scene::tessellate::VertexMesh::tessellate(
             &scene, edge,
         )?)
