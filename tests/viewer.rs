@@ -258,6 +258,21 @@ fn gpu_relight_matches_the_cpu() {
     }
 }
 
+/// What the window's GPU display path shows of `request` under `s` (the light of the last
+/// render), read back as RGB8.
+fn shown_on_gpu(
+    e: &mut Engine,
+    r: &wavelet_prt::app::viewer::Rendered,
+    request: &wavelet_prt::relight::RelightRequest,
+    s: &ViewState,
+) -> Vec<u8> {
+    let g = e.gpu().unwrap();
+    let view = wavelet_prt::app::viewer::GpuView::new(&g.device, r.width as u32, r.height as u32);
+    e.relight_to_view(request, &view, s).unwrap();
+    let g = e.gpu().unwrap();
+    view.read_rgb8(&g.device, &g.queue).unwrap()
+}
+
 #[test]
 fn gpu_texture_path_shows_what_the_cpu_path_shows() {
     let Some(gpu) = common::gpu_or_skip("viewer GPU") else {
@@ -276,12 +291,7 @@ fn gpu_texture_path_shows_what_the_cpu_path_shows() {
         s.compare = compare;
         let r = e.render(&s).unwrap();
         for pane in &r.panes {
-            let g = e.gpu().unwrap();
-            let view =
-                wavelet_prt::app::viewer::GpuView::new(&g.device, r.width as u32, r.height as u32);
-            e.relight_to_view(&pane.linear.request, &view, &s).unwrap();
-            let g = e.gpu().unwrap();
-            let shown = view.read_rgb8(&g.device, &g.queue).unwrap();
+            let shown = shown_on_gpu(&mut e, &r, &pane.linear.request, &s);
             assert_eq!(shown.len(), pane.rgb.len());
             let worst = shown
                 .iter()
@@ -597,12 +607,7 @@ fn the_gpu_view_of_a_per_vertex_bake_shows_what_the_cpu_path_shows() {
         s.compare = compare;
         let r = e.render(&s).unwrap();
         for pane in &r.panes {
-            let g = e.gpu().unwrap();
-            let view =
-                wavelet_prt::app::viewer::GpuView::new(&g.device, r.width as u32, r.height as u32);
-            e.relight_to_view(&pane.linear.request, &view, &s).unwrap();
-            let g = e.gpu().unwrap();
-            let shown = view.read_rgb8(&g.device, &g.queue).unwrap();
+            let shown = shown_on_gpu(&mut e, &r, &pane.linear.request, &s);
             assert_eq!(shown.len(), pane.rgb.len());
             // Pixels whose centre falls on a triangle edge may go to either side.
             let off = shown

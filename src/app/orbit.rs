@@ -56,6 +56,18 @@ pub struct OrbitReport {
     pub sheet_path: PathBuf,
 }
 
+/// One tessellation measured: the bake, its light under the orbit's environment, the relight at
+/// [`ORBIT_TERMS`] terms, and the image of every term from the scene's camera over the
+/// environment.
+struct Measured {
+    tess: Tessellation,
+    t: Transport,
+    ctx: LightContext,
+    light: crate::relight::PreparedLight,
+    k_img: Image,
+    shown: Image,
+}
+
 /// Bakes (or reuses) `scene` per vertex at edge length `edge` into `path`.
 fn bake_vertices(
     path: &Path,
@@ -123,7 +135,7 @@ pub fn run_orbit(
         rows[p as usize] += 1;
     }
     // One tessellation: baked, relit with every term and with K, drawn from the scene's camera.
-    let mut measure = |file: &str, edge: f32| -> Result<(Tessellation, Transport, Image, Image)> {
+    let mut measure = |file: &str, edge: f32| -> Result<Measured> {
         let (t, reused_bake, bake_seconds) =
             bake_vertices(&dir.join(file), scene, settings, edge, log, progress)?;
         let pv = t
@@ -154,13 +166,28 @@ pub fn run_orbit(
             light_error: relative_l2(&k_img, &full, Some(&t.coverage))?,
         };
         let shown = compose(drawn, &camera, Some((env, rotation)))?.image;
-        Ok((tess, t, k_img, shown))
+        Ok(Measured {
+            tess,
+            t,
+            ctx,
+            light,
+            k_img,
+            shown,
+        })
     };
-    let (fine, t, k_img, fine_shown) = measure("demo_vertices.prt", edge)?;
-    let (coarse, _, _, coarse_shown) =
-        measure("demo_vertices_coarse.prt", edge * COARSE_EDGE_FACTOR)?;
-    let ctx = LightContext::new(&t)?;
-    let light = ctx.prepare(env, rotation)?;
+    let Measured {
+        tess: fine,
+        t,
+        ctx,
+        light,
+        k_img,
+        shown: fine_shown,
+    } = measure("demo_vertices.prt", edge)?;
+    let Measured {
+        tess: coarse,
+        shown: coarse_shown,
+        ..
+    } = measure("demo_vertices_coarse.prt", edge * COARSE_EDGE_FACTOR)?;
     let camera = bake_camera(&t)?;
     let mesh = crate::relight::vertex::mesh_of(&t)?;
     let draw = |colours: &[[f32; 3]], camera: &crate::scene::Camera| {

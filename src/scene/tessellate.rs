@@ -165,49 +165,14 @@ impl VertexMesh {
 
     /// The 12 vertices and 20 faces of an icosahedron inscribed in a sphere.
     fn icosahedron(&mut self, center: Vec3, radius: f32, material: u32) -> Vec<[u32; 3]> {
-        let g = (1.0 + 5f32.sqrt()) / 2.0;
-        let dirs = [
-            [-1.0, g, 0.0],
-            [1.0, g, 0.0],
-            [-1.0, -g, 0.0],
-            [1.0, -g, 0.0],
-            [0.0, -1.0, g],
-            [0.0, 1.0, g],
-            [0.0, -1.0, -g],
-            [0.0, 1.0, -g],
-            [g, 0.0, -1.0],
-            [g, 0.0, 1.0],
-            [-g, 0.0, -1.0],
-            [-g, 0.0, 1.0],
-        ];
         let first = self.positions.len() as u32;
-        for d in dirs {
-            let n = Vec3::from(d).normalize();
-            self.push(center + radius * n, n, material);
+        for d in icosahedron_directions() {
+            self.push(center + radius * d, d, material);
         }
-        const FACES: [[u32; 3]; 20] = [
-            [0, 11, 5],
-            [0, 5, 1],
-            [0, 1, 7],
-            [0, 7, 10],
-            [0, 10, 11],
-            [1, 5, 9],
-            [5, 11, 4],
-            [11, 10, 2],
-            [10, 7, 6],
-            [7, 1, 8],
-            [3, 9, 4],
-            [3, 4, 2],
-            [3, 2, 6],
-            [3, 6, 8],
-            [3, 8, 9],
-            [4, 9, 5],
-            [2, 4, 11],
-            [6, 2, 10],
-            [8, 6, 7],
-            [9, 8, 1],
-        ];
-        FACES.iter().map(|f| f.map(|i| first + i)).collect()
+        ICOSAHEDRON_FACES
+            .iter()
+            .map(|f| f.map(|i| first + i))
+            .collect()
     }
 
     /// Appends a refined shape's triangles, and for an open shape a twin of each of its
@@ -376,6 +341,52 @@ impl<'a> Refiner<'a> {
         Ok(tris)
     }
 }
+
+/// The unit vertex directions of an icosahedron: (±1, ±g, 0) and its cyclic turns, g the golden
+/// ratio, normalised.
+pub(crate) fn icosahedron_directions() -> [Vec3; 12] {
+    let g = (1.0 + 5f32.sqrt()) / 2.0;
+    [
+        [-1.0, g, 0.0],
+        [1.0, g, 0.0],
+        [-1.0, -g, 0.0],
+        [1.0, -g, 0.0],
+        [0.0, -1.0, g],
+        [0.0, 1.0, g],
+        [0.0, -1.0, -g],
+        [0.0, 1.0, -g],
+        [g, 0.0, -1.0],
+        [g, 0.0, 1.0],
+        [-g, 0.0, -1.0],
+        [-g, 0.0, 1.0],
+    ]
+    .map(|d| Vec3::from(d).normalize())
+}
+
+/// The icosahedron's faces over [`icosahedron_directions`], wound outward (counter-clockwise seen
+/// from outside).
+pub(crate) const ICOSAHEDRON_FACES: [[u32; 3]; 20] = [
+    [0, 11, 5],
+    [0, 5, 1],
+    [0, 1, 7],
+    [0, 7, 10],
+    [0, 10, 11],
+    [1, 5, 9],
+    [5, 11, 4],
+    [11, 10, 2],
+    [10, 7, 6],
+    [7, 1, 8],
+    [3, 9, 4],
+    [3, 4, 2],
+    [3, 2, 6],
+    [3, 6, 8],
+    [3, 8, 9],
+    [4, 9, 5],
+    [2, 4, 11],
+    [6, 2, 10],
+    [8, 6, 7],
+    [9, 8, 1],
+];
 
 #[cfg(test)]
 mod tests {

@@ -599,46 +599,12 @@ mod tests {
     /// An icosphere of `subdivisions` levels as OBJ text (unwelded is fine: vertices are
     /// shared by index).
     fn icosphere_obj(subdivisions: u32) -> (String, usize) {
-        let g = (1.0 + 5f32.sqrt()) / 2.0;
-        let mut verts: Vec<Vec3> = [
-            (-1.0, g, 0.0),
-            (1.0, g, 0.0),
-            (-1.0, -g, 0.0),
-            (1.0, -g, 0.0),
-            (0.0, -1.0, g),
-            (0.0, 1.0, g),
-            (0.0, -1.0, -g),
-            (0.0, 1.0, -g),
-            (g, 0.0, -1.0),
-            (g, 0.0, 1.0),
-            (-g, 0.0, -1.0),
-            (-g, 0.0, 1.0),
-        ]
-        .iter()
-        .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
-        .collect();
-        let mut faces: Vec<[usize; 3]> = vec![
-            [0, 11, 5],
-            [0, 5, 1],
-            [0, 1, 7],
-            [0, 7, 10],
-            [0, 10, 11],
-            [1, 5, 9],
-            [5, 11, 4],
-            [11, 10, 2],
-            [10, 7, 6],
-            [7, 1, 8],
-            [3, 9, 4],
-            [3, 4, 2],
-            [3, 2, 6],
-            [3, 6, 8],
-            [3, 8, 9],
-            [4, 9, 5],
-            [2, 4, 11],
-            [6, 2, 10],
-            [8, 6, 7],
-            [9, 8, 1],
-        ];
+        use crate::scene::tessellate::{ICOSAHEDRON_FACES, icosahedron_directions};
+        let mut verts: Vec<Vec3> = icosahedron_directions().to_vec();
+        let mut faces: Vec<[usize; 3]> = ICOSAHEDRON_FACES
+            .iter()
+            .map(|f| f.map(|i| i as usize))
+            .collect();
         for _ in 0..subdivisions {
             let mut midpoints = std::collections::HashMap::new();
             let mut mid = |a: usize, b: usize, verts: &mut Vec<Vec3>| {

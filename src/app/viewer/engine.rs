@@ -48,7 +48,18 @@ pub fn relight_into_view(
     let start = Instant::now();
     let terms = Terms::of(t, ctx, light, request)?;
     gt.relight_terms_to_texture(gpu, &terms, &view.linear)?;
-    let kernel_seconds = gpu.last_kernel_seconds();
+    tone_map_and_wait(gpu, view, tone, start, gpu.last_kernel_seconds())
+}
+
+/// Tone-maps `view` as `tone` says and waits for the device: the end of a display draw begun
+/// at `start`, whose relight passes took `kernel_seconds` by the timestamps.
+pub(super) fn tone_map_and_wait(
+    gpu: &Gpu,
+    view: &GpuView,
+    tone: ToneMap,
+    start: Instant,
+    kernel_seconds: Option<f64>,
+) -> Result<GpuTiming> {
     view.tone_map(&gpu.device, &gpu.queue, tone);
     gpu.device
         .poll(wgpu::PollType::Wait {
@@ -409,28 +420,14 @@ impl Engine {
             self.last = Some((key, panes?));
         }
         let tone = state.tone_map();
-        let (shown, full) = match self.camera(&state) {
-            Some(camera) => self.draw_panes(&state, &camera)?,
-            None => {
-                let (_, linear) = self.last.as_ref().expect("relit");
-                let lit = self.light.as_ref().expect("prepared");
-                // Shown over the environment behind the scene; the errors were taken before.
-                let shown = linear
-                    .iter()
-                    .map(|l| {
-                        let image = composite(&l.image, &lit.shown.behind);
-                        (l.clone(), l.image.clone(), image)
-                    })
-                    .collect();
-                (shown, lit.full.clone())
-            }
-        };
         let mut panes: Vec<Pane> = Vec::new();
         let mut maps: Vec<Pane> = Vec::new();
-        for (linear, relit, image) in shown {
+        // One pane: its numbers, the relit image the error map compares with `full`, and the
+        // image shown (over the environment behind the scene; the errors were taken before).
+        let mut show = |linear: &LinearPane, relit: &Image, image: Image, full: &Image| {
             if state.error_map {
                 maps.push(Pane {
-                    rgb: error_heat_map(&relit, &full, ERROR_MAP_GAIN),
+                    rgb: error_heat_map(relit, full, ERROR_MAP_GAIN),
                     linear: LinearPane {
                         title: format!("error of {} x{ERROR_MAP_GAIN}", linear.title),
                         image: image.clone(),
@@ -438,11 +435,34 @@ impl Engine {
                     },
                 });
             }
-            let linear = LinearPane { image, ..linear };
+            let linear = LinearPane {
+                image,
+                ..linear.clone()
+            };
             panes.push(Pane {
                 rgb: linear.image.to_srgb8(tone),
                 linear,
             });
+        };
+        match self.camera(&state) {
+            Some(camera) => {
+                let (drawn, full) = self.draw_panes(&state, &camera)?;
+                for (linear, relit, image) in drawn {
+                    show(&linear, &relit, image, &full);
+                }
+            }
+            None => {
+                let (_, linear) = self.last.as_ref().expect("relit");
+                let lit = self.light.as_ref().expect("prepared");
+                for l in linear {
+                    show(
+                        l,
+                        &l.image,
+                        composite(&l.image, &lit.shown.behind),
+                        &lit.full,
+                    );
+                }
+            }
         }
         panes.extend(maps);
         let (width, height) = self.view_size();

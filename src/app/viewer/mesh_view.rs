@@ -6,10 +6,10 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use eframe::{egui, wgpu};
+use eframe::egui;
 
 use super::{GpuTiming, GpuView, LightKey, LightShown, backdrop};
-use crate::error::{PrtError, Result};
+use crate::error::Result;
 use crate::output::film::{Image, ToneMap};
 use crate::relight::gpu::{Gpu, GpuMesh, GpuRaster, GpuTransport};
 use crate::relight::vertex::{Orbit, mesh_of};
@@ -75,17 +75,7 @@ pub fn draw_into_view(
     let kernel_seconds = gpu.last_kernel_seconds();
     mesh.raster
         .render(gpu, camera, &mesh.mesh, gt.image_buffer(), &view.linear)?;
-    view.tone_map(&gpu.device, &gpu.queue, tone);
-    gpu.device
-        .poll(wgpu::PollType::Wait {
-            submission_index: None,
-            timeout: None,
-        })
-        .map_err(|e| PrtError::Gpu(format!("waiting for the drawn view: {e}")))?;
-    Ok(GpuTiming {
-        wall_seconds: start.elapsed().as_secs_f64(),
-        kernel_seconds,
-    })
+    super::engine::tone_map_and_wait(gpu, view, tone, start, kernel_seconds)
 }
 
 /// Turns the orbit of `base` by a drag of `delta` points: dragging right turns the scene to the
