@@ -1,0 +1,224 @@
+//! The settings of a bake, their checks, and what follows from them alone: whether a file
+//! already holds this bake (so it can be reused) and how large its output can grow.
+
+use super::*;
+
+/// Settings of a bake; the defaults are the command line's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakeSettings {
+    /// Cube face size N of the texel lights.
+    pub cube_n: usize,
+    /// SH order of the SH transport (n² coefficients).
+    pub sh_order: usize,
+    /// Sub-pixel samples per pixel.
+    pub spp: u32,
+    /// Sub-pixel samples of an edge pixel, one whose corners see different things (see
+    /// [`is_edge_pixel`]); 0 (or no more than `spp`) samples every pixel alike.
+    pub edge_spp: u32,
+    /// Shadow-ray directions per texel (rounded up to a square).
+    pub texel_samples: u32,
+    /// Error allowed per row when dropping small Haar coefficients, relative to the L2 norm of
+    /// an unshadowed row (0 keeps all). One absolute budget for every row spends it where the
+    /// image is bright: shadowed rows become sparser than lit ones.
+    pub threshold: f32,
+    /// How the thresholding budget weighs coefficients.
+    pub budget: Budget,
+    /// How kept values are stored (unless `lossless`).
+    pub quantization: Quantization,
+    /// Keep every coefficient in 32-bit floats (for checks against the reference).
+    pub lossless: bool,
+    /// Ignore visibility (no shadows).
+    pub unshadowed: bool,
+    /// Seed of every random choice.
+    pub seed: u64,
+    /// `[index, count]`: bake only shard `index` of `count` (bands of tile rows).
+    pub shard: Option<[u32; 2]>,
+    /// Interreflection bounces added to the direct light (0: direct only).
+    pub bounces: u32,
+    /// Paths traced per camera sub-sample for the interreflections.
+    pub paths: u32,
+    /// Where the visibility of the interreflections' path vertices comes from.
+    pub bounce_visibility: bounce::BounceVisibility,
+    /// Width of a surface cache cell, in pixel footprints at the view's median depth.
+    pub cache_spacing: f32,
+    /// Bake one row per vertex of the scene tessellated to this longest edge (scene units),
+    /// instead of one per pixel of the camera's view ([`crate::scene::tessellate`]).
+    pub per_vertex: Option<f32>,
+}
+
+impl Default for BakeSettings {
+    fn default() -> Self {
+        BakeSettings {
+            cube_n: 32,
+            sh_order: 6,
+            spp: 1,
+            edge_spp: 0,
+            texel_samples: 1,
+            threshold: 0.01,
+            budget: Budget::L2,
+            quantization: Quantization::Q8,
+            lossless: false,
+            unshadowed: false,
+            seed: 1,
+            shard: None,
+            bounces: 0,
+            paths: 256,
+            bounce_visibility: bounce::BounceVisibility::Cache,
+            cache_spacing: 4.0,
+            per_vertex: None,
+        }
+    }
+}
+
+impl BakeSettings {
+    /// The edge samples as a file records them: 0 where they add nothing to `spp`.
+    pub fn stored_edge_spp(&self) -> u32 {
+        if self.edge_spp > self.spp {
+            self.edge_spp
+        } else {
+            0
+        }
+    }
+
+    /// Checks ranges before any work.
+    pub fn validate(&self) -> Result<()> {
+        validate_n(self.cube_n)?;
+        if self.cube_n > 128 {
+            return Err(PrtError::invalid(
+                "cube size",
+                format!(
+                    "N = {}: per-pixel rows above N = 128 are not supported",
+                    self.cube_n
+                ),
+            ));
+        }
+        if !(1..=10).contains(&self.sh_order) {
+            return Err(PrtError::invalid(
+                "SH order",
+                format!("{}; it must be from 1 to 10", self.sh_order),
+            ));
+        }
+        if self.spp == 0 || self.spp > 4096 {
+            return Err(PrtError::invalid(
+                "spp",
+                format!("{}; it must be from 1 to 4096", self.spp),
+            ));
+        }
+        if self.edge_spp > 4096 {
+            return Err(PrtError::invalid(
+                "edge spp",
+                format!("{}; it must be from 0 (off) to 4096", self.edge_spp),
+            ));
+        }
+        if self.texel_samples == 0 || self.texel_samples > 256 {
+            return Err(PrtError::invalid(
+                "texel samples",
+                format!("{}; it must be from 1 to 256", self.texel_samples),
+            ));
+        }
+        if let Some([i, count]) = self.shard
+            && (count == 0 || i >= count)
+        {
+            return Err(PrtError::invalid(
+                "shard",
+                format!("{i}/{count}; it must be I/COUNT with 0 <= I < COUNT"),
+            ));
+        }
+        if self.bounces > 16 || (self.bounces > 0 && !(1..=65536).contains(&self.paths)) {
+            return Err(PrtError::invalid(
+                "interreflections",
+                format!(
+                    "{} bounces with {} paths; bounces go up to 16, paths from 1 to 65536",
+                    self.bounces, self.paths
+                ),
+            ));
+        }
+        if !(0.25..=256.0).contains(&self.cache_spacing) {
+            return Err(PrtError::invalid(
+                "cache spacing",
+                format!(
+                    "{} pixel footprints; it must be from 0.25 to 256",
+                    self.cache_spacing
+                ),
+            ));
+        }
+        if let Some(e) = self.per_vertex {
+            if !(e.is_finite() && e > 0.0) {
+                return Err(PrtError::invalid(
+                    "edge length",
+                    format!("{e}; it must be a finite length > 0 (scene units)"),
+                ));
+            }
+            if self.bounces > 0 {
+                return Err(PrtError::invalid(
+                    "per-vertex bake",
+                    "interreflections are baked per pixel only; bake per vertex with \
+                     --bounces 0",
+                ));
+            }
+        }
+        if !(0.0..1.0).contains(&self.threshold) {
+            return Err(PrtError::invalid(
+                "threshold",
+                format!("{}; it must be in [0, 1)", self.threshold),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The quantisation the settings imply.
+    pub fn quantization(&self) -> Quantization {
+        if self.lossless {
+            Quantization::F32
+        } else {
+            self.quantization
+        }
+    }
+}
+
+/// The transport at `path` when it exists, loads, and was baked from this scene (same content
+/// hash) with these settings; `None` otherwise. Lets callers reuse a cached bake.
+pub fn load_if_baked_with(
+    path: &std::path::Path,
+    scene: &Scene,
+    settings: &BakeSettings,
+) -> Option<Transport> {
+    let meta = crate::store::transport::read_header_meta(path).ok()?;
+    let side = (settings.texel_samples.max(1) as f64).sqrt().ceil() as u32;
+    let threshold = if settings.lossless {
+        0.0
+    } else {
+        settings.threshold
+    };
+    let same = meta.scene_hash == format!("{:016x}", scene.content_hash())
+        && meta.cube_n as usize == settings.cube_n
+        && meta.sh_order as usize == settings.sh_order
+        && meta.spp == settings.spp
+        && meta.edge_spp == settings.stored_edge_spp()
+        && meta.texel_samples == side * side
+        && meta.threshold == threshold
+        && meta.quantization == settings.quantization()
+        && (settings.lossless || meta.budget == settings.budget)
+        && meta.unshadowed == settings.unshadowed
+        && meta.seed == settings.seed
+        && meta.shard == settings.shard
+        && meta.bounces == settings.bounces
+        && meta.per_vertex.as_ref().map(|p| p.edge_length) == settings.per_vertex
+        && (settings.bounces == 0
+            || (meta.paths == settings.paths
+                && meta.indirect.as_ref().is_some_and(|i| {
+                    i.visibility == settings.bounce_visibility
+                        && i.cache_spacing == settings.cache_spacing
+                })));
+    if !same {
+        return None;
+    }
+    Transport::load(path).ok()
+}
+
+/// Bytes a bake's output will take at most (every coefficient kept), to warn or refuse up front.
+pub fn worst_case_bytes(width: usize, height: usize, settings: &BakeSettings) -> u64 {
+    let c = texel_count(settings.cube_n) as u64;
+    let value = settings.quantization().value_bytes() as u64;
+    (width * height) as u64 * c * (1 + value)
+}
