@@ -230,8 +230,10 @@ pub fn remove_stale_partials(path: &Path) {
         let Some(rest) = file.to_str().and_then(|f| f.strip_prefix(&prefix)) else {
             continue;
         };
+        // `PID`, or `PID.spill-NAME` for a writer's spill (`crate::store::container::Spill`).
         let Some(pid) = rest
             .strip_suffix(&suffix)
+            .and_then(|p| p.split('.').next())
             .and_then(|p| p.parse::<u32>().ok())
         else {
             continue;
@@ -269,5 +271,29 @@ mod tests {
         assert_eq!(p.extension().and_then(|e| e.to_str()), Some("prt"));
         let p = partial_path_of(Path::new("noext"), "h", 7);
         assert_eq!(p, Path::new("noext.partial-h-7"));
+    }
+
+    #[test]
+    fn spills_of_a_killed_run_are_removed_and_those_of_a_running_one_kept() {
+        let dir = std::env::temp_dir().join(format!("prt-stale-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let out = dir.join("out.prt");
+        let spill = |pid: u32| {
+            let p = partial_path(&out, pid);
+            p.with_file_name(format!(
+                "{}.spill-entry_value.prt",
+                p.file_stem().unwrap().to_str().unwrap()
+            ))
+        };
+        // No process has an id this large; process 1 always runs.
+        let (dead, alive) = (spill(4_000_000_000), spill(1));
+        let other = dir.join("out.prt.notes.txt");
+        for p in [&dead, &alive, &other] {
+            std::fs::write(p, b"x").unwrap();
+        }
+        remove_stale_partials(&out);
+        assert!(!dead.exists());
+        assert!(alive.exists() && other.exists());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

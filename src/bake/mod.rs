@@ -1,23 +1,26 @@
 //! The bake: for every pixel of the fixed view, its transport row over all 6 N² cube texel lights
 //! (visibility x BRDF x cosine integrated over each texel), the SH projection of the same row,
 //! then per-face Haar, thresholding and quantisation into the tiled layout of
-//! [`crate::store::transport`]. Parallel over pixel tiles with rayon; each tile is finished and compressed
-//! before the next is taken, so memory stays bounded by the output.
+//! [`crate::store::transport`]. Parallel over pixel tiles with rayon, taken in order; each tile is
+//! finished and compressed before the next is taken and handed on in tile order, either kept
+//! ([`bake`]) or written out at once ([`bake_to_file`]), so a bake to a file holds only the tiles
+//! under way, whatever the size of its output.
 
 pub mod bounce;
+mod in_order;
 pub mod medium_rows;
 pub mod path_tracer;
 mod pixels;
 pub mod reference;
 mod settings;
 
+use in_order::in_tile_order;
 use pixels::visits;
 pub use pixels::{edge_pixel_count, is_edge_pixel, pixel_subsamples, sample_stride};
 pub use settings::{BakeSettings, load_if_baked_with, worst_case_bytes};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 use glam::Vec3;
-use rayon::prelude::*;
 
 use crate::bake::medium_rows::MediumRows;
 use crate::error::{PrtError, Result};
@@ -33,7 +36,7 @@ use crate::scene::trace::{Hit, Tracer};
 use crate::store::budget::{Budget, Thresholder};
 use crate::store::transport::{
     BakeStats, CameraMeta, EncodedTile, PerVertexMeta, Quantization, RowData, TILE, Transport,
-    TransportMeta, shard_of_band, tile_grid,
+    TransportMeta, TransportWriter, shard_of_band, tile_grid,
 };
 
 /// Progress of a running bake.
@@ -142,12 +145,75 @@ struct TileOutput {
     rays: u64,
 }
 
-/// Bakes `scene` with `settings`, calling `progress` after each tile.
+/// Bakes `scene` with `settings` in memory, calling `progress` after each tile.
 pub fn bake(
     scene: &Scene,
     settings: &BakeSettings,
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<Transport> {
+    let mut tiles = Vec::new();
+    let mut stats = Vec::new();
+    let baked = bake_tiles(scene, settings, progress, &mut |tile, s| {
+        tiles.push(tile);
+        stats.push(s);
+        Ok(())
+    })?;
+    Transport::assemble_encoded(
+        baked.meta,
+        &tiles,
+        baked.albedo,
+        baked.coverage,
+        stats,
+        baked.mesh,
+    )
+}
+
+/// Bakes `scene` with `settings` into the transport file `path`, each tile written out as soon
+/// as the tiles before it are: memory holds the tiles under way and the per-pixel tables, not
+/// the transport. Writes the file [`bake`] and [`Transport::save`] would, byte for byte, and
+/// returns its metadata.
+pub fn bake_to_file(
+    scene: &Scene,
+    settings: &BakeSettings,
+    path: &std::path::Path,
+    progress: &(dyn Fn(BakeProgress) + Sync),
+) -> Result<TransportMeta> {
+    let mut writer = TransportWriter::create(
+        path,
+        settings.cube_n,
+        settings.sh_order,
+        settings.quantization(),
+    )?;
+    let baked = bake_tiles(scene, settings, progress, &mut |tile, stats| {
+        writer.push(&tile, stats)
+    })?;
+    writer.finish(
+        baked.meta,
+        &baked.albedo,
+        &baked.coverage,
+        baked.mesh.as_ref(),
+    )
+}
+
+/// What a bake gives besides its tiles: the header (statistics not yet filled in), the
+/// per-pixel tables and a per-vertex bake's mesh.
+struct Baked {
+    meta: TransportMeta,
+    albedo: Vec<[f32; 3]>,
+    coverage: Vec<f32>,
+    mesh: Option<VertexMesh>,
+}
+
+/// A tile's statistics: energy dropped by thresholding and quantisation, total energy, rays.
+type TileStats = [f64; 3];
+
+/// The bake, handing each encoded tile and its statistics to `deliver` in tile order.
+fn bake_tiles(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &(dyn Fn(BakeProgress) + Sync),
+    deliver: &mut (dyn FnMut(EncodedTile, TileStats) -> Result<()> + Send),
+) -> Result<Baked> {
     settings.validate()?;
     let tracer = Tracer::new(scene);
     let cam = &scene.camera;
@@ -265,9 +331,11 @@ pub fn bake(
         settings.sh_order.pow(2),
         settings.quantization(),
     );
-    let outputs: Vec<Option<(TileOutput, EncodedTile)>> = (0..tx * ty)
-        .into_par_iter()
-        .map(|t| {
+    let mut albedo = vec![[0.0f32; 3]; w * h];
+    let mut coverage = vec![0.0f32; w * h];
+    in_tile_order(
+        tx * ty,
+        |t| {
             if !mine(t) {
                 return Ok(None);
             }
@@ -284,29 +352,23 @@ pub fn bake(
                 cache_points: [0, 0],
             });
             Ok(Some((out, encoded)))
-        })
-        .collect::<Result<_>>()?;
-    let mut albedo = vec![[0.0f32; 3]; w * h];
-    let mut coverage = vec![0.0f32; w * h];
-    let mut tiles = Vec::with_capacity(outputs.len());
-    let mut tile_stats = Vec::with_capacity(outputs.len());
-    for out in outputs {
-        let Some((out, encoded)) = out else {
-            tiles.push(EncodedTile::encode(&[], c, shc, quantization)?);
-            tile_stats.push([0.0; 3]);
-            continue;
-        };
-        for (p, a, cov) in out.pixels {
-            albedo[p as usize] = a;
-            coverage[p as usize] = cov;
-        }
-        tile_stats.push([
-            out.dropped_energy + encoded.quantization_energy,
-            out.total_energy,
-            out.rays as f64,
-        ]);
-        tiles.push(encoded);
-    }
+        },
+        |tile| {
+            let Some((out, encoded)) = tile else {
+                return deliver(EncodedTile::encode(&[], c, shc, quantization)?, [0.0; 3]);
+            };
+            for (p, a, cov) in out.pixels {
+                albedo[p as usize] = a;
+                coverage[p as usize] = cov;
+            }
+            let stats = [
+                out.dropped_energy + encoded.quantization_energy,
+                out.total_energy,
+                out.rays as f64,
+            ];
+            deliver(encoded, stats)
+        },
+    )?;
     let meta = TransportMeta {
         width: w as u32,
         height: h as u32,
@@ -353,7 +415,12 @@ pub fn bake(
         }),
         stats: BakeStats::default(),
     };
-    Transport::assemble_encoded(meta, &tiles, albedo, coverage, tile_stats, mesh)
+    Ok(Baked {
+        meta,
+        albedo,
+        coverage,
+        mesh,
+    })
 }
 
 fn tile_pixels(w: usize, h: usize, tx: usize, ty: usize) -> usize {

@@ -6,11 +6,10 @@
 //! The transport file ([`crate::store::transport`]) and the volume file
 //! ([`crate::volume::VolumeTransfer`]) each add their tensors and their own metadata fields.
 
-use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::Path;
 
-use safetensors::tensor::{Dtype, View};
+use safetensors::tensor::Dtype;
 
 use crate::error::{PrtError, Result};
 
@@ -77,14 +76,22 @@ pub fn sniff(path: &Path) -> Option<Format> {
 
 /// Writes `tensors` (in the order their checksum covers them) and the metadata that
 /// `header(checksum)` makes from the tensors' checksum (16 hex digits), sealed
-/// ([`seal_meta`]), atomically at `path`.
+/// ([`seal_meta`]), atomically at `path`. Spilled tensors are read twice (for the checksum,
+/// then into the file), a piece at a time.
 pub fn save(
     path: &Path,
     tensors: Vec<(&str, Tensor)>,
     header: impl FnOnce(String) -> serde_json::Result<String>,
 ) -> Result<()> {
-    let sum = checksum(tensors.iter().map(|(_, t)| t.bytes));
-    let json = header(format!("{sum:016x}"))
+    let mut sum = Checksum::new();
+    for (_, t) in &tensors {
+        t.for_each_piece(&mut |piece| {
+            sum.update(piece);
+            Ok(())
+        })?;
+        sum.end_part();
+    }
+    let json = header(format!("{:016x}", sum.value()))
         .map_err(|e| PrtError::file(path, format!("metadata: {e}")))?;
     crate::files::write_atomically(path, |tmp| write_tensors(tmp, tensors, seal_meta(json)))
 }
@@ -163,18 +170,82 @@ pub fn check_meta_seal(text: &str) -> std::result::Result<(), String> {
 /// position-dependent, so any flipped bit changes it. Fast enough to run on every load
 /// (several GB/s).
 pub fn checksum<'a>(parts: impl IntoIterator<Item = &'a [u8]>) -> u64 {
-    let mut h = 0x51_7c_c1_b7_27_22_0a_95u64;
+    let mut sum = Checksum::new();
     for part in parts {
-        let mut chunks = part.chunks_exact(8);
-        for c in &mut chunks {
-            let w = u64::from_le_bytes(c.try_into().unwrap_or([0; 8]));
-            h = crate::math::sampling::mix64(h ^ w).wrapping_add(0x9e37_79b9_7f4a_7c15);
-        }
-        let mut tail = [0u8; 8];
-        tail[..chunks.remainder().len()].copy_from_slice(chunks.remainder());
-        h = crate::math::sampling::mix64(h ^ u64::from_le_bytes(tail) ^ (part.len() as u64) << 3);
+        sum.update(part);
+        sum.end_part();
     }
-    h
+    sum.value()
+}
+
+/// [`checksum`] taken as the bytes arrive: a part may come in pieces of any length, and gives
+/// the same value as when it comes whole.
+#[derive(Clone, Debug)]
+pub struct Checksum {
+    h: u64,
+    /// The bytes of the part's unfinished word.
+    word: [u8; 8],
+    word_len: usize,
+    part_len: u64,
+}
+
+impl Default for Checksum {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Checksum {
+    pub fn new() -> Self {
+        Checksum {
+            h: 0x51_7c_c1_b7_27_22_0a_95,
+            word: [0; 8],
+            word_len: 0,
+            part_len: 0,
+        }
+    }
+
+    fn mix_word(&mut self, w: u64) {
+        self.h = crate::math::sampling::mix64(self.h ^ w).wrapping_add(0x9e37_79b9_7f4a_7c15);
+    }
+
+    /// Adds the next bytes of the current part.
+    pub fn update(&mut self, mut bytes: &[u8]) {
+        self.part_len += bytes.len() as u64;
+        if self.word_len > 0 {
+            let take = (8 - self.word_len).min(bytes.len());
+            self.word[self.word_len..self.word_len + take].copy_from_slice(&bytes[..take]);
+            self.word_len += take;
+            bytes = &bytes[take..];
+            if self.word_len < 8 {
+                return;
+            }
+            self.mix_word(u64::from_le_bytes(self.word));
+            self.word_len = 0;
+        }
+        let mut words = bytes.chunks_exact(8);
+        for c in &mut words {
+            self.mix_word(u64::from_le_bytes(c.try_into().unwrap_or([0; 8])));
+        }
+        let rest = words.remainder();
+        self.word[..rest.len()].copy_from_slice(rest);
+        self.word_len = rest.len();
+    }
+
+    /// Ends the current part: its last bytes, zero-padded, are mixed with its length.
+    pub fn end_part(&mut self) {
+        let mut tail = [0u8; 8];
+        tail[..self.word_len].copy_from_slice(&self.word[..self.word_len]);
+        self.h =
+            crate::math::sampling::mix64(self.h ^ u64::from_le_bytes(tail) ^ (self.part_len << 3));
+        self.word_len = 0;
+        self.part_len = 0;
+    }
+
+    /// The checksum of the parts ended so far.
+    pub fn value(&self) -> u64 {
+        self.h
+    }
 }
 
 /// Writes a safetensors file at `path` with one metadata entry `meta` holding `meta_json`:
@@ -190,9 +261,9 @@ fn write_tensors(path: &Path, mut tensors: Vec<(&str, Tensor)>, meta_json: Strin
         let info = safetensors::tensor::TensorInfo {
             dtype: t.dtype,
             shape: t.shape.clone(),
-            data_offsets: (offset, offset + t.bytes.len()),
+            data_offsets: (offset, offset + t.len()),
         };
-        offset += t.bytes.len();
+        offset += t.len();
         infos.push((name.to_string(), info));
     }
     let info: HashMap<String, String> = [("meta".to_string(), meta_json)].into();
@@ -209,17 +280,22 @@ fn write_tensors(path: &Path, mut tensors: Vec<(&str, Tensor)>, meta_json: Strin
         .map_err(io)?;
     w.write_all(&header).map_err(io)?;
     for (_, t) in &tensors {
-        w.write_all(t.bytes).map_err(io)?;
+        t.for_each_piece(&mut |piece| w.write_all(piece).map_err(io))?;
     }
     w.flush().map_err(io)?;
     Ok(())
 }
 
-/// A borrowed tensor to write.
+/// A tensor to write: borrowed bytes, or a [`Spill`] written earlier.
 pub struct Tensor<'a> {
     dtype: Dtype,
     shape: Vec<usize>,
-    bytes: &'a [u8],
+    bytes: Source<'a>,
+}
+
+enum Source<'a> {
+    Slice(&'a [u8]),
+    Spill(&'a Spill),
 }
 
 impl<'a> Tensor<'a> {
@@ -227,23 +303,132 @@ impl<'a> Tensor<'a> {
         Tensor {
             dtype,
             shape,
-            bytes: bytemuck::cast_slice(data),
+            bytes: Source::Slice(bytemuck::cast_slice(data)),
+        }
+    }
+
+    /// The bytes of `spill`, which must be `shape`'s elements of `dtype`.
+    pub fn spilled(dtype: Dtype, shape: Vec<usize>, spill: &'a Spill) -> Result<Self> {
+        let want = (shape.iter().product::<usize>() as u64 * dtype.bitsize() as u64).div_ceil(8);
+        if want != spill.len {
+            return Err(PrtError::file(
+                &spill.path,
+                format!(
+                    "holds {} bytes where a {dtype:?} tensor of shape {shape:?} takes {want}",
+                    spill.len
+                ),
+            ));
+        }
+        Ok(Tensor {
+            dtype,
+            shape,
+            bytes: Source::Spill(spill),
+        })
+    }
+
+    fn len(&self) -> usize {
+        match &self.bytes {
+            Source::Slice(b) => b.len(),
+            Source::Spill(s) => s.len as usize,
+        }
+    }
+
+    /// Calls `f` with the bytes in order, a piece at a time.
+    fn for_each_piece(&self, f: &mut dyn FnMut(&[u8]) -> Result<()>) -> Result<()> {
+        match &self.bytes {
+            Source::Slice(b) => f(b),
+            Source::Spill(s) => s.for_each_piece(f),
         }
     }
 }
 
-impl View for Tensor<'_> {
-    fn dtype(&self) -> Dtype {
-        self.dtype
+/// A temporary file beside an output that holds one tensor's bytes while they are produced, so
+/// a writer keeps none of them in memory. Named like the output's temporary file (see
+/// [`crate::files`]) with `.spill-NAME` before the extension, so that a later write of the
+/// output removes those a killed run left behind; removed when dropped.
+pub struct Spill {
+    path: std::path::PathBuf,
+    file: std::io::BufWriter<std::fs::File>,
+    len: u64,
+}
+
+impl Spill {
+    /// An empty spill for tensor `name` of the output `output`.
+    pub fn create(output: &Path, name: &str) -> Result<Self> {
+        let partial = crate::files::partial_path(output, std::process::id());
+        let mut file_name = partial
+            .file_stem()
+            .map(|s| s.to_os_string())
+            .unwrap_or_default();
+        file_name.push(format!(".spill-{name}"));
+        if let Some(ext) = partial.extension() {
+            file_name.push(".");
+            file_name.push(ext);
+        }
+        let path = partial.with_file_name(file_name);
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&path)
+            .map_err(|e| PrtError::io(&path, e))?;
+        Ok(Spill {
+            path,
+            file: std::io::BufWriter::with_capacity(1 << 20, file),
+            len: 0,
+        })
     }
-    fn shape(&self) -> &[usize] {
-        &self.shape
+
+    /// Appends `data`'s bytes.
+    pub fn append<T: bytemuck::NoUninit>(&mut self, data: &[T]) -> Result<()> {
+        use std::io::Write;
+        let bytes: &[u8] = bytemuck::cast_slice(data);
+        self.file
+            .write_all(bytes)
+            .map_err(|e| PrtError::io(&self.path, e))?;
+        self.len += bytes.len() as u64;
+        Ok(())
     }
-    fn data(&self) -> Cow<'_, [u8]> {
-        Cow::Borrowed(self.bytes)
+
+    /// Bytes appended so far.
+    pub fn len(&self) -> u64 {
+        self.len
     }
-    fn data_len(&self) -> usize {
-        self.bytes.len()
+
+    /// True when nothing was appended.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Flushes what was appended, so that it can be read back.
+    pub fn flush(&mut self) -> Result<()> {
+        use std::io::Write;
+        self.file.flush().map_err(|e| PrtError::io(&self.path, e))
+    }
+
+    /// Reads the spill from its start in 8 MiB pieces (flushed first by [`Spill::flush`]); a
+    /// file cut short is an error, not a short tensor.
+    fn for_each_piece(&self, f: &mut dyn FnMut(&[u8]) -> Result<()>) -> Result<()> {
+        use std::io::{Read, Seek};
+        let io = |e| PrtError::io(&self.path, e);
+        let mut file = self.file.get_ref();
+        file.seek(std::io::SeekFrom::Start(0)).map_err(io)?;
+        let mut piece = vec![0u8; (8 << 20).min(self.len as usize)];
+        let mut left = self.len;
+        while left > 0 {
+            let n = (piece.len() as u64).min(left) as usize;
+            file.read_exact(&mut piece[..n]).map_err(io)?;
+            f(&piece[..n])?;
+            left -= n as u64;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Spill {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
     }
 }
 
@@ -271,6 +456,67 @@ mod tests {
             assert_ne!(checksum([d.as_slice()]), base, "bit {bit}");
         }
         assert_ne!(checksum([&data[..8], &data[8..]]), base);
+    }
+
+    #[test]
+    fn a_checksum_taken_in_pieces_equals_the_whole() {
+        let parts: Vec<Vec<u8>> = [0usize, 1, 7, 8, 9, 37, 1000]
+            .iter()
+            .map(|&n| (0..n).map(|i| (i * 31 + n) as u8).collect())
+            .collect();
+        let whole = checksum(parts.iter().map(Vec::as_slice));
+        for piece in [1, 3, 8, 13, 64] {
+            let mut sum = Checksum::new();
+            for part in &parts {
+                for p in part.chunks(piece) {
+                    sum.update(p);
+                }
+                sum.end_part();
+            }
+            assert_eq!(sum.value(), whole, "pieces of {piece}");
+        }
+    }
+
+    #[test]
+    fn a_spilled_tensor_is_written_as_its_bytes_and_the_spill_is_removed() {
+        let dir = std::env::temp_dir().join(format!("prt-spill-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let out = dir.join("t.prt");
+        let data: Vec<u32> = (0..5000).collect();
+        let mut spill = Spill::create(&out, "x").unwrap();
+        assert!(
+            spill
+                .path
+                .file_name()
+                .unwrap()
+                .to_str()
+                .unwrap()
+                .ends_with(".spill-x.prt")
+        );
+        spill.append(&data[..1234]).unwrap();
+        spill.append(&data[1234..]).unwrap();
+        spill.flush().unwrap();
+        let spill_path = spill.path.clone();
+        assert!(Tensor::spilled(Dtype::U32, vec![4999], &spill).is_err());
+        let read = |tensor: Tensor| {
+            let mut sum = Checksum::new();
+            let mut bytes = Vec::new();
+            tensor
+                .for_each_piece(&mut |p| {
+                    sum.update(p);
+                    bytes.extend_from_slice(p);
+                    Ok(())
+                })
+                .unwrap();
+            sum.end_part();
+            (bytes, sum.value())
+        };
+        let spilled = read(Tensor::spilled(Dtype::U32, vec![5000], &spill).unwrap());
+        let direct = read(Tensor::new(Dtype::U32, vec![5000], &data));
+        assert_eq!(spilled, direct);
+        drop(spill);
+        assert!(!spill_path.exists());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -43,13 +43,6 @@ pub struct BakeArgs {
     pub edge_length: Option<f32>,
 }
 
-fn available_memory_bytes() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
 /// Parses `I/COUNT`.
 fn parse_shard(s: &str) -> Result<[u32; 2]> {
     let bad = || PrtError::invalid("shard", format!("`{s}`; expected I/COUNT, e.g. 0/4"));
@@ -137,7 +130,8 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         settings.texel_samples
     );
     eprintln!(
-        "memory: at most {:.1} MiB if every coefficient were kept{}",
+        "output: at most {:.1} MiB if every coefficient were kept{}; tiles are written as they \
+         are finished, so memory holds only those under way",
         worst as f64 / 1048576.0,
         if settings.lossless {
             " (lossless keeps them all)"
@@ -145,36 +139,24 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
             ""
         }
     );
-    if let Some(avail) = available_memory_bytes() {
-        // Lossless bakes keep everything; thresholded ones typically keep a few percent.
-        let expected = if settings.lossless { worst } else { worst / 5 };
-        if expected > avail {
-            return Err(PrtError::invalid(
-                "bake",
-                format!(
-                    "it needs about {:.1} GiB but {:.1} GiB are available: lower the resolution, --cube or raise --threshold",
-                    expected as f64 / (1u64 << 30) as f64,
-                    avail as f64 / (1u64 << 30) as f64
-                ),
-            ));
-        }
-    }
     let start = Instant::now();
-    let t = bake_with_progress(&scene, &settings, w * h)?;
+    let bar = progress_bar(w * h);
+    let meta =
+        crate::bake::bake_to_file(&scene, &settings, &a.output, &bake_progress(&bar, start))?;
+    bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
-    t.save(&a.output)?;
-    print_info(&a.output, &t.meta);
+    print_info(&a.output, &meta);
     println!(
-        "bake time     {seconds:.1} s ({:.2} M shadow rays/s)",
-        t.meta.stats.shadow_rays as f64 / seconds.max(1e-9) / 1e6
+        "bake time     {seconds:.1} s, written ({:.2} M shadow rays/s)",
+        meta.stats.shadow_rays as f64 / seconds.max(1e-9) / 1e6
     );
-    if t.meta.edge_spp > 0 {
+    if meta.edge_spp > 0 {
         let edges = crate::bake::edge_pixel_count(&scene);
         let pixels = scene.camera.width as usize * scene.camera.height as usize;
         println!(
             "edge pixels   {edges} of {pixels} ({:.1}%) took {} samples",
             100.0 * edges as f64 / pixels as f64,
-            t.meta.edge_spp
+            meta.edge_spp
         );
     }
     Ok(())

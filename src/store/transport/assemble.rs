@@ -247,40 +247,37 @@ impl Transport {
     }
 
     /// Derives the per-coefficient transport magnitudes and the statistics from the tables, in
-    /// one fixed order (block, coefficient, row), so a bake and a merge of its shards give the
-    /// same bits.
+    /// one fixed order (block, coefficient, row), so a bake, a merge of its shards and a
+    /// streamed bake ([`super::TransportWriter`]) give the same bits.
     pub fn finish(&mut self) {
         let c = self.coeff_count();
         let mut magnitude = vec![0.0f64; c];
-        for b in 0..self.block_count() {
-            let r0 = self.block_row_start[b] as usize;
-            for (j, m) in magnitude.iter_mut().enumerate() {
-                let s = self.scale(b, j) as f64;
-                for e in self.block_column(b, j) {
-                    let r = r0 + self.entry_row[e] as usize;
-                    *m += (self.values.raw(e).abs() as f64 * s * self.row_scale[r] as f64)
-                        * crate::light::select::rgb_magnitude(self.row_weight[r]) as f64;
-                }
-            }
+        for t in 0..self.tile_count() {
+            let (r0, r1) = (
+                self.tile_row_start[t] as usize,
+                self.tile_row_start[t + 1] as usize,
+            );
+            let blocks = self.blocks(t);
+            let (e0, e1) = (
+                self.block_entry_start[blocks.start] as usize,
+                self.block_entry_start[blocks.end] as usize,
+            );
+            add_magnitudes(
+                &TileSlices {
+                    row_weight: &self.row_weight[r0..r1],
+                    row_scale: &self.row_scale[r0..r1],
+                    col_count: &self.col_counts(blocks.clone()),
+                    col_scale: &self.col_scale[blocks.start * c..blocks.end * c],
+                    entry_row: &self.entry_row[e0..e1],
+                    values: &self.values,
+                    first_value: e0,
+                },
+                &mut magnitude,
+            );
         }
         let rows = self.row_pixel.len();
-        self.transport_magnitude = magnitude
-            .iter()
-            .map(|m| (m / rows.max(1) as f64) as f32)
-            .collect();
-        let (mut dropped, mut total, mut rays) = (0.0f64, 0.0f64, 0.0f64);
-        for s in &self.tile_stats {
-            dropped += s[0];
-            total += s[1];
-            rays += s[2];
-        }
-        self.meta.stats = BakeStats {
-            rows: rows as u64,
-            nonzeros: self.entry_row.len() as u64,
-            dense_entries: (rows * c) as u64,
-            dropped_energy_fraction: if total > 0.0 { dropped / total } else { 0.0 },
-            shadow_rays: rays as u64,
-        };
+        self.transport_magnitude = mean_magnitudes(&magnitude, rows);
+        self.meta.stats = bake_stats(rows, self.entry_row.len(), c, &self.tile_stats);
     }
 
     /// Tile `tile` in the stored layout, copied (for a merge).
@@ -471,6 +468,78 @@ impl Transport {
             tile_stats,
             first.mesh.clone(),
         )
+    }
+}
+
+/// One tile's blocks as the magnitudes read them.
+pub(super) struct TileSlices<'a> {
+    pub row_weight: &'a [[f32; 3]],
+    pub row_scale: &'a [f32],
+    /// `[blocks, C]`.
+    pub col_count: &'a [u16],
+    /// `[blocks, C]`.
+    pub col_scale: &'a [u8],
+    pub entry_row: &'a [u8],
+    /// Values from which the tile's entries start at `first_value`.
+    pub values: &'a Values,
+    pub first_value: usize,
+}
+
+impl EncodedTile {
+    /// This tile as [`add_magnitudes`] reads it.
+    pub(super) fn slices(&self) -> TileSlices<'_> {
+        TileSlices {
+            row_weight: &self.row_weight,
+            row_scale: &self.row_scale,
+            col_count: &self.col_count,
+            col_scale: &self.col_scale,
+            entry_row: &self.entry_row,
+            values: &self.values,
+            first_value: 0,
+        }
+    }
+}
+
+/// Adds a tile's `|value| · |weight|` to the per-coefficient sums `magnitude` (C of them), in
+/// the order (block, coefficient, row) that makes the bits independent of how tiles are held.
+pub(super) fn add_magnitudes(t: &TileSlices, magnitude: &mut [f64]) {
+    let c = magnitude.len();
+    let mut e = t.first_value;
+    for (block, counts) in t.col_count.chunks_exact(c.max(1)).enumerate() {
+        let r0 = block * BLOCK_ROWS;
+        for (j, (&count, m)) in counts.iter().zip(magnitude.iter_mut()).enumerate() {
+            let s = scale_of(t.col_scale[block * c + j]) as f64;
+            for _ in 0..count {
+                let r = r0 + t.entry_row[e - t.first_value] as usize;
+                *m += (t.values.raw(e).abs() as f64 * s * t.row_scale[r] as f64)
+                    * crate::light::select::rgb_magnitude(t.row_weight[r]) as f64;
+                e += 1;
+            }
+        }
+    }
+}
+
+/// The mean magnitude of each coefficient over `rows` rows, from [`add_magnitudes`]' sums.
+pub(super) fn mean_magnitudes(sums: &[f64], rows: usize) -> Vec<f32> {
+    sums.iter()
+        .map(|m| (m / rows.max(1) as f64) as f32)
+        .collect()
+}
+
+/// A bake's statistics from its counts and its tiles' (dropped energy, total energy, rays).
+pub(super) fn bake_stats(rows: usize, nonzeros: usize, c: usize, tiles: &[[f64; 3]]) -> BakeStats {
+    let (mut dropped, mut total, mut rays) = (0.0f64, 0.0f64, 0.0f64);
+    for s in tiles {
+        dropped += s[0];
+        total += s[1];
+        rays += s[2];
+    }
+    BakeStats {
+        rows: rows as u64,
+        nonzeros: nonzeros as u64,
+        dense_entries: (rows * c) as u64,
+        dropped_energy_fraction: if total > 0.0 { dropped / total } else { 0.0 },
+        shadow_rays: rays as u64,
     }
 }
 

@@ -15,18 +15,12 @@ use crate::store::container::{self, Tensor, check_meta_seal, checksum};
 impl Transport {
     /// Writes the file atomically: a temporary file beside `path`, then a rename.
     pub fn save(&self, path: &Path) -> Result<()> {
-        let (w, h) = (self.meta.width as usize, self.meta.height as usize);
-        let tiles = self.tile_count();
         let c = self.coeff_count();
         let r = self.row_pixel.len();
         let b = self.block_count();
         let nnz = self.entry_row.len();
         let counts = self.col_counts(0..self.block_count());
-        let mut tensors: Vec<(&str, Tensor)> = vec![
-            (
-                "tile_row_start",
-                Tensor::new(Dtype::U32, vec![tiles + 1], &self.tile_row_start),
-            ),
+        let grown = vec![
             (
                 "row_pixel",
                 Tensor::new(Dtype::U32, vec![r], &self.row_pixel),
@@ -52,66 +46,25 @@ impl Transport {
                 "sh",
                 Tensor::new(Dtype::F32, vec![r, self.sh_count()], &self.sh),
             ),
-            (
-                "albedo",
-                Tensor::new(Dtype::F32, vec![h, w, 3], &self.albedo),
-            ),
-            (
-                "coverage",
-                Tensor::new(Dtype::F32, vec![h, w], &self.coverage),
-            ),
-            (
-                "transport_magnitude",
-                Tensor::new(Dtype::F32, vec![c], &self.transport_magnitude),
-            ),
-            (
-                "tile_stats",
-                Tensor::new(Dtype::F64, vec![tiles, 3], &self.tile_stats),
-            ),
+            match &self.values {
+                Values::Q8(v) => ("entry_value", Tensor::new(Dtype::I8, vec![nnz], v)),
+                Values::Q16(v) => ("entry_value", Tensor::new(Dtype::I16, vec![nnz], v)),
+                Values::F32(v) => ("entry_value", Tensor::new(Dtype::F32, vec![nnz], v)),
+            },
         ];
-        tensors.push(match &self.values {
-            Values::Q8(v) => ("entry_value", Tensor::new(Dtype::I8, vec![nnz], v)),
-            Values::Q16(v) => ("entry_value", Tensor::new(Dtype::I16, vec![nnz], v)),
-            Values::F32(v) => ("entry_value", Tensor::new(Dtype::F32, vec![nnz], v)),
-        });
-        if let Some(mesh) = &self.mesh {
-            let (v, t) = (mesh.vertex_count(), mesh.triangles.len());
-            tensors.extend([
-                (
-                    "mesh_position",
-                    Tensor::new(Dtype::F32, vec![v, 3], &mesh.positions),
-                ),
-                (
-                    "mesh_normal",
-                    Tensor::new(Dtype::F32, vec![v, 3], &mesh.normals),
-                ),
-                (
-                    "mesh_material",
-                    Tensor::new(Dtype::U32, vec![v], &mesh.materials),
-                ),
-                (
-                    "mesh_triangle",
-                    Tensor::new(Dtype::U32, vec![t, 3], &mesh.triangles),
-                ),
-            ]);
-        }
-        tensors.sort_by_key(|(name, _)| *name);
-        debug_assert!(
-            tensors
-                .iter()
-                .map(|(n, _)| *n)
-                .eq(tensor_names(self.mesh.is_some()))
-        );
-        // One metadata key, so the header is the same bytes for the same content (the
-        // container keeps its metadata in a hash map, whose order varies between runs).
-        container::save(path, tensors, |checksum| {
-            serde_json::to_string(&FileHeader {
-                format: FORMAT_NAME.to_string(),
-                format_version: FORMAT_VERSION,
-                checksum,
-                meta: self.meta.clone(),
-            })
-        })
+        save_file(
+            path,
+            &self.meta,
+            grown,
+            &FileTables {
+                tile_row_start: &self.tile_row_start,
+                albedo: &self.albedo,
+                coverage: &self.coverage,
+                transport_magnitude: &self.transport_magnitude,
+                tile_stats: &self.tile_stats,
+                mesh: self.mesh.as_ref(),
+            },
+        )
     }
 
     /// Reads and fully validates a transport file.
@@ -534,6 +487,96 @@ fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
         return Err("camera: every number must be finite".into());
     }
     Ok(())
+}
+
+/// The tensors of a file that are one table for the whole image (or mesh), whichever way the
+/// tiles' tensors are held.
+pub(super) struct FileTables<'a> {
+    pub tile_row_start: &'a [u32],
+    pub albedo: &'a [[f32; 3]],
+    pub coverage: &'a [f32],
+    pub transport_magnitude: &'a [f32],
+    pub tile_stats: &'a [[f64; 3]],
+    pub mesh: Option<&'a VertexMesh>,
+}
+
+/// Writes a transport file atomically from `grown`, the eight tensors that grow tile by tile
+/// (`row_*`, `col_*`, `entry_*` and `sh`, in memory or spilled), and the whole-image `tables`.
+/// [`Transport::save`] and the streamed bake ([`super::TransportWriter`]) both come here, so
+/// the same content gives the same bytes.
+pub(super) fn save_file<'a>(
+    path: &Path,
+    meta: &TransportMeta,
+    mut tensors: Vec<(&'a str, Tensor<'a>)>,
+    tables: &FileTables<'a>,
+) -> Result<()> {
+    let (w, h) = (meta.width as usize, meta.height as usize);
+    let tiles = tables.tile_stats.len();
+    let c = tables.transport_magnitude.len();
+    tensors.extend([
+        (
+            "tile_row_start",
+            Tensor::new(Dtype::U32, vec![tiles + 1], tables.tile_row_start),
+        ),
+        (
+            "albedo",
+            Tensor::new(Dtype::F32, vec![h, w, 3], tables.albedo),
+        ),
+        (
+            "coverage",
+            Tensor::new(Dtype::F32, vec![h, w], tables.coverage),
+        ),
+        (
+            "transport_magnitude",
+            Tensor::new(Dtype::F32, vec![c], tables.transport_magnitude),
+        ),
+        (
+            "tile_stats",
+            Tensor::new(Dtype::F64, vec![tiles, 3], tables.tile_stats),
+        ),
+    ]);
+    if let Some(mesh) = tables.mesh {
+        let (v, t) = (mesh.vertex_count(), mesh.triangles.len());
+        tensors.extend([
+            (
+                "mesh_position",
+                Tensor::new(Dtype::F32, vec![v, 3], &mesh.positions),
+            ),
+            (
+                "mesh_normal",
+                Tensor::new(Dtype::F32, vec![v, 3], &mesh.normals),
+            ),
+            (
+                "mesh_material",
+                Tensor::new(Dtype::U32, vec![v], &mesh.materials),
+            ),
+            (
+                "mesh_triangle",
+                Tensor::new(Dtype::U32, vec![t, 3], &mesh.triangles),
+            ),
+        ]);
+    }
+    tensors.sort_by_key(|(name, _)| *name);
+    if !tensors
+        .iter()
+        .map(|(n, _)| *n)
+        .eq(tensor_names(tables.mesh.is_some()))
+    {
+        return Err(PrtError::file(
+            path,
+            "the tensors to write are not those of a transport file",
+        ));
+    }
+    // One metadata key, so the header is the same bytes for the same content (the
+    // container keeps its metadata in a hash map, whose order varies between runs).
+    container::save(path, tensors, |checksum| {
+        serde_json::to_string(&FileHeader {
+            format: FORMAT_NAME.to_string(),
+            format_version: FORMAT_VERSION,
+            checksum,
+            meta: meta.clone(),
+        })
+    })
 }
 
 /// Names of the tensors in a file, in the order the checksum covers them: those of every file,

@@ -48,6 +48,7 @@
 
 mod assemble;
 mod file;
+mod stream;
 
 use std::ops::Range;
 
@@ -60,6 +61,7 @@ pub use crate::store::quant::{BLOCK_ROWS, Quantization};
 
 pub use assemble::{EncodedTile, RowData, shard_of_band};
 pub use file::{read_header_meta, read_summary};
+pub use stream::TransportWriter;
 
 /// Pixels on a side of a tile.
 pub const TILE: usize = 16;
