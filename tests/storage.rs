@@ -283,3 +283,24 @@ fn info_reads_the_header_and_the_small_tables_only() {
     assert_eq!(code, Some(1), "{text}");
     assert!(text.contains("column counts add up"), "{text}");
 }
+
+#[test]
+fn a_load_reports_progress_up_to_the_file_size_and_reads_what_was_saved() {
+    // The load reads each tensor straight into its table (after a pass for the checksum); the
+    // progress it reports never goes back and ends at the file's size.
+    let t = random_transport(40, 35, 8, Quantization::Q8, 41, 0.3);
+    let dir = temp_dir("storage-progress");
+    let path = dir.join("t.prt");
+    t.save(&path).unwrap();
+    let size = std::fs::metadata(&path).unwrap().len();
+    let seen = std::sync::Mutex::new(Vec::new());
+    let back = Transport::load_with_progress(&path, &|done, total| {
+        seen.lock().unwrap().push((done, total))
+    })
+    .unwrap();
+    assert_eq!(back, t);
+    let seen = seen.into_inner().unwrap();
+    assert!(seen.iter().all(|&(_, total)| total == size));
+    assert!(seen.windows(2).all(|w| w[1].0 >= w[0].0));
+    assert_eq!(seen.last().unwrap().0, size);
+}

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use super::*;
 use crate::error::{PrtError, Result};
-use crate::store::container::{self, Tensor, check_meta_seal, checksum};
+use crate::store::container::{self, Tensor, check_meta_seal};
 
 impl Transport {
     /// Writes the file atomically: a temporary file beside `path`, then a rename.
@@ -78,20 +78,19 @@ impl Transport {
         let Header {
             meta,
             checksum: stored,
-            ..
+            tensors,
+            data_start,
+            file,
         } = read_header(path)?;
-        let buf = container::read_with_progress(path, u64::MAX, "transport", progress)?;
-        let st = safetensors::SafeTensors::deserialize(&buf)
-            .map_err(|e| PrtError::file(path, format!("not a valid safetensors file: {e}")))?;
-        let names = tensor_names(meta.per_vertex.is_some());
-        let mut parts = Vec::with_capacity(names.len());
-        for name in names {
-            let t = st
-                .tensor(name)
-                .map_err(|_| PrtError::file(path, format!("tensor `{name}` is missing")))?;
-            parts.push(t.data());
+        // Two passes over the tensors: the checksum, a piece at a time, then each tensor straight
+        // into its table, so memory holds the transport once and no copy of the file.
+        let mut reader = TensorReader::new(path, &tensors, data_start, file, progress)?;
+        let mut sum = container::Checksum::new();
+        for name in tensor_names(meta.per_vertex.is_some()) {
+            reader.each_piece(name, &mut |piece| sum.update(piece))?;
+            sum.end_part();
         }
-        let sum = format!("{:016x}", checksum(parts));
+        let sum = format!("{:016x}", sum.value());
         if sum != stored {
             return Err(PrtError::file(
                 path,
@@ -104,21 +103,6 @@ impl Transport {
         let (tx, ty) = tile_grid(w, h);
         let tiles = tx * ty;
         let c = 6 * (meta.cube_n as usize).pow(2);
-        let get = |name: &str, dtype: Dtype| -> Result<(Vec<usize>, &[u8])> {
-            let t = st
-                .tensor(name)
-                .map_err(|_| PrtError::file(path, format!("tensor `{name}` is missing")))?;
-            if t.dtype() != dtype {
-                return Err(PrtError::file(
-                    path,
-                    format!(
-                        "tensor `{name}` has dtype {:?}, expected {dtype:?}",
-                        t.dtype()
-                    ),
-                ));
-            }
-            Ok((t.shape().to_vec(), t.data()))
-        };
         let expect = |name: &str, shape: &[usize], want: &[usize]| -> Result<()> {
             if shape != want {
                 return Err(PrtError::file(
@@ -129,88 +113,88 @@ impl Transport {
             Ok(())
         };
         let bad = |m: String| PrtError::file(path, m);
-        let (s, d) = get("tile_row_start", Dtype::U32)?;
+        let (s, d) = reader.read("tile_row_start", Dtype::U32)?;
         expect("tile_row_start", &s, &[tiles + 1])?;
-        let tile_row_start: Vec<u32> = bytemuck::pod_collect_to_vec(d);
-        let (s, d) = get("row_pixel", Dtype::U32)?;
+        let tile_row_start: Vec<u32> = d;
+        let (s, d) = reader.read("row_pixel", Dtype::U32)?;
         let r = s.first().copied().unwrap_or(0);
         expect("row_pixel", &s, &[r])?;
-        let row_pixel: Vec<u32> = bytemuck::pod_collect_to_vec(d);
+        let row_pixel: Vec<u32> = d;
         // The block tables follow from the tiles' row counts, checked before anything is sized
         // by them.
         let (tile_block_start, block_row_start) = block_tables(&tile_row_start, r).map_err(bad)?;
         let blocks = block_row_start.len() - 1;
-        let (s, d) = get("row_weight", Dtype::F32)?;
+        let (s, d) = reader.read("row_weight", Dtype::F32)?;
         expect("row_weight", &s, &[r, 3])?;
-        let row_weight: Vec<[f32; 3]> = bytemuck::pod_collect_to_vec(d);
-        let (s, d) = get("row_scale", Dtype::F32)?;
+        let row_weight: Vec<[f32; 3]> = d;
+        let (s, d) = reader.read("row_scale", Dtype::F32)?;
         expect("row_scale", &s, &[r])?;
-        let row_scale: Vec<f32> = bytemuck::pod_collect_to_vec(d);
-        let (s, d) = get("col_count", Dtype::U16)?;
+        let row_scale: Vec<f32> = d;
+        let (s, d) = reader.read("col_count", Dtype::U16)?;
         expect("col_count", &s, &[blocks, c])?;
-        let counts: Vec<u16> = bytemuck::pod_collect_to_vec(d);
-        let (s, d) = get("col_scale", Dtype::U8)?;
+        let counts: Vec<u16> = d;
+        let (s, d) = reader.read("col_scale", Dtype::U8)?;
         expect("col_scale", &s, &[blocks, c])?;
-        let col_scale: Vec<u8> = d.to_vec();
-        let (s, d) = get("entry_row", Dtype::U8)?;
+        let col_scale: Vec<u8> = d;
+        let (s, d) = reader.read("entry_row", Dtype::U8)?;
         let nnz = s.first().copied().unwrap_or(0);
         expect("entry_row", &s, &[nnz])?;
-        let entry_row: Vec<u8> = d.to_vec();
+        let entry_row: Vec<u8> = d;
         let (col_ptr, block_entry_start) =
             column_pointers(&counts, &block_row_start, c, nnz).map_err(bad)?;
         let values = match meta.quantization {
             Quantization::Q8 => {
-                let (s, d) = get("entry_value", Dtype::I8)?;
+                let (s, d) = reader.read("entry_value", Dtype::I8)?;
                 expect("entry_value", &s, &[nnz])?;
-                Values::Q8(bytemuck::pod_collect_to_vec(d))
+                Values::Q8(d)
             }
             Quantization::Q16 => {
-                let (s, d) = get("entry_value", Dtype::I16)?;
+                let (s, d) = reader.read("entry_value", Dtype::I16)?;
                 expect("entry_value", &s, &[nnz])?;
-                Values::Q16(bytemuck::pod_collect_to_vec(d))
+                Values::Q16(d)
             }
             Quantization::F32 => {
-                let (s, d) = get("entry_value", Dtype::F32)?;
+                let (s, d) = reader.read("entry_value", Dtype::F32)?;
                 expect("entry_value", &s, &[nnz])?;
-                Values::F32(bytemuck::pod_collect_to_vec(d))
+                Values::F32(d)
             }
         };
         let shc = (meta.sh_order as usize).pow(2);
-        let (s, d) = get("sh", Dtype::F32)?;
+        let (s, d) = reader.read("sh", Dtype::F32)?;
         expect("sh", &s, &[r, shc])?;
-        let sh: Vec<f32> = bytemuck::pod_collect_to_vec(d);
-        let (s, d) = get("albedo", Dtype::F32)?;
+        let sh: Vec<f32> = d;
+        let (s, d) = reader.read("albedo", Dtype::F32)?;
         expect("albedo", &s, &[h, w, 3])?;
-        let albedo: Vec<[f32; 3]> = bytemuck::pod_collect_to_vec(d);
-        let (s, d) = get("coverage", Dtype::F32)?;
+        let albedo: Vec<[f32; 3]> = d;
+        let (s, d) = reader.read("coverage", Dtype::F32)?;
         expect("coverage", &s, &[h, w])?;
-        let coverage: Vec<f32> = bytemuck::pod_collect_to_vec(d);
-        let (s, d) = get("transport_magnitude", Dtype::F32)?;
+        let coverage: Vec<f32> = d;
+        let (s, d) = reader.read("transport_magnitude", Dtype::F32)?;
         expect("transport_magnitude", &s, &[c])?;
-        let transport_magnitude: Vec<f32> = bytemuck::pod_collect_to_vec(d);
-        let (s, d) = get("tile_stats", Dtype::F64)?;
+        let transport_magnitude: Vec<f32> = d;
+        let (s, d) = reader.read("tile_stats", Dtype::F64)?;
         expect("tile_stats", &s, &[tiles, 3])?;
-        let tile_stats: Vec<[f64; 3]> = bytemuck::pod_collect_to_vec(d);
+        let tile_stats: Vec<[f64; 3]> = d;
         let mesh = match &meta.per_vertex {
             None => None,
             Some(pv) => {
                 let (v, t) = (pv.vertices as usize, pv.triangles as usize);
-                let (s, d) = get("mesh_position", Dtype::F32)?;
+                let (s, d) = reader.read("mesh_position", Dtype::F32)?;
                 expect("mesh_position", &s, &[v, 3])?;
-                let positions = bytemuck::pod_collect_to_vec(d);
-                let (s, d) = get("mesh_normal", Dtype::F32)?;
+                let positions = d;
+                let (s, d) = reader.read("mesh_normal", Dtype::F32)?;
                 expect("mesh_normal", &s, &[v, 3])?;
-                let normals = bytemuck::pod_collect_to_vec(d);
-                let (s, d) = get("mesh_material", Dtype::U32)?;
+                let normals = d;
+                let (s, d) = reader.read("mesh_material", Dtype::U32)?;
                 expect("mesh_material", &s, &[v])?;
-                let materials: Vec<u32> = bytemuck::pod_collect_to_vec(d);
-                let (s, d) = get("mesh_triangle", Dtype::U32)?;
+                let materials: Vec<u32> = d;
+                let (s, d) = reader.read("mesh_triangle", Dtype::U32)?;
                 expect("mesh_triangle", &s, &[t, 3])?;
                 Some(VertexMesh {
                     positions,
                     normals,
                     materials,
-                    triangles: bytemuck::pod_collect_to_vec(d),
+                    triangles: d,
                 })
             }
         };
@@ -255,58 +239,27 @@ pub fn read_summary(path: &Path) -> Result<TransportMeta> {
         meta,
         tensors,
         data_start,
-        mut file,
+        file,
         ..
     } = read_header(path)?;
-    // A tensor's element count and, when `read`, its bytes (the header's offsets were checked
-    // against the file's length, so the read is bounded by the file).
-    let mut tensor = |name: &str, dtype: &str, read: bool| -> Result<(usize, Vec<u8>)> {
-        let bad = |why: &str| PrtError::file(path, format!("tensor `{name}`: {why}"));
-        let t = tensors.get(name).ok_or_else(|| bad("missing"))?;
-        if t.get("dtype").and_then(|d| d.as_str()) != Some(dtype) {
-            return Err(bad(&format!("dtype is not {dtype}")));
+    let mut reader = TensorReader::new(path, &tensors, data_start, file, &|_, _| {})?;
+    let (_, starts): (_, Vec<u32>) = reader.read("tile_row_start", Dtype::U32)?;
+    let (_, counts): (_, Vec<u16>) = reader.read("col_count", Dtype::U16)?;
+    // The two large tensors are only counted; their bytes need the whole file's checksum.
+    let count = |name: &str, bytes_each: u64| -> Result<usize> {
+        let (_, shape, start, end) = reader.locate(name)?;
+        match shape[..] {
+            [n] if (n as u64).checked_mul(bytes_each) == Some(end - start) => Ok(n),
+            _ => Err(PrtError::file(
+                path,
+                format!("tensor `{name}` of shape {shape:?} does not fill its bytes"),
+            )),
         }
-        let count = t
-            .get("shape")
-            .and_then(|s| s.as_array())
-            .and_then(|a| {
-                a.iter()
-                    .try_fold(1usize, |n, d| n.checked_mul(d.as_u64()? as usize))
-            })
-            .ok_or_else(|| bad("bad shape"))?;
-        let offsets = t.get("data_offsets").and_then(|o| o.as_array());
-        let (start, end) =
-            match offsets.and_then(|o| Some((o.first()?.as_u64()?, o.get(1)?.as_u64()?))) {
-                Some((a, b)) if a <= b => (a, b),
-                _ => return Err(bad("bad data_offsets")),
-            };
-        let width = match dtype {
-            "U32" => 4,
-            "U16" => 2,
-            _ => 1,
-        };
-        if count.checked_mul(width) != Some((end - start) as usize) {
-            return Err(bad(&format!(
-                "{count} values do not fill {} bytes",
-                end - start
-            )));
-        }
-        if !read {
-            return Ok((count, Vec::new()));
-        }
-        let mut bytes = vec![0u8; (end - start) as usize];
-        file.seek(std::io::SeekFrom::Start(data_start + start))
-            .and_then(|_| file.read_exact(&mut bytes))
-            .map_err(|e| bad(&format!("reading: {e}")))?;
-        Ok((count, bytes))
     };
-    let (tiles, starts) = tensor("tile_row_start", "U32", true)?;
-    let (rows, _) = tensor("row_pixel", "U32", false)?;
-    let (nnz, _) = tensor("entry_row", "U8", false)?;
-    let (_, counts) = tensor("col_count", "U16", true)?;
+    let rows = count("row_pixel", 4)?;
+    let nnz = count("entry_row", 1)?;
     let (tx, ty) = tile_grid(meta.width as usize, meta.height as usize);
-    let starts: Vec<u32> = bytemuck::pod_collect_to_vec(&starts);
-    if tiles != tx * ty + 1 || starts.len() != tiles {
+    if starts.len() != tx * ty + 1 {
         return Err(PrtError::file(
             path,
             "tile tables do not match the image size",
@@ -314,7 +267,6 @@ pub fn read_summary(path: &Path) -> Result<TransportMeta> {
     }
     let (_, block_rows) = block_tables(&starts, rows).map_err(|m| PrtError::file(path, m))?;
     let c = 6 * meta.cube_n as usize * meta.cube_n as usize;
-    let counts: Vec<u16> = bytemuck::pod_collect_to_vec(&counts);
     if counts.len() != (block_rows.len() - 1) * c {
         return Err(PrtError::file(
             path,
@@ -334,6 +286,131 @@ struct Header {
     tensors: serde_json::Map<String, serde_json::Value>,
     data_start: u64,
     file: std::fs::File,
+}
+
+/// Reads the tensors of a file whose header [`read_header`] checked, by name: a piece at a time,
+/// or straight into a typed table. Offsets and sizes are checked against the header's dtype and
+/// shape and the file before anything is allocated or read; `progress(bytes, file size)` follows
+/// the two passes a load makes (the checksum, then the tables) as one.
+struct TensorReader<'a> {
+    path: &'a Path,
+    tensors: &'a serde_json::Map<String, serde_json::Value>,
+    data_start: u64,
+    file: std::fs::File,
+    file_len: u64,
+    done: u64,
+    progress: &'a dyn Fn(u64, u64),
+}
+
+impl<'a> TensorReader<'a> {
+    fn new(
+        path: &'a Path,
+        tensors: &'a serde_json::Map<String, serde_json::Value>,
+        data_start: u64,
+        file: std::fs::File,
+        progress: &'a dyn Fn(u64, u64),
+    ) -> Result<Self> {
+        let file_len = file.metadata().map_err(|e| PrtError::io(path, e))?.len();
+        Ok(TensorReader {
+            path,
+            tensors,
+            data_start,
+            file,
+            file_len,
+            done: 0,
+            progress,
+        })
+    }
+
+    /// Tensor `name`'s dtype name, shape and byte range in the data; its size checked against
+    /// the file.
+    fn locate(&self, name: &str) -> Result<(String, Vec<usize>, u64, u64)> {
+        let bad = |why: &str| PrtError::file(self.path, format!("tensor `{name}` {why}"));
+        let t = self.tensors.get(name).ok_or_else(|| bad("is missing"))?;
+        let dtype = t
+            .get("dtype")
+            .and_then(|d| d.as_str())
+            .ok_or_else(|| bad("has no dtype"))?;
+        let shape = t
+            .get("shape")
+            .and_then(|s| s.as_array())
+            .and_then(|a| {
+                a.iter()
+                    .map(|d| usize::try_from(d.as_u64()?).ok())
+                    .collect::<Option<Vec<usize>>>()
+            })
+            .ok_or_else(|| bad("has a bad shape"))?;
+        let offsets = t.get("data_offsets").and_then(|o| o.as_array());
+        match offsets.and_then(|o| Some((o.first()?.as_u64()?, o.get(1)?.as_u64()?))) {
+            Some((a, b)) if a <= b && self.data_start.checked_add(b) <= Some(self.file_len) => {
+                Ok((dtype.to_string(), shape, a, b))
+            }
+            _ => Err(bad("has bad data_offsets")),
+        }
+    }
+
+    /// Calls `f` with tensor `name`'s bytes in order, 8 MiB at a time.
+    fn each_piece(&mut self, name: &str, f: &mut dyn FnMut(&[u8])) -> Result<()> {
+        let (_, _, start, end) = self.locate(name)?;
+        let mut piece = vec![0u8; ((end - start) as usize).min(8 << 20)];
+        self.seek(name, start)?;
+        let mut left = end - start;
+        while left > 0 {
+            let n = (piece.len() as u64).min(left) as usize;
+            self.read_into(name, &mut piece[..n])?;
+            f(&piece[..n]);
+            left -= n as u64;
+        }
+        Ok(())
+    }
+
+    /// Tensor `name`, which must be of `dtype`, as its shape and its values.
+    fn read<T: bytemuck::Pod>(&mut self, name: &str, dtype: Dtype) -> Result<(Vec<usize>, Vec<T>)> {
+        let (found, shape, start, end) = self.locate(name)?;
+        let bad = |why: String| PrtError::file(self.path, format!("tensor `{name}` {why}"));
+        if found != format!("{dtype:?}") {
+            return Err(bad(format!("has dtype {found}, expected {dtype:?}")));
+        }
+        let count = shape.iter().try_fold(1usize, |n, &d| n.checked_mul(d));
+        let bytes = (end - start) as usize;
+        let size = std::mem::size_of::<T>();
+        if count.and_then(|n| n.checked_mul(dtype.bitsize() / 8)) != Some(bytes)
+            || !bytes.is_multiple_of(size)
+        {
+            return Err(bad(format!(
+                "of shape {shape:?} does not fill its {bytes} bytes"
+            )));
+        }
+        let mut values: Vec<T> = Vec::new();
+        values
+            .try_reserve_exact(bytes / size)
+            .map_err(|_| bad(format!("takes {bytes} bytes, which do not fit in memory")))?;
+        values.resize(bytes / size, T::zeroed());
+        self.seek(name, start)?;
+        for piece in bytemuck::cast_slice_mut::<T, u8>(&mut values).chunks_mut(8 << 20) {
+            self.read_into(name, piece)?;
+        }
+        Ok((shape, values))
+    }
+
+    fn seek(&mut self, name: &str, start: u64) -> Result<()> {
+        self.file
+            .seek(std::io::SeekFrom::Start(self.data_start + start))
+            .map(|_| ())
+            .map_err(|e| PrtError::file(self.path, format!("tensor `{name}`: {e}")))
+    }
+
+    fn read_into(&mut self, name: &str, buf: &mut [u8]) -> Result<()> {
+        self.file
+            .read_exact(buf)
+            .map_err(|e| PrtError::file(self.path, format!("tensor `{name}`: reading: {e}")))?;
+        self.done += buf.len() as u64;
+        (self.progress)(
+            (self.data_start + self.done / 2).min(self.file_len),
+            self.file_len,
+        );
+        Ok(())
+    }
 }
 
 /// [`read_header_meta`], with what the rest of a reader needs (see [`Header`]).
