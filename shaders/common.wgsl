@@ -26,9 +26,11 @@ struct Params {
     block_base: u32,
     // Where the tiles' block starts begin in `tile_rows` (after the T + 1 row starts).
     block_table: u32,
+    // The wavelet pass takes its terms from light[term_base ..] and, when accumulate is 1, adds
+    // its image to what an earlier batch of terms wrote.
+    term_base: u32,
+    accumulate: u32,
     _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
 };
 
 // TILE and WORKGROUP (= TILE * TILE) are defined by the Rust side, which prepends them.

@@ -6,6 +6,10 @@
 // hold different rows, so the threads of one term never collide; a barrier separates terms. Then
 // each thread sums the rows of the pixel it owns.
 //
+// A relight with many terms is run in batches of terms, one dispatch each (see
+// TERMS_PER_DISPATCH on the Rust side): a batch reads light[params.term_base ..] and, after the
+// first, adds its image to the image so far.
+//
 // Accumulators live in workgroup memory when the tile has at most params.shared_rows rows (the
 // usual case: one row per pixel and material seen), else in the global `acc` buffer.
 
@@ -61,7 +65,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     storageBarrier();
     let stride = params.coeffs + 1u + (params.coeffs + 3u) / 4u;
     for (var k = 0u; k < params.terms; k = k + 1u) {
-        let term = light[k];
+        let term = light[params.term_base + k];
         let j = bitcast<u32>(term.w);
         for (var b = b0; b < b1; b = b + 1u) {
             let base = (b - params.block_base) * stride;
@@ -104,5 +108,9 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             sum = sum + row.xyz * a.xyz;
         }
     }
-    image[pixel] = vec4<f32>(sum, 1.0);
+    if (params.accumulate != 0u) {
+        image[pixel] = image[pixel] + vec4<f32>(sum, 0.0);
+    } else {
+        image[pixel] = vec4<f32>(sum, 1.0);
+    }
 }

@@ -1,7 +1,8 @@
 //! The GPU kernels against the CPU kernels: wavelet relighting at several K with every
 //! weighting, SH at several orders, q8, q16 and f32 transports, an image size tiles do not divide,
-//! pixels with several rows, a binding limit lowered so the transport is split into chunks, and
-//! accumulators in device memory as well as workgroup memory.
+//! pixels with several rows, a binding limit lowered so the transport is split into chunks,
+//! accumulators in device memory as well as workgroup memory, and more terms than one dispatch
+//! takes.
 //!
 //! Without an adapter these tests print why and pass, unless `PRT_REQUIRE_GPU=1`, when they fail.
 
@@ -298,4 +299,68 @@ fn both_backends_give_the_same_image_and_statistics_for_every_method() {
     let mut other = t.clone();
     other.meta.width += 16;
     assert!(GpuBackend::new(&gpu, &g, &other).is_err());
+}
+
+#[test]
+fn many_terms_are_relit_in_batches_that_add_up_to_the_cpu_image() {
+    // At 6x64² every term is 24,576 of them: six batches of TERMS_PER_DISPATCH. One batch past
+    // 10,900 terms gave a nearly black image on lavapipe; the batches must also add up right in
+    // the texture path and the per-vertex (in place) path, which share the encoding.
+    use wavelet_prt::relight::gpu::TERMS_PER_DISPATCH;
+    use wavelet_prt::relight::{Method, RelightRequest, Terms};
+    let Some(gpu) = common::gpu_or_skip("many_terms") else {
+        return;
+    };
+    let small = SPHERE_ON_PLANE.replace("width = 37\nheight = 21", "width = 20\nheight = 12");
+    let scene = scene_from(&small, "gpu-many-terms");
+    let settings = BakeSettings {
+        cube_n: 64,
+        sh_order: 2,
+        threshold: 0.0,
+        ..BakeSettings::default()
+    };
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    let c = t.coeff_count();
+    assert_eq!(c, 24_576);
+    let g = GpuTransport::upload(&gpu, &t, None).unwrap();
+    let ctx = LightContext::new(&t).unwrap();
+    let env = EnvMap::load(&assets().join("envmaps/blender_studio.exr")).unwrap();
+    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
+    let mask = Some(t.coverage.as_slice());
+    for k in [TERMS_PER_DISPATCH, TERMS_PER_DISPATCH + 1, 11_000, c] {
+        let req = RelightRequest {
+            method: Method::Wavelet,
+            terms: k,
+            weighting: Weighting::Transport,
+            sh_order: 1,
+        };
+        let Terms::Wavelet(sparse) = Terms::of(&t, &ctx, &light, &req).unwrap() else {
+            panic!("wavelet terms");
+        };
+        assert_eq!(sparse.indices.len(), k);
+        let (cpu, _) = relight_wavelet(&t, &sparse).unwrap();
+        let (dev, _) = g.relight_wavelet(&gpu, &sparse).unwrap();
+        let e = relative_l2(&dev, &cpu, mask).unwrap();
+        assert!(e < GPU_MATCH, "K = {k}: {e}");
+        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("many terms"),
+            size: wgpu::Extent3d {
+                width: t.meta.width,
+                height: t.meta.height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        g.relight_wavelet_to_texture(&gpu, &sparse, &texture)
+            .unwrap();
+        let texels = read_texture(&gpu, &texture);
+        for (p, (a, b)) in texels.iter().zip(&dev.pixels).enumerate() {
+            assert_eq!([a[0], a[1], a[2]], *b, "K = {k}, pixel {p}");
+        }
+    }
 }

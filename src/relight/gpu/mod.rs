@@ -30,7 +30,7 @@ pub use raster::{GpuMesh, GpuRaster, upload_colours};
 use readback::Timer;
 pub use readback::map_and_read;
 pub(crate) use readback::wait_and_read;
-pub use transport::{GpuBackend, GpuTransport};
+pub use transport::{GpuBackend, GpuTransport, TERMS_PER_DISPATCH};
 
 /// Threads per workgroup: one per pixel of a tile. The shaders receive it as `WORKGROUP`.
 pub const WORKGROUP_SIZE: u32 =

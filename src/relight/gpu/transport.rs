@@ -17,6 +17,13 @@ use crate::store::transport::{Transport, Values, tile_grid};
 /// Most workgroups along one dispatch dimension (WebGPU's guaranteed minimum).
 const MAX_DISPATCH: u32 = 65535;
 
+/// Most wavelet terms one dispatch takes; more are run in batches that add to the image. Each
+/// term costs a workgroup three barriers, and lavapipe (Mesa 22.3, LLVM 15) gives wrong images
+/// past about 10,900 terms in one dispatch (right at 10,000, wrong at 11,000 on a 6x64²
+/// bake), as if it kept 2^15 barriers at most; batches also bound the time of one dispatch, which
+/// drivers with a watchdog limit.
+pub const TERMS_PER_DISPATCH: usize = 4096;
+
 /// Uniform parameters of one dispatch; the layout of `Params` in `shaders/common.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
@@ -34,7 +41,9 @@ struct Params {
     shared_rows: u32,
     block_base: u32,
     block_table: u32,
-    _pad: [u32; 3],
+    term_base: u32,
+    accumulate: u32,
+    _pad: u32,
 }
 const _: () = assert!(std::mem::size_of::<Params>() == 64);
 
@@ -308,7 +317,9 @@ impl GpuTransport {
             shared_rows: u32::MAX,
             block_base: blocks.start as u32,
             block_table: t.tile_row_start.len() as u32,
-            _pad: [0; 3],
+            term_base: 0,
+            accumulate: 0,
+            _pad: 0,
         };
         let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("params"),
@@ -489,12 +500,7 @@ impl GpuTransport {
             Terms::Sh(sh) => (self.sh_terms(sh)?, false),
         };
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("relight in place"),
-            });
-        self.encode(gpu, &terms, wavelet, &mut encoder);
+        let (encoder, _) = self.encode(gpu, &terms, wavelet, "relight in place");
         gpu.queue.submit([encoder.finish()]);
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!("relight in place: {e}")));
@@ -507,46 +513,80 @@ impl GpuTransport {
         &self.image
     }
 
-    /// Uploads the terms and records one dispatch per chunk.
+    /// Uploads the terms and records the relight: one dispatch per chunk for each batch of at
+    /// most [`TERMS_PER_DISPATCH`] terms, every batch after the first adding to the image.
+    /// Batches before the last are submitted here; the last is left in the returned encoder for
+    /// the caller to finish and submit. Also returns when the first submission was made (or the
+    /// encoder created).
     fn encode(
         &self,
         gpu: &Gpu,
         terms: &[[f32; 4]],
         wavelet: bool,
-        encoder: &mut wgpu::CommandEncoder,
-    ) {
+        label: &str,
+    ) -> (wgpu::CommandEncoder, Instant) {
+        let new_encoder = || {
+            gpu.device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) })
+        };
         gpu.queue
             .write_buffer(&self.light, 0, bytemuck::cast_slice(terms));
+        // SH terms (at most 100) are one batch.
+        let per_batch = if wavelet {
+            TERMS_PER_DISPATCH
+        } else {
+            terms.len().max(1)
+        };
+        let batches = terms.len().div_ceil(per_batch).max(1);
         let n = self.chunks.len();
-        for (i, chunk) in self.chunks.iter().enumerate() {
-            // `coeffs` (word 6 of Params) is the row stride: 6 N² for wavelets, n² for SH;
-            // `terms` is word 7.
-            let words = [
-                if wavelet { self.coeffs } else { self.sh_count } as u32,
-                terms.len() as u32,
-            ];
-            gpu.queue
-                .write_buffer(&chunk.params, 24, bytemuck::cast_slice(&words));
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("relight"),
-                timestamp_writes: gpu.timer.as_ref().and_then(|t| t.writes(i, n)),
-            });
-            let (pipeline, group) = if wavelet {
-                (&gpu.wavelet, &chunk.wavelet_group)
-            } else {
-                (&gpu.sh, &chunk.sh_group)
-            };
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, group, &[]);
-            let count = chunk.tiles.len() as u32;
-            let x = count.min(MAX_DISPATCH);
-            pass.dispatch_workgroups(x, count.div_ceil(x), 1);
+        let start = Instant::now();
+        let mut encoder = new_encoder();
+        for batch in 0..batches {
+            if batch > 0 {
+                // The parameter writes of this batch land after the dispatches of the last.
+                gpu.queue
+                    .submit([std::mem::replace(&mut encoder, new_encoder()).finish()]);
+            }
+            let first = batch * per_batch;
+            let count = per_batch.min(terms.len() - first.min(terms.len()));
+            for (i, chunk) in self.chunks.iter().enumerate() {
+                // `coeffs` (word 6 of Params) is the row stride: 6 N² for wavelets, n² for SH;
+                // `terms` is word 7; `term_base` and `accumulate` are words 13 and 14.
+                let words = [
+                    if wavelet { self.coeffs } else { self.sh_count } as u32,
+                    count as u32,
+                ];
+                gpu.queue
+                    .write_buffer(&chunk.params, 24, bytemuck::cast_slice(&words));
+                let batch_words = [first as u32, (batch > 0) as u32];
+                gpu.queue
+                    .write_buffer(&chunk.params, 52, bytemuck::cast_slice(&batch_words));
+                let pass_index = batch * n + i;
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("relight"),
+                    timestamp_writes: gpu
+                        .timer
+                        .as_ref()
+                        .and_then(|t| t.writes(pass_index, batches * n)),
+                });
+                let (pipeline, group) = if wavelet {
+                    (&gpu.wavelet, &chunk.wavelet_group)
+                } else {
+                    (&gpu.sh, &chunk.sh_group)
+                };
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, group, &[]);
+                let count = chunk.tiles.len() as u32;
+                let x = count.min(MAX_DISPATCH);
+                pass.dispatch_workgroups(x, count.div_ceil(x), 1);
+            }
         }
         if let Some(t) = &gpu.timer {
-            t.resolve(encoder);
+            t.resolve(&mut encoder);
         }
         // Each chunk has its own parameter buffer, and queued writes land before the submission
         // that follows them; chunks touch disjoint tiles, rows and pixels.
+        (encoder, start)
     }
 
     fn run_to_texture(
@@ -573,12 +613,7 @@ impl GpuTransport {
             ));
         }
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("relight to texture"),
-            });
-        self.encode(gpu, terms, wavelet, &mut encoder);
+        let (mut encoder, _) = self.encode(gpu, terms, wavelet, "relight to texture");
         let dims = [self.width as u32, self.height as u32];
         let size_buf = gpu
             .device
@@ -627,14 +662,8 @@ impl GpuTransport {
     /// completion.
     fn run(&self, gpu: &Gpu, terms: &[[f32; 4]], wavelet: bool) -> Result<(Image, f64)> {
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("relight"),
-            });
-        self.encode(gpu, terms, wavelet, &mut encoder);
+        let (mut encoder, start) = self.encode(gpu, terms, wavelet, "relight");
         encoder.copy_buffer_to_buffer(&self.image, 0, &self.readback, 0, self.image.size());
-        let start = Instant::now();
         gpu.queue.submit([encoder.finish()]);
         let (pixels, wall) = wait_and_read(&gpu.device, &self.readback, start, "the relight")?;
         if let Some(e) = pollster::block_on(scope.pop()) {
