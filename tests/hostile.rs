@@ -201,6 +201,13 @@ fn merge_refuses_swapped_shard_labels_and_impossible_shard_counts() {
         &["label does not match its content"],
     );
     assert!(!out.exists());
+    // The merge streams to its file: a refused merge leaves no spill behind either.
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter(|n| n.contains(".spill-") || n.contains(".partial-"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
     let mut f = StFile::read(&shards[0]);
     f.meta["shard"] = serde_json::json!([0, u32::MAX]);
     let huge = dir.join("huge-count.prt");

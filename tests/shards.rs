@@ -68,6 +68,11 @@ fn merge_of_three_shards_is_byte_identical_to_one_bake() {
     let b = std::fs::read(dir.join("merged.prt")).unwrap();
     assert_eq!(a.len(), b.len());
     assert!(a == b, "merged file differs from the single bake");
+    // `prt merge` writes the merge tile by tile: the same bytes.
+    let names: Vec<String> = ["a", "b", "c"].map(String::from).to_vec();
+    let meta = Transport::merge_to_file(&shards, &names, &dir.join("streamed.prt")).unwrap();
+    assert_eq!(meta, whole.meta);
+    assert!(a == std::fs::read(dir.join("streamed.prt")).unwrap());
     // Shard files round-trip through disk too.
     shards[0].save(&dir.join("s.prt")).unwrap();
     // (The header's floats round-trip exactly: the statistics are compared too.)

@@ -181,10 +181,9 @@ pub(super) fn merge_cmd(shards: Vec<PathBuf>, output: PathBuf) -> Result<()> {
     }
     progress.set_message(format!("merging and writing {}", output.display()));
     let names: Vec<String> = shards.iter().map(|p| p.display().to_string()).collect();
-    let t = Transport::merge_named(&loaded, &names)?;
-    t.save(&output)?;
+    let meta = Transport::merge_to_file(&loaded, &names, &output)?;
     progress.finish_and_clear();
-    print_info(&output, &t.meta);
+    print_info(&output, &meta);
     Ok(())
 }
 

@@ -2,6 +2,8 @@
 //! tiles in parallel), the per-coefficient tables finished from them, a tile's rows decoded back,
 //! and shards of one bake merged into the file a single bake would write.
 
+use std::path::Path;
+
 use super::*;
 use crate::error::{PrtError, Result};
 use crate::store::quant::{UNIT_SCALE_CODE, code_for, quantize, scale_of};
@@ -347,128 +349,182 @@ impl Transport {
 
     /// [`Transport::merge`], naming shard k as `names[k]` in errors (a path, say).
     pub fn merge_named(shards: &[Transport], names: &[String]) -> Result<Transport> {
-        let name = |k: usize| {
-            names
-                .get(k)
-                .cloned()
-                .unwrap_or_else(|| format!("file {}", k + 1))
-        };
+        let mut tiles = Vec::new();
+        let mut tile_stats = Vec::new();
+        let merged = merge_tiles(shards, names, &mut |tile, stats| {
+            tiles.push(tile);
+            tile_stats.push(stats);
+            Ok(())
+        })?;
+        Transport::assemble_encoded(
+            merged.meta,
+            &tiles,
+            merged.albedo,
+            merged.coverage,
+            tile_stats,
+            merged.mesh,
+        )
+    }
+
+    /// [`Transport::merge_named`] written to the transport file `path` tile by tile
+    /// ([`super::TransportWriter`]): memory holds the shards, not the merged transport as well.
+    /// The same bytes as the merge saved.
+    pub fn merge_to_file(
+        shards: &[Transport],
+        names: &[String],
+        path: &Path,
+    ) -> Result<TransportMeta> {
         let first = shards
             .first()
             .ok_or_else(|| PrtError::invalid("merge", "no shard given"))?;
-        let Some([_, count]) = first.meta.shard else {
-            return Err(PrtError::invalid(
-                "merge",
-                format!("{} is not a shard", name(0)),
-            ));
-        };
-        let same = |m: &TransportMeta| TransportMeta {
-            shard: None,
-            stats: BakeStats::default(),
-            ..m.clone()
-        };
-        // Loading checked count <= the image's bands, so this is small.
-        let mut owner = vec![usize::MAX; count as usize];
-        for (k, s) in shards.iter().enumerate() {
-            if same(&s.meta) != same(&first.meta) {
-                return Err(PrtError::invalid(
-                    "merge",
-                    meta_difference(&same(&s.meta), &name(k), &same(&first.meta), &name(0)),
-                ));
-            }
-            match s.meta.shard {
-                Some([i, n]) if n == count && i < n && owner[i as usize] == usize::MAX => {
-                    owner[i as usize] = k
-                }
-                Some([i, n]) if n == count && i < n => {
-                    return Err(PrtError::invalid(
-                        "merge",
-                        format!(
-                            "shard {i}/{n} repeats: {} and {} are both shard {i}/{n}",
-                            name(owner[i as usize]),
-                            name(k)
-                        ),
-                    ));
-                }
-                Some([i, n]) => {
-                    return Err(PrtError::invalid(
-                        "merge",
-                        format!(
-                            "{} is shard {i}/{n}, which does not fit a set of {count} shards",
-                            name(k)
-                        ),
-                    ));
-                }
-                None => {
-                    return Err(PrtError::invalid(
-                        "merge",
-                        format!("{} is not a shard", name(k)),
-                    ));
-                }
-            }
-        }
-        if let Some(i) = owner.iter().position(|&o| o == usize::MAX) {
-            return Err(PrtError::invalid(
-                "merge",
-                format!("shard {i}/{count} is missing"),
-            ));
-        }
-        let (w, h) = (first.meta.width as usize, first.meta.height as usize);
-        let (tx, ty) = tile_grid(w, h);
-        // A shard holds nothing outside its own bands: a label that does not match the content
-        // (two shards' labels swapped, say) would otherwise merge into a mostly black image.
-        for (i, &k) in owner.iter().enumerate() {
-            let s = &shards[k];
-            for band in (0..ty).filter(|&b| shard_of_band(b, ty, count as usize) != i) {
-                let tiles = band * tx..(band + 1) * tx;
-                let pixels = band * TILE * w..((band + 1) * TILE * w).min(w * h);
-                let rows = s.tile_row_start[tiles.end] - s.tile_row_start[tiles.start];
-                let stats = s.tile_stats[tiles].iter().flatten().any(|v| *v != 0.0);
-                let seen = s.coverage[pixels.clone()].iter().any(|v| *v != 0.0)
-                    || s.albedo[pixels].iter().flatten().any(|v| *v != 0.0);
-                if rows > 0 || stats || seen {
-                    return Err(PrtError::invalid(
-                        "merge",
-                        format!(
-                            "{} is labelled shard {i}/{count} but holds data in tile row {band}, \
-                             which shard {}/{count} bakes: its `shard` label does not match its \
-                             content",
-                            name(k),
-                            shard_of_band(band, ty, count as usize)
-                        ),
-                    ));
-                }
-            }
-        }
-        let mut tiles = Vec::with_capacity(tx * ty);
-        let mut albedo = vec![[0.0f32; 3]; w * h];
-        let mut coverage = vec![0.0f32; w * h];
-        let mut tile_stats = Vec::with_capacity(tx * ty);
-        for band in 0..ty {
-            let s = &shards[owner[shard_of_band(band, ty, count as usize)]];
-            for tile in band * tx..(band + 1) * tx {
-                tiles.push(s.encoded_tile(tile));
-                tile_stats.push(s.tile_stats[tile]);
-            }
-            let pixels = band * TILE * w..((band + 1) * TILE * w).min(w * h);
-            albedo[pixels.clone()].copy_from_slice(&s.albedo[pixels.clone()]);
-            coverage[pixels.clone()].copy_from_slice(&s.coverage[pixels]);
-        }
-        if let Some(k) = shards.iter().position(|s| s.mesh != first.mesh) {
-            return Err(PrtError::invalid(
-                "merge",
-                format!("{} holds another vertex mesh than {}", name(k), name(0)),
-            ));
-        }
-        Transport::assemble_encoded(
-            same(&first.meta),
-            &tiles,
-            albedo,
-            coverage,
-            tile_stats,
-            first.mesh.clone(),
+        let mut writer = super::TransportWriter::create(
+            path,
+            first.meta.cube_n as usize,
+            first.meta.sh_order as usize,
+            first.meta.quantization,
+        )?;
+        let merged = merge_tiles(shards, names, &mut |tile, stats| writer.push(&tile, stats))?;
+        writer.finish(
+            merged.meta,
+            &merged.albedo,
+            &merged.coverage,
+            merged.mesh.as_ref(),
         )
     }
+}
+
+/// What a merge gives besides its tiles: the header (statistics not yet filled in), the
+/// per-pixel tables and a per-vertex bake's mesh.
+struct Merged {
+    meta: TransportMeta,
+    albedo: Vec<[f32; 3]>,
+    coverage: Vec<f32>,
+    mesh: Option<VertexMesh>,
+}
+
+/// Checks that `shards` (named `names` in errors) are one bake's and hands their tiles, in tile
+/// order, to `deliver` with their statistics.
+fn merge_tiles(
+    shards: &[Transport],
+    names: &[String],
+    deliver: &mut dyn FnMut(EncodedTile, [f64; 3]) -> Result<()>,
+) -> Result<Merged> {
+    let name = |k: usize| {
+        names
+            .get(k)
+            .cloned()
+            .unwrap_or_else(|| format!("file {}", k + 1))
+    };
+    let first = shards
+        .first()
+        .ok_or_else(|| PrtError::invalid("merge", "no shard given"))?;
+    let Some([_, count]) = first.meta.shard else {
+        return Err(PrtError::invalid(
+            "merge",
+            format!("{} is not a shard", name(0)),
+        ));
+    };
+    let same = |m: &TransportMeta| TransportMeta {
+        shard: None,
+        stats: BakeStats::default(),
+        ..m.clone()
+    };
+    // Loading checked count <= the image's bands, so this is small.
+    let mut owner = vec![usize::MAX; count as usize];
+    for (k, s) in shards.iter().enumerate() {
+        if same(&s.meta) != same(&first.meta) {
+            return Err(PrtError::invalid(
+                "merge",
+                meta_difference(&same(&s.meta), &name(k), &same(&first.meta), &name(0)),
+            ));
+        }
+        match s.meta.shard {
+            Some([i, n]) if n == count && i < n && owner[i as usize] == usize::MAX => {
+                owner[i as usize] = k
+            }
+            Some([i, n]) if n == count && i < n => {
+                return Err(PrtError::invalid(
+                    "merge",
+                    format!(
+                        "shard {i}/{n} repeats: {} and {} are both shard {i}/{n}",
+                        name(owner[i as usize]),
+                        name(k)
+                    ),
+                ));
+            }
+            Some([i, n]) => {
+                return Err(PrtError::invalid(
+                    "merge",
+                    format!(
+                        "{} is shard {i}/{n}, which does not fit a set of {count} shards",
+                        name(k)
+                    ),
+                ));
+            }
+            None => {
+                return Err(PrtError::invalid(
+                    "merge",
+                    format!("{} is not a shard", name(k)),
+                ));
+            }
+        }
+    }
+    if let Some(i) = owner.iter().position(|&o| o == usize::MAX) {
+        return Err(PrtError::invalid(
+            "merge",
+            format!("shard {i}/{count} is missing"),
+        ));
+    }
+    let (w, h) = (first.meta.width as usize, first.meta.height as usize);
+    let (tx, ty) = tile_grid(w, h);
+    // A shard holds nothing outside its own bands: a label that does not match the content
+    // (two shards' labels swapped, say) would otherwise merge into a mostly black image.
+    for (i, &k) in owner.iter().enumerate() {
+        let s = &shards[k];
+        for band in (0..ty).filter(|&b| shard_of_band(b, ty, count as usize) != i) {
+            let tiles = band * tx..(band + 1) * tx;
+            let pixels = band * TILE * w..((band + 1) * TILE * w).min(w * h);
+            let rows = s.tile_row_start[tiles.end] - s.tile_row_start[tiles.start];
+            let stats = s.tile_stats[tiles].iter().flatten().any(|v| *v != 0.0);
+            let seen = s.coverage[pixels.clone()].iter().any(|v| *v != 0.0)
+                || s.albedo[pixels].iter().flatten().any(|v| *v != 0.0);
+            if rows > 0 || stats || seen {
+                return Err(PrtError::invalid(
+                    "merge",
+                    format!(
+                        "{} is labelled shard {i}/{count} but holds data in tile row {band}, \
+                             which shard {}/{count} bakes: its `shard` label does not match its \
+                             content",
+                        name(k),
+                        shard_of_band(band, ty, count as usize)
+                    ),
+                ));
+            }
+        }
+    }
+    if let Some(k) = shards.iter().position(|s| s.mesh != first.mesh) {
+        return Err(PrtError::invalid(
+            "merge",
+            format!("{} holds another vertex mesh than {}", name(k), name(0)),
+        ));
+    }
+    let mut albedo = vec![[0.0f32; 3]; w * h];
+    let mut coverage = vec![0.0f32; w * h];
+    for band in 0..ty {
+        let s = &shards[owner[shard_of_band(band, ty, count as usize)]];
+        for tile in band * tx..(band + 1) * tx {
+            deliver(s.encoded_tile(tile), s.tile_stats[tile])?;
+        }
+        let pixels = band * TILE * w..((band + 1) * TILE * w).min(w * h);
+        albedo[pixels.clone()].copy_from_slice(&s.albedo[pixels.clone()]);
+        coverage[pixels.clone()].copy_from_slice(&s.coverage[pixels]);
+    }
+    Ok(Merged {
+        meta: same(&first.meta),
+        albedo,
+        coverage,
+        mesh: first.mesh.clone(),
+    })
 }
 
 /// One tile's blocks as the magnitudes read them.
