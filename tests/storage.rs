@@ -286,7 +286,7 @@ fn info_reads_the_header_and_the_small_tables_only() {
 
 #[test]
 fn a_load_reports_progress_up_to_the_file_size_and_reads_what_was_saved() {
-    // The load reads each tensor straight into its table (after a pass for the checksum); the
+    // The load reads each tensor straight into its table, taking the checksum as it goes; the
     // progress it reports never goes back and ends at the file's size.
     let t = random_transport(40, 35, 8, Quantization::Q8, 41, 0.3);
     let dir = temp_dir("storage-progress");

@@ -82,15 +82,51 @@ impl Transport {
             data_start,
             file,
         } = read_header(path)?;
-        // Two passes over the tensors: the checksum, a piece at a time, then each tensor straight
-        // into its table, so memory holds the transport once and no copy of the file.
+        // One pass over the tensors in name order (the order the checksum covers them), each
+        // read straight into its table: memory holds the transport once and no copy of the file.
+        // Shapes are checked once the checksum has passed.
         let mut reader = TensorReader::new(path, &tensors, data_start, file, progress)?;
-        let mut sum = container::Checksum::new();
-        for name in tensor_names(meta.per_vertex.is_some()) {
-            reader.each_piece(name, &mut |piece| sum.update(piece))?;
-            sum.end_part();
-        }
-        let sum = format!("{:016x}", sum.value());
+        let (w, h) = (meta.width as usize, meta.height as usize);
+        let (tx, ty) = tile_grid(w, h);
+        let tiles = tx * ty;
+        let c = 6 * (meta.cube_n as usize).pow(2);
+        let (albedo_shape, albedo) = reader.read::<[f32; 3]>("albedo", Dtype::F32)?;
+        let (count_shape, counts) = reader.read::<u16>("col_count", Dtype::U16)?;
+        let (scale_shape, col_scale) = reader.read::<u8>("col_scale", Dtype::U8)?;
+        let (coverage_shape, coverage) = reader.read::<f32>("coverage", Dtype::F32)?;
+        let (entry_shape, entry_row) = reader.read::<u8>("entry_row", Dtype::U8)?;
+        let (value_shape, values) = match meta.quantization {
+            Quantization::Q8 => {
+                let (s, v) = reader.read("entry_value", Dtype::I8)?;
+                (s, Values::Q8(v))
+            }
+            Quantization::Q16 => {
+                let (s, v) = reader.read("entry_value", Dtype::I16)?;
+                (s, Values::Q16(v))
+            }
+            Quantization::F32 => {
+                let (s, v) = reader.read("entry_value", Dtype::F32)?;
+                (s, Values::F32(v))
+            }
+        };
+        let mesh = match &meta.per_vertex {
+            None => None,
+            Some(_) => Some((
+                reader.read::<u32>("mesh_material", Dtype::U32)?,
+                reader.read::<glam::Vec3>("mesh_normal", Dtype::F32)?,
+                reader.read::<glam::Vec3>("mesh_position", Dtype::F32)?,
+                reader.read::<[u32; 3]>("mesh_triangle", Dtype::U32)?,
+            )),
+        };
+        let (pixel_shape, row_pixel) = reader.read::<u32>("row_pixel", Dtype::U32)?;
+        let (row_scale_shape, row_scale) = reader.read::<f32>("row_scale", Dtype::F32)?;
+        let (weight_shape, row_weight) = reader.read::<[f32; 3]>("row_weight", Dtype::F32)?;
+        let (sh_shape, sh) = reader.read::<f32>("sh", Dtype::F32)?;
+        let (start_shape, tile_row_start) = reader.read::<u32>("tile_row_start", Dtype::U32)?;
+        let (stats_shape, tile_stats) = reader.read::<[f64; 3]>("tile_stats", Dtype::F64)?;
+        let (magnitude_shape, transport_magnitude) =
+            reader.read::<f32>("transport_magnitude", Dtype::F32)?;
+        let sum = format!("{:016x}", reader.checksum());
         if sum != stored {
             return Err(PrtError::file(
                 path,
@@ -99,10 +135,6 @@ impl Transport {
                 ),
             ));
         }
-        let (w, h) = (meta.width as usize, meta.height as usize);
-        let (tx, ty) = tile_grid(w, h);
-        let tiles = tx * ty;
-        let c = 6 * (meta.cube_n as usize).pow(2);
         let expect = |name: &str, shape: &[usize], want: &[usize]| -> Result<()> {
             if shape != want {
                 return Err(PrtError::file(
@@ -113,90 +145,45 @@ impl Transport {
             Ok(())
         };
         let bad = |m: String| PrtError::file(path, m);
-        let (s, d) = reader.read("tile_row_start", Dtype::U32)?;
-        expect("tile_row_start", &s, &[tiles + 1])?;
-        let tile_row_start: Vec<u32> = d;
-        let (s, d) = reader.read("row_pixel", Dtype::U32)?;
-        let r = s.first().copied().unwrap_or(0);
-        expect("row_pixel", &s, &[r])?;
-        let row_pixel: Vec<u32> = d;
+        expect("tile_row_start", &start_shape, &[tiles + 1])?;
+        let r = pixel_shape.first().copied().unwrap_or(0);
+        expect("row_pixel", &pixel_shape, &[r])?;
         // The block tables follow from the tiles' row counts, checked before anything is sized
         // by them.
         let (tile_block_start, block_row_start) = block_tables(&tile_row_start, r).map_err(bad)?;
         let blocks = block_row_start.len() - 1;
-        let (s, d) = reader.read("row_weight", Dtype::F32)?;
-        expect("row_weight", &s, &[r, 3])?;
-        let row_weight: Vec<[f32; 3]> = d;
-        let (s, d) = reader.read("row_scale", Dtype::F32)?;
-        expect("row_scale", &s, &[r])?;
-        let row_scale: Vec<f32> = d;
-        let (s, d) = reader.read("col_count", Dtype::U16)?;
-        expect("col_count", &s, &[blocks, c])?;
-        let counts: Vec<u16> = d;
-        let (s, d) = reader.read("col_scale", Dtype::U8)?;
-        expect("col_scale", &s, &[blocks, c])?;
-        let col_scale: Vec<u8> = d;
-        let (s, d) = reader.read("entry_row", Dtype::U8)?;
-        let nnz = s.first().copied().unwrap_or(0);
-        expect("entry_row", &s, &[nnz])?;
-        let entry_row: Vec<u8> = d;
+        expect("row_weight", &weight_shape, &[r, 3])?;
+        expect("row_scale", &row_scale_shape, &[r])?;
+        expect("col_count", &count_shape, &[blocks, c])?;
+        expect("col_scale", &scale_shape, &[blocks, c])?;
+        let nnz = entry_shape.first().copied().unwrap_or(0);
+        expect("entry_row", &entry_shape, &[nnz])?;
         let (col_ptr, block_entry_start) =
             column_pointers(&counts, &block_row_start, c, nnz).map_err(bad)?;
-        let values = match meta.quantization {
-            Quantization::Q8 => {
-                let (s, d) = reader.read("entry_value", Dtype::I8)?;
-                expect("entry_value", &s, &[nnz])?;
-                Values::Q8(d)
-            }
-            Quantization::Q16 => {
-                let (s, d) = reader.read("entry_value", Dtype::I16)?;
-                expect("entry_value", &s, &[nnz])?;
-                Values::Q16(d)
-            }
-            Quantization::F32 => {
-                let (s, d) = reader.read("entry_value", Dtype::F32)?;
-                expect("entry_value", &s, &[nnz])?;
-                Values::F32(d)
-            }
-        };
-        let shc = (meta.sh_order as usize).pow(2);
-        let (s, d) = reader.read("sh", Dtype::F32)?;
-        expect("sh", &s, &[r, shc])?;
-        let sh: Vec<f32> = d;
-        let (s, d) = reader.read("albedo", Dtype::F32)?;
-        expect("albedo", &s, &[h, w, 3])?;
-        let albedo: Vec<[f32; 3]> = d;
-        let (s, d) = reader.read("coverage", Dtype::F32)?;
-        expect("coverage", &s, &[h, w])?;
-        let coverage: Vec<f32> = d;
-        let (s, d) = reader.read("transport_magnitude", Dtype::F32)?;
-        expect("transport_magnitude", &s, &[c])?;
-        let transport_magnitude: Vec<f32> = d;
-        let (s, d) = reader.read("tile_stats", Dtype::F64)?;
-        expect("tile_stats", &s, &[tiles, 3])?;
-        let tile_stats: Vec<[f64; 3]> = d;
-        let mesh = match &meta.per_vertex {
-            None => None,
-            Some(pv) => {
+        expect("entry_value", &value_shape, &[nnz])?;
+        expect("sh", &sh_shape, &[r, (meta.sh_order as usize).pow(2)])?;
+        expect("albedo", &albedo_shape, &[h, w, 3])?;
+        expect("coverage", &coverage_shape, &[h, w])?;
+        expect("transport_magnitude", &magnitude_shape, &[c])?;
+        expect("tile_stats", &stats_shape, &[tiles, 3])?;
+        let mesh = match (&meta.per_vertex, mesh) {
+            (
+                Some(pv),
+                Some(((ms, materials), (ns, normals), (ps, positions), (ts, triangles))),
+            ) => {
                 let (v, t) = (pv.vertices as usize, pv.triangles as usize);
-                let (s, d) = reader.read("mesh_position", Dtype::F32)?;
-                expect("mesh_position", &s, &[v, 3])?;
-                let positions = d;
-                let (s, d) = reader.read("mesh_normal", Dtype::F32)?;
-                expect("mesh_normal", &s, &[v, 3])?;
-                let normals = d;
-                let (s, d) = reader.read("mesh_material", Dtype::U32)?;
-                expect("mesh_material", &s, &[v])?;
-                let materials: Vec<u32> = d;
-                let (s, d) = reader.read("mesh_triangle", Dtype::U32)?;
-                expect("mesh_triangle", &s, &[t, 3])?;
+                expect("mesh_position", &ps, &[v, 3])?;
+                expect("mesh_normal", &ns, &[v, 3])?;
+                expect("mesh_material", &ms, &[v])?;
+                expect("mesh_triangle", &ts, &[t, 3])?;
                 Some(VertexMesh {
                     positions,
                     normals,
                     materials,
-                    triangles: d,
+                    triangles,
                 })
             }
+            _ => None,
         };
         let t = Transport {
             meta,
@@ -288,10 +275,11 @@ struct Header {
     file: std::fs::File,
 }
 
-/// Reads the tensors of a file whose header [`read_header`] checked, by name: a piece at a time,
-/// or straight into a typed table. Offsets and sizes are checked against the header's dtype and
-/// shape and the file before anything is allocated or read; `progress(bytes, file size)` follows
-/// the two passes a load makes (the checksum, then the tables) as one.
+/// Reads the tensors of a file whose header [`read_header`] checked, by name, each straight into
+/// a typed table. Offsets and sizes are checked against the header's dtype and shape and the file
+/// before anything is allocated or read. The checksum of what was read, one part per tensor, is
+/// kept as it goes (a load reads in the order the checksum covers); `progress(bytes, file size)`
+/// follows the reads.
 struct TensorReader<'a> {
     path: &'a Path,
     tensors: &'a serde_json::Map<String, serde_json::Value>,
@@ -299,6 +287,7 @@ struct TensorReader<'a> {
     file: std::fs::File,
     file_len: u64,
     done: u64,
+    sum: container::Checksum,
     progress: &'a dyn Fn(u64, u64),
 }
 
@@ -318,8 +307,14 @@ impl<'a> TensorReader<'a> {
             file,
             file_len,
             done: 0,
+            sum: container::Checksum::new(),
             progress,
         })
+    }
+
+    /// The checksum of the tensors read so far, in the order they were read.
+    fn checksum(&self) -> u64 {
+        self.sum.value()
     }
 
     /// Tensor `name`'s dtype name, shape and byte range in the data; its size checked against
@@ -349,21 +344,6 @@ impl<'a> TensorReader<'a> {
         }
     }
 
-    /// Calls `f` with tensor `name`'s bytes in order, 8 MiB at a time.
-    fn each_piece(&mut self, name: &str, f: &mut dyn FnMut(&[u8])) -> Result<()> {
-        let (_, _, start, end) = self.locate(name)?;
-        let mut piece = vec![0u8; ((end - start) as usize).min(8 << 20)];
-        self.seek(name, start)?;
-        let mut left = end - start;
-        while left > 0 {
-            let n = (piece.len() as u64).min(left) as usize;
-            self.read_into(name, &mut piece[..n])?;
-            f(&piece[..n]);
-            left -= n as u64;
-        }
-        Ok(())
-    }
-
     /// Tensor `name`, which must be of `dtype`, as its shape and its values.
     fn read<T: bytemuck::Pod>(&mut self, name: &str, dtype: Dtype) -> Result<(Vec<usize>, Vec<T>)> {
         let (found, shape, start, end) = self.locate(name)?;
@@ -389,7 +369,9 @@ impl<'a> TensorReader<'a> {
         self.seek(name, start)?;
         for piece in bytemuck::cast_slice_mut::<T, u8>(&mut values).chunks_mut(8 << 20) {
             self.read_into(name, piece)?;
+            self.sum.update(piece);
         }
+        self.sum.end_part();
         Ok((shape, values))
     }
 
@@ -406,7 +388,7 @@ impl<'a> TensorReader<'a> {
             .map_err(|e| PrtError::file(self.path, format!("tensor `{name}`: reading: {e}")))?;
         self.done += buf.len() as u64;
         (self.progress)(
-            (self.data_start + self.done / 2).min(self.file_len),
+            (self.data_start + self.done).min(self.file_len),
             self.file_len,
         );
         Ok(())
