@@ -180,16 +180,26 @@ fn host_tag() -> String {
 
 /// The temporary file a write of `path` by process `pid` of this host goes through.
 pub fn partial_path(path: &Path, pid: u32) -> PathBuf {
-    partial_path_of(path, &host_tag(), pid)
+    partial_path_of(path, &host_tag(), pid, None)
 }
 
-/// [`partial_path`] for the host named `host`.
-fn partial_path_of(path: &Path, host: &str, pid: u32) -> PathBuf {
+/// A temporary file that holds part `tag` of a write of `path` by process `pid` of this host
+/// while it is made (`NAME.partial-HOST-PID.spill-TAG.EXT`); [`remove_stale_partials`] removes
+/// those a killed run left behind.
+pub fn spill_path(path: &Path, pid: u32, tag: &str) -> PathBuf {
+    partial_path_of(path, &host_tag(), pid, Some(tag))
+}
+
+/// [`partial_path`] for the host named `host`, with `.spill-TAG` for [`spill_path`].
+fn partial_path_of(path: &Path, host: &str, pid: u32, tag: Option<&str>) -> PathBuf {
     let mut name = path
         .file_name()
         .map(|n| n.to_os_string())
         .unwrap_or_default();
     name.push(format!("{PARTIAL}{host}-{pid}"));
+    if let Some(tag) = tag {
+        name.push(format!(".spill-{tag}"));
+    }
     if let Some(ext) = path.extension() {
         name.push(".");
         name.push(ext);
@@ -230,7 +240,7 @@ pub fn remove_stale_partials(path: &Path) {
         let Some(rest) = file.to_str().and_then(|f| f.strip_prefix(&prefix)) else {
             continue;
         };
-        // `PID`, or `PID.spill-NAME` for a writer's spill (`crate::store::container::Spill`).
+        // `PID`, or `PID.spill-TAG` ([`spill_path`]).
         let Some(pid) = rest
             .strip_suffix(&suffix)
             .and_then(|p| p.split('.').next())
@@ -266,10 +276,12 @@ mod tests {
 
     #[test]
     fn partial_names_keep_the_extension_and_parse_back() {
-        let p = partial_path_of(Path::new("dir/out.prt"), "node-1", 42);
+        let p = partial_path_of(Path::new("dir/out.prt"), "node-1", 42, None);
         assert_eq!(p, Path::new("dir/out.prt.partial-node-1-42.prt"));
+        let p = partial_path_of(Path::new("dir/out.prt"), "node-1", 42, Some("sh"));
+        assert_eq!(p, Path::new("dir/out.prt.partial-node-1-42.spill-sh.prt"));
         assert_eq!(p.extension().and_then(|e| e.to_str()), Some("prt"));
-        let p = partial_path_of(Path::new("noext"), "h", 7);
+        let p = partial_path_of(Path::new("noext"), "h", 7, None);
         assert_eq!(p, Path::new("noext.partial-h-7"));
     }
 
@@ -278,13 +290,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("prt-stale-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let out = dir.join("out.prt");
-        let spill = |pid: u32| {
-            let p = partial_path(&out, pid);
-            p.with_file_name(format!(
-                "{}.spill-entry_value.prt",
-                p.file_stem().unwrap().to_str().unwrap()
-            ))
-        };
+        let spill = |pid: u32| spill_path(&out, pid, "entry_value");
         // No process has an id this large; process 1 always runs.
         let (dead, alive) = (spill(4_000_000_000), spill(1));
         let other = dir.join("out.prt.notes.txt");

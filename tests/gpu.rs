@@ -129,6 +129,17 @@ fn bad_lights_are_errors_on_the_gpu_too() {
 }
 
 /// Reads an RGBA32F texture back through a buffer with 256-byte aligned rows.
+/// A texture the relight of `t` can be drawn into and read back from.
+fn relight_texture(gpu: &Gpu, t: &Transport) -> wgpu::Texture {
+    wavelet_prt::relight::gpu::texture_2d(
+        &gpu.device,
+        "relight",
+        [t.meta.width, t.meta.height],
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+    )
+}
+
 fn read_texture(gpu: &Gpu, texture: &wgpu::Texture) -> Vec<[f32; 4]> {
     let (w, h) = (texture.width() as usize, texture.height() as usize);
     let row = (w * 16).div_ceil(256) * 256;
@@ -184,20 +195,7 @@ fn relight_into_a_texture_equals_the_read_back_image() {
         .wavelet
         .select(50, Weighting::Area, &ctx.support_area, None)
         .unwrap();
-    let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: None,
-        size: wgpu::Extent3d {
-            width: t.meta.width,
-            height: t.meta.height,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba32Float,
-        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-        view_formats: &[],
-    });
+    let texture = relight_texture(&gpu, t);
     let (buffered, _) = g.relight_wavelet(&gpu, &sparse).unwrap();
     g.relight_wavelet_to_texture(&gpu, &sparse, &texture)
         .unwrap();
@@ -342,20 +340,7 @@ fn many_terms_are_relit_in_batches_that_add_up_to_the_cpu_image() {
         let (dev, _) = g.relight_wavelet(&gpu, &sparse).unwrap();
         let e = relative_l2(&dev, &cpu, mask).unwrap();
         assert!(e < GPU_MATCH, "K = {k}: {e}");
-        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("many terms"),
-            size: wgpu::Extent3d {
-                width: t.meta.width,
-                height: t.meta.height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        let texture = relight_texture(&gpu, &t);
         g.relight_wavelet_to_texture(&gpu, &sparse, &texture)
             .unwrap();
         let texels = read_texture(&gpu, &texture);

@@ -18,6 +18,19 @@ fn settings(shard: Option<[u32; 2]>) -> BakeSettings {
     }
 }
 
+/// Merges `shards` and checks that the file it saves is, byte for byte, the one `whole` saves.
+fn assert_merge_is_the_single_bake(whole: &Transport, shards: &[Transport], name: &str) {
+    let merged = Transport::merge(shards).unwrap();
+    let dir = temp_dir(name);
+    whole.save(&dir.join("whole.prt")).unwrap();
+    merged.save(&dir.join("merged.prt")).unwrap();
+    assert!(
+        std::fs::read(dir.join("whole.prt")).unwrap()
+            == std::fs::read(dir.join("merged.prt")).unwrap(),
+        "merged file differs from the single bake"
+    );
+}
+
 #[test]
 fn shards_with_interreflections_merge_byte_identically() {
     // Each shard picks the same surface cache points as the whole bake, so the rows agree.
@@ -34,15 +47,7 @@ fn shards_with_interreflections_merge_byte_identically() {
         .iter()
         .map(|&i| bake(&scene, &with(Some([i, 2])), &|_| {}).unwrap())
         .collect();
-    let merged = Transport::merge(&shards).unwrap();
-    let dir = temp_dir("shards-bounces");
-    whole.save(&dir.join("whole.prt")).unwrap();
-    merged.save(&dir.join("merged.prt")).unwrap();
-    assert!(
-        std::fs::read(dir.join("whole.prt")).unwrap()
-            == std::fs::read(dir.join("merged.prt")).unwrap(),
-        "merged file differs from the single bake"
-    );
+    assert_merge_is_the_single_bake(&whole, &shards, "shards-bounces");
 }
 
 #[test]
@@ -129,13 +134,5 @@ fn per_vertex_shards_merge_byte_identically() {
         .iter()
         .map(|&i| bake(&scene, &with(Some([i, 3])), &|_| {}).unwrap())
         .collect();
-    let merged = Transport::merge(&shards).unwrap();
-    let dir = temp_dir("shards-vertices");
-    whole.save(&dir.join("whole.prt")).unwrap();
-    merged.save(&dir.join("merged.prt")).unwrap();
-    assert!(
-        std::fs::read(dir.join("whole.prt")).unwrap()
-            == std::fs::read(dir.join("merged.prt")).unwrap(),
-        "merged file differs from the single bake"
-    );
+    assert_merge_is_the_single_bake(&whole, &shards, "shards-vertices");
 }

@@ -6,11 +6,11 @@ mod common;
 
 use std::path::Path;
 
-use common::{SPHERE_ON_PLANE, prt, scene_from, temp_dir};
+use common::{SPHERE_ON_PLANE, prt, random_transport, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake, bake_to_file};
 use wavelet_prt::scene::Scene;
 use wavelet_prt::store::quant::Quantization;
-use wavelet_prt::store::transport::Transport;
+use wavelet_prt::store::transport::{BakeStats, EncodedTile, Transport, TransportWriter, Untiled};
 
 fn settings() -> BakeSettings {
     BakeSettings {
@@ -168,4 +168,60 @@ fn prt_bake_writes_the_file_the_library_bakes() {
     let kept = bake(&scene, &s, &|_| {}).unwrap();
     kept.save(&dir.join("kept.prt")).unwrap();
     assert!(std::fs::read(&out).unwrap() == std::fs::read(dir.join("kept.prt")).unwrap());
+}
+
+/// The parts of `t` a writer is finished with, statistics not yet filled in.
+fn untiled(t: &Transport) -> Untiled {
+    Untiled {
+        meta: wavelet_prt::store::transport::TransportMeta {
+            stats: BakeStats::default(),
+            ..t.meta.clone()
+        },
+        albedo: t.albedo.clone(),
+        coverage: t.coverage.clone(),
+        mesh: t.mesh.clone(),
+    }
+}
+
+#[test]
+fn the_writer_refuses_tiles_that_do_not_fit_and_a_file_with_tiles_missing() {
+    let dir = temp_dir("streamed-writer");
+    let path = dir.join("w.prt");
+    // One tile over 6 x 2² coefficients.
+    let t = random_transport(16, 16, 2, Quantization::Q8, 5, 1.0);
+    let (c, shc, sh_order) = (t.coeff_count(), t.sh_count(), t.meta.sh_order as usize);
+    let rows = t.tile_rows(0);
+    assert!(!rows.is_empty());
+    let tile = EncodedTile::encode(&rows, c, shc, Quantization::Q8).unwrap();
+    let mut w = TransportWriter::create(&path, 2, sh_order, Quantization::Q8).unwrap();
+    // A tile whose counts miss a coefficient, one of another quantisation, one of another cube.
+    let mut bad = tile.clone();
+    bad.col_count.pop();
+    let q16 = EncodedTile::encode(&rows, c, shc, Quantization::Q16).unwrap();
+    let wider = EncodedTile::encode(&rows, 6 * 4 * 4, shc, Quantization::Q8).unwrap();
+    for refused in [&bad, &q16, &wider] {
+        let e = w.push(refused, [0.0; 3]).unwrap_err().to_string();
+        assert!(e.contains("w.prt") && e.contains("tile 0"), "{e}");
+    }
+    w.push(&tile, t.tile_stats[0]).unwrap();
+    // An image of two tiles, one written: refused, and nothing is left.
+    let two = random_transport(32, 16, 2, Quantization::Q8, 6, 1.0);
+    let e = w.finish(untiled(&two)).unwrap_err().to_string();
+    assert!(e.contains("1 of the 2 tiles of a 32 x 16 image"), "{e}");
+    assert!(files(&dir).is_empty(), "{:?}", files(&dir));
+    // The whole image: a file that loads back with the tile's rows and the header's counts.
+    let mut w = TransportWriter::create(&path, 2, sh_order, Quantization::Q8).unwrap();
+    w.push(&tile, t.tile_stats[0]).unwrap();
+    let meta = w.finish(untiled(&t)).unwrap();
+    assert_eq!(meta.stats.rows, t.meta.stats.rows);
+    assert_eq!(meta.stats.nonzeros, tile.entry_row.len() as u64);
+    let back = Transport::load(&path).unwrap();
+    assert_eq!(back.meta, meta);
+    let pixels = |r: &[wavelet_prt::store::transport::RowData]| {
+        r.iter()
+            .map(|r| (r.pixel, r.entries.len()))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(pixels(&back.tile_rows(0)), pixels(&rows));
+    assert_eq!(files(&dir), ["w.prt"]);
 }

@@ -35,8 +35,8 @@ use crate::scene::tessellate::VertexMesh;
 use crate::scene::trace::{Hit, Tracer};
 use crate::store::budget::{Budget, Thresholder};
 use crate::store::transport::{
-    BakeStats, CameraMeta, EncodedTile, PerVertexMeta, Quantization, RowData, TILE, Transport,
-    TransportMeta, TransportWriter, shard_of_band, tile_grid,
+    BakeStats, CameraMeta, EncodedTile, KeptTiles, PerVertexMeta, Quantization, RowData, TILE,
+    Transport, TransportMeta, TransportWriter, Untiled, shard_of_band, tile_grid,
 };
 
 /// Progress of a running bake.
@@ -151,21 +151,11 @@ pub fn bake(
     settings: &BakeSettings,
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<Transport> {
-    let mut tiles = Vec::new();
-    let mut stats = Vec::new();
-    let baked = bake_tiles(scene, settings, progress, &mut |tile, s| {
-        tiles.push(tile);
-        stats.push(s);
-        Ok(())
+    let mut kept = KeptTiles::default();
+    let untiled = bake_tiles(scene, settings, progress, &mut |tile, stats| {
+        kept.push(tile, stats)
     })?;
-    Transport::assemble_encoded(
-        baked.meta,
-        &tiles,
-        baked.albedo,
-        baked.coverage,
-        stats,
-        baked.mesh,
-    )
+    kept.into_transport(untiled)
 }
 
 /// Bakes `scene` with `settings` into the transport file `path`, each tile written out as soon
@@ -184,24 +174,10 @@ pub fn bake_to_file(
         settings.sh_order,
         settings.quantization(),
     )?;
-    let baked = bake_tiles(scene, settings, progress, &mut |tile, stats| {
+    let untiled = bake_tiles(scene, settings, progress, &mut |tile, stats| {
         writer.push(&tile, stats)
     })?;
-    writer.finish(
-        baked.meta,
-        &baked.albedo,
-        &baked.coverage,
-        baked.mesh.as_ref(),
-    )
-}
-
-/// What a bake gives besides its tiles: the header (statistics not yet filled in), the
-/// per-pixel tables and a per-vertex bake's mesh.
-struct Baked {
-    meta: TransportMeta,
-    albedo: Vec<[f32; 3]>,
-    coverage: Vec<f32>,
-    mesh: Option<VertexMesh>,
+    writer.finish(untiled)
 }
 
 /// A tile's statistics: energy dropped by thresholding and quantisation, total energy, rays.
@@ -213,7 +189,7 @@ fn bake_tiles(
     settings: &BakeSettings,
     progress: &(dyn Fn(BakeProgress) + Sync),
     deliver: &mut (dyn FnMut(EncodedTile, TileStats) -> Result<()> + Send),
-) -> Result<Baked> {
+) -> Result<Untiled> {
     settings.validate()?;
     let tracer = Tracer::new(scene);
     let cam = &scene.camera;
@@ -415,7 +391,7 @@ fn bake_tiles(
         }),
         stats: BakeStats::default(),
     };
-    Ok(Baked {
+    Ok(Untiled {
         meta,
         albedo,
         coverage,

@@ -36,6 +36,21 @@ pub struct Raster {
     pub coverage: Vec<f32>,
 }
 
+/// Checks that every per-vertex colour is finite (the CPU and GPU rasterisers draw none that
+/// is not).
+pub fn check_colours(colours: &[[f32; 3]]) -> Result<()> {
+    match colours
+        .iter()
+        .position(|c| c.iter().any(|v| !v.is_finite()))
+    {
+        Some(i) => Err(PrtError::invalid(
+            format!("colours[{i}]"),
+            format!("must be finite, got {:?}", colours[i]),
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Checks a mesh: finite positions, at most `u32::MAX` vertices and triangles, every index in
 /// range, and when `colours` is given one finite colour per vertex. Errors name the first bad
 /// element.
@@ -85,15 +100,7 @@ pub fn check_mesh(
                 ),
             ));
         }
-        if let Some(i) = colours
-            .iter()
-            .position(|c| c.iter().any(|v| !v.is_finite()))
-        {
-            return Err(PrtError::invalid(
-                format!("colours[{i}]"),
-                format!("must be finite, got {:?}", colours[i]),
-            ));
-        }
+        check_colours(colours)?;
     }
     Ok(())
 }

@@ -343,9 +343,8 @@ impl<'a> Tensor<'a> {
 }
 
 /// A temporary file beside an output that holds one tensor's bytes while they are produced, so
-/// a writer keeps none of them in memory. Named like the output's temporary file (see
-/// [`crate::files`]) with `.spill-NAME` before the extension, so that a later write of the
-/// output removes those a killed run left behind; removed when dropped.
+/// a writer keeps none of them in memory ([`crate::files::spill_path`]: a later write of the
+/// output removes those a killed run left behind); removed when dropped.
 pub struct Spill {
     path: std::path::PathBuf,
     file: std::io::BufWriter<std::fs::File>,
@@ -355,17 +354,7 @@ pub struct Spill {
 impl Spill {
     /// An empty spill for tensor `name` of the output `output`.
     pub fn create(output: &Path, name: &str) -> Result<Self> {
-        let partial = crate::files::partial_path(output, std::process::id());
-        let mut file_name = partial
-            .file_stem()
-            .map(|s| s.to_os_string())
-            .unwrap_or_default();
-        file_name.push(format!(".spill-{name}"));
-        if let Some(ext) = partial.extension() {
-            file_name.push(".");
-            file_name.push(ext);
-        }
-        let path = partial.with_file_name(file_name);
+        let path = crate::files::spill_path(output, std::process::id(), name);
         let file = std::fs::OpenOptions::new()
             .read(true)
             .write(true)

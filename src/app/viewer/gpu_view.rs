@@ -29,22 +29,8 @@ pub struct GpuView {
 
 impl GpuView {
     pub fn new(device: &wgpu::Device, width: u32, height: u32) -> GpuView {
-        let size = wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        };
         let texture = |label, format, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size,
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
+            crate::relight::gpu::texture_2d(device, label, [width, height], format, usage)
         };
         let linear = texture(
             "relit linear",

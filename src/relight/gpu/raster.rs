@@ -96,15 +96,7 @@ impl GpuMesh {
 /// Uploads per-vertex colours into a storage buffer of `vec4<f32>` (alpha 1), the layout
 /// [`GpuRaster::draw`] reads. Non-finite colours are an error.
 pub fn upload_colours(gpu: &Gpu, colours: &[[f32; 3]]) -> Result<wgpu::Buffer> {
-    if let Some(i) = colours
-        .iter()
-        .position(|c| c.iter().any(|v| !v.is_finite()))
-    {
-        return Err(PrtError::invalid(
-            format!("colours[{i}]"),
-            format!("must be finite, got {:?}", colours[i]),
-        ));
-    }
+    crate::relight::raster::check_colours(colours)?;
     let (bytes, max) = (
         colours.len() as u64 * TEXEL_BYTES as u64,
         gpu.max_binding_bytes(),
@@ -141,23 +133,8 @@ struct Targets {
 
 impl Targets {
     fn new(device: &wgpu::Device, width: u32, height: u32) -> Targets {
-        let size = wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        };
-        let texture = |label, format, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size,
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
+        let texture =
+            |label, format, usage| super::texture_2d(device, label, [width, height], format, usage);
         let colour = texture(
             "raster colour",
             COLOUR_FORMAT,

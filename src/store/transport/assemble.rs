@@ -255,15 +255,7 @@ impl Transport {
         let c = self.coeff_count();
         let mut magnitude = vec![0.0f64; c];
         for t in 0..self.tile_count() {
-            let (r0, r1) = (
-                self.tile_row_start[t] as usize,
-                self.tile_row_start[t + 1] as usize,
-            );
-            let blocks = self.blocks(t);
-            let (e0, e1) = (
-                self.block_entry_start[blocks.start] as usize,
-                self.block_entry_start[blocks.end] as usize,
-            );
+            let (r0, r1, blocks, e0, e1) = self.tile_ranges(t);
             add_magnitudes(
                 &TileSlices {
                     row_weight: &self.row_weight[r0..r1],
@@ -282,18 +274,22 @@ impl Transport {
         self.meta.stats = bake_stats(rows, self.entry_row.len(), c, &self.tile_stats);
     }
 
+    /// Tile `tile`'s first and end rows, its blocks, and its first and end entries.
+    fn tile_ranges(&self, tile: usize) -> (usize, usize, Range<usize>, usize, usize) {
+        let blocks = self.blocks(tile);
+        (
+            self.tile_row_start[tile] as usize,
+            self.tile_row_start[tile + 1] as usize,
+            blocks.clone(),
+            self.block_entry_start[blocks.start] as usize,
+            self.block_entry_start[blocks.end] as usize,
+        )
+    }
+
     /// Tile `tile` in the stored layout, copied (for a merge).
     fn encoded_tile(&self, tile: usize) -> EncodedTile {
         let c = self.coeff_count();
-        let (r0, r1) = (
-            self.tile_row_start[tile] as usize,
-            self.tile_row_start[tile + 1] as usize,
-        );
-        let blocks = self.blocks(tile);
-        let (e0, e1) = (
-            self.block_entry_start[blocks.start] as usize,
-            self.block_entry_start[blocks.end] as usize,
-        );
+        let (r0, r1, blocks, e0, e1) = self.tile_ranges(tile);
         let shc = self.sh_count();
         let mut values = Values::empty(self.values.quantization());
         values.extend_from(&self.values, e0..e1);
@@ -349,21 +345,9 @@ impl Transport {
 
     /// [`Transport::merge`], naming shard k as `names[k]` in errors (a path, say).
     pub fn merge_named(shards: &[Transport], names: &[String]) -> Result<Transport> {
-        let mut tiles = Vec::new();
-        let mut tile_stats = Vec::new();
-        let merged = merge_tiles(shards, names, &mut |tile, stats| {
-            tiles.push(tile);
-            tile_stats.push(stats);
-            Ok(())
-        })?;
-        Transport::assemble_encoded(
-            merged.meta,
-            &tiles,
-            merged.albedo,
-            merged.coverage,
-            tile_stats,
-            merged.mesh,
-        )
+        let mut kept = KeptTiles::default();
+        let untiled = merge_tiles(shards, names, &mut |tile, stats| kept.push(tile, stats))?;
+        kept.into_transport(untiled)
     }
 
     /// [`Transport::merge_named`] written to the transport file `path` tile by tile
@@ -383,23 +367,49 @@ impl Transport {
             first.meta.sh_order as usize,
             first.meta.quantization,
         )?;
-        let merged = merge_tiles(shards, names, &mut |tile, stats| writer.push(&tile, stats))?;
-        writer.finish(
-            merged.meta,
-            &merged.albedo,
-            &merged.coverage,
-            merged.mesh.as_ref(),
-        )
+        let untiled = merge_tiles(shards, names, &mut |tile, stats| writer.push(&tile, stats))?;
+        writer.finish(untiled)
     }
 }
 
-/// What a merge gives besides its tiles: the header (statistics not yet filled in), the
-/// per-pixel tables and a per-vertex bake's mesh.
-struct Merged {
-    meta: TransportMeta,
-    albedo: Vec<[f32; 3]>,
-    coverage: Vec<f32>,
-    mesh: Option<VertexMesh>,
+/// What a transport holds besides its tiles: the header (its statistics are filled in when the
+/// tiles are joined), the per-pixel tables and a per-vertex bake's mesh. A bake and a merge make
+/// it while they hand their tiles on, in tile order, to [`KeptTiles`] or a
+/// [`super::TransportWriter`].
+pub struct Untiled {
+    pub meta: TransportMeta,
+    pub albedo: Vec<[f32; 3]>,
+    pub coverage: Vec<f32>,
+    pub mesh: Option<VertexMesh>,
+}
+
+/// Encoded tiles kept in memory in tile order, with their statistics (energy dropped by
+/// thresholding and quantisation, total energy, shadow rays), to be joined into a transport.
+#[derive(Default)]
+pub struct KeptTiles {
+    tiles: Vec<EncodedTile>,
+    stats: Vec<[f64; 3]>,
+}
+
+impl KeptTiles {
+    /// Keeps the next tile.
+    pub fn push(&mut self, tile: EncodedTile, stats: [f64; 3]) -> Result<()> {
+        self.tiles.push(tile);
+        self.stats.push(stats);
+        Ok(())
+    }
+
+    /// The transport of these tiles and `rest`.
+    pub fn into_transport(self, rest: Untiled) -> Result<Transport> {
+        Transport::assemble_encoded(
+            rest.meta,
+            &self.tiles,
+            rest.albedo,
+            rest.coverage,
+            self.stats,
+            rest.mesh,
+        )
+    }
 }
 
 /// Checks that `shards` (named `names` in errors) are one bake's and hands their tiles, in tile
@@ -408,7 +418,7 @@ fn merge_tiles(
     shards: &[Transport],
     names: &[String],
     deliver: &mut dyn FnMut(EncodedTile, [f64; 3]) -> Result<()>,
-) -> Result<Merged> {
+) -> Result<Untiled> {
     let name = |k: usize| {
         names
             .get(k)
@@ -519,7 +529,7 @@ fn merge_tiles(
         albedo[pixels.clone()].copy_from_slice(&s.albedo[pixels.clone()]);
         coverage[pixels.clone()].copy_from_slice(&s.coverage[pixels]);
     }
-    Ok(Merged {
+    Ok(Untiled {
         meta: same(&first.meta),
         albedo,
         coverage,

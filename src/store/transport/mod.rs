@@ -59,7 +59,7 @@ use crate::store::container;
 use crate::store::quant::scale_of;
 pub use crate::store::quant::{BLOCK_ROWS, Quantization};
 
-pub use assemble::{EncodedTile, RowData, shard_of_band};
+pub use assemble::{EncodedTile, KeptTiles, RowData, Untiled, shard_of_band};
 pub use file::{read_header_meta, read_summary};
 pub use stream::TransportWriter;
 

@@ -122,15 +122,15 @@ impl TransportWriter {
         Ok(())
     }
 
-    /// Writes the file (atomically) once every tile is in, with `meta` (its statistics are
-    /// filled in here) and the per-pixel and mesh tables; returns the metadata written.
-    pub fn finish(
-        mut self,
-        mut meta: TransportMeta,
-        albedo: &[[f32; 3]],
-        coverage: &[f32],
-        mesh: Option<&VertexMesh>,
-    ) -> Result<TransportMeta> {
+    /// Writes the file (atomically) once every tile is in, with `rest` (the header's statistics
+    /// are filled in here); returns the metadata written.
+    pub fn finish(mut self, rest: Untiled) -> Result<TransportMeta> {
+        let Untiled {
+            mut meta,
+            albedo,
+            coverage,
+            mesh,
+        } = rest;
         let (w, h) = (meta.width as usize, meta.height as usize);
         let (tx, ty) = tile_grid(w, h);
         if self.tiles_written() != tx * ty
@@ -211,102 +211,13 @@ impl TransportWriter {
             grown,
             &FileTables {
                 tile_row_start: &self.tile_row_start,
-                albedo,
-                coverage,
+                albedo: &albedo,
+                coverage: &coverage,
                 transport_magnitude: &magnitude,
                 tile_stats: &self.tile_stats,
-                mesh,
+                mesh: mesh.as_ref(),
             },
         )?;
         Ok(meta)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn meta_for(w: u32, h: u32, cube_n: u32) -> TransportMeta {
-        TransportMeta {
-            width: w,
-            height: h,
-            tile: TILE as u32,
-            cube_n,
-            sh_order: 1,
-            scene_hash: "0".into(),
-            scene_path: "test".into(),
-            camera: CameraMeta {
-                eye: [0.0, 0.0, 1.0],
-                target: [0.0; 3],
-                up: [0.0, 1.0, 0.0],
-                fov_y_deg: 40.0,
-            },
-            spp: 1,
-            edge_spp: 0,
-            texel_samples: 1,
-            unshadowed: false,
-            seed: 1,
-            threshold: 0.0,
-            budget: Default::default(),
-            quantization: Quantization::Q8,
-            shard: None,
-            bounces: 0,
-            paths: 0,
-            indirect: None,
-            per_vertex: None,
-            stats: BakeStats::default(),
-        }
-    }
-
-    #[test]
-    fn tiles_that_do_not_fit_and_a_short_file_are_refused_and_nothing_is_written() {
-        let dir = std::env::temp_dir().join(format!("prt-writer-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("w.prt");
-        let c = 6 * 2 * 2;
-        let row = RowData {
-            pixel: 0,
-            weight: [1.0; 3],
-            entries: vec![(3, 0.5)],
-            sh: vec![0.1],
-        };
-        let tile = EncodedTile::encode(std::slice::from_ref(&row), c, 1, Quantization::Q8).unwrap();
-        let mut w = TransportWriter::create(&path, 2, 1, Quantization::Q8).unwrap();
-        // A tile whose counts miss a coefficient, one of another quantisation, and (below) one
-        // of another cube size.
-        let other = EncodedTile::encode(std::slice::from_ref(&row), 6 * 4 * 4, 1, Quantization::Q8)
-            .unwrap();
-        let mut bad = tile.clone();
-        bad.col_count.pop();
-        for t in [
-            &bad,
-            &EncodedTile::encode(&[], c, 1, Quantization::Q16).unwrap(),
-        ] {
-            let e = w.push(t, [0.0; 3]).unwrap_err().to_string();
-            assert!(e.contains("w.prt") && e.contains("tile 0"), "{e}");
-        }
-        w.push(&tile, [0.0; 3]).unwrap();
-        assert!(w.push(&other, [0.0; 3]).is_err());
-        // An image of two tiles, one written.
-        let e = w
-            .finish(meta_for(32, 16, 2), &[[0.0; 3]; 512], &[0.0; 512], None)
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("1 of the 2 tiles of a 32 x 16 image"), "{e}");
-        let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
-        assert!(left.is_empty(), "{left:?}");
-        // One tile of one tile: a file that loads back to the tile.
-        let mut w = TransportWriter::create(&path, 2, 1, Quantization::Q8).unwrap();
-        w.push(&tile, [0.0, 1.0, 4.0]).unwrap();
-        let meta = w
-            .finish(meta_for(16, 16, 2), &[[0.0; 3]; 256], &[0.0; 256], None)
-            .unwrap();
-        assert_eq!(
-            (meta.stats.rows, meta.stats.nonzeros, meta.stats.shadow_rays),
-            (1, 1, 4)
-        );
-        let t = crate::store::transport::Transport::load(&path).unwrap();
-        assert_eq!(t.tile_rows(0)[0].entries.len(), 1);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
