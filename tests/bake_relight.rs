@@ -112,8 +112,13 @@ fn sphere_clearance(o: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<f64> {
 fn one_texel_light_casts_the_analytic_sphere_shadow() {
     let scene = scene_from(SPHERE_ON_PLANE, "one-texel");
     let n = 8;
-    let t = bake(&scene, &lossless(n, 2), &|_| {}).unwrap();
-    let reference_settings = lossless(n, 2);
+    // One sample at every pixel's centre, where the analytic shadow is evaluated.
+    let centres = BakeSettings {
+        edge_spp: 0,
+        ..lossless(n, 2)
+    };
+    let t = bake(&scene, &centres, &|_| {}).unwrap();
+    let reference_settings = centres;
     // One texel of the +Y face, off-centre, so the shadow falls sideways.
     let j = texel_index(n, 2, 2, 5);
     let d = texel_dirs(n)[j];
@@ -690,7 +695,7 @@ fn relight_with_bounces_equals_the_reference_with_the_same_paths() {
 /// the same ones there); elsewhere it is the one-sample reference.
 #[test]
 fn edge_pixels_take_the_mean_of_their_subsamples_and_others_one_sample() {
-    use wavelet_prt::bake::is_edge_pixel;
+    use wavelet_prt::bake::EdgeMap;
     use wavelet_prt::scene::trace::Tracer;
     let scene = scene_from(SPHERE_ON_PLANE, "edges");
     let adaptive = BakeSettings {
@@ -721,12 +726,12 @@ fn edge_pixels_take_the_mean_of_their_subsamples_and_others_one_sample() {
         render_reference(&scene, &cube, &s).unwrap()
     };
     let (one, sixteen) = (uniform(1), uniform(16));
-    let tracer = Tracer::new(&scene);
+    let map = EdgeMap::new(&scene, &Tracer::new(&scene), &adaptive);
     let (w, h) = (scene.camera.width, scene.camera.height);
     let mut edges = 0;
     for y in 0..h {
         for x in 0..w {
-            let edge = is_edge_pixel(&tracer, &scene.camera, x, y);
+            let edge = map.is_edge(x, y);
             let want = if edge { &sixteen } else { &one };
             let i = (y * w + x) as usize;
             let (got, want) = (relit.pixels[i], want.pixels[i]);
@@ -742,12 +747,108 @@ fn edge_pixels_take_the_mean_of_their_subsamples_and_others_one_sample() {
             edges += edge as usize;
         }
     }
-    // The sphere's outline, the ground's border and the sphere's contact: some pixels, not most.
+    // The sphere's outline, the ground's border, and the shadow borders beside the contact of a
+    // sphere that fills much of this small view: some pixels, not most.
     let total = (w * h) as usize;
     assert!(
-        edges > 20 && edges < total / 3,
+        edges > 20 && edges < total / 2,
         "{edges} edge pixels of {total}"
     );
     // Sub-samples that miss the ground leave fractional coverage only where they were taken.
     assert!(t.coverage.iter().any(|c| *c > 0.0 && *c < 1.0));
+}
+
+/// Shadow borders: a ground pixel is an edge pixel where a shadow's outline sweeps across it, for
+/// a light somewhere, more than 1% of its unshadowed light. Beside a sphere's contact, the
+/// sphere fills much of the sky and its outline moves fast across a pixel; far away it fills too
+/// little of the sky to matter. An unshadowed bake finds no shadow borders.
+#[test]
+fn shadow_borders_near_a_contact_are_edges_and_the_far_ground_is_not() {
+    use wavelet_prt::bake::EdgeMap;
+    use wavelet_prt::scene::trace::Tracer;
+    let scene = scene_from(
+        r#"[camera]
+eye = [0.0, 3.0, 6.0]
+target = [0.0, 0.0, -2.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 60.0
+width = 64
+height = 48
+
+[material.ground]
+type = "diffuse"
+albedo = [0.8, 0.8, 0.8]
+
+[material.clay]
+type = "diffuse"
+albedo = [0.8, 0.3, 0.2]
+
+[[shape]]
+type = "quad"
+corners = [[-40.0, 0.0, -40.0], [-40.0, 0.0, 40.0], [40.0, 0.0, 40.0], [40.0, 0.0, -40.0]]
+material = "ground"
+
+[[shape]]
+type = "sphere"
+center = [0.0, 0.6, 0.0]
+radius = 0.6
+material = "clay"
+"#,
+        "shadow-borders",
+    );
+    let tracer = Tracer::new(&scene);
+    let settings = BakeSettings {
+        edge_spp: 4,
+        ..BakeSettings::default()
+    };
+    let shadows = EdgeMap::new(&scene, &tracer, &settings);
+    let unshadowed = BakeSettings {
+        unshadowed: true,
+        ..settings.clone()
+    };
+    let geometry = EdgeMap::new(&scene, &tracer, &unshadowed);
+    let cam = &scene.camera;
+    let (mut near, mut near_edges, mut far) = (0, 0, 0);
+    for y in 0..cam.height {
+        for x in 0..cam.width {
+            // Geometric edges are found with or without shadows.
+            assert!(
+                !geometry.is_edge(x, y) || shadows.is_edge(x, y),
+                "pixel ({x}, {y})"
+            );
+            if geometry.is_edge(x, y) {
+                continue;
+            }
+            let ray = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+            let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
+                continue;
+            };
+            // The ground (the sphere touches its plane at one point only).
+            if hit.point.y.abs() > 1e-4 {
+                continue;
+            }
+            let from_contact = hit.point.length();
+            if (0.65..0.9).contains(&from_contact) {
+                near += 1;
+                near_edges += shadows.is_edge(x, y) as usize;
+            } else if from_contact > 8.0 {
+                far += 1;
+                assert!(
+                    !shadows.is_edge(x, y),
+                    "pixel ({x}, {y}), {from_contact:.1} from the sphere"
+                );
+            }
+        }
+    }
+    assert!(near >= 8 && far >= 100, "{near} pixels near, {far} far");
+    assert_eq!(near_edges, near, "of the ground pixels beside the contact");
+    // The flat ground and the sphere alone: a few geometric edges, more with shadow borders.
+    assert!(shadows.count() > geometry.count() + near);
+    // No extra samples, no edges.
+    let one_sample = BakeSettings {
+        edge_spp: 1,
+        ..settings
+    };
+    let off = EdgeMap::new(&scene, &tracer, &one_sample);
+    assert_eq!(off.count(), 0);
 }

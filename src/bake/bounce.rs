@@ -22,7 +22,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{
-    BakeSettings, ShadingPoint, path_stream, pixel_subsamples, sample_stride, shading_point,
+    BakeSettings, EdgeMap, ShadingPoint, path_stream, pixel_subsamples, sample_stride,
+    shading_point,
 };
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
@@ -140,6 +141,7 @@ impl VisibilityCache {
     /// pixels with `mine(pixel)` reach. `progress(done, total)` follows the tracing.
     pub fn build(
         bounces: &Bounces,
+        edges: &EdgeMap,
         mine: &(dyn Fn(usize) -> bool + Sync),
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<Option<VisibilityCache>> {
@@ -171,7 +173,7 @@ impl VisibilityCache {
                 for x in 0..w {
                     let pixel = y * w + x;
                     let is_mine = mine(pixel);
-                    let subs = pixel_subsamples(tracer, cam, settings, x as u32, y as u32);
+                    let subs = pixel_subsamples(edges, cam, settings, x as u32, y as u32);
                     for (sub, (fx, fy)) in subs.into_iter().enumerate() {
                         let ray = cam.ray(fx, fy);
                         let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY)
@@ -321,12 +323,13 @@ impl<'a> Bounces<'a> {
     /// visibility), tracing the points that pixels with `mine(pixel)` reach.
     pub fn with_cache(
         mut self,
+        edges: &EdgeMap,
         mine: &(dyn Fn(usize) -> bool + Sync),
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<Self> {
         let s = self.settings;
         if s.bounces > 0 && !s.unshadowed && s.bounce_visibility == BounceVisibility::Cache {
-            self.cache = VisibilityCache::build(&self, mine, progress)?;
+            self.cache = VisibilityCache::build(&self, edges, mine, progress)?;
         }
         Ok(self)
     }

@@ -16,7 +16,7 @@ mod settings;
 
 use in_order::in_tile_order;
 use pixels::visits;
-pub use pixels::{edge_pixel_count, is_edge_pixel, pixel_subsamples, sample_stride};
+pub use pixels::{EdgeMap, pixel_subsamples, sample_stride};
 pub use settings::{BakeSettings, load_if_baked_with, worst_case_bytes};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
@@ -45,6 +45,9 @@ pub struct BakeProgress {
     pub pixels_done: usize,
     pub pixels_total: usize,
     pub shadow_rays: u64,
+    /// Pixels of the view that take `edge_spp` sub-samples ([`EdgeMap`]), found before the first
+    /// stage.
+    pub edge_pixels: usize,
     /// Texel lights done and in all for a scene's medium rows (a first stage; `[0, 0]` without a
     /// medium).
     pub medium_texels: [usize; 2],
@@ -247,6 +250,12 @@ fn bake_tiles(
              with --bounces 0",
         ));
     }
+    // The pixels that take more sub-samples; the cache's paths start at the same ones as the rows.
+    let edges = match &mesh {
+        Some(_) => EdgeMap::default(),
+        None => EdgeMap::new(scene, &tracer, settings),
+    };
+    let edge_pixels = edges.count();
     // Whether a pixel is this bake's (its tile is), and the progress of a first stage.
     let mine_pixel = |p: usize| mine((p / w / TILE) * tx + (p % w) / TILE);
     let stage = |medium_texels: [usize; 2], cache_points: [usize; 2]| {
@@ -254,6 +263,7 @@ fn bake_tiles(
             pixels_done: 0,
             pixels_total,
             shadow_rays: 0,
+            edge_pixels,
             medium_texels,
             cache_points,
         })
@@ -271,8 +281,11 @@ fn bake_tiles(
         )?),
         None => None,
     };
-    let bounces = bounce::Bounces::new(scene, &tracer, settings, &samples)
-        .with_cache(&mine_pixel, &|done, total| stage([0, 0], [done, total]))?;
+    let bounces = bounce::Bounces::new(scene, &tracer, settings, &samples).with_cache(
+        &edges,
+        &mine_pixel,
+        &|done, total| stage([0, 0], [done, total]),
+    )?;
     let mut reference_haar = unoccluded_row(&samples);
     let reference_energy: f64 = reference_haar.iter().map(|&v| (v as f64).powi(2)).sum();
     haar::forward_face_all(&mut reference_haar, n, &mut Vec::new());
@@ -282,6 +295,7 @@ fn bake_tiles(
         height: h,
         mesh: mesh.as_ref(),
         tracer: &tracer,
+        edges: &edges,
         settings,
         reference_energy,
         thresholder: Thresholder::new(
@@ -324,6 +338,7 @@ fn bake_tiles(
                 pixels_done: done.fetch_add(px, Ordering::Relaxed) + px,
                 pixels_total,
                 shadow_rays: rays.fetch_add(out.rays, Ordering::Relaxed) + out.rays,
+                edge_pixels,
                 medium_texels: [0, 0],
                 cache_points: [0, 0],
             });
@@ -412,6 +427,8 @@ struct TileContext<'a> {
     /// The mesh of a per-vertex bake: pixel v is vertex v.
     mesh: Option<&'a VertexMesh>,
     tracer: &'a Tracer,
+    /// The pixels that take `edge_spp` sub-samples.
+    edges: &'a EdgeMap,
     settings: &'a BakeSettings,
     samples: &'a TexelSamples,
     basis: &'a TexelShBasis,
@@ -434,6 +451,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
         height: h,
         mesh,
         tracer,
+        edges: _,
         settings,
         samples,
         basis,

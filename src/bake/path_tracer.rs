@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::bake::{BakeSettings, pixel_subsamples, shading_point};
+use crate::bake::{BakeSettings, EdgeMap, pixel_subsamples, shading_point};
 use crate::error::{PrtError, Result};
 use crate::light::importance::CubeSampler;
 use crate::math::cubemap::CubeMap;
@@ -91,6 +91,7 @@ pub fn path_trace(
     }
     let tracer = Tracer::new(scene);
     let cam = &scene.camera;
+    let edges = EdgeMap::new(scene, &tracer, settings);
     let (w, h) = (cam.width as usize, cam.height as usize);
     let sampler = CubeSampler::new(cube);
     let mut image = Image::new(w, h);
@@ -105,7 +106,7 @@ pub fn path_trace(
         .enumerate()
         .for_each(|(y, ((line, line_coverage), line_error))| {
             for x in 0..w {
-                let subs = pixel_subsamples(&tracer, cam, settings, x as u32, y as u32);
+                let subs = pixel_subsamples(&edges, cam, settings, x as u32, y as u32);
                 let count = samples.div_ceil(subs.len() as u32) as usize * subs.len();
                 let mut rng = Rng::new(settings.seed ^ 0x9a7b_7ace, (y * w + x) as u64);
                 let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);

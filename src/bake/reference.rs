@@ -12,7 +12,9 @@
 use rayon::prelude::*;
 
 use crate::bake::bounce::Bounces;
-use crate::bake::{BakeSettings, path_stream, pixel_subsamples, sample_stride, shading_point};
+use crate::bake::{
+    BakeSettings, EdgeMap, path_stream, pixel_subsamples, sample_stride, shading_point,
+};
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
 use crate::math::sampling::TexelSamples;
@@ -61,8 +63,12 @@ pub fn render_reference_with(
         ));
     }
     // The bake's own paths and surface cache, so that this checks the matrix's bookkeeping.
-    let bounces =
-        Bounces::new(scene, &tracer, settings, &samples).with_cache(&|_| true, &|_, _| {})?;
+    let edges = EdgeMap::new(scene, &tracer, settings);
+    let bounces = Bounces::new(scene, &tracer, settings, &samples).with_cache(
+        &edges,
+        &|_| true,
+        &|_, _| {},
+    )?;
     let mut image = Image::new(w, h);
     let mut coverage = vec![0.0f32; w * h];
     let rows_done = AtomicUsize::new(0);
@@ -73,7 +79,7 @@ pub fn render_reference_with(
         .enumerate()
         .for_each(|(y, (line, line_coverage))| {
             for (x, (px, cov)) in line.iter_mut().zip(line_coverage).enumerate() {
-                let subs = pixel_subsamples(&tracer, cam, settings, x as u32, y as u32);
+                let subs = pixel_subsamples(&edges, cam, settings, x as u32, y as u32);
                 let inv_spp = 1.0 / subs.len() as f64;
                 let mut sum = [0.0f64; 3];
                 let mut march = Vec::new();

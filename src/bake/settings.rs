@@ -13,7 +13,7 @@ pub struct BakeSettings {
     /// Sub-pixel samples per pixel.
     pub spp: u32,
     /// Sub-pixel samples of an edge pixel, one whose corners see different things (see
-    /// [`is_edge_pixel`]); 0 (or no more than `spp`) samples every pixel alike.
+    /// [`EdgeMap`]); 0 (or no more than `spp`) samples every pixel alike.
     pub edge_spp: u32,
     /// Shadow-ray directions per texel (rounded up to a square).
     pub texel_samples: u32,
@@ -52,7 +52,7 @@ impl Default for BakeSettings {
             cube_n: 32,
             sh_order: 6,
             spp: 1,
-            edge_spp: 0,
+            edge_spp: 4,
             texel_samples: 1,
             threshold: 0.01,
             budget: Budget::L2,
@@ -71,9 +71,10 @@ impl Default for BakeSettings {
 }
 
 impl BakeSettings {
-    /// The edge samples as a file records them: 0 where they add nothing to `spp`.
+    /// The edge samples as a file records them: 0 where they add nothing to `spp`, and in a
+    /// per-vertex bake, which has no pixels.
     pub fn stored_edge_spp(&self) -> u32 {
-        if self.edge_spp > self.spp {
+        if self.edge_spp > self.spp && self.per_vertex.is_none() {
             self.edge_spp
         } else {
             0

@@ -1,6 +1,7 @@
 //! `prt bake`, `prt merge`, `prt info` and `prt demo`: making transport files and reading what they hold.
 
 use super::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 #[derive(Args, Debug)]
 pub struct BakeArgs {
@@ -141,8 +142,12 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
     );
     let start = Instant::now();
     let bar = progress_bar(w * h);
-    let meta =
-        crate::bake::bake_to_file(&scene, &settings, &a.output, &bake_progress(&bar, start))?;
+    let edge_pixels = AtomicUsize::new(0);
+    let show = bake_progress(&bar, start);
+    let meta = crate::bake::bake_to_file(&scene, &settings, &a.output, &|p: BakeProgress| {
+        edge_pixels.store(p.edge_pixels, Ordering::Relaxed);
+        show(p)
+    })?;
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
     print_info(&a.output, &meta);
@@ -151,7 +156,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         meta.stats.shadow_rays as f64 / seconds.max(1e-9) / 1e6
     );
     if meta.edge_spp > 0 {
-        let edges = crate::bake::edge_pixel_count(&scene);
+        let edges = edge_pixels.into_inner();
         let pixels = scene.camera.width as usize * scene.camera.height as usize;
         println!(
             "edge pixels   {edges} of {pixels} ({:.1}%) took {} samples",

@@ -126,8 +126,9 @@ pub struct SamplingArgs {
     #[arg(long, default_value_t = 1)]
     pub spp: u32,
     /// Sub-pixel samples of the pixels whose corners see different things (silhouettes,
-    /// material edges, creases): antialiasing where it shows, one sample elsewhere. 0: off.
-    #[arg(long, default_value_t = 0)]
+    /// material edges, creases, sharp shadow borders): antialiasing where it shows, `--spp`
+    /// elsewhere. 0 (or no more than --spp): off.
+    #[arg(long, default_value_t = 4)]
     pub edge_spp: u32,
     /// Shadow-ray directions per texel (rounded up to a square).
     #[arg(long, default_value_t = 1)]
