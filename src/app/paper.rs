@@ -220,7 +220,8 @@ pub fn run_paper(
     let markdown = dir.join("ng2003.md");
     let text = report(&table, &sweeps)
         .replace("@SIZE@", &size.to_string())
-        .replace("@CUBE@", &largest_cube.to_string());
+        .replace("@CUBE@", &largest_cube.to_string())
+        .replace("@EDGE@", &BakeSettings::default().edge_spp.to_string());
     write_atomically(&markdown, |tmp| {
         std::fs::write(tmp, &text).map_err(|e| PrtError::io(tmp, e))
     })?;
@@ -277,7 +278,8 @@ fn report(table: &[TableRow], sweeps: &[(&str, Vec<BenchPoint>)]) -> String {
     let mut s = String::from(
         "# Ng, Ramamoorthi & Hanrahan 2003, side by side\n\n\
          Produced by `prt demo --paper` (see the README). Every bake is at @SIZE@² with the default \
-         settings (1 spp, threshold 0.01 of the unshadowed row's norm, 8-bit values). Errors are \
+         settings (1 spp, @EDGE@ at edge pixels, threshold 0.01 of the unshadowed row's norm, 8-bit \
+         values). Errors are \
          relative to relighting with every stored term, over the covered pixels, as the paper's \
          are relative to the full product.\n\n\
          ## Table 1: sparsity and size against the cube\n\n\

@@ -199,7 +199,8 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
 
 fn markdown(rows: &[Row], a: &BouncesArgs, base: &BakeSettings) -> String {
     let mut s = format!(
-        "Scene `{}` under `{}`, cube 6x{}x{}, {} spp, {} paths per sample, cache spacing {} px \
+        "Scene `{}` under `{}`, cube 6x{}x{}, {} spp ({} at edge pixels), {} paths per sample, \
+         cache spacing {} px \
          ({} visibility). Each bake is relit with every term and compared with the path tracer \
          at the same bounce count ({} paths per pixel) over the covered pixels.\n\n\
          | bounces | bake (s) | file (MiB) | nonzeros | cache points | L2 vs path traced | H1 vs \
@@ -210,6 +211,7 @@ fn markdown(rows: &[Row], a: &BouncesArgs, base: &BakeSettings) -> String {
         base.cube_n,
         base.cube_n,
         base.spp,
+        base.stored_edge_spp().max(base.spp),
         base.paths,
         base.cache_spacing,
         base.bounce_visibility,
