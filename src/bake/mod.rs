@@ -250,11 +250,9 @@ fn bake_tiles(
              with --bounces 0",
         ));
     }
-    // The pixels that take more sub-samples; the cache's paths start at the same ones as the rows.
-    let edges = match &mesh {
-        Some(_) => EdgeMap::default(),
-        None => EdgeMap::new(scene, &tracer, settings),
-    };
+    // The pixels that take more sub-samples (none per vertex); the cache's paths start at the
+    // same ones as the rows.
+    let edges = EdgeMap::new(scene, &tracer, settings);
     let edge_pixels = edges.count();
     // Whether a pixel is this bake's (its tile is), and the progress of a first stage.
     let mine_pixel = |p: usize| mine((p / w / TILE) * tx + (p % w) / TILE);

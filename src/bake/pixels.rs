@@ -139,8 +139,7 @@ impl Corner {
                 let changed: [u64; SHADOW_WORDS] = std::array::from_fn(|k| {
                     (self.open[k] ^ other.open[k]) & self.front[k] & other.front[k]
                 });
-                changed.iter().any(|w| *w != 0)
-                    && cube.share(&changed, a.normal) > SHADOW_FRACTION * self.unshadowed
+                cube.share(&changed, a.normal) > SHADOW_FRACTION * self.unshadowed
             }
             _ => true,
         }
@@ -171,9 +170,10 @@ pub struct EdgeMap {
 }
 
 impl EdgeMap {
-    /// The edge pixels of `scene`'s view, found when `settings.edge_spp` exceeds `settings.spp`.
+    /// The edge pixels of `scene`'s view, found when the settings record edge samples
+    /// ([`BakeSettings::stored_edge_spp`]: more than `spp`, in a per-pixel bake).
     pub fn new(scene: &Scene, tracer: &Tracer, settings: &BakeSettings) -> EdgeMap {
-        if settings.edge_spp <= settings.spp {
+        if settings.stored_edge_spp() == 0 {
             return EdgeMap::default();
         }
         Self::find(scene, tracer, !settings.unshadowed)
@@ -225,7 +225,8 @@ impl EdgeMap {
 }
 
 /// The camera sub-samples of pixel (x, y): `spp` of them, or `edge_spp` where the pixel is an
-/// edge pixel ([`EdgeMap`]). The bake and the reference take the same ones.
+/// edge pixel of `edges`, which has none unless `edge_spp` exceeds `spp`. The bake and the
+/// reference take the same ones.
 pub fn pixel_subsamples(
     edges: &EdgeMap,
     cam: &Camera,
@@ -233,7 +234,7 @@ pub fn pixel_subsamples(
     x: u32,
     y: u32,
 ) -> Vec<(f32, f32)> {
-    let spp = if settings.edge_spp > settings.spp && edges.is_edge(x, y) {
+    let spp = if edges.is_edge(x, y) {
         settings.edge_spp
     } else {
         settings.spp
