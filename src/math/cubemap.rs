@@ -162,8 +162,8 @@ impl CubeMap {
 
 /// Splits lat-long cells over cube texels. A cell whose four corners fall in one texel and that
 /// is smaller than a texel lies inside that texel (up to the bulge of its parallels, negligible at
-/// this size) and goes there whole; any other cell is cut into 2 x 2 sub-cells of exact solid angle,
-/// recursively, until the pieces are below `finest`, where the last pieces go to the texel of
+/// this size) and goes there whole; any other cell is cut in halves of exact solid angle ([`Cut`]:
+/// across, along or both ways, keeping the pieces near square), recursively, until the pieces are below `finest`, where the last pieces go to the texel of
 /// their centre. So the split of a cell over the texels it straddles is exact up to a band
 /// `finest` wide along texel borders.
 struct Splatter {
@@ -198,7 +198,7 @@ impl Splatter {
     ) {
         use std::f64::consts::PI;
         let height = PI * (v1 - v0);
-        let width = 2.0 * PI * (u1 - u0) * (PI * v0).sin().max((PI * v1).sin());
+        let width = 2.0 * PI * (u1 - u0) * widest_sin(v0, v1, (PI * v0).sin(), (PI * v1).sin());
         let size = height.max(width);
         let same = corners.iter().all(|&c| c == corners[0]);
         if (same && size < self.texel_min) || size < self.finest {
@@ -216,15 +216,65 @@ impl Splatter {
         }
         let (um, vm) = (0.5 * (u0 + u1), 0.5 * (v0 + v1));
         let [c00, c10, c01, c11] = corners;
-        let top = self.texel_of(um, v0);
-        let left = self.texel_of(u0, vm);
-        let mid = self.texel_of(um, vm);
-        let right = self.texel_of(u1, vm);
-        let bottom = self.texel_of(um, v1);
-        self.splat((u0, um, v0, vm), [c00, top, left, mid], l, acc);
-        self.splat((um, u1, v0, vm), [top, c10, mid, right], l, acc);
-        self.splat((u0, um, vm, v1), [left, mid, c01, bottom], l, acc);
-        self.splat((um, u1, vm, v1), [mid, right, bottom, c11], l, acc);
+        match Cut::of(width, height) {
+            Cut::Across => {
+                let (top, bottom) = (self.texel_of(um, v0), self.texel_of(um, v1));
+                self.splat((u0, um, v0, v1), [c00, top, c01, bottom], l, acc);
+                self.splat((um, u1, v0, v1), [top, c10, bottom, c11], l, acc);
+            }
+            Cut::Along => {
+                let (left, right) = (self.texel_of(u0, vm), self.texel_of(u1, vm));
+                self.splat((u0, u1, v0, vm), [c00, c10, left, right], l, acc);
+                self.splat((u0, u1, vm, v1), [left, right, c01, c11], l, acc);
+            }
+            Cut::Both => {
+                let top = self.texel_of(um, v0);
+                let left = self.texel_of(u0, vm);
+                let mid = self.texel_of(um, vm);
+                let right = self.texel_of(u1, vm);
+                let bottom = self.texel_of(um, v1);
+                self.splat((u0, um, v0, vm), [c00, top, left, mid], l, acc);
+                self.splat((um, u1, v0, vm), [top, c10, mid, right], l, acc);
+                self.splat((u0, um, vm, v1), [left, mid, c01, bottom], l, acc);
+                self.splat((um, u1, vm, v1), [mid, right, bottom, c11], l, acc);
+            }
+        }
+    }
+}
+
+/// How a cell part is cut: across its width (u halved), along it (v halved) or both ways. A part
+/// more than twice as wide as it is tall is cut across only, and one more than twice as tall as
+/// wide along only, so pieces stay near square whatever the map's shape: a cell of a map one pixel
+/// wide spans the whole circle of its row, and halving both ways would cut it into as many pieces
+/// along its short side as along its long one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Cut {
+    Across,
+    Along,
+    Both,
+}
+
+impl Cut {
+    /// The cut of a part `width` x `height` (radians of arc).
+    pub(crate) fn of(width: f64, height: f64) -> Self {
+        if width > 2.0 * height {
+            Cut::Across
+        } else if height > 2.0 * width {
+            Cut::Along
+        } else {
+            Cut::Both
+        }
+    }
+}
+
+/// The largest sine of the polar angle over the rows [v0, v1] (lat-long v, angle πv), given the
+/// sines at the ends: 1 when the span holds the equator, so a cell from pole to pole has its
+/// width.
+pub(crate) fn widest_sin(v0: f64, v1: f64, sin0: f64, sin1: f64) -> f64 {
+    if v0 <= 0.5 && v1 >= 0.5 {
+        1.0
+    } else {
+        sin0.max(sin1)
     }
 }
 
@@ -245,13 +295,15 @@ pub(crate) fn check_latlong(width: usize, height: usize, len: usize) -> Result<(
 /// The two sizes that steer the splat of a map with `height` rows into a cube of face size `n`:
 /// (`texel_min`, `finest`) of [`Splatter`]. Shared with the recorded splat of
 /// [`crate::light::resample`], so both cut cells alike.
-pub(crate) fn splat_limits(n: usize, height: usize) -> (f64, f64) {
+pub(crate) fn splat_limits(n: usize, width: usize, height: usize) -> (f64, f64) {
     // A face-corner texel spans about a third of the angle of a face-centre one (2/N).
     let texel_min = 2.0 / (3.0 * n as f64);
     // Cells larger than texels are cut just finely enough that every texel gets pieces (their
     // radiance is one value, so the normalisation below makes the split exact inside a cell);
     // finer maps are cut finer along texel borders, where neighbouring cells differ.
-    let cell = std::f64::consts::PI / height as f64;
+    // A cell's largest side: its height, or on a map less than twice as wide as tall its width at
+    // the equator.
+    let cell = (std::f64::consts::PI / height as f64).max(std::f64::consts::TAU / width as f64);
     let finest = if cell > texel_min {
         texel_min / 4.0
     } else {
@@ -280,7 +332,7 @@ pub fn resample_latlong_exact(
 ) -> Result<CubeMap> {
     validate_n(n)?;
     check_latlong(width, height, pixels.len())?;
-    let (texel_min, finest) = splat_limits(n, height);
+    let (texel_min, finest) = splat_limits(n, width, height);
     let splatter = Splatter {
         n,
         world_from_map,
