@@ -137,7 +137,21 @@ impl Harness {
             self.refused,
             self.tried - self.refused
         );
-        assert!(self.tried > 0);
+        // A search that refuses everything (or nothing) searched nothing: its mutations never
+        // reach past the first check (or never reach a check at all).
+        assert!(self.tried > 0, "{}: no input tried", self.name);
+        assert!(
+            self.refused > 0,
+            "{}: none of {} inputs was refused: the mutations change nothing a loader checks",
+            self.name,
+            self.tried
+        );
+        assert!(
+            self.refused < self.tried,
+            "{}: all {} inputs were refused: no mutated input reached the code behind the checks",
+            self.name,
+            self.tried
+        );
         assert!(
             self.failures.is_empty(),
             "{} of {} inputs failed:\n{}",

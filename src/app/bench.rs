@@ -503,9 +503,7 @@ pub fn write_report(dir: &Path, points: &[BenchPoint]) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
     let mut written = Vec::new();
     let text = |path: PathBuf, body: String| -> Result<PathBuf> {
-        crate::output::film::write_atomically(&path, |tmp| {
-            std::fs::write(tmp, &body).map_err(|e| PrtError::io(tmp, e))
-        })?;
+        crate::files::write_bytes_atomically(&path, body.as_ref())?;
         Ok(path)
     };
     written.push(text(dir.join("bench.csv"), csv(points))?);
@@ -646,9 +644,7 @@ pub fn write_compression(dir: &Path, points: &[CompressionPoint]) -> Result<Vec<
         );
     }
     let csv_path = dir.join("compression.csv");
-    crate::output::film::write_atomically(&csv_path, |tmp| {
-        std::fs::write(tmp, &text).map_err(|e| PrtError::io(tmp, e))
-    })?;
+    crate::files::write_bytes_atomically(&csv_path, text.as_ref())?;
     let mut envs: Vec<&str> = Vec::new();
     for p in points {
         if !envs.contains(&p.env.as_str()) {
@@ -689,9 +685,7 @@ pub fn write_compression(dir: &Path, points: &[CompressionPoint]) -> Result<Vec<
     )?;
     let md = dir.join("compression.md");
     let table = compression_table(points, &envs);
-    crate::output::film::write_atomically(&md, |tmp| {
-        std::fs::write(tmp, &table).map_err(|e| PrtError::io(tmp, e))
-    })?;
+    crate::files::write_bytes_atomically(&md, table.as_ref())?;
     Ok(vec![csv_path, png, md])
 }
 

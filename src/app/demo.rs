@@ -104,9 +104,7 @@ pub fn write_assets(dir: &Path) -> Result<PathBuf> {
         }
         let parent = p.parent().unwrap_or(&root);
         std::fs::create_dir_all(parent).map_err(|e| PrtError::io(parent, e))?;
-        crate::output::film::write_atomically(&p, |tmp| {
-            std::fs::write(tmp, a.bytes).map_err(|e| PrtError::io(tmp, e))
-        })?;
+        crate::files::write_bytes_atomically(&p, a.bytes)?;
     }
     Ok(root)
 }
@@ -288,9 +286,7 @@ pub fn run_demo(
         orbit.draw_ms,
         orbit.frame_ms
     ));
-    crate::output::film::write_atomically(&table_path, |tmp| {
-        std::fs::write(tmp, &table).map_err(|e| PrtError::io(tmp, e))
-    })?;
+    crate::files::write_bytes_atomically(&table_path, table.as_ref())?;
     Ok(DemoReport {
         rows,
         transport_path,

@@ -14,7 +14,7 @@ use crate::bake::{BakeProgress, BakeSettings, bake_to_file};
 use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::light::select::Weighting;
-use crate::output::film::{Image, ToneMap, write_atomically};
+use crate::output::film::{Image, ToneMap};
 use crate::output::sheet::{Cell, downsample, write_sheet};
 use crate::relight::{LightContext, Method, RelightRequest, relight};
 use crate::scene::Scene;
@@ -222,9 +222,7 @@ pub fn run_paper(
         .replace("@SIZE@", &size.to_string())
         .replace("@CUBE@", &largest_cube.to_string())
         .replace("@EDGE@", &BakeSettings::default().edge_spp.to_string());
-    write_atomically(&markdown, |tmp| {
-        std::fs::write(tmp, &text).map_err(|e| PrtError::io(tmp, e))
-    })?;
+    crate::files::write_bytes_atomically(&markdown, text.as_ref())?;
     Ok(PaperReport { markdown, picture })
 }
 

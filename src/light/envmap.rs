@@ -13,12 +13,35 @@ use glam::DVec3;
 
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::{CubeMap, resample_latlong_exact};
-use crate::output::film::{check_image_size as check_size, read_exr};
+use crate::output::film::read_exr;
 
 pub use super::latlong::{EnvRotation, latlong_dir, latlong_uv, pixel_solid_angle};
 
-/// Largest accepted lat-long map, checked from the header before any pixel is allocated.
-pub const MAX_ENV_PIXELS: usize = crate::output::film::MAX_IMAGE_PIXELS;
+/// Largest accepted lat-long map, 16384 x 8192 (the largest published HDRIs; 1.5 GiB as f32
+/// RGB), checked from the header before any pixel is allocated.
+pub const MAX_ENV_PIXELS: usize = 16384 * 8192;
+/// Longest accepted side of a lat-long map.
+pub const MAX_ENV_SIDE: usize = 16384;
+
+/// A lat-long map's size: at least 1 x 1, sides at most [`MAX_ENV_SIDE`] and at most
+/// [`MAX_ENV_PIXELS`] in all.
+pub fn check_env_size(path: &Path, w: usize, h: usize) -> Result<()> {
+    if w == 0
+        || h == 0
+        || w > MAX_ENV_SIDE
+        || h > MAX_ENV_SIDE
+        || w.saturating_mul(h) > MAX_ENV_PIXELS
+    {
+        return Err(PrtError::file(
+            path,
+            format!(
+                "map size {w} x {h}: an environment map has sides of 1 to {MAX_ENV_SIDE} pixels \
+                 and at most 16384 x 8192 pixels in all"
+            ),
+        ));
+    }
+    Ok(())
+}
 /// Largest accepted image file: the largest map in uncompressed 32-bit RGBA, and its header.
 pub const MAX_ENV_BYTES: u64 = crate::output::film::MAX_IMAGE_BYTES;
 
@@ -111,7 +134,7 @@ impl EnvMap {
             }
         }
         let (width, height, raw) = if magic == [0x76, 0x2f, 0x31, 0x01] {
-            read_exr(path)?
+            read_exr(path, check_env_size)?
         } else if magic.starts_with(b"#?") {
             read_hdr(path)?
         } else {
@@ -120,7 +143,23 @@ impl EnvMap {
                 "not an OpenEXR or Radiance HDR image (unknown magic number)",
             ));
         };
-        Self::from_pixels(width, height, raw, &path.display().to_string())
+        let power = signed_power(width, height, &raw);
+        let map = Self::from_pixels(width, height, raw, &path.display().to_string())?;
+        let total: f64 = power.iter().sum();
+        if total.is_nan() || total <= 0.0 {
+            return Err(PrtError::file(
+                path,
+                format!(
+                    "the map's power (Σ L Ω over its pixels, negative samples included) is \
+                     {total:.4e}: it lights nothing; {} of its {} samples are negative, the \
+                     lowest {:.4e}",
+                    map.negatives_clamped,
+                    3 * width * height,
+                    map.lowest_negative
+                ),
+            ));
+        }
+        Ok(map)
     }
 
     /// Opens an environment given on the command line: a file path, or `sun:ELEV,AZIM[,RADIUS]`
@@ -274,16 +313,48 @@ impl EnvMap {
 
 fn read_hdr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
     use image::ImageDecoder;
-    let (file, _) = crate::files::open_regular(path, MAX_ENV_BYTES, "environment map")?;
+    let (file, len) = crate::files::open_regular(path, MAX_ENV_BYTES, "environment map")?;
     let decoder = image::codecs::hdr::HdrDecoder::new(std::io::BufReader::new(file))
         .map_err(|e| PrtError::file(path, format!("Radiance HDR: {e}")))?;
     let (w, h) = decoder.dimensions();
-    check_size(path, w as usize, h as usize)?;
-    let img = image::DynamicImage::from_decoder(decoder)
-        .map_err(|e| PrtError::file(path, format!("Radiance HDR: {e}")))?
-        .into_rgb32f();
-    let pixels = img.pixels().map(|p| p.0).collect();
-    Ok((w as usize, h as usize, pixels))
+    let (w, h) = (w as usize, h as usize);
+    check_env_size(path, w, h)?;
+    // Every row takes its first pixel (4 bytes) and, when wider, at least a run marker or a run
+    // of each component (4 bytes more): a header claiming more rows than the file can hold is
+    // refused before the pixels are reserved.
+    let least = h as u64 * if w > 1 { 8 } else { 4 };
+    if len < least {
+        return Err(PrtError::file(
+            path,
+            format!(
+                "Radiance HDR: the header declares {w} x {h} pixels, but {len} bytes cannot hold \
+                 {h} rows (at least {least} bytes): the file is truncated or its header is wrong"
+            ),
+        ));
+    }
+    if decoder.color_type() != image::ColorType::Rgb32F {
+        return Err(PrtError::file(path, "Radiance HDR: not RGB"));
+    }
+    // The pixels go straight into the map's own table, reserved without aborting.
+    let mut pixels = crate::output::film::reserve_pixels(path, w, h)?;
+    decoder
+        .read_image(bytemuck::cast_slice_mut(&mut pixels))
+        .map_err(|e| PrtError::file(path, format!("Radiance HDR: {e}")))?;
+    Ok((w, h, pixels))
+}
+
+/// The power Σ L Ω of raw pixels per channel, negative samples included.
+fn signed_power(width: usize, height: usize, pixels: &[[f32; 3]]) -> [f64; 3] {
+    let mut p = [0.0f64; 3];
+    for (y, row) in pixels.chunks_exact(width.max(1)).take(height).enumerate() {
+        let w = pixel_solid_angle(width, height, y);
+        for l in row {
+            for c in 0..3 {
+                p[c] += l[c] as f64 * w;
+            }
+        }
+    }
+    p
 }
 
 /// A procedural clear sky with a disc sun: for tests, demos and the viewer's movable sun.

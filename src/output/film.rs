@@ -176,10 +176,8 @@ impl Image {
             .and_then(|e| e.to_str())
             .map(|e| e.to_ascii_lowercase());
         match ext.as_deref() {
-            Some("exr") => write_atomically(path, |tmp| self.write_exr(tmp)),
-            Some("png") => write_atomically(path, |tmp| {
-                write_png(tmp, self.width, self.height, &self.to_srgb8(tone))
-            }),
+            Some("exr") => write_atomically(path, |file| self.write_exr(file, path)),
+            Some("png") => write_png(path, self.width, self.height, &self.to_srgb8(tone)),
             _ => Err(PrtError::file(
                 path,
                 "unknown image type: use a .exr (linear) or .png (tone-mapped) file name",
@@ -187,18 +185,23 @@ impl Image {
         }
     }
 
-    fn write_exr(&self, path: &Path) -> Result<()> {
+    /// Writes the image as OpenEXR into `file`, the temporary file of `path`.
+    fn write_exr(&self, file: std::fs::File, path: &Path) -> Result<()> {
+        use exr::prelude::{Image as Exr, SpecificChannels, Vec2, WritableImage};
         let w = self.width;
-        exr::prelude::write_rgb_file(path, self.width, self.height, |x, y| {
+        let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
             let p = self.pixels[y * w + x];
             (p[0], p[1], p[2])
-        })
-        .map_err(|e| PrtError::file(path, format!("writing OpenEXR: {e}")))
+        });
+        Exr::from_channels((self.width, self.height), channels)
+            .write()
+            .to_buffered(std::io::BufWriter::new(file))
+            .map_err(|e| PrtError::file(path, format!("writing OpenEXR: {e}")))
     }
 
     /// Reads a linear image written by [`Image::save`] (EXR only).
     pub fn load_exr(path: &Path) -> Result<Image> {
-        let (width, height, pixels) = read_exr(path)?;
+        let (width, height, pixels) = read_exr(path, check_image_size)?;
         let img = Image {
             width,
             height,
@@ -214,30 +217,75 @@ impl Image {
     }
 }
 
-/// Largest accepted image (an environment map, or an EXR to compare), checked from the header
-/// before any pixel is allocated.
-pub const MAX_IMAGE_PIXELS: usize = 32768 * 16384;
+/// Largest accepted image to compare: the largest image this program writes (16384²), checked
+/// from the header before any pixel is allocated.
+pub const MAX_IMAGE_PIXELS: usize = 16384 * 16384;
 /// Largest accepted image file: the largest image in uncompressed 32-bit RGBA, and its header.
 pub const MAX_IMAGE_BYTES: u64 = MAX_IMAGE_PIXELS as u64 * 16 + (64 << 20);
 
-/// Reads the first RGB(A) layer of an OpenEXR file, its size checked from the header before any
-/// pixel is allocated.
-pub fn read_exr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
+/// Reads the first RGB(A) layer of an OpenEXR file. Its channels and size are checked from the
+/// header (`check_size(path, width, height)`) before any pixel is allocated, and the pixels are
+/// reserved without aborting when memory is short.
+pub fn read_exr(
+    path: &Path,
+    check_size: fn(&Path, usize, usize) -> Result<()>,
+) -> Result<(usize, usize, Vec<[f32; 3]>)> {
     crate::files::open_regular(path, MAX_IMAGE_BYTES, "OpenEXR image")?;
     let exr_err = |e: exr::error::Error| PrtError::file(path, format!("OpenEXR: {e}"));
-    // Check the size from the header before any pixel memory is allocated.
     let meta = exr::meta::MetaData::read_from_file(path, false).map_err(exr_err)?;
-    let header = meta
+    let has = |h: &exr::meta::header::Header, name: &str| {
+        h.channels
+            .list
+            .iter()
+            .any(|c| c.name.eq_case_insensitive(name))
+    };
+    // The layer the reader takes: the first with red, green and blue.
+    let Some(header) = meta
         .headers
-        .first()
-        .ok_or_else(|| PrtError::file(path, "OpenEXR file has no layer"))?;
+        .iter()
+        .find(|h| ["R", "G", "B"].iter().all(|c| has(h, c)))
+    else {
+        let layers: Vec<String> = meta
+            .headers
+            .iter()
+            .map(|h| {
+                let names: Vec<String> = h
+                    .channels
+                    .list
+                    .iter()
+                    .map(|c| crate::files::printable(&c.name.to_string()))
+                    .collect();
+                names.join(", ")
+            })
+            .collect();
+        return Err(PrtError::file(
+            path,
+            format!(
+                "OpenEXR: no layer has R, G and B channels (the file's channels: {}); \
+                 save it as RGB or RGBA",
+                if layers.is_empty() {
+                    "none".to_string()
+                } else {
+                    layers.join("; ")
+                }
+            ),
+        ));
+    };
     let (w, h) = (header.layer_size.width(), header.layer_size.height());
-    check_image_size(path, w, h)?;
+    check_size(path, w, h)?;
+    let reserved = std::cell::RefCell::new(Some(reserve_pixels(path, w, h)?));
     let image = exr::prelude::read_first_rgba_layer_from_file(
         path,
-        |res, _| vec![[0.0f32; 3]; res.width() * res.height()],
+        move |res, _| {
+            let mut px = reserved.borrow_mut().take().unwrap_or_default();
+            // The layer read is the one checked: the same size, so nothing is allocated here.
+            px.resize(res.width() * res.height(), [0.0; 3]);
+            px
+        },
         move |px: &mut Vec<[f32; 3]>, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            px[pos.y() * w + pos.x()] = [r, g, b];
+            if let Some(p) = px.get_mut(pos.y() * w + pos.x()) {
+                *p = [r, g, b];
+            }
         },
     )
     .map_err(exr_err)?;
@@ -251,6 +299,24 @@ pub fn read_exr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
     Ok((w, h, image.layer_data.channel_data.pixels))
 }
 
+/// A table of `w` x `h` pixels of black, reserved with `try_reserve`: an error naming `path`
+/// when memory is short, never an abort.
+pub fn reserve_pixels(path: &Path, w: usize, h: usize) -> Result<Vec<[f32; 3]>> {
+    let n = w.saturating_mul(h);
+    let mut px: Vec<[f32; 3]> = Vec::new();
+    px.try_reserve_exact(n).map_err(|_| {
+        PrtError::file(
+            path,
+            format!(
+                "a {w} x {h} image needs {:.1} GiB, which this process cannot have",
+                (n as f64 * 12.0) / (1u64 << 30) as f64
+            ),
+        )
+    })?;
+    px.resize(n, [0.0; 3]);
+    Ok(px)
+}
+
 /// An image size is at least 1 x 1 and at most [`MAX_IMAGE_PIXELS`].
 pub fn check_image_size(path: &Path, w: usize, h: usize) -> Result<()> {
     if w == 0 || h == 0 || w.saturating_mul(h) > MAX_IMAGE_PIXELS {
@@ -262,17 +328,21 @@ pub fn check_image_size(path: &Path, w: usize, h: usize) -> Result<()> {
     Ok(())
 }
 
-/// Writes 8-bit RGB bytes as a PNG (not atomic: callers go through [`write_atomically`]).
+/// Writes 8-bit RGB bytes as a PNG, atomically ([`write_atomically`]).
 pub fn write_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<()> {
-    image::save_buffer_with_format(
-        path,
-        rgb,
-        width as u32,
-        height as u32,
-        image::ColorType::Rgb8,
-        image::ImageFormat::Png,
-    )
-    .map_err(|e| PrtError::file(path, format!("writing PNG: {e}")))
+    use image::ImageEncoder;
+    write_atomically(path, |file| {
+        let mut w = std::io::BufWriter::new(file);
+        image::codecs::png::PngEncoder::new(&mut w)
+            .write_image(
+                rgb,
+                width as u32,
+                height as u32,
+                image::ExtendedColorType::Rgb8,
+            )
+            .map_err(|e| PrtError::file(path, format!("writing PNG: {e}")))?;
+        std::io::Write::flush(&mut w).map_err(|e| PrtError::io(path, e))
+    })
 }
 
 pub use crate::files::write_atomically;

@@ -12,7 +12,8 @@ pub struct ErrorReport {
     pub rel_l2: f64,
     /// Root mean square difference per channel sample.
     pub rmse: f64,
-    /// 20 log10(peak / RMSE), peak the largest reference value; infinite when equal.
+    /// 20 log10(peak / RMSE), peak the largest reference value; infinite when equal. A reference
+    /// with no value above 0 that the image differs from is an error, not a figure.
     pub psnr_db: f64,
     /// Relative L2 of the image gradients (forward differences inside the mask).
     pub rel_h1: f64,
@@ -85,7 +86,16 @@ pub fn compare(a: &Image, r: &Image, mask: Option<&[f32]>) -> Result<ErrorReport
     } else {
         0.0
     };
-    let psnr_db = if rmse > 0.0 && peak > 0.0 {
+    if peak <= 0.0 && rmse > 0.0 {
+        return Err(PrtError::invalid(
+            "reference",
+            format!(
+                "it is black (no value above 0) over every compared pixel, so the relative \
+                 errors and PSNR are undefined; the image differs from it by RMSE {rmse:.6e}"
+            ),
+        ));
+    }
+    let psnr_db = if rmse > 0.0 {
         20.0 * (peak / rmse).log10()
     } else {
         f64::INFINITY
@@ -125,7 +135,14 @@ fn gradient_error(a: &Image, r: &Image, mask: Option<&[f32]>) -> f64 {
             }
         }
     }
-    if den > 0.0 { (num / den).sqrt() } else { 0.0 }
+    if den > 0.0 {
+        (num / den).sqrt()
+    } else if num > 0.0 {
+        // Gradients where the reference has none: as infinitely wrong as relative L2 says.
+        f64::INFINITY
+    } else {
+        0.0
+    }
 }
 
 /// Mean SSIM (Wang et al. 2004, 8 x 8 windows with stride 4, constants for a [0, 1] range) of the
@@ -209,6 +226,18 @@ mod tests {
         let e = compare(&r, &r, None).unwrap();
         assert_eq!((e.rel_l2, e.rmse, e.rel_h1), (0.0, 0.0, 0.0));
         assert!(e.psnr_db.is_infinite());
+    }
+
+    #[test]
+    fn a_black_reference_is_an_error_unless_the_image_is_black_too() {
+        let black = img(&[[0.0; 3]; 4], 2);
+        let lit = img(&[[0.0; 3], [0.0; 3], [0.0, 0.5, 0.0], [0.0; 3]], 2);
+        let e = compare(&lit, &black, None).unwrap_err().to_string();
+        assert!(e.contains("black") && e.contains("undefined"), "{e}");
+        assert_eq!(relative_l2(&lit, &black, None).unwrap(), f64::INFINITY);
+        assert_eq!(gradient_error(&lit, &black, None), f64::INFINITY);
+        let e = compare(&black, &black, None).unwrap();
+        assert_eq!((e.rel_l2, e.rmse, e.rel_h1), (0.0, 0.0, 0.0));
     }
 
     #[test]

@@ -12,7 +12,7 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::error::{PrtError, Result};
-use crate::output::film::{write_atomically, write_png};
+use crate::output::film::write_png;
 use crate::output::text::FONT;
 
 /// One curve.
@@ -371,7 +371,7 @@ fn average_down(big: &[u8], w: usize, h: usize, factor: usize) -> Vec<u8> {
 /// Renders and writes a PNG atomically.
 pub fn write(path: &Path, spec: &PlotSpec, series: &[Series]) -> Result<()> {
     let rgb = render(spec, series)?;
-    write_atomically(path, |tmp| write_png(tmp, spec.width, spec.height, &rgb))
+    write_png(path, spec.width, spec.height, &rgb)
 }
 
 #[cfg(test)]

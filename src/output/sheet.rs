@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use crate::error::Result;
-use crate::output::film::{Image, ToneMap, write_atomically, write_png};
+use crate::output::film::{Image, ToneMap, write_png};
 use crate::output::text::{CAPTION_PX, draw_text, fit_text};
 
 /// One cell of a sheet.
@@ -78,5 +78,5 @@ pub fn write_sheet(path: &Path, columns: usize, cells: &[Cell], title: &str) -> 
             );
         }
     }
-    write_atomically(path, |tmp| write_png(tmp, w, h, &rgb))
+    write_png(path, w, h, &rgb)
 }

@@ -93,7 +93,9 @@ pub fn save(
     }
     let json = header(format!("{:016x}", sum.value()))
         .map_err(|e| PrtError::file(path, format!("metadata: {e}")))?;
-    crate::files::write_atomically(path, |tmp| write_tensors(tmp, tensors, seal_meta(json)))
+    crate::files::write_atomically(path, |file| {
+        write_tensors(file, path, tensors, seal_meta(json))
+    })
 }
 
 /// Reads a whole file of at most `max_bytes` in 8 MiB pieces, calling `progress(bytes read,
@@ -136,11 +138,16 @@ pub fn seal_meta(mut json: String) -> String {
     json
 }
 
-/// Checks the `meta_checksum` of a `meta` text written by [`seal_meta`]. A text without one
-/// (written before it existed) passes; its fields are checked one by one all the same.
+/// Checks the `meta_checksum` of a `meta` text written by [`seal_meta`]. Every file of the
+/// current versions is sealed, so a text without the seal is refused: switching the seal off
+/// (by renaming its key, say) must not let an edited value through.
 pub fn check_meta_seal(text: &str) -> std::result::Result<(), String> {
     if !text.contains("\"meta_checksum\"") {
-        return Ok(());
+        return Err(
+            "metadata has no `meta_checksum`, which every file of this version carries: the \
+             header is corrupted or was edited"
+                .into(),
+        );
     }
     let sealed = text.strip_suffix("\"}").and_then(|body| {
         let stored = body.get(body.len().checked_sub(16)?..)?;
@@ -164,6 +171,59 @@ pub fn check_meta_seal(text: &str) -> std::result::Result<(), String> {
         ));
     }
     Ok(())
+}
+
+/// Checks that the metadata of a file holds the one entry `meta` and nothing else.
+pub fn check_metadata_entries<'a>(
+    mut keys: impl Iterator<Item = &'a String>,
+) -> std::result::Result<(), String> {
+    match keys.find(|k| *k != "meta") {
+        Some(k) => Err(format!(
+            "unknown metadata entry `{}`: a file holds only `meta`",
+            crate::files::printable(k)
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Checks that every key of the JSON object `text` (a `meta` text, its seal aside) is one that
+/// `parsed`, the value read from it, writes back: an unknown key, or a field this build never
+/// writes with that value (null for an absent one), is an edit the reader would silently drop.
+/// Keys `parsed` writes that the text lacks are fields of older files, read with defaults.
+pub fn check_known_keys(
+    text: &str,
+    parsed: &impl serde::Serialize,
+) -> std::result::Result<(), String> {
+    let mut read: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| format!("metadata is not JSON: {e}"))?;
+    if let Some(o) = read.as_object_mut() {
+        o.remove("meta_checksum");
+    }
+    let written = serde_json::to_value(parsed).map_err(|e| format!("metadata: {e}"))?;
+    match unknown_key(&read, &written) {
+        Some(key) => Err(format!(
+            "metadata key `{}` is not one this build writes: the header was edited",
+            crate::files::printable(&key)
+        )),
+        None => Ok(()),
+    }
+}
+
+/// The first key path of `read` that `written` lacks.
+fn unknown_key(read: &serde_json::Value, written: &serde_json::Value) -> Option<String> {
+    use serde_json::Value;
+    match (read, written) {
+        (Value::Object(r), Value::Object(w)) => r.iter().find_map(|(k, v)| match w.get(k) {
+            None => Some(k.clone()),
+            Some(wv) => unknown_key(v, wv).map(|inner| format!("{k}.{inner}")),
+        }),
+        (Value::Array(r), Value::Array(w)) => r
+            .iter()
+            .zip(w)
+            .enumerate()
+            .find_map(|(i, (a, b))| unknown_key(a, b).map(|inner| format!("{i}.{inner}"))),
+        _ => None,
+    }
 }
 
 /// A 64-bit checksum of byte slices taken in order: words mixed with the SplitMix64 finaliser,
@@ -248,11 +308,16 @@ impl Checksum {
     }
 }
 
-/// Writes a safetensors file at `path` with one metadata entry `meta` holding `meta_json`:
-/// the header as the `safetensors` crate lays it out (tensors by descending dtype alignment, then
-/// name; the header padded to 8 bytes), then each tensor's bytes, straight into `path` (the
-/// caller's temporary file, which gets the umask's permissions).
-fn write_tensors(path: &Path, mut tensors: Vec<(&str, Tensor)>, meta_json: String) -> Result<()> {
+/// Writes a safetensors file into `file` (the temporary file of the output `path`, which errors
+/// name) with one metadata entry `meta` holding `meta_json`: the header as the `safetensors`
+/// crate lays it out (tensors by descending dtype alignment, then name; the header padded to 8
+/// bytes), then each tensor's bytes.
+fn write_tensors(
+    file: std::fs::File,
+    path: &Path,
+    mut tensors: Vec<(&str, Tensor)>,
+    meta_json: String,
+) -> Result<()> {
     use std::io::Write;
     tensors.sort_by(|(ln, l), (rn, r)| r.dtype.cmp(&l.dtype).then(ln.cmp(rn)));
     let mut offset = 0;
@@ -273,7 +338,6 @@ fn write_tensors(path: &Path, mut tensors: Vec<(&str, Tensor)>, meta_json: Strin
         .map_err(|e| PrtError::file(path, format!("header: {e}")))?
         .into_bytes();
     header.resize(header.len().next_multiple_of(8), b' ');
-    let file = std::fs::File::create(path).map_err(|e| PrtError::io(path, e))?;
     let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
     let io = |e| PrtError::io(path, e);
     w.write_all(&(header.len() as u64).to_le_bytes())
@@ -312,10 +376,11 @@ impl<'a> Tensor<'a> {
         let want = (shape.iter().product::<usize>() as u64 * dtype.bitsize() as u64).div_ceil(8);
         if want != spill.len {
             return Err(PrtError::file(
-                &spill.path,
+                &spill.output,
                 format!(
-                    "holds {} bytes where a {dtype:?} tensor of shape {shape:?} takes {want}",
-                    spill.len
+                    "tensor `{}`: {} bytes spilled where a {dtype:?} tensor of shape {shape:?} \
+                     takes {want}",
+                    spill.tensor, spill.len
                 ),
             ));
         }
@@ -343,10 +408,15 @@ impl<'a> Tensor<'a> {
 }
 
 /// A temporary file beside an output that holds one tensor's bytes while they are produced, so
-/// a writer keeps none of them in memory ([`crate::files::spill_path`]: a later write of the
-/// output removes those a killed run left behind); removed when dropped.
+/// a writer keeps none of them in memory. It is opened as [`crate::files::create_spill`] does:
+/// exclusively, and gone from the folder at once where the platform allows, so nothing is left
+/// of it whatever ends the process; elsewhere it is removed when dropped. Errors name the output.
 pub struct Spill {
-    path: std::path::PathBuf,
+    /// The output it is part of, for messages, and the tensor it holds.
+    output: std::path::PathBuf,
+    tensor: String,
+    /// The file's name where it stays in the folder while open.
+    path: Option<std::path::PathBuf>,
     file: std::io::BufWriter<std::fs::File>,
     len: u64,
 }
@@ -354,28 +424,32 @@ pub struct Spill {
 impl Spill {
     /// An empty spill for tensor `name` of the output `output`.
     pub fn create(output: &Path, name: &str) -> Result<Self> {
-        let path = crate::files::spill_path(output, std::process::id(), name);
-        let file = std::fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&path)
-            .map_err(|e| PrtError::io(&path, e))?;
+        let (path, file) = crate::files::create_spill(output, name)?;
         Ok(Spill {
+            output: output.to_path_buf(),
+            tensor: name.to_string(),
             path,
             file: std::io::BufWriter::with_capacity(1 << 20, file),
             len: 0,
         })
     }
 
+    /// An I/O error while spilling, naming the output and the tensor.
+    fn io(&self, e: std::io::Error) -> PrtError {
+        PrtError::file(
+            &self.output,
+            format!(
+                "writing the temporary data of tensor `{}` beside it: {e}",
+                self.tensor
+            ),
+        )
+    }
+
     /// Appends `data`'s bytes.
     pub fn append<T: bytemuck::NoUninit>(&mut self, data: &[T]) -> Result<()> {
         use std::io::Write;
         let bytes: &[u8] = bytemuck::cast_slice(data);
-        self.file
-            .write_all(bytes)
-            .map_err(|e| PrtError::io(&self.path, e))?;
+        self.file.write_all(bytes).map_err(|e| self.io(e))?;
         self.len += bytes.len() as u64;
         Ok(())
     }
@@ -393,14 +467,14 @@ impl Spill {
     /// Flushes what was appended, so that it can be read back.
     pub fn flush(&mut self) -> Result<()> {
         use std::io::Write;
-        self.file.flush().map_err(|e| PrtError::io(&self.path, e))
+        self.file.flush().map_err(|e| self.io(e))
     }
 
     /// Reads the spill from its start in 8 MiB pieces (flushed first by [`Spill::flush`]); a
     /// file cut short is an error, not a short tensor.
     fn for_each_piece(&self, f: &mut dyn FnMut(&[u8]) -> Result<()>) -> Result<()> {
         use std::io::{Read, Seek};
-        let io = |e| PrtError::io(&self.path, e);
+        let io = |e| self.io(e);
         let mut file = self.file.get_ref();
         file.seek(std::io::SeekFrom::Start(0)).map_err(io)?;
         let mut piece = vec![0u8; (8 << 20).min(self.len as usize)];
@@ -417,7 +491,9 @@ impl Spill {
 
 impl Drop for Spill {
     fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.path);
+        if let Some(path) = &self.path {
+            let _ = std::fs::remove_file(path);
+        }
     }
 }
 
@@ -431,8 +507,46 @@ mod tests {
         assert!(check_meta_seal(&sealed).is_ok());
         let edited = sealed.replace("\"a\":1", "\"a\":2");
         assert!(check_meta_seal(&edited).unwrap_err().contains("mismatch"));
-        // A text written before the seal existed is read as before.
-        assert!(check_meta_seal(r#"{"a":1}"#).is_ok());
+        // A text without the seal is refused, as is one whose seal was renamed.
+        assert!(
+            check_meta_seal(r#"{"a":1}"#)
+                .unwrap_err()
+                .contains("no `meta_checksum`")
+        );
+        let renamed = sealed.replace("meta_checksum", "meta_checksun");
+        assert!(check_meta_seal(&renamed).is_err());
+    }
+
+    #[test]
+    fn keys_a_reader_would_drop_are_found() {
+        #[derive(serde::Serialize)]
+        struct Inner {
+            x: u32,
+        }
+        #[derive(serde::Serialize)]
+        struct Outer {
+            a: u32,
+            inner: Inner,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            maybe: Option<u32>,
+        }
+        let v = Outer {
+            a: 1,
+            inner: Inner { x: 2 },
+            maybe: None,
+        };
+        let ok = r#"{"a":1,"inner":{"x":2},"meta_checksum":"00"}"#;
+        assert!(check_known_keys(ok, &v).is_ok());
+        // An older file without a field is fine.
+        assert!(check_known_keys(r#"{"a":1}"#, &v).is_ok());
+        let e = check_known_keys(r#"{"a":1,"inner":{"x":2,"y":3}}"#, &v).unwrap_err();
+        assert!(e.contains("`inner.y`"), "{e}");
+        let e = check_known_keys(r#"{"a":1,"maybe":null}"#, &v).unwrap_err();
+        assert!(e.contains("`maybe`"), "{e}");
+        let e = check_known_keys(r#"{"a":1,"\u001b]0;x\u0007":0}"#, &v).unwrap_err();
+        assert!(!e.contains('\u{1b}') && e.contains("\\u{1b}"), "{e}");
+        assert!(check_metadata_entries(["meta".to_string()].iter()).is_ok());
+        assert!(check_metadata_entries(["meta".into(), "x".into()].iter()).is_err());
     }
 
     #[test]
@@ -467,26 +581,19 @@ mod tests {
     }
 
     #[test]
-    fn a_spilled_tensor_is_written_as_its_bytes_and_the_spill_is_removed() {
+    fn a_spilled_tensor_is_written_as_its_bytes_and_leaves_no_file() {
         let dir = std::env::temp_dir().join(format!("prt-spill-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let out = dir.join("t.prt");
         let data: Vec<u32> = (0..5000).collect();
         let mut spill = Spill::create(&out, "x").unwrap();
-        assert!(
-            spill
-                .path
-                .file_name()
-                .unwrap()
-                .to_str()
-                .unwrap()
-                .ends_with(".spill-x.prt")
-        );
         spill.append(&data[..1234]).unwrap();
         spill.append(&data[1234..]).unwrap();
         spill.flush().unwrap();
-        let spill_path = spill.path.clone();
-        assert!(Tensor::spilled(Dtype::U32, vec![4999], &spill).is_err());
+        let e = Tensor::spilled(Dtype::U32, vec![4999], &spill)
+            .err()
+            .unwrap();
+        assert!(e.to_string().contains("t.prt: tensor `x`"), "{e}");
         let read = |tensor: Tensor| {
             let mut sum = Checksum::new();
             let mut bytes = Vec::new();
@@ -504,7 +611,7 @@ mod tests {
         let direct = read(Tensor::new(Dtype::U32, vec![5000], &data));
         assert_eq!(spilled, direct);
         drop(spill);
-        assert!(!spill_path.exists());
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

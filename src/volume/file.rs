@@ -34,6 +34,9 @@ pub struct VolumeMeta {
     pub scene_hash: String,
 }
 
+/// The tensors of a volume file.
+const TENSOR_NAMES: [&str; 2] = ["density", "transfer"];
+
 /// The one metadata entry of a volume file (`meta_checksum` follows in the text, as in a
 /// transport file).
 #[derive(Serialize, Deserialize)]
@@ -164,9 +167,21 @@ impl VolumeTransfer {
         if let Some(e) = container::other_format(path, format.as_deref(), container::VOLUME) {
             return Err(e);
         }
+        if let Some(entries) = md.metadata() {
+            container::check_metadata_entries(entries.keys()).map_err(bad)?;
+        }
         check_meta_seal(json).map_err(bad)?;
         let header: FileHeader =
             serde_json::from_str(json).map_err(|e| bad(format!("metadata: {e}")))?;
+        container::check_known_keys(json, &header).map_err(bad)?;
+        let names = md.tensors();
+        if let Some(name) = names.keys().find(|k| !TENSOR_NAMES.contains(&k.as_str())) {
+            return Err(bad(format!(
+                "unknown tensor `{}`: a volume file holds {}",
+                crate::files::printable(name),
+                TENSOR_NAMES.join(" and ")
+            )));
+        }
         if header.format != FORMAT_NAME {
             return Err(bad(format!(
                 "format `{}`, expected `{FORMAT_NAME}`",

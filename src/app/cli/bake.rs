@@ -197,7 +197,14 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
     let bytes = std::fs::metadata(path).map(|x| x.len()).unwrap_or(0);
     let dense_bytes = s.dense_entries as f64 * 4.0;
     println!("file          {}", path.display());
-    println!("scene         {} (hash {})", m.scene_path, m.scene_hash);
+    // Strings from the file are printed with their control characters escaped: a crafted
+    // file must not drive the terminal.
+    let printable = crate::files::printable;
+    println!(
+        "scene         {} (hash {})",
+        printable(&m.scene_path),
+        printable(&m.scene_hash)
+    );
     if let Some(pv) = &m.per_vertex {
         println!(
             "vertices      {} vertices, {} triangles, edges up to {} (a row per vertex, any camera; \
@@ -312,6 +319,7 @@ pub(super) fn info(file: PathBuf) -> Result<()> {
 }
 
 pub(super) fn paper(out: PathBuf) -> Result<()> {
+    crate::files::check_output_folder(&out)?;
     let start = Instant::now();
     let bar = std::sync::Mutex::new(None::<ProgressBar>);
     let report = crate::app::paper::run_paper(
@@ -349,6 +357,7 @@ pub(super) fn paper(out: PathBuf) -> Result<()> {
 }
 
 pub(super) fn demo(out: PathBuf) -> Result<()> {
+    crate::files::check_output_folder(&out)?;
     let start = Instant::now();
     let bar = std::sync::Mutex::new(None::<ProgressBar>);
     let report =

@@ -41,6 +41,7 @@ pub struct BenchArgs {
 }
 
 pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
+    crate::files::check_output_folder(&a.out)?;
     let t = Transport::load(&a.file)?;
     let mut opts = crate::app::bench::BenchOptions::defaults_for(&t);
     if let Some(k) = a.terms {

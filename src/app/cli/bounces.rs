@@ -64,6 +64,7 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
         ));
     }
     check_light_flags(a.turn.yaw, a.turn.pitch, None)?;
+    crate::files::check_output_folder(&a.out)?;
     let scene = Scene::load(&a.scene)?;
     let env = load_env(&a.env)?;
     let base = settings_from(&a.sampling, BakeSettings::default().sh_order, 0.01, false);
@@ -190,9 +191,7 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
     )?;
     let table = markdown(&rows, &a, &base);
     let table_path = dir.join("bounces.md");
-    crate::output::film::write_atomically(&table_path, |tmp| {
-        std::fs::write(tmp, &table).map_err(|e| PrtError::io(tmp, e))
-    })?;
+    crate::files::write_bytes_atomically(&table_path, table.as_ref())?;
     println!("wrote {} and {}", sheet.display(), table_path.display());
     Ok(())
 }

@@ -158,12 +158,39 @@ pub struct SamplingArgs {
 /// Runs the command line; returns the process exit code.
 pub fn main() -> i32 {
     let cli = Cli::parse();
+    remove_temporary_files_on_interrupt();
     match run(cli.command) {
         Ok(()) => 0,
         Err(e) => {
-            eprintln!("error: {e}");
+            // Messages quote names and strings read from files: their control characters are
+            // escaped (the lines of a message kept), so a crafted file cannot drive the terminal.
+            let text: Vec<String> = e
+                .to_string()
+                .split('\n')
+                .map(crate::files::printable)
+                .collect();
+            eprintln!("error: {}", text.join("\n"));
             1
         }
+    }
+}
+
+/// On SIGINT (Ctrl-C), SIGTERM or SIGHUP, removes the temporary files of the writes in progress
+/// ([`crate::files::remove_partials_in_progress`]; spill files never stay) and exits with 128 +
+/// the signal's number, as the default action would end the process.
+fn remove_temporary_files_on_interrupt() {
+    #[cfg(unix)]
+    {
+        use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+        let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
+            return;
+        };
+        std::thread::spawn(move || {
+            if let Some(signal) = signals.forever().next() {
+                crate::files::remove_partials_in_progress();
+                std::process::exit(128 + signal);
+            }
+        });
     }
 }
 
@@ -192,11 +219,18 @@ fn run(command: Command) -> Result<()> {
 
 fn load_env(spec: &str) -> Result<EnvMap> {
     let env = EnvMap::from_spec(spec)?;
-    if env.negatives_clamped > 0 {
-        // Lossy HDR encoders leave slightly negative samples; radiance cannot be negative.
+    // Lossy HDR encoders leave slightly negative samples; radiance cannot be negative. Said
+    // once per map, however often a command loads it.
+    static NOTED: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+    let mut noted = NOTED.lock().unwrap_or_else(|e| e.into_inner());
+    if env.negatives_clamped > 0 && !noted.contains(&env.source) {
+        noted.push(env.source.clone());
         eprintln!(
-            "note: {}: {} slightly negative samples (the lowest {:.2e}) read as 0",
-            env.source, env.negatives_clamped, env.lowest_negative
+            "note: {}: {} of its {} samples are negative (the lowest {:.2e}) and read as 0",
+            crate::files::printable(&env.source),
+            env.negatives_clamped,
+            3 * env.pixels.len(),
+            env.lowest_negative
         );
     }
     Ok(env)

@@ -80,7 +80,31 @@ impl StillArgs {
         c.width = self.width.unwrap_or(c.width);
         c.height = self.height.unwrap_or(c.height);
         c.validate()?;
+        check_still_memory(c.width, c.height)?;
         Ok(Some(c))
+    }
+}
+
+/// Bytes a pixel of a per-vertex still takes at the peak of `prt relight`: the drawn colours,
+/// depth and coverage, the environment behind, the composite and the encoded output. Measured:
+/// 27 bytes a pixel between 2048² and 4096² (peak resident memory), rounded up.
+const STILL_BYTES_PER_PIXEL: u64 = 32;
+
+/// Refuses a still larger than the memory this process can have, before any work.
+fn check_still_memory(width: u32, height: u32) -> Result<()> {
+    let need = width as u64 * height as u64 * STILL_BYTES_PER_PIXEL;
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    match crate::files::memory_headroom() {
+        Some(have) if need > have => Err(PrtError::invalid(
+            "--width/--height",
+            format!(
+                "a {width} x {height} still needs about {:.1} GiB ({STILL_BYTES_PER_PIXEL} bytes a \
+                 pixel), and this process can have {:.1} GiB: draw a smaller image",
+                gib(need),
+                gib(have)
+            ),
+        )),
+        _ => Ok(()),
     }
 }
 
@@ -407,7 +431,12 @@ pub(super) fn compare_cmd(image: PathBuf, reference: PathBuf, mask: Option<PathB
         Some(p) => Some(Transport::load(&p)?.coverage),
         None => None,
     };
-    let e = crate::output::metrics::compare(&a, &r, mask.as_deref())?;
+    let e = crate::output::metrics::compare(&a, &r, mask.as_deref()).map_err(|e| match e {
+        PrtError::Invalid { what, message } if what == "reference" => {
+            PrtError::file(&reference, message)
+        }
+        e => e,
+    })?;
     println!(
         "rel_l2 {:.6}  rmse {:.6}  psnr {:.2} dB  rel_h1 {:.6}  dssim {:.6}",
         e.rel_l2, e.rmse, e.psnr_db, e.rel_h1, e.dssim

@@ -586,7 +586,7 @@ pub fn screenshot(engine: &mut Engine, state: &ViewState, out: &Path) -> Result<
         p.linear.image.check_finite(&p.linear.title)?;
     }
     let (w, h, rgb) = r.captioned(4);
-    crate::files::write_atomically(out, |tmp| crate::output::film::write_png(tmp, w, h, &rgb))?;
+    crate::output::film::write_png(out, w, h, &rgb)?;
     Ok(r)
 }
 

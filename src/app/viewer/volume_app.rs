@@ -193,7 +193,7 @@ pub fn volume_screenshot(
         frame.image.height,
         frame.image.to_srgb8(tone),
     );
-    crate::files::write_atomically(out, |tmp| crate::output::film::write_png(tmp, w, h, &rgb))?;
+    crate::output::film::write_png(out, w, h, &rgb)?;
     Ok(frame)
 }
 

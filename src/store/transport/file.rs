@@ -424,6 +424,7 @@ fn read_header(path: &Path) -> Result<Header> {
         .get("meta")
         .and_then(|v| v.as_str())
         .ok_or_else(|| PrtError::file(path, "not a wavelet-prt transport file (no `meta`)"))?;
+    container::check_metadata_entries(info.keys()).map_err(|m| PrtError::file(path, m))?;
     let value: serde_json::Value = serde_json::from_str(text)
         .map_err(|e| PrtError::file(path, format!("metadata `meta` is not JSON: {e}")))?;
     let format = value.get("format").and_then(|v| v.as_str());
@@ -462,6 +463,21 @@ fn read_header(path: &Path) -> Result<Header> {
     check_meta_seal(text).map_err(|m| PrtError::file(path, m))?;
     let header: FileHeader = serde_json::from_value(value)
         .map_err(|e| PrtError::file(path, format!("metadata `meta`: {e}")))?;
+    container::check_known_keys(text, &header).map_err(|m| PrtError::file(path, m))?;
+    let known = tensor_names(header.meta.per_vertex.is_some());
+    if let Some(name) = obj
+        .keys()
+        .find(|k| *k != "__metadata__" && !known.contains(&k.as_str()))
+    {
+        return Err(PrtError::file(
+            path,
+            format!(
+                "unknown tensor `{}`: a transport file holds {}",
+                crate::files::printable(name),
+                known.join(", ")
+            ),
+        ));
+    }
     let mut data_end = 0u64;
     for (name, t) in obj.iter().filter(|(k, _)| *k != "__metadata__") {
         let end = t
