@@ -220,6 +220,7 @@ fn gpu_display_draws_what_the_cpu_path_draws() {
         default_wgpu_setup(),
         eframe::egui_wgpu::RendererOptions::PREDICTABLE,
     );
+    let software = rs.adapter.get_info().device_type == eframe::wgpu::DeviceType::Cpu;
     let mut app = sun_app();
     app.attach_render_state(rs.clone());
     let mut h = Harness::builder()
@@ -227,8 +228,20 @@ fn gpu_display_draws_what_the_cpu_path_draws() {
         .renderer(WgpuTestRenderer::from_render_state(rs))
         .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), app);
     settle(&mut h);
-    // With a render state attached, the window draws from the GPU kernels by default.
-    assert!(h.state().state.gpu);
+    // With a render state attached, the window draws from the GPU kernels by default on a
+    // hardware GPU; a software adapter starts unticked, says why, and is taken when ticked.
+    assert_eq!(h.state().state.gpu, !software);
+    if software {
+        assert!(h.state().gpu_timings().is_empty());
+        h.query_by_label_contains("a software adapter, slower than the CPU kernels")
+            .expect("the reason shown");
+        h.get_by_label("Relight on the GPU").click();
+        settle(&mut h);
+        assert!(h.state().state.gpu);
+    } else {
+        h.query_by_label_contains("GPU: ")
+            .expect("the adapter shown");
+    }
     assert!(h.state().error.is_none(), "{:?}", h.state().error);
     assert_eq!(h.state().gpu_timings().len(), 1);
     h.query_by_label_contains("GPU pane 1")
@@ -379,6 +392,11 @@ fn a_per_vertex_window_orbits_on_drag_and_draws_on_the_gpu() {
         .renderer(WgpuTestRenderer::from_render_state(rs))
         .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), app);
     settle(&mut h);
+    if !h.state().state.gpu {
+        // A software adapter starts unticked: this test is of the GPU display.
+        h.get_by_label("Relight on the GPU").click();
+        settle(&mut h);
+    }
     assert!(h.state().error.is_none(), "{:?}", h.state().error);
     h.query_by_label_contains("drag the image to orbit")
         .expect("the camera controls of a per-vertex bake");
@@ -387,7 +405,10 @@ fn a_per_vertex_window_orbits_on_drag_and_draws_on_the_gpu() {
     let error = rel_l2(&h);
     let first = h.state().rendered().unwrap().panes[0].linear.image.clone();
     let before = h.render().expect("render");
-    // Drag across the image: the camera turns, the vertex colours do not.
+    // Drag across the image: the camera turns, the vertex colours do not. The pointer is
+    // brought there first (it may rest on the panel's checkbox).
+    h.hover_at(egui::pos2(650.0, 350.0));
+    h.run();
     h.drag_at(egui::pos2(650.0, 350.0));
     h.hover_at(egui::pos2(750.0, 330.0));
     h.drop_at(egui::pos2(750.0, 330.0));

@@ -694,9 +694,8 @@ fn open_window(file: &Path, envs: &[String]) -> eframe::Result {
             options,
             Box::new(move |cc| {
                 let gpu = cc.wgpu_render_state.as_ref().and_then(|rs| {
-                    let info = rs.adapter.get_info();
-                    let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
-                    Gpu::from_device(rs.device.clone(), rs.queue.clone(), name).ok()
+                    Gpu::from_device(rs.device.clone(), rs.queue.clone(), &rs.adapter.get_info())
+                        .ok()
                 });
                 Ok(Box::new(VolumeApp::new(vt, &envs, gpu)))
             }),

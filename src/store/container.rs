@@ -60,6 +60,64 @@ pub fn other_format(path: &Path, found: Option<&str>, want: Format) -> Option<Pr
     ))
 }
 
+/// What a file given where one of `want` was expected is, when its first bytes tell, and what
+/// to do with it: a scene file to bake first, an image or map to give with `--env`, a mesh or a
+/// grid to name in a scene. `None` when they do not tell.
+pub fn what_else(path: &Path, want: Format) -> Option<String> {
+    use std::io::Read;
+    let (f, _) = crate::files::open_regular(path, u64::MAX, "file").ok()?;
+    let mut head = Vec::new();
+    f.take(1 << 20).read_to_end(&mut head).ok()?;
+    let (is, then) = match head.as_slice() {
+        [0x76, 0x2f, 0x31, 0x01, ..] => (
+            "an OpenEXR image",
+            "give an environment map with --env; `prt compare` compares two images".to_string(),
+        ),
+        [b'#', b'?', ..] => (
+            "a Radiance HDR image",
+            "give an environment map with --env".to_string(),
+        ),
+        [0x89, b'P', b'N', b'G', ..] => ("a PNG image", "no command reads one".to_string()),
+        [0x93, b'N', b'U', b'M', b'P', b'Y', ..] => (
+            "a NumPy array",
+            "a density grid is named in a scene file's [[medium]]".to_string(),
+        ),
+        _ => {
+            let text = std::str::from_utf8(&head).ok()?;
+            let table = text.parse::<toml::Table>().ok();
+            if table.is_some_and(|t| {
+                ["camera", "shape", "material", "medium"]
+                    .iter()
+                    .any(|k| t.contains_key(*k))
+            }) {
+                let (bake, ext) = if want == VOLUME {
+                    ("prt volume bake", "prtv")
+                } else {
+                    ("prt bake", "prt")
+                };
+                (
+                    "a scene file",
+                    format!(
+                        "bake it first with `{bake} {} -o OUT.{ext}`",
+                        path.display()
+                    ),
+                )
+            } else if text
+                .lines()
+                .any(|l| l.starts_with("v ") || l.starts_with("f "))
+            {
+                (
+                    "an OBJ mesh",
+                    "name it in a scene file's [[shape]] of type \"mesh\"".to_string(),
+                )
+            } else {
+                return None;
+            }
+        }
+    };
+    Some(format!("this is {is}, not a {}: {then}", want.noun))
+}
+
 /// The format a file names in its metadata, read from at most the first MiB of its header;
 /// `None` when it is no safetensors file of ours or cannot be read.
 pub fn sniff(path: &Path) -> Option<Format> {

@@ -154,8 +154,10 @@ impl VolumeTransfer {
     pub fn load(path: &Path) -> Result<VolumeTransfer> {
         let bad = |m: String| PrtError::file(path, m);
         let bytes = crate::files::read_regular(path, MAX_VOLUME_BYTES, "volume")?;
-        let (_, md) = safetensors::SafeTensors::read_metadata(&bytes)
-            .map_err(|e| bad(format!("not a volume transfer file: {e}")))?;
+        let (_, md) = safetensors::SafeTensors::read_metadata(&bytes).map_err(|e| {
+            bad(container::what_else(path, container::VOLUME)
+                .unwrap_or(format!("not a volume transfer file: {e}")))
+        })?;
         let json = md
             .metadata()
             .as_ref()

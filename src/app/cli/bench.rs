@@ -25,9 +25,10 @@ pub struct BenchArgs {
     /// Weightings, comma-separated (default: none,area,transport).
     #[arg(long, value_delimiter = ',')]
     pub weightings: Option<Vec<String>>,
-    /// auto (the GPU when an adapter exists), cpu, or gpu: times the GPU kernels beside the CPU.
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
-    pub device: DeviceChoice,
+    /// Where the kernels are timed beside the CPU: auto (a hardware GPU when one exists, else
+    /// the CPU only), cpu (the CPU only), or gpu (any adapter, a software one included).
+    #[arg(long, value_enum, default_value_t = Device::Auto)]
+    pub device: Device,
     /// Also render the brute-force reference of the scene and report every point against it.
     #[arg(long)]
     pub reference: bool,
@@ -88,13 +89,7 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         envs.push((name, load_env(spec)?));
     }
     let points_bar = bar(0, "points");
-    let gpu = match a.device {
-        DeviceChoice::Cpu => None,
-        DeviceChoice::Gpu => Some(crate::relight::gpu::Gpu::new()?),
-        DeviceChoice::Auto => crate::relight::gpu::Gpu::new()
-            .map_err(|e| eprintln!("note: timing the CPU only: {e}"))
-            .ok(),
-    };
+    let gpu = open_device(a.device)?;
     let device = match &gpu {
         Some(g) => {
             eprintln!("gpu: {}", g.adapter);

@@ -139,8 +139,9 @@ pub struct SamplingArgs {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Interreflection bounces added to the direct light (path traced, binned by the texel each
-    /// path leaves through).
+    /// Interreflection bounces added to the direct light: paths from each camera hit, every
+    /// vertex they reach adding its own direct row to the pixel's (next-event estimation into
+    /// every texel; see --bounce-visibility).
     #[arg(long, default_value_t = 0)]
     pub bounces: u32,
     /// Paths per camera sub-sample for --bounces.
@@ -395,30 +396,43 @@ impl TurnArgs {
 /// Where a command's kernels run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Device {
+    /// A hardware GPU when one exists, else the CPU: a software adapter (Mesa's lavapipe) is
+    /// slower than the CPU kernels, so it is never taken unasked.
+    Auto,
     /// The CPU kernels (rayon).
     Cpu,
-    /// The wgpu kernels (a software adapter such as Mesa's lavapipe works too).
+    /// The wgpu kernels on whatever adapter exists, a software one included (said in one line).
     Gpu,
 }
 
 impl std::fmt::Display for Device {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
+            Device::Auto => "auto",
             Device::Cpu => "cpu",
             Device::Gpu => "gpu",
         })
     }
 }
 
-/// Where `prt bench` times the kernels: the CPU, and the GPU beside it when asked or found.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum DeviceChoice {
-    /// The GPU when an adapter exists, else the CPU only.
-    Auto,
-    /// The CPU kernels only.
-    Cpu,
-    /// The CPU and the GPU kernels; an error without an adapter.
-    Gpu,
+/// The GPU a command runs its kernels on, `None` for the CPU (see [`Device`]).
+fn open_device(device: Device) -> Result<Option<crate::relight::gpu::Gpu>> {
+    use crate::relight::gpu::Gpu;
+    Ok(match device {
+        Device::Cpu => None,
+        Device::Auto => Gpu::hardware().ok(),
+        Device::Gpu => {
+            let gpu = Gpu::new()?;
+            if gpu.software {
+                eprintln!(
+                    "note: {} is a software adapter: the GPU kernels run on the CPU, as a check \
+                     of them, slower than --device cpu",
+                    gpu.adapter
+                );
+            }
+            Some(gpu)
+        }
+    })
 }
 
 fn parse_tone(t: &str) -> Result<crate::output::film::ToneCurve> {

@@ -29,8 +29,9 @@ pub struct RelightArgs {
     pub sh_order: Option<usize>,
     #[command(flatten)]
     pub turn: TurnArgs,
-    /// cpu or gpu (wgpu; a software adapter such as Mesa's lavapipe works too).
-    #[arg(long, value_enum, default_value_t = Device::Cpu)]
+    /// auto (a hardware GPU when one exists, else the CPU), cpu, or gpu (wgpu on any adapter,
+    /// a software one such as Mesa's lavapipe included).
+    #[arg(long, value_enum, default_value_t = Device::Auto)]
     pub device: Device,
     /// PNG exposure in stops (default: automatic).
     #[arg(long, allow_negative_numbers = true)]
@@ -178,10 +179,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let mut inputs = env_files(std::slice::from_ref(&a.env));
     inputs.push(a.file.clone());
     check_image_output(&a.output, &inputs)?;
-    let gpu = match a.device {
-        Device::Cpu => None,
-        Device::Gpu => Some(crate::relight::gpu::Gpu::new()?),
-    };
+    let gpu = open_device(a.device)?;
     let t = Transport::load(&a.file)?;
     let still = a.view.camera(&t)?;
     if let Some(o) = a.sh_order
@@ -276,7 +274,10 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         stats.bytes_touched as f64 / 1048576.0,
         light_ms,
         stats.kernel_seconds * 1e3,
-        a.device,
+        match &gpu {
+            Some(g) => format!("GPU ({})", g.adapter),
+            None => "CPU".to_string(),
+        },
         a.output.display()
     );
     Ok(())

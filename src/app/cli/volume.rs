@@ -54,8 +54,9 @@ pub struct VolumeRenderArgs {
     /// Cube face size the environment is resampled to for the light.
     #[arg(long, default_value_t = 32)]
     pub cube: usize,
-    /// cpu or gpu.
-    #[arg(long, value_enum, default_value_t = Device::Cpu)]
+    /// auto (a hardware GPU when one exists, else the CPU), cpu, or gpu (any adapter, a
+    /// software one included).
+    #[arg(long, value_enum, default_value_t = Device::Auto)]
     pub device: Device,
     /// Exposure in stops for a .png (default automatic).
     #[arg(long, allow_negative_numbers = true)]
@@ -135,10 +136,9 @@ pub(super) fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
     let light = PhaseLight::new(&cube, order, vt.meta.g);
     let light_ms = start.elapsed().as_secs_f64() * 1e3;
     let start = Instant::now();
-    let (img, device) = match a.device {
-        Device::Cpu => (render_volume(&vt, &light, &camera, view), "cpu".to_string()),
-        Device::Gpu => {
-            let gpu = crate::relight::gpu::Gpu::new()?;
+    let (img, device) = match open_device(a.device)? {
+        None => (render_volume(&vt, &light, &camera, view), "cpu".to_string()),
+        Some(gpu) => {
             let mut gv = crate::volume::gpu::GpuVolume::new(&gpu, &vt)?;
             let (img, _) = gv.render(&gpu, &light, &camera, view)?;
             (img, gpu.adapter.clone())

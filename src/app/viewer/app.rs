@@ -105,9 +105,7 @@ impl ViewerApp {
 
     /// Uses the window's wgpu device for relighting and draws GPU results without a readback.
     pub fn attach_render_state(&mut self, rs: eframe::egui_wgpu::RenderState) {
-        let info = rs.adapter.get_info();
-        let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
-        match Gpu::from_device(rs.device.clone(), rs.queue.clone(), name) {
+        match Gpu::from_device(rs.device.clone(), rs.queue.clone(), &rs.adapter.get_info()) {
             Ok(gpu) => {
                 self.gpu = Some(GpuDisplay {
                     gpu,
@@ -119,9 +117,9 @@ impl ViewerApp {
                     shown: None,
                     timings: Vec::new(),
                 });
-                // The window draws from the GPU kernels by default; the box in the panel turns
-                // it off.
-                self.state.gpu = true;
+                // The window draws from the GPU kernels by default on a hardware GPU; a software
+                // adapter is slower than the CPU kernels, so there the box starts unticked.
+                self.state.gpu = !self.gpu.as_ref().is_some_and(|g| g.gpu.software);
                 self.start_upload();
             }
             Err(e) => self.gpu_error = Some(e.to_string()),
@@ -445,6 +443,15 @@ impl ViewerApp {
         match &self.gpu {
             Some(g) => {
                 ui.checkbox(&mut s.gpu, "Relight on the GPU")
+                    .on_hover_text(g.gpu.adapter.clone());
+                // The adapter and why the box starts as it does; its full name on hover.
+                let why = if g.gpu.software {
+                    "a software adapter, slower than the CPU kernels"
+                } else {
+                    "a hardware GPU"
+                };
+                let name = g.gpu.adapter.split(" (").next().unwrap_or_default();
+                ui.add(egui::Label::new(format!("{name}: {why}")).wrap())
                     .on_hover_text(g.gpu.adapter.clone());
                 if g.uploading {
                     ui.horizontal(|ui| {

@@ -42,6 +42,10 @@ pub struct Gpu {
     pub queue: wgpu::Queue,
     /// Name, back-end and driver of the adapter, for messages.
     pub adapter: String,
+    /// A software adapter (wgpu's device type `Cpu`: Mesa's lavapipe or llvmpipe, WARP): it runs
+    /// the GPU kernels on the CPU, a correctness twin of the CPU kernels and far slower than
+    /// them, so it is used only when asked for by name.
+    pub software: bool,
     pub(crate) wavelet: wgpu::ComputePipeline,
     pub(crate) sh: wgpu::ComputePipeline,
     pub(crate) to_texture: wgpu::ComputePipeline,
@@ -74,20 +78,26 @@ impl Gpu {
     /// environment variables) with its full limits. Without an adapter the error says what to
     /// install.
     pub fn new() -> Result<Gpu> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            force_fallback_adapter: false,
-            compatible_surface: None,
-            ..Default::default()
-        }))
-        .map_err(|e| {
-            PrtError::Gpu(format!(
-                "no GPU adapter ({e}); without a GPU, install Mesa's software drivers \
-                 (Debian/Ubuntu: apt-get install mesa-vulkan-drivers) or use --device cpu"
-            ))
-        })?;
+        Self::open(request_adapter()?)
+    }
+
+    /// A hardware GPU: the adapter [`Gpu::new`] would open, unless it is a software one
+    /// ([`Gpu::software`]), which is an error saying so. What `--device auto` and the viewer
+    /// start on.
+    pub fn hardware() -> Result<Gpu> {
+        let adapter = request_adapter()?;
+        let info = adapter.get_info();
+        if is_software(&info) {
+            return Err(PrtError::Gpu(format!(
+                "the only adapter, {}, is a software one: it runs the GPU kernels on the CPU, \
+                 slower than the CPU kernels (ask for it with --device gpu)",
+                adapter_name(&info)
+            )));
+        }
+        Self::open(adapter)
+    }
+
+    fn open(adapter: wgpu::Adapter) -> Result<Gpu> {
         let info = adapter.get_info();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("wavelet-prt relight"),
@@ -96,12 +106,15 @@ impl Gpu {
             ..Default::default()
         }))
         .map_err(|e| PrtError::Gpu(format!("opening {}: {e}", info.name)))?;
-        let name = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
-        Gpu::from_device(device, queue, name)
+        Gpu::from_device(device, queue, &info)
     }
 
     /// Builds the pipelines on a device the caller already has (the viewer shares its own).
-    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, adapter: String) -> Result<Gpu> {
+    pub fn from_device(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        info: &wgpu::AdapterInfo,
+    ) -> Result<Gpu> {
         let make = |name: &str| {
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(name),
@@ -134,7 +147,8 @@ impl Gpu {
         Ok(Gpu {
             device,
             queue,
-            adapter,
+            adapter: adapter_name(info),
+            software: is_software(info),
             wavelet,
             sh,
             to_texture,
@@ -159,6 +173,36 @@ impl Gpu {
         let l = self.device.limits();
         l.max_storage_buffer_binding_size.min(l.max_buffer_size)
     }
+}
+
+/// The adapter wgpu ranks first (honouring `WGPU_BACKEND` and the other wgpu environment
+/// variables; a hardware GPU before a software one). Without an adapter the error says what to
+/// install.
+fn request_adapter() -> Result<wgpu::Adapter> {
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        force_fallback_adapter: false,
+        compatible_surface: None,
+        ..Default::default()
+    }))
+    .map_err(|e| {
+        PrtError::Gpu(format!(
+            "no GPU adapter ({e}); without a GPU, install Mesa's software drivers \
+             (Debian/Ubuntu: apt-get install mesa-vulkan-drivers) or use --device cpu"
+        ))
+    })
+}
+
+/// Name, back-end and driver of an adapter, for messages.
+pub fn adapter_name(info: &wgpu::AdapterInfo) -> String {
+    format!("{} ({:?}, {})", info.name, info.backend, info.driver)
+}
+
+/// Whether an adapter emulates a GPU on the CPU (see [`Gpu::software`]).
+pub fn is_software(info: &wgpu::AdapterInfo) -> bool {
+    info.device_type == wgpu::DeviceType::Cpu
 }
 
 /// A 2D texture of `width` x `height` texels: one mip level, one sample.

@@ -395,15 +395,24 @@ impl<'a> TensorReader<'a> {
     }
 }
 
+/// The error for a file that is no transport at all: what it is when its first bytes tell
+/// ([`container::what_else`]), else `why`.
+fn not_a_transport(path: &Path, why: String) -> PrtError {
+    PrtError::file(
+        path,
+        container::what_else(path, container::TRANSPORT).unwrap_or(why),
+    )
+}
+
 /// [`read_header_meta`], with what the rest of a reader needs (see [`Header`]).
 fn read_header(path: &Path) -> Result<Header> {
     let (mut f, file_len) = crate::files::open_regular(path, u64::MAX, "transport")?;
     let mut len8 = [0u8; 8];
     f.read_exact(&mut len8)
-        .map_err(|_| PrtError::file(path, "too short to be a transport file"))?;
+        .map_err(|_| not_a_transport(path, "too short to be a transport file".into()))?;
     let header_len = u64::from_le_bytes(len8);
     if header_len > MAX_HEADER_BYTES || header_len + 8 > file_len {
-        return Err(PrtError::file(
+        return Err(not_a_transport(
             path,
             format!("header length {header_len} does not fit a file of {file_len} bytes"),
         ));
@@ -412,7 +421,7 @@ fn read_header(path: &Path) -> Result<Header> {
     f.read_exact(&mut header)
         .map_err(|e| PrtError::file(path, format!("reading header: {e}")))?;
     let json: serde_json::Value = serde_json::from_slice(&header)
-        .map_err(|e| PrtError::file(path, format!("header is not JSON: {e}")))?;
+        .map_err(|e| not_a_transport(path, format!("header is not JSON: {e}")))?;
     let obj = json
         .as_object()
         .ok_or_else(|| PrtError::file(path, "header is not a JSON object"))?;
