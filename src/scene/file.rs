@@ -263,6 +263,7 @@ impl<'a> Loader<'a> {
         let mut triangles = Vec::new();
         let mut spheres = Vec::new();
         let mut surfaces = Vec::new();
+        let mut surface_names = Vec::new();
         for (i, shape) in file.shape.iter().enumerate() {
             let first_triangle = triangles.len();
             let field = |key: &str| format!("shape[{i}].{key}");
@@ -344,6 +345,10 @@ impl<'a> Loader<'a> {
             }
             if triangles.len() > first_triangle {
                 surfaces.push(first_triangle..triangles.len());
+                surface_names.push(match &shape.path {
+                    Some(p) => format!("shape[{i}] ({p})"),
+                    None => format!("shape[{i}]"),
+                });
             }
         }
 
@@ -353,6 +358,7 @@ impl<'a> Loader<'a> {
             material_names,
             triangles,
             surfaces,
+            surface_names,
             edge_length: file.edge_length,
             spheres,
             medium,

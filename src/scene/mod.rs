@@ -194,6 +194,17 @@ pub struct Triangle {
 }
 
 impl Triangle {
+    /// The triangle facing the other way: winding reversed and shading normals negated.
+    pub fn turned(&self) -> Triangle {
+        let [a, b, c] = self.vertices;
+        let [na, nb, nc] = self.normals;
+        Triangle {
+            vertices: [a, c, b],
+            normals: [-na, -nc, -nb],
+            material: self.material,
+        }
+    }
+
     /// Unit normal of the triangle's plane, by right-handed winding of `vertices`; zero for a
     /// degenerate triangle (loading never produces one).
     pub fn geometric_normal(&self) -> Vec3 {
@@ -232,6 +243,8 @@ pub struct Scene {
     pub triangles: Vec<Triangle>,
     /// The triangles of each quad and mesh shape, in the scene file's order.
     pub surfaces: Vec<Range<usize>>,
+    /// What each of `surfaces` is called in messages: `shape[I]`, with a mesh's path.
+    pub surface_names: Vec<String>,
     /// Longest triangle edge of a per-vertex bake (`edge_length`), if the file sets one.
     pub edge_length: Option<f32>,
     /// Analytic spheres.

@@ -85,6 +85,14 @@ impl VertexMesh {
         for range in &scene.surfaces {
             let tris = &scene.triangles[range.clone()];
             let open = has_boundary(tris);
+            // A closed mesh whose normals point inside would be baked for its dark inner side.
+            let turned: Vec<Triangle>;
+            let tris = if !open && normals_point_inside(tris) {
+                turned = tris.iter().map(Triangle::turned).collect();
+                &turned[..]
+            } else {
+                tris
+            };
             let first = mesh.positions.len();
             let corners = mesh.weld(tris);
             let mut refine = Refiner::new(&mut mesh, edge_length, None);
@@ -231,6 +239,43 @@ impl VertexMesh {
                 .collect(),
         }
     }
+}
+
+/// The closed surfaces of `scene` whose shading normals point into the volume they enclose (faces
+/// wound inward, as exporters sometimes write them), by name: a per-vertex bake turns them
+/// outward, since it bakes the side the normals face and the inner side of a closed mesh sees
+/// nothing. A per-pixel bake needs no turn: it shades the side the camera ray arrives on.
+pub fn inward_surfaces(scene: &Scene) -> Vec<&str> {
+    scene
+        .surfaces
+        .iter()
+        .zip(&scene.surface_names)
+        .filter(|(range, _)| {
+            let tris = &scene.triangles[(*range).clone()];
+            !has_boundary(tris) && normals_point_inside(tris)
+        })
+        .map(|(_, name)| name.as_str())
+        .collect()
+}
+
+/// Whether the shading normals of a closed surface point inside it: by the divergence theorem
+/// the flux of the position through a closed surface, ∮ (x − o) · n dA, is 3 times its volume,
+/// positive with outward normals and negative with inward ones, whatever o.
+fn normals_point_inside(tris: &[Triangle]) -> bool {
+    let Some(o) = tris.first().map(|t| t.vertices[0].as_dvec3()) else {
+        return false;
+    };
+    let flux: f64 = tris
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.vertices.map(|v| v.as_dvec3());
+            let area = 0.5 * (b - a).cross(c - a).length();
+            let n = (t.normals[0] + t.normals[1] + t.normals[2]).as_dvec3();
+            let centroid = (a + b + c) / 3.0;
+            area * n.normalize_or_zero().dot(centroid - o)
+        })
+        .sum();
+    flux < 0.0
 }
 
 /// A vector's bit pattern, with −0 as +0, as a hash key.

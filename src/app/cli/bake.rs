@@ -83,6 +83,13 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
                 glossy.join(", ")
             );
         }
+        for name in crate::scene::tessellate::inward_surfaces(&scene) {
+            eprintln!(
+                "warning: {}: its normals point into the closed mesh (faces wound inward); the \
+                 per-vertex bake turns them outward",
+                crate::files::printable(name)
+            );
+        }
         Some(crate::scene::tessellate::VertexMesh::tessellate(
             &scene, edge,
         )?)
