@@ -394,3 +394,54 @@ fn thresholding_keeps_the_faint_fringe_of_a_medium() {
         .count();
     assert_eq!(dark, 0, "{dark} pixels lost more than half their light");
 }
+
+// A pixel that sees the sky through a medium and no surface hid the environment entirely, so the
+// medium's box showed as a dark slab against the sky. It now veils it by the medium's opacity:
+// the coverage of such a pixel is 1 − T along its camera ray, and the environment behind is seen
+// through T.
+#[test]
+fn the_environment_behind_a_medium_is_seen_through_its_transmittance() {
+    let scene = scene_from(&common::fog_scene(0.3, 24, 20), "veil");
+    let medium = scene.medium.as_ref().unwrap().build(None).unwrap();
+    let settings = BakeSettings {
+        cube_n: 2,
+        sh_order: 1,
+        spp: 1,
+        edge_spp: 1,
+        ..BakeSettings::default()
+    };
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    let cam = &scene.camera;
+    let (mut veiled, mut clear) = (0, 0);
+    for y in 0..cam.height {
+        for x in 0..cam.width {
+            let ray = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+            let seen = medium.transmittance(ray.origin, ray.dir, f32::INFINITY);
+            let want = if seen < 0.999 { 1.0 - seen } else { 0.0 };
+            let got = t.coverage[(y * cam.width + x) as usize];
+            assert!(
+                (got - want).abs() < 1e-5,
+                "pixel ({x}, {y}): {got} against 1 − T = {want}"
+            );
+            if got > 0.0 && got < 0.5 {
+                veiled += 1;
+            } else if got == 0.0 {
+                clear += 1;
+            }
+        }
+    }
+    // The thin edge of the blob veils the sky, around the box the sky is clear.
+    assert!(veiled > 20 && clear > 20, "{veiled} veiled, {clear} clear");
+    // Composited under a constant sky, a thinly veiled pixel shows most of the sky.
+    let env = EnvMap::constant(64, 32, [1.0; 3]);
+    let sky = wavelet_prt::relight::background::environment_behind(
+        &t.meta,
+        &t.coverage,
+        &env,
+        EnvRotation::default(),
+    )
+    .unwrap();
+    for (p, c) in sky.pixels.iter().zip(&t.coverage) {
+        assert!((p[0] - (1.0 - c)).abs() < 1e-5, "{p:?} behind coverage {c}");
+    }
+}

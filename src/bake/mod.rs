@@ -484,11 +484,11 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             // Interreflected light, one row per colour channel (colour bleeding mixes them).
             let mut indirect: Option<[Vec<f32>; 3]> = None;
             let mut hits = 0usize;
-            let mut covered = 0usize;
+            let mut covered = 0.0f32;
             let mut albedo_sum = [0.0f32; 3];
             let pixel_index = (y * w + x) as u64;
             for (sub, visit) in visits.into_iter().enumerate() {
-                covered += visit.covered as usize;
+                covered += visit.covered;
                 let Some(sp) = visit.point else {
                     continue;
                 };
@@ -535,8 +535,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             } else {
                 [0.0; 3]
             };
-            out.pixels
-                .push((pixel, mean_albedo, covered as f32 * inv_spp));
+            out.pixels.push((pixel, mean_albedo, covered * inv_spp));
             let lobes = dense.into_iter().flat_map(|(material, diffuse, glossy)| {
                 let m = &scene.materials[material as usize];
                 let specular = m

@@ -253,7 +253,9 @@ pub fn sample_stride(settings: &BakeSettings) -> u32 {
 pub(super) struct Visit {
     pub(super) point: Option<ShadingPoint>,
     pub(super) seen: f32,
-    pub(super) covered: bool,
+    /// How much of the environment behind the sub-sample is hidden: 1 behind a surface, the
+    /// opacity 1 − T of a medium the ray only crosses, 0 for a clear miss.
+    pub(super) covered: f32,
 }
 
 /// The visits of pixel (x, y): its camera sub-samples, or for a per-vertex bake its vertex
@@ -275,7 +277,7 @@ pub(super) fn visits(ctx: &TileContext, x: usize, y: usize) -> Vec<Visit> {
         return vec![Visit {
             point: Some(point),
             seen: 1.0,
-            covered: true,
+            covered: 1.0,
         }];
     }
     let cam = &ctx.scene.camera;
@@ -293,10 +295,20 @@ pub(super) fn visits(ctx: &TileContext, x: usize, y: usize) -> Vec<Visit> {
                 }
                 None => (1.0, false),
             };
+            // A surface hides the environment; a medium alone veils it by its opacity, so the
+            // environment behind is seen through the transmittance and the medium's box never
+            // shows as a slab.
+            let covered = if found.is_some() {
+                1.0
+            } else if in_medium {
+                1.0 - seen
+            } else {
+                0.0
+            };
             Visit {
                 point: found.map(|hit| shading_point(tracer, &hit, ray.dir)),
                 seen,
-                covered: found.is_some() || in_medium,
+                covered,
             }
         })
         .collect()

@@ -107,6 +107,10 @@ pub fn render_reference_with(
                         }
                     }
                     let Some(hit) = found else {
+                        // A medium alone veils the environment by its opacity, as in the bake.
+                        if seen < 0.999 {
+                            *cov += (inv_spp * (1.0 - seen)) as f32;
+                        }
                         continue;
                     };
                     *cov += inv_spp as f32;
