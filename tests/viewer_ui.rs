@@ -115,6 +115,59 @@ fn at_the_default_window_size_every_panel_row_is_visible() {
 }
 
 #[test]
+fn with_every_section_open_and_the_gpu_drawing_the_panel_fits_the_default_window() {
+    if common::gpu_or_skip("with_every_section_open_and_the_gpu_drawing").is_none() {
+        return;
+    }
+    use egui_kittest::wgpu::{WgpuTestRenderer, create_render_state, default_wgpu_setup};
+    // The worst case: the window's own device attached and drawing (its adapter, box and
+    // timings), the procedural sun's sliders, a split comparison and the error heat maps.
+    let rs = create_render_state(
+        default_wgpu_setup(),
+        eframe::egui_wgpu::RendererOptions::PREDICTABLE,
+    );
+    let mut app = sun_app();
+    app.attach_render_state(rs.clone());
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1280.0, 800.0))
+        .renderer(WgpuTestRenderer::from_render_state(rs))
+        .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), app);
+    settle(&mut h);
+    h.state_mut().state.gpu = true;
+    h.state_mut().state.compare = true;
+    h.state_mut().state.layout = Layout::Split;
+    settle(&mut h);
+    let bottom = |h: &Harness<'static, ViewerApp>, label: &str| {
+        h.query_all_by_label_contains(label)
+            .map(|n| n.rect().max.y)
+            .fold(0.0f32, f32::max)
+    };
+    // Without the heat maps the GPU draws and its times are listed; with them the CPU does.
+    for error_map in [false, true] {
+        h.state_mut().state.error_map = error_map;
+        settle(&mut h);
+        if !error_map {
+            assert_eq!(
+                h.state().gpu_timings().len(),
+                2,
+                "both panes timed on the GPU"
+            );
+        }
+        if let Some(out) = std::env::var_os("VIEWER_UI_PANEL_PNG") {
+            h.render().expect("render").save(out).unwrap();
+        }
+        for label in ["L2 vs full", "Save PNG", "frames/s"] {
+            let last = bottom(&h, label);
+            assert!(last > 0.0, "`{label}` is shown");
+            assert!(
+                last <= 800.0,
+                "error map {error_map}: `{label}` ends at y = {last}, below the window"
+            );
+        }
+    }
+}
+
+#[test]
 fn more_terms_from_the_keyboard_lower_the_error() {
     if common::gpu_or_skip("more_terms_from_the_keyboard_lower_the_error").is_none() {
         return;

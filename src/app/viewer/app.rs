@@ -465,15 +465,16 @@ impl ViewerApp {
             }
         }
         ui.separator();
-        ui.label(format!("Kept terms (+/-), 1 to {}", limits.coeffs));
-        ui.add(
-            egui::Slider::new(&mut s.terms, 1..=limits.coeffs)
-                .logarithmic(true)
-                .show_value(false)
-                .text("K"),
-        );
+        // The kept terms on two rows: what they are, then the slider with its number field.
+        let label = ui.label(format!("Kept terms K (+/-), 1 to {}", limits.coeffs));
         ui.horizontal(|ui| {
-            let label = ui.label("K =");
+            ui.add(
+                egui::Slider::new(&mut s.terms, 1..=limits.coeffs)
+                    .logarithmic(true)
+                    .show_value(false),
+            )
+            .labelled_by(label.id);
+            ui.label("K =");
             ui.add(egui::DragValue::new(&mut s.terms).range(1..=limits.coeffs))
                 .labelled_by(label.id);
         });
@@ -514,15 +515,19 @@ impl ViewerApp {
         }
         ui.separator();
         super::tone_controls(ui, &mut s.exposure, &mut s.tone);
-        let auto = ui.button("Auto exposure").clicked();
-        if loaded.camera.is_none() {
-            ui.horizontal(|ui| {
-                ui.label(format!("zoom {:.1}x", self.viewport.zoom));
-                if ui.button("Fit (0)").clicked() {
-                    self.viewport = Viewport::default();
+        // Auto exposure and the zoom share a row.
+        let auto = ui
+            .horizontal(|ui| {
+                let auto = ui.button("Auto exposure").clicked();
+                if loaded.camera.is_none() {
+                    ui.label(format!("zoom {:.1}x", self.viewport.zoom));
+                    if ui.button("Fit (0)").clicked() {
+                        self.viewport = Viewport::default();
+                    }
                 }
-            });
-        }
+                auto
+            })
+            .inner;
         ui.separator();
         let save = ui
             .horizontal(|ui| {
