@@ -206,3 +206,59 @@ fn help_texts_name_the_current_behaviour() {
         );
     }
 }
+
+// 5. Every bundled map printed its "negative samples" note on every command. Negatives that hold
+// a noticeable share of a map's power are said once per map; a lossy encoder's few are not.
+#[test]
+fn negative_samples_are_noted_once_and_only_when_they_matter() {
+    let dir = temp_dir("first-hour-notes");
+    let t = baked(&dir);
+    let png = dir.join("out.png");
+    let sunrise = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/envmaps/blender_sunrise.exr");
+    let (code, text) = common::prt(&[
+        "relight",
+        s(&t),
+        "--env",
+        s(&sunrise),
+        "--terms",
+        "20",
+        "-o",
+        s(&png),
+    ]);
+    assert_eq!(code, 0, "{text}");
+    assert!(!text.contains("note:"), "{text}");
+    // A map with a patch of negative samples holding 2% of its power, given twice.
+    let map = dir.join("patchy.exr");
+    exr::prelude::write_rgb_file(&map, 32, 16, |x, y| {
+        if x < 2 && y == 8 {
+            (-0.8f32, -0.8, -0.8)
+        } else {
+            (1.0f32, 1.0, 1.0)
+        }
+    })
+    .unwrap();
+    let out = dir.join("bench");
+    let (code, text) = common::prt(&[
+        "bench",
+        s(&t),
+        "--env",
+        s(&map),
+        s(&map),
+        "--out",
+        s(&out),
+        "--terms",
+        "5",
+        "--sh-orders",
+        "1",
+        "--sh-light-orders",
+        "none",
+    ]);
+    assert_eq!(code, 0, "{text}");
+    let notes: Vec<&str> = text.lines().filter(|l| l.starts_with("note:")).collect();
+    assert_eq!(notes.len(), 1, "{text}");
+    assert!(
+        notes[0].contains("6 of its 1536 samples are negative"),
+        "{}",
+        notes[0]
+    );
+}

@@ -121,6 +121,32 @@ pub(crate) fn tone_controls(ui: &mut egui::Ui, exposure: &mut f32, tone: &mut To
         });
 }
 
+/// The GPU row of a panel: the box that draws with the GPU kernels, the adapter and why the box
+/// starts as it does (its full name on hover), and a spinner while the transport uploads; a
+/// notice without an adapter.
+pub(crate) fn gpu_controls(ui: &mut egui::Ui, gpu: Option<(&Gpu, bool)>, on: &mut bool) {
+    let Some((gpu, uploading)) = gpu else {
+        ui.label("No GPU adapter: relighting on the CPU");
+        return;
+    };
+    ui.checkbox(on, "Relight on the GPU")
+        .on_hover_text(gpu.adapter.clone());
+    let why = if gpu.software {
+        "a software adapter, slower than the CPU kernels"
+    } else {
+        "a hardware GPU"
+    };
+    let name = gpu.adapter.split(" (").next().unwrap_or_default();
+    ui.add(egui::Label::new(format!("{name}: {why}")).wrap())
+        .on_hover_text(gpu.adapter.clone());
+    if uploading {
+        ui.horizontal(|ui| {
+            ui.spinner();
+            ui.label("uploading the transport to the GPU");
+        });
+    }
+}
+
 /// The bundled map the viewer opens on when no environment is given.
 pub const FIRST_VIEW_MAP: &str = "blender_sunrise";
 

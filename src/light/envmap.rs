@@ -60,6 +60,9 @@ pub struct EnvMap {
     pub negatives_clamped: usize,
     /// The most negative of them (0 when there were none).
     pub lowest_negative: f32,
+    /// What the clamped samples held: Σ |L| Ω over the negative samples over Σ |L| Ω over all
+    /// of them (0 when there were none). Lossy encoders leave a few thousandths of a percent.
+    pub negative_share: f64,
 }
 
 /// A procedural sun given as `sun:ELEV,AZIM[,RADIUS]` (degrees; the radius defaults to 2): the one
@@ -118,6 +121,7 @@ impl EnvMap {
             source: format!("constant {value:?}"),
             negatives_clamped: 0,
             lowest_negative: 0.0,
+            negative_share: 0.0,
         }
     }
 
@@ -190,7 +194,12 @@ impl EnvMap {
         }
         let mut negatives = 0;
         let mut lowest = 0.0f32;
+        let (mut negative_power, mut all_power) = (0.0f64, 0.0f64);
+        let omega: Vec<f64> = (0..height)
+            .map(|y| pixel_solid_angle(width, height, y))
+            .collect();
         for (i, p) in pixels.iter_mut().enumerate() {
+            let w = omega[i / width];
             for (c, v) in p.iter_mut().enumerate() {
                 if !v.is_finite() {
                     return Err(PrtError::file(
@@ -203,7 +212,9 @@ impl EnvMap {
                         ),
                     ));
                 }
+                all_power += v.abs() as f64 * w;
                 if *v < 0.0 {
+                    negative_power += -*v as f64 * w;
                     lowest = lowest.min(*v);
                     *v = 0.0;
                     negatives += 1;
@@ -217,6 +228,11 @@ impl EnvMap {
             source: source.to_string(),
             negatives_clamped: negatives,
             lowest_negative: lowest,
+            negative_share: if all_power > 0.0 {
+                negative_power / all_power
+            } else {
+                0.0
+            },
         })
     }
 
@@ -448,6 +464,7 @@ impl SunSky {
             ),
             negatives_clamped: 0,
             lowest_negative: 0.0,
+            negative_share: 0.0,
         }
     }
 }

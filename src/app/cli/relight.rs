@@ -394,6 +394,7 @@ pub(super) fn env_cmd(a: EnvArgs) -> Result<()> {
             "width": env.width,
             "height": env.height,
             "negatives_clamped": env.negatives_clamped,
+            "negative_share": env.negative_share,
             "power": power,
             "sh_order": a.sh,
             "sh": sh,
@@ -405,6 +406,14 @@ pub(super) fn env_cmd(a: EnvArgs) -> Result<()> {
     }
     println!("environment   {}", env.source);
     println!("size          {} x {}", env.width, env.height);
+    if env.negatives_clamped > 0 {
+        println!(
+            "negatives     {} samples read as 0 (the lowest {:.2e}, {:.4}% of Σ |L| Ω)",
+            env.negatives_clamped,
+            env.lowest_negative,
+            100.0 * env.negative_share
+        );
+    }
     println!(
         "power         R {:.4}  G {:.4}  B {:.4}  (Σ L Ω)",
         power[0], power[1], power[2]

@@ -440,30 +440,11 @@ impl ViewerApp {
             }
         }
         ui.checkbox(&mut s.error_map, "Error heat map vs full");
-        match &self.gpu {
-            Some(g) => {
-                ui.checkbox(&mut s.gpu, "Relight on the GPU")
-                    .on_hover_text(g.gpu.adapter.clone());
-                // The adapter and why the box starts as it does; its full name on hover.
-                let why = if g.gpu.software {
-                    "a software adapter, slower than the CPU kernels"
-                } else {
-                    "a hardware GPU"
-                };
-                let name = g.gpu.adapter.split(" (").next().unwrap_or_default();
-                ui.add(egui::Label::new(format!("{name}: {why}")).wrap())
-                    .on_hover_text(g.gpu.adapter.clone());
-                if g.uploading {
-                    ui.horizontal(|ui| {
-                        ui.spinner();
-                        ui.label("uploading the transport to the GPU");
-                    });
-                }
-            }
-            None => {
-                ui.label("No GPU adapter: relighting on the CPU");
-            }
-        }
+        super::gpu_controls(
+            ui,
+            self.gpu.as_ref().map(|g| (&g.gpu, g.uploading)),
+            &mut s.gpu,
+        );
         ui.separator();
         // The kept terms on two rows: what they are, then the slider with its number field.
         let label = ui.label(format!("Kept terms K (+/-), 1 to {}", limits.coeffs));
