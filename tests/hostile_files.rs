@@ -509,3 +509,43 @@ fn metadata_cannot_switch_off_its_own_checks() {
     let e = VolumeTransfer::load(&p).unwrap_err().to_string();
     assert!(e.contains("unknown tensor `extra`"), "{e}");
 }
+
+// 4. A valid EXR at the largest accepted size (then 32768 x 16384) used 10.5 GB. The largest
+// accepted now, 16384 x 8192, relights within a 4 GiB address space: its pixels (1.5 GiB) are
+// read into the map's own table, and a map this large is splatted directly rather than through
+// recorded shares.
+#[test]
+fn the_largest_accepted_map_relights_in_bounded_memory() {
+    let dir = temp_dir("hostile3-largest");
+    let map = dir.join("largest.exr");
+    let (w, h) = (16384usize, 8192usize);
+    let channels = exr::prelude::SpecificChannels::rgb(
+        |exr::prelude::Vec2(x, y): exr::prelude::Vec2<usize>| {
+            let v = 0.2 + y as f32 / h as f32 + 0.1 * ((x / 64) % 2) as f32;
+            (v, 0.8 * v, 0.6 * v)
+        },
+    );
+    let mut image = exr::prelude::Image::from_channels((w, h), channels);
+    image.layer_data.encoding = exr::prelude::Encoding::SMALL_LOSSLESS;
+    exr::prelude::WritableImage::write(&image)
+        .to_file(&map)
+        .unwrap();
+    let t = dir.join("t.prt");
+    random_transport(20, 18, 2, Quantization::Q8, 7, 1.0)
+        .save(&t)
+        .unwrap();
+    let png = dir.join("out.png");
+    let (code, text) = prt_limited(&[
+        "relight",
+        s(&t),
+        "--env",
+        s(&map),
+        "--terms",
+        "5",
+        "-o",
+        s(&png),
+    ]);
+    assert_eq!(code, 0, "{text}");
+    assert!(png.exists());
+    std::fs::remove_file(&map).unwrap();
+}

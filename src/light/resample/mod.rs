@@ -57,6 +57,11 @@ use crate::math::cubemap::{
     solid_angles, splat_limits, texel_count, texel_dirs, texel_index, validate_n, widest_sin,
 };
 
+/// Largest map whose split is recorded (8192 x 4096): the shares of a larger one would take
+/// more memory than the map (a 16384 x 8192 map's, about 2 GB beside its 1.5 GiB of pixels), so
+/// such a map is splatted directly at every turn, in the memory of one cube per thread.
+pub const MAX_RECORDED_PIXELS: usize = 8192 * 4096;
+
 /// Row bands per thread in the gather: each band scatters into a cube of its own (590 KiB at
 /// N = 64) that is then summed, so few bands; two leave some room to balance a busy machine.
 const BANDS_PER_THREAD: usize = 2;
@@ -780,6 +785,10 @@ pub fn resample_latlong(
     validate_n(n)?;
     check_latlong(width, height, pixels.len())?;
     check_angle("yaw", rotation.yaw_deg)?;
+    if width * height > MAX_RECORDED_PIXELS {
+        // Recorded shares would take several bytes a pixel on top of the map; splat directly.
+        return resample_latlong_exact(width, height, pixels, n, rotation.world_from_map());
+    }
     let recorded = weights(width, height, n, rotation.pitch_deg)?;
     let (_, fraction) = yaw_shift(width, rotation.yaw_deg)?;
     if fraction != 0.0 && !recorded.resolves_cuts {
