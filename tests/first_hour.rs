@@ -189,6 +189,12 @@ fn help_texts_name_the_current_behaviour() {
         assert_eq!(code, 0, "{text}");
         text
     };
+    let relight = help(&["relight", "--help"]);
+    assert!(
+        !relight.contains("up to 128") && relight.matches("up to 142").count() == 2,
+        "{relight}"
+    );
+    assert!(help(&["view", "--help"]).contains("sun:ELEV,AZIM[,RADIUS]"));
     let bake = help(&["bake", "--help"]);
     assert!(
         bake.contains("next-event") && !bake.contains("binned"),

@@ -24,7 +24,7 @@ pub struct RelightArgs {
     #[arg(long, default_value = "transport", value_parser = Weighting::from_str)]
     pub weighting: Weighting,
     /// SH order: for sh, at most the baked order (default: the baked order); for sh-light, up
-    /// to 128 (n² terms of the light, relit with every stored term).
+    /// to 142 (n² terms of the light, relit with every stored term).
     #[arg(long)]
     pub sh_order: Option<usize>,
     #[command(flatten)]

@@ -7,7 +7,7 @@ use crate::relight::vertex::Orbit;
 pub struct ViewArgs {
     /// Transport file (.prt), or a volume file (.prtv) for the volume path.
     pub file: PathBuf,
-    /// Extra environments (.exr/.hdr or sun:ELEV,AZIM), besides the bundled ones.
+    /// Extra environments (.exr/.hdr or sun:ELEV,AZIM[,RADIUS]), besides the bundled ones.
     #[arg(long, num_args = 1..)]
     pub env: Vec<String>,
     /// Render one frame to this PNG without opening a window, then exit.

@@ -57,9 +57,8 @@ use crate::math::cubemap::{
     solid_angles, splat_limits, texel_count, texel_dirs, texel_index, validate_n, widest_sin,
 };
 
-/// Largest map whose split is recorded (8192 x 4096): the shares of a larger one would take
-/// more memory than the map (a 16384 x 8192 map's, about 2 GB beside its 1.5 GiB of pixels), so
-/// such a map is splatted directly at every turn, in the memory of one cube per thread.
+/// Largest map whose split is recorded: a larger one's shares would outweigh its pixels (2.3 GB
+/// beside 1.5 GiB at 16384 x 8192), so it is splatted directly, one cube per thread, every turn.
 pub const MAX_RECORDED_PIXELS: usize = 8192 * 4096;
 
 /// Row bands per thread in the gather: each band scatters into a cube of its own (590 KiB at
