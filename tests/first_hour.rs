@@ -16,18 +16,12 @@ fn s(p: &Path) -> &str {
 /// Runs `prt` as on a machine without a login session (no `XDG_RUNTIME_DIR`) and without the
 /// variable cargo sets for the programs it runs; returns (exit code, stdout + stderr).
 fn prt_sessionless(args: &[&str]) -> (i32, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_prt"))
-        .args(args)
-        .env_remove("XDG_RUNTIME_DIR")
-        .env_remove("NODEVICE_SELECT")
-        .output()
-        .unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.code().unwrap_or(-1), text)
+    common::run(
+        Command::new(env!("CARGO_BIN_EXE_prt"))
+            .args(args)
+            .env_remove("XDG_RUNTIME_DIR")
+            .env_remove("NODEVICE_SELECT"),
+    )
 }
 
 /// A small baked scene in `dir`.

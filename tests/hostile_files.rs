@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use common::{SPHERE_ON_PLANE, StFile, fog_scene, prt, random_transport, temp_dir};
+use common::{SPHERE_ON_PLANE, StFile, fog_scene, names_in, prt, random_transport, temp_dir};
 use wavelet_prt::light::envmap::EnvMap;
 use wavelet_prt::store::transport::{Quantization, Transport};
 use wavelet_prt::volume::{TransferSettings, VolumeTransfer, bake_volume};
@@ -39,29 +39,13 @@ fn assert_clean_error(code: i32, text: &str, needles: &[&str]) {
 /// Runs `prt` under an address-space limit of 4 GiB (`ulimit -v`), as a small machine or a
 /// container would: an allocation sized by a header aborts the process there.
 fn prt_limited(args: &[&str]) -> (i32, String) {
-    let out = Command::new("sh")
-        .arg("-c")
-        .arg("ulimit -v 4194304 && exec \"$0\" \"$@\"")
-        .arg(env!("CARGO_BIN_EXE_prt"))
-        .args(args)
-        .output()
-        .unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.code().unwrap_or(-1), text)
-}
-
-/// The names in `dir`, sorted.
-fn names_in(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
+    common::run(
+        Command::new("sh")
+            .arg("-c")
+            .arg("ulimit -v 4194304 && exec \"$0\" \"$@\"")
+            .arg(env!("CARGO_BIN_EXE_prt"))
+            .args(args),
+    )
 }
 
 /// Runs `f` on a thread that must finish within `secs`.
@@ -440,6 +424,31 @@ fn an_interrupted_bake_leaves_nothing() {
 // 13. Renaming the `meta_checksum` key loaded the file as unsealed, so a second edited value
 // went unnoticed; unknown tensors (200,000 empty ones made `prt info` take 7 s and 458 MB) and
 // unknown metadata keys were accepted.
+/// `file` (read from a file named `stem`.EXT in `dir`) with its seal's key renamed by one byte,
+/// and with an unknown tensor `zz_extra` of `dtype` added and resealed: the errors `load` gives.
+fn seal_and_tensor_edits(
+    dir: &Path,
+    ext: &str,
+    file: &StFile,
+    dtype: &str,
+    load: impl Fn(&Path) -> String,
+) -> [String; 2] {
+    let renamed = file
+        .meta_text
+        .replace("\"meta_checksum\"", "\"meta_checksun\"");
+    assert_ne!(renamed, file.meta_text);
+    let p = dir.join(format!("renamed.{ext}"));
+    std::fs::write(&p, file.assemble(&renamed)).unwrap();
+    let seal = load(&p);
+    let mut extra = file.clone();
+    extra
+        .tensors
+        .push(("zz_extra".into(), dtype.into(), vec![0], Vec::new()));
+    let p = dir.join(format!("tensor.{ext}"));
+    std::fs::write(&p, extra.to_bytes(true)).unwrap();
+    [seal, load(&p)]
+}
+
 #[test]
 fn metadata_cannot_switch_off_its_own_checks() {
     let dir = temp_dir("hostile3-seal");
@@ -448,36 +457,21 @@ fn metadata_cannot_switch_off_its_own_checks() {
         .save(&path)
         .unwrap();
     let file = StFile::read(&path);
-    let write = |name: &str, bytes: Vec<u8>| {
-        let p = dir.join(name);
-        std::fs::write(&p, bytes).unwrap();
-        p
-    };
-    // The seal's key renamed by one byte, and a value edited: refused.
-    let renamed = file
-        .meta_text
-        .replace("\"meta_checksum\"", "\"meta_checksun\"")
-        .replace("\"threshold\":", "\"threshold\": ");
-    assert_ne!(renamed, file.meta_text);
-    let p = write("renamed.prt", file.assemble(&renamed));
-    let e = Transport::load(&p).unwrap_err().to_string();
-    assert!(e.contains("meta_checksum"), "{e}");
-    // An unknown metadata key, resealed as a careful editor would: refused.
+    let load = |p: &Path| Transport::load(p).unwrap_err().to_string();
+    // The seal's key renamed by one byte: refused. An unknown tensor, resealed as a careful
+    // editor would: refused, by `prt info` too, at once.
+    let [seal, tensor] = seal_and_tensor_edits(&dir, "prt", &file, "U8", load);
+    assert!(seal.contains("meta_checksum"), "{seal}");
+    assert!(tensor.contains("unknown tensor `zz_extra`"), "{tensor}");
+    let (code, text) = prt(&["info", s(&dir.join("tensor.prt"))]);
+    assert_clean_error(code, &text, &["unknown tensor `zz_extra`"]);
+    // An unknown metadata key, resealed: refused.
     let mut extra = file.clone();
     extra.meta["comment"] = "edited".into();
-    let p = write("key.prt", extra.to_bytes(true));
-    let e = Transport::load(&p).unwrap_err().to_string();
+    let p = dir.join("key.prt");
+    std::fs::write(&p, extra.to_bytes(true)).unwrap();
+    let e = load(&p);
     assert!(e.contains("metadata key `comment`"), "{e}");
-    // An unknown tensor, resealed: refused, by `prt info` too, at once.
-    let mut tensor = file.clone();
-    tensor
-        .tensors
-        .push(("zz_extra".into(), "U8".into(), vec![0], Vec::new()));
-    let p = write("tensor.prt", tensor.to_bytes(true));
-    let e = Transport::load(&p).unwrap_err().to_string();
-    assert!(e.contains("unknown tensor `zz_extra`"), "{e}");
-    let (code, text) = prt(&["info", s(&p)]);
-    assert_clean_error(code, &text, &["unknown tensor `zz_extra`"]);
     // The volume file holds to the same rules.
     let scene = dir.join("fog.toml");
     std::fs::write(&scene, fog_scene(0.3, 12, 10)).unwrap();
@@ -485,29 +479,16 @@ fn metadata_cannot_switch_off_its_own_checks() {
         sh_order: 2,
         directions: 32,
     };
-    let vt = bake_volume(
-        &wavelet_prt::scene::Scene::load(&scene).unwrap(),
-        Some(8),
-        &settings,
-        &|_, _| {},
-    )
-    .unwrap();
+    let scene = wavelet_prt::scene::Scene::load(&scene).unwrap();
     let vpath = dir.join("fog.prtv");
-    vt.save(&vpath).unwrap();
-    let vfile = StFile::read(&vpath);
-    let vrenamed = vfile
-        .meta_text
-        .replace("\"meta_checksum\"", "\"meta_checksun\"");
-    let p = write("renamed.prtv", vfile.assemble(&vrenamed));
-    let e = VolumeTransfer::load(&p).unwrap_err().to_string();
-    assert!(e.contains("meta_checksum"), "{e}");
-    let mut vtensor = vfile.clone();
-    vtensor
-        .tensors
-        .push(("extra".into(), "F32".into(), vec![0], Vec::new()));
-    let p = write("tensor.prtv", vtensor.to_bytes(true));
-    let e = VolumeTransfer::load(&p).unwrap_err().to_string();
-    assert!(e.contains("unknown tensor `extra`"), "{e}");
+    bake_volume(&scene, Some(8), &settings, &|_, _| {})
+        .unwrap()
+        .save(&vpath)
+        .unwrap();
+    let vload = |p: &Path| VolumeTransfer::load(p).unwrap_err().to_string();
+    let [seal, tensor] = seal_and_tensor_edits(&dir, "prtv", &StFile::read(&vpath), "F32", vload);
+    assert!(seal.contains("meta_checksum"), "{seal}");
+    assert!(tensor.contains("unknown tensor `zz_extra`"), "{tensor}");
 }
 
 // 4. A valid EXR at the largest accepted size (then 32768 x 16384) used 10.5 GB. The largest

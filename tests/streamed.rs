@@ -4,7 +4,6 @@
 
 mod common;
 
-use std::path::Path;
 
 use common::{SPHERE_ON_PLANE, prt, random_transport, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake, bake_to_file};
@@ -23,16 +22,6 @@ fn settings() -> BakeSettings {
     }
 }
 
-/// The files in `dir`, by name.
-fn files(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-}
-
 /// Bakes `scene` both ways into a folder of its own and checks that the two files are the same
 /// bytes, that the streamed bake returns the kept bake's header, and that no spill is left.
 fn streamed_equals_kept(scene: &Scene, settings: &BakeSettings, name: &str) -> Transport {
@@ -48,7 +37,11 @@ fn streamed_equals_kept(scene: &Scene, settings: &BakeSettings, name: &str) -> T
         a == b,
         "{name}: the streamed file differs from the kept one"
     );
-    assert_eq!(files(&dir), ["kept.prt", "streamed.prt"], "{name}");
+    assert_eq!(
+        common::names_in(&dir),
+        ["kept.prt", "streamed.prt"],
+        "{name}"
+    );
     assert_eq!(Transport::load(&dir.join("streamed.prt")).unwrap(), kept);
     kept
 }
@@ -132,13 +125,13 @@ fn a_streamed_bake_that_cannot_write_fails_with_the_path_and_leaves_nothing() {
     let missing = dir.join("no such folder").join("out.prt");
     let e = bake_to_file(&scene, &settings(), &missing, &|_| {}).unwrap_err();
     assert!(e.to_string().contains("no such folder"), "{e}");
-    assert!(files(&dir).is_empty());
+    assert!(common::names_in(&dir).is_empty());
     // A file there already is replaced whole, atomically.
     let out = dir.join("out.prt");
     std::fs::write(&out, b"old").unwrap();
     bake_to_file(&scene, &settings(), &out, &|_| {}).unwrap();
     assert!(Transport::load(&out).is_ok());
-    assert_eq!(files(&dir), ["out.prt"]);
+    assert_eq!(common::names_in(&dir), ["out.prt"]);
 }
 
 #[test]
@@ -208,7 +201,11 @@ fn the_writer_refuses_tiles_that_do_not_fit_and_a_file_with_tiles_missing() {
     let two = random_transport(32, 16, 2, Quantization::Q8, 6, 1.0);
     let e = w.finish(untiled(&two)).unwrap_err().to_string();
     assert!(e.contains("1 of the 2 tiles of a 32 x 16 image"), "{e}");
-    assert!(files(&dir).is_empty(), "{:?}", files(&dir));
+    assert!(
+        common::names_in(&dir).is_empty(),
+        "{:?}",
+        common::names_in(&dir)
+    );
     // The whole image: a file that loads back with the tile's rows and the header's counts.
     let mut w = TransportWriter::create(&path, 2, sh_order, Quantization::Q8).unwrap();
     w.push(&tile, t.tile_stats[0]).unwrap();
@@ -223,5 +220,5 @@ fn the_writer_refuses_tiles_that_do_not_fit_and_a_file_with_tiles_missing() {
             .collect::<Vec<_>>()
     };
     assert_eq!(pixels(&back.tile_rows(0)), pixels(&rows));
-    assert_eq!(files(&dir), ["w.prt"]);
+    assert_eq!(common::names_in(&dir), ["w.prt"]);
 }

@@ -379,14 +379,27 @@ impl StFile {
 
 /// Runs the `prt` binary with `args`; returns (exit code, stdout + stderr).
 pub fn prt(args: &[&str]) -> (i32, String) {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_prt"))
-        .args(args)
-        .output()
-        .unwrap();
+    run(std::process::Command::new(env!("CARGO_BIN_EXE_prt")).args(args))
+}
+
+/// Runs `command` to its end; returns (exit code, or -1 when a signal ended it; stdout +
+/// stderr).
+pub fn run(command: &mut std::process::Command) -> (i32, String) {
+    let out = command.output().unwrap();
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
     (out.status.code().unwrap_or(-1), text)
+}
+
+/// The names of the entries of `dir`, sorted.
+pub fn names_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
 }
