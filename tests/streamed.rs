@@ -4,7 +4,6 @@
 
 mod common;
 
-
 use common::{SPHERE_ON_PLANE, prt, random_transport, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake, bake_to_file};
 use wavelet_prt::scene::Scene;

@@ -24,10 +24,10 @@ use glam::Vec3;
 
 use crate::bake::medium_rows::MediumRows;
 use crate::error::{PrtError, Result};
-use crate::light::select::TexelShBasis;
 use crate::math::cubemap::{texel_count, validate_n};
 use crate::math::haar;
 use crate::math::sampling::TexelSamples;
+use crate::math::texel_sh::TexelShBasis;
 use crate::medium::Medium;
 use crate::scene::Scene;
 use crate::scene::brdf;

@@ -1,16 +1,16 @@
 //! Light approximation: the Haar coefficients of a cube map and the K best of them by one of three
-//! weightings (Ng et al. 2003), and the SH light vector of the same cube map.
+//! weightings (Ng et al. 2003). The SH light vector of the same cube map is
+//! [`crate::math::texel_sh::TexelShBasis::project_light`].
 //!
 //! RGB shares one index set, chosen on a luminance-like magnitude, so the relight kernel reads each
 //! kept transport column once for all three channels.
 
 use std::str::FromStr;
 
-use rayon::prelude::*;
-
 use crate::error::{PrtError, Result};
-use crate::math::cubemap::{CubeMap, solid_angles, texel_count, texel_dirs};
+use crate::math::cubemap::CubeMap;
 use crate::math::haar;
+use crate::math::rgb_magnitude;
 
 /// How light coefficients are ranked before the K largest are kept.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -58,13 +58,6 @@ impl std::fmt::Display for Weighting {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
     }
-}
-
-/// Magnitude used to rank an RGB coefficient: Rec. 709 luminance weights on absolute values, so
-/// channels of opposite sign do not cancel.
-#[inline]
-pub fn rgb_magnitude(c: [f32; 3]) -> f32 {
-    0.2126 * c[0].abs() + 0.7152 * c[1].abs() + 0.0722 * c[2].abs()
 }
 
 /// Indices of the `k` largest priorities, ascending. Ties go to the lower index, so the choice is
@@ -195,105 +188,6 @@ impl WaveletLight {
     }
 }
 
-/// Real SH evaluated at every texel centre of a cube: `values[j·n² + i] = Y_i(d_j)`. Projects cube
-/// lights and transport rows consistently (the same texel directions on both sides).
-#[derive(Clone, Debug)]
-pub struct TexelShBasis {
-    /// SH order.
-    pub order: usize,
-    /// Cube face size.
-    pub n: usize,
-    /// Texel-major values.
-    pub values: Vec<f32>,
-    /// Exact texel solid angles, kept so projecting a light does not recompute them.
-    pub omega: Vec<f64>,
-}
-
-impl TexelShBasis {
-    /// Tabulates the basis.
-    pub fn new(n: usize, order: usize) -> Result<Self> {
-        crate::math::cubemap::validate_n(n)?;
-        crate::math::sh::check_order(order)?;
-        let count = order * order;
-        let mut values = vec![0.0f32; texel_count(n) * count];
-        let mut y = vec![0.0f64; count];
-        for (j, d) in texel_dirs(n).into_iter().enumerate() {
-            crate::math::sh::eval(order, d, &mut y);
-            for (o, v) in values[j * count..(j + 1) * count].iter_mut().zip(&y) {
-                *o = *v as f32;
-            }
-        }
-        Ok(TexelShBasis {
-            order,
-            n,
-            values,
-            omega: solid_angles(n),
-        })
-    }
-
-    /// SH light vector of a cube map, `L_i = Σ_j L_j Ω_j Y_i(d_j)`.
-    pub fn project_light(&self, cube: &CubeMap) -> Result<Vec<[f64; 3]>> {
-        cube.expect_n(self.n, "the SH basis was made for")?;
-        let count = self.order * self.order;
-        // One accumulator per channel, so the loop over coefficients is a plain multiply-add
-        // over contiguous values; texels are split across threads in chunks.
-        const CHUNK: usize = 1024;
-        let sums = cube
-            .texels
-            .par_chunks(CHUNK)
-            .enumerate()
-            .fold(
-                || vec![0.0f64; 3 * count],
-                |mut acc, (chunk, texels)| {
-                    let (r, rest) = acc.split_at_mut(count);
-                    let (g, b) = rest.split_at_mut(count);
-                    for (i, l) in texels.iter().enumerate() {
-                        if *l == [0.0; 3] {
-                            continue;
-                        }
-                        let j = chunk * CHUNK + i;
-                        let w = self.omega[j];
-                        let (lr, lg, lb) = (l[0] as f64 * w, l[1] as f64 * w, l[2] as f64 * w);
-                        let row = &self.values[j * count..(j + 1) * count];
-                        for (((y, r), g), b) in row.iter().zip(&mut *r).zip(&mut *g).zip(&mut *b) {
-                            let y = *y as f64;
-                            *r += lr * y;
-                            *g += lg * y;
-                            *b += lb * y;
-                        }
-                    }
-                    acc
-                },
-            )
-            .reduce(
-                || vec![0.0f64; 3 * count],
-                |mut a, b| {
-                    a.iter_mut().zip(&b).for_each(|(a, b)| *a += b);
-                    a
-                },
-            );
-        Ok((0..count)
-            .map(|i| [sums[i], sums[count + i], sums[2 * count + i]])
-            .collect())
-    }
-
-    /// SH transport of one row of texel transport `t` (already containing solid angles):
-    /// `t_i = Σ_j t_j Y_i(d_j)`, accumulated into `out` (n² values).
-    pub fn project_row(&self, row: &[f32], out: &mut [f32]) {
-        let count = self.order * self.order;
-        debug_assert_eq!(row.len() * count, self.values.len());
-        out.fill(0.0);
-        for (j, &t) in row.iter().enumerate() {
-            if t == 0.0 {
-                continue;
-            }
-            for (o, y) in out.iter_mut().zip(&self.values[j * count..(j + 1) * count]) {
-                *o += t * y;
-            }
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -304,49 +198,6 @@ mod tests {
         assert_eq!(select_top_k(&p, 2), vec![1, 2]);
         assert_eq!(select_top_k(&p, 4), vec![1, 2, 4, 5]);
         assert_eq!(select_top_k(&p, 6), vec![0, 1, 2, 3, 4, 5]);
-    }
-
-    #[test]
-    fn light_projection_is_the_plain_sum() {
-        // L_i = Σ_j L_j Ω_j Y_i(d_j), written out serially against the chunked, per-channel
-        // projection: only the order of f64 sums differs.
-        const SUM_ORDER_REL: f64 = 1e-12;
-        let n = 16;
-        let texels: Vec<[f32; 3]> = (0..texel_count(n))
-            .map(|j| {
-                let a = ((j * 7919) % 1000) as f32 / 100.0;
-                if j % 5 == 0 {
-                    [0.0; 3]
-                } else {
-                    [a, 0.5 * a, 2.0]
-                }
-            })
-            .collect();
-        let cube = CubeMap { n, texels };
-        let basis = TexelShBasis::new(n, 6).unwrap();
-        let got = basis.project_light(&cube).unwrap();
-        let omega = solid_angles(n);
-        let mut y = vec![0.0f64; 36];
-        let mut want = vec![[0.0f64; 3]; 36];
-        for (j, d) in texel_dirs(n).into_iter().enumerate() {
-            crate::math::sh::eval(6, d, &mut y);
-            for (w, y) in want.iter_mut().zip(&y) {
-                for (w, l) in w.iter_mut().zip(cube.texels[j]) {
-                    *w += l as f64 * omega[j] * (*y as f32) as f64;
-                }
-            }
-        }
-        let scale = want[0][0].abs();
-        for (i, (g, w)) in got.iter().zip(&want).enumerate() {
-            for c in 0..3 {
-                assert!(
-                    (g[c] - w[c]).abs() <= SUM_ORDER_REL * scale,
-                    "coefficient {i}, channel {c}: {} vs {}",
-                    g[c],
-                    w[c]
-                );
-            }
-        }
     }
 
     #[test]

@@ -4,9 +4,10 @@
 
 use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
-use crate::light::select::{TexelShBasis, WaveletLight};
+use crate::light::select::WaveletLight;
 use crate::math::haar::support_solid_angles;
 use crate::math::sh;
+use crate::math::texel_sh::TexelShBasis;
 use crate::store::transport::Transport;
 
 /// A light prepared for one transport: the Haar coefficients of the cube map at the file's N and

@@ -578,7 +578,7 @@ pub(super) fn add_magnitudes(t: &TileSlices, magnitude: &mut [f64]) {
             for _ in 0..count {
                 let r = r0 + t.entry_row[e - t.first_value] as usize;
                 *m += (t.values.raw(e).abs() as f64 * s * t.row_scale[r] as f64)
-                    * crate::light::select::rgb_magnitude(t.row_weight[r]) as f64;
+                    * crate::math::rgb_magnitude(t.row_weight[r]) as f64;
                 e += 1;
             }
         }
