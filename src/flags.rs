@@ -67,13 +67,28 @@ mod tests {
 
     #[test]
     fn non_finite_and_out_of_range_values_are_refused() {
-        assert!(terms(0, 4).is_err() && terms(97, 4).is_err() && terms(96, 4).is_ok());
-        assert!(sh_order(0, 3).is_err() && sh_order(4, 3).is_err() && sh_order(3, 3).is_ok());
-        assert!(angle("yaw", f64::NAN).is_err() && angle("yaw", f64::INFINITY).is_err());
+        // Each refusal names the value and what it must be.
+        let says = |r: Result<()>, words: &[&str]| {
+            let e = r.unwrap_err().to_string();
+            assert!(words.iter().all(|w| e.contains(w)), "{e}");
+        };
+        says(terms(0, 4), &["K = 0", "from 1 to 6·N² = 96"]);
+        says(terms(97, 4), &["K = 97", "for N = 4"]);
+        assert!(terms(96, 4).is_ok());
+        says(sh_order(0, 3), &["0;", "up to order 3"]);
+        says(sh_order(4, 3), &["4;", "up to order 3"]);
+        assert!(sh_order(3, 3).is_ok());
+        says(angle("yaw", f64::NAN), &["yaw", "NaN degrees", "finite"]);
+        says(angle("yaw", f64::INFINITY), &["inf degrees"]);
         assert!(angle("yaw", -720.0).is_ok());
-        assert!(exposure(f32::NAN).is_err() && exposure(f32::NEG_INFINITY).is_err());
+        says(exposure(f32::NAN), &["NaN stops", "finite"]);
+        says(exposure(f32::NEG_INFINITY), &["-inf stops"]);
         assert!(exposure(-3.5).is_ok());
-        assert!(fraction("split", f32::NAN).is_err() && fraction("split", 1.5).is_err());
+        says(
+            fraction("split", f32::NAN),
+            &["split", "NaN", "from 0 to 1"],
+        );
+        says(fraction("split", 1.5), &["1.5", "from 0 to 1"]);
         assert!(fraction("split", 0.0).is_ok());
     }
 }

@@ -495,7 +495,11 @@ mod tests {
             let e = SunSpec::parse(bad).unwrap().unwrap_err().to_string();
             assert!(e.contains(bad), "{bad}: {e}");
         }
-        assert!(EnvMap::from_spec("sun:10,0,0").is_err());
+        let e = EnvMap::from_spec("sun:10,0,0").unwrap_err().to_string();
+        assert!(
+            e.contains("`sun:10,0,0`") && e.contains("radius in [0.05, 45]"),
+            "{e}"
+        );
     }
 
     #[test]

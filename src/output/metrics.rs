@@ -244,6 +244,7 @@ mod tests {
     fn size_mismatch_is_an_error() {
         let r = img(&[[1.0; 3]; 4], 2);
         let a = img(&[[1.0; 3]; 4], 4);
-        assert!(compare(&a, &r, None).is_err());
+        let e = compare(&a, &r, None).unwrap_err().to_string();
+        assert!(e.contains("4x1 against 2x2"), "{e}");
     }
 }

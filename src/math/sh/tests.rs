@@ -162,8 +162,13 @@ fn order_checks_reject_bad_input() {
         let err = order_from_len(bad).expect_err("should be rejected");
         assert!(err.to_string().contains(&bad.to_string()), "{err}");
     }
-    assert!(check_order(0).is_err());
-    assert!(check_order(MAX_ORDER + 1).is_err());
+    for bad in [0, MAX_ORDER + 1] {
+        let e = check_order(bad).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("{bad} is outside 1..={MAX_ORDER}")),
+            "{e}"
+        );
+    }
 }
 
 #[test]
