@@ -437,8 +437,14 @@ fn haar_round_trip_and_parseval() {
         }
     }
     // Wrong lengths and sizes are errors, not panics.
-    assert!(haar::forward_cube(&mut [0.0f32; 23], 2).is_err());
-    assert!(haar::inverse_cube(&mut [0.0f32; 6 * 9], 3).is_err());
+    let e = haar::forward_cube(&mut [0.0f32; 23], 2)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("23 values for N = 2; expected 6·N² = 24"), "{e}");
+    let e = haar::inverse_cube(&mut [0.0f32; 6 * 9], 3)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("N = 3; it must be a power of two"), "{e}");
 }
 
 #[test]

@@ -500,7 +500,8 @@ mod tests {
         }
         let tiny = PlotSpec { width: 10, ..spec };
         let s = two_curves();
-        assert!(render(&tiny, &s).is_err());
+        let e = render(&tiny, &s).unwrap_err().to_string();
+        assert!(e.contains("size 10x420 is outside 160..=8192"), "{e}");
     }
 
     #[test]

@@ -149,6 +149,7 @@ mod tests {
         assert!(seen(0.0).pixels[0][0] > 2.0);
         assert_eq!(seen(180.0).pixels[0][0], 0.0);
         assert!("black".parse::<Background>().unwrap() == Background::Black);
-        assert!("sky".parse::<Background>().is_err());
+        let e = "sky".parse::<Background>().unwrap_err().to_string();
+        assert!(e.contains("'sky' is not one of env, black"), "{e}");
     }
 }

@@ -543,7 +543,11 @@ mod tests {
             .sum::<f32>()
             / (fine.vertex_count() - 1) as f32;
         assert!(step < 0.1, "mean step {step}");
-        assert!(VertexMesh::tessellate(&s, 0.0).is_err());
+        let e = VertexMesh::tessellate(&s, 0.0).unwrap_err().to_string();
+        assert!(
+            e.contains("edge length") && e.contains("finite length > 0"),
+            "{e}"
+        );
         assert!(
             VertexMesh::tessellate(&s, 1e-6).is_err(),
             "too many vertices"

@@ -152,6 +152,7 @@ fn file_round_trip_and_damage() {
     let e = VolumeTransfer::load(&path).unwrap_err().to_string();
     assert!(e.contains("checksum"), "{e}");
     std::fs::write(&path, b"junk").unwrap();
-    assert!(VolumeTransfer::load(&path).is_err());
+    let e = VolumeTransfer::load(&path).unwrap_err().to_string();
+    assert!(e.contains("not a volume transfer file"), "{e}");
     std::fs::remove_dir_all(dir).unwrap();
 }

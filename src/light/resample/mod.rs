@@ -1079,8 +1079,10 @@ mod tests {
         assert!((f - 0.5).abs() < 1e-9, "{f}");
         // Whole pixels given in degrees that do not divide evenly still snap.
         assert_eq!(yaw_shift(1000, 37.0 * 0.36).unwrap(), (37, 0.0));
-        assert!(yaw_shift(w, f64::NAN).is_err());
-        assert!(yaw_shift(w, f64::INFINITY).is_err());
+        for bad in [f64::NAN, f64::INFINITY] {
+            let e = yaw_shift(w, bad).unwrap_err().to_string();
+            assert!(e.contains("yaw") && e.contains(&bad.to_string()), "{e}");
+        }
     }
 
     #[test]
@@ -1108,6 +1110,7 @@ mod tests {
         let e = resample_latlong(8, 4, &px, 4, EnvRotation::yaw(f64::NAN)).unwrap_err();
         assert!(e.to_string().contains("yaw"), "{e}");
         let w = weights(8, 4, 4, 0.0).unwrap();
-        assert!(w.cube(&px[1..], 0.0).is_err());
+        let e = w.cube(&px[1..], 0.0).unwrap_err().to_string();
+        assert!(e.contains("8 x 4 needs 32 pixels, got 31"), "{e}");
     }
 }

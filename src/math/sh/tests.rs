@@ -555,10 +555,18 @@ fn rotation_rejects_non_rotations() {
         DMat3::from_cols(DVec3::X, DVec3::Y, DVec3::new(0.0, 0.0, f64::NAN)),
     ];
     for m in bad {
-        assert!(Rotation::new(4, m).is_err(), "{m} accepted");
+        let e = Rotation::new(4, m).unwrap_err().to_string();
+        assert!(e.contains("not a proper rotation"), "{m}: {e}");
     }
-    assert!(Rotation::new(0, DMat3::IDENTITY).is_err());
-    assert!(Rotation::new(MAX_ORDER + 1, DMat3::IDENTITY).is_err());
+    for order in [0, MAX_ORDER + 1] {
+        let e = Rotation::new(order, DMat3::IDENTITY)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("{order} is outside 1..={MAX_ORDER}")),
+            "{e}"
+        );
+    }
     // A rotation built in f32 is still a rotation.
     let f32_built = glam::Mat3::from_rotation_y(0.3).as_dmat3();
     assert!(Rotation::new(4, f32_built).is_ok());
