@@ -432,17 +432,13 @@ fn process_alive(pid: u32) -> Option<bool> {
 /// namespace that are gone (killed during the write). Files of running processes, of other
 /// hosts and of other containers stay; a link is removed as a link, never followed.
 pub fn remove_stale_partials(path: &Path) {
-    remove_stale_partials_of(path, &owner_tag());
-}
-
-fn remove_stale_partials_of(path: &Path, owner: &str) {
     let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
         return;
     };
     let Ok(entries) = std::fs::read_dir(folder_of(path)) else {
         return;
     };
-    let prefix = format!("{name}{PARTIAL}{owner}-");
+    let prefix = format!("{name}{PARTIAL}{}-", owner_tag());
     for entry in entries.flatten() {
         let file = entry.file_name();
         let Some(rest) = file.to_str().and_then(|f| f.strip_prefix(&prefix)) else {

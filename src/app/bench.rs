@@ -503,7 +503,7 @@ pub fn write_report(dir: &Path, points: &[BenchPoint]) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
     let mut written = Vec::new();
     let text = |path: PathBuf, body: String| -> Result<PathBuf> {
-        crate::files::write_bytes_atomically(&path, body.as_ref())?;
+        crate::files::write_bytes_atomically(&path, body.as_bytes())?;
         Ok(path)
     };
     written.push(text(dir.join("bench.csv"), csv(points))?);
@@ -644,7 +644,7 @@ pub fn write_compression(dir: &Path, points: &[CompressionPoint]) -> Result<Vec<
         );
     }
     let csv_path = dir.join("compression.csv");
-    crate::files::write_bytes_atomically(&csv_path, text.as_ref())?;
+    crate::files::write_bytes_atomically(&csv_path, text.as_bytes())?;
     let mut envs: Vec<&str> = Vec::new();
     for p in points {
         if !envs.contains(&p.env.as_str()) {
@@ -685,7 +685,7 @@ pub fn write_compression(dir: &Path, points: &[CompressionPoint]) -> Result<Vec<
     )?;
     let md = dir.join("compression.md");
     let table = compression_table(points, &envs);
-    crate::files::write_bytes_atomically(&md, table.as_ref())?;
+    crate::files::write_bytes_atomically(&md, table.as_bytes())?;
     Ok(vec![csv_path, png, md])
 }
 

@@ -286,7 +286,7 @@ pub fn run_demo(
         orbit.draw_ms,
         orbit.frame_ms
     ));
-    crate::files::write_bytes_atomically(&table_path, table.as_ref())?;
+    crate::files::write_bytes_atomically(&table_path, table.as_bytes())?;
     Ok(DemoReport {
         rows,
         transport_path,

@@ -222,7 +222,7 @@ pub fn run_paper(
         .replace("@SIZE@", &size.to_string())
         .replace("@CUBE@", &largest_cube.to_string())
         .replace("@EDGE@", &BakeSettings::default().edge_spp.to_string());
-    crate::files::write_bytes_atomically(&markdown, text.as_ref())?;
+    crate::files::write_bytes_atomically(&markdown, text.as_bytes())?;
     Ok(PaperReport { markdown, picture })
 }
 

@@ -60,9 +60,9 @@ pub struct EnvMap {
     pub negatives_clamped: usize,
     /// The most negative of them (0 when there were none).
     pub lowest_negative: f32,
-    /// What the clamped samples held: Σ |L| Ω over the negative samples over Σ |L| Ω over all
-    /// of them (0 when there were none). Lossy encoders leave a few thousandths of a percent.
-    pub negative_share: f64,
+    /// What the clamped samples held: Σ |L| Ω over the negative samples, all channels (0 when
+    /// there were none); [`EnvMap::negative_share`] sets it against the whole map.
+    pub negative_power: f64,
 }
 
 /// A procedural sun given as `sun:ELEV,AZIM[,RADIUS]` (degrees; the radius defaults to 2): the one
@@ -121,7 +121,7 @@ impl EnvMap {
             source: format!("constant {value:?}"),
             negatives_clamped: 0,
             lowest_negative: 0.0,
-            negative_share: 0.0,
+            negative_power: 0.0,
         }
     }
 
@@ -147,9 +147,9 @@ impl EnvMap {
                 "not an OpenEXR or Radiance HDR image (unknown magic number)",
             ));
         };
-        let power = signed_power(width, height, &raw);
         let map = Self::from_pixels(width, height, raw, &path.display().to_string())?;
-        let total: f64 = power.iter().sum();
+        // The power of the pixels as read: what clamping kept, less what it took.
+        let total = map.power().iter().sum::<f64>() - map.negative_power;
         if total.is_nan() || total <= 0.0 {
             return Err(PrtError::file(
                 path,
@@ -194,7 +194,7 @@ impl EnvMap {
         }
         let mut negatives = 0;
         let mut lowest = 0.0f32;
-        let (mut negative_power, mut all_power) = (0.0f64, 0.0f64);
+        let mut negative_power = 0.0f64;
         let omega: Vec<f64> = (0..height)
             .map(|y| pixel_solid_angle(width, height, y))
             .collect();
@@ -212,7 +212,6 @@ impl EnvMap {
                         ),
                     ));
                 }
-                all_power += v.abs() as f64 * w;
                 if *v < 0.0 {
                     negative_power += -*v as f64 * w;
                     lowest = lowest.min(*v);
@@ -228,12 +227,17 @@ impl EnvMap {
             source: source.to_string(),
             negatives_clamped: negatives,
             lowest_negative: lowest,
-            negative_share: if all_power > 0.0 {
-                negative_power / all_power
-            } else {
-                0.0
-            },
+            negative_power,
         })
+    }
+
+    /// The share of the map's power Σ |L| Ω, as read, that its negative samples held (0 when
+    /// there were none). Lossy encoders leave a few thousandths of a percent.
+    pub fn negative_share(&self) -> f64 {
+        if self.negative_power == 0.0 {
+            return 0.0;
+        }
+        self.negative_power / (self.power().iter().sum::<f64>() + self.negative_power)
     }
 
     /// Radiance seen along the unit map direction `d`: bilinear between pixel centres, wrapping
@@ -359,20 +363,6 @@ fn read_hdr(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
     Ok((w, h, pixels))
 }
 
-/// The power Σ L Ω of raw pixels per channel, negative samples included.
-fn signed_power(width: usize, height: usize, pixels: &[[f32; 3]]) -> [f64; 3] {
-    let mut p = [0.0f64; 3];
-    for (y, row) in pixels.chunks_exact(width.max(1)).take(height).enumerate() {
-        let w = pixel_solid_angle(width, height, y);
-        for l in row {
-            for c in 0..3 {
-                p[c] += l[c] as f64 * w;
-            }
-        }
-    }
-    p
-}
-
 /// A procedural clear sky with a disc sun: for tests, demos and the viewer's movable sun.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SunSky {
@@ -464,7 +454,7 @@ impl SunSky {
             ),
             negatives_clamped: 0,
             lowest_negative: 0.0,
-            negative_share: 0.0,
+            negative_power: 0.0,
         }
     }
 }

@@ -559,7 +559,7 @@ pub fn save_npy(path: &Path, grid: &DensityGrid) -> Result<()> {
     for v in &grid.data {
         bytes.extend_from_slice(&v.to_le_bytes());
     }
-    crate::files::write_bytes_atomically(path, bytes.as_ref())
+    crate::files::write_bytes_atomically(path, &bytes)
 }
 
 #[cfg(test)]

@@ -191,7 +191,7 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
     )?;
     let table = markdown(&rows, &a, &base);
     let table_path = dir.join("bounces.md");
-    crate::files::write_bytes_atomically(&table_path, table.as_ref())?;
+    crate::files::write_bytes_atomically(&table_path, table.as_bytes())?;
     println!("wrote {} and {}", sheet.display(), table_path.display());
     Ok(())
 }

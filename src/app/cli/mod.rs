@@ -228,7 +228,7 @@ fn load_env(spec: &str) -> Result<EnvMap> {
     // however often a command loads it.
     static NOTED: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
     let mut noted = NOTED.lock().unwrap_or_else(|e| e.into_inner());
-    if env.negative_share > NEGATIVE_NOTE_SHARE && !noted.contains(&env.source) {
+    if env.negative_share() > NEGATIVE_NOTE_SHARE && !noted.contains(&env.source) {
         noted.push(env.source.clone());
         eprintln!(
             "note: {}: {} of its {} samples are negative (the lowest {:.2e}, {:.2}% of the map's \
@@ -237,7 +237,7 @@ fn load_env(spec: &str) -> Result<EnvMap> {
             env.negatives_clamped,
             3 * env.pixels.len(),
             env.lowest_negative,
-            100.0 * env.negative_share
+            100.0 * env.negative_share()
         );
     }
     Ok(env)

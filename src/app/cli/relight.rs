@@ -394,7 +394,7 @@ pub(super) fn env_cmd(a: EnvArgs) -> Result<()> {
             "width": env.width,
             "height": env.height,
             "negatives_clamped": env.negatives_clamped,
-            "negative_share": env.negative_share,
+            "negative_share": env.negative_share(),
             "power": power,
             "sh_order": a.sh,
             "sh": sh,
@@ -411,7 +411,7 @@ pub(super) fn env_cmd(a: EnvArgs) -> Result<()> {
             "negatives     {} samples read as 0 (the lowest {:.2e}, {:.4}% of Σ |L| Ω)",
             env.negatives_clamped,
             env.lowest_negative,
-            100.0 * env.negative_share
+            100.0 * env.negative_share()
         );
     }
     println!(
