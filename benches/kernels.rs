@@ -160,7 +160,7 @@ fn relight(c: &mut Criterion) {
         });
     }
     for order in [4, 8] {
-        let sh = light_sh_order(&light.sh, order, t.meta.sh_order as usize).unwrap();
+        let sh = light_sh_order(&light.sh, order, t.meta.identity.sh_order as usize).unwrap();
         let (_, stats) = relight_sh(&t, &sh).unwrap();
         g.throughput(Throughput::Bytes(stats.bytes_touched));
         g.bench_with_input(BenchmarkId::new("sh", order), &sh, |b, sh| {
@@ -214,7 +214,7 @@ fn relight_gpu(c: &mut Criterion) {
         });
     }
     for order in [4, 8] {
-        let sh = light_sh_order(&light.sh, order, t.meta.sh_order as usize).unwrap();
+        let sh = light_sh_order(&light.sh, order, t.meta.identity.sh_order as usize).unwrap();
         group.bench_with_input(BenchmarkId::new("sh", order), &sh, |b, sh| {
             b.iter(|| g.relight_sh(&gpu, sh).unwrap())
         });

@@ -519,7 +519,7 @@ fn thresholded_bake_is_sparser_and_close_to_lossless() {
         sparse.entry_row.len(),
         exact.entry_row.len()
     );
-    assert_eq!(sparse.meta.quantization, Quantization::Q8);
+    assert_eq!(sparse.meta.identity.quantization, Quantization::Q8);
     let cube = CubeMap::constant(8, [1.0; 3]).unwrap();
     let (a, _) = relight_wavelet(&exact, &full_light(&cube)).unwrap();
     let (b, _) = relight_wavelet(&sparse, &full_light(&cube)).unwrap();
@@ -663,7 +663,7 @@ fn relight_with_bounces_equals_the_reference_with_the_same_paths() {
         ..lossless(8, 2)
     };
     let t = bake(&scene, &settings, &|_| {}).unwrap();
-    assert_eq!((t.meta.bounces, t.meta.paths), (2, 16));
+    assert_eq!((t.meta.identity.bounces, t.meta.identity.paths), (2, 16));
     // Three colour rows per covered pixel carry the interreflections.
     assert!(t.row_weight.contains(&[1.0, 0.0, 0.0]));
     let env = EnvMap::load(&assets().join("envmaps/blender_city.exr")).unwrap();
@@ -705,7 +705,7 @@ fn edge_pixels_take_the_mean_of_their_subsamples_and_others_one_sample() {
         ..lossless(8, 2)
     };
     let t = bake(&scene, &adaptive, &|_| {}).unwrap();
-    assert_eq!(t.meta.edge_spp, 16);
+    assert_eq!(t.meta.identity.edge_spp, 16);
     let env = EnvMap::from_spec("sun:35,60,4").unwrap();
     let ctx = LightContext::new(&t).unwrap();
     let light = ctx.prepare(&env, EnvRotation::default()).unwrap();

@@ -97,7 +97,7 @@ fn gpu_equals_cpu_when_split_across_bindings() {
     };
     for t in bakes() {
         // Small enough that the entries of a few tiles fill a binding.
-        let device_bytes = match t.meta.quantization {
+        let device_bytes = match t.meta.identity.quantization {
             wavelet_prt::store::quant::Quantization::Q8 => 2,
             wavelet_prt::store::quant::Quantization::Q16 => 4,
             wavelet_prt::store::quant::Quantization::F32 => 8,

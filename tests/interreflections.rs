@@ -227,9 +227,9 @@ fn the_surface_cache_matches_exact_visibility_on_the_same_paths() {
         }
         out
     };
-    let cache_points = cached.meta.indirect.as_ref().unwrap().cache_points;
+    let cache_points = cached.meta.cache_points;
     assert!(cache_points > 50, "{cache_points}");
-    assert_eq!(exact.meta.indirect.as_ref().unwrap().cache_points, 0);
+    assert_eq!(exact.meta.cache_points, 0);
     // The interreflected light alone, cache against exact: the same paths, visibility a cell
     // away.
     let err = relative_l2(&indirect(&cached), &indirect(&exact), None).unwrap();

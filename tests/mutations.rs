@@ -453,7 +453,7 @@ fn exercise_transport(
     env: &EnvMap,
     lights: &mut HashMap<(u32, u32), (LightContext, PreparedLight)>,
 ) -> Result<(), String> {
-    let key = (t.meta.cube_n, t.meta.sh_order);
+    let key = (t.meta.identity.cube_n, t.meta.identity.sh_order);
     let (ctx, light) = match lights.entry(key) {
         std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
         std::collections::hash_map::Entry::Vacant(e) => {
@@ -485,7 +485,7 @@ fn exercise_transport(
             method: Method::Sh,
             terms: 1,
             weighting: Weighting::Unweighted,
-            sh_order: t.meta.sh_order as usize,
+            sh_order: t.meta.identity.sh_order as usize,
         },
         RelightRequest {
             method: Method::Full,

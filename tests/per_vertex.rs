@@ -197,7 +197,7 @@ fn prt_bake_per_vertex_reports_its_vertices_and_info_reads_them() {
         "{text}"
     );
     let t = Transport::load(&out).unwrap();
-    assert_eq!(t.meta.per_vertex.as_ref().unwrap().edge_length, 0.6);
+    assert_eq!(t.meta.identity.domain.edge_length(), Some(0.6));
     let (code, text) = prt(&["info", out.to_str().unwrap()]);
     assert_eq!(code, 0, "{text}");
     let v = t.mesh.as_ref().unwrap().vertex_count();

@@ -181,7 +181,11 @@ fn the_writer_refuses_tiles_that_do_not_fit_and_a_file_with_tiles_missing() {
     let path = dir.join("w.prt");
     // One tile over 6 x 2² coefficients.
     let t = random_transport(16, 16, 2, Quantization::Q8, 5, 1.0);
-    let (c, shc, sh_order) = (t.coeff_count(), t.sh_count(), t.meta.sh_order as usize);
+    let (c, shc, sh_order) = (
+        t.coeff_count(),
+        t.sh_count(),
+        t.meta.identity.sh_order as usize,
+    );
     let rows = t.tile_rows(0);
     assert!(!rows.is_empty());
     let tile = EncodedTile::encode(&rows, c, shc, Quantization::Q8).unwrap();

@@ -57,7 +57,7 @@ impl BenchOptions {
         terms.sort_unstable();
         BenchOptions {
             terms,
-            sh_orders: (1..=t.meta.sh_order as usize).collect(),
+            sh_orders: (1..=t.meta.identity.sh_order as usize).collect(),
             // No more SH terms than the cube has texels (the paper's SH(20,000) on 24,576).
             sh_light_orders: SH_LIGHT_ORDERS
                 .into_iter()
@@ -76,10 +76,10 @@ impl BenchOptions {
             ));
         }
         for &k in &self.terms {
-            crate::flags::terms(k, t.meta.cube_n as usize)?;
+            crate::flags::terms(k, t.meta.identity.cube_n as usize)?;
         }
         for &o in &self.sh_orders {
-            crate::flags::sh_order(o, t.meta.sh_order as usize)?;
+            crate::flags::sh_order(o, t.meta.identity.sh_order as usize)?;
         }
         let most = crate::math::sh::MAX_LIGHT_ORDER;
         if let Some(&o) = self.sh_light_orders.iter().find(|&&o| o == 0 || o > most) {
@@ -287,7 +287,7 @@ pub fn run(
         }
         measure(full_req, Some(0.0))?;
         if let Some(&most) = opts.sh_light_orders.iter().max() {
-            let cube = env.to_cube(t.meta.cube_n as usize, EnvRotation::default())?;
+            let cube = env.to_cube(t.meta.identity.cube_n as usize, EnvRotation::default())?;
             let projected = crate::relight::sh_light::ShThroughLight::new(&cube, most)?;
             for &o in &opts.sh_light_orders {
                 let (img, stats, cpu_ms) =

@@ -235,7 +235,7 @@ pub fn run_demo(
         &cells,
         &format!(
             "Cube 6x{0}x{0}: SH order n (n² terms) against K wavelet terms ({1} weighting); relative L2 error against full",
-            transport.meta.cube_n, DEMO_WEIGHTING
+            transport.meta.identity.cube_n, DEMO_WEIGHTING
         ),
     )?;
     let sunrise = EnvMap::load(&assets.join("envmaps/blender_sunrise.exr"))?;

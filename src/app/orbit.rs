@@ -159,7 +159,7 @@ pub fn run_orbit(
         let tess = Tessellation {
             vertices: pv.vertices as usize,
             triangles: pv.triangles as usize,
-            edge_length: pv.edge_length,
+            edge_length: t.meta.identity.domain.edge_length().unwrap_or_default(),
             bake_seconds,
             reused_bake,
             interpolation_error: relative_l2(&drawn.image, &pixel_full, Some(&both))?,

@@ -175,7 +175,7 @@ pub fn bake_to_file(
         path,
         settings.cube_n,
         settings.sh_order,
-        settings.quantization(),
+        settings.storage().2,
     )?;
     let untiled = bake_tiles(scene, settings, progress, &mut |tile, stats| {
         writer.push(&tile, stats)
@@ -193,16 +193,9 @@ fn bake_tiles(
     progress: &(dyn Fn(BakeProgress) + Sync),
     deliver: &mut (dyn FnMut(EncodedTile, TileStats) -> Result<()> + Send),
 ) -> Result<Untiled> {
-    settings.validate()?;
+    let identity = settings.identity(scene)?;
     let tracer = Tracer::new(scene);
     let cam = &scene.camera;
-    if scene.medium.is_some() && settings.per_vertex.is_some() {
-        return Err(PrtError::invalid(
-            "per-vertex bake",
-            "a scene with a [medium] is baked per pixel only (the medium lies between the \
-             camera and every surface)",
-        ));
-    }
     let mesh = match settings.per_vertex {
         Some(edge) => Some(VertexMesh::tessellate(scene, edge)?),
         None => None,
@@ -243,13 +236,6 @@ fn bake_tiles(
         Some(spec) => Some(spec.build(None)?),
         None => None,
     };
-    if medium.is_some() && settings.bounces > 0 {
-        return Err(PrtError::invalid(
-            "bounces",
-            "interreflections are not traced through a medium; bake a scene with a [medium] \
-             with --bounces 0",
-        ));
-    }
     // The pixels that take more sub-samples (none per vertex); the cache's paths start at the
     // same ones as the rows.
     let edges = EdgeMap::new(scene, &tracer, settings);
@@ -296,16 +282,7 @@ fn bake_tiles(
         edges: &edges,
         settings,
         reference_energy,
-        thresholder: Thresholder::new(
-            settings.budget,
-            if settings.lossless {
-                0.0
-            } else {
-                settings.threshold
-            },
-            n,
-            &reference_haar,
-        ),
+        thresholder: Thresholder::new(identity.budget, identity.threshold, n, &reference_haar),
         samples: &samples,
         basis: &basis,
         medium: medium.as_ref(),
@@ -317,7 +294,7 @@ fn bake_tiles(
     let (c, shc, quantization) = (
         texel_count(n),
         settings.sh_order.pow(2),
-        settings.quantization(),
+        identity.quantization,
     );
     let mut albedo = vec![[0.0f32; 3]; w * h];
     let mut coverage = vec![0.0f32; w * h];
@@ -358,13 +335,11 @@ fn bake_tiles(
             deliver(encoded, stats)
         },
     )?;
+    debug_assert_eq!(identity.texel_samples as usize, samples.per_texel);
     let meta = TransportMeta {
         width: w as u32,
         height: h as u32,
         tile: TILE as u32,
-        cube_n: n as u32,
-        sh_order: settings.sh_order as u32,
-        scene_hash: format!("{:016x}", scene.content_hash()),
         scene_path: scene.source_path.display().to_string(),
         camera: CameraMeta {
             eye: cam.eye.to_array(),
@@ -372,32 +347,9 @@ fn bake_tiles(
             up: cam.up.to_array(),
             fov_y_deg: cam.fov_y_deg,
         },
-        spp: settings.spp,
-        edge_spp: settings.stored_edge_spp(),
-        texel_samples: samples.per_texel as u32,
-        unshadowed: settings.unshadowed,
-        seed: settings.seed,
-        threshold: if settings.lossless {
-            0.0
-        } else {
-            settings.threshold
-        },
-        budget: settings.budget,
-        quantization: settings.quantization(),
-        shard: settings.shard,
-        bounces: settings.bounces,
-        paths: if settings.bounces > 0 {
-            settings.paths
-        } else {
-            0
-        },
-        indirect: (settings.bounces > 0).then(|| crate::store::transport::IndirectMeta {
-            visibility: settings.bounce_visibility,
-            cache_spacing: settings.cache_spacing,
-            cache_points: bounces.cache().map_or(0, |c| c.points as u64),
-        }),
+        identity,
+        cache_points: bounces.cache().map_or(0, |c| c.points as u64),
         per_vertex: mesh.as_ref().map(|m| PerVertexMeta {
-            edge_length: settings.per_vertex.unwrap_or_default(),
             vertices: m.vertex_count() as u32,
             triangles: m.triangles.len() as u32,
             image: [cam.width, cam.height],

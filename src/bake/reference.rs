@@ -15,7 +15,7 @@ use crate::bake::bounce::Bounces;
 use crate::bake::{
     BakeSettings, EdgeMap, path_stream, pixel_subsamples, sample_stride, shading_point,
 };
-use crate::error::{PrtError, Result};
+use crate::error::Result;
 use crate::math::cubemap::CubeMap;
 use crate::math::sampling::TexelSamples;
 use crate::medium::henyey_greenstein;
@@ -46,7 +46,7 @@ pub fn render_reference_with(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Reference> {
     cube.expect_n(settings.cube_n, "the settings ask for")?;
-    settings.validate()?;
+    settings.validate_for(scene)?;
     let tracer = Tracer::new(scene);
     let cam = &scene.camera;
     let (w, h) = (cam.width as usize, cam.height as usize);
@@ -56,12 +56,6 @@ pub fn render_reference_with(
         None => None,
     };
     let medium = medium.as_ref();
-    if medium.is_some() && settings.bounces > 0 {
-        return Err(PrtError::invalid(
-            "bounces",
-            "interreflections are not traced through a medium",
-        ));
-    }
     // The bake's own paths and surface cache, so that this checks the matrix's bookkeeping.
     let edges = EdgeMap::new(scene, &tracer, settings);
     let bounces = Bounces::new(scene, &tracer, settings, &samples).with_cache(

@@ -2,6 +2,7 @@
 //! already holds this bake (so it can be reused) and how large its output can grow.
 
 use super::*;
+use crate::store::transport::{BakeDomain, BakeIdentity, IndirectSettings};
 
 /// Settings of a bake; the defaults are the command line's.
 #[derive(Clone, Debug, PartialEq)]
@@ -71,16 +72,6 @@ impl Default for BakeSettings {
 }
 
 impl BakeSettings {
-    /// The edge samples as a file records them: 0 where they add nothing to `spp`, and in a
-    /// per-vertex bake, which has no pixels.
-    pub fn stored_edge_spp(&self) -> u32 {
-        if self.edge_spp > self.spp && self.per_vertex.is_none() {
-            self.edge_spp
-        } else {
-            0
-        }
-    }
-
     /// Checks ranges before any work.
     pub fn validate(&self) -> Result<()> {
         validate_n(self.cube_n)?;
@@ -167,51 +158,137 @@ impl BakeSettings {
         Ok(())
     }
 
-    /// The quantisation the settings imply.
-    pub fn quantization(&self) -> Quantization {
-        if self.lossless {
-            Quantization::F32
+    /// The edge samples as a file records them: 0 where they add nothing to `spp`, and in a
+    /// per-vertex bake, which has no pixels.
+    pub fn stored_edge_spp(&self) -> u32 {
+        if self.edge_spp > self.spp && self.per_vertex.is_none() {
+            self.edge_spp
         } else {
-            self.quantization
+            0
+        }
+    }
+
+    /// The threshold, budget and quantisation as a file records them: a lossless bake keeps
+    /// every value in 32-bit floats, so its threshold is 0 and its budget, which only weighs
+    /// what a threshold drops, the default.
+    pub fn storage(&self) -> (f32, Budget, Quantization) {
+        if self.lossless {
+            (0.0, Budget::default(), Quantization::F32)
+        } else {
+            (self.threshold, self.budget, self.quantization)
+        }
+    }
+
+    /// Checks what depends on the scene as well as the settings, before any work: a scene with a
+    /// medium is baked per pixel, without interreflections.
+    pub fn validate_for(&self, scene: &Scene) -> Result<()> {
+        self.validate()?;
+        if scene.medium.is_some() && self.per_vertex.is_some() {
+            return Err(PrtError::invalid(
+                "per-vertex bake",
+                "a scene with a [medium] is baked per pixel only (the medium lies between the \
+                 camera and every surface)",
+            ));
+        }
+        if scene.medium.is_some() && self.bounces > 0 {
+            return Err(PrtError::invalid(
+                "bounces",
+                "interreflections are not traced through a medium; bake a scene with a [medium] \
+                 with --bounces 0",
+            ));
+        }
+        Ok(())
+    }
+
+    /// What a file baked from `scene` with these settings records about how it was baked
+    /// (checked first, see [`BakeSettings::validate_for`]). This is the one place the settings
+    /// are put in their stored form: the storage ([`BakeSettings::storage`]) and edge samples
+    /// ([`BakeSettings::stored_edge_spp`]) as recorded, texel samples rounded up to a square
+    /// (the sampler's grid), paths and the interreflections' settings absent without bounces.
+    pub fn identity(&self, scene: &Scene) -> Result<BakeIdentity> {
+        self.validate_for(scene)?;
+        let side = (self.texel_samples.max(1) as f64).sqrt().ceil() as u32;
+        let (threshold, budget, quantization) = self.storage();
+        Ok(BakeIdentity {
+            scene_hash: scene.hash_hex(),
+            cube_n: self.cube_n as u32,
+            sh_order: self.sh_order as u32,
+            spp: self.spp,
+            edge_spp: self.stored_edge_spp(),
+            texel_samples: side * side,
+            unshadowed: self.unshadowed,
+            seed: self.seed,
+            threshold,
+            budget,
+            quantization,
+            shard: self.shard,
+            bounces: self.bounces,
+            paths: if self.bounces > 0 { self.paths } else { 0 },
+            indirect: (self.bounces > 0).then_some(IndirectSettings {
+                visibility: self.bounce_visibility,
+                cache_spacing: self.cache_spacing,
+            }),
+            domain: match self.per_vertex {
+                Some(edge_length) => BakeDomain::Vertices { edge_length },
+                None => BakeDomain::View,
+            },
+        })
+    }
+
+    /// The settings that bake `meta`'s file again: [`BakeSettings::identity`] of them is the
+    /// file's identity (for the scene it was baked from). What a file does not record (the
+    /// interreflections' settings of a file baked before they were recorded) takes the defaults.
+    pub fn from_meta(meta: &TransportMeta) -> BakeSettings {
+        let id = &meta.identity;
+        let defaults = BakeSettings::default();
+        let lossless = id.quantization == Quantization::F32 && id.threshold == 0.0;
+        BakeSettings {
+            cube_n: id.cube_n as usize,
+            sh_order: id.sh_order as usize,
+            spp: id.spp,
+            edge_spp: id.edge_spp,
+            texel_samples: id.texel_samples,
+            threshold: id.threshold,
+            budget: id.budget,
+            quantization: if lossless {
+                defaults.quantization
+            } else {
+                id.quantization
+            },
+            lossless,
+            unshadowed: id.unshadowed,
+            seed: id.seed,
+            shard: id.shard,
+            bounces: id.bounces,
+            paths: if id.bounces > 0 {
+                id.paths
+            } else {
+                defaults.paths
+            },
+            bounce_visibility: id
+                .indirect
+                .map_or(defaults.bounce_visibility, |i| i.visibility),
+            cache_spacing: id
+                .indirect
+                .map_or(defaults.cache_spacing, |i| i.cache_spacing),
+            per_vertex: match id.domain {
+                BakeDomain::Vertices { edge_length } => Some(edge_length),
+                BakeDomain::View => None,
+            },
         }
     }
 }
 
-/// The transport at `path` when it exists, loads, and was baked from this scene (same content
-/// hash) with these settings; `None` otherwise. Lets callers reuse a cached bake.
+/// The transport at `path` when it exists, loads, and was baked from this scene with these
+/// settings (its [`BakeIdentity`] is theirs); `None` otherwise. Lets callers reuse a cached
+/// bake.
 pub fn load_if_baked_with(
     path: &std::path::Path,
     scene: &Scene,
     settings: &BakeSettings,
 ) -> Option<Transport> {
     let meta = crate::store::transport::read_header_meta(path).ok()?;
-    let side = (settings.texel_samples.max(1) as f64).sqrt().ceil() as u32;
-    let threshold = if settings.lossless {
-        0.0
-    } else {
-        settings.threshold
-    };
-    let same = meta.scene_hash == format!("{:016x}", scene.content_hash())
-        && meta.cube_n as usize == settings.cube_n
-        && meta.sh_order as usize == settings.sh_order
-        && meta.spp == settings.spp
-        && meta.edge_spp == settings.stored_edge_spp()
-        && meta.texel_samples == side * side
-        && meta.threshold == threshold
-        && meta.quantization == settings.quantization()
-        && (settings.lossless || meta.budget == settings.budget)
-        && meta.unshadowed == settings.unshadowed
-        && meta.seed == settings.seed
-        && meta.shard == settings.shard
-        && meta.bounces == settings.bounces
-        && meta.per_vertex.as_ref().map(|p| p.edge_length) == settings.per_vertex
-        && (settings.bounces == 0
-            || (meta.paths == settings.paths
-                && meta.indirect.as_ref().is_some_and(|i| {
-                    i.visibility == settings.bounce_visibility
-                        && i.cache_spacing == settings.cache_spacing
-                })));
-    if !same {
+    if meta.identity != settings.identity(scene).ok()? {
         return None;
     }
     Transport::load(path).ok()
@@ -220,6 +297,6 @@ pub fn load_if_baked_with(
 /// Bytes a bake's output will take at most (every coefficient kept), to warn or refuse up front.
 pub fn worst_case_bytes(width: usize, height: usize, settings: &BakeSettings) -> u64 {
     let c = texel_count(settings.cube_n) as u64;
-    let value = settings.quantization().value_bytes() as u64;
+    let value = settings.storage().2.value_bytes() as u64;
     (width * height) as u64 * c * (1 + value)
 }

@@ -107,12 +107,12 @@ impl Terms {
         light: &PreparedLight,
         req: &RelightRequest,
     ) -> Result<Terms> {
-        if ctx.n != t.meta.cube_n as usize || light.wavelet.n != ctx.n {
+        if ctx.n != t.meta.identity.cube_n as usize || light.wavelet.n != ctx.n {
             return Err(PrtError::invalid(
                 "light",
                 format!(
                     "prepared for a cube of N = {} but the transport was baked with N = {}",
-                    light.wavelet.n, t.meta.cube_n
+                    light.wavelet.n, t.meta.identity.cube_n
                 ),
             ));
         }
@@ -121,7 +121,7 @@ impl Terms {
             Method::Sh => Terms::Sh(light_sh_order(
                 &light.sh,
                 req.sh_order,
-                t.meta.sh_order as usize,
+                t.meta.identity.sh_order as usize,
             )?),
             Method::ShLight => {
                 let cube = light.wavelet.to_cube()?;

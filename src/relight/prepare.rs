@@ -37,7 +37,10 @@ pub struct LightContext {
 impl LightContext {
     /// For a transport.
     pub fn new(t: &Transport) -> Result<Self> {
-        Self::with_sizes(t.meta.cube_n as usize, t.meta.sh_order as usize)
+        Self::with_sizes(
+            t.meta.identity.cube_n as usize,
+            t.meta.identity.sh_order as usize,
+        )
     }
 
     /// For a cube of face size `n` and SH order `sh_order`, without a transport (benchmarks,

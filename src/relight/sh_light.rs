@@ -166,12 +166,12 @@ pub fn relight(
     light: &ShThroughLight,
     order: usize,
 ) -> Result<(crate::output::film::Image, crate::relight::RelightStats)> {
-    if light.n != t.meta.cube_n as usize {
+    if light.n != t.meta.identity.cube_n as usize {
         return Err(PrtError::invalid(
             "SH light",
             format!(
                 "projected from an N = {} cube, the transport has N = {}",
-                light.n, t.meta.cube_n
+                light.n, t.meta.identity.cube_n
             ),
         ));
     }

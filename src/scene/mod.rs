@@ -279,6 +279,11 @@ impl Scene {
         self.content_hash
     }
 
+    /// [`Scene::content_hash`] as files record it: 16 hex digits.
+    pub fn hash_hex(&self) -> String {
+        format!("{:016x}", self.content_hash)
+    }
+
     /// This scene with every glossy material at its diffuse base: what a per-vertex bake, which
     /// keeps only diffuse light, holds. Its content hash differs from this scene's, so that a
     /// bake of one is never taken for a bake of the other.

@@ -102,7 +102,7 @@ pub fn bake_volume(
             },
             width: cam.width,
             height: cam.height,
-            scene_hash: format!("{:016x}", scene.content_hash()),
+            scene_hash: scene.hash_hex(),
         },
         density: medium.grid.data,
         transfer,

@@ -14,7 +14,8 @@ use wavelet_prt::math::cubemap::texel_count;
 use wavelet_prt::math::sampling::Rng as SampleRng;
 use wavelet_prt::scene::Scene;
 use wavelet_prt::store::transport::{
-    BakeStats, CameraMeta, Quantization, RowData, TILE, Transport, TransportMeta, tile_grid,
+    BakeDomain, BakeIdentity, BakeStats, CameraMeta, Quantization, RowData, TILE, Transport,
+    TransportMeta, tile_grid,
 };
 
 /// Every Haar term of a cube map's light: relighting with it is the full product.
@@ -234,9 +235,6 @@ pub fn random_transport(
         width: w as u32,
         height: h as u32,
         tile: TILE as u32,
-        cube_n: n as u32,
-        sh_order: 2,
-        scene_hash: "0".into(),
         scene_path: "random".into(),
         camera: CameraMeta {
             eye: [0.0; 3],
@@ -244,18 +242,25 @@ pub fn random_transport(
             up: [0.0, 1.0, 0.0],
             fov_y_deg: 40.0,
         },
-        spp: 1,
-        edge_spp: 0,
-        texel_samples: 1,
-        unshadowed: false,
-        seed,
-        threshold: 0.0,
-        budget: Default::default(),
-        quantization,
-        shard: None,
-        bounces: 0,
-        paths: 0,
-        indirect: None,
+        identity: BakeIdentity {
+            scene_hash: "0".into(),
+            cube_n: n as u32,
+            sh_order: 2,
+            spp: 1,
+            edge_spp: 0,
+            texel_samples: 1,
+            unshadowed: false,
+            seed,
+            threshold: 0.0,
+            budget: Default::default(),
+            quantization,
+            shard: None,
+            bounces: 0,
+            paths: 0,
+            indirect: None,
+            domain: BakeDomain::View,
+        },
+        cache_points: 0,
         per_vertex: None,
         stats: BakeStats::default(),
     };

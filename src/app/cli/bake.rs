@@ -162,13 +162,13 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         "bake time     {seconds:.1} s, written ({:.2} M shadow rays/s)",
         meta.stats.shadow_rays as f64 / seconds.max(1e-9) / 1e6
     );
-    if meta.edge_spp > 0 {
+    if meta.identity.edge_spp > 0 {
         let edges = edge_pixels.into_inner();
         let pixels = scene.camera.width as usize * scene.camera.height as usize;
         println!(
             "edge pixels   {edges} of {pixels} ({:.1}%) took {} samples",
             100.0 * edges as f64 / pixels as f64,
-            meta.edge_spp
+            meta.identity.edge_spp
         );
     }
     Ok(())
@@ -200,7 +200,7 @@ pub(super) fn merge_cmd(shards: Vec<PathBuf>, output: PathBuf) -> Result<()> {
 }
 
 fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta) {
-    let s = &m.stats;
+    let (s, id) = (&m.stats, &m.identity);
     let bytes = std::fs::metadata(path).map(|x| x.len()).unwrap_or(0);
     let dense_bytes = s.dense_entries as f64 * 4.0;
     println!("file          {}", path.display());
@@ -210,13 +210,15 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
     println!(
         "scene         {} (hash {})",
         printable(&m.scene_path),
-        printable(&m.scene_hash)
+        printable(&id.scene_hash)
     );
-    if let Some(pv) = &m.per_vertex {
+    if let (Some(pv), crate::store::transport::BakeDomain::Vertices { edge_length }) =
+        (&m.per_vertex, id.domain)
+    {
         println!(
             "vertices      {} vertices, {} triangles, edges up to {} (a row per vertex, any camera; \
              the file's camera is the scene's)",
-            pv.vertices, pv.triangles, pv.edge_length
+            pv.vertices, pv.triangles, edge_length
         );
     }
     println!(
@@ -231,43 +233,43 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
     );
     println!(
         "cube          N = {} ({} coefficients per row)",
-        m.cube_n,
-        6 * m.cube_n as usize * m.cube_n as usize
+        id.cube_n,
+        6 * id.cube_n as usize * id.cube_n as usize
     );
     println!(
         "SH order      {} ({} coefficients per row)",
-        m.sh_order,
-        (m.sh_order as usize).pow(2)
+        id.sh_order,
+        (id.sh_order as usize).pow(2)
     );
-    let edges = if m.edge_spp > 0 {
-        format!(" ({} at edges)", m.edge_spp)
+    let edges = if id.edge_spp > 0 {
+        format!(" ({} at edges)", id.edge_spp)
     } else {
         String::new()
     };
     println!(
         "sampling      {} spp{edges}, {} samples/texel, seed {}{}",
-        m.spp,
-        m.texel_samples,
-        m.seed,
-        if m.unshadowed { ", unshadowed" } else { "" }
+        id.spp,
+        id.texel_samples,
+        id.seed,
+        if id.unshadowed { ", unshadowed" } else { "" }
     );
-    if m.bounces > 0 {
-        let how = match &m.indirect {
+    if id.bounces > 0 {
+        let how = match &id.indirect {
             Some(i) if i.visibility == crate::bake::bounce::BounceVisibility::Cache => format!(
                 "next-event rows, surface cache of {} points {} px apart",
-                i.cache_points, i.cache_spacing
+                m.cache_points, i.cache_spacing
             ),
             Some(_) => "next-event rows, exact visibility".to_string(),
             None => "each path binned in the texel it leaves by (an older bake)".to_string(),
         };
         println!(
             "bounces       {} ({} paths per sample; {how})",
-            m.bounces, m.paths
+            id.bounces, id.paths
         );
     }
     println!(
         "sparsify      threshold {} ({} budget, {} values)",
-        m.threshold, m.budget, m.quantization
+        id.threshold, id.budget, id.quantization
     );
     println!("rows          {}", s.rows);
     println!(
@@ -287,7 +289,7 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
         100.0 * s.dropped_energy_fraction.sqrt()
     );
     println!("shadow rays   {}", s.shadow_rays);
-    if let Some([i, n]) = m.shard {
+    if let Some([i, n]) = id.shard {
         println!("shard         {i}/{n} (join all {n} with `prt merge`)");
     }
 }

@@ -97,35 +97,10 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         }
         None => None,
     };
+    // The settings of the file's own bake, whole (the reference and the sweep cover the image).
     let settings = BakeSettings {
-        cube_n: t.meta.cube_n as usize,
-        sh_order: t.meta.sh_order as usize,
-        spp: t.meta.spp,
-        edge_spp: t.meta.edge_spp,
-        texel_samples: t.meta.texel_samples,
-        threshold: t.meta.threshold,
-        budget: t.meta.budget,
-        quantization: match t.meta.quantization {
-            crate::store::quant::Quantization::F32 => crate::store::quant::Quantization::Q8,
-            q => q,
-        },
-        lossless: true,
-        unshadowed: t.meta.unshadowed,
-        seed: t.meta.seed,
         shard: None,
-        bounces: t.meta.bounces,
-        paths: t.meta.paths.max(1),
-        bounce_visibility: t
-            .meta
-            .indirect
-            .as_ref()
-            .map_or(Default::default(), |i| i.visibility),
-        cache_spacing: t
-            .meta
-            .indirect
-            .as_ref()
-            .map_or(BakeSettings::default().cache_spacing, |i| i.cache_spacing),
-        per_vertex: t.meta.per_vertex.as_ref().map(|p| p.edge_length),
+        ..BakeSettings::from_meta(&t.meta)
     };
     let scene = if a.reference || a.compression.is_some() {
         let path = a
@@ -133,7 +108,7 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
             .clone()
             .unwrap_or_else(|| PathBuf::from(&t.meta.scene_path));
         let scene = Scene::load(&path)?;
-        if format!("{:016x}", scene.content_hash()) != t.meta.scene_hash {
+        if scene.hash_hex() != t.meta.identity.scene_hash {
             return Err(PrtError::invalid(
                 "scene",
                 format!(
@@ -225,7 +200,8 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
              image drawn from the bake's camera, so that of every stored term is the \
              interpolation between vertices; `rel_l2` (against every term, per vertex) is the \
              light's approximation",
-            pv.vertices, pv.edge_length
+            pv.vertices,
+            t.meta.identity.domain.edge_length().unwrap_or_default()
         );
     }
     for p in written {

@@ -130,7 +130,7 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
             file_bytes,
             nonzero_fraction: t.meta.stats.nonzeros as f64
                 / t.meta.stats.dense_entries.max(1) as f64,
-            cache_points: t.meta.indirect.as_ref().map_or(0, |i| i.cache_points),
+            cache_points: t.meta.cache_points,
             rel_l2: e.rel_l2,
             rel_h1: e.rel_h1,
             reference_seconds,

@@ -185,10 +185,10 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     if let Some(o) = a.sh_order
         && method != Method::ShLight
     {
-        crate::flags::sh_order(o, t.meta.sh_order as usize)?;
+        crate::flags::sh_order(o, t.meta.identity.sh_order as usize)?;
     }
     if method == Method::Wavelet {
-        crate::flags::terms(a.terms, t.meta.cube_n as usize)?;
+        crate::flags::terms(a.terms, t.meta.identity.cube_n as usize)?;
     }
     let env = load_env(&a.env)?;
     let ctx = LightContext::new(&t)?;
@@ -200,7 +200,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         method,
         terms: a.terms,
         weighting,
-        sh_order: a.sh_order.unwrap_or(t.meta.sh_order as usize),
+        sh_order: a.sh_order.unwrap_or(t.meta.identity.sh_order as usize),
     };
     let (img, stats) = match &gpu {
         None => relight(&t, &ctx, &light, &req)?,

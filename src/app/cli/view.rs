@@ -130,7 +130,7 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
     // Given flags are checked as `relight` checks them; only the defaults are fitted to the file.
     let limits = engine.limits();
     if let Some(k) = a.terms {
-        crate::flags::terms(k, engine.transport.meta.cube_n as usize)?;
+        crate::flags::terms(k, engine.transport.meta.identity.cube_n as usize)?;
         state.terms = k;
     }
     if let Some(w) = &a.weighting {

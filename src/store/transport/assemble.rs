@@ -151,7 +151,7 @@ impl EncodedTile {
 impl Transport {
     /// Lays out rows given tile by tile (tiles in row-major order of the tile grid, each tile's
     /// rows in the order they should keep) into the blocked column layout, quantised as
-    /// `meta.quantization` says. Per-pixel and per-coefficient tables are taken as given; the
+    /// `meta.identity.quantization` says. Per-pixel and per-coefficient tables are taken as given; the
     /// energy quantisation drops is added to each tile's first statistic. Checks the result, so a
     /// caller's mistake is an error, not a bad file.
     pub fn assemble(
@@ -161,11 +161,11 @@ impl Transport {
         coverage: Vec<f32>,
         mut tile_stats: Vec<[f64; 3]>,
     ) -> Result<Transport> {
-        let c = 6 * (meta.cube_n as usize).pow(2);
-        let shc = (meta.sh_order as usize).pow(2);
+        let c = 6 * (meta.identity.cube_n as usize).pow(2);
+        let shc = (meta.identity.sh_order as usize).pow(2);
         let encoded = tiles
             .iter()
-            .map(|rows| EncodedTile::encode(rows, c, shc, meta.quantization))
+            .map(|rows| EncodedTile::encode(rows, c, shc, meta.identity.quantization))
             .collect::<Result<Vec<_>>>()?;
         for (s, e) in tile_stats.iter_mut().zip(&encoded) {
             s[0] += e.quantization_energy;
@@ -183,7 +183,7 @@ impl Transport {
         tile_stats: Vec<[f64; 3]>,
         mesh: Option<VertexMesh>,
     ) -> Result<Transport> {
-        let c = 6 * (meta.cube_n as usize).pow(2);
+        let c = 6 * (meta.identity.cube_n as usize).pow(2);
         let rows: usize = tiles.iter().map(|t| t.row_pixel.len()).sum();
         let nnz: usize = tiles.iter().map(|t| t.entry_row.len()).sum();
         let blocks: usize = tiles.iter().map(|t| t.col_count.len() / c.max(1)).sum();
@@ -195,10 +195,10 @@ impl Transport {
         let mut counts = Vec::with_capacity(blocks * c);
         let mut col_scale = Vec::with_capacity(blocks * c);
         let mut entry_row = Vec::with_capacity(nnz);
-        let mut values = Values::empty(meta.quantization);
+        let mut values = Values::empty(meta.identity.quantization);
         tile_row_start.push(0u32);
         for t in tiles {
-            if t.values.quantization() != meta.quantization
+            if t.values.quantization() != meta.identity.quantization
                 || t.row_scale.len() != t.row_pixel.len()
                 || t.col_count.len() != blocks_of(t.row_pixel.len()) * c
                 || t.col_scale.len() != t.col_count.len()
@@ -363,9 +363,9 @@ impl Transport {
             .ok_or_else(|| PrtError::invalid("merge", "no shard given"))?;
         let mut writer = super::TransportWriter::create(
             path,
-            first.meta.cube_n as usize,
-            first.meta.sh_order as usize,
-            first.meta.quantization,
+            first.meta.identity.cube_n as usize,
+            first.meta.identity.sh_order as usize,
+            first.meta.identity.quantization,
         )?;
         let untiled = merge_tiles(shards, names, &mut |tile, stats| writer.push(&tile, stats))?;
         writer.finish(untiled)
@@ -428,16 +428,17 @@ fn merge_tiles(
     let first = shards
         .first()
         .ok_or_else(|| PrtError::invalid("merge", "no shard given"))?;
-    let Some([_, count]) = first.meta.shard else {
+    let Some([_, count]) = first.meta.identity.shard else {
         return Err(PrtError::invalid(
             "merge",
             format!("{} is not a shard", name(0)),
         ));
     };
-    let same = |m: &TransportMeta| TransportMeta {
-        shard: None,
-        stats: BakeStats::default(),
-        ..m.clone()
+    let same = |m: &TransportMeta| {
+        let mut m = m.clone();
+        m.identity.shard = None;
+        m.stats = BakeStats::default();
+        m
     };
     // Loading checked count <= the image's bands, so this is small.
     let mut owner = vec![usize::MAX; count as usize];
@@ -448,7 +449,7 @@ fn merge_tiles(
                 meta_difference(&same(&s.meta), &name(k), &same(&first.meta), &name(0)),
             ));
         }
-        match s.meta.shard {
+        match s.meta.identity.shard {
             Some([i, n]) if n == count && i < n && owner[i as usize] == usize::MAX => {
                 owner[i as usize] = k
             }
@@ -613,10 +614,10 @@ pub(super) fn bake_stats(rows: usize, nonzeros: usize, c: usize, tiles: &[[f64; 
 /// scene than B (scene hash X against Y)", or the first setting that differs, "A was baked with
 /// seed 7, B with seed 1".
 fn meta_difference(a: &TransportMeta, na: &str, b: &TransportMeta, nb: &str) -> String {
-    if a.scene_hash != b.scene_hash {
+    let (ha, hb) = (&a.identity.scene_hash, &b.identity.scene_hash);
+    if ha != hb {
         return format!(
-            "{na} was baked from another scene than {nb} (scene hash {} against {})",
-            a.scene_hash, b.scene_hash
+            "{na} was baked from another scene than {nb} (scene hash {ha} against {hb})"
         );
     }
     if let (Ok(serde_json::Value::Object(x)), Ok(serde_json::Value::Object(y))) =

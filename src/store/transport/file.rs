@@ -89,13 +89,13 @@ impl Transport {
         let (w, h) = (meta.width as usize, meta.height as usize);
         let (tx, ty) = tile_grid(w, h);
         let tiles = tx * ty;
-        let c = 6 * (meta.cube_n as usize).pow(2);
+        let c = 6 * (meta.identity.cube_n as usize).pow(2);
         let (albedo_shape, albedo) = reader.read::<[f32; 3]>("albedo", Dtype::F32)?;
         let (count_shape, counts) = reader.read::<u16>("col_count", Dtype::U16)?;
         let (scale_shape, col_scale) = reader.read::<u8>("col_scale", Dtype::U8)?;
         let (coverage_shape, coverage) = reader.read::<f32>("coverage", Dtype::F32)?;
         let (entry_shape, entry_row) = reader.read::<u8>("entry_row", Dtype::U8)?;
-        let (value_shape, values) = match meta.quantization {
+        let (value_shape, values) = match meta.identity.quantization {
             Quantization::Q8 => {
                 let (s, v) = reader.read("entry_value", Dtype::I8)?;
                 (s, Values::Q8(v))
@@ -161,7 +161,11 @@ impl Transport {
         let (col_ptr, block_entry_start) =
             column_pointers(&counts, &block_row_start, c, nnz).map_err(bad)?;
         expect("entry_value", &value_shape, &[nnz])?;
-        expect("sh", &sh_shape, &[r, (meta.sh_order as usize).pow(2)])?;
+        expect(
+            "sh",
+            &sh_shape,
+            &[r, (meta.identity.sh_order as usize).pow(2)],
+        )?;
         expect("albedo", &albedo_shape, &[h, w, 3])?;
         expect("coverage", &coverage_shape, &[h, w])?;
         expect("transport_magnitude", &magnitude_shape, &[c])?;
@@ -253,7 +257,7 @@ pub fn read_summary(path: &Path) -> Result<TransportMeta> {
         ));
     }
     let (_, block_rows) = block_tables(&starts, rows).map_err(|m| PrtError::file(path, m))?;
-    let c = 6 * meta.cube_n as usize * meta.cube_n as usize;
+    let c = 6 * meta.identity.cube_n as usize * meta.identity.cube_n as usize;
     if counts.len() != (block_rows.len() - 1) * c {
         return Err(PrtError::file(
             path,
@@ -542,11 +546,11 @@ fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
     if m.tile as usize != TILE {
         return Err(format!("tile size {}; this build uses {TILE}", m.tile));
     }
-    crate::math::cubemap::validate_n(m.cube_n as usize).map_err(|e| e.to_string())?;
-    if m.sh_order == 0 || m.sh_order as usize > crate::math::sh::MAX_ORDER {
-        return Err(format!("SH order {} out of range", m.sh_order));
+    crate::math::cubemap::validate_n(m.identity.cube_n as usize).map_err(|e| e.to_string())?;
+    if m.identity.sh_order == 0 || m.identity.sh_order as usize > crate::math::sh::MAX_ORDER {
+        return Err(format!("SH order {} out of range", m.identity.sh_order));
     }
-    if let Some([i, n]) = m.shard {
+    if let Some([i, n]) = m.identity.shard {
         // A bake cuts at most one shard per band of tile rows.
         let (_, bands) = tile_grid(m.width as usize, m.height as usize);
         if n == 0 || i >= n || n as usize > bands {
@@ -556,8 +560,11 @@ fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
             ));
         }
     }
-    if !(m.threshold.is_finite() && m.threshold >= 0.0) {
-        return Err(format!("threshold {} must be finite and >= 0", m.threshold));
+    if !(m.identity.threshold.is_finite() && m.identity.threshold >= 0.0) {
+        return Err(format!(
+            "threshold {} must be finite and >= 0",
+            m.identity.threshold
+        ));
     }
     let c = &m.camera;
     if !c

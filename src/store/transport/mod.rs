@@ -48,11 +48,10 @@
 
 mod assemble;
 mod file;
+mod meta;
 mod stream;
 
 use std::ops::Range;
-
-use serde::{Deserialize, Serialize};
 
 use crate::scene::tessellate::VertexMesh;
 use crate::store::container;
@@ -61,6 +60,10 @@ pub use crate::store::quant::{BLOCK_ROWS, Quantization};
 
 pub use assemble::{EncodedTile, KeptTiles, RowData, Untiled, shard_of_band};
 pub use file::{read_header_meta, read_summary};
+pub use meta::{
+    BakeDomain, BakeIdentity, BakeStats, BounceVisibility, CameraMeta, IndirectSettings,
+    PerVertexMeta, TransportMeta,
+};
 pub use stream::TransportWriter;
 
 /// Pixels on a side of a tile.
@@ -71,140 +74,6 @@ pub const FORMAT_NAME: &str = container::TRANSPORT.name;
 pub const FORMAT_VERSION: u32 = 3;
 /// Largest safetensors header accepted (JSON text), checked before it is read.
 const MAX_HEADER_BYTES: u64 = 1 << 24;
-
-/// Camera of the baked view, as written in the file.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct CameraMeta {
-    pub eye: [f32; 3],
-    pub target: [f32; 3],
-    pub up: [f32; 3],
-    pub fov_y_deg: f32,
-}
-
-/// Figures of a bake.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct BakeStats {
-    /// Transport rows.
-    pub rows: u64,
-    /// Stored nonzero Haar coefficients.
-    pub nonzeros: u64,
-    /// rows x 6 N², what a dense matrix would hold.
-    pub dense_entries: u64,
-    /// Sum over rows of the squared norm of what thresholding and quantisation changed, over the
-    /// sum of squared norms: the relative L2 (squared) the storage removed from the transport.
-    pub dropped_energy_fraction: f64,
-    /// Shadow rays traced.
-    pub shadow_rays: u64,
-}
-
-/// Where the visibility of an interreflection vertex comes from.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum BounceVisibility {
-    /// One bit per texel sample at surface cache points a few pixel footprints apart.
-    #[default]
-    Cache,
-    /// 6 N² shadow rays traced at every vertex.
-    Exact,
-}
-
-impl std::str::FromStr for BounceVisibility {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "cache" => Ok(BounceVisibility::Cache),
-            "exact" => Ok(BounceVisibility::Exact),
-            _ => Err(format!(
-                "unknown bounce visibility '{s}': use cache or exact"
-            )),
-        }
-    }
-}
-
-impl std::fmt::Display for BounceVisibility {
-    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str(match self {
-            BounceVisibility::Cache => "cache",
-            BounceVisibility::Exact => "exact",
-        })
-    }
-}
-
-/// How a bake's interreflections were estimated: next-event estimation into the row at every
-/// path vertex (see `bake::bounce`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct IndirectMeta {
-    /// Where each vertex's visibility came from.
-    pub visibility: BounceVisibility,
-    /// Width of a cache cell in pixel footprints at the view's median depth.
-    pub cache_spacing: f32,
-    /// Cache points over the whole image (0 for exact visibility).
-    pub cache_points: u64,
-}
-
-/// How a per-vertex bake placed its rows: one per vertex of a tessellated mesh (stored in the
-/// file), vertex `v` as "pixel" `v` of an image [`TILE`] wide, so that a tile is a block of
-/// [`TILE`]² consecutive vertices.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct PerVertexMeta {
-    /// The longest edge the tessellation allowed, in scene units.
-    pub edge_length: f32,
-    /// Vertices of the mesh (the image's first pixels; the rest of its last row is empty).
-    pub vertices: u32,
-    /// Triangles of the mesh.
-    pub triangles: u32,
-    /// Width and height of the scene camera's image: the size a still is drawn at unless asked
-    /// otherwise.
-    pub image: [u32; 2],
-}
-
-/// Everything about a transport file but its arrays.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct TransportMeta {
-    pub width: u32,
-    pub height: u32,
-    pub tile: u32,
-    pub cube_n: u32,
-    pub sh_order: u32,
-    /// FNV-1a hash of the scene text and its meshes, hex.
-    pub scene_hash: String,
-    /// The scene file as given to the bake.
-    pub scene_path: String,
-    pub camera: CameraMeta,
-    pub spp: u32,
-    /// Sub-pixel samples of the pixels whose corners see different things (0: every pixel took
-    /// `spp`).
-    #[serde(default, skip_serializing_if = "is_zero")]
-    pub edge_spp: u32,
-    pub texel_samples: u32,
-    pub unshadowed: bool,
-    pub seed: u64,
-    /// Thresholding parameter (0 = keep every nonzero); its meaning is `budget`'s.
-    pub threshold: f32,
-    /// How the thresholding budget weighs coefficients.
-    #[serde(default)]
-    pub budget: crate::store::budget::Budget,
-    pub quantization: Quantization,
-    /// `[index, count]` for one shard of a sharded bake (it holds only its band of tile rows);
-    /// absent for a whole bake or a merge of all shards.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shard: Option<[u32; 2]>,
-    /// Interreflection bounces baked in (0: direct light only).
-    #[serde(default)]
-    pub bounces: u32,
-    /// Paths per camera sub-sample for the interreflections (0 without them).
-    #[serde(default)]
-    pub paths: u32,
-    /// How the interreflections were estimated (absent without them, and in files baked before
-    /// next-event estimation, whose paths each brought the light of the one texel they left by).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub indirect: Option<IndirectMeta>,
-    /// Present for a per-vertex bake, whose rows belong to mesh vertices, not pixels.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub per_vertex: Option<PerVertexMeta>,
-    /// Derived from the tables (see [`Transport::finish`]): the same for a bake and a merge.
-    pub stats: BakeStats,
-}
 
 /// Stored coefficient values: integers against their column's scale, or lossless floats.
 #[derive(Clone, Debug, PartialEq)]
@@ -324,7 +193,7 @@ pub fn blocks_of(rows: usize) -> usize {
 impl Transport {
     /// Haar coefficients per row, 6 N².
     pub fn coeff_count(&self) -> usize {
-        6 * (self.meta.cube_n as usize).pow(2)
+        6 * (self.meta.identity.cube_n as usize).pow(2)
     }
     /// Number of pixel tiles.
     pub fn tile_count(&self) -> usize {
@@ -340,7 +209,7 @@ impl Transport {
     }
     /// SH coefficients per row.
     pub fn sh_count(&self) -> usize {
-        (self.meta.sh_order as usize).pow(2)
+        (self.meta.identity.sh_order as usize).pow(2)
     }
     /// The blocks of tile `t`.
     #[inline]
@@ -412,11 +281,11 @@ impl Transport {
         {
             return Err("block_entry_start does not span the entries".into());
         }
-        if self.values.quantization() != m.quantization {
+        if self.values.quantization() != m.identity.quantization {
             return Err(format!(
                 "values are {} but the header says {}",
                 self.values.quantization(),
-                m.quantization
+                m.identity.quantization
             ));
         }
         if self.row_weight.len() != r
@@ -536,8 +405,9 @@ impl Transport {
                 pv.triangles
             ));
         }
-        if !(pv.edge_length.is_finite() && pv.edge_length > 0.0) {
-            return Err(format!("edge length {}", pv.edge_length));
+        match self.meta.identity.domain.edge_length() {
+            Some(e) if e.is_finite() && e > 0.0 => {}
+            e => return Err(format!("edge length {e:?}")),
         }
         if pv.image.iter().any(|&s| s == 0 || s > 16384) {
             return Err(format!("image size {:?}", pv.image));
@@ -613,8 +483,4 @@ fn column_pointers(
         ));
     }
     Ok((col_ptr, starts))
-}
-
-fn is_zero(v: &u32) -> bool {
-    *v == 0
 }

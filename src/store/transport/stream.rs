@@ -136,9 +136,9 @@ impl TransportWriter {
         if self.tiles_written() != tx * ty
             || albedo.len() != w * h
             || coverage.len() != w * h
-            || 6 * (meta.cube_n as usize).pow(2) != self.c
-            || (meta.sh_order as usize).pow(2) != self.shc
-            || meta.quantization != self.quantization
+            || 6 * (meta.identity.cube_n as usize).pow(2) != self.c
+            || (meta.identity.sh_order as usize).pow(2) != self.shc
+            || meta.identity.quantization != self.quantization
         {
             return Err(PrtError::file(
                 &self.path,
