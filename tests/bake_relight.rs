@@ -7,7 +7,7 @@ mod common;
 
 use common::{
     SPHERE_ON_PLANE, assert_rel_close, assets, full_light, plane_from_above, random_transport,
-    scene_from, temp_dir,
+    relit, scene_from, temp_dir,
 };
 
 use glam::DVec3;
@@ -192,12 +192,7 @@ fn lossless_relight_equals_the_brute_force_reference() {
         pitch_deg: 0.0,
     };
     let light = ctx.prepare(&env, rotation).unwrap();
-    let req = RelightRequest {
-        method: Method::Full,
-        terms: 0,
-        weighting: Weighting::Unweighted,
-        sh_order: 3,
-    };
+    let req = RelightRequest::Full;
     let (full, _) = relight(&t, &ctx, &light, &req).unwrap();
     let cube = env.to_cube(8, rotation).unwrap();
     let brute = render_reference(&scene, &cube, &settings).unwrap();
@@ -216,22 +211,12 @@ fn lossless_relight_equals_the_brute_force_reference() {
     assert_eq!(with.coverage, t.coverage);
     assert_eq!(done.into_inner(), scene.camera.height as usize);
     // Wavelet relighting with every term is the same product as full.
-    let all = RelightRequest {
-        method: Method::Wavelet,
-        terms: texel_count(8),
-        ..req
-    };
     for w in Weighting::ALL {
-        let (img, stats) = relight(
-            &t,
-            &ctx,
-            &light,
-            &RelightRequest {
-                weighting: w,
-                ..all
-            },
-        )
-        .unwrap();
+        let all = RelightRequest::Wavelet {
+            k: texel_count(8),
+            weighting: w,
+        };
+        let (img, stats) = relight(&t, &ctx, &light, &all).unwrap();
         assert_eq!(stats.terms, texel_count(8));
         let e = relative_l2(&img, &full, None).unwrap();
         assert!(e < 1e-6, "{w}: all terms vs full {e}");
@@ -243,10 +228,9 @@ fn lossless_relight_equals_the_brute_force_reference() {
             &t,
             &ctx,
             &light,
-            &RelightRequest {
-                terms: k,
+            &RelightRequest::Wavelet {
+                k,
                 weighting: Weighting::Unweighted,
-                ..all
             },
         )
         .unwrap();
@@ -290,16 +274,10 @@ fn rotations_full_turn_and_sh_rotation() {
     let t = bake(&scene, &lossless(8, 4), &|_| {}).unwrap();
     let ctx = LightContext::new(&t).unwrap();
     let env = EnvMap::load(&assets().join("envmaps/pmndrs_city_overcast.exr")).unwrap();
-    let req = RelightRequest {
-        method: Method::Wavelet,
-        terms: 100,
-        weighting: Weighting::Area,
-        sh_order: 4,
-    };
     let a = ctx.prepare(&env, EnvRotation::default()).unwrap();
     let b = ctx.prepare(&env, EnvRotation::yaw(360.0)).unwrap();
     for method in [Method::Wavelet, Method::Sh, Method::Full] {
-        let r = RelightRequest { method, ..req };
+        let r = RelightRequest::new(method, 100, Weighting::Area, 4);
         let (ia, _) = relight(&t, &ctx, &a, &r).unwrap();
         let (ib, _) = relight(&t, &ctx, &b, &r).unwrap();
         let e = relative_l2(&ib, &ia, None).unwrap();
@@ -461,23 +439,14 @@ fn bad_relight_requests_are_clear_errors() {
     let ctx = LightContext::new(&t).unwrap();
     let env = EnvMap::constant(16, 8, [1.0; 3]);
     let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
-    let base = RelightRequest {
-        method: Method::Wavelet,
-        terms: 10,
+    let wavelets = |k| RelightRequest::Wavelet {
+        k,
         weighting: Weighting::Area,
-        sh_order: 2,
     };
     for (req, needle) in [
-        (RelightRequest { terms: 0, ..base }, "K = 0"),
-        (RelightRequest { terms: 97, ..base }, "K = 97"),
-        (
-            RelightRequest {
-                method: Method::Sh,
-                sh_order: 3,
-                ..base
-            },
-            "baked up to order 2",
-        ),
+        (wavelets(0), "K = 0"),
+        (wavelets(97), "K = 97"),
+        (RelightRequest::Sh { order: 3 }, "baked up to order 2"),
     ] {
         let e = relight(&t, &ctx, &light, &req).unwrap_err().to_string();
         assert!(e.contains(needle), "{e}");
@@ -490,7 +459,7 @@ fn bad_relight_requests_are_clear_errors() {
     let other = random_transport(8, 8, 8, Quantization::F32, 1, 1.0);
     let other_ctx = LightContext::new(&other).unwrap();
     let other_light = other_ctx.prepare(&env, EnvRotation::default()).unwrap();
-    let e = relight(&t, &ctx, &other_light, &base)
+    let e = relight(&t, &ctx, &other_light, &wavelets(10))
         .unwrap_err()
         .to_string();
     assert!(e.contains("N = 8"), "{e}");
@@ -552,15 +521,7 @@ fn glossy_relight_with_every_term_equals_the_reference() {
     assert!(t.row_weight.contains(&[0.4, 0.4, 0.4]));
     assert!(t.row_weight.contains(&[0.5, 0.2, 0.1]));
     let env = EnvMap::load(&assets().join("envmaps/blender_studio.exr")).unwrap();
-    let ctx = LightContext::new(&t).unwrap();
-    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
-    let req = RelightRequest {
-        method: Method::Full,
-        terms: 0,
-        weighting: Weighting::Unweighted,
-        sh_order: 2,
-    };
-    let (full, _) = relight(&t, &ctx, &light, &req).unwrap();
+    let full = relit(&t, &env, EnvRotation::default(), RelightRequest::Full);
     let brute = render_reference(
         &scene,
         &env.to_cube(8, EnvRotation::default()).unwrap(),
@@ -707,15 +668,7 @@ fn edge_pixels_take_the_mean_of_their_subsamples_and_others_one_sample() {
     let t = bake(&scene, &adaptive, &|_| {}).unwrap();
     assert_eq!(t.meta.identity.edge_spp, 16);
     let env = EnvMap::from_spec("sun:35,60,4").unwrap();
-    let ctx = LightContext::new(&t).unwrap();
-    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
-    let req = RelightRequest {
-        method: Method::Full,
-        terms: 0,
-        weighting: Weighting::Unweighted,
-        sh_order: 2,
-    };
-    let (relit, _) = relight(&t, &ctx, &light, &req).unwrap();
+    let relit = relit(&t, &env, EnvRotation::default(), RelightRequest::Full);
     let cube = env.to_cube(8, EnvRotation::default()).unwrap();
     let uniform = |spp| {
         let s = BakeSettings {

@@ -129,14 +129,14 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
     assert!(terms_to_reach(&sun_w, 0.05).is_some());
     let sh: Vec<_> = points
         .iter()
-        .filter(|p| p.env == "sun" && p.method == Method::Sh && !p.through_light)
+        .filter(|p| p.env == "sun" && p.method == Method::Sh)
         .collect();
     assert_eq!(sh.len(), 4);
     // SH through the light: the baked path's numbers where both exist (N = 8: texel averages of
     // the basis against its values at the texel samples), and far better at 256 terms.
     let light: Vec<_> = points
         .iter()
-        .filter(|p| p.env == "sun" && p.through_light)
+        .filter(|p| p.env == "sun" && p.method == Method::ShLight)
         .collect();
     assert_eq!(light.len(), 8);
     assert!(light.iter().all(|p| p.curve() == "sh-light"));

@@ -276,13 +276,9 @@ fn both_backends_give_the_same_image_and_statistics_for_every_method() {
         (Method::Wavelet, 20, 1),
         (Method::Full, 0, 1),
         (Method::Sh, 0, 3),
+        (Method::ShLight, 0, 5),
     ] {
-        let req = RelightRequest {
-            method,
-            terms,
-            weighting: Weighting::Area,
-            sh_order,
-        };
+        let req = RelightRequest::new(method, terms, Weighting::Area, sh_order);
         let (cpu, cs) = backends[0].relight(&ctx, &light, &req).unwrap();
         let (dev, gs) = backends[1].relight(&ctx, &light, &req).unwrap();
         assert!(
@@ -305,7 +301,7 @@ fn many_terms_are_relit_in_batches_that_add_up_to_the_cpu_image() {
     // 10,900 terms gave a nearly black image on lavapipe; the batches must also add up right in
     // the texture path and the per-vertex (in place) path, which share the encoding.
     use wavelet_prt::relight::gpu::TERMS_PER_DISPATCH;
-    use wavelet_prt::relight::{Method, RelightRequest, Terms};
+    use wavelet_prt::relight::{RelightRequest, Terms};
     let Some(gpu) = common::gpu_or_skip("many_terms") else {
         return;
     };
@@ -326,11 +322,9 @@ fn many_terms_are_relit_in_batches_that_add_up_to_the_cpu_image() {
     let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
     let mask = Some(t.coverage.as_slice());
     for k in [TERMS_PER_DISPATCH, TERMS_PER_DISPATCH + 1, 11_000, c] {
-        let req = RelightRequest {
-            method: Method::Wavelet,
-            terms: k,
+        let req = RelightRequest::Wavelet {
+            k,
             weighting: Weighting::Transport,
-            sh_order: 1,
         };
         let Terms::Wavelet(sparse) = Terms::of(&t, &ctx, &light, &req).unwrap() else {
             panic!("wavelet terms");

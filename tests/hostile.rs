@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use common::{SPHERE_ON_PLANE, StFile, fog_scene, prt, random_transport, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::relight::{LightContext, Method, RelightRequest, relight};
+use wavelet_prt::relight::{LightContext, RelightRequest, relight};
 use wavelet_prt::scene::Scene;
 use wavelet_prt::store::transport::{Quantization, Transport};
 use wavelet_prt::volume::{TransferSettings, VolumeTransfer, bake_volume};
@@ -249,12 +249,7 @@ fn an_environment_too_bright_for_f32_is_an_error_not_nan() {
     // Bright but representable: a finite image, the same as a dim map's, scaled.
     let bright = EnvMap::constant(32, 16, [1e30; 3]);
     let dim = EnvMap::constant(32, 16, [1.0; 3]);
-    let req = RelightRequest {
-        method: Method::Full,
-        terms: 0,
-        weighting: wavelet_prt::light::select::Weighting::Area,
-        sh_order: 2,
-    };
+    let req = RelightRequest::Full;
     let image = |env: &EnvMap| {
         let light = ctx.prepare(env, EnvRotation::default()).unwrap();
         relight(&t, &ctx, &light, &req).unwrap().0

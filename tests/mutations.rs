@@ -30,7 +30,7 @@ use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation, SunSky};
 use wavelet_prt::light::select::Weighting;
 use wavelet_prt::math::sampling::Rng;
-use wavelet_prt::relight::{LightContext, Method, PreparedLight, RelightRequest, relight};
+use wavelet_prt::relight::{LightContext, PreparedLight, RelightRequest, relight};
 use wavelet_prt::scene::Scene;
 use wavelet_prt::store::transport::{Quantization, Transport};
 use wavelet_prt::volume::{
@@ -469,35 +469,23 @@ fn exercise_transport(
     let (ctx, light) = (&*ctx, &*light);
     let total = t.coeff_count();
     for req in [
-        RelightRequest {
-            method: Method::Wavelet,
-            terms: 5.min(total),
+        RelightRequest::Wavelet {
+            k: 5.min(total),
             weighting: Weighting::Area,
-            sh_order: 1,
         },
-        RelightRequest {
-            method: Method::Wavelet,
-            terms: total,
+        RelightRequest::Wavelet {
+            k: total,
             weighting: Weighting::Transport,
-            sh_order: 1,
         },
-        RelightRequest {
-            method: Method::Sh,
-            terms: 1,
-            weighting: Weighting::Unweighted,
-            sh_order: t.meta.identity.sh_order as usize,
+        RelightRequest::Sh {
+            order: t.meta.identity.sh_order as usize,
         },
-        RelightRequest {
-            method: Method::Full,
-            terms: 1,
-            weighting: Weighting::Unweighted,
-            sh_order: 1,
-        },
+        RelightRequest::Full,
     ] {
         if let Ok((image, _)) = relight(t, ctx, light, &req)
             && let Some(p) = image.first_non_finite()
         {
-            return Err(format!("{:?} relight wrote {p:?}", req.method));
+            return Err(format!("{:?} relight wrote {p:?}", req.method()));
         }
     }
     Ok(())

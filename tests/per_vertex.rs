@@ -4,12 +4,12 @@
 
 mod common;
 
-use common::{SPHERE_ON_PLANE, StFile, assets, prt, scene_from, temp_dir};
+use common::{SPHERE_ON_PLANE, StFile, assets, prt, relit, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::light::select::Weighting;
 use wavelet_prt::math::cubemap::{solid_angles, texel_dirs};
-use wavelet_prt::relight::{LightContext, Method, RelightRequest, relight};
+use wavelet_prt::relight::{LightContext, RelightRequest, relight};
 use wavelet_prt::scene::trace::Tracer;
 use wavelet_prt::store::transport::{TILE, Transport};
 
@@ -38,15 +38,7 @@ fn per_vertex_rows_equal_the_light_integrated_at_each_vertex() {
     );
     let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
     let rotation = EnvRotation::yaw(60.0);
-    let ctx = LightContext::new(&t).unwrap();
-    let light = ctx.prepare(&env, rotation).unwrap();
-    let req = RelightRequest {
-        method: Method::Full,
-        terms: 0,
-        weighting: Weighting::Unweighted,
-        sh_order: 2,
-    };
-    let (image, _) = relight(&t, &ctx, &light, &req).unwrap();
+    let image = relit(&t, &env, rotation, RelightRequest::Full);
     // The light at each vertex, integrated over the cube's texels directly: radiance x
     // visibility x albedo/π x cos x solid angle, from just off the surface on its normal's side.
     let cube = env.to_cube(8, rotation).unwrap();
@@ -221,15 +213,15 @@ fn relit_sphere(name: &str, edge: f32) -> (Transport, Vec<[f32; 3]>) {
     let scene = scene_from(SPHERE_ON_PLANE, name);
     let t = bake(&scene, &per_vertex(edge), &|_| {}).unwrap();
     let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
-    let ctx = LightContext::new(&t).unwrap();
-    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
-    let req = RelightRequest {
-        method: Method::Wavelet,
-        terms: 100,
-        weighting: Weighting::Transport,
-        sh_order: 2,
-    };
-    let (image, _) = relight(&t, &ctx, &light, &req).unwrap();
+    let image = relit(
+        &t,
+        &env,
+        EnvRotation::default(),
+        RelightRequest::Wavelet {
+            k: 100,
+            weighting: Weighting::Transport,
+        },
+    );
     let colours = wavelet_prt::relight::vertex::vertex_colours(&t, &image)
         .unwrap()
         .to_vec();
@@ -283,15 +275,7 @@ fn a_flat_lit_per_vertex_bake_draws_its_one_colour_everywhere_it_covers() {
     };
     let t = bake(&scene, &settings, &|_| {}).unwrap();
     let env = EnvMap::constant(64, 32, [2.0, 2.0, 2.0]);
-    let ctx = LightContext::new(&t).unwrap();
-    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
-    let req = RelightRequest {
-        method: Method::Full,
-        terms: 0,
-        weighting: Weighting::Unweighted,
-        sh_order: 2,
-    };
-    let (image, _) = relight(&t, &ctx, &light, &req).unwrap();
+    let image = relit(&t, &env, EnvRotation::default(), RelightRequest::Full);
     let colours = wavelet_prt::relight::vertex::vertex_colours(&t, &image).unwrap();
     let camera = wavelet_prt::relight::vertex::bake_camera(&t).unwrap();
     let drawn = wavelet_prt::relight::vertex::draw(&t, colours, &camera, None).unwrap();
@@ -416,12 +400,7 @@ fn closed_obj(torus: bool, inward: bool) -> String {
 #[test]
 fn closed_meshes_wound_inward_are_turned_outward_and_bake_as_the_per_pixel_view() {
     let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
-    let full = RelightRequest {
-        method: Method::Full,
-        terms: 0,
-        weighting: Weighting::Unweighted,
-        sh_order: 1,
-    };
+    let full = RelightRequest::Full;
     for torus in [false, true] {
         let mut images = Vec::new();
         for inward in [false, true] {

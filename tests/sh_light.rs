@@ -8,9 +8,19 @@ use common::{SPHERE_ON_PLANE, scene_from};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::{CubeMap, solid_angles, texel_count, texel_dirs};
+use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
-use wavelet_prt::relight::sh_light::{ShThroughLight, relight};
-use wavelet_prt::relight::{relight_sh, relight_wavelet};
+use wavelet_prt::relight::sh_light::ShThroughLight;
+use wavelet_prt::relight::{Backend, Cpu, RelightStats, Terms, relight_sh, relight_wavelet};
+
+/// SH through the light at `order` on the CPU, from a projection made once.
+fn relight(
+    t: &wavelet_prt::store::transport::Transport,
+    projected: &ShThroughLight,
+    order: usize,
+) -> wavelet_prt::error::Result<(Image, RelightStats)> {
+    Cpu(t).relight_terms(&Terms::sh_through_light(t, projected, order)?)
+}
 
 fn cube_of(n: usize, f: impl Fn(glam::DVec3) -> [f32; 3]) -> CubeMap {
     CubeMap {
@@ -152,8 +162,7 @@ const TRANSPORT_SIDE_BOUND: f64 = 2e-3;
 /// of `sh_light::relight` on the same light, at orders above the baked one too.
 #[test]
 fn the_sh_light_method_relights_through_the_backend_as_sh_light_does() {
-    use wavelet_prt::light::select::Weighting;
-    use wavelet_prt::relight::{Backend, Cpu, LightContext, Method, RelightRequest};
+    use wavelet_prt::relight::{LightContext, RelightRequest};
     let scene = scene_from(SPHERE_ON_PLANE, "sh-light-method");
     let settings = BakeSettings {
         cube_n: 8,
@@ -168,25 +177,15 @@ fn the_sh_light_method_relights_through_the_backend_as_sh_light_does() {
     let cube = env.to_cube(8, EnvRotation::default()).unwrap();
     let mask = Some(t.coverage.as_slice());
     for order in [1, 3, 7] {
-        let req = RelightRequest {
-            method: Method::ShLight,
-            terms: 0,
-            weighting: Weighting::Unweighted,
-            sh_order: order,
-        };
+        let req = RelightRequest::ShLight { order };
         let (got, stats) = Cpu(&t).relight(&ctx, &light, &req).unwrap();
         let (want, _) = relight(&t, &ShThroughLight::new(&cube, order).unwrap(), order).unwrap();
         let err = relative_l2(&got, &want, mask).unwrap();
         assert!(err < 1e-5, "order {order}: {err}");
-        assert_eq!(stats.terms, texel_count(8));
+        assert_eq!(stats.terms, order * order);
     }
     // An order beyond any SH light is refused, naming it.
-    let req = RelightRequest {
-        method: Method::ShLight,
-        terms: 0,
-        weighting: Weighting::Unweighted,
-        sh_order: 143,
-    };
+    let req = RelightRequest::ShLight { order: 143 };
     let e = Cpu(&t).relight(&ctx, &light, &req).unwrap_err().to_string();
     assert!(e.contains("143"), "{e}");
 }

@@ -144,7 +144,7 @@ fn sh_through_the_light_goes_past_the_baked_order_up_to_the_texel_count() {
     let r = e.render(&s).unwrap();
     assert_eq!(r.state.sh_order, common::VIEWER_SH_ORDER + 5);
     assert!(r.notes.is_empty(), "{:?}", r.notes);
-    assert_eq!(r.panes[0].linear.request.method, Method::ShLight);
+    assert_eq!(r.panes[0].linear.request.method(), Method::ShLight);
     s.sh_order = 1000;
     let r = e.render(&s).unwrap();
     assert_eq!(r.state.sh_order, 19);
@@ -167,9 +167,9 @@ fn compare_shows_sh_and_wavelet_at_matching_term_counts() {
     s.terms = 5;
     let r = e.render(&s).unwrap();
     assert_eq!(r.panes.len(), 2);
-    assert_eq!(r.panes[0].linear.request.method, Method::Sh);
+    assert_eq!(r.panes[0].linear.request.method(), Method::Sh);
     assert_eq!(r.panes[0].linear.terms, 4); // nearest n² to 5
-    assert_eq!(r.panes[1].linear.request.method, Method::Wavelet);
+    assert_eq!(r.panes[1].linear.request.method(), Method::Wavelet);
     assert_eq!(r.panes[1].linear.terms, 5);
     let (w, h, rgb) = r.side_by_side(4);
     assert_eq!((w, h), (2 * r.width + 4, r.height));
@@ -514,11 +514,9 @@ fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
     let ctx = LightContext::new(&t).unwrap();
     let light = ctx.prepare(&env, EnvRotation::yaw(30.0)).unwrap();
     s.yaw = 30.0;
-    let request = RelightRequest {
-        method: Method::Wavelet,
-        terms: s.terms,
+    let request = RelightRequest::Wavelet {
+        k: s.terms,
         weighting: s.weighting,
-        sh_order: s.sh_order,
     };
     let (relit, _) = relight(&t, &ctx, &light, &request).unwrap();
     let colours = vertex_colours(&t, &relit).unwrap();

@@ -9,11 +9,10 @@ use glam::Vec3;
 use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::light::select::Weighting;
 use wavelet_prt::math::cubemap::{CubeMap, texel_dirs};
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
-use wavelet_prt::relight::{LightContext, Method, RelightRequest, relight};
+use wavelet_prt::relight::RelightRequest;
 use wavelet_prt::scene::Scene;
 use wavelet_prt::volume::{PhaseLight, TransferSettings, VolumeView, bake_volume, render_volume};
 
@@ -72,15 +71,7 @@ fn lossless(n: usize) -> BakeSettings {
 
 fn full(scene: &Scene, settings: &BakeSettings, env: &EnvMap) -> Image {
     let t = bake(scene, settings, &|_| {}).unwrap();
-    let ctx = LightContext::new(&t).unwrap();
-    let light = ctx.prepare(env, EnvRotation::default()).unwrap();
-    let req = RelightRequest {
-        method: Method::Full,
-        terms: 0,
-        weighting: Weighting::Unweighted,
-        sh_order: 1,
-    };
-    relight(&t, &ctx, &light, &req).unwrap().0
+    common::relit(&t, env, EnvRotation::default(), RelightRequest::Full)
 }
 
 /// The bake reads each texel's optical depths from one sweep of the grid, the reference marches

@@ -15,7 +15,7 @@ use crate::output::film::Image;
 use crate::output::metrics::{ErrorReport, compare, relative_l2};
 use crate::output::plot::{self, PlotSpec, Series};
 use crate::relight::{
-    Backend, LightContext, Method, RelightRequest, RelightStats, relight, select_light,
+    Backend, Cpu, LightContext, Method, RelightRequest, RelightStats, Terms, relight,
 };
 use crate::scene::Scene;
 use crate::store::transport::Transport;
@@ -104,8 +104,6 @@ pub struct BenchPoint {
     pub weighting: Option<Weighting>,
     /// Light terms: K or n².
     pub terms: usize,
-    /// SH through the light (`sh-light`) rather than the baked per-pixel SH path.
-    pub through_light: bool,
     pub error: ErrorReport,
     /// For wavelets: relative L2 of the light approximation itself, ‖L − L_K‖ / ‖L‖ over the Haar
     /// coefficients (Parseval: the same over texels). Non-increasing in K for unweighted selection.
@@ -124,7 +122,6 @@ impl BenchPoint {
     pub fn curve(&self) -> String {
         match self.weighting {
             Some(w) => format!("{}-{}", self.method, w),
-            None if self.through_light => format!("{}-light", self.method),
             None => self.method.to_string(),
         }
     }
@@ -224,91 +221,68 @@ pub fn run(
     for (e, (name, env)) in envs.iter().enumerate() {
         let light = ctx.prepare(env, EnvRotation::default())?;
         let reference = extras.references.map(|r| &r[e]);
-        let full_req = RelightRequest {
-            method: Method::Full,
-            terms: 0,
-            weighting: Weighting::Unweighted,
-            sh_order: 1,
-        };
-        let (full, _) = relight(t, &ctx, &light, &full_req)?;
-        // One measured point: CPU (and GPU) timings and every error.
-        let mut measure = |req: RelightRequest, light_rel_l2: Option<f64>| -> Result<()> {
-            let (img, stats, cpu_ms) = timed(|| relight(t, &ctx, &light, &req))?;
-            let gpu_ms = match extras.gpu {
-                Some(gpu) => Some(timed(|| gpu.relight(&ctx, &light, &req))?.2),
-                None => None,
-            };
-            points.push(BenchPoint {
-                env: name.clone(),
-                method: req.method,
-                weighting: (req.method == Method::Wavelet).then_some(req.weighting),
-                terms: stats.terms,
-                through_light: false,
-                light_rel_l2,
-                error: compare(&img, &full, mask)?,
-                reference_rel_l2: match reference {
-                    Some(r) => Some(reference_error(t, &img, r, extras.reference_coverage)?),
+        let (full, _) = relight(t, &ctx, &light, &RelightRequest::Full)?;
+        // One measured point: the terms made once, then CPU (and GPU) kernel timings and every
+        // error.
+        let mut measure =
+            |req: RelightRequest, terms: Terms, light_rel_l2: Option<f64>| -> Result<()> {
+                let cpu = Cpu(t);
+                let (img, stats, cpu_ms) = timed(|| cpu.relight_terms(&terms))?;
+                img.check_finite("relit image")?;
+                let gpu_ms = match extras.gpu {
+                    Some(gpu) => Some(timed(|| gpu.relight_terms(&terms))?.2),
                     None => None,
-                },
-                cpu_ms,
-                gpu_ms,
-                bytes_touched: stats.bytes_touched,
-            });
-            progress(points.len(), total);
-            Ok(())
-        };
-        let energy = |c: &[f32; 3]| c.iter().map(|v| (*v as f64).powi(2)).sum::<f64>();
-        let total_energy: f64 = light.wavelet.coeffs.iter().map(energy).sum();
-        for &w in &opts.weightings {
-            for &k in &opts.terms {
-                let req = RelightRequest {
-                    method: Method::Wavelet,
-                    terms: k,
-                    weighting: w,
-                    ..full_req
                 };
-                let kept = select_light(t, &ctx, &light, &req)?;
-                let kept_energy: f64 = kept.values.iter().map(energy).sum();
-                let light_error = ((total_energy - kept_energy).max(0.0)
-                    / total_energy.max(f64::MIN_POSITIVE))
-                .sqrt();
-                measure(req, Some(light_error))?;
-            }
-        }
-        for &o in &opts.sh_orders {
-            measure(
-                RelightRequest {
-                    method: Method::Sh,
-                    sh_order: o,
-                    ..full_req
-                },
-                None,
-            )?;
-        }
-        measure(full_req, Some(0.0))?;
-        if let Some(&most) = opts.sh_light_orders.iter().max() {
-            let cube = env.to_cube(t.meta.identity.cube_n as usize, EnvRotation::default())?;
-            let projected = crate::relight::sh_light::ShThroughLight::new(&cube, most)?;
-            for &o in &opts.sh_light_orders {
-                let (img, stats, cpu_ms) =
-                    timed(|| crate::relight::sh_light::relight(t, &projected, o))?;
                 points.push(BenchPoint {
                     env: name.clone(),
-                    method: Method::Sh,
-                    weighting: None,
+                    method: req.method(),
+                    weighting: match req {
+                        RelightRequest::Wavelet { weighting, .. } => Some(weighting),
+                        _ => None,
+                    },
                     terms: stats.terms,
-                    through_light: true,
-                    light_rel_l2: None,
+                    light_rel_l2,
                     error: compare(&img, &full, mask)?,
-                    reference_rel_l2: match extras.references.map(|r| &r[e]) {
+                    reference_rel_l2: match reference {
                         Some(r) => Some(reference_error(t, &img, r, extras.reference_coverage)?),
                         None => None,
                     },
                     cpu_ms,
-                    gpu_ms: None,
+                    gpu_ms,
                     bytes_touched: stats.bytes_touched,
                 });
                 progress(points.len(), total);
+                Ok(())
+            };
+        let of = |req: &RelightRequest| Terms::of(t, &ctx, &light, req);
+        let energy = |c: &[f32; 3]| c.iter().map(|v| (*v as f64).powi(2)).sum::<f64>();
+        let total_energy: f64 = light.wavelet.coeffs.iter().map(energy).sum();
+        for &weighting in &opts.weightings {
+            for &k in &opts.terms {
+                let req = RelightRequest::Wavelet { k, weighting };
+                let terms = of(&req)?;
+                let Terms::Wavelet(kept) = &terms else {
+                    return Err(PrtError::invalid("bench", "wavelet terms expected"));
+                };
+                let kept_energy: f64 = kept.values.iter().map(energy).sum();
+                let light_error = ((total_energy - kept_energy).max(0.0)
+                    / total_energy.max(f64::MIN_POSITIVE))
+                .sqrt();
+                measure(req, terms, Some(light_error))?;
+            }
+        }
+        for &order in &opts.sh_orders {
+            let req = RelightRequest::Sh { order };
+            measure(req, of(&req)?, None)?;
+        }
+        measure(RelightRequest::Full, of(&RelightRequest::Full)?, Some(0.0))?;
+        // SH through the light: one projection, at the highest order, serves every order.
+        if let Some(&most) = opts.sh_light_orders.iter().max() {
+            let cube = env.to_cube(t.meta.identity.cube_n as usize, EnvRotation::default())?;
+            let projected = crate::relight::sh_light::ShThroughLight::new(&cube, most)?;
+            for &order in &opts.sh_light_orders {
+                let terms = Terms::sh_through_light(t, &projected, order)?;
+                measure(RelightRequest::ShLight { order }, terms, None)?;
             }
         }
     }
@@ -327,11 +301,7 @@ pub fn csv(points: &[BenchPoint]) -> String {
             s,
             "{},{},{},{},{:.6e},{:.6e},{:.6e},{:.3},{:.6e},{},{},{:.4},{},{}",
             p.env,
-            if p.through_light {
-                format!("{}-light", p.method)
-            } else {
-                p.method.to_string()
-            },
+            p.method,
             p.weighting.map(|w| w.name()).unwrap_or(""),
             p.terms,
             p.error.rel_l2,
@@ -594,13 +564,7 @@ pub fn compression_sweep(
     let exact = bake(scene, &settings(true, 0.0), progress)?;
     let ctx = LightContext::new(&exact)?;
     let all = |t: &Transport, light: &crate::relight::PreparedLight| -> Result<Image> {
-        let req = RelightRequest {
-            method: Method::Full,
-            terms: 0,
-            weighting: Weighting::Unweighted,
-            sh_order: 1,
-        };
-        Ok(relight(t, &ctx, light, &req)?.0)
+        Ok(relight(t, &ctx, light, &RelightRequest::Full)?.0)
     };
     let lights: Vec<_> = envs
         .iter()

@@ -160,50 +160,43 @@ pub fn run_demo(
             EnvRotation::default(),
         )?;
         let shown = |img: &Image| composite(img, &behind);
-        let full_req = RelightRequest {
-            method: Method::Full,
-            terms: 0,
-            weighting: DEMO_WEIGHTING,
-            sh_order: settings.sh_order,
-        };
+        let full_req = RelightRequest::Full;
         let (full, full_stats) = relight(&transport, &ctx, &light, &full_req)?;
         let tone = ToneMap::auto(&full, Some(&transport.coverage));
-        let mut requests: Vec<RelightRequest> = DEMO_SH_ORDERS
+        // Each request with its file label and caption.
+        let mut requests: Vec<(RelightRequest, String, String)> = DEMO_SH_ORDERS
             .iter()
-            .map(|&o| RelightRequest {
-                method: Method::Sh,
-                sh_order: o,
-                ..full_req
+            .map(|&order| {
+                (
+                    RelightRequest::Sh { order },
+                    format!("sh_order{order}"),
+                    format!("SH order {order}"),
+                )
             })
             .collect();
-        requests.extend(DEMO_TERMS.iter().map(|&k| RelightRequest {
-            method: Method::Wavelet,
-            terms: k,
-            ..full_req
+        requests.extend(DEMO_TERMS.iter().map(|&k| {
+            (
+                RelightRequest::Wavelet {
+                    k,
+                    weighting: DEMO_WEIGHTING,
+                },
+                format!("wavelet{k}"),
+                format!("K = {k}"),
+            )
         }));
-        for req in &requests {
-            let (img, stats) = relight(&transport, &ctx, &light, req)?;
+        for (req, label, caption) in requests {
+            let (img, stats) = relight(&transport, &ctx, &light, &req)?;
             let err = relative_l2(&img, &full, Some(&transport.coverage))?;
-            let label = match req.method {
-                Method::Sh => format!("sh_order{}", req.sh_order),
-                _ => format!("wavelet{}", req.terms),
-            };
             let img = shown(&img);
             img.save(&images.join(format!("{name}_{label}.png")), tone)?;
             thumbs.push((
                 downsample(&img, 2),
                 tone,
-                [
-                    match req.method {
-                        Method::Sh => format!("SH order {}", req.sh_order),
-                        _ => format!("K = {}", req.terms),
-                    },
-                    format!("L2 error {:.1}%", 100.0 * err),
-                ],
+                [caption, format!("L2 error {:.1}%", 100.0 * err)],
             ));
             rows.push(DemoRow {
                 env: name.clone(),
-                method: req.method,
+                method: req.method(),
                 terms: stats.terms,
                 rel_l2: err,
                 relight_ms: stats.kernel_seconds * 1e3,

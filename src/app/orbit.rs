@@ -14,7 +14,7 @@ use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{Cell, write_sheet};
 use crate::relight::vertex::{bake_camera, compose, orbit, vertex_colours};
-use crate::relight::{LightContext, Method, RelightRequest, relight};
+use crate::relight::{LightContext, RelightRequest, relight};
 use crate::scene::Scene;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::Transport;
@@ -112,17 +112,11 @@ pub fn run_orbit(
     let edge = VertexMesh::default_edge_length(scene);
     let (name, env) = env;
     let rotation = EnvRotation::default();
-    let full_req = RelightRequest {
-        method: Method::Full,
-        terms: 0,
+    let full_req = RelightRequest::Full;
+    let k_req = RelightRequest::Wavelet {
+        k: ORBIT_TERMS,
         // The demo's weighting.
         weighting: crate::light::select::Weighting::Transport,
-        sh_order: settings.sh_order,
-    };
-    let k_req = RelightRequest {
-        method: Method::Wavelet,
-        terms: ORBIT_TERMS,
-        ..full_req
     };
     // The per-pixel bake from the scene's camera, every term, to compare with.
     let pixel_ctx = LightContext::new(per_pixel)?;

@@ -16,7 +16,7 @@ use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::light::select::Weighting;
 use crate::output::film::{Image, ToneMap};
 use crate::output::sheet::{Cell, downsample, write_sheet};
-use crate::relight::{LightContext, Method, RelightRequest, relight};
+use crate::relight::{LightContext, RelightRequest, relight};
 use crate::scene::Scene;
 use crate::store::transport::Transport;
 
@@ -231,28 +231,20 @@ pub fn run_paper(
 fn picture_row(t: &Transport, env: &EnvMap) -> Result<Vec<(Image, [String; 2])>> {
     let ctx = LightContext::new(t)?;
     let light = ctx.prepare(env, EnvRotation::default())?;
-    let full_req = RelightRequest {
-        method: Method::Full,
-        terms: 0,
+    let (full, _) = relight(t, &ctx, &light, &RelightRequest::Full)?;
+    let wavelets = |k| RelightRequest::Wavelet {
+        k,
         weighting: Weighting::Transport,
-        sh_order: 1,
     };
-    let (full, _) = relight(t, &ctx, &light, &full_req)?;
     let requests = [
-        (Method::Wavelet, 50, 1, "W(50)"),
-        (Method::Wavelet, 200, 1, "W(200)"),
-        (Method::ShLight, 0, 10, "SH(100)"),
-        (Method::ShLight, 0, 45, "SH(2,025)"),
+        (wavelets(50), "W(50)"),
+        (wavelets(200), "W(200)"),
+        (RelightRequest::ShLight { order: 10 }, "SH(100)"),
+        (RelightRequest::ShLight { order: 45 }, "SH(2,025)"),
     ];
     requests
         .iter()
-        .map(|&(method, terms, sh_order, name)| {
-            let req = RelightRequest {
-                method,
-                terms,
-                sh_order,
-                ..full_req
-            };
+        .map(|&(req, name)| {
             let (img, _) = relight(t, &ctx, &light, &req)?;
             let err = crate::output::metrics::relative_l2(&img, &full, Some(&t.coverage))?;
             Ok((

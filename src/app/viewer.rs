@@ -450,28 +450,19 @@ impl ViewState {
 
     /// The panes this state shows: the requests and their titles.
     pub fn requests(&self, limits: Limits) -> Vec<(String, RelightRequest)> {
-        let base = RelightRequest {
-            method: self.method,
-            terms: self.terms,
-            weighting: self.weighting,
-            sh_order: self.sh_order,
-        };
+        let base = RelightRequest::new(self.method, self.terms, self.weighting, self.sh_order);
         if self.compare {
             let n = sh_order_for_terms(self.terms, limits.sh_order);
             vec![
                 (
                     format!("SH order {n} ({} terms)", n * n),
-                    RelightRequest {
-                        method: Method::Sh,
-                        sh_order: n,
-                        ..base
-                    },
+                    RelightRequest::Sh { order: n },
                 ),
                 (
                     format!("wavelet, {} terms", self.terms),
-                    RelightRequest {
-                        method: Method::Wavelet,
-                        ..base
+                    RelightRequest::Wavelet {
+                        k: self.terms,
+                        weighting: self.weighting,
                     },
                 ),
             ]

@@ -1,4 +1,4 @@
-//! Relighting a baked view. A request ([`RelightRequest`]: method, K, weighting, SH order) under a
+//! Relighting a baked view. A request ([`RelightRequest`]: a method and its parameters) under a
 //! prepared light ([`prepare`]) becomes its light terms ([`Terms::of`]), and a [`Backend`] runs
 //! them: the CPU kernels ([`cpu`]) or the wgpu kernels ([`gpu`]), with the same inputs, the same
 //! image and the same statistics. SH through the light ([`sh_light`]) and the environment behind
@@ -78,24 +78,71 @@ pub struct RelightStats {
     pub kernel_seconds: f64,
 }
 
-/// What to relight with.
+/// What to relight with: a method and the parameters it takes.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RelightRequest {
-    pub method: Method,
-    /// Kept terms for [`Method::Wavelet`].
-    pub terms: usize,
-    pub weighting: Weighting,
-    /// SH order for [`Method::Sh`] (at most the baked order).
-    pub sh_order: usize,
+pub enum RelightRequest {
+    /// The K best Haar terms of the light by a weighting (Ng et al. 2003).
+    Wavelet {
+        /// Terms kept, 1 to 6 N².
+        k: usize,
+        /// How the terms are ranked.
+        weighting: Weighting,
+    },
+    /// The light's SH of this order against the baked SH transport (at most the baked order).
+    Sh {
+        /// SH order n (n² terms).
+        order: usize,
+    },
+    /// SH through the light: the light reconstructed from its SH of this order, relit with
+    /// every stored Haar term ([`sh_light`]; any order up to
+    /// [`crate::math::sh::MAX_LIGHT_ORDER`]).
+    ShLight {
+        /// SH order n (n² terms).
+        order: usize,
+    },
+    /// Every Haar term: the stored transport times the whole cube-map light.
+    Full,
+}
+
+impl RelightRequest {
+    /// The request of `method` with the parameters a command line or a window holds for every
+    /// method: K and the weighting go to wavelets, the order to both SH methods.
+    pub fn new(method: Method, k: usize, weighting: Weighting, order: usize) -> RelightRequest {
+        match method {
+            Method::Wavelet => RelightRequest::Wavelet { k, weighting },
+            Method::Sh => RelightRequest::Sh { order },
+            Method::ShLight => RelightRequest::ShLight { order },
+            Method::Full => RelightRequest::Full,
+        }
+    }
+
+    /// Its method.
+    pub fn method(&self) -> Method {
+        match self {
+            RelightRequest::Wavelet { .. } => Method::Wavelet,
+            RelightRequest::Sh { .. } => Method::Sh,
+            RelightRequest::ShLight { .. } => Method::ShLight,
+            RelightRequest::Full => Method::Full,
+        }
+    }
 }
 
 /// The light terms a request relights with, whatever the device: the one place where a method
 /// becomes its terms.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Terms {
-    /// Haar terms of the light: the K best ([`Method::Wavelet`]) or all ([`Method::Full`]).
+    /// Haar terms of the light: the K best ([`RelightRequest::Wavelet`]) or all
+    /// ([`RelightRequest::Full`]).
     Wavelet(SparseLight),
-    /// The first n² SH coefficients of the light ([`Method::Sh`]).
+    /// Every Haar term of the light reconstructed from its first `order`² SH coefficients
+    /// ([`RelightRequest::ShLight`]): relit as wavelet terms, counted as `order`² terms.
+    ShLight {
+        /// The reconstructed light's Haar terms.
+        haar: SparseLight,
+        /// The SH order it was reconstructed from.
+        order: usize,
+    },
+    /// The first n² SH coefficients of the light ([`RelightRequest::Sh`]).
     Sh(Vec<[f64; 3]>),
 }
 
@@ -116,23 +163,62 @@ impl Terms {
                 ),
             ));
         }
-        Ok(match req.method {
-            Method::Wavelet | Method::Full => Terms::Wavelet(select_light(t, ctx, light, req)?),
-            Method::Sh => Terms::Sh(light_sh_order(
+        Ok(match *req {
+            RelightRequest::Wavelet { k, weighting } => Terms::Wavelet(light.wavelet.select(
+                k,
+                weighting,
+                &ctx.support_area,
+                Some(&t.transport_magnitude),
+            )?),
+            RelightRequest::Full => Terms::Wavelet(SparseLight {
+                indices: (0..light.wavelet.coeffs.len() as u32).collect(),
+                values: light.wavelet.coeffs.clone(),
+            }),
+            RelightRequest::Sh { order } => Terms::Sh(light_sh_order(
                 &light.sh,
-                req.sh_order,
+                order,
                 t.meta.identity.sh_order as usize,
             )?),
-            Method::ShLight => {
-                let cube = light.wavelet.to_cube()?;
-                let projected = sh_light::ShThroughLight::new(&cube, req.sh_order)?;
-                let all = WaveletLight::from_cube(&projected.cube(req.sh_order)?)?;
-                Terms::Wavelet(SparseLight {
-                    indices: (0..all.coeffs.len() as u32).collect(),
-                    values: all.coeffs,
-                })
+            RelightRequest::ShLight { order } => {
+                let projected = sh_light::ShThroughLight::new(&light.wavelet.to_cube()?, order)?;
+                Terms::sh_through_light(t, &projected, order)?
             }
         })
+    }
+
+    /// The terms of SH through the light at `order` for `t`, from a projection made once for
+    /// many orders (up to its `max_order`).
+    pub fn sh_through_light(
+        t: &Transport,
+        projected: &sh_light::ShThroughLight,
+        order: usize,
+    ) -> Result<Terms> {
+        if projected.n != t.meta.identity.cube_n as usize {
+            return Err(PrtError::invalid(
+                "SH light",
+                format!(
+                    "projected from an N = {} cube, the transport has N = {}",
+                    projected.n, t.meta.identity.cube_n
+                ),
+            ));
+        }
+        let all = WaveletLight::from_cube(&projected.cube(order)?)?;
+        Ok(Terms::ShLight {
+            haar: SparseLight {
+                indices: (0..all.coeffs.len() as u32).collect(),
+                values: all.coeffs,
+            },
+            order,
+        })
+    }
+
+    /// How many light terms these stand for: K, n², or 6 N².
+    pub fn count(&self) -> usize {
+        match self {
+            Terms::Wavelet(light) => light.indices.len(),
+            Terms::ShLight { order, .. } => order * order,
+            Terms::Sh(sh) => sh.len(),
+        }
     }
 }
 
@@ -174,10 +260,19 @@ impl Backend for Cpu<'_> {
         "cpu".into()
     }
     fn relight_terms(&self, terms: &Terms) -> Result<(Image, RelightStats)> {
-        match terms {
-            Terms::Wavelet(light) => relight_wavelet(self.0, light),
-            Terms::Sh(sh) => relight_sh(self.0, sh),
-        }
+        let (image, stats) = match terms {
+            Terms::Wavelet(light) | Terms::ShLight { haar: light, .. } => {
+                relight_wavelet(self.0, light)?
+            }
+            Terms::Sh(sh) => relight_sh(self.0, sh)?,
+        };
+        Ok((
+            image,
+            RelightStats {
+                terms: terms.count(),
+                ..stats
+            },
+        ))
     }
 }
 
@@ -189,27 +284,6 @@ pub fn relight(
     req: &RelightRequest,
 ) -> Result<(Image, RelightStats)> {
     Cpu(t).relight(ctx, light, req)
-}
-
-/// The Haar terms a wavelet or full request keeps: the K best by its weighting, or all of them.
-pub fn select_light(
-    t: &Transport,
-    ctx: &LightContext,
-    light: &PreparedLight,
-    req: &RelightRequest,
-) -> Result<SparseLight> {
-    match req.method {
-        Method::Full => Ok(SparseLight {
-            indices: (0..light.wavelet.coeffs.len() as u32).collect(),
-            values: light.wavelet.coeffs.clone(),
-        }),
-        _ => light.wavelet.select(
-            req.terms,
-            req.weighting,
-            &ctx.support_area,
-            Some(&t.transport_magnitude),
-        ),
-    }
 }
 
 /// The first `order²` SH coefficients, checked against the baked order.

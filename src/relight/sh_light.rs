@@ -158,30 +158,3 @@ impl ShThroughLight {
         Ok(CubeMap { n: self.n, texels })
     }
 }
-
-/// SH relighting through the light at `order` (n² terms): the stored transport times the light
-/// reconstructed from its first n² SH terms, with every Haar coefficient of that light.
-pub fn relight(
-    t: &crate::store::transport::Transport,
-    light: &ShThroughLight,
-    order: usize,
-) -> Result<(crate::output::film::Image, crate::relight::RelightStats)> {
-    if light.n != t.meta.identity.cube_n as usize {
-        return Err(PrtError::invalid(
-            "SH light",
-            format!(
-                "projected from an N = {} cube, the transport has N = {}",
-                light.n, t.meta.identity.cube_n
-            ),
-        ));
-    }
-    let cube = light.cube(order)?;
-    let wavelet = crate::light::select::WaveletLight::from_cube(&cube)?;
-    let all = crate::light::select::SparseLight {
-        indices: (0..wavelet.coeffs.len() as u32).collect(),
-        values: wavelet.coeffs,
-    };
-    let (image, mut stats) = crate::relight::relight_wavelet(t, &all)?;
-    stats.terms = coeff_count(order);
-    Ok((image, stats))
-}

@@ -274,6 +274,21 @@ pub fn random_transport(
     .unwrap()
 }
 
+/// Relights `t` on the CPU under `env` turned by `rotation`: the light context, the prepared
+/// light and the request, for a test that relights a transport once.
+pub fn relit(
+    t: &Transport,
+    env: &wavelet_prt::light::envmap::EnvMap,
+    rotation: wavelet_prt::light::envmap::EnvRotation,
+    req: wavelet_prt::relight::RelightRequest,
+) -> wavelet_prt::output::film::Image {
+    let ctx = wavelet_prt::relight::LightContext::new(t).unwrap();
+    let light = ctx.prepare(env, rotation).unwrap();
+    wavelet_prt::relight::relight(t, &ctx, &light, &req)
+        .unwrap()
+        .0
+}
+
 /// A safetensors file (a transport or volume file) taken apart for editing: the `meta` JSON and
 /// the tensors in name order. [`StFile::write`] can reseal it, recomputing the tensors' checksum
 /// and `meta_checksum` as a careful editor would, so a test reaches the checks behind them.

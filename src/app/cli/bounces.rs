@@ -79,13 +79,7 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
     let full = |t: &Transport| -> Result<crate::output::film::Image> {
         let ctx = LightContext::new(t)?;
         let light = ctx.prepare(&env, a.turn.rotation())?;
-        let req = RelightRequest {
-            method: Method::Full,
-            terms: 0,
-            weighting: Weighting::Unweighted,
-            sh_order: 1,
-        };
-        Ok(relight(t, &ctx, &light, &req)?.0)
+        Ok(relight(t, &ctx, &light, &RelightRequest::Full)?.0)
     };
     let mut rows = Vec::new();
     let mut shots = Vec::new();

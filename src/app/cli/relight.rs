@@ -196,12 +196,12 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let rotation = a.turn.rotation();
     let light = ctx.prepare(&env, rotation)?;
     let light_ms = start.elapsed().as_secs_f64() * 1e3;
-    let req = RelightRequest {
+    let req = RelightRequest::new(
         method,
-        terms: a.terms,
+        a.terms,
         weighting,
-        sh_order: a.sh_order.unwrap_or(t.meta.identity.sh_order as usize),
-    };
+        a.sh_order.unwrap_or(t.meta.identity.sh_order as usize),
+    );
     let (img, stats) = match &gpu {
         None => relight(&t, &ctx, &light, &req)?,
         Some(gpu) => {
@@ -261,13 +261,10 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     println!(
         "{method}: {} terms{}, {} nonzeros touched ({:.1} MiB), light {:.1} ms, kernel {:.2} ms on the {} -> {}",
         stats.terms,
-        match method {
-            Method::Wavelet => format!(" ({weighting} weighting)"),
-            Method::ShLight => format!(
-                " (the light through SH order {}, {} SH terms)",
-                req.sh_order,
-                req.sh_order * req.sh_order
-            ),
+        match req {
+            RelightRequest::Wavelet { weighting, .. } => format!(" ({weighting} weighting)"),
+            RelightRequest::ShLight { order } =>
+                format!(" (the light through SH order {order}, relit with every stored Haar term)"),
             _ => String::new(),
         },
         stats.nonzeros_touched,

@@ -18,7 +18,7 @@ use crate::relight::background::{composite, environment_behind};
 use crate::relight::gpu::{Gpu, GpuBackend, GpuTransport};
 use crate::relight::vertex::{self, bake_camera};
 use crate::relight::{
-    Backend, LightContext, Method, PreparedLight, RelightRequest, RelightStats, Terms, relight,
+    Backend, LightContext, PreparedLight, RelightRequest, RelightStats, Terms, relight,
 };
 use crate::scene::Camera;
 use crate::store::transport::Transport;
@@ -323,13 +323,12 @@ impl Engine {
         };
         on_light(&shown);
         let full_start = Instant::now();
-        let full_req = RelightRequest {
-            method: Method::Full,
-            terms: 0,
-            weighting: Weighting::Unweighted,
-            sh_order: 1,
-        };
-        let (full, _) = relight(&self.transport, &self.ctx, &shown.light, &full_req)?;
+        let (full, _) = relight(
+            &self.transport,
+            &self.ctx,
+            &shown.light,
+            &RelightRequest::Full,
+        )?;
         self.light = Some(Lit { shown, full });
         self.last = None;
         Ok((light_seconds, full_start.elapsed().as_secs_f64()))

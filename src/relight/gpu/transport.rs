@@ -486,7 +486,9 @@ impl GpuTransport {
         texture: &wgpu::Texture,
     ) -> Result<()> {
         match terms {
-            Terms::Wavelet(light) => self.relight_wavelet_to_texture(gpu, light, texture),
+            Terms::Wavelet(light) | Terms::ShLight { haar: light, .. } => {
+                self.relight_wavelet_to_texture(gpu, light, texture)
+            }
             Terms::Sh(sh) => self.relight_sh_to_texture(gpu, sh, texture),
         }
     }
@@ -496,7 +498,9 @@ impl GpuTransport {
     /// a per-vertex bake (whose pixel `v` is vertex `v`).
     pub fn relight_terms_in_place(&self, gpu: &Gpu, terms: &Terms) -> Result<()> {
         let (terms, wavelet) = match terms {
-            Terms::Wavelet(light) => (self.wavelet_terms(light)?, true),
+            Terms::Wavelet(light) | Terms::ShLight { haar: light, .. } => {
+                (self.wavelet_terms(light)?, true)
+            }
             Terms::Sh(sh) => (self.sh_terms(sh)?, false),
         };
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
@@ -724,8 +728,8 @@ impl Backend for GpuBackend<'_> {
     }
 
     fn relight_terms(&self, terms: &Terms) -> Result<(Image, RelightStats)> {
-        match terms {
-            Terms::Wavelet(light) => {
+        let (image, stats) = match terms {
+            Terms::Wavelet(light) | Terms::ShLight { haar: light, .. } => {
                 let (image, mut stats) = self.resident.relight_wavelet(self.gpu, light)?;
                 // Counted from the transport in memory: the same column lengths the CPU kernel
                 // reads, at the device's bytes per entry, plus two column pointers per term and
@@ -733,9 +737,16 @@ impl Backend for GpuBackend<'_> {
                 stats.nonzeros_touched = crate::relight::nonzeros_touched(self.transport, light);
                 stats.bytes_touched = stats.nonzeros_touched * self.resident.bytes_per_nonzero()
                     + (self.transport.tile_count() * light.len() * 8) as u64;
-                Ok((image, stats))
+                (image, stats)
             }
-            Terms::Sh(sh) => self.resident.relight_sh(self.gpu, sh),
-        }
+            Terms::Sh(sh) => self.resident.relight_sh(self.gpu, sh)?,
+        };
+        Ok((
+            image,
+            RelightStats {
+                terms: terms.count(),
+                ..stats
+            },
+        ))
     }
 }
