@@ -136,7 +136,7 @@ fn variants() -> Vec<(&'static str, BakeSettings)> {
         (
             "per vertex",
             BakeSettings {
-                per_vertex: Some(0.8),
+                domain: BakeDomain::Vertices { edge_length: 0.8 },
                 ..s.clone()
             },
         ),
@@ -220,7 +220,7 @@ fn what_a_file_cannot_tell_apart_is_one_identity() {
     );
     // A per-vertex bake has no pixels, so no edge samples.
     let pv = BakeSettings {
-        per_vertex: Some(0.8),
+        domain: BakeDomain::Vertices { edge_length: 0.8 },
         ..s.clone()
     };
     assert_eq!(
@@ -267,7 +267,7 @@ fn a_file_is_reused_exactly_when_its_identity_is_the_settings() {
     let err = bounces.identity(&fog).unwrap_err().to_string();
     assert!(err.contains("not traced through a medium"), "{err}");
     let err = BakeSettings {
-        per_vertex: Some(0.5),
+        domain: BakeDomain::Vertices { edge_length: 0.5 },
         ..s
     }
     .identity(&fog)

@@ -4,6 +4,7 @@
 mod common;
 
 use std::path::PathBuf;
+use wavelet_prt::store::transport::BakeDomain;
 
 use wavelet_prt::app::bench::{
     BenchExtras, BenchOptions, compression_sweep, csv, run, summary, terms_to_reach,
@@ -326,13 +327,13 @@ fn per_vertex_bench(text: &str, name: &str, edge: f32, env: &EnvMap) -> (f64, f6
         cube_n: 8,
         sh_order: 2,
         lossless: true,
-        per_vertex: Some(edge),
+        domain: BakeDomain::Vertices { edge_length: edge },
         ..BakeSettings::default()
     };
     let t = bake(&scene, &settings, &|_| {}).unwrap();
     let cube = env.to_cube(8, EnvRotation::default()).unwrap();
     let per_pixel = BakeSettings {
-        per_vertex: None,
+        domain: BakeDomain::View,
         ..settings
     };
     let r = render_reference_with(

@@ -11,6 +11,7 @@ use wavelet_prt::light::select::Weighting;
 use wavelet_prt::math::cubemap::{solid_angles, texel_dirs};
 use wavelet_prt::relight::{LightContext, RelightRequest, relight};
 use wavelet_prt::scene::trace::Tracer;
+use wavelet_prt::store::transport::BakeDomain;
 use wavelet_prt::store::transport::{TILE, Transport};
 
 fn per_vertex(edge: f32) -> BakeSettings {
@@ -18,7 +19,7 @@ fn per_vertex(edge: f32) -> BakeSettings {
         cube_n: 8,
         sh_order: 2,
         lossless: true,
-        per_vertex: Some(edge),
+        domain: BakeDomain::Vertices { edge_length: edge },
         ..BakeSettings::default()
     }
 }
@@ -27,7 +28,7 @@ fn per_vertex(edge: f32) -> BakeSettings {
 fn per_vertex_rows_equal_the_light_integrated_at_each_vertex() {
     let scene = scene_from(SPHERE_ON_PLANE, "per-vertex-reference");
     let t = bake(&scene, &per_vertex(0.5), &|_| {}).unwrap();
-    let mesh = t.mesh.as_ref().expect("a per-vertex bake keeps its mesh");
+    let mesh = t.domain.mesh().expect("a per-vertex bake keeps its mesh");
     let v = mesh.vertex_count();
     // Both sides of the ground quad and the sphere.
     assert!(v > 200, "{v} vertices");
@@ -96,7 +97,7 @@ fn a_per_vertex_file_keeps_its_mesh_and_a_broken_mesh_is_refused() {
     // The cached bake is found again only with the same edge length.
     assert!(wavelet_prt::bake::load_if_baked_with(&path, &scene, &settings).is_some());
     let other = BakeSettings {
-        per_vertex: Some(0.7),
+        domain: BakeDomain::Vertices { edge_length: 0.7 },
         ..settings.clone()
     };
     assert!(wavelet_prt::bake::load_if_baked_with(&path, &scene, &other).is_none());
@@ -192,7 +193,7 @@ fn prt_bake_per_vertex_reports_its_vertices_and_info_reads_them() {
     assert_eq!(t.meta.identity.domain.edge_length(), Some(0.6));
     let (code, text) = prt(&["info", out.to_str().unwrap()]);
     assert_eq!(code, 0, "{text}");
-    let v = t.mesh.as_ref().unwrap().vertex_count();
+    let v = t.domain.mesh().unwrap().vertex_count();
     assert!(text.contains(&format!("{v} vertices")), "{text}");
     // The edge length is for per-vertex bakes only.
     let (code, text) = prt(&[
@@ -281,7 +282,7 @@ fn a_flat_lit_per_vertex_bake_draws_its_one_colour_everywhere_it_covers() {
     let drawn = wavelet_prt::relight::vertex::draw(&t, colours, &camera, None).unwrap();
     // albedo x L, within the cosine's discretisation over the texels of a 6x8² cube (0.52%).
     let want = [1.0f32, 0.5, 0.25];
-    let mesh = t.mesh.as_ref().unwrap();
+    let mesh = t.domain.mesh().unwrap();
     for (c, n) in colours.iter().zip(&mesh.normals) {
         if n.y > 0.0 {
             for k in 0..3 {
@@ -312,7 +313,7 @@ fn the_gpu_draws_a_per_vertex_bake_as_the_cpu_does() {
         return;
     };
     let (t, colours) = relit_sphere("per-vertex-gpu", 0.3);
-    let mesh = t.mesh.as_ref().unwrap();
+    let mesh = t.domain.mesh().unwrap();
     let g = GpuMesh::new(&gpu, &mesh.positions, &mesh.triangles).unwrap();
     let c = upload_colours(&gpu, &colours).unwrap();
     let mut raster = GpuRaster::new(&gpu).unwrap();

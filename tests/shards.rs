@@ -5,6 +5,7 @@ mod common;
 
 use common::{SPHERE_ON_PLANE, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::store::transport::BakeDomain;
 use wavelet_prt::store::transport::Transport;
 
 fn settings(shard: Option<[u32; 2]>) -> BakeSettings {
@@ -124,7 +125,7 @@ fn per_vertex_shards_merge_byte_identically() {
     let scene = scene_from(SPHERE_ON_PLANE, "shards-vertices");
     let with = |shard| BakeSettings {
         spp: 1,
-        per_vertex: Some(0.25),
+        domain: BakeDomain::Vertices { edge_length: 0.25 },
         ..settings(shard)
     };
     let whole = bake(&scene, &with(None), &|_| {}).unwrap();

@@ -8,6 +8,7 @@ use common::{SPHERE_ON_PLANE, prt, random_transport, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake, bake_to_file};
 use wavelet_prt::scene::Scene;
 use wavelet_prt::store::quant::Quantization;
+use wavelet_prt::store::transport::BakeDomain;
 use wavelet_prt::store::transport::{BakeStats, EncodedTile, Transport, TransportWriter, Untiled};
 
 fn settings() -> BakeSettings {
@@ -84,11 +85,11 @@ fn shards_vertices_and_interreflections_stream_to_the_same_bytes() {
     let t = streamed_equals_kept(&scene, &shard, "streamed-shard");
     assert!(t.tile_row_start[t.tile_count()] > 0);
     let vertices = BakeSettings {
-        per_vertex: Some(0.25),
+        domain: BakeDomain::Vertices { edge_length: 0.25 },
         ..settings()
     };
     let t = streamed_equals_kept(&scene, &vertices, "streamed-vertices");
-    assert!(t.mesh.is_some());
+    assert!(t.domain.mesh().is_some());
     let bounces = BakeSettings {
         spp: 1,
         bounces: 1,
@@ -171,7 +172,7 @@ fn untiled(t: &Transport) -> Untiled {
         },
         albedo: t.albedo.clone(),
         coverage: t.coverage.clone(),
-        mesh: t.mesh.clone(),
+        mesh: t.domain.mesh().cloned(),
     }
 }
 

@@ -4,6 +4,7 @@
 //! touched per point; then a CSV, log-log plots and a markdown summary of the terms each method
 //! needs to reach a given error.
 
+use crate::store::transport::Domain;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -165,7 +166,7 @@ fn reference_error(
     reference: &Image,
     reference_coverage: Option<&[f32]>,
 ) -> Result<f64> {
-    if t.mesh.is_none() {
+    if t.domain == Domain::View {
         return relative_l2(img, reference, Some(&t.coverage));
     }
     let camera = crate::relight::vertex::bake_camera(t)?;

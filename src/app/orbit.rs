@@ -4,6 +4,7 @@
 //! costs at each tessellation, apart from the light's approximation. Also times a frame as the
 //! viewer makes it: relight at K terms, then draw.
 
+use crate::store::transport::BakeDomain;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -78,7 +79,7 @@ fn bake_vertices(
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<(Transport, bool, f64)> {
     let settings = BakeSettings {
-        per_vertex: Some(edge),
+        domain: BakeDomain::Vertices { edge_length: edge },
         ..settings.clone()
     };
     let start = Instant::now();

@@ -14,6 +14,7 @@ mod pixels;
 pub mod reference;
 mod settings;
 
+use crate::store::transport::BakeDomain;
 use in_order::in_tile_order;
 use pixels::visits;
 pub use pixels::{EdgeMap, pixel_subsamples, sample_stride};
@@ -196,9 +197,9 @@ fn bake_tiles(
     let identity = settings.identity(scene)?;
     let tracer = Tracer::new(scene);
     let cam = &scene.camera;
-    let mesh = match settings.per_vertex {
-        Some(edge) => Some(VertexMesh::tessellate(scene, edge)?),
-        None => None,
+    let mesh = match settings.domain {
+        BakeDomain::Vertices { edge_length } => Some(VertexMesh::tessellate(scene, edge_length)?),
+        BakeDomain::View => None,
     };
     // Vertex v is pixel v of an image one tile wide.
     let (w, h) = match &mesh {

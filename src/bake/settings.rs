@@ -42,9 +42,9 @@ pub struct BakeSettings {
     pub bounce_visibility: bounce::BounceVisibility,
     /// Width of a surface cache cell, in pixel footprints at the view's median depth.
     pub cache_spacing: f32,
-    /// Bake one row per vertex of the scene tessellated to this longest edge (scene units),
-    /// instead of one per pixel of the camera's view ([`crate::scene::tessellate`]).
-    pub per_vertex: Option<f32>,
+    /// What the rows belong to: the pixels of the camera's view, or the vertices of the scene
+    /// tessellated to a longest edge ([`crate::scene::tessellate`]).
+    pub domain: BakeDomain,
 }
 
 impl Default for BakeSettings {
@@ -66,7 +66,7 @@ impl Default for BakeSettings {
             paths: 256,
             bounce_visibility: bounce::BounceVisibility::Cache,
             cache_spacing: 4.0,
-            per_vertex: None,
+            domain: BakeDomain::View,
         }
     }
 }
@@ -134,7 +134,7 @@ impl BakeSettings {
                 ),
             ));
         }
-        if let Some(e) = self.per_vertex {
+        if let BakeDomain::Vertices { edge_length: e } = self.domain {
             if !(e.is_finite() && e > 0.0) {
                 return Err(PrtError::invalid(
                     "edge length",
@@ -161,7 +161,7 @@ impl BakeSettings {
     /// The edge samples as a file records them: 0 where they add nothing to `spp`, and in a
     /// per-vertex bake, which has no pixels.
     pub fn stored_edge_spp(&self) -> u32 {
-        if self.edge_spp > self.spp && self.per_vertex.is_none() {
+        if self.edge_spp > self.spp && self.domain == BakeDomain::View {
             self.edge_spp
         } else {
             0
@@ -183,7 +183,7 @@ impl BakeSettings {
     /// medium is baked per pixel, without interreflections.
     pub fn validate_for(&self, scene: &Scene) -> Result<()> {
         self.validate()?;
-        if scene.medium.is_some() && self.per_vertex.is_some() {
+        if scene.medium.is_some() && self.domain != BakeDomain::View {
             return Err(PrtError::invalid(
                 "per-vertex bake",
                 "a scene with a [medium] is baked per pixel only (the medium lies between the \
@@ -228,10 +228,7 @@ impl BakeSettings {
                 visibility: self.bounce_visibility,
                 cache_spacing: self.cache_spacing,
             }),
-            domain: match self.per_vertex {
-                Some(edge_length) => BakeDomain::Vertices { edge_length },
-                None => BakeDomain::View,
-            },
+            domain: self.domain,
         })
     }
 
@@ -271,10 +268,7 @@ impl BakeSettings {
             cache_spacing: id
                 .indirect
                 .map_or(defaults.cache_spacing, |i| i.cache_spacing),
-            per_vertex: match id.domain {
-                BakeDomain::Vertices { edge_length } => Some(edge_length),
-                BakeDomain::View => None,
-            },
+            domain: id.domain,
         }
     }
 }

@@ -16,7 +16,7 @@ use crate::store::transport::Transport;
 
 /// The mesh of a per-vertex bake, or an error saying that the file is a fixed view.
 pub fn mesh_of(t: &Transport) -> Result<&VertexMesh> {
-    t.mesh.as_ref().ok_or_else(|| {
+    t.domain.mesh().ok_or_else(|| {
         PrtError::invalid(
             "camera",
             "this transport is a per-pixel bake of one fixed view: its camera cannot move (bake \

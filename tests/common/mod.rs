@@ -139,7 +139,7 @@ pub fn per_vertex_transport_path() -> PathBuf {
             cube_n: 8,
             sh_order: 2,
             lossless: true,
-            per_vertex: Some(0.3),
+            domain: BakeDomain::Vertices { edge_length: 0.3 },
             ..BakeSettings::default()
         };
         let t = bake(&scene, &settings, &|_| {}).unwrap();

@@ -1,6 +1,7 @@
 //! `prt bake`, `prt merge`, `prt info` and `prt demo`: making transport files and reading what they hold.
 
 use super::*;
+use crate::store::transport::BakeDomain;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 #[derive(Args, Debug)]
@@ -66,7 +67,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         let edge = a
             .edge_length
             .unwrap_or_else(|| crate::scene::tessellate::VertexMesh::default_edge_length(&scene));
-        settings.per_vertex = Some(edge);
+        settings.domain = BakeDomain::Vertices { edge_length: edge };
         settings.validate()?;
         let glossy: Vec<&str> = scene
             .materials
@@ -115,8 +116,8 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
     let worst = worst_case_bytes(w, h, &settings);
     let plural =
         |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
-    let at = match (&mesh, settings.per_vertex) {
-        (Some(m), Some(edge)) => format!(
+    let at = match (&mesh, settings.domain) {
+        (Some(m), BakeDomain::Vertices { edge_length: edge }) => format!(
             "per vertex: {} vertices, {} triangles, edges up to {edge:.4}; spp does not apply",
             m.vertex_count(),
             m.triangles.len()

@@ -1,6 +1,7 @@
 //! `prt bench`: the sparsity-versus-error sweeps, with the references and the compression curve.
 
 use super::*;
+use crate::store::transport::{BakeDomain, Domain};
 
 #[derive(Args, Debug)]
 pub struct BenchArgs {
@@ -127,18 +128,18 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
             // A per-vertex bake holds the diffuse light at its vertices: its reference is the
             // per-pixel brute force of the same scene with glossy materials at their diffuse base.
             let diffuse;
-            let (scene, settings) = match t.mesh {
-                Some(_) => {
+            let (scene, settings) = match &t.domain {
+                Domain::Mesh(_) => {
                     diffuse = scene.with_diffuse_materials();
                     (
                         &diffuse,
                         BakeSettings {
-                            per_vertex: None,
+                            domain: BakeDomain::View,
                             ..settings.clone()
                         },
                     )
                 }
-                None => (scene, settings.clone()),
+                Domain::View => (scene, settings.clone()),
             };
             let mut refs = Vec::new();
             let mut coverage = Vec::new();

@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::relight::Backend;
+use crate::store::transport::Domain;
 
 #[derive(Args, Debug)]
 pub struct RelightArgs {
@@ -69,7 +70,7 @@ impl StillArgs {
             || self.target.is_some()
             || self.width.is_some()
             || self.height.is_some();
-        if t.mesh.is_none() {
+        if t.domain == Domain::View {
             if given {
                 crate::relight::vertex::mesh_of(t)?;
             }

@@ -2,6 +2,7 @@
 //! caches of prepared lights, relit on the CPU or the GPU back-end for every pane of a view
 //! state; and the still images made from it (screenshots, saved views, error maps).
 
+use crate::store::transport::Domain;
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -123,9 +124,9 @@ impl Engine {
         envs: Vec<EnvEntry>,
     ) -> Result<Engine> {
         let ctx = LightContext::new(&transport)?;
-        let base_camera = match transport.mesh {
-            Some(_) => Some(bake_camera(&transport)?),
-            None => None,
+        let base_camera = match transport.domain {
+            Domain::Mesh(_) => Some(bake_camera(&transport)?),
+            Domain::View => None,
         };
         Ok(Engine {
             path: path.to_path_buf(),

@@ -241,7 +241,7 @@ impl Transport {
             coverage,
             transport_magnitude: vec![0.0; c],
             tile_stats,
-            mesh,
+            domain: Domain::from_mesh(mesh),
         };
         t.validate().map_err(invalid)?;
         t.finish();
@@ -513,7 +513,7 @@ fn merge_tiles(
             }
         }
     }
-    if let Some(k) = shards.iter().position(|s| s.mesh != first.mesh) {
+    if let Some(k) = shards.iter().position(|s| s.domain != first.domain) {
         return Err(PrtError::invalid(
             "merge",
             format!("{} holds another vertex mesh than {}", name(k), name(0)),
@@ -534,7 +534,7 @@ fn merge_tiles(
         meta: same(&first.meta),
         albedo,
         coverage,
-        mesh: first.mesh.clone(),
+        mesh: first.domain.mesh().cloned(),
     })
 }
 

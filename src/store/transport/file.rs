@@ -62,7 +62,7 @@ impl Transport {
                 coverage: &self.coverage,
                 transport_magnitude: &self.transport_magnitude,
                 tile_stats: &self.tile_stats,
-                mesh: self.mesh.as_ref(),
+                mesh: self.domain.mesh(),
             },
         )
     }
@@ -207,7 +207,7 @@ impl Transport {
             coverage,
             transport_magnitude,
             tile_stats,
-            mesh,
+            domain: Domain::from_mesh(mesh),
         };
         t.validate().map_err(bad)?;
         Ok(t)

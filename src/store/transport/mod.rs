@@ -176,8 +176,35 @@ pub struct Transport {
     /// Per tile: energy thresholding and quantisation dropped, the rows' total energy, shadow
     /// rays traced.
     pub tile_stats: Vec<[f64; 3]>,
-    /// The mesh of a per-vertex bake (vertex `v` is pixel `v`); `None` for a view.
-    pub mesh: Option<VertexMesh>,
+    /// What the rows belong to: the pixels of the baked view, or a mesh's vertices.
+    pub domain: Domain,
+}
+
+/// What a transport's rows belong to, and so what can draw it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Domain {
+    /// The pixels of the baked camera's view (`meta.camera`): the image is the relit pixels,
+    /// and the camera cannot move.
+    #[default]
+    View,
+    /// The vertices of this mesh, vertex `v` as pixel `v` of an image [`TILE`] wide: the relit
+    /// values are vertex colours, drawn from any camera.
+    Mesh(VertexMesh),
+}
+
+impl Domain {
+    /// The mesh of a per-vertex bake; `None` for a view.
+    pub fn mesh(&self) -> Option<&VertexMesh> {
+        match self {
+            Domain::Mesh(mesh) => Some(mesh),
+            Domain::View => None,
+        }
+    }
+
+    /// The domain of a per-vertex bake's mesh, or a view.
+    pub fn from_mesh(mesh: Option<VertexMesh>) -> Domain {
+        mesh.map_or(Domain::View, Domain::Mesh)
+    }
 }
 
 /// Tiles along x and y for an image.
@@ -382,7 +409,7 @@ impl Transport {
     /// A per-vertex bake's mesh against its header: one vertex per pixel up to the count, the
     /// counts the header gives, and a consistent mesh; a view has neither mesh nor its header.
     fn validate_mesh(&self) -> std::result::Result<(), String> {
-        let (pv, mesh) = match (&self.meta.per_vertex, &self.mesh) {
+        let (pv, mesh) = match (&self.meta.per_vertex, self.domain.mesh()) {
             (None, None) => return Ok(()),
             (Some(pv), Some(mesh)) => (pv, mesh),
             (Some(_), None) => return Err("a per-vertex header without its mesh".into()),
