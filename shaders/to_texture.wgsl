@@ -11,7 +11,7 @@ struct Size {
 @group(0) @binding(1) var<storage, read> image: array<vec4<f32>>;
 @group(0) @binding(2) var target_texture: texture_storage_2d<rgba32float, write>;
 
-@compute @workgroup_size(16, 16)
+@compute @workgroup_size(WG_X, WG_Y)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= size.width || id.y >= size.height) {
         return;

@@ -35,7 +35,7 @@ fn display_value(x: f32) -> f32 {
     return srgb(curve(max(x * params.scale, 0.0)));
 }
 
-@compute @workgroup_size(16, 16)
+@compute @workgroup_size(WG_X, WG_Y)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= params.width || id.y >= params.height {
         return;

@@ -69,7 +69,7 @@ fn axis_coord(v: f32, n: u32) -> vec3<f32> {
     return vec3<f32>(f32(i), f32(i1), c - f32(i));
 }
 
-@compute @workgroup_size(8, 8)
+@compute @workgroup_size(WG_X, WG_Y)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= params.width || id.y >= params.height {
         return;

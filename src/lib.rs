@@ -23,6 +23,7 @@ pub mod conventions;
 pub mod error;
 pub mod files;
 pub mod flags;
+pub mod gpu;
 pub mod light;
 pub mod math;
 pub mod medium;

@@ -7,11 +7,12 @@ use std::path::{Path, PathBuf};
 
 /// The stages in import order: a module may use its own stage and those before it. `app` may
 /// use everything; nothing else may use `app`.
-const STAGES: [&[&str]; 11] = [
+const STAGES: [&[&str]; 12] = [
     &["error", "files", "conventions"],
     &["math"],
     &["flags"],
     &["output"],
+    &["gpu"],
     &["medium"],
     &["scene"],
     &["light"],

@@ -131,7 +131,7 @@ fn bad_lights_are_errors_on_the_gpu_too() {
 /// Reads an RGBA32F texture back through a buffer with 256-byte aligned rows.
 /// A texture the relight of `t` can be drawn into and read back from.
 fn relight_texture(gpu: &Gpu, t: &Transport) -> wgpu::Texture {
-    wavelet_prt::relight::gpu::texture_2d(
+    wavelet_prt::gpu::texture_2d(
         &gpu.device,
         "relight",
         [t.meta.width, t.meta.height],

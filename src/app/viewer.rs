@@ -710,9 +710,12 @@ fn open_window(file: &Path, envs: &[String]) -> eframe::Result {
             "wavelet-prt volume viewer",
             options,
             Box::new(move |cc| {
-                let gpu = cc.wgpu_render_state.as_ref().and_then(|rs| {
-                    Gpu::from_device(rs.device.clone(), rs.queue.clone(), &rs.adapter.get_info())
-                        .ok()
+                let gpu = cc.wgpu_render_state.as_ref().map(|rs| {
+                    crate::gpu::GpuDevice::from_device(
+                        rs.device.clone(),
+                        rs.queue.clone(),
+                        &rs.adapter.get_info(),
+                    )
                 });
                 Ok(Box::new(VolumeApp::new(vt, &envs, gpu)))
             }),

@@ -7,9 +7,12 @@ use wgpu::util::DeviceExt;
 
 use super::{PhaseLight, VolumeTransfer, VolumeView};
 use crate::error::{PrtError, Result};
+use crate::gpu::{GpuDevice, Workgroup2, wait_and_read, wgsl};
 use crate::output::film::Image;
-use crate::relight::gpu::Gpu;
 use crate::scene::Camera;
+
+/// The march's workgroup (one thread per pixel).
+const MARCH_WORKGROUP: Workgroup2 = Workgroup2 { x: 8, y: 8 };
 
 /// The layout of `Params` in `shaders/volume_march.wgsl`.
 #[repr(C)]
@@ -46,7 +49,7 @@ pub struct GpuVolume {
 
 impl GpuVolume {
     /// Uploads `vt` and builds the march pipeline.
-    pub fn new(gpu: &Gpu, vt: &VolumeTransfer) -> Result<GpuVolume> {
+    pub fn new(gpu: &GpuDevice, vt: &VolumeTransfer) -> Result<GpuVolume> {
         let device = &gpu.device;
         let bytes = (vt.transfer.len() * 4) as u64;
         if bytes > gpu.max_binding_bytes() {
@@ -56,21 +59,14 @@ impl GpuVolume {
                 gpu.max_binding_bytes()
             )));
         }
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("volume march"),
-            source: wgpu::ShaderSource::Wgsl(
-                include_str!("../../shaders/volume_march.wgsl").into(),
+        let pipeline = gpu.compute_pipeline(
+            "volume march",
+            &wgsl(
+                &MARCH_WORKGROUP.constants(),
+                &[include_str!("../../shaders/volume_march.wgsl")],
             ),
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("volume march"),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        )?;
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let storage = |label, data: &[f32]| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
@@ -87,7 +83,7 @@ impl GpuVolume {
             mapped_at_creation: false,
         });
         if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(PrtError::Gpu(format!("building the volume march: {e}")));
+            return Err(PrtError::Gpu(format!("uploading the volume: {e}")));
         }
         let medium = vt.medium();
         let cell = medium.grid.cell();
@@ -114,7 +110,7 @@ impl GpuVolume {
     /// the image and the GPU time (timestamp-free: wall time from submission to completion).
     pub fn render(
         &mut self,
-        gpu: &Gpu,
+        gpu: &GpuDevice,
         light: &PhaseLight,
         camera: &Camera,
         view: VolumeView,
@@ -210,13 +206,12 @@ impl GpuVolume {
             });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+            MARCH_WORKGROUP.dispatch(&mut pass, w, h);
         }
         encoder.copy_buffer_to_buffer(&image, 0, &readback, 0, image_bytes);
         let start = std::time::Instant::now();
         gpu.queue.submit([encoder.finish()]);
-        let (pixels, seconds) =
-            crate::relight::gpu::wait_and_read(device, &readback, start, "the volume march")?;
+        let (pixels, seconds) = wait_and_read(device, &readback, start, "the volume march")?;
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!("volume march: {e}")));
         }

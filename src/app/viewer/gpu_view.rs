@@ -6,9 +6,26 @@
 use eframe::wgpu;
 
 use crate::error::Result;
+use crate::gpu::{Workgroup2, map_and_read, texture_2d, wgsl};
 use crate::output::film::{Image, ToneMap};
 
 const TONE_WGSL: &str = include_str!("../../../shaders/tonemap.wgsl");
+
+/// The tone-map pass's workgroup (one thread per pixel).
+const TONE_WORKGROUP: Workgroup2 = Workgroup2 { x: 16, y: 16 };
+
+/// The layout of `Params` in `shaders/tonemap.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+struct ToneParams {
+    /// 2^exposure.
+    scale: f32,
+    width: u32,
+    height: u32,
+    /// [`crate::output::film::ToneCurve::index`].
+    curve: u32,
+}
+const _: () = assert!(std::mem::size_of::<ToneParams>() == 16);
 
 /// The two textures of one image size and the tone-mapping pass between them.
 pub struct GpuView {
@@ -29,9 +46,8 @@ pub struct GpuView {
 
 impl GpuView {
     pub fn new(device: &wgpu::Device, width: u32, height: u32) -> GpuView {
-        let texture = |label, format, usage| {
-            crate::relight::gpu::texture_2d(device, label, [width, height], format, usage)
-        };
+        let texture =
+            |label, format, usage| texture_2d(device, label, [width, height], format, usage);
         let linear = texture(
             "relit linear",
             wgpu::TextureFormat::Rgba32Float,
@@ -93,7 +109,9 @@ impl GpuView {
         });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("tone map"),
-            source: wgpu::ShaderSource::Wgsl(TONE_WGSL.into()),
+            source: wgpu::ShaderSource::Wgsl(
+                wgsl(&TONE_WORKGROUP.constants(), &[TONE_WGSL]).into(),
+            ),
         });
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("tone map"),
@@ -105,7 +123,7 @@ impl GpuView {
         });
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("tone map params"),
-            size: 16,
+            size: std::mem::size_of::<ToneParams>() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -172,12 +190,13 @@ impl GpuView {
 
     /// Tone-maps `linear` plus `behind` into `display` as `tone` says.
     pub fn tone_map(&self, device: &wgpu::Device, queue: &wgpu::Queue, tone: ToneMap) {
-        let mut words = [0u8; 16];
-        words[0..4].copy_from_slice(&tone.exposure.exp2().to_le_bytes());
-        words[12..16].copy_from_slice(&tone.curve.index().to_le_bytes());
-        words[4..8].copy_from_slice(&self.width.to_le_bytes());
-        words[8..12].copy_from_slice(&self.height.to_le_bytes());
-        queue.write_buffer(&self.params, 0, &words);
+        let params = ToneParams {
+            scale: tone.exposure.exp2(),
+            width: self.width,
+            height: self.height,
+            curve: tone.curve.index(),
+        };
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("tone map"),
         });
@@ -188,7 +207,7 @@ impl GpuView {
             });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.group, &[]);
-            pass.dispatch_workgroups(self.width.div_ceil(16), self.height.div_ceil(16), 1);
+            TONE_WORKGROUP.dispatch(&mut pass, self.width, self.height);
         }
         queue.submit([encoder.finish()]);
     }
@@ -217,7 +236,7 @@ impl GpuView {
         );
         queue.submit([encoder.finish()]);
         let (width, height) = (self.width as usize, self.height as usize);
-        crate::relight::gpu::map_and_read(device, &buffer, "the display", |data| {
+        map_and_read(device, &buffer, "the display", |data| {
             let mut out = Vec::with_capacity(width * height * 3);
             for y in 0..height {
                 let start = y * row as usize;

@@ -14,9 +14,9 @@ use glam::Vec3;
 
 use super::{EnvEntry, EnvSource, env_entries};
 use crate::error::Result;
+use crate::gpu::GpuDevice;
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::{Image, ToneCurve, ToneMap};
-use crate::relight::gpu::Gpu;
 use crate::scene::Camera;
 use crate::volume::gpu::GpuVolume;
 use crate::volume::{PhaseLight, VolumeTransfer, VolumeView, render_volume};
@@ -112,7 +112,7 @@ pub struct VolumeEngine {
     pub vt: VolumeTransfer,
     pub envs: Vec<EnvEntry>,
     light: Option<((String, f64, f64, usize), PhaseLight)>,
-    gpu: Option<(Gpu, GpuVolume)>,
+    gpu: Option<(GpuDevice, GpuVolume)>,
 }
 
 impl VolumeEngine {
@@ -126,7 +126,7 @@ impl VolumeEngine {
     }
 
     /// Marches on `gpu` from now on when a state asks for it.
-    pub fn attach_gpu(&mut self, gpu: Gpu) -> Result<()> {
+    pub fn attach_gpu(&mut self, gpu: GpuDevice) -> Result<()> {
         let gv = GpuVolume::new(&gpu, &self.vt)?;
         self.gpu = Some((gpu, gv));
         Ok(())
@@ -220,7 +220,7 @@ pub struct VolumeApp {
 
 impl VolumeApp {
     /// Opens the window's state on a loaded volume; `gpu` marches on the window's device.
-    pub fn new(vt: VolumeTransfer, cli_envs: &[String], gpu: Option<Gpu>) -> VolumeApp {
+    pub fn new(vt: VolumeTransfer, cli_envs: &[String], gpu: Option<GpuDevice>) -> VolumeApp {
         let (envs, sun, selected) = env_entries(cli_envs);
         let mut state = VolumeState::initial(&vt);
         state.env = selected;

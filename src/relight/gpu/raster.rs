@@ -16,8 +16,9 @@
 
 use wgpu::util::DeviceExt;
 
-use super::{Gpu, map_and_read};
+use super::Gpu;
 use crate::error::{PrtError, Result};
+use crate::gpu::{map_and_read, texture_2d};
 use crate::output::film::Image;
 use crate::relight::raster::{Raster, check_mesh, clip_from_world};
 use crate::scene::Camera;
@@ -134,7 +135,7 @@ struct Targets {
 impl Targets {
     fn new(device: &wgpu::Device, width: u32, height: u32) -> Targets {
         let texture =
-            |label, format, usage| super::texture_2d(device, label, [width, height], format, usage);
+            |label, format, usage| texture_2d(device, label, [width, height], format, usage);
         let colour = texture(
             "raster colour",
             COLOUR_FORMAT,

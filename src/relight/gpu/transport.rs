@@ -2,12 +2,14 @@
 //! by tiles into chunks where a binding would exceed the device's limit), relit per request by
 //! the wavelet and SH pipelines into a buffer read back, or into a texture for display.
 
+use std::mem::offset_of;
 use std::time::Instant;
 
 use wgpu::util::DeviceExt;
 
-use super::{Gpu, wait_and_read};
+use super::{Gpu, TO_TEXTURE_WORKGROUP};
 use crate::error::{PrtError, Result};
+use crate::gpu::wait_and_read;
 use crate::light::select::SparseLight;
 use crate::output::film::Image;
 use crate::relight::{Backend, RelightStats, Terms};
@@ -46,6 +48,15 @@ struct Params {
     _pad: u32,
 }
 const _: () = assert!(std::mem::size_of::<Params>() == 64);
+// Fields written together are neighbours.
+const _: () = assert!(offset_of!(Params, terms) == offset_of!(Params, coeffs) + 4);
+const _: () = assert!(offset_of!(Params, accumulate) == offset_of!(Params, term_base) + 4);
+
+/// Writes consecutive `u32` fields of a uniform block, from the field at `offset` on.
+fn write_field(gpu: &Gpu, buffer: &wgpu::Buffer, offset: usize, words: &[u32]) {
+    gpu.queue
+        .write_buffer(buffer, offset as u64, bytemuck::cast_slice(words));
+}
 
 /// `Params::format`: how entries are packed in the `entries` buffer (see
 /// `shaders/relight_wavelet.wgsl`).
@@ -370,8 +381,7 @@ impl GpuTransport {
     /// memory (the shader caps it at 1024). Tests set 0 to exercise that path.
     pub fn set_shared_rows(&self, gpu: &Gpu, rows: u32) {
         for chunk in &self.chunks {
-            gpu.queue
-                .write_buffer(&chunk.params, 40, bytemuck::bytes_of(&rows));
+            write_field(gpu, &chunk.params, offset_of!(Params, shared_rows), &[rows]);
         }
     }
 
@@ -554,17 +564,21 @@ impl GpuTransport {
             let first = batch * per_batch;
             let count = per_batch.min(terms.len() - first.min(terms.len()));
             for (i, chunk) in self.chunks.iter().enumerate() {
-                // `coeffs` (word 6 of Params) is the row stride: 6 N² for wavelets, n² for SH;
-                // `terms` is word 7; `term_base` and `accumulate` are words 13 and 14.
-                let words = [
-                    if wavelet { self.coeffs } else { self.sh_count } as u32,
-                    count as u32,
-                ];
-                gpu.queue
-                    .write_buffer(&chunk.params, 24, bytemuck::cast_slice(&words));
-                let batch_words = [first as u32, (batch > 0) as u32];
-                gpu.queue
-                    .write_buffer(&chunk.params, 52, bytemuck::cast_slice(&batch_words));
+                // `coeffs` is the row stride (6 N² for wavelets, n² for SH), followed by `terms`;
+                // `term_base` by `accumulate`.
+                let stride = if wavelet { self.coeffs } else { self.sh_count } as u32;
+                write_field(
+                    gpu,
+                    &chunk.params,
+                    offset_of!(Params, coeffs),
+                    &[stride, count as u32],
+                );
+                write_field(
+                    gpu,
+                    &chunk.params,
+                    offset_of!(Params, term_base),
+                    &[first as u32, (batch > 0) as u32],
+                );
                 let pass_index = batch * n + i;
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("relight"),
@@ -652,7 +666,7 @@ impl GpuTransport {
             });
             pass.set_pipeline(&gpu.to_texture);
             pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(dims[0].div_ceil(16), dims[1].div_ceil(16), 1);
+            TO_TEXTURE_WORKGROUP.dispatch(&mut pass, dims[0], dims[1]);
         }
         gpu.queue.submit([encoder.finish()]);
         if let Some(e) = pollster::block_on(scope.pop()) {

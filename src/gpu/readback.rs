@@ -1,4 +1,4 @@
-//! Reading results back from the device: an image from a buffer, the timestamps around the relight
+//! Reading results back from the device: an image from a buffer, the timestamps around a run of
 //! passes, and the display texture. One wait-and-map does all three.
 
 use std::time::Instant;
@@ -39,7 +39,7 @@ pub fn map_and_read<T>(
 
 /// Waits for the submissions, then reads `readback` (RGBA32F pixels) as RGB. Returns the pixels
 /// and the seconds from `start` until the GPU finished; `what` names the work in errors.
-pub(crate) fn wait_and_read(
+pub fn wait_and_read(
     device: &wgpu::Device,
     readback: &wgpu::Buffer,
     start: Instant,
@@ -52,10 +52,10 @@ pub(crate) fn wait_and_read(
     })
 }
 
-/// Two timestamps (start of the first relight pass, end of the last), resolved and copied to a
+/// Two timestamps (start of the first pass of a run, end of the last), resolved and copied to a
 /// mappable buffer in the same submission.
 #[derive(Clone)]
-pub(crate) struct Timer {
+pub struct Timer {
     set: wgpu::QuerySet,
     resolve: wgpu::Buffer,
     readback: wgpu::Buffer,
@@ -63,7 +63,8 @@ pub(crate) struct Timer {
 }
 
 impl Timer {
-    pub(crate) fn new(device: &wgpu::Device, queue: &wgpu::Queue) -> Option<Timer> {
+    /// The timer of a device with timestamp queries; `None` without them.
+    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue) -> Option<Timer> {
         if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
             return None;
         }
@@ -95,11 +96,7 @@ impl Timer {
     }
 
     /// Timestamp writes for pass `i` of `n`: the start of the first, the end of the last.
-    pub(crate) fn writes(
-        &self,
-        i: usize,
-        n: usize,
-    ) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+    pub fn writes(&self, i: usize, n: usize) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
         let (begin, end) = (i == 0, i + 1 == n);
         (begin || end).then(|| wgpu::ComputePassTimestampWrites {
             query_set: &self.set,
@@ -108,13 +105,14 @@ impl Timer {
         })
     }
 
-    pub(crate) fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
+    /// Resolves the two stamps into the readback buffer, at the end of the submission.
+    pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
         encoder.resolve_query_set(&self.set, 0..2, &self.resolve, 0);
         encoder.copy_buffer_to_buffer(&self.resolve, 0, &self.readback, 0, 16);
     }
 
     /// The time between the two stamps of the last finished submission, seconds.
-    pub(crate) fn read(&self, device: &wgpu::Device) -> Option<f64> {
+    pub fn read(&self, device: &wgpu::Device) -> Option<f64> {
         let stamps: [u64; 2] = map_and_read(device, &self.readback, "timestamps", |bytes| {
             bytemuck::pod_read_unaligned(&bytes[..16])
         })
