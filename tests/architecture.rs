@@ -52,9 +52,9 @@ fn module_of(src: &Path, file: &Path) -> String {
     parts.join("::")
 }
 
-/// The library code of a file: its lines up to an inline `#[cfg(test)]` module, comments
-/// dropped. Test files and test helpers are not library code.
-fn library_lines(text: &str) -> Vec<&str> {
+/// The library code of a file with its true (1-based) line numbers: its lines up to an inline
+/// `#[cfg(test)]` module, comments dropped. Test files and test helpers are not library code.
+fn library_lines(text: &str) -> Vec<(usize, &str)> {
     let lines: Vec<&str> = text.lines().collect();
     let mut out = Vec::new();
     for (i, l) in lines.iter().enumerate() {
@@ -67,10 +67,67 @@ fn library_lines(text: &str) -> Vec<&str> {
             break;
         }
         if !t.starts_with("//") {
-            out.push(*l);
+            out.push((i + 1, *l));
         }
     }
     out
+}
+
+/// The module `super` names from `module`: its parent (`a::b` -> `a`, `a` -> the crate root,
+/// ""), whether `module` is a file or a folder's `mod.rs`.
+fn parent(module: &str) -> &str {
+    module.rsplit_once("::").map_or("", |(p, _)| p)
+}
+
+/// The crate paths a line of `module` names: `crate::a::b`, `super::a` (resolved from the
+/// module, chains included) and, in a `use` or `pub use`, a path that starts at one of the
+/// module's own children (`pub use child::Item`).
+fn paths_in(line: &str, module: &str, modules: &BTreeSet<String>) -> Vec<String> {
+    let is_path_char = |c: char| c.is_alphanumeric() || c == '_' || c == ':';
+    let mut found = Vec::new();
+    let mut rest = line;
+    while let Some(i) = rest.find(|c: char| c.is_alphabetic() || c == '_') {
+        let start = &rest[i..];
+        let end = start
+            .find(|c: char| !is_path_char(c))
+            .unwrap_or(start.len());
+        let word = start[..end].trim_end_matches(':');
+        // Only whole words: `supercrate::` is not `crate::`.
+        let boundary = i == 0 || !is_path_char(rest[..i].chars().last().unwrap_or(' '));
+        if boundary {
+            if let Some(tail) = word.strip_prefix("crate::") {
+                found.push(tail.to_string());
+            } else if word == "super" || word.starts_with("super::") {
+                // `super::a`, `super::super::a`, and `super::*` or `super::{..}` (the word
+                // `super` alone), which name the parent itself.
+                let mut base = module;
+                let mut tail = word;
+                while tail == "super" || tail.starts_with("super::") {
+                    base = parent(base);
+                    tail = tail["super".len()..].trim_start_matches(':');
+                }
+                found.push(match (base.is_empty(), tail.is_empty()) {
+                    (_, true) => base.to_string(),
+                    (true, false) => tail.to_string(),
+                    (false, false) => format!("{base}::{tail}"),
+                });
+            }
+        }
+        rest = &start[end..];
+    }
+    let t = line.trim_start();
+    if let Some(used) = t
+        .strip_prefix("pub use ")
+        .or_else(|| t.strip_prefix("use "))
+    {
+        let first = used.split("::").next().unwrap_or("");
+        let child = format!("{module}::{first}");
+        if !module.is_empty() && modules.contains(&child) {
+            let path = used.trim_end_matches(';');
+            found.push(format!("{module}::{path}"));
+        }
+    }
+    found
 }
 
 fn is_test_file(module: &str) -> bool {
@@ -113,20 +170,13 @@ fn house() -> House {
             .unwrap_or(usize::MAX);
         lengths.insert(module.clone(), text.lines().count().min(test_start));
         let mut found = Vec::new();
-        for (n, line) in library_lines(&text).into_iter().enumerate() {
-            let mut rest = line;
-            while let Some(i) = rest.find("crate::") {
-                let tail = &rest[i + "crate::".len()..];
-                let end = tail
-                    .find(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'))
-                    .unwrap_or(tail.len());
-                let path = tail[..end].trim_end_matches(':');
-                if let Some(t) = target_of(path, &modules)
+        for (n, line) in library_lines(&text) {
+            for path in paths_in(line, &module, &modules) {
+                if let Some(t) = target_of(&path, &modules)
                     && *t != module
                 {
-                    found.push((n + 1, t.clone()));
+                    found.push((n, t.clone()));
                 }
-                rest = &tail[end..];
             }
         }
         uses.insert(module, found);
@@ -171,7 +221,14 @@ fn modules_import_each_other_without_a_loop() {
     let graph: BTreeMap<&str, BTreeSet<&str>> = h
         .uses
         .iter()
-        .map(|(m, u)| (m.as_str(), u.iter().map(|(_, t)| t.as_str()).collect()))
+        .map(|(m, u)| {
+            // A folder's module re-exports its children and a child uses its folder's
+            // (`use super::*`): that is one module's layout, not a loop between modules.
+            let related =
+                |t: &str| t.starts_with(&format!("{m}::")) || m.starts_with(&format!("{t}::"));
+            let targets = u.iter().map(|(_, t)| t.as_str()).filter(|t| !related(t));
+            (m.as_str(), targets.collect())
+        })
         .collect();
     // Depth-first search with colours; a grey target is a loop.
     fn visit<'a>(
@@ -224,15 +281,54 @@ fn no_source_file_outgrows_the_limit() {
 
 #[test]
 fn the_checker_sees_a_planted_violation() {
-    // The rules above must be able to fail: a later stage named from an earlier one, and a
-    // test module's imports ignored.
-    let text = "use crate::app::demo;\n#[cfg(test)]\nmod tests {\nuse crate::app::cli;\n}\n";
+    // The rules above must be able to fail: a later stage named from an earlier one, by
+    // `crate::` or by `super::`, found on its true line; a test module's imports ignored.
+    let text =
+        "//! Doc.\n\nuse crate::app::demo;\n#[cfg(test)]\nmod tests {\nuse crate::app::cli;\n}\n";
     let lines = library_lines(text);
-    assert_eq!(lines, vec!["use crate::app::demo;"]);
+    assert_eq!(lines, vec![(2, ""), (3, "use crate::app::demo;")]);
     assert!(stage_rank("app::demo") > stage_rank("math::sh"));
-    let modules: BTreeSet<String> = ["app".into(), "app::demo".into()].into();
+    let modules: BTreeSet<String> = [
+        "app",
+        "app::demo",
+        "flags",
+        "light",
+        "light::resample",
+        "light::resample::cache",
+    ]
+    .map(String::from)
+    .into();
     assert_eq!(
         target_of("app::demo::write_assets", &modules).map(String::as_str),
         Some("app::demo")
     );
+    let targets = |line: &str, module: &str| -> Vec<String> {
+        paths_in(line, module, &modules)
+            .iter()
+            .filter_map(|p| target_of(p, &modules).cloned())
+            .collect()
+    };
+    // `super::` from a top-level module reaches the crate root, and so any stage.
+    assert_eq!(
+        targets("use super::app::demo::run;", "flags"),
+        ["app::demo"]
+    );
+    // Chains climb one module each.
+    assert_eq!(
+        targets(
+            "let x = super::super::resample::f();",
+            "light::resample::cache"
+        ),
+        ["light::resample"]
+    );
+    assert_eq!(
+        targets("use super::*;", "light::resample::cache"),
+        ["light::resample"]
+    );
+    // A re-export of a child is a use of it; a word that merely ends in `crate` is not a path.
+    assert_eq!(
+        targets("pub use cache::Cache;", "light::resample"),
+        ["light::resample::cache"]
+    );
+    assert!(targets("let supercrate::x = 1;", "flags").is_empty());
 }
