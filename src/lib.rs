@@ -31,6 +31,8 @@ pub mod output;
 pub mod relight;
 pub mod scene;
 pub mod store;
+#[cfg(test)]
+pub(crate) mod test_support;
 pub mod volume;
 
 pub use error::{PrtError, Result};

@@ -1,4 +1,5 @@
-//! Helpers shared by the tests of this crate's modules.
+//! Helpers shared by the unit tests of every module of the crate (the integration tests' own
+//! share `tests/common/shared.rs` with them).
 
 use glam::Vec3;
 
@@ -12,6 +13,6 @@ pub fn assert_vec_close(what: &str, a: Vec3, b: Vec3, tol: f32) {
     );
 }
 
-#[path = "../../tests/common/shared.rs"]
+#[path = "../tests/common/shared.rs"]
 mod shared;
 pub use shared::{CANONICAL, Rng, assert_close, temp_dir};

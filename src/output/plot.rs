@@ -532,7 +532,7 @@ mod tests {
 
     #[test]
     fn writes_a_png() {
-        let dir = crate::scene::test_support::temp_dir("plot");
+        let dir = crate::test_support::temp_dir("plot");
         let path = dir.join("curves.png");
         write(&path, &spec(true), &two_curves()).unwrap();
         let img = image::open(&path).unwrap();

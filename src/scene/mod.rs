@@ -411,7 +411,4 @@ pub mod tessellate;
 pub mod trace;
 
 #[cfg(test)]
-pub(crate) mod test_support;
-
-#[cfg(test)]
 mod tests;

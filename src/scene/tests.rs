@@ -1,8 +1,8 @@
 //! Known answers and errors of scene loading.
 
 use super::file::Fnv1a;
-use super::test_support::*;
 use super::*;
+use crate::test_support::*;
 
 /// Direction comparisons: f32 normalisation and trigonometry are good to a few ulps.
 const DIR_TOL: f32 = 1e-5;

@@ -379,7 +379,7 @@ impl Tracer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::test_support::*;
+    use crate::test_support::*;
     use std::fmt::Write as _;
     use std::path::Path;
 

@@ -829,7 +829,7 @@ mod tests {
     /// A `width` x `height` map: noisy sky, and with `sun` a 2 x 2-pixel source 5000 times
     /// brighter.
     fn test_map(width: usize, height: usize, sun: bool) -> Vec<[f32; 3]> {
-        let mut rng = crate::scene::test_support::Rng(0x5eed_0123);
+        let mut rng = crate::test_support::Rng(0x5eed_0123);
         let mut pixels: Vec<[f32; 3]> = (0..width * height)
             .map(|_| {
                 let b = 0.5 + rng.unit();

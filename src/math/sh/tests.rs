@@ -27,9 +27,9 @@ const HEMISPHERE_TRUNCATION: f64 = 0.01 * PI;
 /// f32 storage of values up to ~2 in magnitude.
 const F32_ROUNDING: f64 = 1e-6;
 
-use crate::scene::test_support::assert_close;
+use crate::test_support::assert_close;
 
-use crate::scene::test_support::Rng;
+use crate::test_support::Rng;
 
 /// The SH tests' random inputs, from the shared seeded generator.
 trait ShSamples {
