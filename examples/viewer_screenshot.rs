@@ -59,10 +59,10 @@ fn main() {
         std::process::exit(1);
     }
     let s = &mut h.state_mut().state;
-    s.compare = true;
-    s.layout = Layout::Split;
-    s.split = 0.5;
-    s.terms = terms.unwrap_or(64);
+    s.relight.compare = true;
+    s.display.layout = Layout::Split;
+    s.display.split = 0.5;
+    s.relight.terms = terms.unwrap_or(64);
     // Ignored by a per-pixel bake, whose view is fixed.
     s.orbit = wavelet_prt::relight::vertex::Orbit {
         azimuth_deg: 35.0,

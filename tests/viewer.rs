@@ -2,12 +2,14 @@
 
 mod common;
 
-use wavelet_prt::app::viewer::{Engine, EnvEntry, EnvSource, ViewState, env_entries, screenshot};
+use wavelet_prt::app::viewer::{
+    Engine, EnvEntry, EnvSource, LightState, ViewState, env_entries, screenshot,
+};
 use wavelet_prt::relight::Method;
 
 /// An engine on the test bake with a sun (index 0) and the first bundled map, if any.
 fn engine() -> Engine {
-    let (entries, _, _) = env_entries(&[]);
+    let (entries, _) = env_entries(&[]);
     let mut envs = vec![EnvEntry {
         name: "sun".into(),
         source: EnvSource::Sun,
@@ -21,9 +23,16 @@ fn engine() -> Engine {
     Engine::open(&common::viewer_transport_path(), envs).unwrap()
 }
 
+/// The first environment, with the sun placed at `elevation` and `azimuth` (degrees).
+fn sun_at(elevation: f64, azimuth: f64) -> LightState {
+    let mut light = LightState::default();
+    (light.sun.elevation, light.sun.azimuth) = (elevation, azimuth);
+    light
+}
+
 fn sun_state(engine: &mut Engine) -> ViewState {
-    let mut s = engine.initial_state(0, (25.0, 60.0));
-    s.exposure = 0.0;
+    let mut s = engine.initial_state(sun_at(25.0, 60.0));
+    s.display.exposure = 0.0;
     s
 }
 
@@ -35,24 +44,24 @@ fn l2(engine: &mut Engine, s: &ViewState) -> f64 {
 fn more_terms_lower_the_error_against_full() {
     let mut e = engine();
     let mut s = sun_state(&mut e);
-    s.method = Method::Wavelet;
+    s.relight.method = Method::Wavelet;
     let all = 6 * common::VIEWER_N * common::VIEWER_N;
     let errors: Vec<f64> = [2, 16, 128, all]
         .iter()
         .map(|&k| {
-            s.terms = k;
+            s.relight.terms = k;
             l2(&mut e, &s)
         })
         .collect();
     assert!(errors[0] > errors[1] && errors[1] > errors[2], "{errors:?}");
     assert!(errors[3] < 1e-5, "{errors:?}");
-    s.method = Method::Full;
+    s.relight.method = Method::Full;
     assert_eq!(l2(&mut e, &s), 0.0);
     // SH: higher order is closer for this smooth-enough sky.
-    s.method = Method::Sh;
-    s.sh_order = 1;
+    s.relight.method = Method::Sh;
+    s.relight.sh_order = 1;
     let low = l2(&mut e, &s);
-    s.sh_order = common::VIEWER_SH_ORDER;
+    s.relight.sh_order = common::VIEWER_SH_ORDER;
     let high = l2(&mut e, &s);
     assert!(
         high < low,
@@ -67,10 +76,10 @@ fn environment_yaw_and_sun_change_the_image() {
     let s = sun_state(&mut e);
     let base = e.render(&s).unwrap().panes[0].rgb.clone();
     let mut turned = s.clone();
-    turned.yaw = 90.0;
+    turned.light.rotation.yaw_deg = 90.0;
     assert_ne!(e.render(&turned).unwrap().panes[0].rgb, base, "yaw");
     let mut moved = s.clone();
-    moved.sun_elev = 60.0;
+    moved.light.sun.elevation = 60.0;
     assert_ne!(
         e.render(&moved).unwrap().panes[0].rgb,
         base,
@@ -78,7 +87,7 @@ fn environment_yaw_and_sun_change_the_image() {
     );
     if e.envs.len() > 1 {
         let mut other = s.clone();
-        other.env = 1;
+        other.light.env = 1;
         assert_ne!(e.render(&other).unwrap().panes[0].rgb, base, "environment");
     }
     // Same state, same image (the caches do not leak between states).
@@ -91,7 +100,7 @@ fn exposure_changes_only_the_tone_mapping() {
     let s = sun_state(&mut e);
     let a = e.render(&s).unwrap();
     let mut brighter = s.clone();
-    brighter.exposure += 1.0;
+    brighter.display.exposure += 1.0;
     let b = e.render(&brighter).unwrap();
     assert_eq!(a.panes[0].linear.image, b.panes[0].linear.image);
     assert_ne!(a.panes[0].rgb, b.panes[0].rgb);
@@ -103,7 +112,7 @@ fn exposure_changes_only_the_tone_mapping() {
 fn a_new_light_reports_its_time_apart_from_the_full_image() {
     let mut e = engine();
     let mut s = sun_state(&mut e);
-    s.yaw = 33.5;
+    s.light.rotation.yaw_deg = 33.5;
     let r = e.render(&s).unwrap();
     assert!(
         r.light_seconds > 0.0 && r.full_seconds > 0.0,
@@ -111,7 +120,7 @@ fn a_new_light_reports_its_time_apart_from_the_full_image() {
         r.light_seconds,
         r.full_seconds
     );
-    s.yaw = 34.5;
+    s.light.rotation.yaw_deg = 34.5;
     let turned = e.render(&s).unwrap();
     assert!(turned.light_seconds > 0.0 && turned.full_seconds > 0.0);
 }
@@ -120,12 +129,15 @@ fn a_new_light_reports_its_time_apart_from_the_full_image() {
 fn sh_order_above_baked_is_clamped_with_a_note() {
     let mut e = engine();
     let mut s = sun_state(&mut e);
-    s.method = Method::Sh;
-    s.sh_order = common::VIEWER_SH_ORDER + 5;
-    s.terms = 1_000_000;
+    s.relight.method = Method::Sh;
+    s.relight.sh_order = common::VIEWER_SH_ORDER + 5;
+    s.relight.terms = 1_000_000;
     let r = e.render(&s).unwrap();
-    assert_eq!(r.state.sh_order, common::VIEWER_SH_ORDER);
-    assert_eq!(r.state.terms, 6 * common::VIEWER_N * common::VIEWER_N);
+    assert_eq!(r.state.relight.sh_order, common::VIEWER_SH_ORDER);
+    assert_eq!(
+        r.state.relight.terms,
+        6 * common::VIEWER_N * common::VIEWER_N
+    );
     assert_eq!(r.notes.len(), 2, "{:?}", r.notes);
     assert_eq!(
         r.panes[0].linear.terms,
@@ -139,19 +151,19 @@ fn sh_through_the_light_goes_past_the_baked_order_up_to_the_texel_count() {
     // baked order; the M key passes through it.
     let mut e = engine();
     let mut s = sun_state(&mut e);
-    s.method = Method::ShLight;
-    s.sh_order = common::VIEWER_SH_ORDER + 5;
+    s.relight.method = Method::ShLight;
+    s.relight.sh_order = common::VIEWER_SH_ORDER + 5;
     let r = e.render(&s).unwrap();
-    assert_eq!(r.state.sh_order, common::VIEWER_SH_ORDER + 5);
+    assert_eq!(r.state.relight.sh_order, common::VIEWER_SH_ORDER + 5);
     assert!(r.notes.is_empty(), "{:?}", r.notes);
     assert_eq!(r.panes[0].linear.request.method(), Method::ShLight);
-    s.sh_order = 1000;
+    s.relight.sh_order = 1000;
     let r = e.render(&s).unwrap();
-    assert_eq!(r.state.sh_order, 19);
+    assert_eq!(r.state.relight.sh_order, 19);
     assert_eq!(r.notes.len(), 1, "{:?}", r.notes);
-    let mut cycled = ViewState {
+    let mut cycled = wavelet_prt::app::viewer::RelightState {
         method: Method::Full,
-        ..ViewState::default()
+        ..Default::default()
     };
     cycled.cycle_method();
     assert_eq!(cycled.method, Method::ShLight);
@@ -163,8 +175,8 @@ fn sh_through_the_light_goes_past_the_baked_order_up_to_the_texel_count() {
 fn compare_shows_sh_and_wavelet_at_matching_term_counts() {
     let mut e = engine();
     let mut s = sun_state(&mut e);
-    s.compare = true;
-    s.terms = 5;
+    s.relight.compare = true;
+    s.relight.terms = 5;
     let r = e.render(&s).unwrap();
     assert_eq!(r.panes.len(), 2);
     assert_eq!(r.panes[0].linear.request.method(), Method::Sh);
@@ -192,7 +204,7 @@ fn screenshot_writes_the_rendered_image() {
 fn comparisons_are_captioned_with_what_each_side_shows() {
     let mut e = engine();
     let mut s = sun_state(&mut e);
-    s.compare = true;
+    s.relight.compare = true;
     let r = e.render(&s).unwrap();
     let captions = r.captions();
     assert_eq!(captions.len(), 2);
@@ -215,7 +227,7 @@ fn comparisons_are_captioned_with_what_each_side_shows() {
         assert!(lit > 20, "caption {i}: {lit} lit pixels");
     }
     // A split pair is one image, captioned left | right.
-    s.layout = wavelet_prt::app::viewer::Layout::Split;
+    s.display.layout = wavelet_prt::app::viewer::Layout::Split;
     let r = e.render(&s).unwrap();
     let captions = r.captions();
     assert_eq!(captions.len(), 1);
@@ -247,10 +259,10 @@ fn gpu_relight_matches_the_cpu() {
     e.attach_gpu(gpu);
     let mut s = sun_state(&mut e);
     for method in [Method::Wavelet, Method::Sh, Method::Full] {
-        s.method = method;
-        s.gpu = false;
+        s.relight.method = method;
+        s.display.gpu = false;
         let cpu = e.render(&s).unwrap().panes[0].linear.clone();
-        s.gpu = true;
+        s.display.gpu = true;
         let gpu = e.render(&s).unwrap().panes[0].linear.clone();
         let d = wavelet_prt::output::metrics::relative_l2(&gpu.image, &cpu.image, None).unwrap();
         assert!(d < 1e-4, "{method}: GPU differs from CPU by {d}");
@@ -267,8 +279,9 @@ fn shown_on_gpu(
     s: &ViewState,
 ) -> Vec<u8> {
     let g = e.gpu().unwrap();
-    let view = wavelet_prt::app::viewer::GpuView::new(&g.device, r.width as u32, r.height as u32);
-    e.relight_to_view(request, &view, s).unwrap();
+    let mut view =
+        wavelet_prt::app::viewer::GpuView::new(&g.device, r.width as u32, r.height as u32);
+    e.relight_to_view(request, &mut view, s).unwrap();
     let g = e.gpu().unwrap();
     view.read_rgb8(&g.device, &g.queue).unwrap()
 }
@@ -281,14 +294,14 @@ fn gpu_texture_path_shows_what_the_cpu_path_shows() {
     let mut e = engine();
     e.attach_gpu(gpu);
     let mut s = sun_state(&mut e);
-    s.exposure = 0.5;
+    s.display.exposure = 0.5;
     for (method, compare) in [
         (Method::Wavelet, false),
         (Method::Sh, false),
         (Method::Full, true),
     ] {
-        s.method = method;
-        s.compare = compare;
+        s.relight.method = method;
+        s.relight.compare = compare;
         let r = e.render(&s).unwrap();
         for pane in &r.panes {
             let shown = shown_on_gpu(&mut e, &r, &pane.linear.request, &s);
@@ -311,23 +324,23 @@ fn gpu_texture_path_shows_what_the_cpu_path_shows() {
 fn error_map_is_black_at_every_term_and_lit_with_few() {
     let mut e = engine();
     let mut s = sun_state(&mut e);
-    s.error_map = true;
-    s.method = Method::Wavelet;
-    s.terms = 6 * common::VIEWER_N * common::VIEWER_N;
+    s.display.error_map = true;
+    s.relight.method = Method::Wavelet;
+    s.relight.terms = 6 * common::VIEWER_N * common::VIEWER_N;
     let r = e.render(&s).unwrap();
     assert_eq!(r.panes.len(), 2, "an image and its error map");
     assert!(
         r.panes[1].rgb.iter().all(|&v| v == 0),
         "every term: no error"
     );
-    s.terms = 2;
+    s.relight.terms = 2;
     let r = e.render(&s).unwrap();
     assert!(
         r.panes[1].rgb.iter().any(|&v| v > 0),
         "two terms: some error shows"
     );
     // Side by side with the comparison: two images, two maps.
-    s.compare = true;
+    s.relight.compare = true;
     assert_eq!(e.render(&s).unwrap().panes.len(), 4);
 }
 
@@ -355,10 +368,10 @@ fn save_writes_the_png_and_the_linear_exr() {
 fn split_composite_takes_sh_left_of_the_cut_and_wavelet_right() {
     let mut e = engine();
     let mut s = sun_state(&mut e);
-    s.compare = true;
-    s.terms = 4;
-    s.layout = wavelet_prt::app::viewer::Layout::Split;
-    s.split = 0.25;
+    s.relight.compare = true;
+    s.relight.terms = 4;
+    s.display.layout = wavelet_prt::app::viewer::Layout::Split;
+    s.display.split = 0.25;
     let r = e.render(&s).unwrap();
     assert_eq!(r.panes.len(), 2);
     let (w, h, rgb) = r.composite(4);
@@ -378,7 +391,7 @@ fn split_composite_takes_sh_left_of_the_cut_and_wavelet_right() {
         }
     }
     // Side by side, the same panes make a double-width image.
-    s.layout = wavelet_prt::app::viewer::Layout::SideBySide;
+    s.display.layout = wavelet_prt::app::viewer::Layout::SideBySide;
     assert_eq!(e.render(&s).unwrap().composite(4).0, 2 * r.width + 4);
 }
 
@@ -387,9 +400,9 @@ fn tone_curve_and_sun_size_change_what_they_should() {
     use wavelet_prt::output::film::ToneCurve;
     let mut e = engine();
     let mut s = sun_state(&mut e);
-    s.exposure = 2.0;
+    s.display.exposure = 2.0;
     let clip = e.render(&s).unwrap();
-    s.tone = ToneCurve::Reinhard;
+    s.display.tone = ToneCurve::Reinhard;
     let reinhard = e.render(&s).unwrap();
     // Only the display changes: the same linear image and error, darker highlights.
     assert_eq!(clip.panes[0].linear.image, reinhard.panes[0].linear.image);
@@ -399,14 +412,14 @@ fn tone_curve_and_sun_size_change_what_they_should() {
     assert!(sum(&reinhard) < sum(&clip));
     // A larger sun of the same irradiance softens shadows: the image changes but keeps its
     // overall brightness within a few percent.
-    s.tone = ToneCurve::Clip;
+    s.display.tone = ToneCurve::Clip;
     let mean = |r: &wavelet_prt::app::viewer::Rendered| {
         let p = &r.panes[0].linear.image.pixels;
         p.iter().map(|c| (c[0] + c[1] + c[2]) as f64).sum::<f64>() / p.len() as f64
     };
-    s.method = Method::Full;
+    s.relight.method = Method::Full;
     let small = e.render(&s).unwrap();
-    s.sun_radius = 8.0;
+    s.light.sun.radius = 8.0;
     let big = e.render(&s).unwrap();
     assert_ne!(small.panes[0].linear.image, big.panes[0].linear.image);
     let (a, b) = (mean(&small), mean(&big));
@@ -451,7 +464,7 @@ fn pixels_that_miss_the_geometry_show_the_environment_turned_with_it() {
     }
     // Turning the light turns what is seen behind the scene. The view sees past the floor into
     // the ground half of the sky, which a yaw leaves alone: turn it upside down.
-    s.pitch += 180.0;
+    s.light.rotation.pitch_deg += 180.0;
     e.render(&s).unwrap();
     let turned = e.current_light().unwrap().behind;
     assert!(open.iter().any(|&i| turned.pixels[i] != behind.pixels[i]));
@@ -459,17 +472,21 @@ fn pixels_that_miss_the_geometry_show_the_environment_turned_with_it() {
 
 #[test]
 fn the_first_view_is_a_low_sun_with_hard_shadows() {
-    let (entries, sun, selected) = env_entries(&[]);
+    let (entries, light) = env_entries(&[]);
     match entries.iter().position(|e| e.name == "blender_sunrise") {
-        Some(i) => assert_eq!(selected, i),
+        Some(i) => assert_eq!(light.env, i),
         None => {
-            assert!(matches!(entries[selected].source, EnvSource::Sun));
-            assert!(sun.0 <= 20.0, "{sun:?}");
+            assert!(matches!(entries[light.env].source, EnvSource::Sun));
+            assert!(light.sun.elevation <= 20.0, "{light:?}");
         }
     }
-    // A map given on the command line still comes first.
-    let (entries, _, selected) = env_entries(&["sun:40,10".to_string()]);
-    assert!(matches!(entries[selected].source, EnvSource::Sun));
+    // A map given on the command line still comes first, placed and sized as given.
+    let (entries, light) = env_entries(&["sun:40,10,3".to_string()]);
+    assert!(matches!(entries[light.env].source, EnvSource::Sun));
+    assert_eq!(
+        (light.sun.elevation, light.sun.azimuth, light.sun.radius),
+        (40.0, 10.0, 3.0)
+    );
 }
 
 #[test]
@@ -494,9 +511,9 @@ fn per_vertex_engine() -> (Engine, ViewState) {
         source: EnvSource::File(common::assets().join("envmaps/blender_sunrise.exr")),
     }];
     let mut e = Engine::open(&common::per_vertex_transport_path(), envs).unwrap();
-    let mut s = e.initial_state(0, (25.0, 60.0));
-    s.method = Method::Wavelet;
-    s.terms = 40;
+    let mut s = e.initial_state(sun_at(25.0, 60.0));
+    s.relight.method = Method::Wavelet;
+    s.relight.terms = 40;
     (e, s)
 }
 
@@ -513,10 +530,10 @@ fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
     let env = EnvMap::load(&common::assets().join("envmaps/blender_sunrise.exr")).unwrap();
     let ctx = LightContext::new(&t).unwrap();
     let light = ctx.prepare(&env, EnvRotation::yaw(30.0)).unwrap();
-    s.yaw = 30.0;
+    s.light.rotation.yaw_deg = 30.0;
     let request = RelightRequest::Wavelet {
-        k: s.terms,
-        weighting: s.weighting,
+        k: s.relight.terms,
+        weighting: s.relight.weighting,
     };
     let (relit, _) = relight(&t, &ctx, &light, &request).unwrap();
     let colours = vertex_colours(&t, &relit).unwrap();
@@ -577,13 +594,13 @@ fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
 fn a_per_vertex_error_map_is_black_with_every_term() {
     let (mut e, mut s) = per_vertex_engine();
     s.orbit.azimuth_deg = -40.0;
-    s.error_map = true;
-    s.method = Method::Full;
+    s.display.error_map = true;
+    s.relight.method = Method::Full;
     let r = e.render(&s).unwrap();
     assert_eq!(r.panes.len(), 2);
     assert!(r.panes[1].rgb.iter().all(|&v| v == 0), "full against full");
-    s.method = Method::Wavelet;
-    s.terms = 4;
+    s.relight.method = Method::Wavelet;
+    s.relight.terms = 4;
     let r = e.render(&s).unwrap();
     assert!(
         r.panes[1].rgb.iter().any(|&v| v > 0),
@@ -601,8 +618,8 @@ fn the_gpu_view_of_a_per_vertex_bake_shows_what_the_cpu_path_shows() {
     s.orbit.azimuth_deg = 50.0;
     s.orbit.elevation_deg = 15.0;
     for (method, compare) in [(Method::Wavelet, false), (Method::Sh, true)] {
-        s.method = method;
-        s.compare = compare;
+        s.relight.method = method;
+        s.relight.compare = compare;
         let r = e.render(&s).unwrap();
         for pane in &r.panes {
             let shown = shown_on_gpu(&mut e, &r, &pane.linear.request, &s);

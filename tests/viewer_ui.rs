@@ -55,13 +55,13 @@ fn clicking_the_method_toggle_changes_the_state_and_the_image() {
     let mut h = harness(sun_app());
     settle(&mut h);
     assert!(h.state().is_loaded());
-    assert_eq!(h.state().state.method, Method::Wavelet);
+    assert_eq!(h.state().state.relight.method, Method::Wavelet);
     h.get_by_label("SH").click();
     settle(&mut h);
-    assert_eq!(h.state().state.method, Method::Sh);
+    assert_eq!(h.state().state.relight.method, Method::Sh);
     h.key_press(egui::Key::M);
     settle(&mut h);
-    assert_eq!(h.state().state.method, Method::Full);
+    assert_eq!(h.state().state.relight.method, Method::Full);
     assert!(rel_l2(&h) < 1e-6, "full against full");
     h.query_by_label_contains("nonzeros touched")
         .expect("nonzeros shown");
@@ -81,7 +81,7 @@ fn a_new_light_shows_a_busy_indicator_until_it_arrives() {
     settle(&mut h);
     assert!(h.query_by_label("preparing the light").is_none());
     // A new yaw: the frame that asks for it has no light for it yet.
-    h.state_mut().state.yaw += 40.0;
+    h.state_mut().state.light.rotation.yaw_deg += 40.0;
     h.step();
     assert!(h.query_by_label("preparing the light").is_some());
     settle(&mut h);
@@ -100,8 +100,8 @@ fn at_the_default_window_size_every_panel_row_is_visible() {
         .wgpu()
         .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), sun_app());
     settle(&mut h);
-    h.state_mut().state.compare = true;
-    h.state_mut().state.layout = Layout::Split;
+    h.state_mut().state.relight.compare = true;
+    h.state_mut().state.display.layout = Layout::Split;
     settle(&mut h);
     let last = h
         .query_all_by_label_contains("L2 vs full")
@@ -133,9 +133,9 @@ fn with_every_section_open_and_the_gpu_drawing_the_panel_fits_the_default_window
         .renderer(WgpuTestRenderer::from_render_state(rs))
         .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), app);
     settle(&mut h);
-    h.state_mut().state.gpu = true;
-    h.state_mut().state.compare = true;
-    h.state_mut().state.layout = Layout::Split;
+    h.state_mut().state.display.gpu = true;
+    h.state_mut().state.relight.compare = true;
+    h.state_mut().state.display.layout = Layout::Split;
     settle(&mut h);
     let bottom = |h: &Harness<'static, ViewerApp>, label: &str| {
         h.query_all_by_label_contains(label)
@@ -144,7 +144,7 @@ fn with_every_section_open_and_the_gpu_drawing_the_panel_fits_the_default_window
     };
     // Without the heat maps the GPU draws and its times are listed; with them the CPU does.
     for error_map in [false, true] {
-        h.state_mut().state.error_map = error_map;
+        h.state_mut().state.display.error_map = error_map;
         settle(&mut h);
         if !error_map {
             assert_eq!(
@@ -174,14 +174,14 @@ fn more_terms_from_the_keyboard_lower_the_error() {
     }
     let mut h = harness(sun_app());
     settle(&mut h);
-    h.state_mut().state.terms = 4;
+    h.state_mut().state.relight.terms = 4;
     settle(&mut h);
     let few = rel_l2(&h);
     for _ in 0..5 {
         h.key_press(egui::Key::Plus);
     }
     settle(&mut h);
-    assert_eq!(h.state().state.terms, 128);
+    assert_eq!(h.state().state.relight.terms, 128);
     let many = rel_l2(&h);
     assert!(many < few, "128 terms: {many}, 4 terms: {few}");
     // The next environment changes the light, and so the image.
@@ -194,7 +194,7 @@ fn more_terms_from_the_keyboard_lower_the_error() {
     h.get_by_role_and_label(egui::accesskit::Role::Slider, "yaw°")
         .set_value_accesskit(90.0);
     settle(&mut h);
-    assert_eq!(h.state().state.yaw, 90.0);
+    assert_eq!(h.state().state.light.rotation.yaw_deg, 90.0);
     assert_ne!(h.state().rendered().unwrap().panes[0].rgb, other);
 }
 
@@ -248,10 +248,10 @@ fn split_layout_shows_one_image_with_both_titles() {
     settle(&mut h);
     h.key_press(egui::Key::C);
     settle(&mut h);
-    assert!(h.state().state.compare);
+    assert!(h.state().state.relight.compare);
     h.get_by_label("Split").click();
     settle(&mut h);
-    assert_eq!(h.state().state.layout, Layout::Split);
+    assert_eq!(h.state().state.display.layout, Layout::Split);
     h.query_by_label_contains("  |  wavelet")
         .expect("one title for the split pair");
     assert!(
@@ -283,14 +283,14 @@ fn gpu_display_draws_what_the_cpu_path_draws() {
     settle(&mut h);
     // With a render state attached, the window draws from the GPU kernels by default on a
     // hardware GPU; a software adapter starts unticked, says why, and is taken when ticked.
-    assert_eq!(h.state().state.gpu, !software);
+    assert_eq!(h.state().state.display.gpu, !software);
     if software {
         assert!(h.state().gpu_timings().is_empty());
         h.query_by_label_contains("a software adapter, slower than the CPU kernels")
             .expect("the reason shown");
         h.get_by_label("Relight on the GPU").click();
         settle(&mut h);
-        assert!(h.state().state.gpu);
+        assert!(h.state().state.display.gpu);
     } else {
         h.query_by_label_contains("GPU: ")
             .expect("the adapter shown");
@@ -302,7 +302,7 @@ fn gpu_display_draws_what_the_cpu_path_draws() {
     let gpu = h.render().expect("render");
     h.get_by_label("Relight on the GPU").click();
     settle(&mut h);
-    assert!(!h.state().state.gpu);
+    assert!(!h.state().state.display.gpu);
     assert!(h.state().gpu_timings().is_empty());
     let cpu = h.render().expect("render");
     if let Some(out) = std::env::var_os("VIEWER_UI_GPU_PNG") {
@@ -349,8 +349,8 @@ fn settings_panel_snapshots() {
         h.run_ok();
     }
     h.snapshot("settings_panel");
-    h.state_mut().state.compare = true;
-    h.state_mut().state.layout = Layout::Split;
+    h.state_mut().state.relight.compare = true;
+    h.state_mut().state.display.layout = Layout::Split;
     h.run();
     h.snapshot("settings_panel_split");
 }
@@ -402,13 +402,13 @@ fn volume_window_orbits_on_drag_and_switches_views() {
     settle_volume(&mut h);
     let first = h.state().frame().expect("a frame").image.clone();
     assert!(first.pixels.iter().any(|p| p[0] > 0.0), "the fog shows");
-    let azim = h.state().state.orbit_azim;
+    let azim = h.state().state.orbit.azimuth_deg;
     // Drag across the image: the camera orbits and a new frame comes.
     h.drag_at(egui::pos2(600.0, 300.0));
     h.hover_at(egui::pos2(700.0, 300.0));
     h.drop_at(egui::pos2(700.0, 300.0));
     settle_volume(&mut h);
-    assert_ne!(h.state().state.orbit_azim, azim, "dragging orbits");
+    assert_ne!(h.state().state.orbit.azimuth_deg, azim, "dragging orbits");
     let turned = &h.state().frame().unwrap().image;
     assert_ne!(turned.pixels, first.pixels);
     // The transmittance view is grey and at most 1.
@@ -445,7 +445,7 @@ fn a_per_vertex_window_orbits_on_drag_and_draws_on_the_gpu() {
         .renderer(WgpuTestRenderer::from_render_state(rs))
         .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), app);
     settle(&mut h);
-    if !h.state().state.gpu {
+    if !h.state().state.display.gpu {
         // A software adapter starts unticked: this test is of the GPU display.
         h.get_by_label("Relight on the GPU").click();
         settle(&mut h);

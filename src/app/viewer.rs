@@ -12,9 +12,11 @@
 //! and their errors, while the window draws the GPU relight of every change at once.
 
 mod app;
+mod camera;
 mod engine;
 mod gpu_view;
 mod mesh_view;
+mod state;
 mod viewport;
 mod volume_app;
 mod worker;
@@ -25,19 +27,21 @@ pub use engine::{
     screenshot, view_size,
 };
 pub use gpu_view::GpuView;
-pub use mesh_view::{MeshDisplay, draw_into_view};
+pub use mesh_view::{DisplayPath, MeshDisplay, draw_into_view};
+pub use state::{
+    DisplayState, Layout, LightKey, LightState, Limits, RelightKey, RelightState, ViewState,
+    sh_order_for_terms,
+};
 pub use viewport::Viewport;
 pub use volume_app::{VolumeApp, VolumeEngine, VolumeFrame, VolumeState, volume_screenshot};
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::light::envmap::{EnvMap, EnvRotation, SunSpec};
-use crate::light::select::Weighting;
-use crate::output::film::{Image, ToneCurve, ToneMap};
+use crate::light::envmap::{EnvMap, SunSpec};
+use crate::output::film::{Image, ToneCurve};
 use crate::relight::gpu::Gpu;
-use crate::relight::vertex::Orbit;
-use crate::relight::{Method, PreparedLight, RelightRequest};
+use crate::relight::{PreparedLight, RelightRequest};
 use eframe::{egui, wgpu};
 
 /// Where the bundled environment maps are looked for: `$PRT_ENVMAPS`, else the checkout this
@@ -63,17 +67,22 @@ pub enum EnvSource {
 /// One entry of the environment list.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EnvEntry {
+    /// The name shown in the list.
     pub name: String,
+    /// Where its map comes from.
     pub source: EnvSource,
 }
 
 /// The sun radius of the first `sun:ELEV,AZIM,RADIUS` on the command line, if it has one.
-pub fn cli_sun_radius(cli: &[String]) -> Option<f64> {
-    cli.iter()
-        .find(|s| s.starts_with("sun:"))
-        .filter(|s| s.split(',').count() == 3)
-        .and_then(|s| SunSpec::parse(s)?.ok())
-        .map(|sun| sun.radius)
+fn cli_sun_radius(cli: &[String]) -> Option<f64> {
+    // The first sun given, if its radius was given too.
+    let first = cli
+        .iter()
+        .find_map(|s| SunSpec::parse(s).map(|sun| (s, sun)))?;
+    match first {
+        (s, Ok(sun)) if s.split(',').count() == 3 => Some(sun.radius),
+        _ => None,
+    }
 }
 
 /// The environment picker (`label`), the sun's elevation, azimuth and radius sliders when the
@@ -82,31 +91,35 @@ pub(crate) fn light_controls(
     ui: &mut egui::Ui,
     label: &str,
     envs: &[EnvEntry],
-    env: &mut usize,
-    sun: [&mut f64; 3],
-    rotation: [&mut f64; 2],
+    light: &mut LightState,
 ) {
-    let current = envs.get(*env).map(|e| e.name.clone()).unwrap_or_default();
+    let current = envs
+        .get(light.env)
+        .map(|e| e.name.clone())
+        .unwrap_or_default();
     egui::ComboBox::from_label(label)
         .selected_text(current)
         .show_ui(ui, |ui| {
             for (i, e) in envs.iter().enumerate() {
-                ui.selectable_value(env, i, &e.name);
+                ui.selectable_value(&mut light.env, i, &e.name);
             }
         });
-    let [elev, azim, radius] = sun;
-    if envs.get(*env).is_some_and(|e| e.source == EnvSource::Sun) {
-        ui.add(egui::Slider::new(elev, -10.0..=90.0).text("sun elevation°"));
-        ui.add(egui::Slider::new(azim, 0.0..=360.0).text("sun azimuth°"));
+    let sun = &mut light.sun;
+    if envs
+        .get(light.env)
+        .is_some_and(|e| e.source == EnvSource::Sun)
+    {
+        ui.add(egui::Slider::new(&mut sun.elevation, -10.0..=90.0).text("sun elevation°"));
+        ui.add(egui::Slider::new(&mut sun.azimuth, 0.0..=360.0).text("sun azimuth°"));
         ui.add(
-            egui::Slider::new(radius, 0.25..=20.0)
+            egui::Slider::new(&mut sun.radius, 0.25..=20.0)
                 .logarithmic(true)
                 .text("sun radius°"),
         );
     }
-    let [yaw, pitch] = rotation;
-    ui.add(egui::Slider::new(yaw, -180.0..=180.0).text("yaw°"));
-    ui.add(egui::Slider::new(pitch, -90.0..=90.0).text("pitch°"));
+    let turn = &mut light.rotation;
+    ui.add(egui::Slider::new(&mut turn.yaw_deg, -180.0..=180.0).text("yaw°"));
+    ui.add(egui::Slider::new(&mut turn.pitch_deg, -90.0..=90.0).text("pitch°"));
 }
 
 /// Exposure and tone curve.
@@ -151,9 +164,10 @@ pub(crate) fn gpu_controls(ui: &mut egui::Ui, gpu: Option<(&Gpu, bool)>, on: &mu
 pub const FIRST_VIEW_MAP: &str = "blender_sunrise";
 
 /// The environment list: the bundled maps, then the files given on the command line, then the
-/// procedural sun. Returns the list, the sun's initial (elevation, azimuth) and the entry to
-/// select first (the first command-line environment, else [`FIRST_VIEW_MAP`], else the sun).
-pub fn env_entries(cli: &[String]) -> (Vec<EnvEntry>, (f64, f64), usize) {
+/// procedural sun. Returns the list and the first light: the entry to select (the first
+/// command-line environment, else [`FIRST_VIEW_MAP`], else the sun) and the sun as the first
+/// `sun:ELEV,AZIM[,RADIUS]` on the command line places it.
+pub fn env_entries(cli: &[String]) -> (Vec<EnvEntry>, LightState) {
     let mut entries = Vec::new();
     if let Some(dir) = bundled_env_dir()
         && let Ok(read) = std::fs::read_dir(&dir)
@@ -224,114 +238,23 @@ pub fn env_entries(cli: &[String]) -> (Vec<EnvEntry>, (f64, f64), usize) {
             .position(|e| e.name == FIRST_VIEW_MAP)
             .unwrap_or(sun_index),
     };
-    (entries, sun, selected)
-}
-
-/// Every input of the displayed image.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ViewState {
-    pub method: Method,
-    /// Kept wavelet terms K (1 to 6 N²).
-    pub terms: usize,
-    pub weighting: Weighting,
-    /// SH order n (1 to the baked order).
-    pub sh_order: usize,
-    /// Index into the environment list.
-    pub env: usize,
-    /// Procedural sun elevation, azimuth and angular radius, degrees.
-    pub sun_elev: f64,
-    pub sun_azim: f64,
-    pub sun_radius: f64,
-    /// Environment rotation, degrees.
-    pub yaw: f64,
-    pub pitch: f64,
-    /// Exposure in stops.
-    pub exposure: f32,
-    /// Display curve after the exposure.
-    pub tone: ToneCurve,
-    /// SH and wavelet at the same term count.
-    pub compare: bool,
-    /// How the two images of `compare` are shown.
-    pub layout: Layout,
-    /// Where the split falls in [`Layout::Split`], as a fraction of the width (SH to its left).
-    pub split: f32,
-    /// Show, beside each image, its error against `full` as a heat map.
-    pub error_map: bool,
-    /// Take the image from the GPU kernels, when a GPU is attached: in the window they write
-    /// straight into a texture (the numbers still come from the CPU relight); in
-    /// [`Engine::render`] the image is read back.
-    pub gpu: bool,
-    /// The camera of a per-vertex bake, turned from the bake's own (ignored by a per-pixel bake,
-    /// whose view is fixed).
-    pub orbit: Orbit,
-}
-
-impl Default for ViewState {
-    fn default() -> Self {
-        ViewState {
-            method: Method::Wavelet,
-            terms: 64,
-            weighting: Weighting::Transport,
-            sh_order: 4,
-            env: 0,
-            sun_elev: 30.0,
-            sun_azim: 45.0,
-            sun_radius: 2.0,
-            yaw: 0.0,
-            pitch: 0.0,
-            exposure: 0.0,
-            tone: ToneCurve::Clip,
-            compare: false,
-            layout: Layout::SideBySide,
-            split: 0.5,
-            error_map: false,
-            gpu: false,
-            orbit: Orbit::default(),
-        }
+    let mut light = LightState {
+        env: selected,
+        ..LightState::default()
+    };
+    (light.sun.elevation, light.sun.azimuth) = sun;
+    if let Some(r) = cli_sun_radius(cli) {
+        light.sun.radius = r;
     }
-}
-
-/// How [`ViewState::compare`] shows its two images.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Layout {
-    /// Side by side.
-    #[default]
-    SideBySide,
-    /// One image, SH left of the split and wavelet right of it.
-    Split,
-}
-
-/// The light an environment entry, the sun and the rotation of `state` make: what a prepared
-/// light is cached under.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LightKey {
-    pub spec: String,
-    pub yaw: f64,
-    pub pitch: f64,
-}
-
-impl LightKey {
-    /// The key of `state` over the environment list `envs` (a path, or `sun:ELEV,AZIM,RADIUS`).
-    pub fn of(envs: &[EnvEntry], state: &ViewState) -> LightKey {
-        let spec = match envs.get(state.env).map(|e| &e.source) {
-            Some(EnvSource::File(p)) => p.display().to_string(),
-            _ => format!(
-                "sun:{:.2},{:.2},{:.2}",
-                state.sun_elev, state.sun_azim, state.sun_radius
-            ),
-        };
-        LightKey {
-            spec,
-            yaw: state.yaw,
-            pitch: state.pitch,
-        }
-    }
+    (entries, light)
 }
 
 /// A prepared light as the window holds it.
 #[derive(Clone)]
 pub struct LightShown {
+    /// What it was prepared for.
     pub key: LightKey,
+    /// The prepared light.
     pub light: Arc<PreparedLight>,
     /// The environment behind a per-pixel bake's view, weighted by each pixel's uncovered
     /// fraction; empty for a per-vertex bake, whose backdrop depends on the camera (see
@@ -349,191 +272,25 @@ pub fn backdrop(
     key: &LightKey,
 ) -> crate::Result<Image> {
     let open = vec![0.0; camera.width as usize * camera.height as usize];
-    crate::relight::background::environment_behind_camera(camera, &open, map, key.rotation())
-}
-
-impl LightKey {
-    /// The environment's rotation.
-    pub fn rotation(&self) -> EnvRotation {
-        EnvRotation {
-            yaw_deg: self.yaw,
-            pitch_deg: self.pitch,
-        }
-    }
-}
-
-/// What a transport and the environment list allow.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Limits {
-    /// 6 N².
-    pub coeffs: usize,
-    /// Baked SH order.
-    pub sh_order: usize,
-    /// Highest SH order through the light: no more terms than texels, at most
-    /// [`crate::math::sh::MAX_LIGHT_ORDER`].
-    pub sh_light_order: usize,
-    /// Entries in the environment list.
-    pub envs: usize,
-}
-
-impl ViewState {
-    /// Brings every field into range; returns a note for each field that was out of range.
-    pub fn clamp(&mut self, limits: Limits) -> Vec<String> {
-        let mut notes = Vec::new();
-        if self.terms == 0 || self.terms > limits.coeffs {
-            let k = self.terms.clamp(1, limits.coeffs.max(1));
-            notes.push(format!(
-                "terms {} clamped to {k} (1 to 6N² = {})",
-                self.terms, limits.coeffs
-            ));
-            self.terms = k;
-        }
-        if self.method == Method::ShLight {
-            let most = limits.sh_light_order.max(1);
-            if self.sh_order == 0 || self.sh_order > most {
-                let n = self.sh_order.clamp(1, most);
-                notes.push(format!(
-                    "SH order {} clamped to {n} (through the light, up to order {most})",
-                    self.sh_order
-                ));
-                self.sh_order = n;
-            }
-        } else if self.sh_order == 0 || self.sh_order > limits.sh_order {
-            let n = self.sh_order.clamp(1, limits.sh_order.max(1));
-            notes.push(format!(
-                "SH order {} clamped to {n} (this file was baked up to order {})",
-                self.sh_order, limits.sh_order
-            ));
-            self.sh_order = n;
-        }
-        if self.env >= limits.envs {
-            notes.push(format!(
-                "environment {} does not exist; using the first",
-                self.env
-            ));
-            self.env = 0;
-        }
-        if !(-90.0..=90.0).contains(&self.sun_elev) {
-            self.sun_elev = self.sun_elev.clamp(-90.0, 90.0);
-        }
-        if !self.sun_azim.is_finite() {
-            self.sun_azim = 0.0;
-        }
-        if !(0.05..=45.0).contains(&self.sun_radius) {
-            self.sun_radius = if self.sun_radius.is_finite() {
-                self.sun_radius.clamp(0.05, 45.0)
-            } else {
-                2.0
-            };
-        }
-        // Turning past a half turn wraps around: no note.
-        self.orbit.clamp();
-        if !(0.0..=1.0).contains(&self.split) {
-            self.split = if self.split.is_finite() {
-                self.split.clamp(0.0, 1.0)
-            } else {
-                0.5
-            };
-        }
-        notes
-    }
-
-    /// Next method in the cycle wavelet → SH → full.
-    pub fn cycle_method(&mut self) {
-        self.method = match self.method {
-            Method::Wavelet => Method::Sh,
-            Method::Sh => Method::Full,
-            Method::Full => Method::ShLight,
-            Method::ShLight => Method::Wavelet,
-        };
-    }
-
-    /// The panes this state shows: the requests and their titles.
-    pub fn requests(&self, limits: Limits) -> Vec<(String, RelightRequest)> {
-        let base = RelightRequest::new(self.method, self.terms, self.weighting, self.sh_order);
-        if self.compare {
-            let n = sh_order_for_terms(self.terms, limits.sh_order);
-            vec![
-                (
-                    format!("SH order {n} ({} terms)", n * n),
-                    RelightRequest::Sh { order: n },
-                ),
-                (
-                    format!("wavelet, {} terms", self.terms),
-                    RelightRequest::Wavelet {
-                        k: self.terms,
-                        weighting: self.weighting,
-                    },
-                ),
-            ]
-        } else {
-            let title = match self.method {
-                Method::Wavelet => {
-                    format!("wavelet, {} terms ({})", self.terms, self.weighting.name())
-                }
-                Method::Sh => format!(
-                    "SH order {} ({} terms)",
-                    self.sh_order,
-                    self.sh_order.pow(2)
-                ),
-                Method::Full => format!("full ({} terms)", limits.coeffs),
-                Method::ShLight => format!(
-                    "SH order {} through the light ({} terms)",
-                    self.sh_order,
-                    self.sh_order.pow(2)
-                ),
-            };
-            vec![(title, base)]
-        }
-    }
-
-    /// Everything but the display settings and the camera: what the relit values (pixels, or a
-    /// per-vertex bake's vertex colours) depend on.
-    pub fn relight_key(&self) -> ViewState {
-        ViewState {
-            orbit: Orbit::default(),
-            exposure: 0.0,
-            tone: ToneCurve::Clip,
-            error_map: false,
-            layout: Layout::SideBySide,
-            split: 0.5,
-            gpu: false,
-            ..self.clone()
-        }
-    }
-
-    /// The tone mapping of this state.
-    pub fn tone_map(&self) -> ToneMap {
-        ToneMap {
-            exposure: self.exposure,
-            curve: self.tone,
-        }
-    }
-
-    /// Whether the panes are shown in pairs split by [`ViewState::split`].
-    pub fn split_pairs(&self) -> bool {
-        self.compare && self.layout == Layout::Split
-    }
-}
-
-/// The SH order whose n² terms are nearest to `terms`, within 1 and the baked order.
-pub fn sh_order_for_terms(terms: usize, baked: usize) -> usize {
-    let n = (terms as f64).sqrt().round() as usize;
-    n.clamp(1, baked.max(1))
+    crate::relight::background::environment_behind_camera(camera, &open, map, key.rotation)
 }
 
 /// One relit view before tone mapping.
 #[derive(Clone, Debug)]
 pub struct LinearPane {
+    /// The pane's title, as the window shows it.
     pub title: String,
+    /// What was relit.
     pub request: RelightRequest,
+    /// The relit image, linear RGB.
     pub image: Image,
     /// Light terms used.
     pub terms: usize,
     /// Transport values the relight read.
     pub nonzeros_touched: u64,
-    /// Kernel time and the whole relight call, seconds.
+    /// Kernel time of the relight, seconds.
     pub kernel_seconds: f64,
+    /// The whole relight call (the terms made, the kernels, the readback), seconds.
     pub relight_seconds: f64,
     /// Relative L2 error against `full`.
     pub rel_l2: f64,
@@ -542,6 +299,7 @@ pub struct LinearPane {
 /// One displayed view.
 #[derive(Clone, Debug)]
 pub struct Pane {
+    /// The pane before tone mapping.
     pub linear: LinearPane,
     /// 8-bit sRGB, RGB interleaved, `width · height · 3` bytes.
     pub rgb: Vec<u8>,
@@ -550,11 +308,15 @@ pub struct Pane {
 /// What [`Engine::render`] returns.
 #[derive(Clone, Debug)]
 pub struct Rendered {
+    /// Width of each pane, pixels.
     pub width: usize,
+    /// Height of each pane, pixels.
     pub height: usize,
+    /// The panes, left to right (with their error maps beside them when asked for).
     pub panes: Vec<Pane>,
-    /// The state after clamping, and what was clamped.
+    /// The state after clamping.
     pub state: ViewState,
+    /// What was clamped, one note per value.
     pub notes: Vec<String>,
     /// Time spent preparing the light in this call (0 when cached), seconds: resampling, Haar
     /// and SH projection, up to the moment the GPU could draw it.
@@ -589,7 +351,7 @@ impl Rendered {
             return self.side_by_side(gap);
         }
         let (w, h) = (self.width, self.height);
-        let cut = ((self.state.split * w as f32).round() as usize).min(w);
+        let cut = ((self.state.display.split * w as f32).round() as usize).min(w);
         let panes = self
             .panes
             .chunks(2)
@@ -612,7 +374,10 @@ impl Rendered {
         Rendered {
             panes,
             state: ViewState {
-                layout: Layout::SideBySide,
+                display: DisplayState {
+                    layout: Layout::SideBySide,
+                    ..self.state.display
+                },
                 ..self.state.clone()
             },
             notes: Vec::new(),

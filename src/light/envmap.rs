@@ -65,12 +65,46 @@ pub struct EnvMap {
     pub negative_power: f64,
 }
 
+/// An environment as a user names it: a lat-long file, or the procedural sun and sky.
+#[derive(Clone, Debug, PartialEq)]
+pub enum EnvSpec {
+    /// A lat-long EXR or HDR file.
+    File(std::path::PathBuf),
+    /// The procedural sun and sky ([`SunSky`]), rendered at 1024 x 512.
+    Sun(SunSpec),
+}
+
+impl EnvSpec {
+    /// `sun:ELEV,AZIM[,RADIUS]` (an error naming the spec when its numbers are wrong), else a
+    /// file path.
+    pub fn parse(spec: &str) -> Result<EnvSpec> {
+        match SunSpec::parse(spec) {
+            None => Ok(EnvSpec::File(spec.into())),
+            Some(sun) => Ok(EnvSpec::Sun(sun?)),
+        }
+    }
+
+    /// The map: the file loaded, or the sun and sky rendered.
+    pub fn load(&self) -> Result<EnvMap> {
+        match self {
+            EnvSpec::File(path) => EnvMap::load(path),
+            EnvSpec::Sun(sun) => {
+                Ok(SunSky::new(sun.elevation, sun.azimuth, sun.radius, 3.0)
+                    .to_latlong(1024, 512, 4))
+            }
+        }
+    }
+}
+
 /// A procedural sun given as `sun:ELEV,AZIM[,RADIUS]` (degrees; the radius defaults to 2): the one
 /// parser of that spec, for the command line and the viewer.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SunSpec {
+    /// Elevation of the sun above the horizon, degrees in [-90, 90].
     pub elevation: f64,
+    /// Azimuth of the sun, degrees (0 towards −Z, 90 towards +X).
     pub azimuth: f64,
+    /// Angular radius of the sun disc, degrees in [0.05, 45].
     pub radius: f64,
 }
 
@@ -169,14 +203,7 @@ impl EnvMap {
     /// Opens an environment given on the command line: a file path, or `sun:ELEV,AZIM[,RADIUS]`
     /// for a procedural [`SunSky`] (degrees; radius defaults to 2) rendered at 1024 x 512.
     pub fn from_spec(spec: &str) -> Result<Self> {
-        match SunSpec::parse(spec) {
-            None => Self::load(Path::new(spec)),
-            Some(sun) => {
-                let sun = sun?;
-                Ok(SunSky::new(sun.elevation, sun.azimuth, sun.radius, 3.0)
-                    .to_latlong(1024, 512, 4))
-            }
-        }
+        EnvSpec::parse(spec)?.load()
     }
 
     /// Builds a map from raw pixels, applying the bad-pixel policy of this module.

@@ -11,7 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::bake::bounce::BounceVisibility;
 use crate::bake::{BakeProgress, BakeSettings, bake, worst_case_bytes};
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvMap, EnvRotation};
+use crate::light::envmap::{EnvMap, EnvRotation, EnvSpec};
 use crate::light::select::{WaveletLight, Weighting};
 use crate::output::film::{ToneCurve, ToneMap};
 use crate::relight::background::Background;
@@ -45,10 +45,12 @@ use volume::{volume_bake_cmd, volume_render_cmd};
 #[derive(Parser, Debug)]
 #[command(name = "prt", version, about, long_about = None)]
 pub struct Cli {
+    /// The command to run.
     #[command(subcommand)]
     pub command: Command,
 }
 
+/// The commands of `prt`.
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Bake the demo scene and relight it under every bundled environment (the main job).
@@ -108,6 +110,7 @@ pub enum Command {
     },
 }
 
+/// The commands of `prt volume`.
 #[derive(Subcommand, Debug)]
 pub enum VolumeCommand {
     /// Bake the SH self-transfer of a scene's [medium] into a volume file (.prtv).
@@ -247,8 +250,10 @@ fn load_env(spec: &str) -> Result<EnvMap> {
 fn env_files(specs: &[String]) -> Vec<PathBuf> {
     specs
         .iter()
-        .filter(|s| !s.starts_with("sun:"))
-        .map(PathBuf::from)
+        .filter_map(|s| match EnvSpec::parse(s) {
+            Ok(EnvSpec::File(p)) => Some(p),
+            _ => None,
+        })
         .collect()
 }
 
@@ -391,6 +396,7 @@ pub struct TurnArgs {
 }
 
 impl TurnArgs {
+    /// The environment rotation these flags give (yaw, then pitch, degrees).
     pub fn rotation(&self) -> EnvRotation {
         EnvRotation {
             yaw_deg: self.yaw,

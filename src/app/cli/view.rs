@@ -3,6 +3,7 @@
 use super::*;
 use crate::relight::vertex::Orbit;
 
+/// Arguments of `prt view`.
 #[derive(Args, Debug)]
 pub struct ViewArgs {
     /// Transport file (.prt), or a volume file (.prtv) for the volume path.
@@ -108,36 +109,33 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
         }
         return volume_screenshot_cmd(&a, &out);
     }
-    let (entries, sun, selected) = env_entries(&a.env);
+    let (entries, light) = env_entries(&a.env);
     let transport = Transport::load(&a.file)?;
     let mut engine = Engine::from_transport(&a.file, transport, entries)?;
-    let mut state = engine.initial_state(selected, sun);
-    if let Some(r) = crate::app::viewer::cli_sun_radius(&a.env) {
-        state.sun_radius = r;
-    }
-    state.compare = a.compare || a.split.is_some();
-    state.error_map = a.error_map;
+    let mut state = engine.initial_state(light);
+    state.relight.compare = a.compare || a.split.is_some();
+    state.display.error_map = a.error_map;
     if let Some(f) = a.split {
-        state.layout = crate::app::viewer::Layout::Split;
-        state.split = f;
+        state.display.layout = crate::app::viewer::Layout::Split;
+        state.display.split = f;
     }
     if let Some(t) = &a.tone {
-        state.tone = *t;
+        state.display.tone = *t;
     }
     if let Some(m) = &a.method {
-        state.method = *m;
+        state.relight.method = *m;
     }
     // Given flags are checked as `relight` checks them; only the defaults are fitted to the file.
     let limits = engine.limits();
     if let Some(k) = a.terms {
         crate::flags::terms(k, engine.transport.meta.identity.cube_n as usize)?;
-        state.terms = k;
+        state.relight.terms = k;
     }
     if let Some(w) = &a.weighting {
-        state.weighting = *w;
+        state.relight.weighting = *w;
     }
     if let Some(o) = a.sh_order {
-        if state.method == Method::ShLight {
+        if state.relight.method == Method::ShLight {
             if o == 0 || o > limits.sh_light_order {
                 return Err(PrtError::invalid(
                     "SH order",
@@ -151,19 +149,19 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
         } else {
             crate::flags::sh_order(o, limits.sh_order)?;
         }
-        state.sh_order = o;
+        state.relight.sh_order = o;
     }
     if let Some(y) = a.yaw {
-        state.yaw = y;
+        state.light.rotation.yaw_deg = y;
     }
     if let Some(p) = a.pitch {
-        state.pitch = p;
+        state.light.rotation.pitch_deg = p;
     }
     if let Some(o) = a.orbit {
         crate::relight::vertex::mesh_of(&engine.transport)?;
         state.orbit = o;
     }
-    state.exposure = match a.exposure {
+    state.display.exposure = match a.exposure {
         Some(e) => e,
         None => engine.auto_exposure(&state)?,
     };
@@ -190,18 +188,16 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
 fn volume_screenshot_cmd(a: &ViewArgs, out: &std::path::Path) -> Result<()> {
     use crate::app::viewer::{VolumeEngine, VolumeState, env_entries, volume_screenshot};
     let vt = crate::volume::VolumeTransfer::load(&a.file)?;
-    let (entries, sun, selected) = env_entries(&a.env);
-    let mut state = VolumeState::initial(&vt);
-    state.env = selected;
-    (state.sun_elev, state.sun_azim) = sun;
-    if let Some(r) = crate::app::viewer::cli_sun_radius(&a.env) {
-        state.sun_radius = r;
-    }
+    let (entries, light) = env_entries(&a.env);
+    let mut state = VolumeState {
+        light,
+        ..VolumeState::initial(&vt)
+    };
     if let Some(y) = a.yaw {
-        state.yaw = y;
+        state.light.rotation.yaw_deg = y;
     }
     if let Some(p) = a.pitch {
-        state.pitch = p;
+        state.light.rotation.pitch_deg = p;
     }
     if let Some(o) = a.sh_order {
         crate::flags::sh_order(o, vt.meta.sh_order)?;

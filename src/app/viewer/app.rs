@@ -5,34 +5,29 @@
 
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::time::Duration;
 
 use eframe::{egui, wgpu};
 
-use super::mesh_view::{self, MeshDisplay};
+use super::camera;
 use super::viewport::Viewport;
-use super::worker::{Job, Loaded, Reply, Worker};
+use super::worker::{Job, Loaded, Reply, TransportWorker};
 use super::{
-    GpuTiming, GpuView, Layout, LightKey, LightShown, Rendered, ViewState, relight_into_view,
-    sh_order_for_terms,
+    DisplayPath, GpuTiming, GpuView, Layout, LightShown, Rendered, ViewState, sh_order_for_terms,
 };
 use crate::light::select::Weighting;
-use crate::output::film::Image;
 use crate::relight::Method;
-use crate::relight::gpu::{Gpu, GpuTransport};
+use crate::relight::gpu::Gpu;
 
-/// The GPU display: the device, the transport once uploaded, one view per pane.
-struct GpuDisplay {
+/// The window's GPU: the device, the transport's display path once uploaded, one view per pane.
+struct WindowGpu {
     gpu: Gpu,
     render_state: eframe::egui_wgpu::RenderState,
-    transport: Option<Arc<GpuTransport>>,
+    /// The engine's display path ([`DisplayPath`]), once the transport is on the GPU.
+    display: Option<DisplayPath>,
     uploading: bool,
-    /// Each view, its texture in egui, and the environment behind the scene it holds (uploaded
-    /// again only when the light brings a new one).
-    views: Vec<(GpuView, egui::TextureId, Option<Arc<Image>>)>,
-    /// A per-vertex bake's mesh and raster, once made.
-    mesh: Option<MeshDisplay>,
+    /// Each view and its texture in egui.
+    views: Vec<(GpuView, egui::TextureId)>,
     /// What the views show, and how long each took.
     shown: Option<ViewState>,
     timings: Vec<GpuTiming>,
@@ -40,6 +35,7 @@ struct GpuDisplay {
 
 /// The window.
 pub struct ViewerApp {
+    /// What is shown, as the controls set it.
     pub state: ViewState,
     /// The last error of a render (a bad environment file, ...).
     pub error: Option<String>,
@@ -49,8 +45,9 @@ pub struct ViewerApp {
     pub load_error: Option<String>,
     /// The last message of a save.
     pub saved: Option<String>,
+    /// Zoom and pan of a per-pixel bake's images.
     pub viewport: Viewport,
-    worker: Worker,
+    worker: TransportWorker,
     loaded: Option<Loaded>,
     /// The state last sent to the worker.
     sent: Option<ViewState>,
@@ -58,7 +55,7 @@ pub struct ViewerApp {
     rendered: Option<Rendered>,
     textures: Vec<egui::TextureHandle>,
     light: Option<LightShown>,
-    gpu: Option<GpuDisplay>,
+    gpu: Option<WindowGpu>,
     gpu_error: Option<String>,
     /// Frame start times of the last second, for the frame rate.
     frames: VecDeque<f64>,
@@ -79,7 +76,7 @@ impl ViewerApp {
             load_error: None,
             saved: None,
             viewport: Viewport::default(),
-            worker: Worker::start(file, envs),
+            worker: TransportWorker::start(file, envs),
             loaded: None,
             sent: None,
             rendered: None,
@@ -107,19 +104,18 @@ impl ViewerApp {
     pub fn attach_render_state(&mut self, rs: eframe::egui_wgpu::RenderState) {
         match Gpu::from_device(rs.device.clone(), rs.queue.clone(), &rs.adapter.get_info()) {
             Ok(gpu) => {
-                self.gpu = Some(GpuDisplay {
+                self.gpu = Some(WindowGpu {
                     gpu,
                     render_state: rs,
-                    transport: None,
+                    display: None,
                     uploading: false,
                     views: Vec::new(),
-                    mesh: None,
                     shown: None,
                     timings: Vec::new(),
                 });
                 // The window draws from the GPU kernels by default on a hardware GPU; a software
                 // adapter is slower than the CPU kernels, so there the box starts unticked.
-                self.state.gpu = !self.gpu.as_ref().is_some_and(|g| g.gpu.software);
+                self.state.display.gpu = !self.gpu.as_ref().is_some_and(|g| g.gpu.software);
                 self.start_upload();
             }
             Err(e) => self.gpu_error = Some(e.to_string()),
@@ -128,17 +124,17 @@ impl ViewerApp {
 
     fn start_upload(&mut self) {
         if let (Some(g), Some(_)) = (&mut self.gpu, &self.loaded)
-            && g.transport.is_none()
+            && g.display.is_none()
             && !g.uploading
         {
             g.uploading = true;
-            self.worker.send(Job::Upload(g.gpu.clone()));
+            self.worker.worker.send(Job::Upload(g.gpu.clone()));
         }
     }
 
     /// Whether the worker has jobs in hand.
     pub fn busy(&self) -> bool {
-        self.worker.busy()
+        self.worker.worker.busy()
     }
 
     /// Whether the file has loaded.
@@ -162,19 +158,17 @@ impl ViewerApp {
     /// Blocks until the worker has answered every job (for tests and scripts); the next frame
     /// shows the results. Returns whether it became idle within `timeout`.
     pub fn wait_idle(&self, timeout: Duration) -> bool {
-        self.worker.wait_idle(timeout)
+        self.worker.worker.wait_idle(timeout)
     }
 
     /// Takes in what the worker finished (each frame does this first).
     pub fn poll(&mut self, ctx: &egui::Context) {
-        while let Some(reply) = self.worker.try_recv() {
+        while let Some(reply) = self.worker.worker.try_recv() {
             match reply {
                 Reply::Loaded(Ok(loaded)) => {
-                    let gpu = self.state.gpu;
-                    self.state = ViewState {
-                        gpu,
-                        ..loaded.state.clone()
-                    };
+                    let gpu = self.state.display.gpu;
+                    self.state = loaded.state.clone();
+                    self.state.display.gpu = gpu;
                     self.loaded = Some(loaded);
                     self.start_upload();
                 }
@@ -192,7 +186,7 @@ impl ViewerApp {
                     self.rendered = Some(r);
                 }
                 Reply::Rendered(Err(e)) => self.error = Some(e.to_string()),
-                Reply::Exposure(Ok(e)) => self.state.exposure = e,
+                Reply::Exposure(Ok(e)) => self.state.display.exposure = e,
                 Reply::Exposure(Err(e)) => self.error = Some(e.to_string()),
                 Reply::Saved(Ok(stem)) => {
                     self.saved = Some(format!(
@@ -206,7 +200,7 @@ impl ViewerApp {
                     if let Some(g) = &mut self.gpu {
                         g.uploading = false;
                         match result {
-                            Ok(t) => g.transport = Some(t),
+                            Ok(t) => g.display = Some(DisplayPath::new(t)),
                             Err(e) => self.gpu_error = Some(format!("GPU upload: {e}")),
                         }
                     }
@@ -248,7 +242,7 @@ impl ViewerApp {
     }
 
     fn gpu_wanted(&self) -> bool {
-        self.state.gpu && !self.state.error_map && self.gpu.is_some()
+        self.state.display.gpu && !self.state.display.error_map && self.gpu.is_some()
     }
 
     /// Relights the current state on the GPU when it changed and its light is at hand; a failure
@@ -259,7 +253,7 @@ impl ViewerApp {
         }
         if let Err(e) = self.try_draw_on_gpu() {
             self.gpu_error = Some(format!("GPU display: {e}"));
-            self.state.gpu = false;
+            self.state.display.gpu = false;
         }
     }
 
@@ -267,30 +261,16 @@ impl ViewerApp {
         let (Some(loaded), Some(lit), Some(g)) = (&self.loaded, &self.light, &mut self.gpu) else {
             return Ok(());
         };
-        let Some(gt) = g.transport.clone() else {
+        let Some(display) = &mut g.display else {
             return Ok(());
         };
-        if g.shown.as_ref() == Some(&self.state)
-            || lit.key != LightKey::of(&loaded.envs, &self.state)
-        {
+        if g.shown.as_ref() == Some(&self.state) || lit.key != self.state.light.key(&loaded.envs) {
             return Ok(());
         }
-        let t = &loaded.transport;
         let camera = loaded.camera(&self.state);
-        // A per-vertex bake is drawn over the whole environment seen through its camera.
-        let behind = match &camera {
-            Some(camera) => {
-                if g.mesh.is_none() {
-                    g.mesh = Some(MeshDisplay::new(&g.gpu, t)?);
-                }
-                let mesh = g.mesh.as_mut().expect("made above");
-                mesh.backdrop(camera, lit)?
-            }
-            None => lit.behind.clone(),
-        };
         let (w, h) = (loaded.size.0 as u32, loaded.size.1 as u32);
         let requests = self.state.requests(loaded.limits);
-        g.views.retain(|(v, _, _)| (v.width, v.height) == (w, h));
+        g.views.retain(|(v, _)| (v.width, v.height) == (w, h));
         while g.views.len() < requests.len() {
             let view = GpuView::new(&g.render_state.device, w, h);
             let id = g.render_state.renderer.write().register_native_texture(
@@ -298,32 +278,20 @@ impl ViewerApp {
                 &view.display.create_view(&Default::default()),
                 wgpu::FilterMode::Linear,
             );
-            g.views.push((view, id, None));
+            g.views.push((view, id));
         }
         g.timings.clear();
-        for ((_, request), (view, _, held)) in requests.iter().zip(&mut g.views) {
-            if !held.as_ref().is_some_and(|h| Arc::ptr_eq(h, &behind)) {
-                view.set_behind(&g.render_state.queue, &behind);
-                *held = Some(behind.clone());
-            }
-            let tone = self.state.tone_map();
-            let timing = match (&camera, &mut g.mesh) {
-                (Some(camera), Some(mesh)) => mesh_view::draw_into_view(
-                    &g.gpu,
-                    &gt,
-                    t,
-                    &loaded.ctx,
-                    &lit.light,
-                    request,
-                    mesh,
-                    camera,
-                    view,
-                    tone,
-                )?,
-                _ => {
-                    relight_into_view(&g.gpu, &gt, t, &loaded.ctx, &lit.light, request, view, tone)?
-                }
-            };
+        for ((_, request), (view, _)) in requests.iter().zip(&mut g.views) {
+            let timing = display.draw(
+                &g.gpu,
+                &loaded.transport,
+                &loaded.ctx,
+                lit,
+                request,
+                camera.as_ref(),
+                view,
+                self.state.tone_map(),
+            )?;
             g.timings.push(timing);
         }
         g.shown = Some(self.state.clone());
@@ -347,25 +315,25 @@ impl ViewerApp {
         });
         let s = &mut self.state;
         if m {
-            s.cycle_method();
+            s.relight.cycle_method();
         }
         if plus {
-            s.terms = s.terms.saturating_mul(2);
+            s.relight.terms = s.relight.terms.saturating_mul(2);
         }
         if minus {
-            s.terms = (s.terms / 2).max(1);
+            s.relight.terms = (s.relight.terms / 2).max(1);
         }
         if c {
-            s.compare = !s.compare;
+            s.relight.compare = !s.relight.compare;
         }
         if fit {
             self.viewport = Viewport::default();
         }
         if let Some(l) = &self.loaded {
             if e {
-                s.env = (s.env + 1) % l.envs.len().max(1);
+                s.light.env = (s.light.env + 1) % l.envs.len().max(1);
             }
-            s.terms = s.terms.clamp(1, l.limits.coeffs);
+            s.relight.terms = s.relight.terms.clamp(1, l.limits.coeffs);
         }
     }
 
@@ -419,71 +387,66 @@ impl ViewerApp {
         let light_pending = self
             .light
             .as_ref()
-            .is_none_or(|l| l.key != LightKey::of(&loaded.envs, &self.state));
+            .is_none_or(|l| l.key != self.state.light.key(&loaded.envs));
         let s = &mut self.state;
         ui.heading("Method (M)");
         ui.horizontal(|ui| {
-            ui.selectable_value(&mut s.method, Method::Wavelet, "Wavelet");
-            ui.selectable_value(&mut s.method, Method::Sh, "SH");
-            ui.selectable_value(&mut s.method, Method::Full, "Full");
-            ui.selectable_value(&mut s.method, Method::ShLight, "SH (light)")
+            ui.selectable_value(&mut s.relight.method, Method::Wavelet, "Wavelet");
+            ui.selectable_value(&mut s.relight.method, Method::Sh, "SH");
+            ui.selectable_value(&mut s.relight.method, Method::Full, "Full");
+            ui.selectable_value(&mut s.relight.method, Method::ShLight, "SH (light)")
                 .on_hover_text("SH of any order through the light, relit with every stored term");
         });
-        ui.checkbox(&mut s.compare, "Compare SH | wavelet (C)");
-        if s.compare {
+        ui.checkbox(&mut s.relight.compare, "Compare SH | wavelet (C)");
+        if s.relight.compare {
             ui.horizontal(|ui| {
-                ui.selectable_value(&mut s.layout, Layout::SideBySide, "Side by side");
-                ui.selectable_value(&mut s.layout, Layout::Split, "Split");
+                ui.selectable_value(&mut s.display.layout, Layout::SideBySide, "Side by side");
+                ui.selectable_value(&mut s.display.layout, Layout::Split, "Split");
             });
-            if s.layout == Layout::Split {
-                ui.add(egui::Slider::new(&mut s.split, 0.0..=1.0).text("split (SH | wavelet)"));
+            if s.display.layout == Layout::Split {
+                ui.add(
+                    egui::Slider::new(&mut s.display.split, 0.0..=1.0).text("split (SH | wavelet)"),
+                );
             }
         }
-        ui.checkbox(&mut s.error_map, "Error heat map vs full");
+        ui.checkbox(&mut s.display.error_map, "Error heat map vs full");
         super::gpu_controls(
             ui,
             self.gpu.as_ref().map(|g| (&g.gpu, g.uploading)),
-            &mut s.gpu,
+            &mut s.display.gpu,
         );
         ui.separator();
         // The kept terms on two rows: what they are, then the slider with its number field.
         let label = ui.label(format!("Kept terms K (+/-), 1 to {}", limits.coeffs));
         ui.horizontal(|ui| {
             ui.add(
-                egui::Slider::new(&mut s.terms, 1..=limits.coeffs)
+                egui::Slider::new(&mut s.relight.terms, 1..=limits.coeffs)
                     .logarithmic(true)
                     .show_value(false),
             )
             .labelled_by(label.id);
             ui.label("K =");
-            ui.add(egui::DragValue::new(&mut s.terms).range(1..=limits.coeffs))
+            ui.add(egui::DragValue::new(&mut s.relight.terms).range(1..=limits.coeffs))
                 .labelled_by(label.id);
         });
         egui::ComboBox::from_label("Weighting")
-            .selected_text(s.weighting.name())
+            .selected_text(s.relight.weighting.name())
             .show_ui(ui, |ui| {
                 for w in Weighting::ALL {
-                    ui.selectable_value(&mut s.weighting, w, w.name());
+                    ui.selectable_value(&mut s.relight.weighting, w, w.name());
                 }
             });
-        let most = match s.method {
+        let most = match s.relight.method {
             Method::ShLight => limits.sh_light_order,
             _ => limits.sh_order,
         };
-        ui.add(egui::Slider::new(&mut s.sh_order, 1..=most).text("SH order"));
-        if s.compare {
-            let n = sh_order_for_terms(s.terms, limits.sh_order);
+        ui.add(egui::Slider::new(&mut s.relight.sh_order, 1..=most).text("SH order"));
+        if s.relight.compare {
+            let n = sh_order_for_terms(s.relight.terms, limits.sh_order);
             ui.label(format!("compare uses SH order {n} ({} terms)", n * n));
         }
         ui.separator();
-        super::light_controls(
-            ui,
-            "Environment (E)",
-            &loaded.envs,
-            &mut s.env,
-            [&mut s.sun_elev, &mut s.sun_azim, &mut s.sun_radius],
-            [&mut s.yaw, &mut s.pitch],
-        );
+        super::light_controls(ui, "Environment (E)", &loaded.envs, &mut s.light);
         if light_pending {
             ui.horizontal(|ui| {
                 ui.spinner();
@@ -492,10 +455,10 @@ impl ViewerApp {
         }
         if let Some(base) = &loaded.camera {
             ui.separator();
-            mesh_view::camera_controls(ui, &mut s.orbit, base);
+            camera::camera_controls(ui, &mut s.orbit, base);
         }
         ui.separator();
-        super::tone_controls(ui, &mut s.exposure, &mut s.tone);
+        super::tone_controls(ui, &mut s.display.exposure, &mut s.display.tone);
         // Auto exposure and the zoom share a row.
         let auto = ui
             .horizontal(|ui| {
@@ -519,11 +482,13 @@ impl ViewerApp {
             })
             .inner;
         if auto {
-            self.worker.send(Job::AutoExposure(self.state.clone()));
+            self.worker
+                .worker
+                .send(Job::AutoExposure(self.state.clone()));
         }
         if save {
             self.saved = None;
-            self.worker.send(Job::Save(
+            self.worker.worker.send(Job::Save(
                 self.state.clone(),
                 PathBuf::from(&self.save_stem),
             ));
@@ -536,7 +501,7 @@ impl ViewerApp {
             .rendered
             .as_ref()
             .is_none_or(|r| r.state.relight_key() != self.state.relight_key());
-        if self.worker.busy() {
+        if self.worker.worker.busy() {
             ui.horizontal(|ui| {
                 ui.spinner();
                 ui.label("CPU relight and errors updating");
@@ -635,7 +600,7 @@ impl ViewerApp {
                 .collect(),
         };
         let ids: Vec<egui::TextureId> = match &self.gpu {
-            Some(g) if self.showing_gpu() => g.views.iter().map(|(_, id, _)| *id).collect(),
+            Some(g) if self.showing_gpu() => g.views.iter().map(|(_, id)| *id).collect(),
             _ => self.textures.iter().map(|t| t.id()).collect(),
         };
         ids.into_iter().zip(titles).collect()
@@ -673,7 +638,7 @@ impl ViewerApp {
             .max(0.01);
         let size = egui::vec2(w * scale, h * scale);
         let uv = self.viewport.uv();
-        let split = self.state.split;
+        let split = self.state.display.split;
         let mut viewport = self.viewport;
         let mut orbit = self.state.orbit;
         ui.horizontal_top(|ui| {
@@ -713,15 +678,7 @@ impl ViewerApp {
                         .filter(|(_, s)| *s != 0.0);
                     match &base {
                         Some(base) => {
-                            if response.dragged() {
-                                mesh_view::drag(&mut orbit, base, response.drag_delta());
-                            }
-                            if response.double_clicked() {
-                                orbit = Default::default();
-                            }
-                            if let Some((_, scroll)) = scroll {
-                                mesh_view::dolly(&mut orbit, scroll);
-                            }
+                            camera::interact(&mut orbit, base, &response, scroll.map(|s| s.1));
                         }
                         None => {
                             if response.dragged() {
@@ -766,12 +723,12 @@ impl ViewerApp {
                 // What was clamped stays noted until the next change.
                 self.notes = notes;
                 self.sent = Some(self.state.clone());
-                self.worker.send(Job::Render(self.state.clone()));
+                self.worker.worker.send(Job::Render(self.state.clone()));
             }
         }
         self.draw_on_gpu();
         egui::CentralPanel::default_margins().show(ui, |ui| self.images(ui));
-        if self.worker.busy() {
+        if self.worker.worker.busy() {
             ctx.request_repaint_after(Duration::from_millis(30));
         }
     }

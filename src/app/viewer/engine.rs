@@ -12,7 +12,7 @@ use eframe::wgpu;
 
 use super::*;
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvMap, EnvRotation};
+use crate::light::envmap::{EnvMap, EnvSpec};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::relight::background::{composite, environment_behind};
@@ -85,20 +85,24 @@ struct Lit {
 
 /// A loaded transport, its environments and the caches behind [`Engine::render`].
 pub struct Engine {
+    /// The transport file.
     pub path: PathBuf,
+    /// The transport, loaded.
     pub transport: Arc<Transport>,
+    /// What the light side needs of it.
     pub ctx: Arc<LightContext>,
+    /// The environment list.
     pub envs: Vec<EnvEntry>,
-    maps: HashMap<String, Arc<EnvMap>>,
+    maps: HashMap<PathBuf, Arc<EnvMap>>,
     light: Option<Lit>,
-    last: Option<(ViewState, Vec<LinearPane>)>,
+    last: Option<(RelightKey, Vec<LinearPane>)>,
     /// The camera a per-vertex bake was made with; `None` for a per-pixel bake.
     base_camera: Option<Camera>,
     /// The backdrop of the last per-vertex view: the camera and light it was drawn for.
     backdrop: Option<(Camera, LightKey, Image)>,
     gpu: Option<Gpu>,
-    gpu_transport: Option<GpuTransport>,
-    gpu_mesh: Option<MeshDisplay>,
+    /// The transport on the attached GPU and its display path, once uploaded.
+    display: Option<DisplayPath>,
 }
 
 impl Engine {
@@ -139,16 +143,14 @@ impl Engine {
             base_camera,
             backdrop: None,
             gpu: None,
-            gpu_transport: None,
-            gpu_mesh: None,
+            display: None,
         })
     }
 
     /// Lets [`ViewState::gpu`] relight on `gpu` (the transport is uploaded on first use).
     pub fn attach_gpu(&mut self, gpu: Gpu) {
         self.gpu = Some(gpu);
-        self.gpu_transport = None;
-        self.gpu_mesh = None;
+        self.display = None;
         self.last = None;
     }
 
@@ -168,7 +170,7 @@ impl Engine {
     pub fn relight_to_view(
         &mut self,
         request: &RelightRequest,
-        view: &GpuView,
+        view: &mut GpuView,
         state: &ViewState,
     ) -> Result<GpuTiming> {
         self.upload()?;
@@ -179,35 +181,14 @@ impl Engine {
             .as_ref()
             .ok_or_else(|| PrtError::invalid("view", "nothing rendered yet"))?
             .shown;
-        let gt = self.gpu_transport.as_ref().ok_or_else(no_gpu)?;
-        let Some(camera) = camera else {
-            view.set_behind(&gpu.queue, &lit.behind);
-            return relight_into_view(
-                gpu,
-                gt,
-                &self.transport,
-                &self.ctx,
-                &lit.light,
-                request,
-                view,
-                state.tone_map(),
-            );
-        };
-        if self.gpu_mesh.is_none() {
-            self.gpu_mesh = Some(MeshDisplay::new(gpu, &self.transport)?);
-        }
-        let mesh = self.gpu_mesh.as_mut().expect("made above");
-        let behind = mesh.backdrop(&camera, lit)?;
-        view.set_behind(&gpu.queue, &behind);
-        draw_into_view(
+        let display = self.display.as_mut().ok_or_else(no_gpu)?;
+        display.draw(
             gpu,
-            gt,
             &self.transport,
             &self.ctx,
-            &lit.light,
+            lit,
             request,
-            mesh,
-            &camera,
+            camera.as_ref(),
             view,
             state.tone_map(),
         )
@@ -215,8 +196,9 @@ impl Engine {
 
     fn upload(&mut self) -> Result<()> {
         let gpu = self.gpu.as_ref().ok_or_else(no_gpu)?;
-        if self.gpu_transport.is_none() {
-            self.gpu_transport = Some(GpuTransport::upload(gpu, &self.transport, None)?);
+        if self.display.is_none() {
+            let gt = GpuTransport::upload(gpu, &self.transport, None)?;
+            self.display = Some(DisplayPath::new(Arc::new(gt)));
         }
         Ok(())
     }
@@ -228,10 +210,11 @@ impl Engine {
     ) -> Result<(Image, RelightStats)> {
         self.upload()?;
         let gpu = self.gpu.as_ref().ok_or_else(no_gpu)?;
-        let gt = self.gpu_transport.as_ref().ok_or_else(no_gpu)?;
+        let gt = &self.display.as_ref().ok_or_else(no_gpu)?.transport;
         GpuBackend::new(gpu, gt, &self.transport)?.relight(&self.ctx, light, req)
     }
 
+    /// What the transport and the environment list allow a state.
     pub fn limits(&self) -> Limits {
         Limits {
             coeffs: self.transport.coeff_count(),
@@ -255,26 +238,24 @@ impl Engine {
 
     /// A state that suits this file: the given environment, SH at the baked order, K = 1% of
     /// 6 N² (at least 16), exposure from the `full` image.
-    pub fn initial_state(&mut self, env: usize, sun: (f64, f64)) -> ViewState {
+    pub fn initial_state(&mut self, light: LightState) -> ViewState {
         let limits = self.limits();
         let mut s = ViewState {
-            env,
-            sun_elev: sun.0,
-            sun_azim: sun.1,
-            sh_order: limits.sh_order,
-            terms: (limits.coeffs / 100).max(16).min(limits.coeffs),
+            light,
             ..ViewState::default()
         };
+        s.relight.sh_order = limits.sh_order;
+        s.relight.terms = (limits.coeffs / 100).max(16).min(limits.coeffs);
         s.clamp(limits);
         if let Ok(e) = self.auto_exposure(&s) {
-            s.exposure = e;
+            s.display.exposure = e;
         }
         s
     }
 
-    /// The environment spec of `state` (a path, or `sun:ELEV,AZIM,RADIUS`).
-    pub fn env_spec(&self, state: &ViewState) -> String {
-        LightKey::of(&self.envs, state).spec
+    /// The environment `state` shows: a file, or the procedural sun.
+    pub fn env_spec(&self, state: &ViewState) -> EnvSpec {
+        state.light.env_spec(&self.envs)
     }
 
     /// The prepared light of `state`, computing it (and the `full` image) when it changed;
@@ -285,26 +266,24 @@ impl Engine {
         state: &ViewState,
         on_light: &mut OnLight<'_>,
     ) -> Result<(f64, f64)> {
-        let key = LightKey::of(&self.envs, state);
+        let key = state.light.key(&self.envs);
         if self.light.as_ref().is_some_and(|l| l.shown.key == key) {
             return Ok((0.0, 0.0));
         }
         let start = Instant::now();
-        let map = match self.maps.get(&key.spec) {
+        let kept = key.file().and_then(|f| self.maps.get(f));
+        let map = match kept {
             Some(m) => m.clone(),
             None => {
-                let m = Arc::new(EnvMap::from_spec(&key.spec)?);
+                let m = Arc::new(key.env.load()?);
                 // Keep file maps; procedural suns change with every slider move.
-                if !key.spec.starts_with("sun:") {
-                    self.maps.insert(key.spec.clone(), m.clone());
+                if let Some(f) = key.file() {
+                    self.maps.insert(f.clone(), m.clone());
                 }
                 m
             }
         };
-        let rotation = EnvRotation {
-            yaw_deg: key.yaw,
-            pitch_deg: key.pitch,
-        };
+        let rotation = key.rotation;
         let light = Arc::new(self.ctx.prepare(&map, rotation)?);
         let behind = Arc::new(match self.base_camera {
             Some(_) => Image::new(0, 0),
@@ -372,7 +351,7 @@ impl Engine {
         let mut panes = Vec::new();
         for (title, request) in state.requests(limits) {
             let start = Instant::now();
-            let (image, stats) = if state.gpu && self.gpu.is_some() {
+            let (image, stats) = if state.display.gpu && self.gpu.is_some() {
                 self.relight_gpu(light, &request)?
             } else {
                 relight(&self.transport, &self.ctx, light, &request)?
@@ -425,7 +404,7 @@ impl Engine {
         // One pane: its numbers, the relit image the error map compares with `full`, and the
         // image shown (over the environment behind the scene; the errors were taken before).
         let mut show = |linear: &LinearPane, relit: &Image, image: Image, full: &Image| {
-            if state.error_map {
+            if state.display.error_map {
                 maps.push(Pane {
                     rgb: error_heat_map(relit, full, ERROR_MAP_GAIN),
                     linear: LinearPane {
@@ -520,7 +499,7 @@ impl Engine {
             let (drawn, over) = draw(&l.image)?;
             panes.push((l.clone(), drawn, over));
         }
-        let full = if state.error_map {
+        let full = if state.display.error_map {
             draw(&lit.full)?.0
         } else {
             Image::new(0, 0)

@@ -29,7 +29,9 @@ const _: () = assert!(std::mem::size_of::<ToneParams>() == 16);
 
 /// The two textures of one image size and the tone-mapping pass between them.
 pub struct GpuView {
+    /// Width of the textures, pixels.
     pub width: u32,
+    /// Height of the textures, pixels.
     pub height: u32,
     /// Linear radiance, written by the relight kernels (alpha 0) or drawn by the raster of a
     /// per-vertex bake (alpha its coverage).
@@ -39,12 +41,15 @@ pub struct GpuView {
     /// The environment behind the scene (RGBA32F), added before tone mapping where `linear`
     /// leaves the pixel open (1 − alpha); black until [`GpuView::set_behind`].
     pub behind: wgpu::Texture,
+    /// The image `behind` holds, to upload it again only when another comes.
+    behind_of: Option<std::sync::Arc<Image>>,
     pipeline: wgpu::ComputePipeline,
     params: wgpu::Buffer,
     group: wgpu::BindGroup,
 }
 
 impl GpuView {
+    /// The textures and the pass for `width` x `height` images on `device`.
     pub fn new(device: &wgpu::Device, width: u32, height: u32) -> GpuView {
         let texture =
             |label, format, usage| texture_2d(device, label, [width, height], format, usage);
@@ -158,10 +163,24 @@ impl GpuView {
             linear,
             display,
             behind,
+            behind_of: None,
             pipeline,
             params,
             group,
         }
+    }
+
+    /// [`GpuView::set_behind`] unless `image` is the one it already holds.
+    pub fn hold_behind(&mut self, queue: &wgpu::Queue, image: &std::sync::Arc<Image>) {
+        if self
+            .behind_of
+            .as_ref()
+            .is_some_and(|h| std::sync::Arc::ptr_eq(h, image))
+        {
+            return;
+        }
+        self.set_behind(queue, image);
+        self.behind_of = Some(image.clone());
     }
 
     /// Uploads the environment behind the scene (an image of this view's size; others are

@@ -1,24 +1,18 @@
-//! Per-vertex bakes in the viewer: the orbit camera's controls (drag to turn, scroll to move in
-//! and out, sliders, reset) and the GPU display path, where the relight kernels write the vertex
-//! colours into the transport's image buffer and the raster draws them into the view's texture,
-//! with nothing read back.
+//! Per-vertex bakes in the viewer: the GPU display path, where the relight kernels write the
+//! vertex colours into the transport's image buffer and the raster draws them into the view's
+//! texture, with nothing read back.
 
 use std::sync::Arc;
 use std::time::Instant;
-
-use eframe::egui;
 
 use super::{GpuTiming, GpuView, LightKey, LightShown, backdrop};
 use crate::error::Result;
 use crate::output::film::{Image, ToneMap};
 use crate::relight::gpu::{Gpu, GpuMesh, GpuRaster, GpuTransport};
-use crate::relight::vertex::{Orbit, mesh_of};
+use crate::relight::vertex::mesh_of;
 use crate::relight::{LightContext, PreparedLight, RelightRequest, Terms};
 use crate::scene::Camera;
 use crate::store::transport::Transport;
-
-/// Degrees the camera turns for each point the pointer is dragged.
-pub const DRAG_DEGREES_PER_POINT: f32 = 0.4;
 
 /// A per-vertex bake's mesh on the GPU, the raster that draws it, and the backdrop of the last
 /// camera and light.
@@ -78,38 +72,70 @@ pub fn draw_into_view(
     super::engine::tone_map_and_wait(gpu, view, tone, start, kernel_seconds)
 }
 
-/// Turns the orbit of `base` by a drag of `delta` points: dragging right turns the scene to the
-/// right, dragging down raises the eye; the elevation stops where the eye stops.
-pub fn drag(orbit: &mut Orbit, base: &Camera, delta: egui::Vec2) {
-    orbit.azimuth_deg -= delta.x * DRAG_DEGREES_PER_POINT;
-    let range = Orbit::elevation_range(base);
-    orbit.elevation_deg = (orbit.elevation_deg + delta.y * DRAG_DEGREES_PER_POINT)
-        .clamp(*range.start(), *range.end());
-    orbit.clamp();
+/// A transport on the GPU and what draws it into a [`GpuView`]: the one display path, taken by
+/// the window for every pane and by [`super::Engine::relight_to_view`], so the tests of the one
+/// test the other.
+pub struct DisplayPath {
+    /// The transport, uploaded.
+    pub transport: Arc<GpuTransport>,
+    /// A per-vertex bake's mesh and raster, made on first use.
+    mesh: Option<MeshDisplay>,
 }
 
-/// Moves the eye in (scrolling up) or out by a scroll of `points`.
-pub fn dolly(orbit: &mut Orbit, points: f32) {
-    orbit.distance *= (-points * 0.002).exp();
-    orbit.clamp();
-}
+impl DisplayPath {
+    /// The display path of a transport already on the GPU.
+    pub fn new(transport: Arc<GpuTransport>) -> DisplayPath {
+        DisplayPath {
+            transport,
+            mesh: None,
+        }
+    }
 
-/// The camera section of the panel for a per-vertex bake made with `base`: azimuth, elevation
-/// and distance from the bake's camera, and a reset.
-pub fn camera_controls(ui: &mut egui::Ui, orbit: &mut Orbit, base: &Camera) {
-    ui.heading("Camera");
-    ui.label("drag the image to orbit, scroll to move in and out, double-click to reset");
-    ui.add(egui::Slider::new(&mut orbit.azimuth_deg, -180.0..=180.0).text("orbit azimuth°"));
-    ui.add(
-        egui::Slider::new(&mut orbit.elevation_deg, Orbit::elevation_range(base))
-            .text("orbit elevation°"),
-    );
-    ui.add(
-        egui::Slider::new(&mut orbit.distance, Orbit::DISTANCE)
-            .logarithmic(true)
-            .text("distance (x baked)"),
-    );
-    if ui.button("Bake camera").clicked() {
-        *orbit = Orbit::default();
+    /// Relights `request` under `lit` into `view` and tone-maps it as `tone` says: a per-pixel
+    /// bake's image over the environment behind its open pixels, or, with a `camera`, a
+    /// per-vertex bake drawn from it over the environment seen through it.
+    #[allow(clippy::too_many_arguments)]
+    pub fn draw(
+        &mut self,
+        gpu: &Gpu,
+        t: &Transport,
+        ctx: &LightContext,
+        lit: &LightShown,
+        request: &RelightRequest,
+        camera: Option<&Camera>,
+        view: &mut GpuView,
+        tone: ToneMap,
+    ) -> Result<GpuTiming> {
+        let Some(camera) = camera else {
+            view.hold_behind(&gpu.queue, &lit.behind);
+            return super::relight_into_view(
+                gpu,
+                &self.transport,
+                t,
+                ctx,
+                &lit.light,
+                request,
+                view,
+                tone,
+            );
+        };
+        if self.mesh.is_none() {
+            self.mesh = Some(MeshDisplay::new(gpu, t)?);
+        }
+        let mesh = self.mesh.as_mut().expect("made above");
+        let behind = mesh.backdrop(camera, lit)?;
+        view.hold_behind(&gpu.queue, &behind);
+        draw_into_view(
+            gpu,
+            &self.transport,
+            t,
+            ctx,
+            &lit.light,
+            request,
+            mesh,
+            camera,
+            view,
+            tone,
+        )
     }
 }

@@ -6,7 +6,9 @@ use eframe::egui;
 /// shown at the middle.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Viewport {
+    /// Magnification: 1 fits the image, up to [`Viewport::MAX_ZOOM`].
     pub zoom: f32,
+    /// The texture coordinate at the middle of the view.
     pub center: egui::Pos2,
 }
 
@@ -20,6 +22,7 @@ impl Default for Viewport {
 }
 
 impl Viewport {
+    /// The highest magnification.
     pub const MAX_ZOOM: f32 = 64.0;
 
     /// The part of the texture shown, in texture coordinates, with the centre kept inside.

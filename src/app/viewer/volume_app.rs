@@ -5,18 +5,17 @@
 //! the window shows the newest finished frame and never waits.
 
 use std::path::Path;
-use std::sync::mpsc::{Receiver, Sender, channel};
-use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use eframe::egui;
 use glam::Vec3;
 
-use super::{EnvEntry, EnvSource, env_entries};
+use super::worker::{Worker, next_batch};
+use super::{EnvEntry, LightKey, LightState, env_entries};
 use crate::error::Result;
 use crate::gpu::GpuDevice;
-use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::{Image, ToneCurve, ToneMap};
+use crate::relight::vertex::Orbit;
 use crate::scene::Camera;
 use crate::volume::gpu::GpuVolume;
 use crate::volume::{PhaseLight, VolumeTransfer, VolumeView, render_volume};
@@ -24,23 +23,21 @@ use crate::volume::{PhaseLight, VolumeTransfer, VolumeView, render_volume};
 /// Cube face size the environment is resampled to for the volume light.
 const LIGHT_CUBE: usize = 32;
 
-/// Every input of the volume view.
+/// Every input of the volume view: the view and SH order, the light (as in the transport
+/// window), the orbit camera about the file's camera, and the display.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VolumeState {
+    /// What the march shows (the image, or one of its parts).
     pub view: VolumeView,
+    /// SH order of the light (1 to the baked order).
     pub sh_order: usize,
-    pub env: usize,
-    pub sun_elev: f64,
-    pub sun_azim: f64,
-    pub sun_radius: f64,
-    pub yaw: f64,
-    pub pitch: f64,
-    /// Orbit around `target`: azimuth and elevation in degrees, distance.
-    pub orbit_azim: f32,
-    pub orbit_elev: f32,
-    pub distance: f32,
-    pub target: Vec3,
+    /// The light.
+    pub light: LightState,
+    /// The camera, turned from the file's own.
+    pub orbit: Orbit,
+    /// Exposure in stops.
     pub exposure: f32,
+    /// Display curve after the exposure.
     pub tone: ToneCurve,
     /// March on the GPU when the window has one.
     pub gpu: bool,
@@ -49,23 +46,11 @@ pub struct VolumeState {
 impl VolumeState {
     /// The state of `vt`'s baked camera.
     pub fn initial(vt: &VolumeTransfer) -> VolumeState {
-        let c = &vt.meta.camera;
-        let (eye, target) = (Vec3::from(c.eye), Vec3::from(c.target));
-        let d = eye - target;
-        let distance = d.length().max(1e-3);
         VolumeState {
             view: VolumeView::Full,
             sh_order: vt.meta.sh_order,
-            env: 0,
-            sun_elev: 30.0,
-            sun_azim: 45.0,
-            sun_radius: 2.0,
-            yaw: 0.0,
-            pitch: 0.0,
-            orbit_azim: d.x.atan2(d.z).to_degrees(),
-            orbit_elev: (d.y / distance).clamp(-1.0, 1.0).asin().to_degrees(),
-            distance,
-            target,
+            light: LightState::default(),
+            orbit: Orbit::default(),
             exposure: 0.0,
             tone: ToneCurve::Aces,
             gpu: false,
@@ -74,48 +59,67 @@ impl VolumeState {
 
     /// The orbit camera at the file's field of view and image size.
     pub fn camera(&self, vt: &VolumeTransfer) -> Camera {
-        let (az, el) = (self.orbit_azim.to_radians(), self.orbit_elev.to_radians());
-        let offset = Vec3::new(el.cos() * az.sin(), el.sin(), el.cos() * az.cos());
-        Camera {
-            eye: self.target + offset * self.distance,
-            target: self.target,
-            up: Vec3::Y,
-            fov_y_deg: vt.meta.camera.fov_y_deg,
-            width: vt.meta.width,
-            height: vt.meta.height,
+        self.orbit.camera(&file_camera(vt))
+    }
+
+    /// The tone mapping of this state.
+    pub fn tone_map(&self) -> ToneMap {
+        ToneMap {
+            exposure: self.exposure,
+            curve: self.tone,
         }
     }
 
-    fn light_key(&self, envs: &[EnvEntry]) -> (String, f64, f64, usize) {
-        let spec = match envs.get(self.env).map(|e| &e.source) {
-            Some(EnvSource::File(p)) => p.display().to_string(),
-            _ => format!(
-                "sun:{:.2},{:.2},{:.2}",
-                self.sun_elev, self.sun_azim, self.sun_radius
-            ),
-        };
-        (spec, self.yaw, self.pitch, self.sh_order)
+    /// Everything but the display: what a frame depends on.
+    fn frame_key(&self) -> VolumeState {
+        VolumeState {
+            exposure: 0.0,
+            tone: ToneCurve::Clip,
+            ..self.clone()
+        }
+    }
+}
+
+/// The camera a volume was baked with, upright (+Y up), at its image size: what the orbit turns.
+pub fn file_camera(vt: &VolumeTransfer) -> Camera {
+    let c = &vt.meta.camera;
+    Camera {
+        eye: Vec3::from(c.eye),
+        target: Vec3::from(c.target),
+        up: Vec3::Y,
+        fov_y_deg: c.fov_y_deg,
+        width: vt.meta.width,
+        height: vt.meta.height,
     }
 }
 
 /// A finished frame.
 pub struct VolumeFrame {
+    /// The state it shows.
     pub state: VolumeState,
+    /// The marched image, linear RGB.
     pub image: Image,
+    /// Time spent preparing the light (0 when it was kept), seconds.
     pub light_seconds: f64,
+    /// Time of the march, seconds.
     pub march_seconds: f64,
+    /// What marched it: the GPU adapter, or `CPU`.
     pub device: String,
 }
 
 /// Prepares lights and marches; what the window and `--screenshot` share.
 pub struct VolumeEngine {
+    /// The volume transfer, loaded.
     pub vt: VolumeTransfer,
+    /// The environment list.
     pub envs: Vec<EnvEntry>,
-    light: Option<((String, f64, f64, usize), PhaseLight)>,
+    /// The phase light, with the light and SH order it was made for.
+    light: Option<((LightKey, usize), PhaseLight)>,
     gpu: Option<(GpuDevice, GpuVolume)>,
 }
 
 impl VolumeEngine {
+    /// An engine on `vt` with the environment list `envs`, marching on the CPU.
     pub fn new(vt: VolumeTransfer, envs: Vec<EnvEntry>) -> VolumeEngine {
         VolumeEngine {
             vt,
@@ -132,23 +136,17 @@ impl VolumeEngine {
         Ok(())
     }
 
+    /// Whether a GPU march is attached.
     pub fn has_gpu(&self) -> bool {
         self.gpu.is_some()
     }
 
     /// The linear frame of `state`.
     pub fn render(&mut self, state: &VolumeState) -> Result<VolumeFrame> {
-        let key = state.light_key(&self.envs);
+        let key = (state.light.key(&self.envs), state.sh_order);
         let start = Instant::now();
         if self.light.as_ref().is_none_or(|(k, _)| *k != key) {
-            let env = EnvMap::from_spec(&key.0)?;
-            let cube = env.to_cube(
-                LIGHT_CUBE,
-                EnvRotation {
-                    yaw_deg: key.1,
-                    pitch_deg: key.2,
-                },
-            )?;
+            let cube = key.0.env.load()?.to_cube(LIGHT_CUBE, key.0.rotation)?;
             let order = state.sh_order.clamp(1, self.vt.meta.sh_order);
             self.light = Some((key, PhaseLight::new(&cube, order, self.vt.meta.g)));
         }
@@ -184,10 +182,7 @@ pub fn volume_screenshot(
 ) -> Result<VolumeFrame> {
     let frame = engine.render(state)?;
     frame.image.check_finite("volume image")?;
-    let tone = ToneMap {
-        exposure: state.exposure,
-        curve: state.tone,
-    };
+    let tone = state.tone_map();
     let (w, h, rgb) = (
         frame.image.width,
         frame.image.height,
@@ -197,22 +192,18 @@ pub fn volume_screenshot(
     Ok(frame)
 }
 
-#[derive(Default)]
-struct Pending {
-    count: Mutex<usize>,
-    idle: Condvar,
-}
-
 /// The volume window.
 pub struct VolumeApp {
+    /// What is shown, as the controls set it.
     pub state: VolumeState,
+    /// The last error, shown in red under the controls.
     pub error: Option<String>,
     envs: Vec<EnvEntry>,
     vt_meta_order: usize,
+    /// The file's camera, which the orbit turns.
+    base: Camera,
     has_gpu: bool,
-    jobs: Sender<VolumeState>,
-    frames: Receiver<Result<VolumeFrame>>,
-    pending: Arc<Pending>,
+    worker: Worker<VolumeState, Result<VolumeFrame>>,
     sent: Option<VolumeState>,
     last: Option<VolumeFrame>,
     texture: Option<egui::TextureHandle>,
@@ -221,14 +212,12 @@ pub struct VolumeApp {
 impl VolumeApp {
     /// Opens the window's state on a loaded volume; `gpu` marches on the window's device.
     pub fn new(vt: VolumeTransfer, cli_envs: &[String], gpu: Option<GpuDevice>) -> VolumeApp {
-        let (envs, sun, selected) = env_entries(cli_envs);
-        let mut state = VolumeState::initial(&vt);
-        state.env = selected;
-        (state.sun_elev, state.sun_azim) = sun;
-        if let Some(r) = super::cli_sun_radius(cli_envs) {
-            state.sun_radius = r;
-        }
-        let order = vt.meta.sh_order;
+        let (envs, light) = env_entries(cli_envs);
+        let mut state = VolumeState {
+            light,
+            ..VolumeState::initial(&vt)
+        };
+        let (order, base) = (vt.meta.sh_order, file_camera(&vt));
         let mut engine = VolumeEngine::new(vt, envs.clone());
         let mut error = None;
         if let Some(g) = gpu {
@@ -238,37 +227,31 @@ impl VolumeApp {
             }
         }
         let has_gpu = engine.has_gpu();
-        let (jobs, job_rx) = channel::<VolumeState>();
-        let (frame_tx, frames) = channel();
-        let pending = Arc::new(Pending::default());
-        let p = pending.clone();
-        std::thread::spawn(move || {
-            while let Ok(mut state) = job_rx.recv() {
-                let mut n = 1;
-                for newer in job_rx.try_iter() {
-                    state = newer;
-                    n += 1;
+        let worker = Worker::start(
+            "prt-view volume worker",
+            0,
+            move |jobs, frames, pending| {
+                // Of the states queued, only the newest is marched.
+                while let Some(batch) = next_batch(&jobs) {
+                    let n = batch.len();
+                    if let Some(state) = batch.last()
+                        && frames.send(engine.render(state)).is_err()
+                    {
+                        return;
+                    }
+                    pending.done(n);
                 }
-                let frame = engine.render(&state);
-                if frame_tx.send(frame).is_err() {
-                    return;
-                }
-                let mut c = p.count.lock().expect("pending");
-                *c = c.saturating_sub(n);
-                if *c == 0 {
-                    p.idle.notify_all();
-                }
-            }
-        });
+            },
+            |e| Err(crate::error::PrtError::invalid("viewer", e)),
+        );
         VolumeApp {
             state,
             error,
             envs,
             vt_meta_order: order,
+            base,
             has_gpu,
-            jobs,
-            frames,
-            pending,
+            worker,
             sent: None,
             last: None,
             texture: None,
@@ -278,17 +261,12 @@ impl VolumeApp {
     /// Blocks until every frame asked for is done (for tests); returns whether it finished in
     /// `timeout`.
     pub fn wait_idle(&self, timeout: Duration) -> bool {
-        let c = self.pending.count.lock().expect("pending");
-        let (c, _) = self
-            .pending
-            .idle
-            .wait_timeout_while(c, timeout, |c| *c > 0)
-            .expect("pending");
-        *c == 0
+        self.worker.wait_idle(timeout)
     }
 
+    /// Whether frames are being marched.
     pub fn busy(&self) -> bool {
-        *self.pending.count.lock().expect("pending") > 0
+        self.worker.busy()
     }
 
     /// The newest finished frame.
@@ -297,14 +275,10 @@ impl VolumeApp {
     }
 
     fn poll(&mut self, ctx: &egui::Context) {
-        while let Ok(frame) = self.frames.try_recv() {
+        while let Some(frame) = self.worker.try_recv() {
             match frame {
                 Ok(f) => {
-                    let tone = ToneMap {
-                        exposure: self.state.exposure,
-                        curve: self.state.tone,
-                    };
-                    self.upload(ctx, &f.image, tone);
+                    self.upload(ctx, &f.image, self.state.tone_map());
                     self.error = None;
                     self.last = Some(f);
                 }
@@ -340,23 +314,9 @@ impl VolumeApp {
             ui.label("No GPU adapter: marching on the CPU");
         }
         ui.separator();
-        super::light_controls(
-            ui,
-            "Environment",
-            &self.envs,
-            &mut s.env,
-            [&mut s.sun_elev, &mut s.sun_azim, &mut s.sun_radius],
-            [&mut s.yaw, &mut s.pitch],
-        );
+        super::light_controls(ui, "Environment", &self.envs, &mut s.light);
         ui.separator();
-        ui.label("Camera: drag the image to orbit, scroll to move in and out");
-        ui.add(egui::Slider::new(&mut s.orbit_azim, -180.0..=180.0).text("orbit azimuth°"));
-        ui.add(egui::Slider::new(&mut s.orbit_elev, -89.0..=89.0).text("orbit elevation°"));
-        ui.add(
-            egui::Slider::new(&mut s.distance, 0.1..=50.0)
-                .logarithmic(true)
-                .text("distance"),
-        );
+        super::camera::camera_controls(ui, &mut s.orbit, &self.base);
         ui.separator();
         super::tone_controls(ui, &mut s.exposure, &mut s.tone);
         if let Some(f) = &self.last
@@ -399,32 +359,20 @@ impl VolumeApp {
                 egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
             });
         // Display-only changes re-tone-map the last frame; the rest asks the worker.
-        let display_key = |s: &VolumeState| VolumeState {
-            exposure: 0.0,
-            tone: ToneCurve::Clip,
-            ..s.clone()
-        };
         if let Some(f) = &self.last
-            && display_key(&f.state) == display_key(&self.state)
+            && f.state.frame_key() == self.state.frame_key()
             && (f.state.exposure, f.state.tone) != (self.state.exposure, self.state.tone)
         {
             let image = f.image.clone();
-            let tone = ToneMap {
-                exposure: self.state.exposure,
-                curve: self.state.tone,
-            };
-            self.upload(&ctx, &image, tone);
+            self.upload(&ctx, &image, self.state.tone_map());
             if let Some(f) = &mut self.last {
                 f.state.exposure = self.state.exposure;
                 f.state.tone = self.state.tone;
             }
         }
-        if self.sent.as_ref().map(display_key) != Some(display_key(&self.state)) {
+        if self.sent.as_ref().map(VolumeState::frame_key) != Some(self.state.frame_key()) {
             self.sent = Some(self.state.clone());
-            *self.pending.count.lock().expect("pending") += 1;
-            if self.jobs.send(self.state.clone()).is_err() {
-                *self.pending.count.lock().expect("pending") -= 1;
-            }
+            self.worker.send(self.state.clone());
         }
         egui::CentralPanel::default_margins().show(ui, |ui| {
             let Some(tex) = &self.texture else {
@@ -436,18 +384,11 @@ impl VolumeApp {
             let scale = (avail.x / size.x).min(avail.y / size.y).max(0.01);
             let response =
                 ui.add(egui::Image::new((tex.id(), size * scale)).sense(egui::Sense::drag()));
-            if response.dragged() {
-                let d = response.drag_delta();
-                self.state.orbit_azim = (self.state.orbit_azim - d.x * 0.4 + 540.0) % 360.0 - 180.0;
-                self.state.orbit_elev = (self.state.orbit_elev + d.y * 0.4).clamp(-89.0, 89.0);
-            }
-            if response.hovered() {
-                let scroll = ui.input(|i| i.smooth_scroll_delta.y);
-                if scroll != 0.0 {
-                    self.state.distance =
-                        (self.state.distance * (-scroll * 0.003).exp()).clamp(0.1, 50.0);
-                }
-            }
+            let scroll = response
+                .hovered()
+                .then(|| ui.input(|i| i.smooth_scroll_delta.y))
+                .filter(|s| *s != 0.0);
+            super::camera::interact(&mut self.state.orbit, &self.base, &response, scroll);
         });
         if self.busy() {
             ctx.request_repaint_after(Duration::from_millis(30));

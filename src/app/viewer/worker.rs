@@ -57,17 +57,19 @@ pub enum Reply {
 
 /// Jobs sent and not yet answered, with a condition to wait on.
 #[derive(Default)]
-struct Pending {
+pub struct Pending {
     count: Mutex<usize>,
     idle: Condvar,
 }
 
 impl Pending {
-    fn add(&self, n: usize) {
+    /// `n` more jobs to answer.
+    pub fn add(&self, n: usize) {
         *self.count.lock().expect("pending count") += n;
     }
 
-    fn done(&self, n: usize) {
+    /// `n` jobs answered.
+    pub fn done(&self, n: usize) {
         let mut c = self.count.lock().expect("pending count");
         *c = c.saturating_sub(n);
         if *c == 0 {
@@ -76,52 +78,56 @@ impl Pending {
     }
 }
 
-/// The window's handle on the worker thread. Dropping it ends the thread after its current job.
-pub struct Worker {
-    jobs: Sender<Job>,
-    replies: Receiver<Reply>,
+/// A window's handle on its worker thread: jobs `J` go in, replies `R` come out, and it counts
+/// the jobs not yet answered. Dropping it ends the thread after its current job. Both windows
+/// use it: the transport's ([`Job`], [`Reply`]) and the volume's.
+pub struct Worker<J, R> {
+    jobs: Sender<J>,
+    replies: Receiver<R>,
     pending: Arc<Pending>,
-    /// Bytes of the file read so far, and its size.
-    progress: Arc<[AtomicU64; 2]>,
 }
 
-impl Worker {
-    /// Starts a thread that loads `file` with the environment list of `cli_envs`.
-    pub fn start(file: &Path, cli_envs: &[String]) -> Worker {
+impl<J: Send + 'static, R: Send + 'static> Worker<J, R> {
+    /// Starts a thread named `name` running `body` on the jobs, a sender of replies and the
+    /// pending count, which `body` marks done as it answers. `initial` jobs are pending from the
+    /// start (a load the thread begins with); `failed` makes the one reply that says the thread
+    /// could not start.
+    pub fn start(
+        name: &str,
+        initial: usize,
+        body: impl FnOnce(Receiver<J>, Sender<R>, Arc<Pending>) + Send + 'static,
+        failed: impl FnOnce(String) -> R,
+    ) -> Worker<J, R> {
         let (jobs, job_rx) = channel();
         let (reply_tx, replies) = channel();
         let pending = Arc::new(Pending::default());
-        pending.add(1);
-        let progress = Arc::new([AtomicU64::new(0), AtomicU64::new(0)]);
-        let (file, cli_envs) = (file.to_path_buf(), cli_envs.to_vec());
-        let (p, prog) = (pending.clone(), progress.clone());
+        pending.add(initial);
+        let p = pending.clone();
         let spawned = std::thread::Builder::new()
-            .name("prt-view worker".into())
-            .spawn(move || run(&file, &cli_envs, job_rx, reply_tx, &p, &prog));
-        if let Err(e) = spawned {
-            // No thread: report it as a load failure through a channel of our own.
-            let (tx, rx) = channel();
-            let _ = tx.send(Reply::Loaded(Err(PrtError::invalid(
-                "viewer",
-                format!("starting the worker thread: {e}"),
-            ))));
-            pending.done(1);
-            return Worker {
+            .name(name.into())
+            .spawn(move || body(job_rx, reply_tx, p));
+        match spawned {
+            Ok(_) => Worker {
                 jobs,
-                replies: rx,
+                replies,
                 pending,
-                progress,
-            };
-        }
-        Worker {
-            jobs,
-            replies,
-            pending,
-            progress,
+            },
+            Err(e) => {
+                // No thread: the failure is the one reply, through a channel of our own.
+                let (tx, rx) = channel();
+                let _ = tx.send(failed(format!("starting the worker thread: {e}")));
+                pending.done(initial);
+                Worker {
+                    jobs,
+                    replies: rx,
+                    pending,
+                }
+            }
         }
     }
 
-    pub fn send(&self, job: Job) {
+    /// Sends a job (counted as pending until the thread answers it).
+    pub fn send(&self, job: J) {
         self.pending.add(1);
         if self.jobs.send(job).is_err() {
             self.pending.done(1);
@@ -129,21 +135,13 @@ impl Worker {
     }
 
     /// The next reply, if one is waiting.
-    pub fn try_recv(&self) -> Option<Reply> {
+    pub fn try_recv(&self) -> Option<R> {
         self.replies.try_recv().ok()
     }
 
     /// Whether jobs are still being worked on.
     pub fn busy(&self) -> bool {
         *self.pending.count.lock().expect("pending count") > 0
-    }
-
-    /// (bytes read, file size) of the load.
-    pub fn progress(&self) -> (u64, u64) {
-        (
-            self.progress[0].load(Ordering::Relaxed),
-            self.progress[1].load(Ordering::Relaxed),
-        )
     }
 
     /// Blocks until every job sent has been answered, or `timeout` passed; returns whether idle.
@@ -158,6 +156,47 @@ impl Worker {
     }
 }
 
+/// The next job and everything queued behind it, waiting for one when none is queued: what a
+/// worker does in one go (of a run of renders only the newest counts). `None` once the window
+/// has gone.
+pub fn next_batch<J>(jobs: &Receiver<J>) -> Option<Vec<J>> {
+    let first = jobs.recv().ok()?;
+    let mut batch = vec![first];
+    batch.extend(jobs.try_iter());
+    Some(batch)
+}
+
+/// The transport window's worker, and the bytes of the file it has read so far and the file's
+/// size.
+pub struct TransportWorker {
+    /// The worker.
+    pub worker: Worker<Job, Reply>,
+    progress: Arc<[AtomicU64; 2]>,
+}
+
+impl TransportWorker {
+    /// Starts a thread that loads `file` with the environment list of `cli_envs`.
+    pub fn start(file: &Path, cli_envs: &[String]) -> TransportWorker {
+        let progress = Arc::new([AtomicU64::new(0), AtomicU64::new(0)]);
+        let (file, cli_envs, prog) = (file.to_path_buf(), cli_envs.to_vec(), progress.clone());
+        let worker = Worker::start(
+            "prt-view worker",
+            1,
+            move |jobs, replies, pending| run(&file, &cli_envs, jobs, replies, &pending, &prog),
+            |e| Reply::Loaded(Err(PrtError::invalid("viewer", e))),
+        );
+        TransportWorker { worker, progress }
+    }
+
+    /// (bytes read, file size) of the load.
+    pub fn progress(&self) -> (u64, u64) {
+        (
+            self.progress[0].load(Ordering::Relaxed),
+            self.progress[1].load(Ordering::Relaxed),
+        )
+    }
+}
+
 fn run(
     file: &Path,
     cli_envs: &[String],
@@ -166,17 +205,14 @@ fn run(
     pending: &Pending,
     progress: &[AtomicU64; 2],
 ) {
-    let (entries, sun, selected) = env_entries(cli_envs);
+    let (entries, light) = env_entries(cli_envs);
     let opened = Engine::open_with_progress(file, entries, &|read, total| {
         progress[0].store(read, Ordering::Relaxed);
         progress[1].store(total, Ordering::Relaxed);
     });
     let mut engine = match opened {
         Ok(mut engine) => {
-            let mut state = engine.initial_state(selected, sun);
-            if let Some(r) = super::cli_sun_radius(cli_envs) {
-                state.sun_radius = r;
-            }
+            let state = engine.initial_state(light);
             let loaded = Loaded {
                 transport: engine.transport.clone(),
                 ctx: engine.ctx.clone(),
@@ -201,19 +237,15 @@ fn run(
             return;
         }
     };
-    while let Ok(first) = jobs.recv() {
-        // Everything queued behind it; of the render jobs only the newest counts.
-        let mut batch = vec![first];
-        batch.extend(jobs.try_iter());
+    while let Some(batch) = next_batch(&jobs) {
+        // Of the render jobs only the newest counts.
         let last_render = batch.iter().rposition(|j| matches!(j, Job::Render(_)));
         for (i, job) in batch.into_iter().enumerate() {
             let reply = match job {
                 Job::Render(_) if Some(i) != last_render => None,
                 Job::Render(state) => {
-                    let cpu = ViewState {
-                        gpu: false,
-                        ..state
-                    };
+                    let mut cpu = state;
+                    cpu.display.gpu = false;
                     let r = engine.render_with(&cpu, &mut |light| {
                         let _ = replies.send(Reply::Light(light.clone()));
                     });
