@@ -9,24 +9,41 @@ pub enum PrtError {
     /// The operating system refused to read or write a file.
     #[error("{}: {source}", path.display())]
     Io {
+        /// The file that could not be read or written.
         path: PathBuf,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
     /// A file was read but its content is not what it should be.
     #[error("{}: {message}", path.display())]
-    File { path: PathBuf, message: String },
+    File {
+        /// The file whose content is wrong.
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
     /// A scene file names something wrong: the file, the line (when known) and the field.
     #[error("{}{}: field `{field}`: {message}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
     Scene {
+        /// The scene file.
         path: PathBuf,
+        /// 1-based line of the field (or of its nearest enclosing field) in the file; `None` when
+        /// no line is known.
         line: Option<usize>,
+        /// Dotted path of the field, such as `camera.eye` or `shape[2].radius`.
         field: String,
+        /// What is wrong with the field.
         message: String,
     },
     /// An argument or a combination of inputs that cannot work.
     #[error("invalid {what}: {message}")]
-    Invalid { what: String, message: String },
+    Invalid {
+        /// The argument or input that is wrong, such as `environment` or `reference`.
+        what: String,
+        /// Why it cannot work.
+        message: String,
+    },
     /// The GPU back-end is unavailable or failed.
     #[error("GPU: {0}")]
     Gpu(String),

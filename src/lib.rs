@@ -16,6 +16,7 @@
 //! ```
 //!
 //! Every numeric convention (axes, lat-long, cube faces, SH, Haar) is fixed in [`conventions`].
+#![warn(missing_docs)]
 
 pub mod app;
 pub mod bake;

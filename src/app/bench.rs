@@ -99,12 +99,16 @@ impl BenchOptions {
 /// One measured point.
 #[derive(Clone, Debug)]
 pub struct BenchPoint {
+    /// Name of the environment the point was relit under.
     pub env: String,
+    /// How the light was approximated: wavelets, SH, SH through the light, or every term.
     pub method: Method,
     /// For wavelets.
     pub weighting: Option<Weighting>,
     /// Light terms: K or n².
     pub terms: usize,
+    /// Error of the relit image against the relight with every stored term, over the covered
+    /// pixels.
     pub error: ErrorReport,
     /// For wavelets: relative L2 of the light approximation itself, ‖L − L_K‖ / ‖L‖ over the Haar
     /// coefficients (Parseval: the same over texels). Non-increasing in K for unweighted selection.
@@ -115,6 +119,7 @@ pub struct BenchPoint {
     pub cpu_ms: f64,
     /// Median GPU time (terms upload, kernels, readback), milliseconds, when a GPU was used.
     pub gpu_ms: Option<f64>,
+    /// Transport bytes the CPU kernel read (entries, column pointers or SH rows).
     pub bytes_touched: u64,
 }
 
@@ -150,6 +155,8 @@ fn timed(
 pub struct BenchExtras<'a> {
     /// The GPU back-end, whose kernel times are reported beside the CPU's.
     pub gpu: Option<&'a dyn Backend>,
+    /// Brute-force reference images, one per environment in the sweep's order; `None` reports no
+    /// error against ground truth.
     pub references: Option<&'a [Image]>,
     /// The references' coverage (one value per pixel, shared by every environment). A
     /// per-vertex bake's points are drawn from its camera and compared over the pixels both the
@@ -526,7 +533,10 @@ pub fn write_report(dir: &Path, points: &[BenchPoint]) -> Result<Vec<PathBuf>> {
 /// under one environment, against the lossless bake.
 #[derive(Clone, Debug)]
 pub struct CompressionPoint {
+    /// The bake's threshold ([`BakeSettings::threshold`]): the L2 error allowed per row, relative
+    /// to an unshadowed row's norm.
     pub threshold: f32,
+    /// Name of the environment the bakes were relit under.
     pub env: String,
     /// Stored nonzeros over the dense entry count.
     pub kept_fraction: f64,

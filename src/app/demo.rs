@@ -20,7 +20,9 @@ use crate::scene::Scene;
 
 /// A file bundled into the binary: its path under the demo's `assets/` and its bytes.
 pub struct Asset {
+    /// Path under `assets/`, such as `scenes/demo.toml`.
     pub path: &'static str,
+    /// The file's content.
     pub bytes: &'static [u8],
 }
 
@@ -69,26 +71,35 @@ pub fn demo_settings() -> BakeSettings {
 /// One relit image of the demo.
 #[derive(Clone, Debug)]
 pub struct DemoRow {
+    /// Name of the environment (its file stem, such as `blender_sunrise`).
     pub env: String,
+    /// How the light was approximated.
     pub method: Method,
     /// K for wavelets, n² for SH, 6 N² for full.
     pub terms: usize,
     /// Relative L2 against `full` under the same environment.
     pub rel_l2: f64,
+    /// CPU kernel time of the relight, milliseconds.
     pub relight_ms: f64,
 }
 
 /// What the demo produced.
 pub struct DemoReport {
+    /// Every relit image: per environment, each SH order, each K and every term.
     pub rows: Vec<DemoRow>,
+    /// The per-pixel bake, `dir/demo.prt`.
     pub transport_path: PathBuf,
+    /// The contact sheet, `dir/contact_sheet.png`.
     pub sheet_path: PathBuf,
+    /// The markdown summary, `dir/summary.md`.
     pub table_path: PathBuf,
+    /// Whether the cached bake in `transport_path` was loaded instead of baking anew.
     pub reused_bake: bool,
     /// Time to bake (or to load the cached bake).
     pub bake_seconds: f64,
     /// The volume path: transfer bake time, and per environment the march time (ms).
     pub volume_bake_seconds: f64,
+    /// Per bundled environment: its name and the cloud's CPU march time, milliseconds.
     pub volume_rows: Vec<(String, f64)>,
     /// The per-vertex bake drawn from four angles, and its error against the per-pixel bake.
     pub orbit: crate::app::orbit::OrbitReport,

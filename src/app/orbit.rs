@@ -31,10 +31,15 @@ pub const COARSE_EDGE_FACTOR: f32 = 2.0;
 /// One tessellation of the orbit: its size, bake and errors.
 #[derive(Clone, Debug)]
 pub struct Tessellation {
+    /// Vertices of the tessellation: the bake's rows.
     pub vertices: usize,
+    /// Triangles of the tessellation.
     pub triangles: usize,
+    /// Longest triangle edge allowed, in scene units.
     pub edge_length: f32,
+    /// Time to bake (or to load the cached bake), seconds.
     pub bake_seconds: f64,
+    /// Whether the cached bake was loaded instead of baking anew.
     pub reused_bake: bool,
     /// From the scene's camera, every term: the per-vertex image against the per-pixel one, over
     /// the pixels both cover with one diffuse row (glossy surfaces left out), relative L2.
@@ -52,8 +57,11 @@ pub struct OrbitReport {
     /// Median over a few frames at [`ORBIT_TERMS`] terms, on the CPU: the relight, the
     /// drawing, and both.
     pub relight_ms: f64,
+    /// Median time to draw the relit vertices, milliseconds.
     pub draw_ms: f64,
+    /// Median time of a whole frame, relight and drawing, milliseconds.
     pub frame_ms: f64,
+    /// The orbit sheet, `dir/orbit_sheet.png`.
     pub sheet_path: PathBuf,
 }
 

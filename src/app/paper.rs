@@ -93,7 +93,9 @@ fn paper_scene(assets: &Path, name: &str, size: u32, matte: bool) -> Result<Scen
 
 /// What the paper run produced.
 pub struct PaperReport {
+    /// The report, `dir/ng2003.md`.
     pub markdown: PathBuf,
+    /// The picture row of wavelets and SH under sunrise, `dir/ng2003_row.png`.
     pub picture: PathBuf,
 }
 

@@ -43,8 +43,11 @@ use crate::store::transport::{
 /// Progress of a running bake.
 #[derive(Clone, Copy, Debug)]
 pub struct BakeProgress {
+    /// Pixels (or vertices) whose rows are done.
     pub pixels_done: usize,
+    /// Pixels (or vertices) this bake makes rows for: those of its shard's tiles.
     pub pixels_total: usize,
+    /// Shadow rays traced so far.
     pub shadow_rays: u64,
     /// Pixels of the view that take `edge_spp` sub-samples ([`EdgeMap`]), found before the first
     /// stage.

@@ -26,6 +26,8 @@ use crate::scene::trace::Tracer;
 
 /// A path-traced image with its per-pixel standard error.
 pub struct PathTraced {
+    /// Linear radiance of each pixel: the mean of its paths (a camera ray that misses the scene
+    /// counts as 0).
     pub image: Image,
     /// Fraction of each pixel's camera sub-samples that hit geometry.
     pub coverage: Vec<f32>,

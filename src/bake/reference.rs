@@ -34,7 +34,9 @@ pub fn render_reference(scene: &Scene, cube: &CubeMap, settings: &BakeSettings) 
 /// A reference image and, per pixel, the fraction of its camera sub-samples that hit geometry
 /// (as a bake's `coverage`).
 pub struct Reference {
+    /// The rendered image.
     pub image: Image,
+    /// Fraction of each pixel's camera sub-samples that hit geometry, in [0, 1].
     pub coverage: Vec<f32>,
 }
 

@@ -24,8 +24,11 @@ pub const MAX_VOXELS: usize = 512 * 512 * 512;
 pub struct DensityGrid {
     /// Voxels along x, y and z.
     pub dims: [usize; 3],
+    /// Lower corner of the box, scene units.
     pub min: Vec3,
+    /// Upper corner of the box, scene units.
     pub max: Vec3,
+    /// Density at each voxel centre, `dims[0] · dims[1] · dims[2]` values, x fastest.
     pub data: Vec<f32>,
 }
 
@@ -60,6 +63,7 @@ impl DensityGrid {
             )
     }
 
+    /// Number of voxels, `nx · ny · nz`.
     pub fn voxel_count(&self) -> usize {
         self.dims.iter().product()
     }
@@ -161,6 +165,7 @@ pub fn floor(x: f32) -> f32 {
 /// A participating medium.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Medium {
+    /// Density over the medium's box.
     pub grid: DensityGrid,
     /// sigma_t at density 1, per unit length.
     pub extinction: f32,
@@ -194,7 +199,10 @@ pub fn ray_box(o: Vec3, d: Vec3, min: Vec3, max: Vec3) -> Option<(f32, f32)> {
 /// radiance it brings is `albedo · weight · ∫ p L tau`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MarchSample {
+    /// Position of the sample (the midpoint of its step), scene units.
     pub pos: Vec3,
+    /// `T · sigma_t · dt`: the camera-ray transmittance to the sample's midpoint times its
+    /// extinction and step length.
     pub weight: f32,
     /// `sigma_t · dt` alone (no camera-ray transmittance).
     pub sigma_dt: f32,
@@ -344,18 +352,28 @@ pub enum DensitySource {
     /// radius), then `exp(-4 (r - (1 - falloff)) / falloff)` (1/e⁴ at the surface); a falloff of 0
     /// is a hard edge.
     Ellipsoid {
+        /// Centre of the ellipsoid, scene units.
         center: Vec3,
+        /// Semi-axes of the ellipsoid along x, y and z, scene units.
         radii: Vec3,
+        /// Share of the ellipsoidal radius over which the density falls off at the edge, in [0, 1);
+        /// 0 is a hard edge.
         falloff: f32,
     },
     /// Fractal value noise inside an ellipsoid envelope (falloff 0.5): `coverage` in (0, 1] is
     /// the fraction of the noise range that holds cloud.
     Cloud {
+        /// Centre of the envelope, scene units.
         center: Vec3,
+        /// Semi-axes of the envelope along x, y and z, scene units.
         radii: Vec3,
+        /// Seed of the noise lattice.
         seed: u64,
+        /// Noise cells per scene unit of the first octave.
         frequency: f32,
+        /// Octaves of the fractal sum, 1 to 8 (each twice the frequency and half the amplitude).
         octaves: u32,
+        /// Fraction of the noise range that holds cloud, in (0, 1].
         coverage: f32,
     },
 }

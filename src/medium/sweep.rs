@@ -38,10 +38,13 @@ impl Sweeper {
 pub struct DepthGrid<'a> {
     sweeper: &'a Sweeper,
     axis: usize,
+    /// Per voxel, in the layout of the sweep axis: the optical depth, or the transmittance
+    /// `exp(−tau)` for [`Sweeper::transmittance`].
     pub tau: Vec<f32>,
 }
 
 impl Sweeper {
+    /// Lays out `medium`'s extinction at the voxel centres along each of the three sweep axes.
     pub fn new(medium: &Medium) -> Sweeper {
         let g = &medium.grid;
         let dims = g.dims;

@@ -9,8 +9,11 @@ use crate::error::{PrtError, Result};
 /// A linear RGB image, row-major, y growing downwards.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
+    /// Pixels per row.
     pub width: usize,
+    /// Rows.
     pub height: usize,
+    /// Linear RGB radiance, row-major.
     pub pixels: Vec<[f32; 3]>,
 }
 
@@ -55,8 +58,10 @@ pub enum ToneCurve {
 }
 
 impl ToneCurve {
+    /// Every curve, in the order of [`ToneCurve::index`].
     pub const ALL: [ToneCurve; 3] = [ToneCurve::Clip, ToneCurve::Reinhard, ToneCurve::Aces];
 
+    /// The curve's name for display, as the viewer lists it.
     pub fn name(self) -> &'static str {
         match self {
             ToneCurve::Clip => "clip",

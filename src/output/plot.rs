@@ -17,20 +17,31 @@ use crate::output::text::FONT;
 
 /// One curve.
 pub struct Series {
+    /// Name in the legend.
     pub label: String,
+    /// The `(x, y)` points, joined in order.
     pub points: Vec<(f64, f64)>,
+    /// Colour of the line and markers, RGB8.
     pub color: [u8; 3],
+    /// Draw a dashed line instead of a solid one.
     pub dashed: bool,
 }
 
 /// Axes and size.
 pub struct PlotSpec {
+    /// Caption above the plot.
     pub title: String,
+    /// Label of the x axis.
     pub x_label: String,
+    /// Label of the y axis.
     pub y_label: String,
+    /// Logarithmic x axis.
     pub log_x: bool,
+    /// Logarithmic y axis.
     pub log_y: bool,
+    /// Width of the image, pixels (160 to 8192).
     pub width: usize,
+    /// Height of the image, pixels (160 to 8192).
     pub height: usize,
 }
 

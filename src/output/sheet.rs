@@ -9,7 +9,9 @@ use crate::output::text::{CAPTION_PX, draw_text, fit_text};
 
 /// One cell of a sheet.
 pub struct Cell<'a> {
+    /// The linear image shown in the cell.
     pub image: &'a Image,
+    /// How the image is brought to display values.
     pub tone: ToneMap,
     /// Up to two caption lines.
     pub caption: [String; 2],

@@ -32,7 +32,9 @@ const BAND_ROWS: usize = 8;
 /// coverage (1 drawn, 0 not), both row-major with y growing downwards.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Raster {
+    /// The vertex colours interpolated over the drawn triangles, black where nothing is drawn.
     pub image: Image,
+    /// Per pixel: 1 where a triangle is drawn, 0 elsewhere.
     pub coverage: Vec<f32>,
 }
 

@@ -82,8 +82,12 @@ pub fn orbit(camera: &Camera, azimuth_deg: f32, elevation_deg: f32) -> Camera {
 /// bake camera's distance from it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Orbit {
+    /// Turn about the up axis (+Y), degrees.
     pub azimuth_deg: f32,
+    /// Rise of the eye about the target above the bake camera's elevation, degrees.
     pub elevation_deg: f32,
+    /// Distance from the target, as a multiple of the bake camera's (within
+    /// [`Orbit::DISTANCE`]).
     pub distance: f32,
 }
 

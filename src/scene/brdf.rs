@@ -74,7 +74,9 @@ pub fn ggx_pdf(n: Vec3, v: Vec3, l: Vec3, alpha: f32) -> f32 {
 /// where either lobe dominates).
 #[derive(Clone, Copy, Debug)]
 pub struct Lobes {
+    /// Linear RGB reflectance of the Lambertian lobe.
     pub albedo: Vec3,
+    /// Linear RGB reflectance of the GGX lobe; zero for a diffuse material.
     pub specular: Vec3,
     /// GGX width; unused when `specular` is zero.
     pub alpha: f32,
@@ -83,8 +85,11 @@ pub struct Lobes {
 /// A sampled direction, `f cos / pdf` per colour channel, and the pdf.
 #[derive(Clone, Copy, Debug)]
 pub struct LobeSample {
+    /// The sampled direction, unit length, above the surface.
     pub dir: Vec3,
+    /// `f cos / pdf` per colour channel.
     pub weight: Vec3,
+    /// Density of the sampling mixture at `dir`, per steradian.
     pub pdf: f32,
 }
 

@@ -340,13 +340,19 @@ pub enum MediumSource {
 /// The `[medium]` of a scene: how to build its density grid and its optical parameters.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MediumSpec {
+    /// Where the densities come from.
     pub source: MediumSource,
+    /// Lower corner of the medium's box, scene units.
     pub min: Vec3,
+    /// Upper corner of the medium's box, scene units.
     pub max: Vec3,
     /// Voxels along the longest side of the box (others in proportion, cubic voxels).
     pub resolution: usize,
+    /// sigma_t at density 1, per scene unit of length.
     pub extinction: f32,
+    /// Single-scattering albedo per channel, each in [0, 1].
     pub albedo: Vec3,
+    /// Henyey–Greenstein asymmetry in (-1, 1); 0 is isotropic.
     pub g: f32,
 }
 

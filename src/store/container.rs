@@ -314,6 +314,7 @@ impl Default for Checksum {
 }
 
 impl Checksum {
+    /// A checksum before any part.
     pub fn new() -> Self {
         Checksum {
             h: 0x51_7c_c1_b7_27_22_0a_95,
@@ -421,6 +422,7 @@ enum Source<'a> {
 }
 
 impl<'a> Tensor<'a> {
+    /// The bytes of `data` as a tensor of `dtype` and `shape`, which must describe them.
     pub fn new<T: bytemuck::NoUninit>(dtype: Dtype, shape: Vec<usize>, data: &'a [T]) -> Self {
         Tensor {
             dtype,

@@ -18,17 +18,27 @@ use super::{FORMAT_NAME, FORMAT_VERSION, MAX_TRANSFER_ORDER};
 /// Metadata of a volume transfer file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct VolumeMeta {
+    /// Voxels along x, y and z.
     pub dims: [usize; 3],
+    /// Lower corner of the medium's box, scene units.
     pub min: [f32; 3],
+    /// Upper corner of the medium's box, scene units.
     pub max: [f32; 3],
+    /// sigma_t at density 1, per scene unit of length.
     pub extinction: f32,
+    /// Single-scattering albedo per channel.
     pub albedo: [f32; 3],
+    /// Henyey–Greenstein asymmetry in (-1, 1); 0 is isotropic.
     pub g: f32,
+    /// SH order n of the transfer (n² coefficients per voxel).
     pub sh_order: usize,
+    /// Directions D of the projection.
     pub directions: usize,
     /// The scene's camera and image size: the default view of `prt volume render`.
     pub camera: CameraMeta,
+    /// Image width of the default view, pixels.
     pub width: u32,
+    /// Image height of the default view, pixels.
     pub height: u32,
     /// Hash of the scene the medium came from.
     pub scene_hash: String,
@@ -57,6 +67,7 @@ pub const MAX_VOLUME_BYTES: u64 =
 /// A medium and its SH self-transfer.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VolumeTransfer {
+    /// The grid, the medium's optical parameters and the bake's settings.
     pub meta: VolumeMeta,
     /// Densities, x fastest (the grid of [`VolumeTransfer::medium`]).
     pub density: Vec<f32>,
@@ -65,10 +76,12 @@ pub struct VolumeTransfer {
 }
 
 impl VolumeTransfer {
+    /// SH coefficients per voxel, n².
     pub fn sh_count(&self) -> usize {
         self.meta.sh_order * self.meta.sh_order
     }
 
+    /// Number of voxels, `nx · ny · nz`.
     pub fn voxel_count(&self) -> usize {
         self.meta.dims.iter().product()
     }

@@ -27,6 +27,7 @@ pub use render::{PhaseLight, VolumeView, render_volume};
 
 /// The format name in a volume transfer file's metadata.
 pub const FORMAT_NAME: &str = crate::store::container::VOLUME.name;
+/// Version of the volume file layout; a file of any other version is refused.
 pub const FORMAT_VERSION: u32 = 1;
 /// Highest SH order of a transfer bake.
 pub const MAX_TRANSFER_ORDER: usize = 8;
@@ -50,6 +51,7 @@ impl Default for TransferSettings {
 }
 
 impl TransferSettings {
+    /// Checks the SH order (1 to [`MAX_TRANSFER_ORDER`]) and the directions (16 to 65536).
     pub fn validate(&self) -> Result<()> {
         if !(1..=MAX_TRANSFER_ORDER).contains(&self.sh_order) {
             return Err(PrtError::invalid(

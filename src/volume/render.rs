@@ -25,9 +25,11 @@ pub const PHASE_TABLE: [usize; 2] = [64, 32];
 /// `P_i(d)`: SH projections of lighting times phase, per view direction (see the module docs).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PhaseLight {
+    /// SH order n of the projections (n² per table entry).
     pub order: usize,
     /// Table size in u (azimuth) and v (polar); 1 × 1 when isotropic.
     pub width: usize,
+    /// Table rows, in v (polar); 1 when isotropic.
     pub height: usize,
     /// `[v][u][i]` RGB, `width · height · n²` entries.
     pub table: Vec<[f32; 3]>,
@@ -152,6 +154,7 @@ pub enum VolumeView {
 }
 
 impl VolumeView {
+    /// Every view, in the order of [`VolumeView::index`].
     pub const ALL: [VolumeView; 4] = [
         VolumeView::Full,
         VolumeView::InScatter,
@@ -159,6 +162,7 @@ impl VolumeView {
         VolumeView::TransferDc,
     ];
 
+    /// The view's name, as `--view` takes it.
     pub fn name(self) -> &'static str {
         match self {
             VolumeView::Full => "full",

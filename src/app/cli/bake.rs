@@ -4,6 +4,7 @@ use super::*;
 use crate::store::transport::BakeDomain;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+/// Arguments of `prt bake`.
 #[derive(Args, Debug)]
 pub struct BakeArgs {
     /// Scene file (TOML).
@@ -11,6 +12,7 @@ pub struct BakeArgs {
     /// Output transport file (.prt).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// How the transport is sampled.
     #[command(flatten)]
     pub sampling: SamplingArgs,
     /// SH order of the SH transport (n² coefficients, 1 to 10).

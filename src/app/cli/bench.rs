@@ -3,6 +3,7 @@
 use super::*;
 use crate::store::transport::{BakeDomain, Domain};
 
+/// Arguments of `prt bench`.
 #[derive(Args, Debug)]
 pub struct BenchArgs {
     /// Transport file.

@@ -8,6 +8,7 @@ use crate::bake::path_tracer::path_trace;
 use crate::output::metrics::compare;
 use crate::output::sheet::{Cell, write_sheet};
 
+/// Arguments of `prt bounces`.
 #[derive(Args, Debug)]
 pub struct BouncesArgs {
     /// Scene file (TOML).
@@ -27,6 +28,7 @@ pub struct BouncesArgs {
     /// Sampling of the bakes; --bounces is ignored (every count up to --max-bounces is baked).
     #[command(flatten)]
     pub sampling: SamplingArgs,
+    /// How the environment is turned.
     #[command(flatten)]
     pub turn: TurnArgs,
 }

@@ -5,6 +5,7 @@ use super::*;
 use crate::relight::Backend;
 use crate::store::transport::Domain;
 
+/// Arguments of `prt relight`.
 #[derive(Args, Debug)]
 pub struct RelightArgs {
     /// Transport file.
@@ -28,6 +29,7 @@ pub struct RelightArgs {
     /// to 142 (n² terms of the light, relit with every stored term).
     #[arg(long)]
     pub sh_order: Option<usize>,
+    /// How the environment is turned.
     #[command(flatten)]
     pub turn: TurnArgs,
     /// auto (a hardware GPU when one exists, else the CPU), cpu, or gpu (wgpu on any adapter,
@@ -41,6 +43,7 @@ pub struct RelightArgs {
     /// with it) or black.
     #[arg(long, default_value = "env", value_parser = Background::from_str)]
     pub background: Background,
+    /// The camera of a per-vertex bake's still.
     #[command(flatten)]
     pub view: StillArgs,
 }
@@ -110,6 +113,7 @@ fn check_still_memory(width: u32, height: u32) -> Result<()> {
     }
 }
 
+/// Arguments of `prt reference`.
 #[derive(Args, Debug)]
 pub struct ReferenceArgs {
     /// Scene file (TOML).
@@ -120,8 +124,10 @@ pub struct ReferenceArgs {
     /// Output image (.exr linear, .png tone-mapped).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// The sampling, as a bake of the scene would take it.
     #[command(flatten)]
     pub sampling: SamplingArgs,
+    /// How the environment is turned.
     #[command(flatten)]
     pub turn: TurnArgs,
     /// What pixels that see no geometry show: env (the environment behind the scene, turned
@@ -159,6 +165,7 @@ impl FromStr for Estimator {
     }
 }
 
+/// Arguments of `prt env`.
 #[derive(Args, Debug)]
 pub struct EnvArgs {
     /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].

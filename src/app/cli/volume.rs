@@ -2,6 +2,7 @@
 
 use super::*;
 
+/// Arguments of `prt volume bake`.
 #[derive(Args, Debug)]
 pub struct VolumeBakeArgs {
     /// Scene file (TOML) with a [medium].
@@ -21,6 +22,7 @@ pub struct VolumeBakeArgs {
     pub directions: usize,
 }
 
+/// Arguments of `prt volume render`.
 #[derive(Args, Debug)]
 pub struct VolumeRenderArgs {
     /// Volume file (.prtv).
@@ -49,6 +51,7 @@ pub struct VolumeRenderArgs {
     /// SH order to relight with (default: the baked order).
     #[arg(long)]
     pub sh_order: Option<usize>,
+    /// How the environment is turned.
     #[command(flatten)]
     pub turn: TurnArgs,
     /// Cube face size the environment is resampled to for the light.

@@ -12,9 +12,13 @@ use crate::store::quant::{UNIT_SCALE_CODE, code_for, quantize, scale_of};
 /// coefficient) and SH transport.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RowData {
+    /// The pixel the row lights, `y · width + x` (the vertex in a per-vertex bake).
     pub pixel: u32,
+    /// RGB weight: the pixel gains `weight ⊙ (row · L)`.
     pub weight: [f32; 3],
+    /// Kept Haar coefficients as (coefficient index, value), ascending by index.
     pub entries: Vec<(u32, f32)>,
+    /// SH transport, n² coefficients.
     pub sh: Vec<f32>,
 }
 
@@ -22,15 +26,22 @@ pub struct RowData {
 /// scale codes and entries. Bakes encode tiles in parallel; a merge copies them from shards.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EncodedTile {
+    /// The pixel of each row.
     pub row_pixel: Vec<u32>,
+    /// The RGB weight of each row.
     pub row_weight: Vec<[f32; 3]>,
+    /// Each row's largest magnitude; its stored values are relative to it.
     pub row_scale: Vec<f32>,
+    /// `[rows, n²]` SH transport.
     pub sh: Vec<f32>,
     /// `[blocks, C]` entry counts.
     pub col_count: Vec<u16>,
     /// `[blocks, C]` scale codes.
     pub col_scale: Vec<u8>,
+    /// Row inside its block of each entry, in (block, coefficient) order.
     pub entry_row: Vec<u8>,
+    /// Stored value of each entry (the integer, or the float when lossless), in the order of
+    /// `entry_row`.
     pub values: Values,
     /// Squared error quantisation added (dropped values included).
     pub quantization_energy: f64,
@@ -377,9 +388,13 @@ impl Transport {
 /// it while they hand their tiles on, in tile order, to [`KeptTiles`] or a
 /// [`super::TransportWriter`].
 pub struct Untiled {
+    /// The header; its statistics are filled in when the tiles are joined.
     pub meta: TransportMeta,
+    /// Per pixel: the mean diffuse albedo its sub-samples hit.
     pub albedo: Vec<[f32; 3]>,
+    /// Per pixel: the fraction of its sub-samples that hit geometry.
     pub coverage: Vec<f32>,
+    /// The mesh of a per-vertex bake; `None` for a view.
     pub mesh: Option<VertexMesh>,
 }
 

@@ -78,8 +78,11 @@ const MAX_HEADER_BYTES: u64 = 1 << 24;
 /// Stored coefficient values: integers against their column's scale, or lossless floats.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Values {
+    /// 8-bit integers ([`Quantization::Q8`]).
     Q8(Vec<i8>),
+    /// 16-bit integers ([`Quantization::Q16`]).
     Q16(Vec<i16>),
+    /// Lossless 32-bit floats, scale 1 ([`Quantization::F32`]).
     F32(Vec<f32>),
 }
 
@@ -149,9 +152,13 @@ impl Values {
 /// file's `col_count`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Transport {
+    /// The header: what was baked, how, and the bake's statistics.
     pub meta: TransportMeta,
+    /// Tile t holds rows `tile_row_start[t] .. tile_row_start[t + 1]`.
     pub tile_row_start: Vec<u32>,
+    /// The pixel (`y · width + x`) each row lights; the vertex in a per-vertex bake.
     pub row_pixel: Vec<u32>,
+    /// The RGB weight of each row.
     pub row_weight: Vec<[f32; 3]>,
     /// Each row's values are stored relative to this.
     pub row_scale: Vec<f32>,
@@ -168,10 +175,15 @@ pub struct Transport {
     pub col_scale: Vec<u8>,
     /// Row of each entry inside its block.
     pub entry_row: Vec<u8>,
+    /// Stored value of each entry: the integer, or the float when lossless.
     pub values: Values,
+    /// `[rows, n²]` SH transport of each row.
     pub sh: Vec<f32>,
+    /// Per pixel: the mean diffuse albedo its sub-samples hit (0 where none hit).
     pub albedo: Vec<[f32; 3]>,
+    /// Per pixel: the fraction of its sub-samples that hit geometry, in [0, 1].
     pub coverage: Vec<f32>,
+    /// Mean magnitude of each Haar coefficient over the rows (for the transport weighting).
     pub transport_magnitude: Vec<f32>,
     /// Per tile: energy thresholding and quantisation dropped, the rows' total energy, shadow
     /// rays traced.
