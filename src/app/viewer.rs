@@ -13,21 +13,20 @@
 
 mod app;
 mod camera;
+mod display;
 mod engine;
 mod gpu_view;
-mod mesh_view;
 mod state;
 mod viewport;
 mod volume_app;
 mod worker;
 
 pub use app::ViewerApp;
+pub use display::{DisplayPath, GpuTiming, MeshDisplay};
 pub use engine::{
-    ERROR_MAP_GAIN, Engine, GpuTiming, OnLight, error_heat_map, relight_into_view, save_view,
-    screenshot, view_size,
+    ERROR_MAP_GAIN, Engine, OnLight, error_heat_map, save_view, screenshot, view_size,
 };
 pub use gpu_view::GpuView;
-pub use mesh_view::{DisplayPath, MeshDisplay, draw_into_view};
 pub use state::{
     DisplayState, Layout, LightKey, LightState, Limits, RelightKey, RelightState, ViewState,
     sh_order_for_terms,
@@ -120,6 +119,22 @@ pub(crate) fn light_controls(
     let turn = &mut light.rotation;
     ui.add(egui::Slider::new(&mut turn.yaw_deg, -180.0..=180.0).text("yaw°"));
     ui.add(egui::Slider::new(&mut turn.pitch_deg, -90.0..=90.0).text("pitch°"));
+}
+
+/// The resizable panel of controls at the left of a window (`width` points wide at first),
+/// scrolling when it is taller than the window.
+pub(crate) fn controls_panel(
+    ui: &mut egui::Ui,
+    id: &str,
+    width: f32,
+    add: impl FnOnce(&mut egui::Ui),
+) {
+    egui::Panel::left(id.to_owned())
+        .resizable(true)
+        .default_size(width)
+        .show(ui, |ui| {
+            egui::ScrollArea::vertical().show(ui, add);
+        });
 }
 
 /// Exposure and tone curve.

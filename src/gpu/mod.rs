@@ -100,6 +100,17 @@ impl GpuDevice {
         l.max_storage_buffer_binding_size.min(l.max_buffer_size)
     }
 
+    /// The pipeline of a pass with one thread per pixel: `source` behind the constants of its
+    /// `workgroup` ([`Workgroup2`]).
+    pub fn image_pipeline(
+        &self,
+        label: &str,
+        workgroup: Workgroup2,
+        source: &str,
+    ) -> Result<wgpu::ComputePipeline> {
+        self.compute_pipeline(label, &wgsl(&workgroup.constants(), &[source]))
+    }
+
     /// A compute pipeline of `source`'s `main`, its bind group layout taken from the shader.
     /// Validation errors (a WGSL mistake, a limit the device lacks) are returned, naming
     /// `label`, not raised on the device.
@@ -199,6 +210,60 @@ pub fn adapter_name(info: &wgpu::AdapterInfo) -> String {
 /// Whether an adapter emulates a GPU on the CPU (see [`GpuDevice::software`]).
 pub fn is_software(info: &wgpu::AdapterInfo) -> bool {
     info.device_type == wgpu::DeviceType::Cpu
+}
+
+/// An RGBA32F image of `width` x `height` pixels in a storage buffer the kernels write, and the
+/// mappable buffer it is copied into for reading back ([`wait_and_read`]).
+pub fn image_buffers(
+    device: &wgpu::Device,
+    label: &str,
+    width: u32,
+    height: u32,
+) -> (wgpu::Buffer, wgpu::Buffer) {
+    let bytes = width as u64 * height as u64 * 16;
+    let image = buffer(
+        device,
+        label,
+        bytes,
+        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    );
+    let readback = buffer(
+        device,
+        &format!("{label} readback"),
+        bytes,
+        wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+    );
+    (image, readback)
+}
+
+/// A buffer of `size` bytes for `usage`, not mapped.
+pub fn buffer(
+    device: &wgpu::Device,
+    label: &str,
+    size: u64,
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage,
+        mapped_at_creation: false,
+    })
+}
+
+/// A buffer that starts out holding `contents`, for `usage`.
+pub fn buffer_with(
+    device: &wgpu::Device,
+    label: &str,
+    contents: &[u8],
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    use wgpu::util::DeviceExt;
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage,
+    })
 }
 
 /// A 2D texture of `width` x `height` texels: one mip level, one sample.

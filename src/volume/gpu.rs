@@ -3,11 +3,9 @@
 //! uploaded once; per frame only the phase-light table (when the environment changes), the camera
 //! and the view go up.
 
-use wgpu::util::DeviceExt;
-
 use super::{PhaseLight, VolumeTransfer, VolumeView};
 use crate::error::{PrtError, Result};
-use crate::gpu::{GpuDevice, Workgroup2, wait_and_read, wgsl};
+use crate::gpu::{GpuDevice, Workgroup2, wait_and_read};
 use crate::output::film::Image;
 use crate::scene::Camera;
 
@@ -59,29 +57,28 @@ impl GpuVolume {
                 gpu.max_binding_bytes()
             )));
         }
-        let pipeline = gpu.compute_pipeline(
+        let pipeline = gpu.image_pipeline(
             "volume march",
-            &wgsl(
-                &MARCH_WORKGROUP.constants(),
-                &[include_str!("../../shaders/volume_march.wgsl")],
-            ),
+            MARCH_WORKGROUP,
+            include_str!("../../shaders/volume_march.wgsl"),
         )?;
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let storage = |label, data: &[f32]| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytemuck::cast_slice(data),
-                usage: wgpu::BufferUsages::STORAGE,
-            })
+            crate::gpu::buffer_with(
+                device,
+                label,
+                bytemuck::cast_slice(data),
+                wgpu::BufferUsages::STORAGE,
+            )
         };
         let density = storage("volume density", &vt.density);
         let transfer = storage("volume transfer", &vt.transfer);
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("volume params"),
-            size: std::mem::size_of::<Params>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let params = crate::gpu::buffer(
+            device,
+            "volume params",
+            std::mem::size_of::<Params>() as u64,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        );
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!("uploading the volume: {e}")));
         }
@@ -129,11 +126,12 @@ impl GpuVolume {
                 .iter()
                 .map(|c| [c[0], c[1], c[2], 0.0])
                 .collect();
-            let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("phase light"),
-                contents: bytemuck::cast_slice(&rgba),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
+            let buffer = crate::gpu::buffer_with(
+                device,
+                "phase light",
+                bytemuck::cast_slice(&rgba),
+                wgpu::BufferUsages::STORAGE,
+            );
             self.table = Some((light.clone(), buffer));
         }
         let (w, h) = (camera.width, camera.height);
@@ -156,18 +154,7 @@ impl GpuVolume {
         gpu.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let image_bytes = w as u64 * h as u64 * 16;
-        let image = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("volume image"),
-            size: image_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("volume readback"),
-            size: image_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let (image, readback) = crate::gpu::image_buffers(device, "volume image", w, h);
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let table = &self.table.as_ref().expect("uploaded").1;
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {

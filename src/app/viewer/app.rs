@@ -711,12 +711,7 @@ impl ViewerApp {
         }
         self.poll(&ctx);
         self.keys(&ctx);
-        egui::Panel::left("controls")
-            .resizable(true)
-            .default_size(320.0)
-            .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
-            });
+        super::controls_panel(ui, "controls", 320.0, |ui| self.controls(ui));
         if let Some(l) = &self.loaded {
             let notes = self.state.clamp(l.limits);
             if self.sent.as_ref() != Some(&self.state) {

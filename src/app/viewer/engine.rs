@@ -8,8 +8,6 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
-use eframe::wgpu;
-
 use super::*;
 use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvSpec};
@@ -18,61 +16,9 @@ use crate::output::metrics::relative_l2;
 use crate::relight::background::{composite, environment_behind};
 use crate::relight::gpu::{Gpu, GpuBackend, GpuTransport};
 use crate::relight::vertex::{self, bake_camera};
-use crate::relight::{
-    Backend, LightContext, PreparedLight, RelightRequest, RelightStats, Terms, relight,
-};
+use crate::relight::{Backend, LightContext, PreparedLight, RelightRequest, RelightStats, relight};
 use crate::scene::Camera;
 use crate::store::transport::Transport;
-
-/// Wall and GPU time of one relight into a [`GpuView`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct GpuTiming {
-    /// From the first submission to the finished tone map, seconds.
-    pub wall_seconds: f64,
-    /// The relight passes alone, from GPU timestamp queries where the device has them.
-    pub kernel_seconds: Option<f64>,
-}
-
-/// Relights `request` under `light` with the transport already on the GPU into `view`, and
-/// tone-maps it there: the window's display path (no readback).
-#[allow(clippy::too_many_arguments)]
-pub fn relight_into_view(
-    gpu: &Gpu,
-    gt: &GpuTransport,
-    t: &Transport,
-    ctx: &LightContext,
-    light: &PreparedLight,
-    request: &RelightRequest,
-    view: &GpuView,
-    tone: ToneMap,
-) -> Result<GpuTiming> {
-    let start = Instant::now();
-    let terms = Terms::of(t, ctx, light, request)?;
-    gt.relight_terms_to_texture(gpu, &terms, &view.linear)?;
-    tone_map_and_wait(gpu, view, tone, start, gpu.last_kernel_seconds())
-}
-
-/// Tone-maps `view` as `tone` says and waits for the device: the end of a display draw begun
-/// at `start`, whose relight passes took `kernel_seconds` by the timestamps.
-pub(super) fn tone_map_and_wait(
-    gpu: &Gpu,
-    view: &GpuView,
-    tone: ToneMap,
-    start: Instant,
-    kernel_seconds: Option<f64>,
-) -> Result<GpuTiming> {
-    view.tone_map(&gpu.device, &gpu.queue, tone);
-    gpu.device
-        .poll(wgpu::PollType::Wait {
-            submission_index: None,
-            timeout: None,
-        })
-        .map_err(|e| PrtError::Gpu(format!("waiting for the tone map: {e}")))?;
-    Ok(GpuTiming {
-        wall_seconds: start.elapsed().as_secs_f64(),
-        kernel_seconds,
-    })
-}
 
 /// Called with a newly prepared light.
 pub type OnLight<'a> = dyn FnMut(&LightShown) + 'a;

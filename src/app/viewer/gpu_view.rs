@@ -126,12 +126,12 @@ impl GpuView {
             compilation_options: Default::default(),
             cache: None,
         });
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("tone map params"),
-            size: std::mem::size_of::<ToneParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let params = crate::gpu::buffer(
+            device,
+            "tone map params",
+            std::mem::size_of::<ToneParams>() as u64,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        );
         let linear_view = linear.create_view(&Default::default());
         let display_view = display.create_view(&Default::default());
         let behind_view = behind.create_view(&Default::default());
@@ -234,12 +234,12 @@ impl GpuView {
     /// Reads `display` back as RGB8 (for tests and checks).
     pub fn read_rgb8(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Vec<u8>> {
         let row = (self.width * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("display readback"),
-            size: (row * self.height) as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let buffer = crate::gpu::buffer(
+            device,
+            "display readback",
+            (row * self.height) as u64,
+            wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        );
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.copy_texture_to_buffer(
             self.display.as_image_copy(),

@@ -352,12 +352,7 @@ impl VolumeApp {
     pub fn show(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
         self.poll(&ctx);
-        egui::Panel::left("volume controls")
-            .resizable(true)
-            .default_size(300.0)
-            .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
-            });
+        super::controls_panel(ui, "volume controls", 300.0, |ui| self.controls(ui));
         // Display-only changes re-tone-map the last frame; the rest asks the worker.
         if let Some(f) = &self.last
             && f.state.frame_key() == self.state.frame_key()

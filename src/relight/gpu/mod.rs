@@ -20,8 +20,6 @@
 pub mod raster;
 mod transport;
 
-use wgpu::util::DeviceExt;
-
 use crate::error::Result;
 use crate::gpu::{GpuDevice, Workgroup2, wgsl};
 use crate::store::quant::BLOCK_ROWS;
@@ -100,20 +98,17 @@ impl Gpu {
             "relight SH",
             &relight_source(include_str!("../../../shaders/relight_sh.wgsl")),
         )?;
-        let to_texture = base.compute_pipeline(
+        let to_texture = base.image_pipeline(
             "to texture",
-            &wgsl(
-                &TO_TEXTURE_WORKGROUP.constants(),
-                &[include_str!("../../../shaders/to_texture.wgsl")],
-            ),
+            TO_TEXTURE_WORKGROUP,
+            include_str!("../../../shaders/to_texture.wgsl"),
         )?;
-        let scales = base
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("value scales"),
-                contents: bytemuck::cast_slice(crate::store::quant::scale_table()),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let scales = crate::gpu::buffer_with(
+            &base.device,
+            "value scales",
+            bytemuck::cast_slice(crate::store::quant::scale_table()),
+            wgpu::BufferUsages::UNIFORM,
+        );
         Ok(Gpu {
             base,
             wavelet,

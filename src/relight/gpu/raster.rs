@@ -112,13 +112,12 @@ pub fn upload_colours(gpu: &Gpu, colours: &[[f32; 3]]) -> Result<wgpu::Buffer> {
     if data.is_empty() {
         data.push([0.0; 4]);
     }
-    Ok(gpu
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("raster colours"),
-            contents: bytemuck::cast_slice(&data),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        }))
+    Ok(crate::gpu::buffer_with(
+        &gpu.device,
+        "raster colours",
+        bytemuck::cast_slice(&data),
+        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+    ))
 }
 
 /// The textures of one image size: the offscreen colour target, the depth buffer and the buffer
@@ -148,12 +147,12 @@ impl Targets {
         )
         .create_view(&Default::default());
         let row_bytes = (width * TEXEL_BYTES).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("raster readback"),
-            size: row_bytes as u64 * height as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let readback = crate::gpu::buffer(
+            device,
+            "raster readback",
+            row_bytes as u64 * height as u64,
+            wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        );
         Targets {
             width,
             height,
@@ -218,12 +217,12 @@ impl GpuRaster {
             multiview_mask: None,
             cache: None,
         });
-        let view = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("raster view"),
-            size: 64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let view = crate::gpu::buffer(
+            device,
+            "raster view",
+            64,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        );
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!("building the raster pipeline: {e}")));
         }

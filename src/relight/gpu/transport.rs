@@ -5,8 +5,6 @@
 use std::mem::offset_of;
 use std::time::Instant;
 
-use wgpu::util::DeviceExt;
-
 use super::{Gpu, TO_TEXTURE_WORKGROUP};
 use crate::error::{PrtError, Result};
 use crate::gpu::wait_and_read;
@@ -107,11 +105,7 @@ fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
     if data.len() < 16 {
         data.resize(16, 0);
     }
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents: &data,
-        usage: wgpu::BufferUsages::STORAGE,
-    })
+    crate::gpu::buffer_with(device, label, &data, wgpu::BufferUsages::STORAGE)
 }
 
 impl GpuTransport {
@@ -164,31 +158,19 @@ impl GpuTransport {
             .map(|(r, s)| [r[0] * s, r[1] * s, r[2] * s, r[3]])
             .collect();
         let scaled_buf = storage(device, "scaled rows", bytemuck::cast_slice(&scaled));
-        let acc = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("row accumulators"),
-            size: (rows.max(1) * 16) as u64,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
-        let image_bytes = (w * h * 16) as u64;
-        let image = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("image"),
-            size: image_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("image readback"),
-            size: image_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let light = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("light terms"),
-            size: (c.max(shc) * 16) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let acc = crate::gpu::buffer(
+            device,
+            "row accumulators",
+            (rows.max(1) * 16) as u64,
+            wgpu::BufferUsages::STORAGE,
+        );
+        let (image, readback) = crate::gpu::image_buffers(device, "image", w as u32, h as u32);
+        let light = crate::gpu::buffer(
+            device,
+            "light terms",
+            (c.max(shc) * 16) as u64,
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        );
         // Split the tiles into chunks whose entries, pointers and SH rows each fit one binding.
         let mut chunks = Vec::new();
         let tiles = t.tile_count();
@@ -332,11 +314,12 @@ impl GpuTransport {
             accumulate: 0,
             _pad: 0,
         };
-        let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("params"),
-            contents: bytemuck::bytes_of(&params),
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        });
+        let params = crate::gpu::buffer_with(
+            device,
+            "params",
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        );
         let shared = [(0, &params), (1, tile_rows), (4, image)];
         let group = |pipeline: &wgpu::ComputePipeline, extra: &[(u32, &wgpu::Buffer)]| {
             let entries: Vec<wgpu::BindGroupEntry> = shared
@@ -633,13 +616,12 @@ impl GpuTransport {
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let (mut encoder, _) = self.encode(gpu, terms, wavelet, "relight to texture");
         let dims = [self.width as u32, self.height as u32];
-        let size_buf = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("texture size"),
-                contents: bytemuck::cast_slice(&dims),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let size_buf = crate::gpu::buffer_with(
+            &gpu.device,
+            "texture size",
+            bytemuck::cast_slice(&dims),
+            wgpu::BufferUsages::UNIFORM,
+        );
         let view = texture.create_view(&Default::default());
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("to texture"),
