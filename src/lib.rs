@@ -28,6 +28,7 @@ pub mod gpu;
 pub mod light;
 pub mod math;
 pub mod medium;
+pub mod names;
 pub mod output;
 pub mod relight;
 pub mod scene;

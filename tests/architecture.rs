@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 /// The stages in import order: a module may use its own stage and those before it. `app` may
 /// use everything; nothing else may use `app`.
 const STAGES: [&[&str]; 12] = [
-    &["error", "files", "conventions"],
+    &["error", "files", "conventions", "names"],
     &["math"],
     &["flags"],
     &["output"],

@@ -5,17 +5,27 @@
 //! RGB shares one index set, chosen on a luminance-like magnitude, so the relight kernel reads each
 //! kept transport column once for all three channels.
 
-use std::str::FromStr;
-
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
 use crate::math::haar;
 use crate::math::rgb_magnitude;
 
 /// How light coefficients are ranked before the K largest are kept.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Hash,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::VariantArray,
+)]
+#[strum(serialize_all = "kebab-case")]
 pub enum Weighting {
     /// By magnitude alone: the best K-term approximation of the light in L2.
+    #[strum(serialize = "none")]
     Unweighted,
     /// By magnitude times the solid angle of the coefficient's support: favours coarse, bright
     /// features (Ng et al. 2003, "area-weighted").
@@ -31,34 +41,11 @@ impl Weighting {
 
     /// The command-line name.
     pub fn name(self) -> &'static str {
-        match self {
-            Weighting::Unweighted => "none",
-            Weighting::Area => "area",
-            Weighting::Transport => "transport",
-        }
+        self.into()
     }
 }
 
-impl FromStr for Weighting {
-    type Err = PrtError;
-    fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "none" | "unweighted" => Ok(Weighting::Unweighted),
-            "area" => Ok(Weighting::Area),
-            "transport" => Ok(Weighting::Transport),
-            _ => Err(PrtError::invalid(
-                "weighting",
-                format!("`{s}`; expected none, area or transport"),
-            )),
-        }
-    }
-}
-
-impl std::fmt::Display for Weighting {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
+crate::named!(Weighting, "weighting", ["unweighted" => Weighting::Unweighted]);
 
 /// Indices of the `k` largest priorities, ascending. Ties go to the lower index, so the choice is
 /// deterministic.

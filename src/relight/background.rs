@@ -2,8 +2,6 @@
 //! the light. It is composited under a relit image by each pixel's uncovered fraction, so the
 //! silhouettes keep their antialiasing; error metrics are taken before, on covered pixels only.
 
-use std::str::FromStr;
-
 use glam::Vec3;
 
 use crate::error::{PrtError, Result};
@@ -13,28 +11,28 @@ use crate::scene::Camera;
 use crate::store::transport::TransportMeta;
 
 /// What pixels that see no geometry show.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::VariantArray,
+)]
+#[strum(serialize_all = "lowercase")]
 pub enum Background {
     /// The environment seen through the camera, rotated with the light.
     #[default]
+    #[strum(serialize = "env")]
     Environment,
     /// Nothing: black.
     Black,
 }
 
-impl FromStr for Background {
-    type Err = PrtError;
-    fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "env" | "environment" => Ok(Background::Environment),
-            "black" => Ok(Background::Black),
-            _ => Err(PrtError::invalid(
-                "background",
-                format!("'{s}' is not one of env, black"),
-            )),
-        }
-    }
-}
+crate::named!(Background, "background", ["environment" => Background::Environment]);
 
 /// The environment behind the baked view of `meta`: for every pixel, `(1 − coverage)` times the
 /// radiance of `env` (turned by `rotation`) along the camera ray through the pixel's centre.
@@ -150,6 +148,6 @@ mod tests {
         assert_eq!(seen(180.0).pixels[0][0], 0.0);
         assert!("black".parse::<Background>().unwrap() == Background::Black);
         let e = "sky".parse::<Background>().unwrap_err().to_string();
-        assert!(e.contains("'sky' is not one of env, black"), "{e}");
+        assert!(e.contains("`sky`; expected env or black"), "{e}");
     }
 }

@@ -16,15 +16,24 @@ pub mod vertex;
 pub use cpu::{nonzeros_touched, relight_dense_reference, relight_sh, relight_wavelet};
 pub use prepare::{LightContext, PreparedLight};
 
-use std::str::FromStr;
-
 use crate::error::{PrtError, Result};
 use crate::light::select::{SparseLight, WaveletLight, Weighting};
 use crate::output::film::Image;
 use crate::store::transport::Transport;
 
 /// Which approximation of the light relights the image.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Hash,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::VariantArray,
+)]
+#[strum(serialize_all = "kebab-case")]
 pub enum Method {
     /// K Haar terms of the light (Ng et al. 2003).
     Wavelet,
@@ -38,32 +47,7 @@ pub enum Method {
     ShLight,
 }
 
-impl FromStr for Method {
-    type Err = PrtError;
-    fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "wavelet" => Ok(Method::Wavelet),
-            "sh" => Ok(Method::Sh),
-            "full" => Ok(Method::Full),
-            "sh-light" => Ok(Method::ShLight),
-            _ => Err(PrtError::invalid(
-                "method",
-                format!("`{s}`; expected wavelet, sh, full or sh-light"),
-            )),
-        }
-    }
-}
-
-impl std::fmt::Display for Method {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Method::Wavelet => "wavelet",
-            Method::Sh => "sh",
-            Method::Full => "full",
-            Method::ShLight => "sh-light",
-        })
-    }
-}
+crate::named!(Method, "method");
 
 /// What a relight did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

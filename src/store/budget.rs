@@ -17,12 +17,25 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{PrtError, Result};
 use crate::math::haar::{coeff_info, support_solid_angles};
 
 /// How the thresholding budget weighs coefficients.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    Serialize,
+    Deserialize,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::VariantArray,
+)]
 #[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
 pub enum Budget {
     /// Plain L2 error of the row.
     #[default]
@@ -41,12 +54,7 @@ impl Budget {
 
     /// The name used on the command line and in files.
     pub fn name(self) -> &'static str {
-        match self {
-            Budget::L2 => "l2",
-            Budget::Area => "area",
-            Budget::Sun => "sun",
-            Budget::Absolute => "absolute",
-        }
+        self.into()
     }
 
     /// The weight of every coefficient of a cube of face size `n` (`None` for the absolute
@@ -66,26 +74,7 @@ impl Budget {
     }
 }
 
-impl std::str::FromStr for Budget {
-    type Err = PrtError;
-    fn from_str(s: &str) -> Result<Self> {
-        Budget::ALL
-            .into_iter()
-            .find(|b| b.name() == s)
-            .ok_or_else(|| {
-                PrtError::invalid(
-                    "budget",
-                    format!("`{s}`; expected l2, area, sun or absolute"),
-                )
-            })
-    }
-}
-
-impl std::fmt::Display for Budget {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
+crate::named!(Budget, "budget");
 
 /// A budget prepared for one cube size: the weights and the weighted energy of the reference row
 /// per unit of its plain energy.

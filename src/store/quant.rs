@@ -26,8 +26,21 @@ pub const SCALE_STEPS_PER_OCTAVE: i32 = 4;
 pub const UNIT_SCALE_CODE: u8 = SCALE_CODE_BIAS as u8;
 
 /// How stored coefficient values are quantised.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Hash,
+    Serialize,
+    Deserialize,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::VariantArray,
+)]
 #[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
 pub enum Quantization {
     /// Signed 8-bit integers against the column scale (one byte).
     Q8,
@@ -56,34 +69,11 @@ impl Quantization {
     }
     /// The name used on the command line and in files.
     pub fn name(self) -> &'static str {
-        match self {
-            Quantization::Q8 => "q8",
-            Quantization::Q16 => "q16",
-            Quantization::F32 => "f32",
-        }
+        self.into()
     }
 }
 
-impl std::str::FromStr for Quantization {
-    type Err = crate::error::PrtError;
-    fn from_str(s: &str) -> crate::error::Result<Self> {
-        match s {
-            "q8" => Ok(Quantization::Q8),
-            "q16" => Ok(Quantization::Q16),
-            "f32" => Ok(Quantization::F32),
-            _ => Err(crate::error::PrtError::invalid(
-                "quantization",
-                format!("`{s}`; expected q8, q16 or f32"),
-            )),
-        }
-    }
-}
-
-impl std::fmt::Display for Quantization {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
+crate::named!(Quantization, "quantization");
 
 static SCALES: LazyLock<[f32; 256]> = LazyLock::new(|| {
     std::array::from_fn(|code| {

@@ -139,7 +139,18 @@ impl PhaseLight {
 }
 
 /// What [`render_volume`] shows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Default,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::VariantArray,
+)]
+#[strum(serialize_all = "lowercase")]
 pub enum VolumeView {
     /// Single scattering with the camera ray's transmittance.
     #[default]
@@ -150,6 +161,7 @@ pub enum VolumeView {
     Transmittance,
     /// The self-shadow map: `T_0 / (2√π)`, the fraction of directions open to the sky,
     /// composited along the ray like a medium of albedo 1 (grey).
+    #[strum(serialize = "dc")]
     TransferDc,
 }
 
@@ -164,12 +176,7 @@ impl VolumeView {
 
     /// The view's name, as `--view` takes it.
     pub fn name(self) -> &'static str {
-        match self {
-            VolumeView::Full => "full",
-            VolumeView::InScatter => "inscatter",
-            VolumeView::Transmittance => "transmittance",
-            VolumeView::TransferDc => "dc",
-        }
+        self.into()
     }
 
     /// The index the GPU shader switches on.
@@ -178,20 +185,7 @@ impl VolumeView {
     }
 }
 
-impl std::str::FromStr for VolumeView {
-    type Err = crate::error::PrtError;
-    fn from_str(s: &str) -> crate::error::Result<Self> {
-        VolumeView::ALL
-            .into_iter()
-            .find(|v| v.name() == s)
-            .ok_or_else(|| {
-                crate::error::PrtError::invalid(
-                    "view",
-                    format!("`{s}`: expected full, inscatter, transmittance or dc"),
-                )
-            })
-    }
-}
+crate::named!(VolumeView, "view");
 
 /// Ray-marches `vt` lit by `light` through `camera` (CPU, rayon over rows).
 pub fn render_volume(

@@ -406,7 +406,8 @@ impl TurnArgs {
 }
 
 /// Where a command's kernels run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, strum::Display)]
+#[strum(serialize_all = "lowercase")]
 pub enum Device {
     /// A hardware GPU when one exists, else the CPU: a software adapter (Mesa's lavapipe) is
     /// slower than the CPU kernels, so it is never taken unasked.
@@ -415,16 +416,6 @@ pub enum Device {
     Cpu,
     /// The wgpu kernels on whatever adapter exists, a software one included (said in one line).
     Gpu,
-}
-
-impl std::fmt::Display for Device {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Device::Auto => "auto",
-            Device::Cpu => "cpu",
-            Device::Gpu => "gpu",
-        })
-    }
 }
 
 /// The GPU a command runs its kernels on, `None` for the CPU (see [`Device`]).

@@ -146,7 +146,10 @@ pub struct ReferenceArgs {
 }
 
 /// How `prt reference` integrates the light.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, strum::IntoStaticStr, strum::Display, strum::VariantArray,
+)]
+#[strum(serialize_all = "lowercase")]
 pub enum Estimator {
     /// Every texel sample direction; with bounces, the bake's own paths and surface cache.
     Texels,
@@ -154,16 +157,7 @@ pub enum Estimator {
     Path,
 }
 
-impl FromStr for Estimator {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "texels" => Ok(Estimator::Texels),
-            "path" => Ok(Estimator::Path),
-            _ => Err(format!("unknown estimator '{s}': use texels or path")),
-        }
-    }
-}
+crate::named!(Estimator, "estimator");
 
 /// Arguments of `prt env`.
 #[derive(Args, Debug)]

@@ -41,8 +41,21 @@ pub struct BakeStats {
 }
 
 /// Where the visibility of an interreflection vertex comes from.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::VariantArray,
+)]
 #[serde(rename_all = "kebab-case")]
+#[strum(serialize_all = "kebab-case")]
 pub enum BounceVisibility {
     /// One bit per texel sample at surface cache points a few pixel footprints apart.
     #[default]
@@ -51,27 +64,7 @@ pub enum BounceVisibility {
     Exact,
 }
 
-impl std::str::FromStr for BounceVisibility {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "cache" => Ok(BounceVisibility::Cache),
-            "exact" => Ok(BounceVisibility::Exact),
-            _ => Err(format!(
-                "unknown bounce visibility '{s}': use cache or exact"
-            )),
-        }
-    }
-}
-
-impl std::fmt::Display for BounceVisibility {
-    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str(match self {
-            BounceVisibility::Cache => "cache",
-            BounceVisibility::Exact => "exact",
-        })
-    }
-}
+crate::named!(BounceVisibility, "bounce visibility");
 
 /// How a bake's interreflections were estimated: next-event estimation into the row at every
 /// path vertex (see `bake::bounce`).
