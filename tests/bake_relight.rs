@@ -429,7 +429,8 @@ fn file_round_trip_and_corruption() {
     assert!(e.contains("header length"), "{e}");
     // Not a transport file at all.
     std::fs::write(&bad, b"hello, world, this is not a transport").unwrap();
-    assert!(Transport::load(&bad).is_err());
+    let e = Transport::load(&bad).unwrap_err().to_string();
+    assert!(e.contains("does not fit a file of 37 bytes"), "{e}");
 }
 
 #[test]

@@ -124,8 +124,19 @@ fn bad_lights_are_errors_on_the_gpu_too() {
         indices: vec![t.coeff_count() as u32],
         values: vec![[1.0; 3]],
     };
-    assert!(g.relight_wavelet(&gpu, &bad).is_err());
-    assert!(g.relight_sh(&gpu, &vec![[1.0; 3]; 10]).is_err());
+    let e = g.relight_wavelet(&gpu, &bad).unwrap_err().to_string();
+    assert!(
+        e.contains("do not fit a transport with 384 coefficients"),
+        "{e}"
+    );
+    let e = g
+        .relight_sh(&gpu, &vec![[1.0; 3]; 10])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("10 coefficients for a transport baked with 9"),
+        "{e}"
+    );
 }
 
 /// Reads an RGBA32F texture back through a buffer with 256-byte aligned rows.
@@ -292,7 +303,11 @@ fn both_backends_give_the_same_image_and_statistics_for_every_method() {
     // A resident transport answers only for a transport of its own size.
     let mut other = t.clone();
     other.meta.width += 16;
-    assert!(GpuBackend::new(&gpu, &g, &other).is_err());
+    let e = GpuBackend::new(&gpu, &g, &other)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(e.contains("uploaded from another transport"), "{e}");
 }
 
 #[test]

@@ -453,13 +453,20 @@ fn gpu_refuses_bad_meshes_and_colour_buffers() {
     let mut raster = GpuRaster::new(&gpu).unwrap();
     let e = raster.draw(&gpu, &cameras()[0], &m, &short).unwrap_err();
     assert!(e.to_string().contains("colours"), "{e}");
-    assert!(upload_colours(&gpu, &[[f32::NAN, 0.0, 0.0]]).is_err());
+    let e = upload_colours(&gpu, &[[f32::NAN, 0.0, 0.0]])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("must be finite"), "{e}");
     let bad = Camera {
         fov_y_deg: 180.0,
         ..cameras()[0].clone()
     };
     let full = upload_colours(&gpu, &colours(mesh.positions.len(), 1)).unwrap();
-    assert!(raster.draw(&gpu, &bad, &m, &full).is_err());
+    let e = raster.draw(&gpu, &bad, &m, &full).unwrap_err().to_string();
+    assert!(
+        e.contains("fov_y_deg: must be strictly between 0 and 180 degrees"),
+        "{e}"
+    );
     // A buffer with more colours than vertices (a relit image larger than the mesh) is drawn
     // from its start.
     let n = mesh.positions.len();

@@ -239,7 +239,11 @@ fn a_bad_file_is_an_error_not_a_panic() {
     let dir = std::env::temp_dir();
     let bad = dir.join(format!("viewer-bad-{}.prt", std::process::id()));
     std::fs::write(&bad, b"not a transport").unwrap();
-    assert!(Engine::open(&bad, Vec::new()).is_err());
+    let e = Engine::open(&bad, Vec::new())
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(e.contains("does not fit a file of 15 bytes"), "{e}");
     // The window loads on its worker thread and shows the error once it arrives.
     let mut app = wavelet_prt::app::viewer::ViewerApp::new(&bad, &[]);
     assert!(app.wait_idle(std::time::Duration::from_secs(60)));
