@@ -50,6 +50,27 @@ pub fn exposure(stops: f32) -> Result<()> {
     Ok(())
 }
 
+/// A number from `range` (inclusive), such as a sample count: an error names `what`, the value
+/// with its `unit` (" pixel footprints", or "") and the range.
+pub fn within<T: PartialOrd + std::fmt::Display>(
+    what: &str,
+    value: T,
+    range: std::ops::RangeInclusive<T>,
+    unit: &str,
+) -> Result<()> {
+    if !range.contains(&value) {
+        return Err(PrtError::invalid(
+            what,
+            format!(
+                "{value}{unit}; it must be from {} to {}",
+                range.start(),
+                range.end()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// A fraction in [0, 1], such as the split of a comparison.
 pub fn fraction(what: &str, f: f32) -> Result<()> {
     if !(0.0..=1.0).contains(&f) {

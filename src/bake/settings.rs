@@ -2,6 +2,7 @@
 //! already holds this bake (so it can be reused) and how large its output can grow.
 
 use super::*;
+use crate::flags::within;
 use crate::store::transport::{BakeDomain, BakeIdentity, IndirectSettings};
 
 /// Settings of a bake; the defaults are the command line's.
@@ -84,30 +85,15 @@ impl BakeSettings {
                 ),
             ));
         }
-        if !(1..=10).contains(&self.sh_order) {
-            return Err(PrtError::invalid(
-                "SH order",
-                format!("{}; it must be from 1 to 10", self.sh_order),
-            ));
-        }
-        if self.spp == 0 || self.spp > 4096 {
-            return Err(PrtError::invalid(
-                "spp",
-                format!("{}; it must be from 1 to 4096", self.spp),
-            ));
-        }
+        within("SH order", self.sh_order, 1..=10, "")?;
+        within("spp", self.spp, 1..=4096, "")?;
         if self.edge_spp > 4096 {
             return Err(PrtError::invalid(
                 "edge spp",
                 format!("{}; it must be from 0 (off) to 4096", self.edge_spp),
             ));
         }
-        if self.texel_samples == 0 || self.texel_samples > 256 {
-            return Err(PrtError::invalid(
-                "texel samples",
-                format!("{}; it must be from 1 to 256", self.texel_samples),
-            ));
-        }
+        within("texel samples", self.texel_samples, 1..=256, "")?;
         if let Some([i, count]) = self.shard
             && (count == 0 || i >= count)
         {
@@ -125,15 +111,12 @@ impl BakeSettings {
                 ),
             ));
         }
-        if !(0.25..=256.0).contains(&self.cache_spacing) {
-            return Err(PrtError::invalid(
-                "cache spacing",
-                format!(
-                    "{} pixel footprints; it must be from 0.25 to 256",
-                    self.cache_spacing
-                ),
-            ));
-        }
+        within(
+            "cache spacing",
+            self.cache_spacing,
+            0.25..=256.0,
+            " pixel footprints",
+        )?;
         if let BakeDomain::Vertices { edge_length: e } = self.domain {
             if !(e.is_finite() && e > 0.0) {
                 return Err(PrtError::invalid(
