@@ -6,8 +6,8 @@ use std::f64::consts::PI;
 mod common;
 
 use common::{
-    SPHERE_ON_PLANE, assert_rel_close, assets, full_light, plane_from_above, random_transport,
-    relit, scene_from, temp_dir,
+    SAME_SUM, SAME_VALUE, SPHERE_ON_PLANE, assert_rel_close, assets, full_light, plane_from_above,
+    random_transport, relit, scene_from, temp_dir,
 };
 
 use glam::DVec3;
@@ -26,10 +26,18 @@ use wavelet_prt::relight::{
 };
 use wavelet_prt::store::transport::{Quantization, Transport};
 
-/// Float sums over a few thousand texels in a different order: the same value to ~1e-6.
-const SAME_SUM: f64 = 1e-5;
 /// The brute-force reference and the relight of a lossless bake agree to float rounding.
 const REFERENCE_MATCH: f64 = 1e-4;
+/// Relative L2 between SH relighting with the rotated coefficients of the unturned N = 8 cube and
+/// with the projection of the turned cube itself: rotation is exact for the sphere, so the two
+/// differ only by how the 384 texels of each cube sample the map (the turned cube resamples it on
+/// another grid) and by the texel-sum quadrature of each projection.
+const SH_ROTATION_VS_PROJECTION: f64 = 1e-2;
+/// Relative L2 between a bake thresholded at 0.05 (8-bit values) and the lossless one under
+/// constant light: each row may lose at most 5 % of an unshadowed row's norm, so this is the
+/// per-row budget itself; constant light sees only the scaling coefficients, which thresholding
+/// keeps first, so the error stays far below it.
+const THRESHOLD_BUDGET: f64 = 0.05;
 
 fn lossless(n: usize, sh_order: usize) -> BakeSettings {
     BakeSettings {
@@ -219,7 +227,7 @@ fn lossless_relight_equals_the_brute_force_reference() {
         let (img, stats) = relight(&t, &ctx, &light, &all).unwrap();
         assert_eq!(stats.terms, texel_count(8));
         let e = relative_l2(&img, &full, None).unwrap();
-        assert!(e < 1e-6, "{w}: all terms vs full {e}");
+        assert!(e < SAME_VALUE, "{w}: all terms vs full {e}");
     }
     // Fewer terms: error decreases as K grows (unweighted selection is the best K-term light).
     let mut last = f64::INFINITY;
@@ -281,7 +289,10 @@ fn rotations_full_turn_and_sh_rotation() {
         let (ia, _) = relight(&t, &ctx, &a, &r).unwrap();
         let (ib, _) = relight(&t, &ctx, &b, &r).unwrap();
         let e = relative_l2(&ib, &ia, None).unwrap();
-        assert!(e < 1e-5, "{method}: 360 degrees changed the image by {e}");
+        assert!(
+            e < SAME_SUM,
+            "{method}: 360 degrees changed the image by {e}"
+        );
     }
     // The SH light of a turned environment comes from rotating the coefficient vector; it must
     // match projecting the turned map itself (same order), up to the cube-map discretisation of
@@ -299,7 +310,10 @@ fn rotations_full_turn_and_sh_rotation() {
     let (by_projection, _) = relight_sh(&t, &projected[..16]).unwrap();
     let (unturned, _) = relight_sh(&t, &a.sh[..16]).unwrap();
     let e = relative_l2(&by_rotation, &by_projection, Some(&t.coverage)).unwrap();
-    assert!(e < 1e-2, "SH rotation vs rotated projection: {e}");
+    assert!(
+        e < SH_ROTATION_VS_PROJECTION,
+        "SH rotation vs rotated projection: {e}"
+    );
     // And the rotation did something.
     let moved = relative_l2(&unturned, &by_projection, Some(&t.coverage)).unwrap();
     assert!(
@@ -336,10 +350,10 @@ fn tiled_kernel_equals_the_dense_and_sprs_twins() {
             let (fast, stats) = relight_wavelet(&t, &light).unwrap();
             let dense = relight_dense_reference(&t, &light);
             let e = relative_l2(&fast, &dense, None).unwrap();
-            assert!(e < 1e-5, "{w}x{h} N={n} K={k}: tiled vs dense {e}");
+            assert!(e < SAME_SUM, "{w}x{h} N={n} K={k}: tiled vs dense {e}");
             let via_sprs = sprs_product(&t, &light);
             let e = relative_l2(&fast, &via_sprs, None).unwrap();
-            assert!(e < 1e-5, "{w}x{h} N={n} K={k}: tiled vs sprs {e}");
+            assert!(e < SAME_SUM, "{w}x{h} N={n} K={k}: tiled vs sprs {e}");
             if k == c {
                 assert_eq!(stats.nonzeros_touched as usize, t.entry_row.len());
             }
@@ -496,7 +510,7 @@ fn thresholded_bake_is_sparser_and_close_to_lossless() {
     // Under constant light only the scaling coefficients matter, and thresholding keeps the
     // largest first: the error stays far below the per-row budget.
     let e = relative_l2(&b, &a, Some(&exact.coverage)).unwrap();
-    assert!(e < 0.05, "{e}");
+    assert!(e < THRESHOLD_BUDGET, "{e}");
     assert_rel_close(
         "same rows",
         sparse.row_pixel.len() as f64,

@@ -88,6 +88,14 @@ const CLI_SH_ABS: f64 = 1e-2;
 /// The printed coefficients against the midpoint-rule sums computed in the test: the same f64
 /// sums in a different order, plus the JSON round trip (shortest exact f64 text).
 const CLI_SH_EXACT_REL: f64 = 1e-12;
+/// A direction sent to face coordinates by the hand inversion and back through the library's face
+/// table: a division and a normalisation in f64, a few ulps of a unit vector.
+const FACE_TABLE_ROUND_TRIP: f64 = 1e-12;
+/// Angle in degrees between the sky's sun direction and the one built here by the documented
+/// convention: the same f64 expression on both sides, so the dot rounds to 1 and the angle is 0.
+/// Through acos one ulp of the dot below 1 already reads about 1e-6 degrees, so this asks for the
+/// same direction, not a nearby one.
+const SUN_DIRECTION_DEG: f64 = 1e-9;
 
 // ---------------------------------------------------------------------------------------------
 // Helpers
@@ -329,7 +337,7 @@ fn direction_to_texel_lands_in_the_right_box() {
             // The hand inversion agrees with the library's face table.
             let back = cubemap::face_st_to_dir(face, s, t).normalize();
             assert!(
-                (back - d).length() < 1e-12,
+                (back - d).length() < FACE_TABLE_ROUND_TRIP,
                 "face table: {d:?} -> ({s}, {t}) -> {back:?}"
             );
             let cell = |i: usize| {
@@ -945,7 +953,7 @@ fn sun_only_sky_delivers_the_requested_irradiance() {
     let (el, az) = (elevation.to_radians(), azimuth.to_radians());
     let want_dir = DVec3::new(az.sin() * el.cos(), el.sin(), -az.cos() * el.cos());
     assert!(
-        angle_deg(sky.sun_dir, want_dir) < 1e-9,
+        angle_deg(sky.sun_dir, want_dir) < SUN_DIRECTION_DEG,
         "sun_dir {:?} vs {want_dir:?}",
         sky.sun_dir
     );

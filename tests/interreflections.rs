@@ -17,6 +17,16 @@ use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::relight_wavelet;
 use wavelet_prt::store::transport::Transport;
 
+/// The path tracer's own relative noise at 2048 paths a pixel under the small sun: the check
+/// against the texel sum is only as sharp as this noise, so it must stay below 2% for that check
+/// to say anything.
+const PATH_TRACER_NOISE: f64 = 0.02;
+/// Relative L2 of the interreflected light alone, surface cache against exact visibility on the
+/// same paths: the cache answers a path vertex's visibility from a cache point up to a cell
+/// (eight pixel footprints here) away, a small change to the smooth indirect light; on the whole
+/// image the README finds the two equally far from a path tracer (1.61%).
+const CACHE_VS_EXACT_INDIRECT: f64 = 0.03;
+
 fn relit(t: &Transport, cube: &CubeMap) -> Image {
     relight_wavelet(t, &full_light(cube)).unwrap().0
 }
@@ -141,7 +151,7 @@ fn path_tracer_agrees_with_the_texel_sum_for_direct_light() {
             err < 3.0 * noise + 4e-3,
             "glossy {glossy}: {err} against noise {noise}"
         );
-        assert!(noise < 0.02, "glossy {glossy}: noise {noise}");
+        assert!(noise < PATH_TRACER_NOISE, "glossy {glossy}: noise {noise}");
     }
 }
 
@@ -233,7 +243,10 @@ fn the_surface_cache_matches_exact_visibility_on_the_same_paths() {
     // The interreflected light alone, cache against exact: the same paths, visibility a cell
     // away.
     let err = relative_l2(&indirect(&cached), &indirect(&exact), None).unwrap();
-    assert!(err < 0.03, "indirect light, cache against exact: {err}");
+    assert!(
+        err < CACHE_VS_EXACT_INDIRECT,
+        "indirect light, cache against exact: {err}"
+    );
     assert!(err > 0.0, "the cache should not be exact");
 }
 

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{SPHERE_ON_PLANE, StFile, assets, prt, relit, scene_from, temp_dir};
+use common::{GPU_MATCH, SPHERE_ON_PLANE, StFile, assets, prt, relit, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::light::select::Weighting;
@@ -13,6 +13,12 @@ use wavelet_prt::relight::{LightContext, RelightRequest, relight};
 use wavelet_prt::scene::trace::Tracer;
 use wavelet_prt::store::transport::BakeDomain;
 use wavelet_prt::store::transport::{TILE, Transport};
+
+/// Relative L2 between a closed mesh baked per vertex and drawn, and the same scene baked per
+/// pixel, over covered pixels: the 37 x 21 image's silhouettes and the interpolation between
+/// vertices, measured 12.6% (sphere) and 15.0% (torus) either way the mesh is wound. A mesh
+/// baked for its inner side would be black, 100% off.
+const VERTEX_VS_PIXEL_MESH: f64 = 0.25;
 
 fn per_vertex(edge: f32) -> BakeSettings {
     BakeSettings {
@@ -448,11 +454,17 @@ fn closed_meshes_wound_inward_are_turned_outward_and_bake_as_the_per_pixel_view(
             // Measured 12.6% (sphere) and 15.0% (torus) either way: the 37 x 21 image's
             // silhouettes and the interpolation between vertices. Baked for its inner side, the
             // mesh would be black: 100%.
-            assert!(e < 0.25, "torus {torus}, inward {inward}: {e:e}");
+            assert!(
+                e < VERTEX_VS_PIXEL_MESH,
+                "torus {torus}, inward {inward}: {e:e}"
+            );
             images.push(drawn.image);
         }
         // Turned outward, the inward mesh bakes as the outward one.
         let e = wavelet_prt::output::metrics::relative_l2(&images[1], &images[0], None).unwrap();
-        assert!(e < 1e-4, "torus {torus}: {e:e} between the two windings");
+        assert!(
+            e < GPU_MATCH,
+            "torus {torus}: {e:e} between the two windings"
+        );
     }
 }

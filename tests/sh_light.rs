@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{SPHERE_ON_PLANE, scene_from};
+use common::{SAME_SUM, SPHERE_ON_PLANE, scene_from};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::{CubeMap, solid_angles, texel_count, texel_dirs};
@@ -12,6 +12,21 @@ use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::sh_light::ShThroughLight;
 use wavelet_prt::relight::{Backend, Cpu, RelightStats, Terms, relight_sh, relight_wavelet};
+
+/// A constant light projected from an N = 8 cube where the cube's symmetries make the texel sums
+/// exact: L00 (relative), the coefficients of bands 1 to 3 (absolute, for a light of at most 2)
+/// and the reconstructions up to order 4 (relative L2). Only f64 rounding of the 1536 sub-texel
+/// terms remains, orders of magnitude below this.
+const EXACT_BY_SYMMETRY: f64 = 1e-9;
+/// The one band-4 function the cube's symmetries keep (x⁴ + y⁴ + z⁴ − 3/5) is integrated by 2 x 2
+/// sub-texel sums per texel at N = 8, whose quadrature error leaves it a small coefficient under
+/// constant light: bounded relative to L00, and as the relative L2 error it puts into the order-6
+/// reconstruction.
+const BAND4_QUADRATURE: f64 = 1e-2;
+/// Relative L2 error of the order-64 reconstruction of a small bright disc on an N = 16 cube: a
+/// sharp light converges slowly (the disc's edge rings), down to a few percent at this order from
+/// over 50% at order 1; the bound asks that it has come that far.
+const SHARP_DISC_ORDER_64: f64 = 0.15;
 
 /// SH through the light at `order` on the CPU, from a projection made once.
 fn relight(
@@ -54,22 +69,33 @@ fn a_constant_light_is_its_own_first_term() {
     for c in 0..3 {
         let want = [1.0, 2.0, 0.5][c] * y00;
         assert!(
-            (sh.coeffs[0][c] - want).abs() < 1e-9 * want,
+            (sh.coeffs[0][c] - want).abs() < EXACT_BY_SYMMETRY * want,
             "{:?}",
             sh.coeffs[0]
         );
     }
-    assert!(sh.coeffs[1..16].iter().flatten().all(|v| v.abs() < 1e-9));
+    assert!(
+        sh.coeffs[1..16]
+            .iter()
+            .flatten()
+            .all(|v| v.abs() < EXACT_BY_SYMMETRY)
+    );
     let band4 = sh.coeffs[16..25]
         .iter()
         .flatten()
         .fold(0.0f64, |m, v| m.max(v.abs()));
-    assert!(band4 > 0.0 && band4 < 1e-2 * sh.coeffs[0][1], "{band4}");
+    assert!(
+        band4 > 0.0 && band4 < BAND4_QUADRATURE * sh.coeffs[0][1],
+        "{band4}"
+    );
     for order in [1, 2, 3, 4] {
         let back = sh.cube(order).unwrap();
-        assert!(cube_error(&back, &cube) < 1e-9, "order {order}");
+        assert!(
+            cube_error(&back, &cube) < EXACT_BY_SYMMETRY,
+            "order {order}"
+        );
     }
-    assert!(cube_error(&sh.cube(6).unwrap(), &cube) < 1e-2);
+    assert!(cube_error(&sh.cube(6).unwrap(), &cube) < BAND4_QUADRATURE);
     for order in [7, 0] {
         let e = sh.cube(order).unwrap_err().to_string();
         assert!(e.contains("outside 1..=6 (the order projected)"), "{e}");
@@ -99,7 +125,7 @@ fn the_reconstruction_converges_to_a_sharp_light() {
         assert!(w[1] < w[0], "{errors:?}");
     }
     assert!(errors[0] > 0.5, "{errors:?}");
-    assert!(*errors.last().unwrap() < 0.15, "{errors:?}");
+    assert!(*errors.last().unwrap() < SHARP_DISC_ORDER_64, "{errors:?}");
 }
 
 #[test]
@@ -131,7 +157,7 @@ fn through_the_light_agrees_with_the_baked_sh_path() {
     // At order 1 the texel average of Y_00 is Y_00 itself: the two routes are one product.
     let (through, _) = relight(&t, &sh, 1).unwrap();
     let (baked, _) = relight_sh(&t, &sh.coeffs[..1]).unwrap();
-    assert!(relative_l2(&through, &baked, mask).unwrap() < 1e-5);
+    assert!(relative_l2(&through, &baked, mask).unwrap() < SAME_SUM);
     // And with every term the light is itself: full relighting, up to the order's error.
     let all = wavelet_prt::light::select::WaveletLight::from_cube(&cube).unwrap();
     let full = wavelet_prt::light::select::SparseLight {
@@ -189,7 +215,7 @@ fn the_sh_light_method_relights_through_the_backend_as_sh_light_does() {
         let (got, stats) = Cpu(&t).relight(&ctx, &light, &req).unwrap();
         let (want, _) = relight(&t, &ShThroughLight::new(&cube, order).unwrap(), order).unwrap();
         let err = relative_l2(&got, &want, mask).unwrap();
-        assert!(err < 1e-5, "order {order}: {err}");
+        assert!(err < SAME_SUM, "order {order}: {err}");
         assert_eq!(stats.terms, order * order);
     }
     // An order beyond any SH light is refused, naming it.

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{random_transport, scene_from, temp_dir};
+use common::{GPU_MATCH, SAME_SUM, random_transport, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::select::SparseLight;
 use wavelet_prt::math::sampling::Rng;
@@ -190,7 +190,7 @@ fn kernel_equals_dense_twin_for_every_format() {
         let (fast, _) = relight_wavelet(&t, &light).unwrap();
         let dense = relight_dense_reference(&t, &light);
         let e = relative_l2(&fast, &dense, None).unwrap();
-        assert!(e < 1e-5, "{q}: tiled vs dense {e}");
+        assert!(e < SAME_SUM, "{q}: tiled vs dense {e}");
     }
 }
 
@@ -224,7 +224,7 @@ fn gpu_decodes_every_format_like_the_cpu() {
             let norm: f64 = cpu.pixels.iter().flatten().map(|v| (*v as f64).abs()).sum();
             assert!(norm > 0.0, "{q} K = {k}: the CPU image is black");
             let e = relative_l2(&dev, &cpu, None).unwrap();
-            assert!(e < 1e-4, "{q} K = {k}: GPU vs CPU {e}");
+            assert!(e < GPU_MATCH, "{q} K = {k}: GPU vs CPU {e}");
         }
     }
 }

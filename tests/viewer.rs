@@ -7,6 +7,15 @@ use wavelet_prt::app::viewer::{
 };
 use wavelet_prt::relight::Method;
 
+/// Relative L2 of 40 of the 384 wavelet terms against every term, over the per-vertex bake's
+/// vertices, as the viewer reports it: the check is that the number is this relight's own error,
+/// which is real (above 0) but far from all of the light; half is a loose ceiling for it.
+const FORTY_TERMS_ERROR: f64 = 0.5;
+/// 8-bit levels by which the GPU display may differ from the CPU's image: the GPU relights,
+/// tone-maps and encodes in f32 on its own hardware and in its own order, so a value at a rounding
+/// boundary may land one level apart.
+const GPU_DISPLAY_LEVELS: u8 = 1;
+
 /// An engine on the test bake with a sun (index 0) and the first bundled map, if any.
 fn engine() -> Engine {
     let (entries, _) = env_entries(&[]);
@@ -54,7 +63,7 @@ fn more_terms_lower_the_error_against_full() {
         })
         .collect();
     assert!(errors[0] > errors[1] && errors[1] > errors[2], "{errors:?}");
-    assert!(errors[3] < 1e-5, "{errors:?}");
+    assert!(errors[3] < common::SAME_SUM, "{errors:?}");
     s.relight.method = Method::Full;
     assert_eq!(l2(&mut e, &s), 0.0);
     // SH: higher order is closer for this smooth-enough sky.
@@ -269,8 +278,11 @@ fn gpu_relight_matches_the_cpu() {
         s.display.gpu = true;
         let gpu = e.render(&s).unwrap().panes[0].linear.clone();
         let d = wavelet_prt::output::metrics::relative_l2(&gpu.image, &cpu.image, None).unwrap();
-        assert!(d < 1e-4, "{method}: GPU differs from CPU by {d}");
-        assert!((gpu.rel_l2 - cpu.rel_l2).abs() < 1e-4);
+        assert!(
+            d < common::GPU_MATCH,
+            "{method}: GPU differs from CPU by {d}"
+        );
+        assert!((gpu.rel_l2 - cpu.rel_l2).abs() < common::GPU_MATCH);
     }
 }
 
@@ -317,7 +329,7 @@ fn gpu_texture_path_shows_what_the_cpu_path_shows() {
                 .max()
                 .unwrap();
             assert!(
-                worst <= 1,
+                worst <= GPU_DISPLAY_LEVELS,
                 "{method}: GPU display differs from the CPU image by {worst}"
             );
         }
@@ -591,7 +603,11 @@ fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
     assert_ne!(images[0], images[1], "the orbit moves the image");
     // The numbers are the relight's, over the vertices: the camera does not change them.
     assert_eq!(errors[0], errors[1]);
-    assert!(errors[0] > 0.0 && errors[0] < 0.5, "{}", errors[0]);
+    assert!(
+        errors[0] > 0.0 && errors[0] < FORTY_TERMS_ERROR,
+        "{}",
+        errors[0]
+    );
 }
 
 #[test]

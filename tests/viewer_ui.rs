@@ -62,7 +62,7 @@ fn clicking_the_method_toggle_changes_the_state_and_the_image() {
     h.key_press(egui::Key::M);
     settle(&mut h);
     assert_eq!(h.state().state.relight.method, Method::Full);
-    assert!(rel_l2(&h) < 1e-6, "full against full");
+    assert!(rel_l2(&h) < common::SAME_VALUE, "full against full");
     h.query_by_label_contains("nonzeros touched")
         .expect("nonzeros shown");
     let image = h.render().expect("headless wgpu render");

@@ -584,6 +584,29 @@ pub fn save_npy(path: &Path, grid: &DensityGrid) -> Result<()> {
 mod tests {
     use super::*;
 
+    /// Optical depth through the slab (σ = 2, 32 voxels in y) against σ times the path: the
+    /// midpoint rule's one-voxel steps meet the trilinear ramps at the slab's faces, exactly when
+    /// their midpoints fall symmetrically on a ramp (straight up) and otherwise off by part of one
+    /// step's depth, σ · 1/32 = 0.0625.
+    const SLAB_DEPTH: f32 = 0.02;
+    /// The same slanted at 45°: steps cross the ramps obliquely and the path is √2 longer.
+    const SLANTED_SLAB_DEPTH: f32 = 0.03;
+    /// The camera march's transmittance through the slab against e^-1: half-voxel steps of the
+    /// same optical depth, whose error scales by T ≈ 0.37.
+    const SLAB_TRANSMITTANCE: f32 = 0.02;
+    /// The Henyey–Greenstein phase integrated over 20,000 cosines by the midpoint rule (f32
+    /// arguments and values, f64 sum): below 1e-6 off even for g = 0.8, so this is loose.
+    const PHASE_NORMALISATION: f64 = 1e-3;
+    /// A Fibonacci direction's length against 1: built from f32 sines, cosines and a square root,
+    /// a few ulps.
+    const FIBONACCI_UNIT_LENGTH: f32 = 1e-5;
+    /// The mean of 512 Fibonacci directions: the lattice balances to ~1e-4, so this only asks
+    /// that no side of the sphere is favoured.
+    const FIBONACCI_MEAN: f32 = 1e-2;
+    /// The ellipsoid's density at its surface against e^-4: one f32 exponential of
+    /// −4 (r − 0.8) / 0.2 with r = 1, whose argument rounds by a few ulps, ~1e-8 of 0.018.
+    const EDGE_DENSITY: f32 = 1e-5;
+
     fn slab() -> Medium {
         // Density 1 for y in [0.25, 0.75] across the box.
         let grid = DensityGrid::from_fn([8, 32, 8], Vec3::ZERO, Vec3::ONE, |p| {
@@ -603,14 +626,14 @@ mod tests {
         // The 16 voxels with centres from 0.266 to 0.734 hold 1; with the trilinear ramps on
         // each side the density integrates to 16 voxels, 16/32 = 0.5.
         let tau = m.optical_depth(Vec3::new(0.5, -1.0, 0.5), Vec3::Y, f32::INFINITY);
-        assert!((tau - 2.0 * 0.5).abs() < 0.02, "tau {tau}");
+        assert!((tau - 2.0 * 0.5).abs() < SLAB_DEPTH, "tau {tau}");
         // Slanted at 45°: √2 times the path.
         let d = Vec3::new(0.0, 1.0, 1.0).normalize();
         let tau = m.optical_depth(Vec3::new(0.5, -0.2, -0.25), d, f32::INFINITY);
-        assert!((tau - 2f32.sqrt()).abs() < 0.03, "tau {tau}");
+        assert!((tau - 2f32.sqrt()).abs() < SLANTED_SLAB_DEPTH, "tau {tau}");
         // Stopping halfway through the slab.
         let tau = m.optical_depth(Vec3::new(0.5, 0.0, 0.5), Vec3::Y, 0.5);
-        assert!((tau - 0.5).abs() < 0.02, "tau {tau}");
+        assert!((tau - 0.5).abs() < SLAB_DEPTH, "tau {tau}");
     }
 
     #[test]
@@ -626,7 +649,7 @@ mod tests {
             "{sum} vs {}",
             1.0 - t
         );
-        assert!((t - (-1.0f32).exp()).abs() < 0.02, "T {t}");
+        assert!((t - (-1.0f32).exp()).abs() < SLAB_TRANSMITTANCE, "T {t}");
     }
 
     #[test]
@@ -662,16 +685,19 @@ mod tests {
                 / n as f64
                 * 2.0
                 * std::f64::consts::PI;
-            assert!((sum - 1.0).abs() < 1e-3, "g {g}: {sum}");
+            assert!((sum - 1.0).abs() < PHASE_NORMALISATION, "g {g}: {sum}");
         }
     }
 
     #[test]
     fn fibonacci_directions_are_unit_and_balanced() {
         let d = fibonacci_directions(512);
-        assert!(d.iter().all(|v| (v.length() - 1.0).abs() < 1e-5));
+        assert!(
+            d.iter()
+                .all(|v| (v.length() - 1.0).abs() < FIBONACCI_UNIT_LENGTH)
+        );
         let mean = d.iter().copied().sum::<Vec3>() / 512.0;
-        assert!(mean.length() < 1e-2, "mean {mean}");
+        assert!(mean.length() < FIBONACCI_MEAN, "mean {mean}");
     }
 
     #[test]
@@ -722,7 +748,7 @@ mod tests {
         };
         assert_eq!(e.density(Vec3::new(0.0, 0.39, 0.0)), 1.0);
         let edge = e.density(Vec3::new(0.0, 0.5, 0.0));
-        assert!((edge - (-4.0f32).exp()).abs() < 1e-5);
+        assert!((edge - (-4.0f32).exp()).abs() < EDGE_DENSITY);
         let c = DensitySource::Cloud {
             center: Vec3::ZERO,
             radii: Vec3::ONE,

@@ -389,6 +389,9 @@ pub fn write(path: &Path, spec: &PlotSpec, series: &[Series]) -> Result<()> {
 mod tests {
     use super::*;
 
+    /// A nice step against its round value: 2 times 10⁻¹ from `powi` in f64, a few ulps of 0.2.
+    const NICE_STEP: f64 = 1e-12;
+
     fn spec(log: bool) -> PlotSpec {
         PlotSpec {
             title: "Error vs terms".into(),
@@ -472,7 +475,7 @@ mod tests {
         assert!(wide.minor.is_empty());
         let lin = Axis::new(false, 0.13, 0.91);
         assert!(lin.lo <= 0.13 && lin.hi >= 0.91);
-        assert!((lin.step - 0.2).abs() < 1e-12, "step {}", lin.step);
+        assert!((lin.step - 0.2).abs() < NICE_STEP, "step {}", lin.step);
         assert!((3..=7).contains(&lin.ticks().len()), "{:?}", lin.ticks());
         // The data sit inside the padded range, never on the frame.
         let r = lin.padded();

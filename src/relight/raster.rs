@@ -362,6 +362,11 @@ pub fn rasterize(
 mod tests {
     use super::*;
 
+    /// Relative error of an affine colour interpolated by the rasteriser against the colour's
+    /// function at the test's own ray hit: the vertex colours and the pixels are f32 and the
+    /// camera ray is built in f32, so the two hits and values agree to a few f32 ulps (~1e-6).
+    const AFFINE_COLOUR_REL: f64 = 1e-4;
+
     fn camera(eye: Vec3, target: Vec3, width: u32, height: u32) -> Camera {
         Camera {
             eye,
@@ -474,7 +479,10 @@ mod tests {
                 let want = colour(p);
                 for k in 0..3 {
                     let err = (px[k] as f64 - want[k]).abs() / want[k].abs();
-                    assert!(err < 1e-4, "pixel {i}: {px:?}, expected {want}");
+                    assert!(
+                        err < AFFINE_COLOUR_REL,
+                        "pixel {i}: {px:?}, expected {want}"
+                    );
                 }
             }
         }

@@ -437,6 +437,21 @@ pub(crate) const ICOSAHEDRON_FACES: [[u32; 3]; 20] = [
 mod tests {
     use super::*;
 
+    /// Sums over the tessellated 2 x 2 quad in f32 against their exact totals (vector areas of
+    /// ±4 Y, a boundary 16 long): a few hundred pieces whose running sums reach 4 and 16, so
+    /// rounding of order 1e-5 at worst.
+    const QUAD_TILING_SUM: f32 = 1e-4;
+    /// A sphere vertex's distance from the centre against the radius 0.5: positions are the centre
+    /// plus the radius times a unit direction in f32, a few ulps of coordinates up to 1.5.
+    const ON_THE_SPHERE: f32 = 1e-5;
+    /// A sphere vertex's normal against (p − c) / r recomputed from its f32 position: subtracting
+    /// the centre exposes the position's rounding, a few ulps of 1.5 over 0.5, ~1e-6.
+    const EXACT_NORMAL: f32 = 1e-4;
+    /// The vector areas of the closed icosphere's triangles, summed in f32: they cancel exactly
+    /// on a closed surface, so only the rounding of thousands of cross products and their sum
+    /// remains.
+    const CLOSED_VECTOR_AREA: f32 = 1e-3;
+
     fn scene(shapes: &str) -> Scene {
         let text = format!(
             "[camera]\neye = [0.0, 2.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\n\
@@ -480,8 +495,14 @@ mod tests {
             assert!(t.iter().all(|&i| m.normals[i as usize] == n));
             if n.y > 0.0 { up += a } else { down += a }
         }
-        assert!((up - Vec3::new(0.0, 4.0, 0.0)).length() < 1e-4, "{up}");
-        assert!((down + Vec3::new(0.0, 4.0, 0.0)).length() < 1e-4, "{down}");
+        assert!(
+            (up - Vec3::new(0.0, 4.0, 0.0)).length() < QUAD_TILING_SUM,
+            "{up}"
+        );
+        assert!(
+            (down + Vec3::new(0.0, 4.0, 0.0)).length() < QUAD_TILING_SUM,
+            "{down}"
+        );
         // Watertight: every interior edge of one side is shared by exactly two triangles.
         let mut count: HashMap<(u32, u32), u32> = HashMap::new();
         for (a, b) in edges(&m) {
@@ -493,7 +514,7 @@ mod tests {
             .map(|((a, b), _)| m.positions[*a as usize].distance(m.positions[*b as usize]))
             .sum();
         assert!(
-            (boundary - 16.0).abs() < 1e-4,
+            (boundary - 16.0).abs() < QUAD_TILING_SUM,
             "boundary length {boundary} (2 sides x 8)"
         );
         assert!(count.values().all(|&n| n <= 2));
@@ -505,13 +526,13 @@ mod tests {
         let m = VertexMesh::tessellate(&s, 0.1).unwrap();
         let c = Vec3::new(0.0, 1.0, 0.0);
         for (p, n) in m.positions.iter().zip(&m.normals) {
-            assert!(((*p - c).length() - 0.5).abs() < 1e-5);
-            assert!((*n - (*p - c) / 0.5).length() < 1e-4);
+            assert!(((*p - c).length() - 0.5).abs() < ON_THE_SPHERE);
+            assert!((*n - (*p - c) / 0.5).length() < EXACT_NORMAL);
         }
         // Closed and outward: no twin, the triangles' vector areas sum to zero, and their volume
         // is close to the sphere's.
         let total: Vec3 = m.triangles.iter().map(|t| area(&m, t)).sum();
-        assert!(total.length() < 1e-3, "{total}");
+        assert!(total.length() < CLOSED_VECTOR_AREA, "{total}");
         let volume: f32 = m
             .triangles
             .iter()

@@ -2,6 +2,19 @@ use super::*;
 use crate::medium::sweep::Sweeper;
 use crate::medium::{DensityGrid, DensitySource, Medium};
 
+/// Optical depth swept from the centre of a hard-edged sphere (σ = 2, radius 0.75, 48³ voxels)
+/// against σ r = 1.5: sampled at voxel centres, the edge sits where the grid puts it to within
+/// about half a voxel, a depth of 0.5 · 2/48 · σ ≈ 0.042, more or less of it along each direction
+/// as the faceting goes.
+const SPHERE_CENTRE_DEPTH: f32 = 0.04;
+/// Sweep against direct march in a soft cloud, |difference| / (1 + depth) over 480 voxels: the
+/// bilinear steps blur the depth a little over long paths. Measured mean 0.35%...
+const SWEEP_MEAN: f32 = 0.01;
+/// ...the 95th percentile, so that large differences stay confined to the few longest paths...
+const SWEEP_P95: f32 = 0.03;
+/// ...and the worst voxel, on the far side of the grid: measured 8%.
+const SWEEP_WORST: f32 = 0.12;
+
 fn medium(dims: [usize; 3], f: impl Fn(Vec3) -> f32, extinction: f32) -> Medium {
     Medium {
         grid: DensityGrid::from_fn(dims, Vec3::splat(-1.0), Vec3::splat(1.0), f),
@@ -51,7 +64,7 @@ fn sphere_centre_sees_exp_minus_sigma_r_every_way() {
     let s = Sweeper::new(&m);
     for d in fibonacci_directions(40) {
         let tau = s.depth(d).at(Vec3::ZERO);
-        assert!((tau - 1.5).abs() < 0.04, "{d}: tau {tau}");
+        assert!((tau - 1.5).abs() < SPHERE_CENTRE_DEPTH, "{d}: tau {tau}");
     }
 }
 
@@ -84,9 +97,9 @@ fn sweep_matches_a_direct_march_in_a_soft_medium() {
     let mean = errors.iter().sum::<f32>() / errors.len() as f32;
     let p95 = errors[errors.len() * 95 / 100];
     let worst = errors[errors.len() - 1];
-    assert!(mean < 0.01, "mean relative difference {mean}");
-    assert!(p95 < 0.03, "95th percentile {p95}");
-    assert!(worst < 0.12, "worst {worst}");
+    assert!(mean < SWEEP_MEAN, "mean relative difference {mean}");
+    assert!(p95 < SWEEP_P95, "95th percentile {p95}");
+    assert!(worst < SWEEP_WORST, "worst {worst}");
 }
 
 #[test]

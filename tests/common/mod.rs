@@ -18,6 +18,20 @@ use wavelet_prt::store::transport::{
     TransportMeta, tile_grid,
 };
 
+/// Relative L2 within which two sums of the same f32 products in another order agree (a tiled
+/// kernel against a dense product, a turn by 360 degrees): float rounding over a few thousand
+/// terms is ~1e-6.
+pub const SAME_SUM: f64 = 1e-5;
+
+/// Relative L2 within which the same sum agrees with itself taken in other f32 steps (a prefix
+/// against a whole, all terms against "full"): ~1e-7 measured.
+pub const SAME_VALUE: f64 = 1e-6;
+
+/// Relative L2 within which the GPU kernels agree with the CPU's: the same products in another
+/// order and with fused multiply-adds on some devices, ~1e-6 measured; real GPUs that flush
+/// subnormals stay well inside.
+pub const GPU_MATCH: f64 = 1e-4;
+
 /// Every Haar term of a cube map's light: relighting with it is the full product.
 pub fn full_light(
     cube: &wavelet_prt::math::cubemap::CubeMap,
