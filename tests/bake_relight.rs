@@ -38,6 +38,26 @@ const SH_ROTATION_VS_PROJECTION: f64 = 1e-2;
 /// per-row budget itself; constant light sees only the scaling coefficients, which thresholding
 /// keeps first, so the error stays far below it.
 const THRESHOLD_BUDGET: f64 = 0.05;
+/// A ground pixel under one texel of light against the analytic value (albedo · L cos θ Ω / π
+/// lit, 0 in the shadow), relative to the lit value: the bake and the reference sample the texel
+/// at its centre, as the analytic value does, so only the float rounding of the Haar round trip
+/// remains.
+const ONE_TEXEL_ROUNDING: f64 = 1e-5;
+/// Relative rise of the image error from one K to the next that still counts as not rising: the
+/// errors are relative L2s of f32 relights, so two equally good lights may differ by rounding.
+const IMAGE_ERROR_ROUNDING: f64 = 1e-6;
+/// The ground's mean direct light near the wall's foot against a_g c / 2, relative: the
+/// quadrature of the texel-sampled sky (16 directions a texel at N = 16) and the wall's finite
+/// size, 1%.
+const WALL_FOOT_DIRECT: f64 = 1e-2;
+/// The light one bounce off the wall adds against a_g a_w c / 4, relative: the Monte Carlo error
+/// of 4096 paths a sub-sample over 16 pixels is about 0.5%, and the wall, seen from 0.12 away, is
+/// slightly under half of the hemisphere: a few percent.
+const WALL_BOUNCE: f64 = 5e-2;
+/// Reference values below which an edge pixel's bound against the reference stops shrinking with
+/// the value: a pixel near black (in a shadow) is allowed `REFERENCE_MATCH` of this, since the
+/// signed Haar sums that make it still round at the scale of their larger terms.
+const EDGE_PIXEL_SCALE_FLOOR: f32 = 1e-3;
 
 fn lossless(n: usize, sh_order: usize) -> BakeSettings {
     BakeSettings {
@@ -166,7 +186,7 @@ fn one_texel_light_casts_the_analytic_sphere_shadow() {
                 let lit_value = a * 10.0 * d.y * omega / PI;
                 let want = if in_shadow { 0.0 } else { lit_value };
                 // Float rounding of the Haar round trip, relative to the light's contribution.
-                let tol = 1e-5 * lit_value;
+                let tol = ONE_TEXEL_ROUNDING * lit_value;
                 let got = img.pixels[i][k] as f64;
                 assert!(
                     (got - want).abs() <= tol,
@@ -243,7 +263,10 @@ fn lossless_relight_equals_the_brute_force_reference() {
         )
         .unwrap();
         let e = relative_l2(&img, &full, Some(&t.coverage)).unwrap();
-        assert!(e <= last * (1.0 + 1e-6), "K = {k}: {e} after {last}");
+        assert!(
+            e <= last * (1.0 + IMAGE_ERROR_ROUNDING),
+            "K = {k}: {e} after {last}"
+        );
         last = e;
     }
 }
@@ -614,7 +637,12 @@ material = "wall"
     let (a_g, a_w) = (0.5, [0.8, 0.4, 0.2]);
     for (k, wall) in a_w.iter().enumerate() {
         // Quadrature of the texel-sampled sky and the wall's finite size: 1%.
-        assert_rel_close("direct", mean(&d, k), a_g * c as f64 / 2.0, 1e-2);
+        assert_rel_close(
+            "direct",
+            mean(&d, k),
+            a_g * c as f64 / 2.0,
+            WALL_FOOT_DIRECT,
+        );
         // 4096 paths a sub-sample over 16 pixels: the Monte Carlo error of the added light is
         // about 0.5%; the wall is seen slightly under half from 0.12 away: a few percent.
         let added = mean(&b, k) - mean(&d, k);
@@ -622,7 +650,7 @@ material = "wall"
             format!("one bounce, channel {k}"),
             added,
             a_g * wall * c as f64 / 4.0,
-            5e-2,
+            WALL_BOUNCE,
         );
     }
     // Colour bleeding: the ground picks up the wall's colour, so channels differ.
@@ -704,7 +732,7 @@ fn edge_pixels_take_the_mean_of_their_subsamples_and_others_one_sample() {
             let i = (y * w + x) as usize;
             let (got, want) = (relit.pixels[i], want.pixels[i]);
             for c in 0..3 {
-                let scale = want[c].abs().max(1e-3) as f64;
+                let scale = want[c].abs().max(EDGE_PIXEL_SCALE_FLOOR) as f64;
                 assert!(
                     ((got[c] - want[c]) as f64).abs() <= REFERENCE_MATCH * scale,
                     "pixel ({x}, {y}), edge {edge}, channel {c}: {} against {}",

@@ -29,6 +29,17 @@ const Q8_ONLY: f64 = 5e-3;
 /// Bytes per coefficient as the compression table prints them, with two decimals: rounding moves
 /// the value by at most 0.005, and a little more covers the float that was rounded.
 const PRINTED_TWO_DECIMALS: f64 = 0.006;
+/// Relative rise of the light's K-term error from one K to the next that is still "not rising":
+/// the error is √((total − kept) / total) of f64 energy sums, the kept ones summed in the order
+/// of the selection, so rounding alone may move it by a few ulps...
+const LIGHT_ERROR_ROUNDING_REL: f64 = 1e-6;
+/// ...and absolute, for errors near 0, where the difference of two nearly equal sums is all
+/// rounding.
+const LIGHT_ERROR_ROUNDING_ABS: f64 = 1e-9;
+/// SH relighting through the light against the baked SH path, relative difference of their image
+/// errors at the same order: at N = 8 the two differ by the texel averages of the basis against
+/// its values at the texel samples, a small change to the error, within 2% of it.
+const SH_LIGHT_VS_BAKED: f64 = 0.02;
 
 fn tiny_transport(name: &str) -> Transport {
     let scene = common::scene_from(common::SPHERE_ON_PLANE, &format!("bench-{name}"));
@@ -99,7 +110,7 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
         for w in curve.windows(2) {
             let (a, b) = (w[0].light_rel_l2.unwrap(), w[1].light_rel_l2.unwrap());
             assert!(
-                b <= a * (1.0 + 1e-6) + 1e-9,
+                b <= a * (1.0 + LIGHT_ERROR_ROUNDING_REL) + LIGHT_ERROR_ROUNDING_ABS,
                 "{env}: K = {} light error {b} after K = {} light error {a}",
                 w[1].terms,
                 w[0].terms,
@@ -158,7 +169,7 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
         assert_eq!(a.terms, b.terms);
         let d = (a.error.rel_l2 - b.error.rel_l2).abs();
         assert!(
-            d < 0.02 * a.error.rel_l2,
+            d < SH_LIGHT_VS_BAKED * a.error.rel_l2,
             "{} terms: {} vs {}",
             a.terms,
             a.error.rel_l2,

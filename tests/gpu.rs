@@ -17,6 +17,14 @@ use wavelet_prt::relight::gpu::{Gpu, GpuTransport};
 use wavelet_prt::relight::{LightContext, light_sh_order, relight_sh, relight_wavelet};
 use wavelet_prt::store::transport::Transport;
 
+/// A GPU pixel against the CPU's, relative to the CPU's value: the same products summed in
+/// another order in f32, with fused multiply-adds on some devices, so only rounding separates
+/// them; per pixel the share `GPU_MATCH` allows over the whole image...
+const GPU_PIXEL_REL: f32 = 1e-4;
+/// ...with the value taken at least this large, so that a pixel near black is allowed an absolute
+/// `GPU_PIXEL_REL` of it rather than a share of its own tiny value.
+const GPU_PIXEL_SCALE_FLOOR: f32 = 1e-3;
+
 fn bakes() -> Vec<Transport> {
     let scene = scene_from(SPHERE_ON_PLANE, "gpu");
     let base = BakeSettings {
@@ -62,7 +70,9 @@ fn check(gpu: &Gpu, t: &Transport, limit: Option<u64>, shared_rows: Option<u32>)
             assert!(e < GPU_MATCH, "{w} K = {k}: GPU vs CPU {e}");
             // Uncovered pixels are black on both.
             for (a, b) in dev.pixels.iter().zip(&cpu.pixels) {
-                assert!((a[0] - b[0]).abs() <= 1e-4 * b[0].abs().max(1e-3));
+                assert!(
+                    (a[0] - b[0]).abs() <= GPU_PIXEL_REL * b[0].abs().max(GPU_PIXEL_SCALE_FLOOR)
+                );
             }
         }
     }

@@ -26,6 +26,36 @@ const PATH_TRACER_NOISE: f64 = 0.02;
 /// (eight pixel footprints here) away, a small change to the smooth indirect light; on the whole
 /// image the README finds the two equally far from a path tracer (1.61%).
 const CACHE_VS_EXACT_INDIRECT: f64 = 0.03;
+/// Relative error of a furnace pixel of the bake against the geometric series: cosine sampling
+/// keeps every path's throughput at a^k, so the bake has no path noise there and only the texel
+/// quadrature of the cosine (N = 16, 4 directions a texel) remains, below 0.3%.
+const FURNACE_QUADRATURE: f64 = 3e-3;
+/// Standard errors by which a furnace pixel of the path tracer may stray from the series: the
+/// tracer reports each pixel's own standard error, and four of them is a deviation an unbiased
+/// estimator reaches only on rare draws...
+const FURNACE_TRACER_SIGMAS: f64 = 4.0;
+/// ...plus this much of the series' value, so that a pixel whose estimated standard error comes
+/// out near 0 is still allowed the f32 rounding of its accumulated mean.
+const FURNACE_TRACER_ROUNDING: f64 = 1e-4;
+/// Twelve bounces of albedo 0.7 against the infinite series, relative to its limit: the missing
+/// tail is a^13 of the limit, 0.97%, inside 1.4%.
+const TWELVE_BOUNCE_TAIL: f64 = 0.014;
+/// How many of the path tracer's relative noises a relative L2 against it may reach: an unbiased
+/// tracer's relative L2 from the exact image is about its relative noise (`relative_noise`), so
+/// three of them, plus each check's allowance for the other side's own error, bound the
+/// comparison.
+const NOISE_SIGMAS: f64 = 3.0;
+/// The texel sum's own error under the small sun, beyond the tracer's noise: 64 directions a
+/// texel leave a quadrature error of a few tenths of a percent at the sun's shadow edge.
+const TEXEL_SUM_QUADRATURE: f64 = 4e-3;
+/// The bounced bake's own error under the small sun, beyond the tracer's noise (relative L2): its
+/// 256 paths a sub-sample carry Monte Carlo noise the tracer's estimate does not count, and its
+/// 16 directions a texel a quadrature error at the shadow edges; 1% of the image.
+const BAKE_BOUNCE_ERROR: f64 = 0.01;
+/// The bounced bake's brightest red value against the path tracer's: a firefly (one path's rare
+/// large throughput left in a pixel) would stand far above the reference's brightest pixel; half
+/// again above it is the most this allows.
+const FIREFLY_CEILING: f32 = 1.5;
 
 fn relit(t: &Transport, cube: &CubeMap) -> Image {
     relight_wavelet(t, &full_light(cube)).unwrap().0
@@ -88,13 +118,14 @@ fn white_furnace_inside_a_closed_sphere_sums_the_geometric_series() {
                 let want = furnace_radiance(ALBEDO[k], bounces, light);
                 let got = p[k] as f64;
                 assert!(
-                    (got - want).abs() < 3e-3 * want,
+                    (got - want).abs() < FURNACE_QUADRATURE * want,
                     "bake, {bounces} bounces, pixel {i}, channel {k}: {got} vs {want}"
                 );
                 let traced_value = traced.image.pixels[i][k] as f64;
                 let sigma = traced.std_error[i][k] as f64;
                 assert!(
-                    (traced_value - want).abs() < 4.0 * sigma + 1e-4 * want,
+                    (traced_value - want).abs()
+                        < FURNACE_TRACER_SIGMAS * sigma + FURNACE_TRACER_ROUNDING * want,
                     "path tracer, {bounces} bounces, pixel {i}, channel {k}: {traced_value} vs \
                      {want} (standard error {sigma})"
                 );
@@ -103,7 +134,7 @@ fn white_furnace_inside_a_closed_sphere_sums_the_geometric_series() {
     }
     // Twelve bounces of albedo 0.7 are within 1.4% of the infinite series.
     let limit = light * 0.7 / 0.3;
-    assert!((furnace_radiance(0.7, 12, light) - limit).abs() < 0.014 * limit);
+    assert!((furnace_radiance(0.7, 12, light) - limit).abs() < TWELVE_BOUNCE_TAIL * limit);
 }
 
 /// The sphere on the ground, with a glossy sphere when `glossy`.
@@ -148,7 +179,7 @@ fn path_tracer_agrees_with_the_texel_sum_for_direct_light() {
         // 64 directions a texel leave a quadrature error of a few tenths of a percent at the
         // sun's shadow edge.
         assert!(
-            err < 3.0 * noise + 4e-3,
+            err < NOISE_SIGMAS * noise + TEXEL_SUM_QUADRATURE,
             "glossy {glossy}: {err} against noise {noise}"
         );
         assert!(noise < PATH_TRACER_NOISE, "glossy {glossy}: noise {noise}");
@@ -191,12 +222,12 @@ fn one_and_two_bounce_bakes_agree_with_the_path_tracer_under_a_small_sun() {
             eprintln!("glossy {glossy}, {bounces} bounces: {err} (noise {noise}, added {added})");
             assert!(added > 0.05, "{added}");
             assert!(
-                err < 3.0 * noise + 0.01,
+                err < NOISE_SIGMAS * noise + BAKE_BOUNCE_ERROR,
                 "glossy {glossy}, {bounces} bounces: {err} against noise {noise}"
             );
             // No fireflies: the brightest pixel is within 1.5x the reference's.
             let max = |i: &Image| i.pixels.iter().map(|p| p[0]).fold(0.0f32, f32::max);
-            assert!(max(&img) < 1.5 * max(&traced.image));
+            assert!(max(&img) < FIREFLY_CEILING * max(&traced.image));
         }
     }
 }

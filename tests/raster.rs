@@ -16,6 +16,15 @@ use wavelet_prt::relight::gpu::{Gpu, GpuMesh, GpuRaster, upload_colours};
 use wavelet_prt::relight::raster::{Raster, rasterize};
 use wavelet_prt::scene::Camera;
 
+/// Relative colour difference beyond which a GPU pixel counts as drawn differently from the
+/// CPU's: both interpolate perspective-correct, the GPU in f32 from corners snapped to its
+/// sub-pixel grid, the CPU in f64, which for affine colours stays well inside; the pixels past it
+/// are what `check_against_cpu` counts.
+const GPU_COLOUR_REL: f32 = 1e-4;
+/// A flat colour drawn by the GPU against that colour, relative: barycentrics that sum to about 1
+/// in f32 move it by a few ulps.
+const FLAT_COLOUR_ROUNDING: f32 = 1e-6;
+
 /// A mesh: positions and triangles.
 #[derive(Default)]
 struct Mesh {
@@ -227,7 +236,7 @@ fn check_against_cpu(gpu: &Gpu, mesh: &Mesh, colours: &[[f32; 3]], colour_slack:
     for (k, cam) in cameras().iter().enumerate() {
         let cpu = rasterize(cam, &mesh.positions, &mesh.triangles, colours).unwrap();
         let dev = raster.draw(gpu, cam, &m, &buffer).unwrap();
-        let d = compare(&dev, &cpu, 1e-4);
+        let d = compare(&dev, &cpu, GPU_COLOUR_REL);
         eprintln!(
             "camera {k}: {} of {} pixels covered by both; coverage differs on {}, colour on {}; \
              worst agreeing colour {:.2e}",
@@ -299,7 +308,7 @@ fn gpu_culls_the_faces_the_cpu_culls() {
         let want = if c == 1.0 { flat[0] } else { [0.0; 3] };
         for k in 0..3 {
             assert!(
-                (p[k] - want[k]).abs() <= 1e-6 * want[k],
+                (p[k] - want[k]).abs() <= FLAT_COLOUR_ROUNDING * want[k],
                 "{p:?} for {want:?}"
             );
         }
@@ -348,7 +357,7 @@ fn gpu_clips_at_the_cpu_near_plane() {
     };
     let dev = gpu_draw(&gpu, &rolled, &floor, &flat);
     let cpu = rasterize(&rolled, &floor.positions, &floor.triangles, &flat).unwrap();
-    let d = compare(&dev, &cpu, 1e-6);
+    let d = compare(&dev, &cpu, FLAT_COLOUR_ROUNDING);
     assert!(
         d.coverage + d.colour <= 2,
         "{} + {} pixels differ",

@@ -14,6 +14,14 @@ use wavelet_prt::relight::{relight_dense_reference, relight_wavelet};
 use wavelet_prt::store::quant::Quantization;
 use wavelet_prt::store::transport::Transport;
 
+/// A quantised value's distance from the lossless one, in steps (the column's scale times the
+/// row's): rounding to the nearest integer multiple of the step errs by at most half of it,
+/// `quant`'s documented bound...
+const HALF_STEP: f32 = 0.5;
+/// ...plus this much of the value, for the f32 rounding of the decode (the integer times two
+/// scales) and of the encode's division: a few ulps.
+const DECODE_ROUNDING: f32 = 1e-6;
+
 /// A glossy sphere beside a diffuse one on the ground, with two materials seen by some pixels'
 /// sub-samples: tiles with more than 256 rows (several blocks) and rows of very different size.
 const GLOSSY: &str = r#"
@@ -104,11 +112,11 @@ fn quantised_values_round_trip_within_half_a_step() {
                     let v = want.get(&(r, j)).copied().unwrap_or(0.0);
                     let g = got.get(&(r, j)).copied().unwrap_or(0.0);
                     // Half a step, and the f32 rounding of the decode.
-                    let bound = 0.5 * step + 1e-6 * v.abs();
+                    let bound = HALF_STEP * step + DECODE_ROUNDING * v.abs();
                     assert!(
                         (g - v).abs() <= bound,
                         "{q} row {r} coefficient {j}: {g} for {v}, half step {}",
-                        0.5 * step
+                        HALF_STEP * step
                     );
                     checked += (v != 0.0) as usize;
                 }

@@ -28,6 +28,25 @@ const DEFAULT_THRESHOLD_ADDS: f64 = 0.02;
 /// 1 − T and 1 − coverage computed here: the same f32 expressions on both sides, so at most a few
 /// ulps of values no larger than 1.
 const VEIL_ROUNDING: f32 = 1e-5;
+/// How far the full view may exceed the in-scatter view: the full view weights the same samples
+/// by the camera ray's transmittance (at most 1) and stops early where the in-scatter view
+/// marches on, so only the rounding of their f32 sums, a few ulps of values of order 1, may lift
+/// it above.
+const ATTENUATION_ROUNDING: f32 = 1e-6;
+/// Full red against 0.9 times the dc view under a white sky of radiance 1 (g = 0): the light's
+/// band-0 term is then the dc view's scale 1/(2√π) and its higher terms vanish by symmetry, each
+/// up to the rounding of f32 sums over the cube's 384 texels. This much absolute, for pixels with
+/// little fog...
+const DC_RELATION_ABS: f32 = 1e-4;
+/// ...and this much of the dc value, for the rest.
+const DC_RELATION_REL: f32 = 1e-3;
+/// The SH march against the brute-force reference under low-frequency light, relative L2, for
+/// isotropic fog: the sweep's blur and the SH truncation of the light-phase product, measured
+/// 0.9-1.0%...
+const SH_MARCH_ISOTROPIC: f64 = 0.02;
+/// ...and at g = 0.4, where the forward-peaked phase gives the truncation more to cut: measured
+/// 1.6%.
+const SH_MARCH_FORWARD: f64 = 0.03;
 
 /// The shared foggy blob at 24×20 pixels.
 fn fog(g: f32) -> String {
@@ -176,7 +195,7 @@ fn sky_cube(n: usize) -> CubeMap {
 fn sh_march_matches_the_brute_force_reference_under_low_frequency_light() {
     // Measured: 0.9-1.0% isotropic, 1.6% at g = 0.4 (the sweep's blur and the SH truncation of
     // the light-phase product).
-    for (g, tolerance) in [(0.0f32, 0.02), (0.4, 0.03)] {
+    for (g, tolerance) in [(0.0f32, SH_MARCH_ISOTROPIC), (0.4, SH_MARCH_FORWARD)] {
         let scene = scene_from(&fog(g), &format!("vol-sh-{g}"));
         let vt = bake_volume(&scene, None, &TransferSettings::default(), &|_, _| {}).unwrap();
         for (name, cube) in [
@@ -219,9 +238,12 @@ fn debug_views_agree_with_what_they_show() {
             p[0]
         );
         // Attenuation only lowers the radiance.
-        assert!(full.pixels[i][0] <= inscatter.pixels[i][0] + 1e-6);
+        assert!(full.pixels[i][0] <= inscatter.pixels[i][0] + ATTENUATION_ROUNDING);
         // Under a white sky of radiance 1 and albedo (0.9, ...), full red = 0.9 · dc.
-        assert!((full.pixels[i][0] - 0.9 * dc.pixels[i][0]).abs() < 1e-4 + 1e-3 * dc.pixels[i][0]);
+        assert!(
+            (full.pixels[i][0] - 0.9 * dc.pixels[i][0]).abs()
+                < DC_RELATION_ABS + DC_RELATION_REL * dc.pixels[i][0]
+        );
     }
 }
 

@@ -170,6 +170,13 @@ mod tests {
     /// A row's plain energy as the thresholder returns it against the test's own f64 sum of the
     /// same squares in the same order: a few ulps of a value near 3e-3, if anything.
     const SAME_ENERGY: f64 = 1e-12;
+    /// Relative slack on the budget (threshold² times the reference's weighted energy) that a
+    /// row's dropped weighted energy must stay within: the thresholder spends its budget in f64
+    /// sums of its own order, against a product and quotient of f64 sums, and the test sums the
+    /// dropped weighted squares again in another order, so a few f64 ulps may separate the two.
+    /// (The thresholder ranks by f32 products |v| w, whose rounding, ~1e-7 of a term, would show
+    /// only where a row's dropped energy met its budget to that precision.)
+    const BUDGET_ROUNDING: f64 = 1e-9;
 
     fn row(n: usize) -> Vec<f32> {
         (0..6 * n * n)
@@ -201,7 +208,7 @@ mod tests {
                     .zip(&w)
                     .map(|(&v, &w)| (v as f64 * w as f64).powi(2))
                     .sum();
-                assert!(dropped_w <= (t as f64).powi(2) * ref_w * (1.0 + 1e-9));
+                assert!(dropped_w <= (t as f64).powi(2) * ref_w * (1.0 + BUDGET_ROUNDING));
                 assert!(dropped <= energy);
                 assert!(kept.len() <= last, "{budget}: {t} keeps more");
                 last = kept.len();

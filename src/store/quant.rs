@@ -114,6 +114,13 @@ pub fn quantize(v: f32, scale: f32, q_max: f32) -> f32 {
 mod tests {
     use super::*;
 
+    /// A decoded value's distance from the original, in steps: rounding to the nearest integer
+    /// multiple of the step errs by at most half of it, the bound the module documents...
+    const HALF_STEP: f32 = 0.5;
+    /// ...plus this much of the value, for the f32 rounding of the division by the step and of
+    /// the product that decodes: half an ulp each at most, inside 2ε of the value.
+    const DECODE_ROUNDING: f32 = 2.0 * f32::EPSILON;
+
     #[test]
     fn scales_are_normal_increasing_and_exact_at_powers_of_two() {
         let t = scale_table();
@@ -162,7 +169,7 @@ mod tests {
                     let back = quantize(v, s, q_max) * s;
                     // Half a step, plus the f32 rounding of the division and the product.
                     assert!(
-                        (back - v).abs() <= 0.5 * s + 2.0 * f32::EPSILON * v.abs(),
+                        (back - v).abs() <= HALF_STEP * s + DECODE_ROUNDING * v.abs(),
                         "{v} -> {back}, step {s}"
                     );
                 }
