@@ -190,7 +190,7 @@ impl BakeSettings {
     /// (the sampler's grid), paths and the interreflections' settings absent without bounces.
     pub fn identity(&self, scene: &Scene) -> Result<BakeIdentity> {
         self.validate_for(scene)?;
-        let side = (self.texel_samples.max(1) as f64).sqrt().ceil() as u32;
+        let side = TexelSamples::grid_side(self.texel_samples as usize) as u32;
         let (threshold, budget, quantization) = self.storage();
         Ok(BakeIdentity {
             scene_hash: scene.hash_hex(),

@@ -88,9 +88,15 @@ pub struct TexelSamples {
 }
 
 impl TexelSamples {
+    /// The side of the square grid of samples a texel takes when `m` are asked for: `m` rounds
+    /// up to `side²` (at least 1).
+    pub fn grid_side(m: usize) -> usize {
+        ((m.max(1) as f64).sqrt().ceil() as usize).max(1)
+    }
+
     /// Samples for a cube of face size `n`, `m` per texel (rounded up to a square), seeded.
     pub fn new(n: usize, m: usize, seed: u64) -> Self {
-        let side = ((m.max(1) as f64).sqrt().ceil() as usize).max(1);
+        let side = Self::grid_side(m);
         let per_texel = side * side;
         let count = texel_count(n);
         let mut dirs = Vec::with_capacity(count * per_texel);

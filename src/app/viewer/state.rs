@@ -96,13 +96,8 @@ pub struct LightKey {
 }
 
 impl LightKey {
-    /// Whether the map of this key is worth keeping: a file is read once, a procedural sun
-    /// changes with every slider move.
-    pub fn is_file(&self) -> bool {
-        matches!(self.env, EnvSpec::File(_))
-    }
-
-    /// The file of a file map.
+    /// The file of a file map (worth keeping: a file is read once, a procedural sun changes
+    /// with every slider move).
     pub fn file(&self) -> Option<&PathBuf> {
         match &self.env {
             EnvSpec::File(p) => Some(p),
