@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{GPU_MATCH, SAME_SUM, random_transport, scene_from, temp_dir};
+use common::{GPU_MATCH, SAME_SUM, StFile, random_transport, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::select::SparseLight;
 use wavelet_prt::math::sampling::Rng;
@@ -165,7 +165,7 @@ fn old_format_files_are_refused_with_a_clear_message() {
     let p = dir.join("t.prt");
     t.save(&p).unwrap();
     let bytes = std::fs::read(&p).unwrap();
-    let key = b"format_version\\\":3";
+    let key = b"format_version\\\":4";
     let at = bytes
         .windows(key.len())
         .position(|w| w == key)
@@ -179,6 +179,23 @@ fn old_format_files_are_refused_with_a_clear_message() {
         e.contains("old.prt") && e.contains("version 2") && e.contains("bake the scene again"),
         "{e}"
     );
+}
+
+/// A version 3 file, written before the local lights, still loads: it differs only in having
+/// none.
+#[test]
+fn a_version_3_file_loads_as_one_without_lights() {
+    let dir = temp_dir("storage-v3");
+    let t = random_transport(20, 18, 2, Quantization::Q8, 3, 1.0);
+    let p = dir.join("t.prt");
+    t.save(&p).unwrap();
+    let mut file = StFile::read(&p);
+    file.meta["format_version"] = 3.into();
+    let q = dir.join("v3.prt");
+    std::fs::write(&q, file.to_bytes(true)).unwrap();
+    let back = Transport::load(&q).unwrap();
+    assert_eq!(back, t);
+    assert!(back.meta.lights.is_empty());
 }
 
 /// The tiled kernel equals its dense twin on every format, for rows spanning several blocks.

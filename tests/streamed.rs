@@ -173,6 +173,7 @@ fn untiled(t: &Transport) -> Untiled {
         albedo: t.albedo.clone(),
         coverage: t.coverage.clone(),
         mesh: t.domain.mesh().cloned(),
+        lights: t.lights.clone(),
     }
 }
 

@@ -33,6 +33,8 @@ use crate::scene::brdf::Lobes;
 use crate::scene::trace::Tracer;
 pub use crate::store::transport::BounceVisibility;
 
+use super::lights::LightSampler;
+
 /// Where the visibility of one vertex comes from.
 #[derive(Clone, Copy)]
 enum Visibility<'a> {
@@ -449,16 +451,29 @@ impl<'a> Bounces<'a> {
 
     /// Adds `scale` times the interreflected rows of a camera sub-sample to `rows` (one per colour
     /// channel, texel order). Returns the rays traced.
+    /// With `lights`, adds the local lights' columns through the same paths: one sample of
+    /// each column at every vertex ([`LightSampler::add`]).
     pub fn add_rows(
         &self,
         start: &ShadingPoint,
         stream: u64,
         scale: f32,
         rows: &mut [Vec<f32>; 3],
+        mut lights: Option<(&LightSampler, &mut [Vec3])>,
     ) -> u64 {
         let mut shadow = 0;
-        let rays = self.walk(start, stream, &mut |_, _, at, throughput| {
+        let rays = self.walk(start, stream, &mut |path, bounce, at, throughput| {
             let material = &self.scene.materials[at.material as usize];
+            if let Some((sampler, columns)) = lights.as_mut() {
+                shadow += self.light_vertex(
+                    stream,
+                    [path, bounce],
+                    at,
+                    throughput * scale,
+                    sampler,
+                    columns,
+                );
+            }
             match self.visibility(at) {
                 Visibility::Bits(bits)
                     if material.glossy_lobe().is_none() && self.samples.per_texel == 1 =>
@@ -476,6 +491,56 @@ impl<'a> Bounces<'a> {
             }
         });
         rays + shadow
+    }
+
+    /// At path vertex `at` (path and bounce `index` of the sub-sample's `stream`), adds
+    /// `throughput ⊙` one sample of every light column to `columns`. Returns the shadow rays.
+    fn light_vertex(
+        &self,
+        stream: u64,
+        index: [u32; 2],
+        at: &ShadingPoint,
+        throughput: Vec3,
+        sampler: &LightSampler,
+        columns: &mut [Vec3],
+    ) -> u64 {
+        let lobes = Lobes::of(&self.scene.materials[at.material as usize]);
+        // A stream of its own for every vertex, apart from the camera hits' (top bit).
+        let vertex = Rng::new(stream, ((index[0] as u64) << 8) | index[1] as u64).next_u64();
+        sampler.add(
+            self.tracer,
+            at,
+            &lobes,
+            self.settings.unshadowed,
+            vertex | 1 << 63,
+            Some(1),
+            false,
+            throughput,
+            columns,
+        )
+    }
+
+    /// The local lights' part of [`Bounces::add_rows`] alone: `scale ⊙` the interreflected
+    /// light of every column, through the same paths and samples, added to `columns`. The
+    /// reference's bookkeeping check.
+    pub fn add_light_columns(
+        &self,
+        start: &ShadingPoint,
+        stream: u64,
+        scale: f32,
+        sampler: &LightSampler,
+        columns: &mut [Vec3],
+    ) {
+        self.walk(start, stream, &mut |path, bounce, at, throughput| {
+            self.light_vertex(
+                stream,
+                [path, bounce],
+                at,
+                throughput * scale,
+                sampler,
+                columns,
+            );
+        });
     }
 
     /// The fast case of [`Bounces::vertex_row`]: a Lambertian vertex, one sample a texel,

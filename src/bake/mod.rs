@@ -8,6 +8,7 @@
 
 pub mod bounce;
 mod in_order;
+pub mod lights;
 pub mod medium_rows;
 pub mod path_tracer;
 mod pixels;
@@ -16,6 +17,7 @@ mod settings;
 
 use crate::store::transport::BakeDomain;
 use in_order::in_tile_order;
+pub use lights::LightSampler;
 use pixels::visits;
 pub use pixels::{EdgeMap, pixel_subsamples, sample_stride};
 pub use settings::{BakeSettings, load_if_baked_with, worst_case_bytes};
@@ -36,8 +38,8 @@ use crate::scene::tessellate::VertexMesh;
 use crate::scene::trace::{Hit, Tracer};
 use crate::store::budget::{Budget, Thresholder};
 use crate::store::transport::{
-    BakeStats, CameraMeta, EncodedTile, KeptTiles, PerVertexMeta, Quantization, RowData, TILE,
-    Transport, TransportMeta, TransportWriter, Untiled, shard_of_band, tile_grid,
+    BakeStats, CameraMeta, EncodedTile, KeptTiles, LightColumns, PerVertexMeta, Quantization,
+    RowData, TILE, Transport, TransportMeta, TransportWriter, Untiled, shard_of_band, tile_grid,
 };
 
 /// Progress of a running bake.
@@ -150,6 +152,8 @@ struct TileOutput {
     dropped_energy: f64,
     total_energy: f64,
     rays: u64,
+    /// (pixel, its response to every light column), for pixels with a visit.
+    lights: Vec<(u32, Vec<Vec3>)>,
 }
 
 /// Bakes `scene` with `settings` in memory, calling `progress` after each tile.
@@ -274,6 +278,7 @@ fn bake_tiles(
         &mine_pixel,
         &|done, total| stage([0, 0], [done, total]),
     )?;
+    let light_sampler = LightSampler::new(scene, settings);
     let mut reference_haar = unoccluded_row(&samples);
     let reference_energy: f64 = reference_haar.iter().map(|&v| (v as f64).powi(2)).sum();
     haar::forward_face_all(&mut reference_haar, n, &mut Vec::new());
@@ -292,6 +297,7 @@ fn bake_tiles(
         medium: medium.as_ref(),
         medium_rows: medium_rows.as_ref(),
         bounces: &bounces,
+        lights: &light_sampler,
     };
     let done = AtomicUsize::new(0);
     let rays = AtomicU64::new(0);
@@ -302,11 +308,16 @@ fn bake_tiles(
     );
     let mut albedo = vec![[0.0f32; 3]; w * h];
     let mut coverage = vec![0.0f32; w * h];
+    // The light columns of one band of tile rows, `[L, 3, TILE, W]`, encoded once the band's
+    // last tile is in (each image row against its own scale, see `LightColumns`).
+    let columns = light_sampler.columns();
+    let mut light_columns = LightColumns::zeros(columns, w, h);
+    let mut band = vec![0.0f32; columns * 3 * TILE * w];
     in_tile_order(
         tx * ty,
         |t| {
             if !mine(t) {
-                return Ok(None);
+                return Ok((t, None));
             }
             let mut out = bake_tile(&ctx, t % tx, t / tx);
             // Quantised here, in parallel, so the rows' floats are freed tile by tile.
@@ -321,16 +332,42 @@ fn bake_tiles(
                 medium_texels: [0, 0],
                 cache_points: [0, 0],
             });
-            Ok(Some((out, encoded)))
+            Ok((t, Some((out, encoded))))
         },
-        |tile| {
+        |(t, tile)| {
+            let band_done = |band: &mut Vec<f32>, cols: &mut LightColumns| {
+                if t % tx == tx - 1 && columns > 0 {
+                    cols.set_rows((t / tx) * TILE, band);
+                    band.fill(0.0);
+                }
+            };
             let Some((out, encoded)) = tile else {
+                band_done(&mut band, &mut light_columns);
                 return deliver(EncodedTile::encode(&[], c, shc, quantization)?, [0.0; 3]);
             };
             for (p, a, cov) in out.pixels {
                 albedo[p as usize] = a;
                 coverage[p as usize] = cov;
             }
+            for (p, values) in &out.lights {
+                let (x, y) = (*p as usize % w, *p as usize / w);
+                let r = y % TILE;
+                for (col, v) in values.iter().enumerate() {
+                    if !v.is_finite() {
+                        return Err(PrtError::invalid(
+                            "lights",
+                            format!(
+                                "light column {col} gives {v} at pixel ({x}, {y}): is a light \
+                                 on a surface?"
+                            ),
+                        ));
+                    }
+                    for k in 0..3 {
+                        band[((col * 3 + k) * TILE + r) * w + x] = v[k];
+                    }
+                }
+            }
+            band_done(&mut band, &mut light_columns);
             let stats = [
                 out.dropped_energy + encoded.quantization_energy,
                 out.total_energy,
@@ -359,12 +396,14 @@ fn bake_tiles(
             image: [cam.width, cam.height],
         }),
         stats: BakeStats::default(),
+        lights: scene.lights.clone(),
     };
     Ok(Untiled {
         meta,
         albedo,
         coverage,
         mesh,
+        lights: light_columns,
     })
 }
 
@@ -395,6 +434,8 @@ struct TileContext<'a> {
     medium_rows: Option<&'a MediumRows>,
     /// The interreflections' paths and vertex rows.
     bounces: &'a bounce::Bounces<'a>,
+    /// The local lights' columns.
+    lights: &'a LightSampler,
 }
 
 /// Bakes one tile: dense rows per (pixel, material), SH projection, Haar and thresholding.
@@ -414,6 +455,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
         medium,
         medium_rows,
         bounces,
+        lights,
     } = *ctx;
     let n = settings.cube_n;
     let c = texel_count(n);
@@ -424,6 +466,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
         dropped_energy: 0.0,
         total_energy: 0.0,
         rays: 0,
+        lights: Vec::new(),
     };
     let mut order: Vec<(f32, u32)> = Vec::with_capacity(c);
     let mut scratch = Vec::new();
@@ -443,6 +486,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             let mut covered = 0.0f32;
             let mut albedo_sum = [0.0f32; 3];
             let pixel_index = (y * w + x) as u64;
+            let mut light_columns = vec![Vec3::ZERO; lights.columns()];
             for (sub, visit) in visits.into_iter().enumerate() {
                 covered += visit.covered;
                 let Some(sp) = visit.point else {
@@ -465,6 +509,26 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                         dense.len() - 1
                     }
                 };
+                let stream = path_stream(pixel_index, sub, sample_stride(settings));
+                if lights.columns() > 0 {
+                    let material = &scene.materials[sp.material as usize];
+                    let lobes = match mesh {
+                        // A vertex is seen from every side: its diffuse lobe.
+                        Some(_) => LightSampler::diffuse(material.albedo()),
+                        None => brdf::Lobes::of(material),
+                    };
+                    out.rays += lights.add(
+                        tracer,
+                        &sp,
+                        &lobes,
+                        settings.unshadowed,
+                        stream,
+                        None,
+                        true,
+                        Vec3::splat(inv_spp * seen),
+                        &mut light_columns,
+                    );
+                }
                 let (_, diffuse, glossy) = &mut dense[slot];
                 out.rays += accumulate_direct_rows(
                     tracer,
@@ -481,8 +545,8 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     let rows =
                         indirect.get_or_insert_with(|| std::array::from_fn(|_| vec![0.0; c]));
                     let scale = inv_spp / settings.paths as f32;
-                    let stream = path_stream(pixel_index, sub, sample_stride(settings));
-                    out.rays += bounces.add_rows(&sp, stream, scale, rows);
+                    let lit = (lights.columns() > 0).then_some((lights, &mut light_columns[..]));
+                    out.rays += bounces.add_rows(&sp, stream, scale, rows, lit);
                 }
             }
             let pixel = (y * w + x) as u32;
@@ -492,6 +556,9 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                 [0.0; 3]
             };
             out.pixels.push((pixel, mean_albedo, covered * inv_spp));
+            if !light_columns.is_empty() {
+                out.lights.push((pixel, light_columns));
+            }
             let lobes = dense.into_iter().flat_map(|(material, diffuse, glossy)| {
                 let m = &scene.materials[material as usize];
                 let specular = m

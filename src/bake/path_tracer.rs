@@ -8,6 +8,12 @@
 //! a converged image differs from the bake's with every term only by the bake's own errors (its
 //! per-texel quadrature, its surface cache, its path noise). Each pixel's estimate comes with its
 //! standard error, so agreement can be judged against the reference's own noise.
+//!
+//! Local lights join in the same way ([`path_trace_lit`]): at every vertex each light that is on
+//! is sampled once (a quad by area, converted to solid angle; a sun disc uniformly over its cone;
+//! points and spots as deltas), and a material-sampled direction that reaches a quad or a disc
+//! before any surface brings its light too, the two weighed by the power heuristic, so small
+//! lights and glossy surfaces both converge. It uses none of the bake's light samples.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -22,7 +28,12 @@ use crate::math::sampling::Rng;
 use crate::output::film::Image;
 use crate::scene::Scene;
 use crate::scene::brdf::Lobes;
+use crate::scene::light::{Emitter, emitters};
+use crate::scene::light_mix::LightMix;
 use crate::scene::trace::Tracer;
+
+use super::lights::power_heuristic;
+use super::reference::light_weights;
 
 /// A path-traced image with its per-pixel standard error.
 pub struct PathTraced {
@@ -59,13 +70,6 @@ impl PathTraced {
     }
 }
 
-/// Power heuristic weight of a strategy with density `a` against one with density `b`.
-#[inline]
-fn power_heuristic(a: f32, b: f32) -> f32 {
-    let (a2, b2) = (a * a, b * b);
-    if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
-}
-
 /// Path traces `scene` under `cube` with `samples` paths per pixel (rounded up to a multiple of
 /// the pixel's camera sub-samples, which it cycles through), up to `settings.bounces` bounces
 /// after the camera hit. Uses the bake's camera sub-samples, seed and `unshadowed`; calls
@@ -77,7 +81,27 @@ pub fn path_trace(
     samples: u32,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<PathTraced> {
+    path_trace_lit(scene, cube, &LightMix::none(), settings, samples, progress)
+}
+
+/// [`path_trace`] plus the scene's local lights, each column weighted by `lights` (one RGB
+/// weight per light column, or none).
+pub fn path_trace_lit(
+    scene: &Scene,
+    cube: &CubeMap,
+    lights: &LightMix,
+    settings: &BakeSettings,
+    samples: u32,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<PathTraced> {
     settings.validate()?;
+    let weights = light_weights(lights, emitters(&scene.lights).len())?;
+    let lit: Vec<(Emitter, Vec3)> = emitters(&scene.lights)
+        .into_iter()
+        .zip(&weights)
+        .map(|(e, w)| (e, Vec3::from_array(*w)))
+        .filter(|(_, w)| *w != Vec3::ZERO)
+        .collect();
     if scene.medium.is_some() {
         return Err(PrtError::invalid(
             "reference",
@@ -120,11 +144,15 @@ pub fn path_trace(
                         continue;
                     };
                     hits += 1;
+                    let lighting = Lighting {
+                        cube,
+                        sampler: sampler.as_ref(),
+                        lights: &lit,
+                    };
                     let l = radiance(
                         scene,
                         &tracer,
-                        cube,
-                        sampler.as_ref(),
+                        &lighting,
                         settings,
                         shading_point(&tracer, &hit, ray.dir),
                         &mut rng,
@@ -153,16 +181,28 @@ pub fn path_trace(
     })
 }
 
+/// What lights a path: the environment's cube and its sampler, and the local lights that are
+/// on, each with its RGB weight.
+struct Lighting<'a> {
+    cube: &'a CubeMap,
+    sampler: Option<&'a CubeSampler>,
+    lights: &'a [(Emitter, Vec3)],
+}
+
 /// Radiance leaving the camera hit `start` towards the camera, by one path.
 fn radiance(
     scene: &Scene,
     tracer: &Tracer,
-    cube: &CubeMap,
-    sampler: Option<&CubeSampler>,
+    lighting: &Lighting,
     settings: &BakeSettings,
     start: crate::bake::ShadingPoint,
     rng: &mut Rng,
 ) -> Vec3 {
+    let Lighting {
+        cube,
+        sampler,
+        lights,
+    } = *lighting;
     let env = |d: Vec3| Vec3::from(cube.lookup(d.as_dvec3()));
     let mut total = Vec3::ZERO;
     let mut throughput = Vec3::ONE;
@@ -182,7 +222,27 @@ fn radiance(
                 total += throughput * f * env(d) * (w / p_light);
             }
         }
-        // Material sampling: light where the path escapes, and the next vertex.
+        // Local lights: one sample of each.
+        for (e, rgb) in lights {
+            let u = [rng.next_f32(), rng.next_f32()];
+            let Some(ls) = e.sample(at.origin, u) else {
+                continue;
+            };
+            if n.dot(ls.dir) <= 0.0
+                || (!settings.unshadowed && tracer.occluded(at.origin, ls.dir, ls.dist))
+            {
+                continue;
+            }
+            let f = lobes.eval_cosine(n, v, ls.dir);
+            let w = if ls.pdf > 0.0 {
+                power_heuristic(ls.pdf, lobes.pdf(n, v, ls.dir))
+            } else {
+                1.0
+            };
+            total += throughput * f * *rgb * (ls.weight * w);
+        }
+        // Material sampling: light where the path escapes or meets a local light, and the next
+        // vertex.
         let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
         let Some(s) = lobes.sample(n, v, u) else {
             break;
@@ -191,6 +251,18 @@ fn radiance(
         if hit.is_none() || settings.unshadowed {
             let p_light = sampler.map_or(0.0, |c| c.pdf(s.dir));
             total += throughput * s.weight * env(s.dir) * power_heuristic(s.pdf, p_light);
+        }
+        let t_hit = match &hit {
+            Some(h) if !settings.unshadowed => h.t,
+            _ => f32::INFINITY,
+        };
+        for (e, rgb) in lights {
+            if let Some((t, radiance, p_light)) = e.hit(at.origin, s.dir)
+                && t <= t_hit
+            {
+                total +=
+                    throughput * s.weight * *rgb * (radiance * power_heuristic(s.pdf, p_light));
+            }
         }
         throughput *= s.weight;
         match hit {

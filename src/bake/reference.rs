@@ -11,6 +11,9 @@
 
 use rayon::prelude::*;
 
+use glam::Vec3;
+
+use crate::bake::LightSampler;
 use crate::bake::bounce::Bounces;
 use crate::bake::{
     BakeSettings, EdgeMap, path_stream, pixel_subsamples, sample_stride, shading_point,
@@ -22,6 +25,7 @@ use crate::medium::henyey_greenstein;
 use crate::output::film::Image;
 use crate::scene::Scene;
 use crate::scene::brdf;
+use crate::scene::light_mix::LightMix;
 use crate::scene::trace::Tracer;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -47,6 +51,19 @@ pub fn render_reference_with(
     settings: &BakeSettings,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Reference> {
+    render_reference_lit(scene, cube, &LightMix::none(), settings, progress)
+}
+
+/// [`render_reference_with`] plus the scene's local lights weighted by `lights` (one RGB weight
+/// per light column, or none), sampled as the bake samples them ([`LightSampler`]): with the
+/// same seed, the same samples, so this checks the bake's light columns' bookkeeping.
+pub fn render_reference_lit(
+    scene: &Scene,
+    cube: &CubeMap,
+    lights: &LightMix,
+    settings: &BakeSettings,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Reference> {
     cube.expect_n(settings.cube_n, "the settings ask for")?;
     settings.validate_for(scene)?;
     let tracer = Tracer::new(scene);
@@ -65,6 +82,8 @@ pub fn render_reference_with(
         &|_| true,
         &|_, _| {},
     )?;
+    let sampler = LightSampler::new(scene, settings);
+    let weights = light_weights(lights, sampler.columns())?;
     let mut image = Image::new(w, h);
     let mut coverage = vec![0.0f32; w * h];
     let rows_done = AtomicUsize::new(0);
@@ -141,13 +160,37 @@ pub fn render_reference_with(
                             sum[k] += f as f64 * *w as f64 * inv_spp * l[k] as f64 * visible;
                         }
                     }
+                    let stream = path_stream((y * w + x) as u64, sub, sample_stride(settings));
                     // Interreflections: every vertex of the bake's paths brings its throughput
                     // times its own direct light.
                     if settings.bounces > 0 {
-                        let stream = path_stream((y * w + x) as u64, sub, sample_stride(settings));
                         let l = bounces.radiance(&sp, stream, cube);
                         for k in 0..3 {
                             sum[k] += l[k] * inv_spp;
+                        }
+                    }
+                    if !weights.is_empty() {
+                        let lobes = brdf::Lobes::of(material);
+                        let mut columns = vec![Vec3::ZERO; weights.len()];
+                        sampler.add(
+                            &tracer,
+                            &sp,
+                            &lobes,
+                            settings.unshadowed,
+                            stream,
+                            None,
+                            true,
+                            Vec3::splat(seen as f32),
+                            &mut columns,
+                        );
+                        if settings.bounces > 0 {
+                            let scale = 1.0 / settings.paths as f32;
+                            bounces.add_light_columns(&sp, stream, scale, &sampler, &mut columns);
+                        }
+                        for (c, wt) in columns.iter().zip(&weights) {
+                            for k in 0..3 {
+                                sum[k] += (c[k] * wt[k]) as f64 * inv_spp;
+                            }
                         }
                     }
                 }
@@ -156,4 +199,21 @@ pub fn render_reference_with(
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1, h);
         });
     Ok(Reference { image, coverage })
+}
+
+/// The weights of `lights` for `columns` light columns: one each, or none when no light is on.
+pub fn light_weights(lights: &LightMix, columns: usize) -> Result<Vec<[f32; 3]>> {
+    if lights.is_dark() {
+        return Ok(Vec::new());
+    }
+    if lights.weights.len() != columns {
+        return Err(crate::error::PrtError::invalid(
+            "lights",
+            format!(
+                "{} light weights for a scene with {columns} light columns",
+                lights.weights.len()
+            ),
+        ));
+    }
+    Ok(lights.weights.clone())
 }

@@ -46,6 +46,9 @@ pub struct BakeSettings {
     /// What the rows belong to: the pixels of the camera's view, or the vertices of the scene
     /// tessellated to a longest edge ([`crate::scene::tessellate`]).
     pub domain: BakeDomain,
+    /// Samples per shading point of each sized local light (a quad, a sun disc), rounded up to a
+    /// square: a stratified grid over the light.
+    pub light_samples: u32,
 }
 
 impl Default for BakeSettings {
@@ -68,6 +71,7 @@ impl Default for BakeSettings {
             bounce_visibility: bounce::BounceVisibility::Cache,
             cache_spacing: 4.0,
             domain: BakeDomain::View,
+            light_samples: 64,
         }
     }
 }
@@ -94,6 +98,7 @@ impl BakeSettings {
             ));
         }
         within("texel samples", self.texel_samples, 1..=256, "")?;
+        within("light samples", self.light_samples, 1..=1024, "")?;
         if let Some([i, count]) = self.shard
             && (count == 0 || i >= count)
         {
@@ -173,6 +178,13 @@ impl BakeSettings {
                  camera and every surface)",
             ));
         }
+        if scene.medium.is_some() && !scene.lights.is_empty() {
+            return Err(PrtError::invalid(
+                "lights",
+                "local lights are not baked through a medium yet; light a scene with a [medium] \
+                 by its environment only (remove its [[light]] tables)",
+            ));
+        }
         if scene.medium.is_some() && self.bounces > 0 {
             return Err(PrtError::invalid(
                 "bounces",
@@ -212,6 +224,12 @@ impl BakeSettings {
                 cache_spacing: self.cache_spacing,
             }),
             domain: self.domain,
+            light_samples: if scene.lights.iter().any(|l| l.shape.is_sized()) {
+                let side = TexelSamples::grid_side(self.light_samples as usize) as u32;
+                side * side
+            } else {
+                0
+            },
         })
     }
 
@@ -252,6 +270,11 @@ impl BakeSettings {
                 .indirect
                 .map_or(defaults.cache_spacing, |i| i.cache_spacing),
             domain: id.domain,
+            light_samples: if id.light_samples > 0 {
+                id.light_samples
+            } else {
+                defaults.light_samples
+            },
         }
     }
 }

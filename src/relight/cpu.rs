@@ -75,6 +75,7 @@ pub fn relight_wavelet(t: &Transport, light: &SparseLight) -> Result<(Image, Rel
         bytes_touched: touched * (1 + t.values.value_bytes() as u64)
             + t.block_count() as u64 * light.len() as u64 * 9,
         kernel_seconds: start.elapsed().as_secs_f64(),
+        light_columns: 0,
     };
     Ok((image, stats))
 }
@@ -201,6 +202,7 @@ pub fn relight_sh(t: &Transport, sh: &[[f64; 3]]) -> Result<(Image, RelightStats
         nonzeros_touched: rows * count as u64,
         bytes_touched: rows * count as u64 * 4,
         kernel_seconds: start.elapsed().as_secs_f64(),
+        light_columns: 0,
     };
     Ok((image, stats))
 }

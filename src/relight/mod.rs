@@ -13,6 +13,7 @@ pub mod raster;
 pub mod sh_light;
 pub mod vertex;
 
+pub use crate::scene::light_mix::{LightMix, LightSetting};
 pub use cpu::{nonzeros_touched, relight_dense_reference, relight_sh, relight_wavelet};
 pub use prepare::{LightContext, PreparedLight};
 
@@ -60,6 +61,8 @@ pub struct RelightStats {
     pub bytes_touched: u64,
     /// Wall time of the kernel alone, seconds.
     pub kernel_seconds: f64,
+    /// Local light columns added (those with a nonzero weight).
+    pub light_columns: usize,
 }
 
 /// What to relight with: a method and the parameters it takes.
@@ -196,6 +199,15 @@ impl Terms {
         })
     }
 
+    /// The environment switched off: one Haar term of value 0, so that a relight adds the local
+    /// lights alone through the same kernels.
+    pub fn dark() -> Terms {
+        Terms::Wavelet(SparseLight {
+            indices: vec![0],
+            values: vec![[0.0; 3]],
+        })
+    }
+
     /// How many light terms these stand for: K, n², or 6 N².
     pub fn count(&self) -> usize {
         match self {
@@ -214,23 +226,59 @@ pub trait Backend {
     fn transport(&self) -> &Transport;
     /// What to call it in reports: `cpu`, or the GPU adapter.
     fn name(&self) -> String;
-    /// Relights with `terms` and reads the image back.
-    fn relight_terms(&self, terms: &Terms) -> Result<(Image, RelightStats)>;
+    /// Relights with the environment's `terms` plus the local lights of `lights` (one weight per
+    /// light column of the transport, or none) and reads the image back.
+    fn relight_lit(&self, terms: &Terms, lights: &LightMix) -> Result<(Image, RelightStats)>;
 
-    /// Relights `req` under a prepared light: [`Terms::of`], then the kernels. Inputs are finite
-    /// (loading checks the file, preparing the light its range), but their products may still
-    /// overflow f32: that is an error, never an image with infinities or NaN.
+    /// Relights with `terms` alone and reads the image back.
+    fn relight_terms(&self, terms: &Terms) -> Result<(Image, RelightStats)> {
+        self.relight_lit(terms, &LightMix::none())
+    }
+
+    /// Relights `req` under a prepared light: [`Backend::relight_with`] without local lights.
     fn relight(
         &self,
         ctx: &LightContext,
         light: &PreparedLight,
         req: &RelightRequest,
     ) -> Result<(Image, RelightStats)> {
+        self.relight_with(ctx, light, req, &LightMix::none())
+    }
+
+    /// Relights `req` under a prepared light, plus the local lights of `lights`: [`Terms::of`],
+    /// then the kernels. Inputs are finite (loading checks the file, preparing the light its
+    /// range), but their products may still overflow f32: that is an error, never an image with
+    /// infinities or NaN.
+    fn relight_with(
+        &self,
+        ctx: &LightContext,
+        light: &PreparedLight,
+        req: &RelightRequest,
+        lights: &LightMix,
+    ) -> Result<(Image, RelightStats)> {
         let terms = Terms::of(self.transport(), ctx, light, req)?;
-        let (image, stats) = self.relight_terms(&terms)?;
+        let (image, stats) = self.relight_lit(&terms, lights)?;
         image.check_finite("relit image")?;
         Ok((image, stats))
     }
+}
+
+/// Checks that `lights` has a weight for every light column of `t` (or none at all).
+pub fn check_mix(t: &Transport, lights: &LightMix) -> Result<()> {
+    let columns = t.meta.light_columns();
+    if !lights.weights.is_empty() && lights.weights.len() != columns {
+        return Err(PrtError::invalid(
+            "lights",
+            format!(
+                "{} light weights for a transport with {columns} light columns",
+                lights.weights.len()
+            ),
+        ));
+    }
+    if !lights.weights.iter().flatten().all(|v| v.is_finite()) {
+        return Err(PrtError::invalid("lights", "a light weight is not finite"));
+    }
+    Ok(())
 }
 
 /// The CPU kernels of [`cpu`] as a [`Backend`].
@@ -243,17 +291,22 @@ impl Backend for Cpu<'_> {
     fn name(&self) -> String {
         "cpu".into()
     }
-    fn relight_terms(&self, terms: &Terms) -> Result<(Image, RelightStats)> {
-        let (image, stats) = match terms {
+    fn relight_lit(&self, terms: &Terms, lights: &LightMix) -> Result<(Image, RelightStats)> {
+        check_mix(self.0, lights)?;
+        let (mut image, stats) = match terms {
             Terms::Wavelet(light) | Terms::ShLight { haar: light, .. } => {
                 relight_wavelet(self.0, light)?
             }
             Terms::Sh(sh) => relight_sh(self.0, sh)?,
         };
+        let start = std::time::Instant::now();
+        self.0.lights.add_to(&lights.weights, &mut image.pixels);
         Ok((
             image,
             RelightStats {
                 terms: terms.count(),
+                kernel_seconds: stats.kernel_seconds + start.elapsed().as_secs_f64(),
+                light_columns: lights.lit_columns(),
                 ..stats
             },
         ))

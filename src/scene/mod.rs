@@ -19,6 +19,7 @@ use crate::error::{PrtError, Result};
 use crate::medium::{DensityGrid, DensitySource, Medium};
 use file::Loader;
 pub use file::MAX_COORDINATE;
+pub use light::{Emitter, Light, LightShape};
 
 /// Largest accepted image width or height, in pixels. A per-pixel bake beyond this is surely a
 /// typo, and refusing it early avoids allocating absurd buffers.
@@ -251,6 +252,8 @@ pub struct Scene {
     pub spheres: Vec<Sphere>,
     /// A participating medium (`[medium]`), if any.
     pub medium: Option<MediumSpec>,
+    /// Local lights (`[[light]]`), in the file's order: their columns follow this order.
+    pub lights: Vec<Light>,
     /// The scene file this was loaded from (or named as such by [`Scene::from_toml_str`]).
     pub source_path: PathBuf,
     /// Every file the scene was read from: the scene file, then its meshes and density grid.
@@ -412,6 +415,8 @@ impl MediumSpec {
 pub mod brdf;
 mod diagnostics;
 mod file;
+pub mod light;
+pub mod light_mix;
 mod obj;
 pub mod tessellate;
 pub mod trace;

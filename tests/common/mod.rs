@@ -273,10 +273,12 @@ pub fn random_transport(
             paths: 0,
             indirect: None,
             domain: BakeDomain::View,
+            light_samples: 0,
         },
         cache_points: 0,
         per_vertex: None,
         stats: BakeStats::default(),
+        lights: Vec::new(),
     };
     Transport::assemble(
         meta,

@@ -292,6 +292,10 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
         100.0 * s.dropped_energy_fraction.sqrt()
     );
     println!("shadow rays   {}", s.shadow_rays);
+    for (i, l) in m.lights.iter().enumerate() {
+        let label = if i == 0 { "lights" } else { "" };
+        println!("{label:<14}{}", describe_light(l, id.light_samples));
+    }
     if let Some([i, n]) = id.shard {
         println!("shard         {i}/{n} (join all {n} with `prt merge`)");
     }
@@ -418,4 +422,67 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
         out.join("volume").display()
     );
     Ok(())
+}
+
+/// One line about a light for `prt info`: its name, kind, shape, defaults, columns and samples.
+fn describe_light(l: &crate::scene::Light, samples: u32) -> String {
+    use crate::scene::LightShape;
+    let v = |p: glam::Vec3| format!("({:.3}, {:.3}, {:.3})", p.x, p.y, p.z);
+    let at = match l.positions.as_slice() {
+        [p] => format!("at {}", v(*p)),
+        path => format!(
+            "along {} positions from {} to {}",
+            path.len(),
+            v(path[0]),
+            v(path[path.len() - 1])
+        ),
+    };
+    let shape = match &l.shape {
+        LightShape::Point => format!("point {at}, {} W/sr", l.intensity),
+        LightShape::Spot {
+            direction,
+            cone,
+            falloff,
+        } => format!(
+            "spot {at} towards {}, cone {:.1}° ({:.1}° falloff), {} W/sr",
+            v(*direction),
+            cone.to_degrees(),
+            falloff.to_degrees(),
+            l.intensity
+        ),
+        LightShape::Directional { direction, angle } => format!(
+            "directional towards {}{}, {} W/m²",
+            v(*direction),
+            if *angle > 0.0 {
+                format!(
+                    ", a disc {:.2}° wide ({samples} samples)",
+                    angle.to_degrees()
+                )
+            } else {
+                String::new()
+            },
+            l.intensity
+        ),
+        LightShape::Quad { corners } => {
+            let area = 0.5
+                * ((corners[1] - corners[0])
+                    .cross(corners[2] - corners[0])
+                    .length()
+                    + (corners[2] - corners[0])
+                        .cross(corners[3] - corners[0])
+                        .length());
+            format!(
+                "quad {at}, {area:.3} units², {} W/(m² sr) ({samples} samples)",
+                l.intensity
+            )
+        }
+    };
+    format!(
+        "{}: {shape}, colour ({:.3}, {:.3}, {:.3}); {} column(s)",
+        l.name,
+        l.color.x,
+        l.color.y,
+        l.color.z,
+        l.columns()
+    )
 }

@@ -136,6 +136,10 @@ pub struct SamplingArgs {
     /// Shadow-ray directions per texel (rounded up to a square).
     #[arg(long, default_value_t = 1)]
     pub texel_samples: u32,
+    /// Samples per shading point of each quad light or sun disc (rounded up to a square: a
+    /// stratified grid over the light, for smooth penumbrae).
+    #[arg(long, default_value_t = 64)]
+    pub light_samples: u32,
     /// Ignore visibility (no shadows).
     #[arg(long)]
     pub unshadowed: bool,
@@ -371,6 +375,7 @@ fn settings_from(
         spp: s.spp,
         edge_spp: s.edge_spp,
         texel_samples: s.texel_samples,
+        light_samples: s.light_samples,
         threshold,
         lossless,
         unshadowed: s.unshadowed,

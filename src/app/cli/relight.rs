@@ -2,7 +2,7 @@
 //! brute-force reference, and their comparison.
 
 use super::*;
-use crate::relight::Backend;
+use crate::relight::{Backend, LightMix, LightSetting, Terms};
 use crate::store::transport::Domain;
 
 /// Arguments of `prt relight`.
@@ -10,9 +10,16 @@ use crate::store::transport::Domain;
 pub struct RelightArgs {
     /// Transport file.
     pub file: PathBuf,
-    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    /// Environment: an .exr/.hdr lat-long map, sun:ELEV,AZIM[,RADIUS], or none (the local
+    /// lights alone).
     #[arg(long)]
     pub env: String,
+    /// A local light, relit as given (repeatable): NAME=SCALE (its scene file's colour and
+    /// intensity times SCALE; 0 turns it off), NAME=R,G,B (that colour at its intensity), or
+    /// NAME@POS (a moving light at POS along its baked positions, between two blending them),
+    /// as NAME@POS=… with either. Lights not named shine as the scene file says.
+    #[arg(long = "light", value_name = "NAME=VALUE")]
+    pub lights: Vec<String>,
     /// Output image (.exr linear, .png tone-mapped).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -118,9 +125,13 @@ fn check_still_memory(width: u32, height: u32) -> Result<()> {
 pub struct ReferenceArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
-    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    /// Environment: an .exr/.hdr lat-long map, sun:ELEV,AZIM[,RADIUS], or none (the local
+    /// lights alone).
     #[arg(long)]
     pub env: String,
+    /// A local light, as `prt relight --light` takes it (repeatable).
+    #[arg(long = "light", value_name = "NAME=VALUE")]
+    pub lights: Vec<String>,
     /// Output image (.exr linear, .png tone-mapped).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -192,20 +203,24 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     if method == Method::Wavelet {
         crate::flags::terms(a.terms, t.meta.identity.cube_n as usize)?;
     }
-    let env = load_env(&a.env)?;
+    let mix = light_mix(&t.meta.lights, &a.lights)?;
+    let env = optional_env(&a.env, &mix)?;
     let ctx = LightContext::new(&t)?;
     let start = Instant::now();
     let rotation = a.turn.rotation();
-    let light = ctx.prepare(&env, rotation)?;
-    let light_ms = start.elapsed().as_secs_f64() * 1e3;
     let req = RelightRequest::new(
         method,
         a.terms,
         weighting,
         a.sh_order.unwrap_or(t.meta.identity.sh_order as usize),
     );
+    let terms = match &env {
+        Some(env) => Terms::of(&t, &ctx, &ctx.prepare(env, rotation)?, &req)?,
+        None => Terms::dark(),
+    };
+    let light_ms = start.elapsed().as_secs_f64() * 1e3;
     let (img, stats) = match &gpu {
-        None => relight(&t, &ctx, &light, &req)?,
+        None => crate::relight::Cpu(&t).relight_lit(&terms, &mix)?,
         Some(gpu) => {
             let upload = Instant::now();
             let g = crate::relight::gpu::GpuTransport::upload(gpu, &t, None)?;
@@ -216,9 +231,10 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
                 g.bytes_per_nonzero(),
                 upload.elapsed().as_secs_f64() * 1e3
             );
-            crate::relight::gpu::GpuBackend::new(gpu, &g, &t)?.relight(&ctx, &light, &req)?
+            crate::relight::gpu::GpuBackend::new(gpu, &g, &t)?.relight_lit(&terms, &mix)?
         }
     };
+    img.check_finite("relit image")?;
     // A per-vertex bake's image holds its vertex colours: drawn from the camera asked for.
     let (img, coverage) = match &still {
         Some(camera) => {
@@ -246,26 +262,33 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         Some(e) => ToneMap::exposure(e),
         None => ToneMap::auto(&img, Some(&coverage)),
     };
-    let img = match (background, &still) {
-        (Background::Black, _) => img,
-        (Background::Environment, Some(camera)) => crate::relight::background::composite(
+    let img = match (background, &still, &env) {
+        (Background::Black, ..) | (_, _, None) => img,
+        (Background::Environment, Some(camera), Some(env)) => {
+            crate::relight::background::composite(
+                &img,
+                &crate::relight::background::environment_behind_camera(
+                    camera, &coverage, env, rotation,
+                )?,
+            )
+        }
+        (Background::Environment, None, Some(env)) => crate::relight::background::composite(
             &img,
-            &crate::relight::background::environment_behind_camera(
-                camera, &coverage, &env, rotation,
-            )?,
-        ),
-        (Background::Environment, None) => crate::relight::background::composite(
-            &img,
-            &crate::relight::background::environment_behind(&t.meta, &coverage, &env, rotation)?,
+            &crate::relight::background::environment_behind(&t.meta, &coverage, env, rotation)?,
         ),
     };
     img.save(&a.output, tone)?;
+    let lit = match stats.light_columns {
+        0 => String::new(),
+        n => format!(", {n} light column(s) added"),
+    };
     println!(
-        "{method}: {} terms{}, {} nonzeros touched ({:.1} MiB), light {:.1} ms, kernel {:.2} ms on the {} -> {}",
+        "{method}: {} terms{}{lit}, {} nonzeros touched ({:.1} MiB), light {:.1} ms, kernel {:.2} ms on the {} -> {}",
         stats.terms,
-        match req {
-            RelightRequest::Wavelet { weighting, .. } => format!(" ({weighting} weighting)"),
-            RelightRequest::ShLight { order } =>
+        match (&env, req) {
+            (None, _) => " (environment off)".to_string(),
+            (_, RelightRequest::Wavelet { weighting, .. }) => format!(" ({weighting} weighting)"),
+            (_, RelightRequest::ShLight { order }) =>
                 format!(" (the light through SH order {order}, relit with every stored Haar term)"),
             _ => String::new(),
         },
@@ -292,9 +315,16 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     let scene = Scene::load(&a.scene)?;
     inputs.extend(scene.input_files.iter().cloned());
     check_image_output(&a.output, &inputs)?;
-    let env = load_env(&a.env)?;
+    let mix = light_mix(&scene.lights, &a.lights)?;
+    let env = optional_env(&a.env, &mix)?;
     let rotation = a.turn.rotation();
-    let cube = env.to_cube(settings.cube_n, rotation)?;
+    let cube = match &env {
+        Some(env) => env.to_cube(settings.cube_n, rotation)?,
+        None => crate::math::cubemap::CubeMap {
+            n: settings.cube_n,
+            texels: vec![[0.0; 3]; crate::math::cubemap::texel_count(settings.cube_n)],
+        },
+    };
     let start = Instant::now();
     let rows = bar(scene.camera.height as u64, "rows");
     let estimator = a.estimator.unwrap_or(if settings.bounces > 0 {
@@ -304,15 +334,18 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     });
     let mut noise = None;
     let r = match estimator {
-        Estimator::Texels => {
-            crate::bake::reference::render_reference_with(&scene, &cube, &settings, &|done, _| {
-                rows.set_position(done as u64)
-            })?
-        }
+        Estimator::Texels => crate::bake::reference::render_reference_lit(
+            &scene,
+            &cube,
+            &mix,
+            &settings,
+            &|done, _| rows.set_position(done as u64),
+        )?,
         Estimator::Path => {
-            let p = crate::bake::path_tracer::path_trace(
+            let p = crate::bake::path_tracer::path_trace_lit(
                 &scene,
                 &cube,
+                &mix,
                 &settings,
                 a.samples,
                 &|done, _| rows.set_position(done as u64),
@@ -327,17 +360,17 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     rows.finish_and_clear();
     r.image.check_finite("reference image")?;
     let tone = ToneMap::auto(&r.image, Some(&r.coverage));
-    let img = match background {
-        Background::Environment => crate::relight::background::composite(
+    let img = match (background, &env) {
+        (Background::Environment, Some(env)) => crate::relight::background::composite(
             &r.image,
             &crate::relight::background::environment_behind_camera(
                 &scene.camera,
                 &r.coverage,
-                &env,
+                env,
                 rotation,
             )?,
         ),
-        Background::Black => r.image,
+        _ => r.image,
     };
     img.save(&a.output, tone)?;
     println!(
@@ -451,4 +484,28 @@ pub(super) fn compare_cmd(image: PathBuf, reference: PathBuf, mask: Option<PathB
         e.rel_l2, e.rmse, e.psnr_db, e.rel_h1, e.dssim
     );
     Ok(())
+}
+
+/// The weights of `lights` after the `--light` arguments `args`.
+fn light_mix(lights: &[crate::scene::Light], args: &[String]) -> Result<LightMix> {
+    let mut settings = LightSetting::defaults(lights);
+    for arg in args {
+        crate::scene::light_mix::apply_light_arg(lights, &mut settings, arg)?;
+    }
+    LightMix::new(lights, &settings)
+}
+
+/// The environment of `--env`, or `None` for `none`, which needs a local light that is on.
+fn optional_env(spec: &str, mix: &LightMix) -> Result<Option<EnvMap>> {
+    if spec != "none" {
+        return load_env(spec).map(Some);
+    }
+    if mix.is_dark() {
+        return Err(PrtError::invalid(
+            "--env",
+            "none leaves nothing lit: no local light is on (bake a scene with [[light]] tables, \
+             or turn one on with --light NAME=1)",
+        ));
+    }
+    Ok(None)
 }

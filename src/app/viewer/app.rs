@@ -288,6 +288,7 @@ impl ViewerApp {
                 &loaded.ctx,
                 lit,
                 request,
+                &crate::relight::LightMix::none(),
                 camera.as_ref(),
                 view,
                 self.state.tone_map(),

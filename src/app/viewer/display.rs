@@ -12,7 +12,7 @@ use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
 use crate::relight::gpu::{Gpu, GpuMesh, GpuRaster, GpuTransport};
 use crate::relight::vertex::mesh_of;
-use crate::relight::{LightContext, RelightRequest, Terms};
+use crate::relight::{LightContext, LightMix, RelightRequest, Terms};
 use crate::scene::Camera;
 use crate::store::transport::Transport;
 
@@ -110,6 +110,7 @@ impl DisplayPath {
         ctx: &LightContext,
         lit: &LightShown,
         request: &RelightRequest,
+        lights: &LightMix,
         camera: Option<&Camera>,
         view: &mut GpuView,
         tone: ToneMap,
@@ -135,12 +136,12 @@ impl DisplayPath {
         let gt = &self.transport;
         let kernel_seconds = match mesh {
             None => {
-                gt.relight_terms_to_texture(gpu, &terms, &view.linear)?;
+                gt.relight_terms_to_texture(gpu, &terms, lights, &view.linear)?;
                 gpu.last_kernel_seconds()
             }
             // The vertex colours stay in the transport's buffer, which the raster reads.
             Some((mesh, camera)) => {
-                gt.relight_terms_in_place(gpu, &terms)?;
+                gt.relight_terms_in_place(gpu, &terms, lights)?;
                 let kernel_seconds = gpu.last_kernel_seconds();
                 mesh.raster
                     .render(gpu, camera, &mesh.mesh, gt.image_buffer(), &view.linear)?;

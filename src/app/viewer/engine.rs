@@ -134,6 +134,7 @@ impl Engine {
             &self.ctx,
             lit,
             request,
+            &crate::relight::LightMix::none(),
             camera.as_ref(),
             view,
             state.tone_map(),

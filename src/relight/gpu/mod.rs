@@ -17,6 +17,8 @@
 //!
 //! [`raster`] draws a mesh with one colour per vertex, read from such a buffer, from any camera.
 
+mod backend;
+mod lights;
 pub mod raster;
 mod transport;
 
@@ -24,8 +26,9 @@ use crate::error::Result;
 use crate::gpu::{GpuDevice, Workgroup2, wgsl};
 use crate::store::quant::BLOCK_ROWS;
 
+pub use backend::GpuBackend;
 pub use raster::{GpuMesh, GpuRaster, upload_colours};
-pub use transport::{GpuBackend, GpuTransport, TERMS_PER_DISPATCH};
+pub use transport::{GpuTransport, TERMS_PER_DISPATCH};
 
 /// Threads per workgroup of the relight kernels: one per pixel of a tile. The shaders receive it
 /// as `WORKGROUP`.
@@ -35,6 +38,9 @@ pub const WORKGROUP_SIZE: u32 =
 /// The workgroup of the pass that copies a relit image into a texture (one thread per pixel).
 pub const TO_TEXTURE_WORKGROUP: Workgroup2 = Workgroup2 { x: 16, y: 16 };
 
+/// The workgroup of the pass that adds the local lights (one thread per pixel).
+pub const LIGHTS_WORKGROUP: Workgroup2 = Workgroup2 { x: 16, y: 16 };
+
 /// A device with the relight pipelines (cloning shares them). It dereferences to its
 /// [`GpuDevice`], so `gpu.device`, `gpu.queue` and the adapter's facts read as on the base.
 #[derive(Clone)]
@@ -43,6 +49,7 @@ pub struct Gpu {
     pub(crate) wavelet: wgpu::ComputePipeline,
     pub(crate) sh: wgpu::ComputePipeline,
     pub(crate) to_texture: wgpu::ComputePipeline,
+    pub(crate) lights: wgpu::ComputePipeline,
     /// The 256 scales of the stored values' codes (`crate::store::quant`), a uniform buffer.
     pub(crate) scales: wgpu::Buffer,
 }
@@ -103,6 +110,11 @@ impl Gpu {
             TO_TEXTURE_WORKGROUP,
             include_str!("../../../shaders/to_texture.wgsl"),
         )?;
+        let lights = base.image_pipeline(
+            "lights",
+            LIGHTS_WORKGROUP,
+            include_str!("../../../shaders/relight_lights.wgsl"),
+        )?;
         let scales = crate::gpu::buffer_with(
             &base.device,
             "value scales",
@@ -114,6 +126,7 @@ impl Gpu {
             wavelet,
             sh,
             to_texture,
+            lights,
             scales,
         })
     }

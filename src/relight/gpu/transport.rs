@@ -10,7 +10,7 @@ use crate::error::{PrtError, Result};
 use crate::gpu::wait_and_read;
 use crate::light::select::SparseLight;
 use crate::output::film::Image;
-use crate::relight::{Backend, RelightStats, Terms};
+use crate::relight::{LightMix, RelightStats, Terms};
 use crate::store::quant::Quantization;
 use crate::store::transport::{Transport, Values, tile_grid};
 
@@ -86,9 +86,9 @@ struct Chunk {
 
 /// A transport resident on the GPU.
 pub struct GpuTransport {
-    width: usize,
-    height: usize,
-    coeffs: usize,
+    pub(super) width: usize,
+    pub(super) height: usize,
+    pub(super) coeffs: usize,
     sh_count: usize,
     rows: usize,
     entries: u64,
@@ -97,6 +97,8 @@ pub struct GpuTransport {
     light: wgpu::Buffer,
     image: wgpu::Buffer,
     readback: wgpu::Buffer,
+    /// The local lights' columns, if the transport has any.
+    lights: Option<super::lights::GpuLights>,
 }
 
 fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
@@ -207,7 +209,9 @@ impl GpuTransport {
             )?);
             start = end;
         }
+        let lights = super::lights::GpuLights::upload(gpu, &t.lights, &image, limit)?;
         Ok(GpuTransport {
+            lights,
             width: w,
             height: h,
             coeffs: c,
@@ -419,7 +423,7 @@ impl GpuTransport {
     /// Wavelet relighting with the kept terms of `light`, read back.
     pub fn relight_wavelet(&self, gpu: &Gpu, light: &SparseLight) -> Result<(Image, RelightStats)> {
         let terms = self.wavelet_terms(light)?;
-        let (image, seconds) = self.run(gpu, &terms, true)?;
+        let (image, seconds) = self.run(gpu, &terms, true, &LightMix::none())?;
         Ok((
             image,
             RelightStats {
@@ -428,6 +432,7 @@ impl GpuTransport {
                 nonzeros_touched: 0,
                 bytes_touched: 0,
                 kernel_seconds: seconds,
+                light_columns: 0,
             },
         ))
     }
@@ -435,7 +440,7 @@ impl GpuTransport {
     /// SH relighting with the first `sh.len()` SH coefficients of every row, read back.
     pub fn relight_sh(&self, gpu: &Gpu, sh: &[[f64; 3]]) -> Result<(Image, RelightStats)> {
         let terms = self.sh_terms(sh)?;
-        let (image, seconds) = self.run(gpu, &terms, false)?;
+        let (image, seconds) = self.run(gpu, &terms, false, &LightMix::none())?;
         let touched = (self.rows * sh.len()) as u64;
         Ok((
             image,
@@ -444,8 +449,63 @@ impl GpuTransport {
                 nonzeros_touched: touched,
                 bytes_touched: touched * 4,
                 kernel_seconds: seconds,
+                light_columns: 0,
             },
         ))
+    }
+
+    /// Relights with `terms` plus the local lights of `lights`, read back; the statistics are
+    /// those of [`GpuTransport::relight_wavelet`] or [`GpuTransport::relight_sh`].
+    pub fn relight_lit(
+        &self,
+        gpu: &Gpu,
+        terms: &Terms,
+        lights: &LightMix,
+    ) -> Result<(Image, RelightStats)> {
+        self.check_lights(lights)?;
+        let (device_terms, wavelet) = self.device_terms(terms)?;
+        let (image, seconds) = self.run(gpu, &device_terms, wavelet, lights)?;
+        let touched = if wavelet {
+            0
+        } else {
+            (self.rows * device_terms.len()) as u64
+        };
+        Ok((
+            image,
+            RelightStats {
+                terms: terms.count(),
+                nonzeros_touched: touched,
+                bytes_touched: touched * 4,
+                kernel_seconds: seconds,
+                light_columns: lights.lit_columns(),
+            },
+        ))
+    }
+
+    /// The terms as the device takes them, and whether they are wavelet terms.
+    fn device_terms(&self, terms: &Terms) -> Result<(Vec<[f32; 4]>, bool)> {
+        Ok(match terms {
+            Terms::Wavelet(light) | Terms::ShLight { haar: light, .. } => {
+                (self.wavelet_terms(light)?, true)
+            }
+            Terms::Sh(sh) => (self.sh_terms(sh)?, false),
+        })
+    }
+
+    /// Checks that `lights` fits the light columns on the device.
+    fn check_lights(&self, lights: &LightMix) -> Result<()> {
+        let columns = self.lights.as_ref().map_or(0, |l| l.columns());
+        if lights.weights.is_empty() || lights.weights.len() == columns {
+            Ok(())
+        } else {
+            Err(PrtError::invalid(
+                "lights",
+                format!(
+                    "{} light weights for {columns} light columns on the device",
+                    lights.weights.len()
+                ),
+            ))
+        }
     }
 
     /// Wavelet relighting into `texture` (RGBA32F, storage-binding usage, the image's size),
@@ -457,7 +517,7 @@ impl GpuTransport {
         texture: &wgpu::Texture,
     ) -> Result<()> {
         let terms = self.wavelet_terms(light)?;
-        self.run_to_texture(gpu, &terms, true, texture)
+        self.run_to_texture(gpu, &terms, true, &LightMix::none(), texture)
     }
 
     /// SH relighting into `texture`, as [`GpuTransport::relight_wavelet_to_texture`].
@@ -468,36 +528,36 @@ impl GpuTransport {
         texture: &wgpu::Texture,
     ) -> Result<()> {
         let terms = self.sh_terms(sh)?;
-        self.run_to_texture(gpu, &terms, false, texture)
+        self.run_to_texture(gpu, &terms, false, &LightMix::none(), texture)
     }
 
-    /// Relights with `terms` into `texture`, as [`GpuTransport::relight_wavelet_to_texture`].
+    /// Relights with `terms` plus the local lights of `lights` into `texture`, as
+    /// [`GpuTransport::relight_wavelet_to_texture`].
     pub fn relight_terms_to_texture(
         &self,
         gpu: &Gpu,
         terms: &Terms,
+        lights: &LightMix,
         texture: &wgpu::Texture,
     ) -> Result<()> {
-        match terms {
-            Terms::Wavelet(light) | Terms::ShLight { haar: light, .. } => {
-                self.relight_wavelet_to_texture(gpu, light, texture)
-            }
-            Terms::Sh(sh) => self.relight_sh_to_texture(gpu, sh, texture),
-        }
+        self.check_lights(lights)?;
+        let (device_terms, wavelet) = self.device_terms(terms)?;
+        self.run_to_texture(gpu, &device_terms, wavelet, lights, texture)
     }
 
     /// Relights with `terms` into this transport's own image buffer and submits, with no
     /// readback: for a pass that reads [`GpuTransport::image_buffer`] next, such as the raster of
     /// a per-vertex bake (whose pixel `v` is vertex `v`).
-    pub fn relight_terms_in_place(&self, gpu: &Gpu, terms: &Terms) -> Result<()> {
-        let (terms, wavelet) = match terms {
-            Terms::Wavelet(light) | Terms::ShLight { haar: light, .. } => {
-                (self.wavelet_terms(light)?, true)
-            }
-            Terms::Sh(sh) => (self.sh_terms(sh)?, false),
-        };
+    pub fn relight_terms_in_place(
+        &self,
+        gpu: &Gpu,
+        terms: &Terms,
+        lights: &LightMix,
+    ) -> Result<()> {
+        self.check_lights(lights)?;
+        let (terms, wavelet) = self.device_terms(terms)?;
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let (encoder, _) = self.encode(gpu, &terms, wavelet, "relight in place");
+        let (encoder, _) = self.encode(gpu, &terms, wavelet, lights, "relight in place");
         gpu.queue.submit([encoder.finish()]);
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!("relight in place: {e}")));
@@ -520,6 +580,7 @@ impl GpuTransport {
         gpu: &Gpu,
         terms: &[[f32; 4]],
         wavelet: bool,
+        lights: &LightMix,
         label: &str,
     ) -> (wgpu::CommandEncoder, Instant) {
         let new_encoder = || {
@@ -582,6 +643,9 @@ impl GpuTransport {
                 pass.dispatch_workgroups(x, count.div_ceil(x), 1);
             }
         }
+        if let Some(l) = &self.lights {
+            l.encode(gpu, &mut encoder, lights);
+        }
         if let Some(t) = &gpu.timer {
             t.resolve(&mut encoder);
         }
@@ -595,6 +659,7 @@ impl GpuTransport {
         gpu: &Gpu,
         terms: &[[f32; 4]],
         wavelet: bool,
+        lights: &LightMix,
         texture: &wgpu::Texture,
     ) -> Result<()> {
         let size = texture.size();
@@ -614,7 +679,7 @@ impl GpuTransport {
             ));
         }
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let (mut encoder, _) = self.encode(gpu, terms, wavelet, "relight to texture");
+        let (mut encoder, _) = self.encode(gpu, terms, wavelet, lights, "relight to texture");
         let dims = [self.width as u32, self.height as u32];
         let size_buf = crate::gpu::buffer_with(
             &gpu.device,
@@ -660,9 +725,15 @@ impl GpuTransport {
     /// Records the relight, reads the image back. Returns the image and the GPU time of the relight
     /// passes (timestamp queries), or where the device has none the wall time from submission to
     /// completion.
-    fn run(&self, gpu: &Gpu, terms: &[[f32; 4]], wavelet: bool) -> Result<(Image, f64)> {
+    fn run(
+        &self,
+        gpu: &Gpu,
+        terms: &[[f32; 4]],
+        wavelet: bool,
+        lights: &LightMix,
+    ) -> Result<(Image, f64)> {
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let (mut encoder, start) = self.encode(gpu, terms, wavelet, "relight");
+        let (mut encoder, start) = self.encode(gpu, terms, wavelet, lights, "relight");
         encoder.copy_buffer_to_buffer(&self.image, 0, &self.readback, 0, self.image.size());
         gpu.queue.submit([encoder.finish()]);
         let (pixels, wall) = wait_and_read(&gpu.device, &self.readback, start, "the relight")?;
@@ -683,66 +754,5 @@ impl GpuTransport {
     /// Entries on the device, for reporting.
     pub fn nonzeros(&self) -> u64 {
         self.entries
-    }
-}
-
-/// The wgpu kernels as a [`Backend`]: a device and a transport resident on it, with the
-/// transport in memory for the statistics the device does not count.
-pub struct GpuBackend<'a> {
-    gpu: &'a Gpu,
-    resident: &'a GpuTransport,
-    transport: &'a Transport,
-}
-
-impl<'a> GpuBackend<'a> {
-    /// `resident` must be `transport` uploaded to `gpu`.
-    pub fn new(gpu: &'a Gpu, resident: &'a GpuTransport, transport: &'a Transport) -> Result<Self> {
-        let m = &transport.meta;
-        if (resident.width, resident.height, resident.coeffs)
-            != (m.width as usize, m.height as usize, transport.coeff_count())
-        {
-            return Err(PrtError::invalid(
-                "GPU transport",
-                "it was uploaded from another transport".to_string(),
-            ));
-        }
-        Ok(GpuBackend {
-            gpu,
-            resident,
-            transport,
-        })
-    }
-}
-
-impl Backend for GpuBackend<'_> {
-    fn transport(&self) -> &Transport {
-        self.transport
-    }
-
-    fn name(&self) -> String {
-        self.gpu.adapter.clone()
-    }
-
-    fn relight_terms(&self, terms: &Terms) -> Result<(Image, RelightStats)> {
-        let (image, stats) = match terms {
-            Terms::Wavelet(light) | Terms::ShLight { haar: light, .. } => {
-                let (image, mut stats) = self.resident.relight_wavelet(self.gpu, light)?;
-                // Counted from the transport in memory: the same column lengths the CPU kernel
-                // reads, at the device's bytes per entry, plus two column pointers per term and
-                // tile.
-                stats.nonzeros_touched = crate::relight::nonzeros_touched(self.transport, light);
-                stats.bytes_touched = stats.nonzeros_touched * self.resident.bytes_per_nonzero()
-                    + (self.transport.tile_count() * light.len() * 8) as u64;
-                (image, stats)
-            }
-            Terms::Sh(sh) => self.resident.relight_sh(self.gpu, sh)?,
-        };
-        Ok((
-            image,
-            RelightStats {
-                terms: terms.count(),
-                ..stats
-            },
-        ))
     }
 }

@@ -181,7 +181,8 @@ impl Transport {
         for (s, e) in tile_stats.iter_mut().zip(&encoded) {
             s[0] += e.quantization_energy;
         }
-        Self::assemble_encoded(meta, &encoded, albedo, coverage, tile_stats, None)
+        let lights = LightColumns::empty(meta.width as usize, meta.height as usize);
+        Self::assemble_encoded(meta, &encoded, albedo, coverage, tile_stats, None, lights)
     }
 
     /// Joins encoded tiles (row-major over the tile grid) into a transport and derives its
@@ -193,6 +194,7 @@ impl Transport {
         coverage: Vec<f32>,
         tile_stats: Vec<[f64; 3]>,
         mesh: Option<VertexMesh>,
+        lights: LightColumns,
     ) -> Result<Transport> {
         let c = 6 * (meta.identity.cube_n as usize).pow(2);
         let rows: usize = tiles.iter().map(|t| t.row_pixel.len()).sum();
@@ -253,6 +255,7 @@ impl Transport {
             transport_magnitude: vec![0.0; c],
             tile_stats,
             domain: Domain::from_mesh(mesh),
+            lights,
         };
         t.validate().map_err(invalid)?;
         t.finish();
@@ -396,6 +399,8 @@ pub struct Untiled {
     pub coverage: Vec<f32>,
     /// The mesh of a per-vertex bake; `None` for a view.
     pub mesh: Option<VertexMesh>,
+    /// The local lights' columns.
+    pub lights: LightColumns,
 }
 
 /// Encoded tiles kept in memory in tile order, with their statistics (energy dropped by
@@ -423,6 +428,7 @@ impl KeptTiles {
             rest.coverage,
             self.stats,
             rest.mesh,
+            rest.lights,
         )
     }
 }
@@ -513,7 +519,10 @@ fn merge_tiles(
             let rows = s.tile_row_start[tiles.end] - s.tile_row_start[tiles.start];
             let stats = s.tile_stats[tiles].iter().flatten().any(|v| *v != 0.0);
             let seen = s.coverage[pixels.clone()].iter().any(|v| *v != 0.0)
-                || s.albedo[pixels].iter().flatten().any(|v| *v != 0.0);
+                || s.albedo[pixels].iter().flatten().any(|v| *v != 0.0)
+                || !s
+                    .lights
+                    .rows_are_zero(band * TILE..((band + 1) * TILE).min(h));
             if rows > 0 || stats || seen {
                 return Err(PrtError::invalid(
                     "merge",
@@ -536,6 +545,7 @@ fn merge_tiles(
     }
     let mut albedo = vec![[0.0f32; 3]; w * h];
     let mut coverage = vec![0.0f32; w * h];
+    let mut lights = LightColumns::zeros(first.meta.light_columns(), w, h);
     for band in 0..ty {
         let s = &shards[owner[shard_of_band(band, ty, count as usize)]];
         for tile in band * tx..(band + 1) * tx {
@@ -544,12 +554,14 @@ fn merge_tiles(
         let pixels = band * TILE * w..((band + 1) * TILE * w).min(w * h);
         albedo[pixels.clone()].copy_from_slice(&s.albedo[pixels.clone()]);
         coverage[pixels.clone()].copy_from_slice(&s.coverage[pixels]);
+        lights.copy_rows(&s.lights, band * TILE..((band + 1) * TILE).min(h));
     }
     Ok(Untiled {
         meta: same(&first.meta),
         albedo,
         coverage,
         mesh: first.domain.mesh().cloned(),
+        lights,
     })
 }
 

@@ -1,4 +1,4 @@
-//! The transport file (format version 3, laid out in the [module docs](super)): writing it,
+//! The transport file (format version 4, laid out in the [module docs](super)): writing it,
 //! reading and validating all of it, and reading only its header and small tables for
 //! `prt info`. Every size and index is checked before anything is sliced or allocated.
 
@@ -63,6 +63,7 @@ impl Transport {
                 transport_magnitude: &self.transport_magnitude,
                 tile_stats: &self.tile_stats,
                 mesh: self.domain.mesh(),
+                lights: &self.lights,
             },
         )
     }
@@ -108,6 +109,15 @@ impl Transport {
                 let (s, v) = reader.read("entry_value", Dtype::F32)?;
                 (s, Values::F32(v))
             }
+        };
+        let columns = meta.light_columns();
+        let light_tables = if columns > 0 {
+            Some((
+                reader.read::<i8>("light_exponent", Dtype::I8)?,
+                reader.read::<u16>("light_value", Dtype::F16)?,
+            ))
+        } else {
+            None
         };
         let mesh = match &meta.per_vertex {
             None => None,
@@ -170,6 +180,19 @@ impl Transport {
         expect("coverage", &coverage_shape, &[h, w])?;
         expect("transport_magnitude", &magnitude_shape, &[c])?;
         expect("tile_stats", &stats_shape, &[tiles, 3])?;
+        let lights = match light_tables {
+            Some(((es, exponent), (vs, values))) => {
+                expect("light_exponent", &es, &[columns, h])?;
+                expect("light_value", &vs, &[columns, 3, h, w])?;
+                LightColumns {
+                    width: w,
+                    height: h,
+                    exponent,
+                    values,
+                }
+            }
+            None => LightColumns::empty(w, h),
+        };
         let mesh = match (&meta.per_vertex, mesh) {
             (
                 Some(pv),
@@ -208,6 +231,7 @@ impl Transport {
             transport_magnitude,
             tile_stats,
             domain: Domain::from_mesh(mesh),
+            lights,
         };
         t.validate().map_err(bad)?;
         Ok(t)
@@ -452,13 +476,13 @@ fn read_header(path: &Path) -> Result<Header> {
     }
     let version = value.get("format_version").and_then(|v| v.as_u64());
     match version {
-        Some(v) if v == FORMAT_VERSION as u64 => {}
-        Some(v) if v < FORMAT_VERSION as u64 => {
+        Some(v) if (OLDEST_VERSION as u64..=FORMAT_VERSION as u64).contains(&v) => {}
+        Some(v) if v < OLDEST_VERSION as u64 => {
             return Err(PrtError::file(
                 path,
                 format!(
                     "format_version {v} was written by an older build (16-bit float values); \
-                     this build reads version {FORMAT_VERSION}: bake the scene again with \
+                     this build reads versions {OLDEST_VERSION} to {FORMAT_VERSION}: bake the scene again with \
                      `prt bake`"
                 ),
             ));
@@ -467,7 +491,8 @@ fn read_header(path: &Path) -> Result<Header> {
             return Err(PrtError::file(
                 path,
                 format!(
-                    "format_version {}; this build reads version {FORMAT_VERSION}",
+                    "format_version {}; this build reads versions {OLDEST_VERSION} to \
+                     {FORMAT_VERSION}",
                     version.map(|v| v.to_string()).unwrap_or("?".into())
                 ),
             ));
@@ -477,7 +502,10 @@ fn read_header(path: &Path) -> Result<Header> {
     let header: FileHeader = serde_json::from_value(value)
         .map_err(|e| PrtError::file(path, format!("metadata `meta`: {e}")))?;
     container::check_known_keys(text, &header).map_err(|m| PrtError::file(path, m))?;
-    let known = tensor_names(header.meta.per_vertex.is_some());
+    let known = tensor_names(
+        header.meta.per_vertex.is_some(),
+        header.meta.light_columns() > 0,
+    );
     if let Some(name) = obj
         .keys()
         .find(|k| *k != "__metadata__" && !known.contains(&k.as_str()))
@@ -566,6 +594,18 @@ fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
             m.identity.threshold
         ));
     }
+    let columns = m.light_columns();
+    if columns > crate::scene::light::MAX_LIGHT_COLUMNS {
+        return Err(format!(
+            "{columns} light columns; a transport holds at most {}",
+            crate::scene::light::MAX_LIGHT_COLUMNS
+        ));
+    }
+    if let Some(i) =
+        (0..m.lights.len()).find(|&i| m.lights[..i].iter().any(|o| o.name == m.lights[i].name))
+    {
+        return Err(format!("two lights are called `{}`", m.lights[i].name));
+    }
     let c = &m.camera;
     if !c
         .eye
@@ -589,6 +629,7 @@ pub(super) struct FileTables<'a> {
     pub transport_magnitude: &'a [f32],
     pub tile_stats: &'a [[f64; 3]],
     pub mesh: Option<&'a VertexMesh>,
+    pub lights: &'a LightColumns,
 }
 
 /// Writes a transport file atomically from `grown`, the eight tensors that grow tile by tile
@@ -647,11 +688,30 @@ pub(super) fn save_file<'a>(
             ),
         ]);
     }
+    let columns = meta.light_columns();
+    if tables.lights.problem(columns).is_some() {
+        return Err(PrtError::file(
+            path,
+            "the light columns to write do not match the header's lights",
+        ));
+    }
+    if columns > 0 {
+        tensors.extend([
+            (
+                "light_exponent",
+                Tensor::new(Dtype::I8, vec![columns, h], &tables.lights.exponent),
+            ),
+            (
+                "light_value",
+                Tensor::new(Dtype::F16, vec![columns, 3, h, w], &tables.lights.values),
+            ),
+        ]);
+    }
     tensors.sort_by_key(|(name, _)| *name);
     if !tensors
         .iter()
         .map(|(n, _)| *n)
-        .eq(tensor_names(tables.mesh.is_some()))
+        .eq(tensor_names(tables.mesh.is_some(), columns > 0))
     {
         return Err(PrtError::file(
             path,
@@ -671,13 +731,16 @@ pub(super) fn save_file<'a>(
 }
 
 /// Names of the tensors in a file, in the order the checksum covers them: those of every file,
-/// and a per-vertex bake's mesh.
-fn tensor_names(per_vertex: bool) -> Vec<&'static str> {
+/// a per-vertex bake's mesh, and the local lights' columns.
+fn tensor_names(per_vertex: bool, lights: bool) -> Vec<&'static str> {
     let mut names: Vec<&str> = TENSOR_NAMES.to_vec();
     if per_vertex {
         names.extend(MESH_TENSOR_NAMES);
-        names.sort();
     }
+    if lights {
+        names.extend(["light_exponent", "light_value"]);
+    }
+    names.sort();
     names
 }
 

@@ -8,6 +8,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use glam::Vec3;
+
+use crate::scene::light::{Light, LightShape};
 use crate::store::budget::Budget;
 use crate::store::quant::Quantization;
 
@@ -141,6 +144,9 @@ pub struct BakeIdentity {
     pub indirect: Option<IndirectSettings>,
     /// What the rows belong to.
     pub domain: BakeDomain,
+    /// Samples per point of each sized light (quad, sun disc), a square; 0 without sized
+    /// lights.
+    pub light_samples: u32,
 }
 
 /// How many vertices and triangles a per-vertex bake's mesh has, and the image it is drawn at:
@@ -159,7 +165,7 @@ pub struct PerVertexMeta {
 
 /// Everything about a transport file but its arrays.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(from = "MetaFile", into = "MetaFile")]
+#[serde(try_from = "MetaFile", into = "MetaFile")]
 pub struct TransportMeta {
     /// Width of the image the rows light (per vertex: [`super::TILE`]).
     pub width: u32,
@@ -182,6 +188,16 @@ pub struct TransportMeta {
     /// Derived from the tables (see [`super::Transport::finish`]): the same for a bake and a
     /// merge.
     pub stats: BakeStats,
+    /// The scene's local lights, in column order (each takes one column per position), with the
+    /// colour and intensity the scene file gives them.
+    pub lights: Vec<Light>,
+}
+
+impl TransportMeta {
+    /// Light columns the file holds: one per light and position.
+    pub fn light_columns(&self) -> usize {
+        self.lights.iter().map(Light::columns).sum()
+    }
 }
 
 /// The metadata as the file holds it: one flat object, in this order.
@@ -215,7 +231,97 @@ pub(super) struct MetaFile {
     indirect: Option<IndirectFile>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     per_vertex: Option<PerVertexFile>,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    light_samples: u32,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    lights: Vec<LightMetaFile>,
     stats: BakeStats,
+}
+
+/// A light as the file holds it: the scene file's keys, angles in degrees, and the quad's corners
+/// relative to its position.
+#[derive(Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightMetaFile {
+    name: String,
+    r#type: String,
+    color: [f32; 3],
+    intensity: f32,
+    positions: Vec<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    direction: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    cone_deg: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    falloff_deg: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    angle_deg: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    corners: Option<[[f32; 3]; 4]>,
+}
+
+impl From<&Light> for LightMetaFile {
+    fn from(l: &Light) -> Self {
+        let mut f = LightMetaFile {
+            name: l.name.clone(),
+            r#type: l.shape.kind().to_string(),
+            color: l.color.to_array(),
+            intensity: l.intensity,
+            positions: l.positions.iter().map(|p| p.to_array()).collect(),
+            direction: None,
+            cone_deg: None,
+            falloff_deg: None,
+            angle_deg: None,
+            corners: None,
+        };
+        match l.shape {
+            LightShape::Point => {}
+            LightShape::Spot {
+                direction,
+                cone,
+                falloff,
+            } => {
+                f.direction = Some(direction.to_array());
+                f.cone_deg = Some(cone.to_degrees());
+                f.falloff_deg = Some(falloff.to_degrees());
+            }
+            LightShape::Directional { direction, angle } => {
+                f.direction = Some(direction.to_array());
+                f.angle_deg = Some(angle.to_degrees());
+            }
+            LightShape::Quad { corners } => f.corners = Some(corners.map(|c| c.to_array())),
+        }
+        f
+    }
+}
+
+impl LightMetaFile {
+    /// The light, if the file's form is one this build writes (the loader then checks its
+    /// numbers, [`Light::problem`]).
+    fn light(&self) -> Option<Light> {
+        let v = Vec3::from_array;
+        let shape = match (self.r#type.as_str(), self.direction, self.corners) {
+            ("point", None, None) => LightShape::Point,
+            ("spot", Some(d), None) => LightShape::Spot {
+                direction: v(d),
+                cone: self.cone_deg?.to_radians(),
+                falloff: self.falloff_deg?.to_radians(),
+            },
+            ("directional", Some(d), None) => LightShape::Directional {
+                direction: v(d),
+                angle: self.angle_deg?.to_radians(),
+            },
+            ("quad", None, Some(c)) => LightShape::Quad { corners: c.map(v) },
+            _ => return None,
+        };
+        Some(Light {
+            name: self.name.clone(),
+            color: v(self.color),
+            intensity: self.intensity,
+            shape,
+            positions: self.positions.iter().copied().map(v).collect(),
+        })
+    }
 }
 
 /// `indirect` as the file holds it.
@@ -239,9 +345,25 @@ fn is_zero(v: &u32) -> bool {
     *v == 0
 }
 
-impl From<MetaFile> for TransportMeta {
-    fn from(f: MetaFile) -> Self {
-        TransportMeta {
+impl TryFrom<MetaFile> for TransportMeta {
+    type Error = String;
+
+    fn try_from(f: MetaFile) -> Result<Self, String> {
+        let lights = f
+            .lights
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                let light = l
+                    .light()
+                    .ok_or_else(|| format!("lights[{i}]: not a light this build writes"))?;
+                match light.problem() {
+                    Some(p) => Err(format!("lights[{i}] ({}): {p}", light.name.escape_debug())),
+                    None => Ok(light),
+                }
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        Ok(TransportMeta {
             width: f.width,
             height: f.height,
             tile: f.tile,
@@ -272,6 +394,7 @@ impl From<MetaFile> for TransportMeta {
                     },
                     None => BakeDomain::View,
                 },
+                light_samples: f.light_samples,
             },
             cache_points: f.indirect.as_ref().map_or(0, |i| i.cache_points),
             per_vertex: f.per_vertex.map(|p| PerVertexMeta {
@@ -280,7 +403,8 @@ impl From<MetaFile> for TransportMeta {
                 image: p.image,
             }),
             stats: f.stats,
-        }
+            lights,
+        })
     }
 }
 
@@ -321,6 +445,8 @@ impl From<TransportMeta> for MetaFile {
                 }),
                 _ => None,
             },
+            light_samples: id.light_samples,
+            lights: m.lights.iter().map(LightMetaFile::from).collect(),
             stats: m.stats,
         }
     }

@@ -19,7 +19,7 @@
 //! with no atomics, a column touches each row at most once, and relighting with K terms reads only
 //! K columns of each block.
 //!
-//! # File (format version 3)
+//! # File (format version 4)
 //! A safetensors file (readable from Python with `safetensors.numpy.load_file`); its one metadata
 //! entry `meta` is JSON: `format = "wavelet-prt transport"`, `format_version`, `checksum` and the
 //! fields of [`TransportMeta`]. Tensors (T tiles, R rows, B blocks, C = 6 N² coefficients):
@@ -37,6 +37,10 @@
 //! | `albedo`, `coverage` | f32 [H, W, 3], f32 [H, W] | per pixel: albedo seen, fraction of sub-samples that hit |
 //! | `transport_magnitude` | f32 [C] | mean magnitude of each coefficient over the rows (transport weighting) |
 //! | `tile_stats` | f64 [T, 3] | per tile: energy dropped by thresholding and quantisation, total energy, shadow rays |
+//! | `light_value`, `light_exponent` | f16 [L, 3, H, W], i8 [L, H] | only with local lights: each light column's RGB response per pixel, against a power of two per (column, pixel row) ([`LightColumns`]) |
+//!
+//! Version 4 added the local lights (the two `light_` tensors and the metadata's `lights` and
+//! `light_samples`); a version 3 file, which has none, is read as before.
 //!
 //! The `checksum` covers the tensors' bytes in name order and `meta_checksum` the metadata's
 //! fields (the JSON of `meta` without `meta_checksum`, as this build writes it), so a flipped bit
@@ -48,6 +52,7 @@
 
 mod assemble;
 mod file;
+mod lights;
 mod meta;
 mod stream;
 
@@ -60,6 +65,7 @@ pub use crate::store::quant::{BLOCK_ROWS, Quantization};
 
 pub use assemble::{EncodedTile, KeptTiles, RowData, Untiled, shard_of_band};
 pub use file::{read_header_meta, read_summary};
+pub use lights::LightColumns;
 pub use meta::{
     BakeDomain, BakeIdentity, BakeStats, BounceVisibility, CameraMeta, IndirectSettings,
     PerVertexMeta, TransportMeta,
@@ -71,7 +77,9 @@ pub const TILE: usize = 16;
 /// Name written in every transport file.
 pub const FORMAT_NAME: &str = container::TRANSPORT.name;
 /// Version of the layout described in this module.
-pub const FORMAT_VERSION: u32 = 3;
+pub const FORMAT_VERSION: u32 = 4;
+/// The oldest version this build reads: version 3 differs only in having no local lights.
+pub const OLDEST_VERSION: u32 = 3;
 /// Largest safetensors header accepted (JSON text), checked before it is read.
 const MAX_HEADER_BYTES: u64 = 1 << 24;
 
@@ -190,6 +198,9 @@ pub struct Transport {
     pub tile_stats: Vec<[f64; 3]>,
     /// What the rows belong to: the pixels of the baked view, or a mesh's vertices.
     pub domain: Domain,
+    /// The local lights' dense columns (none without local lights; `meta.lights` says which
+    /// light each column is).
+    pub lights: LightColumns,
 }
 
 /// What a transport's rows belong to, and so what can draw it.
@@ -414,6 +425,12 @@ impl Transport {
             if !finite {
                 return Err(format!("tensor `{name}` holds NaN or infinite values"));
             }
+        }
+        if (self.lights.width, self.lights.height) != (w, h) {
+            return Err("the light columns are not the image's size".into());
+        }
+        if let Some(p) = self.lights.problem(m.light_columns()) {
+            return Err(p);
         }
         self.validate_mesh()
     }

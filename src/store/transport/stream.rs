@@ -130,6 +130,7 @@ impl TransportWriter {
             albedo,
             coverage,
             mesh,
+            lights,
         } = rest;
         let (w, h) = (meta.width as usize, meta.height as usize);
         let (tx, ty) = tile_grid(w, h);
@@ -216,6 +217,7 @@ impl TransportWriter {
                 transport_magnitude: &magnitude,
                 tile_stats: &self.tile_stats,
                 mesh: mesh.as_ref(),
+                lights: &lights,
             },
         )?;
         Ok(meta)

@@ -5,6 +5,8 @@ use super::diagnostics::SourceMap;
 use super::obj::{MeshTransform, ObjData, flat_triangle, mesh_triangles, parse_obj};
 use super::*;
 
+mod lights;
+
 // ---------------------------------------------------------------------------------------------
 // Scene file schema. Shapes and materials are flat structs with a `type` key rather than serde
 // tagged enums: tagged enums buffer their content, which loses the spans toml needs to point at
@@ -21,6 +23,8 @@ struct SceneFile {
     #[serde(default)]
     shape: Vec<ShapeFile>,
     medium: Option<MediumFile>,
+    #[serde(default)]
+    light: Vec<lights::LightFile>,
 }
 
 #[derive(Deserialize, Clone, Copy, PartialEq, Debug)]
@@ -260,6 +264,7 @@ impl<'a> Loader<'a> {
                 format!("must be a length > 0 and <= {MAX_COORDINATE:e}, got {e}"),
             ));
         }
+        let lights = self.lights(&file.light)?;
         let mut triangles = Vec::new();
         let mut spheres = Vec::new();
         let mut surfaces = Vec::new();
@@ -362,6 +367,7 @@ impl<'a> Loader<'a> {
             edge_length: file.edge_length,
             spheres,
             medium,
+            lights,
             source_path: self.map.file.clone(),
             input_files: std::iter::once(self.map.file.clone())
                 .chain(self.inputs)

@@ -1,0 +1,142 @@
+//! The local lights' columns of a bake: at every shading point, its response to each light
+//! column (a light at one of its positions) at unit colour and intensity, visibility, BRDF and
+//! cosine included.
+//!
+//! A delta light (point, spot, sun without a disc) takes one shadow ray. A sized light (a quad,
+//! a sun disc) takes `light_samples` stratified samples (a jittered square grid over the light),
+//! so penumbrae are smooth rather than noisy; the quad is sampled by area and converted to solid
+//! angle. On a glossy surface as many directions are drawn from the BRDF too, and the two are
+//! weighed by the power heuristic (Veach 1997), so that a sharp highlight of a large light
+//! converges as fast as a diffuse penumbra. The samples are seeded per camera sub-sample, so a
+//! shard bakes exactly what the whole bake does. Interreflections reach the lights through the
+//! same paths as the environment's (`bake::bounce`), with one light sample of each column at
+//! every path vertex.
+
+use glam::Vec3;
+
+use super::{BakeSettings, ShadingPoint};
+use crate::math::sampling::{Rng, TexelSamples};
+use crate::scene::Scene;
+use crate::scene::brdf::Lobes;
+use crate::scene::light::{Emitter, emitters, stratified};
+use crate::scene::trace::Tracer;
+
+/// Salt of the light samples' random streams, apart from every other stream of the bake.
+const LIGHT_STREAM: u64 = 0x11a7_5a3d_c0de_0001;
+
+/// The light columns of a bake and how each is sampled.
+pub struct LightSampler {
+    emitters: Vec<Emitter>,
+    /// Samples of a sized light per shading point (a square).
+    samples: usize,
+    seed: u64,
+}
+
+impl LightSampler {
+    /// The columns of `scene`'s lights, sampled as `settings` say.
+    pub fn new(scene: &Scene, settings: &BakeSettings) -> LightSampler {
+        let side = TexelSamples::grid_side(settings.light_samples as usize);
+        LightSampler {
+            emitters: emitters(&scene.lights),
+            samples: side * side,
+            seed: settings.seed ^ LIGHT_STREAM,
+        }
+    }
+
+    /// Number of columns.
+    pub fn columns(&self) -> usize {
+        self.emitters.len()
+    }
+
+    /// Adds `scale ⊙ ∫ f cos L dω` over every column to `out` (one RGB sum per column),
+    /// estimated at `at` with the BRDF `lobes` towards `at.view`; shadow rays stop at the light.
+    /// A sized light takes `samples` light samples (`None`: the bake's count) and, with `mis`
+    /// on a glossy surface, as many BRDF samples. The samples come from the random stream
+    /// `stream`. Returns the rays traced.
+    #[allow(clippy::too_many_arguments)]
+    pub fn add(
+        &self,
+        tracer: &Tracer,
+        at: &ShadingPoint,
+        lobes: &Lobes,
+        unshadowed: bool,
+        stream: u64,
+        samples: Option<usize>,
+        mis: bool,
+        scale: Vec3,
+        out: &mut [Vec3],
+    ) -> u64 {
+        let mut rng = Rng::new(self.seed, stream);
+        let mut rays = 0;
+        let (n, v) = (at.normal, at.view);
+        let glossy = mis && lobes.specular != Vec3::ZERO;
+        let visible = |dir: Vec3, dist: f32, rays: &mut u64| {
+            unshadowed || {
+                *rays += 1;
+                !tracer.occluded(at.origin, dir, dist)
+            }
+        };
+        for (e, sum) in self.emitters.iter().zip(out.iter_mut()) {
+            let points = if e.is_delta() {
+                vec![[0.5, 0.5]]
+            } else {
+                stratified(samples.unwrap_or(self.samples), || rng.next_f32())
+            };
+            let both = glossy && !e.is_delta();
+            let mut acc = Vec3::ZERO;
+            for u in &points {
+                let Some(s) = e.sample(at.origin, *u) else {
+                    continue;
+                };
+                if n.dot(s.dir) <= 0.0 {
+                    continue;
+                }
+                let f = lobes.eval_cosine(n, v, s.dir);
+                if f == Vec3::ZERO || !visible(s.dir, s.dist, &mut rays) {
+                    continue;
+                }
+                let w = if both {
+                    power_heuristic(s.pdf, lobes.pdf(n, v, s.dir))
+                } else {
+                    1.0
+                };
+                acc += f * (s.weight * w);
+            }
+            if both {
+                // The BRDF's directions, stratified as the light's, that reach the light.
+                for u in &points {
+                    let Some(b) = lobes.sample(n, v, [rng.next_f32(), u[0], u[1]]) else {
+                        continue;
+                    };
+                    let Some((t, radiance, pdf)) = e.hit(at.origin, b.dir) else {
+                        continue;
+                    };
+                    if visible(b.dir, t, &mut rays) {
+                        acc += b.weight * (radiance * power_heuristic(b.pdf, pdf));
+                    }
+                }
+            }
+            *sum += scale * acc / points.len() as f32;
+        }
+        rays
+    }
+}
+
+/// Power heuristic weight of a strategy with density `a` against one with density `b` (one
+/// sample of each).
+pub fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
+}
+
+impl LightSampler {
+    /// The diffuse lobe alone of a material of albedo `albedo`: what a vertex, seen from every
+    /// side, reflects.
+    pub fn diffuse(albedo: Vec3) -> Lobes {
+        Lobes {
+            albedo,
+            specular: Vec3::ZERO,
+            alpha: 1.0,
+        }
+    }
+}

@@ -1,0 +1,256 @@
+//! The scene file's `[[light]]` tables: their schema, and the checks that turn them into
+//! [`Light`]s, each problem naming the file, the line and the field (`light[1].cone_deg`).
+
+use super::{Loader, finite3, position3};
+use crate::error::Result;
+use crate::scene::light::{
+    Light, LightShape, MAX_INTENSITY, MAX_LIGHT_COLUMNS, quad_problem, valid_name,
+};
+use glam::Vec3;
+use serde::Deserialize;
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Debug)]
+#[serde(rename_all = "lowercase")]
+pub(super) enum LightKind {
+    Point,
+    Spot,
+    Directional,
+    Quad,
+}
+
+impl LightKind {
+    fn name(self) -> &'static str {
+        match self {
+            LightKind::Point => "point",
+            LightKind::Spot => "spot",
+            LightKind::Directional => "directional",
+            LightKind::Quad => "quad",
+        }
+    }
+
+    fn allowed_keys(self) -> &'static [&'static str] {
+        match self {
+            LightKind::Point => &["position", "positions"],
+            LightKind::Spot => &[
+                "position",
+                "positions",
+                "direction",
+                "cone_deg",
+                "falloff_deg",
+            ],
+            LightKind::Directional => &["direction", "angle_deg"],
+            LightKind::Quad => &["corners", "positions"],
+        }
+    }
+}
+
+/// One `[[light]]` table. Flat, with a `type` key, as the shapes are (see the schema's note).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct LightFile {
+    name: String,
+    r#type: LightKind,
+    color: Option<[f32; 3]>,
+    intensity: f32,
+    position: Option<[f32; 3]>,
+    positions: Option<Vec<[f32; 3]>>,
+    direction: Option<[f32; 3]>,
+    cone_deg: Option<f32>,
+    falloff_deg: Option<f32>,
+    angle_deg: Option<f32>,
+    corners: Option<[[f32; 3]; 4]>,
+}
+
+impl LightFile {
+    fn present_keys(&self) -> [(&'static str, bool); 7] {
+        [
+            ("position", self.position.is_some()),
+            ("positions", self.positions.is_some()),
+            ("direction", self.direction.is_some()),
+            ("cone_deg", self.cone_deg.is_some()),
+            ("falloff_deg", self.falloff_deg.is_some()),
+            ("angle_deg", self.angle_deg.is_some()),
+            ("corners", self.corners.is_some()),
+        ]
+    }
+}
+
+impl Loader<'_> {
+    /// The scene's lights, checked: unique names of letters, digits, `_`, `-` and `.`; each
+    /// kind's keys and only those; finite positions; unit directions; angles in range; planar,
+    /// quads with corners in order; at most [`MAX_LIGHT_COLUMNS`] columns in all.
+    pub(super) fn lights(&self, files: &[LightFile]) -> Result<Vec<Light>> {
+        let mut lights: Vec<Light> = Vec::with_capacity(files.len());
+        let mut columns = 0usize;
+        for (i, l) in files.iter().enumerate() {
+            let field = |key: &str| format!("light[{i}].{key}");
+            let err = |key: &str, message: String| self.map.error(&field(key), message);
+            let kind = l.r#type;
+            if !valid_name(&l.name) {
+                return Err(err(
+                    "name",
+                    format!(
+                        "`{}`: a light's name is 1 to 64 letters, digits, `_`, `-` or `.` (the \
+                         command line sets it as NAME=…)",
+                        l.name.escape_debug()
+                    ),
+                ));
+            }
+            if let Some(j) = lights.iter().position(|o| o.name == l.name) {
+                return Err(err(
+                    "name",
+                    format!("`{}` is already the name of light[{j}]", l.name),
+                ));
+            }
+            for (key, present) in l.present_keys() {
+                if present && !kind.allowed_keys().contains(&key) {
+                    return Err(err(
+                        key,
+                        format!("`{key}` does not apply to a {} light", kind.name()),
+                    ));
+                }
+            }
+            let require = |key: &str, present: bool| {
+                if present {
+                    Ok(())
+                } else {
+                    Err(err(key, format!("a {} light needs `{key}`", kind.name())))
+                }
+            };
+            let color = finite3(&self.map, &field("color"), l.color.unwrap_or([1.0; 3]))?;
+            if color.min_element() < 0.0 || color.max_element() > MAX_INTENSITY {
+                return Err(err(
+                    "color",
+                    format!("each channel must be in [0, {MAX_INTENSITY:e}], got {color}"),
+                ));
+            }
+            if !(l.intensity.is_finite() && (0.0..=MAX_INTENSITY).contains(&l.intensity)) {
+                return Err(err(
+                    "intensity",
+                    format!(
+                        "must be in [0, {MAX_INTENSITY:e}] ({}), got {}",
+                        match kind {
+                            LightKind::Point | LightKind::Spot => "W/sr",
+                            LightKind::Directional => "W/m², the irradiance it gives",
+                            LightKind::Quad => "W/(m² sr), its radiance",
+                        },
+                        l.intensity
+                    ),
+                ));
+            }
+            let direction = |key: &str| -> Result<Vec3> {
+                require(key, l.direction.is_some())?;
+                let d = finite3(&self.map, &field(key), l.direction.unwrap_or_default())?;
+                let len = d.length();
+                if !(len > 1e-6 && len.is_finite()) {
+                    return Err(err(key, format!("must be a nonzero vector, got {d}")));
+                }
+                Ok(d / len)
+            };
+            let angle = |key: &str, value: f32, max: f32| -> Result<f32> {
+                if !(value.is_finite() && (0.0..=max).contains(&value)) {
+                    return Err(err(
+                        key,
+                        format!("must be in [0, {max}] degrees, got {value}"),
+                    ));
+                }
+                Ok(value.to_radians())
+            };
+            // Where a point or spot is: `position`, or the path of `positions`.
+            let positions = |fixed: Option<Vec3>| -> Result<Vec<Vec3>> {
+                match (&l.positions, l.position, fixed) {
+                    (Some(_), Some(_), _) => Err(err(
+                        "positions",
+                        "give either `position` or `positions`, not both".into(),
+                    )),
+                    (Some(path), None, _) => {
+                        if path.is_empty() {
+                            return Err(err("positions", "must list at least one point".into()));
+                        }
+                        path.iter()
+                            .enumerate()
+                            .map(|(k, p)| {
+                                position3(&self.map, &field(&format!("positions[{k}]")), *p)
+                            })
+                            .collect()
+                    }
+                    (None, Some(p), _) => Ok(vec![position3(&self.map, &field("position"), p)?]),
+                    (None, None, Some(p)) => Ok(vec![p]),
+                    (None, None, None) => Err(err(
+                        "position",
+                        format!("a {} light needs `position` (or `positions`)", kind.name()),
+                    )),
+                }
+            };
+            let (shape, positions) = match kind {
+                LightKind::Point => (LightShape::Point, positions(None)?),
+                LightKind::Spot => {
+                    let direction = direction("direction")?;
+                    require("cone_deg", l.cone_deg.is_some())?;
+                    let cone = angle("cone_deg", l.cone_deg.unwrap_or_default(), 90.0)?;
+                    if cone <= 0.0 {
+                        return Err(err("cone_deg", "must be above 0 degrees".into()));
+                    }
+                    let falloff = angle("falloff_deg", l.falloff_deg.unwrap_or(0.0), 90.0)?;
+                    if falloff > cone {
+                        return Err(err(
+                            "falloff_deg",
+                            format!(
+                                "{} degrees is wider than the cone's {} degrees",
+                                falloff.to_degrees(),
+                                cone.to_degrees()
+                            ),
+                        ));
+                    }
+                    let shape = LightShape::Spot {
+                        direction,
+                        cone,
+                        falloff,
+                    };
+                    (shape, positions(None)?)
+                }
+                LightKind::Directional => {
+                    let direction = direction("direction")?;
+                    let angle = angle("angle_deg", l.angle_deg.unwrap_or(0.0), 90.0)?;
+                    (
+                        LightShape::Directional { direction, angle },
+                        vec![Vec3::ZERO],
+                    )
+                }
+                LightKind::Quad => {
+                    require("corners", l.corners.is_some())?;
+                    let mut c = [Vec3::ZERO; 4];
+                    for (k, corner) in l.corners.unwrap_or_default().iter().enumerate() {
+                        c[k] = position3(&self.map, &field("corners"), *corner)?;
+                    }
+                    if let Some(problem) = quad_problem(&c) {
+                        return Err(err("corners", problem));
+                    }
+                    let centre = (c[0] + c[1] + c[2] + c[3]) * 0.25;
+                    let shape = LightShape::Quad {
+                        corners: c.map(|p| p - centre),
+                    };
+                    (shape, positions(Some(centre))?)
+                }
+            };
+            columns += positions.len();
+            if columns > MAX_LIGHT_COLUMNS {
+                return Err(err(
+                    "positions",
+                    format!(
+                        "the lights take more than {MAX_LIGHT_COLUMNS} columns (one per light and \
+                         position), each a dense image in the bake"
+                    ),
+                ));
+            }
+            lights.push(Light {
+                name: l.name.clone(),
+                color,
+                intensity: l.intensity,
+                shape,
+                positions,
+            });
+        }
+        Ok(lights)
+    }
+}

@@ -1,0 +1,607 @@
+//! Local lights: point, spot, directional and quad lights beside the environment, each baked as
+//! its own transport column (one per position it may take) at unit colour and unit intensity,
+//! so that colour and intensity are chosen when relighting.
+//!
+//! Units (radiometric, in scene units of length):
+//! - a point or spot light's intensity is its radiant intensity, W/sr: a surface at distance r
+//!   facing it receives irradiance `I / r²`;
+//! - a directional light's intensity is the irradiance it gives a surface facing it, W/m²; with
+//!   `angle_deg` (the disc's angular diameter) that irradiance is spread over a disc of uniform
+//!   radiance `E / (π sin² α)`, α the half-angle, which softens its shadows;
+//! - a quad light's intensity is its radiance, W/(m² sr), uniform over its face and emitted on
+//!   the side its corners' winding faces (right-handed: `(c1 − c0) × (c2 − c0)`), as a one-sided
+//!   area light. A quad light emits but is not geometry: it casts no shadow and the camera does
+//!   not see it, as the lamps of most renderers.
+//!
+//! A spot follows pbrt-v4's falloff: full intensity within `cone_deg − falloff_deg` of its axis,
+//! none beyond `cone_deg`, and a smoothstep in the cosine between.
+//!
+//! [`Emitter`] is one column's light, placed: what the bake, the reference and the path tracer
+//! sample ([`Emitter::sample`]) and what a path tracer's rays can hit ([`Emitter::hit`]).
+
+use glam::Vec3;
+
+/// Most light columns a scene may have (lights times their positions): a column is a dense
+/// image, so 4096 of them at 256² already take 1.5 GiB.
+pub const MAX_LIGHT_COLUMNS: usize = 4096;
+
+/// A local light of the scene file: its name, default colour and intensity, shape, and the
+/// positions it is baked at.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Light {
+    /// Unique name, as `--light NAME=…` and the viewer call it.
+    pub name: String,
+    /// Linear RGB colour it is relit with by default, each channel >= 0.
+    pub color: Vec3,
+    /// Intensity it is relit with by default, in the units of its kind (see the module).
+    pub intensity: f32,
+    /// What kind of light, and its shape about its position.
+    pub shape: LightShape,
+    /// Where it is baked, one column each: the point or spot's position, or the quad's centre.
+    /// A light that does not move has one; a directional light has one, unused.
+    pub positions: Vec<Vec3>,
+}
+
+/// The kind of a light and its shape about its position.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LightShape {
+    /// Emits `intensity` W/sr in every direction.
+    Point,
+    /// A point emitting in a cone.
+    Spot {
+        /// Unit direction the spot points in.
+        direction: Vec3,
+        /// Half-angle beyond which it is dark, radians, in (0, π/2].
+        cone: f32,
+        /// Width of the falloff band inside the cone, radians, in [0, cone].
+        falloff: f32,
+    },
+    /// Light from a distant source.
+    Directional {
+        /// Unit direction the light travels in (from the source to the scene).
+        direction: Vec3,
+        /// Angular diameter of the source's disc, radians; 0 is a delta light.
+        angle: f32,
+    },
+    /// A one-sided planar quad of uniform radiance.
+    Quad {
+        /// Corners relative to the quad's centre (the mean of the corners), in winding order.
+        corners: [Vec3; 4],
+    },
+}
+
+impl LightShape {
+    /// The scene file's name of the kind.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            LightShape::Point => "point",
+            LightShape::Spot { .. } => "spot",
+            LightShape::Directional { .. } => "directional",
+            LightShape::Quad { .. } => "quad",
+        }
+    }
+
+    /// Whether it has an extent, and so takes several samples per point to integrate.
+    pub fn is_sized(&self) -> bool {
+        match self {
+            LightShape::Point | LightShape::Spot { .. } => false,
+            LightShape::Directional { angle, .. } => *angle > 0.0,
+            LightShape::Quad { .. } => true,
+        }
+    }
+}
+
+/// Largest intensity or colour channel accepted, in any of the kinds' units: far beyond any
+/// real lamp at any scale a scene uses, and far from overflowing f32 when squared distances
+/// divide it.
+pub const MAX_INTENSITY: f32 = 1e12;
+
+/// Whether `name` can name a light: 1 to 64 ASCII letters, digits, `_`, `-` or `.`, so that
+/// `--light NAME=…` parses and messages print it plainly.
+pub fn valid_name(name: &str) -> bool {
+    (1..=64).contains(&name.len())
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "_-.".contains(c))
+}
+
+/// What is wrong with a quad light's corners, if anything: it must have an area, lie in a plane
+/// and go round it in order (its two triangles facing the same way).
+pub fn quad_problem(c: &[Vec3; 4]) -> Option<String> {
+    if !c.iter().all(|p| p.is_finite()) {
+        return Some("every corner must be finite".into());
+    }
+    let size = (c[2] - c[0]).length().max((c[3] - c[1]).length());
+    let a = (c[1] - c[0]).cross(c[2] - c[0]);
+    let b = (c[2] - c[0]).cross(c[3] - c[0]);
+    let area = 0.5 * (a.length() + b.length());
+    if !(area > 1e-10 * size * size && area > 0.0 && area.is_finite()) {
+        return Some("the quad has zero area".into());
+    }
+    if a.dot(b) <= 0.0 {
+        return Some(
+            "the corners do not go round the quad in order (list them along its edge)".into(),
+        );
+    }
+    let normal = (a + b).normalize();
+    let off = (c[3] - c[0])
+        .dot(normal)
+        .abs()
+        .max((c[1] - c[0]).dot(normal).abs());
+    if off > 1e-3 * size {
+        return Some(format!(
+            "the corners do not lie in one plane (a corner is {off} off it)"
+        ));
+    }
+    None
+}
+
+impl Light {
+    /// The first thing wrong with the light, for one read from a file: its name, finite colour,
+    /// intensity and positions in range, unit directions, angles in range, a proper quad.
+    pub fn problem(&self) -> Option<String> {
+        use crate::scene::MAX_COORDINATE;
+        if !valid_name(&self.name) {
+            return Some("its name must be 1 to 64 letters, digits, `_`, `-` or `.`".into());
+        }
+        let in_range = |v: f32| v.is_finite() && (0.0..=MAX_INTENSITY).contains(&v);
+        if !(self.color.to_array().into_iter().all(in_range) && in_range(self.intensity)) {
+            return Some(format!(
+                "colour {} and intensity {} must be in [0, {MAX_INTENSITY:e}]",
+                self.color, self.intensity
+            ));
+        }
+        if self.positions.is_empty() || self.positions.len() > MAX_LIGHT_COLUMNS {
+            return Some(format!(
+                "{} positions; a light has 1 to {MAX_LIGHT_COLUMNS}",
+                self.positions.len()
+            ));
+        }
+        if !self
+            .positions
+            .iter()
+            .all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE)
+        {
+            return Some(format!("a position lies beyond ±{MAX_COORDINATE:e}"));
+        }
+        let unit = |d: Vec3| d.is_finite() && (d.length() - 1.0).abs() < 1e-3;
+        let right = std::f32::consts::FRAC_PI_2 + 1e-6;
+        match self.shape {
+            LightShape::Point => None,
+            LightShape::Spot {
+                direction,
+                cone,
+                falloff,
+            } => (!(unit(direction)
+                && cone > 0.0
+                && cone <= right
+                && (0.0..=cone).contains(&falloff)))
+            .then(|| {
+                "a spot needs a unit direction, 0 < cone <= 90° and 0 <= falloff <= cone".into()
+            }),
+            LightShape::Directional { direction, angle } => (!(unit(direction)
+                && (0.0..=right).contains(&angle)))
+            .then(|| "a directional light needs a unit direction and 0 <= angle <= 90°".into()),
+            LightShape::Quad { corners } => quad_problem(&corners),
+        }
+    }
+
+    /// Columns it is baked into: one per position.
+    pub fn columns(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Its light at position `i`.
+    pub fn emitter(&self, i: usize) -> Emitter {
+        let at = self.positions.get(i).copied().unwrap_or(Vec3::ZERO);
+        match self.shape {
+            LightShape::Point => Emitter::Point { position: at },
+            LightShape::Spot {
+                direction,
+                cone,
+                falloff,
+            } => Emitter::Spot {
+                position: at,
+                axis: direction,
+                cos_outer: cone.cos(),
+                cos_inner: (cone - falloff).cos(),
+            },
+            LightShape::Directional { direction, angle } => {
+                let half = 0.5 * angle;
+                Emitter::Directional {
+                    to_light: -direction,
+                    cos_half: half.cos(),
+                    radiance: if half > 0.0 {
+                        1.0 / (std::f32::consts::PI * half.sin().powi(2))
+                    } else {
+                        1.0
+                    },
+                }
+            }
+            LightShape::Quad { corners } => Emitter::quad(corners.map(|c| c + at)),
+        }
+    }
+}
+
+/// One column's light, placed in the scene, at unit intensity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Emitter {
+    /// A point light.
+    Point {
+        /// Where it is.
+        position: Vec3,
+    },
+    /// A spot light.
+    Spot {
+        /// Where it is.
+        position: Vec3,
+        /// Unit direction it points in.
+        axis: Vec3,
+        /// Cosine of the cone's half-angle (dark beyond).
+        cos_outer: f32,
+        /// Cosine of the angle within which it is at full intensity.
+        cos_inner: f32,
+    },
+    /// A distant light, a delta or a disc.
+    Directional {
+        /// Unit direction towards the source.
+        to_light: Vec3,
+        /// Cosine of the disc's half-angle (1 for a delta light).
+        cos_half: f32,
+        /// Radiance of the disc (the irradiance at normal incidence of a delta light).
+        radiance: f32,
+    },
+    /// A one-sided quad of unit radiance, as two triangles (`c0 c1 c2`, `c0 c2 c3`).
+    Quad {
+        /// The first corner.
+        origin: Vec3,
+        /// The other corners relative to the first.
+        edges: [Vec3; 3],
+        /// Unit normal of the emitting side.
+        normal: Vec3,
+        /// Area of each triangle.
+        areas: [f32; 2],
+        /// Whether the corners make a parallelogram (a rectangle, most often): then a sample is
+        /// a point of the grid `c0 + u e01 + v e03`, stratified over the whole quad.
+        parallelogram: bool,
+    },
+}
+
+/// A direction towards a light from a point, and what light comes along it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSample {
+    /// Unit direction towards the light.
+    pub dir: Vec3,
+    /// Distance to the light along `dir` (infinite for a directional light): shadow rays stop
+    /// there.
+    pub dist: f32,
+    /// Incident radiance over the sample's density (irradiance at normal incidence for a delta
+    /// light), at unit intensity: the sample's estimate of `∫ f cos L dω` is `f cos · weight`.
+    pub weight: f32,
+    /// Density of `dir` in solid angle; 0 for a delta light, which only light sampling reaches.
+    pub pdf: f32,
+}
+
+/// pbrt-v4's smoothstep, 0 at `a`, 1 at `b`.
+fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
+    if a == b {
+        return if x < a { 0.0 } else { 1.0 };
+    }
+    let t = ((x - a) / (b - a)).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// An orthonormal basis about unit `n` (Duff et al. 2017).
+fn basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
+impl Emitter {
+    /// A quad of unit radiance from its corners in winding order (planar and convex: the scene
+    /// file checks both).
+    pub fn quad(c: [Vec3; 4]) -> Emitter {
+        let edges = [c[1] - c[0], c[2] - c[0], c[3] - c[0]];
+        let cross_a = edges[0].cross(edges[1]);
+        let cross_b = edges[1].cross(edges[2]);
+        let size = edges[1].length();
+        Emitter::Quad {
+            origin: c[0],
+            edges,
+            normal: (cross_a + cross_b).normalize_or_zero(),
+            areas: [0.5 * cross_a.length(), 0.5 * cross_b.length()],
+            parallelogram: (c[0] + c[2] - c[1] - c[3]).length() <= 1e-5 * size,
+        }
+    }
+
+    /// Whether the light is a delta (a point, a spot or a sun without a disc): one sample
+    /// integrates it exactly.
+    pub fn is_delta(&self) -> bool {
+        match self {
+            Emitter::Point { .. } | Emitter::Spot { .. } => true,
+            Emitter::Directional { cos_half, .. } => *cos_half >= 1.0,
+            Emitter::Quad { .. } => false,
+        }
+    }
+
+    /// A direction towards the light from `p`, from two uniform numbers (stratify them for
+    /// smooth penumbrae). `None` where no light reaches `p` (behind a quad, outside a spot's
+    /// cone, at the light itself).
+    pub fn sample(&self, p: Vec3, u: [f32; 2]) -> Option<LightSample> {
+        match *self {
+            Emitter::Point { position } => {
+                let d = position - p;
+                let r2 = d.length_squared();
+                (r2 > 0.0).then(|| {
+                    let dist = r2.sqrt();
+                    LightSample {
+                        dir: d / dist,
+                        dist,
+                        weight: 1.0 / r2,
+                        pdf: 0.0,
+                    }
+                })
+            }
+            Emitter::Spot {
+                position,
+                axis,
+                cos_outer,
+                cos_inner,
+            } => {
+                let d = position - p;
+                let r2 = d.length_squared();
+                if r2 <= 0.0 {
+                    return None;
+                }
+                let dist = r2.sqrt();
+                let dir = d / dist;
+                let fall = smoothstep(cos_outer, cos_inner, axis.dot(-dir));
+                (fall > 0.0).then_some(LightSample {
+                    dir,
+                    dist,
+                    weight: fall / r2,
+                    pdf: 0.0,
+                })
+            }
+            Emitter::Directional {
+                to_light,
+                cos_half,
+                radiance,
+            } => {
+                if cos_half >= 1.0 {
+                    return Some(LightSample {
+                        dir: to_light,
+                        dist: f32::INFINITY,
+                        weight: radiance,
+                        pdf: 0.0,
+                    });
+                }
+                // Uniform over the cone of the disc.
+                let cos = 1.0 - u[0] * (1.0 - cos_half);
+                let sin = (1.0 - cos * cos).max(0.0).sqrt();
+                let phi = std::f32::consts::TAU * u[1];
+                let (t, b) = basis(to_light);
+                let dir =
+                    (t * (sin * phi.cos()) + b * (sin * phi.sin()) + to_light * cos).normalize();
+                let pdf = 1.0 / (std::f32::consts::TAU * (1.0 - cos_half));
+                Some(LightSample {
+                    dir,
+                    dist: f32::INFINITY,
+                    weight: radiance / pdf,
+                    pdf,
+                })
+            }
+            Emitter::Quad {
+                origin,
+                edges,
+                normal,
+                areas,
+                parallelogram,
+            } => {
+                // Uniform by area: over a parallelogram directly; otherwise a triangle in
+                // proportion to its area, then a point in it.
+                let total = areas[0] + areas[1];
+                let q = if parallelogram {
+                    origin + edges[0] * u[0] + edges[2] * u[1]
+                } else {
+                    let split = areas[0] / total;
+                    let (a, b, x) = if u[0] < split {
+                        (edges[0], edges[1], u[0] / split)
+                    } else {
+                        (edges[1], edges[2], (u[0] - split) / (1.0 - split))
+                    };
+                    let s = x.min(1.0).sqrt();
+                    origin + a * (s * (1.0 - u[1])) + b * (s * u[1])
+                };
+                let d = q - p;
+                let r2 = d.length_squared();
+                if r2 <= 0.0 {
+                    return None;
+                }
+                let dist = r2.sqrt();
+                let dir = d / dist;
+                let cos_light = normal.dot(-dir);
+                if cos_light <= 0.0 {
+                    return None;
+                }
+                // Area density converted to solid angle: r² / (A cos θ_l).
+                let pdf = r2 / (total * cos_light);
+                Some(LightSample {
+                    dir,
+                    dist,
+                    weight: 1.0 / pdf,
+                    pdf,
+                })
+            }
+        }
+    }
+
+    /// Where a ray from `p` along unit `dir` meets the light, for a path tracer's directions
+    /// that were not drawn from the light: the distance (infinite for a distant disc), the
+    /// radiance it brings at unit intensity, and the density [`Emitter::sample`] would have
+    /// drawn `dir` with. `None` for a delta light or a miss (or the back of a quad).
+    pub fn hit(&self, p: Vec3, dir: Vec3) -> Option<(f32, f32, f32)> {
+        match *self {
+            Emitter::Point { .. } | Emitter::Spot { .. } => None,
+            Emitter::Directional {
+                to_light,
+                cos_half,
+                radiance,
+            } => (cos_half < 1.0 && dir.dot(to_light) >= cos_half).then(|| {
+                (
+                    f32::INFINITY,
+                    radiance,
+                    1.0 / (std::f32::consts::TAU * (1.0 - cos_half)),
+                )
+            }),
+            Emitter::Quad {
+                origin,
+                edges,
+                normal,
+                areas,
+                ..
+            } => {
+                let cos_light = -normal.dot(dir);
+                if cos_light <= 0.0 {
+                    return None;
+                }
+                let t = normal.dot(origin - p) / normal.dot(dir);
+                if !(t > 0.0 && t.is_finite()) {
+                    return None;
+                }
+                let q = p + dir * t - origin;
+                let inside = |a: Vec3, b: Vec3| {
+                    // Barycentric test in the triangle (0, a, b).
+                    let (aa, ab, bb) = (a.dot(a), a.dot(b), b.dot(b));
+                    let (qa, qb) = (q.dot(a), q.dot(b));
+                    let det = aa * bb - ab * ab;
+                    let s = (bb * qa - ab * qb) / det;
+                    let r = (aa * qb - ab * qa) / det;
+                    s >= 0.0 && r >= 0.0 && s + r <= 1.0
+                };
+                (inside(edges[0], edges[1]) || inside(edges[1], edges[2]))
+                    .then(|| (t, 1.0, t * t / ((areas[0] + areas[1]) * cos_light)))
+            }
+        }
+    }
+}
+
+/// Every light column of `lights`, in order: each light's positions in turn.
+pub fn emitters(lights: &[Light]) -> Vec<Emitter> {
+    lights
+        .iter()
+        .flat_map(|l| (0..l.columns()).map(move |i| l.emitter(i)))
+        .collect()
+}
+
+/// Stratified pairs in [0, 1)²: the cells of a ⌈√n⌉ x ⌈√n⌉ grid, each jittered by `next`.
+/// `n` is first rounded up to a square, as the bake records it.
+pub fn stratified(n: usize, mut next: impl FnMut() -> f32) -> Vec<[f32; 2]> {
+    let side = (n as f64).sqrt().ceil().max(1.0) as usize;
+    (0..side * side)
+        .map(|i| {
+            [
+                ((i % side) as f32 + next()) / side as f32,
+                ((i / side) as f32 + next()) / side as f32,
+            ]
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad() -> Emitter {
+        Emitter::quad([
+            Vec3::new(-0.5, 2.0, -0.5),
+            Vec3::new(0.5, 2.0, -0.5),
+            Vec3::new(0.5, 2.0, 0.5),
+            Vec3::new(-0.5, 2.0, 0.5),
+        ])
+    }
+
+    #[test]
+    fn a_quad_emits_along_its_winding_normal() {
+        let Emitter::Quad { normal, areas, .. } = quad() else {
+            unreachable!()
+        };
+        assert_eq!(normal, Vec3::NEG_Y);
+        assert!((areas[0] + areas[1] - 1.0).abs() < 1e-6);
+        assert!(quad().sample(Vec3::ZERO, [0.3, 0.6]).is_some());
+        assert!(
+            quad()
+                .sample(Vec3::new(0.0, 3.0, 0.0), [0.3, 0.6])
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn a_sampled_quad_direction_hits_the_quad_with_the_same_density() {
+        let q = quad();
+        let p = Vec3::new(0.3, 0.1, -0.2);
+        for u in stratified(16, || 0.5) {
+            let s = q.sample(p, u).unwrap();
+            let (t, radiance, pdf) = q.hit(p, s.dir).unwrap();
+            assert!((t - s.dist).abs() < 1e-4 * s.dist, "{t} {}", s.dist);
+            assert_eq!(radiance, 1.0);
+            assert!((pdf - s.pdf).abs() < 1e-4 * s.pdf, "{pdf} {}", s.pdf);
+        }
+        assert!(q.hit(p, Vec3::Y.cross(Vec3::X)).is_none());
+    }
+
+    #[test]
+    fn a_spot_is_full_inside_and_dark_outside_its_cone() {
+        let light = Light {
+            name: "s".into(),
+            color: Vec3::ONE,
+            intensity: 1.0,
+            shape: LightShape::Spot {
+                direction: Vec3::NEG_Y,
+                cone: 30f32.to_radians(),
+                falloff: 10f32.to_radians(),
+            },
+            positions: vec![Vec3::new(0.0, 1.0, 0.0)],
+        };
+        let e = light.emitter(0);
+        let at = |deg: f32| Vec3::new(deg.to_radians().tan(), 0.0, 0.0);
+        let w = |deg: f32| {
+            e.sample(at(deg), [0.5; 2])
+                .map_or(0.0, |s| s.weight * s.dist.powi(2))
+        };
+        assert!((w(19.0) - 1.0).abs() < 1e-5);
+        assert_eq!(w(31.0), 0.0);
+        let mid = w(25.0);
+        assert!(mid > 0.0 && mid < 1.0, "{mid}");
+    }
+
+    #[test]
+    fn a_sun_disc_gives_its_irradiance_at_normal_incidence() {
+        let light = Light {
+            name: "sun".into(),
+            color: Vec3::ONE,
+            intensity: 1.0,
+            shape: LightShape::Directional {
+                direction: Vec3::NEG_Y,
+                angle: 10f32.to_radians(),
+            },
+            positions: vec![Vec3::ZERO],
+        };
+        let e = light.emitter(0);
+        let samples = stratified(64, || 0.5);
+        let e_n: f32 = samples
+            .iter()
+            .map(|&u| {
+                let s = e.sample(Vec3::ZERO, u).unwrap();
+                s.weight * s.dir.y
+            })
+            .sum::<f32>()
+            / samples.len() as f32;
+        assert!((e_n - 1.0).abs() < 1e-3, "{e_n}");
+    }
+}
