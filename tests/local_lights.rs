@@ -652,3 +652,115 @@ fn the_command_line_relights_lights_alone_and_names_the_lights_it_knows() {
     assert_eq!(code, 1);
     assert!(out.contains("no local light is on"), "{out}");
 }
+
+/// A white floor and a red wall meeting at a right angle, lit by a quad light between them.
+const CORNER: &str = r#"
+[camera]
+eye = [1.6, 1.4, 2.6]
+target = [0.0, 0.5, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 50.0
+width = 32
+height = 24
+
+[material.floor]
+type = "diffuse"
+albedo = [0.8, 0.8, 0.8]
+
+[material.wall]
+type = "diffuse"
+albedo = [0.9, 0.1, 0.1]
+
+[[shape]]
+type = "quad"
+corners = [[-1.0, 0.0, -1.0], [-1.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -1.0]]
+material = "floor"
+
+[[shape]]
+type = "quad"
+corners = [[-1.0, 0.0, -1.0], [-1.0, 2.0, -1.0], [-1.0, 2.0, 2.0], [-1.0, 0.0, 2.0]]
+material = "wall"
+
+[[light]]
+name = "panel"
+type = "quad"
+corners = [[-0.4, 1.5, -0.4], [0.4, 1.5, -0.4], [0.4, 1.5, 0.4], [-0.4, 1.5, 0.4]]
+intensity = 3.0
+"#;
+
+#[test]
+fn a_quad_lights_bounce_bleeds_the_walls_colour_as_the_path_tracer_says() {
+    let settings = BakeSettings {
+        bounces: 1,
+        paths: 256,
+        ..lossless(BakeSettings::default().light_samples)
+    };
+    let (err, noise, scene, t) = against_the_path_tracer(CORNER, &settings, 2048);
+    eprintln!("quad light, one bounce: {err} (noise {noise})");
+    assert!(
+        err < NOISE_SIGMAS * noise + PATH_MARGIN,
+        "{err} against noise {noise}"
+    );
+    // The bounce is there: the floor near the wall turns red, above what direct light gives.
+    let direct = bake(
+        &scene,
+        &BakeSettings {
+            bounces: 0,
+            ..settings
+        },
+        &|_| {},
+    )
+    .unwrap();
+    let defaults = LightSetting::defaults(&t.meta.lights);
+    let (with, without) = (
+        lights_alone(&t, &defaults),
+        lights_alone(&direct, &defaults),
+    );
+    let added = relative_l2(&without, &with, None).unwrap();
+    assert!(added > 0.05, "the bounce adds {added}");
+    let red = |img: &Image| -> f64 { img.pixels.iter().map(|p| (p[0] - p[1]) as f64).sum::<f64>() };
+    assert!(
+        red(&with) > red(&without) * 1.2,
+        "{} {}",
+        red(&with),
+        red(&without)
+    );
+}
+
+/// A moving light halfway between two baked positions is their blend; against the light baked
+/// at that very place the error grows with the spacing, and is small when they are close.
+#[test]
+fn a_moving_light_between_baked_positions_is_close_to_the_light_there() {
+    let errors: Vec<f64> = [0.1f32, 0.4, 1.0]
+        .iter()
+        .map(|&spacing| {
+            let path = [-0.5 * spacing, 0.0, 0.5 * spacing]
+                .map(|x| [x, 0.8, 0.0]);
+            let text = with_lights(
+                &plane_from_above(24, 24, [0.7; 3], 2.0),
+                &format!(
+                    "[[light]]\nname = \"lamp\"\ntype = \"point\"\npositions = {:?}\nintensity = 1.0\n",
+                    path
+                ),
+            );
+            let scene = scene_from(&text, "lights-moving");
+            let t = bake(&scene, &lossless(1), &|_| {}).unwrap();
+            let mut s = LightSetting::defaults(&t.meta.lights);
+            s[0].at = 1.0;
+            let there = lights_alone(&t, &s);
+            // Blend positions 0 and 2 halfway: the column of position 1 is the truth.
+            let mut blended = there.clone();
+            for (p, px) in blended.pixels.iter_mut().enumerate() {
+                for k in 0..3 {
+                    px[k] = 0.5 * (t.lights.value(0, k, p) + t.lights.value(2, k, p));
+                }
+            }
+            relative_l2(&blended, &there, None).unwrap()
+        })
+        .collect();
+    eprintln!("moving light, halfway error at spacings 0.1, 0.4, 1.0 (height 0.8): {errors:?}");
+    assert!(
+        errors[0] < 0.01 && errors[0] < errors[1] && errors[1] < errors[2],
+        "{errors:?}"
+    );
+}
