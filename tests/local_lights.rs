@@ -751,9 +751,9 @@ fn a_moving_light_between_baked_positions_is_close_to_the_light_there() {
             // Blend positions 0 and 2 halfway: the column of position 1 is the truth.
             let mut blended = there.clone();
             for (p, px) in blended.pixels.iter_mut().enumerate() {
-                for k in 0..3 {
-                    px[k] = 0.5 * (t.lights.value(0, k, p) + t.lights.value(2, k, p));
-                }
+                *px = std::array::from_fn(|k| {
+                    0.5 * (t.lights.value(0, k, p) + t.lights.value(2, k, p))
+                });
             }
             relative_l2(&blended, &there, None).unwrap()
         })
