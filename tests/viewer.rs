@@ -703,3 +703,85 @@ fn orbit_on_the_command_line_turns_a_per_vertex_bake_and_is_refused_for_a_fixed_
     assert_ne!(code, 0);
     assert!(text.contains("--screenshot"), "{text}");
 }
+
+/// The pixels' difference between two renders' first panes (linear, before tone mapping).
+fn difference(
+    a: &wavelet_prt::app::viewer::Rendered,
+    b: &wavelet_prt::app::viewer::Rendered,
+) -> Vec<[f32; 3]> {
+    a.panes[0]
+        .linear
+        .image
+        .pixels
+        .iter()
+        .zip(&b.panes[0].linear.image.pixels)
+        .map(|(p, q)| std::array::from_fn(|k| p[k] - q[k]))
+        .collect()
+}
+
+#[test]
+fn a_local_light_adds_exactly_its_column_and_the_errors_stay_the_environments() {
+    let path = common::lit_viewer_transport_path();
+    let t = wavelet_prt::store::transport::Transport::load(&path).unwrap();
+    let mut e = Engine::open(&path, vec![]).unwrap();
+    let mut s = sun_state(&mut e);
+    assert_eq!(s.lights.lights.len(), 2);
+    let on = e.render(&s).unwrap();
+    s.lights.lights[0].on = false;
+    let off = e.render(&s).unwrap();
+    // The environment's error does not see the lights.
+    assert_eq!(on.panes[0].linear.rel_l2, off.panes[0].linear.rel_l2);
+    let light = &t.meta.lights[0];
+    let rgb = light.color * light.intensity;
+    for (p, d) in difference(&on, &off).iter().enumerate() {
+        for k in 0..3 {
+            let want = rgb[k] * t.lights.value(0, k, p);
+            assert!(
+                (d[k] - want).abs() <= 1e-5 * (1.0 + want),
+                "pixel {p}: {} {want}",
+                d[k]
+            );
+        }
+    }
+    // One stop up doubles it; solo shows the spot alone, at its second position, over black.
+    s.lights.lights[0].on = true;
+    s.lights.lights[0].stops = 1.0;
+    let brighter = e.render(&s).unwrap();
+    for (p, d) in difference(&brighter, &on).iter().enumerate() {
+        let want = rgb[0] * t.lights.value(0, 0, p);
+        assert!((d[0] - want).abs() <= 1e-5 * (1.0 + want), "pixel {p}");
+    }
+    s.lights.solo = Some(1);
+    s.lights.lights[1].at = 1.0;
+    let solo = e.render(&s).unwrap();
+    let spot = &t.meta.lights[1];
+    let rgb = spot.color * spot.intensity;
+    for (p, px) in solo.panes[0].linear.image.pixels.iter().enumerate() {
+        for k in 0..3 {
+            let want = rgb[k] * t.lights.value(2, k, p);
+            assert!((px[k] - want).abs() <= 1e-5 * (1.0 + want), "pixel {p}");
+        }
+    }
+    // The window's GPU display path draws the same.
+    if let Some(gpu) = common::gpu_or_skip("viewer lights GPU") {
+        e.attach_gpu(gpu);
+        for state in [s.clone(), {
+            let mut o = s.clone();
+            o.lights.solo = None;
+            o
+        }] {
+            let r = e.render(&state).unwrap();
+            let shown = shown_on_gpu(&mut e, &r, &r.panes[0].linear.request, &state);
+            let worst = shown
+                .iter()
+                .zip(&r.panes[0].rgb)
+                .map(|(a, b)| a.abs_diff(*b))
+                .max()
+                .unwrap();
+            assert!(
+                worst <= GPU_DISPLAY_LEVELS,
+                "GPU display differs by {worst}"
+            );
+        }
+    }
+}

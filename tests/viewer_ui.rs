@@ -485,3 +485,62 @@ fn a_per_vertex_window_orbits_on_drag_and_draws_on_the_gpu() {
         .count();
     assert!(moved > 1000, "the GPU view moved: {moved} pixels changed");
 }
+
+#[test]
+fn toggling_and_scaling_a_light_in_the_panel_changes_the_image_by_its_column() {
+    if common::gpu_or_skip("toggling_and_scaling_a_light").is_none() {
+        return;
+    }
+    let path = common::lit_viewer_transport_path();
+    let t = wavelet_prt::store::transport::Transport::load(&path).unwrap();
+    let mut h = harness(ViewerApp::new(&path, &["sun:30,45".to_string()]));
+    settle(&mut h);
+    h.get_by_label("Lights");
+    let before = h.state().rendered().expect("a CPU result").clone();
+    h.get_by_label("panel").click();
+    settle(&mut h);
+    assert!(!h.state().state.lights.lights[0].on);
+    let after = h.state().rendered().expect("a CPU result").clone();
+    assert_eq!(after.state.lights, h.state().state.lights);
+    let light = &t.meta.lights[0];
+    let rgb = light.color * light.intensity;
+    let (a, b) = (&before.panes[0].linear.image, &after.panes[0].linear.image);
+    for (p, (x, y)) in a.pixels.iter().zip(&b.pixels).enumerate() {
+        for k in 0..3 {
+            let want = rgb[k] * t.lights.value(0, k, p);
+            assert!(
+                (x[k] - y[k] - want).abs() <= 1e-5 * (1.0 + want),
+                "pixel {p}: {} against {want}",
+                x[k] - y[k]
+            );
+        }
+    }
+    // Back on, one stop up: twice the column is added.
+    h.get_by_label("panel").click();
+    h.get_by_role_and_label(egui::accesskit::Role::Slider, "panel stops")
+        .set_value_accesskit(1.0);
+    settle(&mut h);
+    assert_eq!(h.state().state.lights.lights[0].stops, 1.0);
+    let twice = h.state().rendered().unwrap().panes[0].linear.image.clone();
+    for (p, (x, y)) in twice.pixels.iter().zip(&b.pixels).enumerate() {
+        let want = 2.0 * rgb[0] * t.lights.value(0, 0, p);
+        assert!(
+            (x[0] - y[0] - want).abs() <= 1e-5 * (1.0 + want),
+            "pixel {p}"
+        );
+    }
+    // "solo" leaves the spot alone: the environment goes dark behind it.
+    h.get_all_by_label("solo")
+        .nth(1)
+        .expect("the spot's solo")
+        .click();
+    settle(&mut h);
+    assert_eq!(h.state().state.lights.solo, Some(1));
+    let solo = &h.state().rendered().unwrap().panes[0].linear.image;
+    let spot = &t.meta.lights[1];
+    let rgb = spot.color * spot.intensity;
+    for (p, x) in solo.pixels.iter().enumerate() {
+        let want = rgb[0] * t.lights.value(1, 0, p);
+        assert!((x[0] - want).abs() <= 1e-5 * (1.0 + want), "pixel {p}");
+    }
+}

@@ -16,6 +16,7 @@ mod camera;
 mod display;
 mod engine;
 mod gpu_view;
+mod lights;
 mod state;
 mod viewport;
 mod volume_app;
@@ -27,6 +28,7 @@ pub use engine::{
     ERROR_MAP_GAIN, Engine, OnLight, error_heat_map, save_view, screenshot, view_size,
 };
 pub use gpu_view::GpuView;
+pub use lights::{LightControl, LightsState, lights_controls};
 pub use state::{
     DisplayState, Layout, LightKey, LightState, Limits, RelightKey, RelightState, ViewState,
     sh_order_for_terms,

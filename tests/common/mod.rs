@@ -139,6 +139,51 @@ pub fn viewer_transport_path() -> PathBuf {
     .clone()
 }
 
+/// The viewer's test scene with a quad light and a spot, the spot moving along two positions.
+pub const VIEWER_LIGHTS: &str = r#"
+[[light]]
+name = "panel"
+type = "quad"
+corners = [[-0.6, 2.0, -0.6], [0.6, 2.0, -0.6], [0.6, 2.0, 0.6], [-0.6, 2.0, 0.6]]
+intensity = 2.0
+color = [1.0, 0.9, 0.8]
+
+[[light]]
+name = "spot"
+type = "spot"
+positions = [[1.5, 1.5, 1.0], [1.0, 1.5, 1.5]]
+direction = [-1.0, -1.0, -0.6]
+cone_deg = 35.0
+falloff_deg = 8.0
+intensity = 4.0
+color = [0.5, 0.6, 1.0]
+"#;
+
+/// Path of the viewer's test scene with [`VIEWER_LIGHTS`], baked as [`viewer_transport_path`]
+/// (once per test process).
+pub fn lit_viewer_transport_path() -> PathBuf {
+    static PATH: OnceLock<PathBuf> = OnceLock::new();
+    PATH.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("viewer-lights-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let scene_path = dir.join("scene.toml");
+        std::fs::write(&scene_path, format!("{VIEWER_SCENE}\n{VIEWER_LIGHTS}")).unwrap();
+        let scene = Scene::load(&scene_path).unwrap();
+        let settings = BakeSettings {
+            cube_n: VIEWER_N,
+            sh_order: VIEWER_SH_ORDER,
+            threshold: 0.0,
+            light_samples: 16,
+            ..BakeSettings::default()
+        };
+        let t = bake(&scene, &settings, &|_| {}).unwrap();
+        let out = dir.join("lit.prt");
+        t.save(&out).unwrap();
+        out
+    })
+    .clone()
+}
+
 /// Path of a per-vertex bake of [`SPHERE_ON_PLANE`] (cube 8, SH order 2, every value kept),
 /// baked once per test process.
 pub fn per_vertex_transport_path() -> PathBuf {

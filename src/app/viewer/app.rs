@@ -270,6 +270,9 @@ impl ViewerApp {
         let camera = loaded.camera(&self.state);
         let (w, h) = (loaded.size.0 as u32, loaded.size.1 as u32);
         let requests = self.state.requests(loaded.limits);
+        let mut lights = self.state.lights.clone();
+        lights.clamp(&loaded.transport.meta.lights);
+        let mix = lights.mix(&loaded.transport.meta.lights)?;
         g.views.retain(|(v, _)| (v.width, v.height) == (w, h));
         while g.views.len() < requests.len() {
             let view = GpuView::new(&g.render_state.device, w, h);
@@ -288,7 +291,8 @@ impl ViewerApp {
                 &loaded.ctx,
                 lit,
                 request,
-                &crate::relight::LightMix::none(),
+                &mix,
+                self.state.lights.environment_shown(),
                 camera.as_ref(),
                 view,
                 self.state.tone_map(),
@@ -448,6 +452,10 @@ impl ViewerApp {
         }
         ui.separator();
         super::light_controls(ui, "Environment (E)", &loaded.envs, &mut s.light);
+        if !loaded.transport.meta.lights.is_empty() {
+            ui.separator();
+            super::lights_controls(ui, &loaded.transport.meta.lights, &mut s.lights);
+        }
         if light_pending {
             ui.horizontal(|ui| {
                 ui.spinner();

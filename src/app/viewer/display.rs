@@ -111,15 +111,23 @@ impl DisplayPath {
         lit: &LightShown,
         request: &RelightRequest,
         lights: &LightMix,
+        environment: bool,
         camera: Option<&Camera>,
         view: &mut GpuView,
         tone: ToneMap,
     ) -> Result<GpuTiming> {
         // The environment behind goes up before the clock starts: a per-pixel bake's comes
         // with the light, a per-vertex bake's is the environment seen through the camera.
+        // With the environment off, nothing is behind: the local lights alone.
         let mesh = match camera {
             None => {
-                view.hold_behind(&gpu.queue, &lit.behind);
+                match environment {
+                    true => view.hold_behind(&gpu.queue, &lit.behind),
+                    false => view.hold_behind(
+                        &gpu.queue,
+                        &Arc::new(Image::new(t.meta.width as usize, t.meta.height as usize)),
+                    ),
+                }
                 None
             }
             Some(camera) => {
@@ -127,12 +135,21 @@ impl DisplayPath {
                     self.mesh = Some(MeshDisplay::new(gpu, t)?);
                 }
                 let mesh = self.mesh.as_mut().expect("made above");
-                view.hold_behind(&gpu.queue, &mesh.backdrop(camera, lit)?);
+                match environment {
+                    true => view.hold_behind(&gpu.queue, &mesh.backdrop(camera, lit)?),
+                    false => view.hold_behind(
+                        &gpu.queue,
+                        &Arc::new(Image::new(camera.width as usize, camera.height as usize)),
+                    ),
+                }
                 Some((mesh, camera))
             }
         };
         let start = Instant::now();
-        let terms = Terms::of(t, ctx, &lit.light, request)?;
+        let terms = match environment {
+            true => Terms::of(t, ctx, &lit.light, request)?,
+            false => Terms::dark(),
+        };
         let gt = &self.transport;
         let kernel_seconds = match mesh {
             None => {

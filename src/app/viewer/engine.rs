@@ -134,7 +134,8 @@ impl Engine {
             &self.ctx,
             lit,
             request,
-            &crate::relight::LightMix::none(),
+            &state.lights.mix(&self.transport.meta.lights)?,
+            state.lights.environment_shown(),
             camera.as_ref(),
             view,
             state.tone_map(),
@@ -189,6 +190,7 @@ impl Engine {
         let limits = self.limits();
         let mut s = ViewState {
             light,
+            lights: LightsState::of(&self.transport.meta.lights),
             ..ViewState::default()
         };
         s.relight.sh_order = limits.sh_order;
@@ -296,15 +298,24 @@ impl Engine {
         full: &Image,
     ) -> Result<Vec<LinearPane>> {
         let mut panes = Vec::new();
+        let mix = state.lights.mix(&self.transport.meta.lights)?;
         for (title, request) in state.requests(limits) {
             let start = Instant::now();
-            let (image, stats) = if state.display.gpu && self.gpu.is_some() {
+            let (mut image, stats) = if state.display.gpu && self.gpu.is_some() {
                 self.relight_gpu(light, &request)?
             } else {
                 relight(&self.transport, &self.ctx, light, &request)?
             };
-            let relight_seconds = start.elapsed().as_secs_f64();
+            // The numbers are the environment's; the local lights are added to what is shown.
             let rel_l2 = relative_l2(&image, full, None)?;
+            if !state.lights.environment_shown() {
+                image.pixels.fill([0.0; 3]);
+            }
+            self.transport
+                .lights
+                .add_to(&mix.weights, &mut image.pixels);
+            image.check_finite("relit image")?;
+            let relight_seconds = start.elapsed().as_secs_f64();
             panes.push(LinearPane {
                 title,
                 request,
@@ -335,6 +346,7 @@ impl Engine {
         let mut state = state.clone();
         let limits = self.limits();
         let notes = state.clamp(limits);
+        state.lights.clamp(&self.transport.meta.lights);
         let (light_seconds, full_seconds) = self.prepare_with(&state, on_light)?;
         let key = state.relight_key();
         let cached = self.last.as_ref().is_some_and(|(k, _)| *k == key);
@@ -370,10 +382,13 @@ impl Engine {
                 linear,
             });
         };
+        // With the environment off, nothing shows behind the scene.
+        let behind = state.lights.environment_shown();
         match self.camera(&state) {
             Some(camera) => {
                 let (drawn, full) = self.draw_panes(&state, &camera)?;
                 for (linear, relit, image) in drawn {
+                    let image = if behind { image } else { relit.clone() };
                     show(&linear, &relit, image, &full);
                 }
             }
@@ -381,12 +396,11 @@ impl Engine {
                 let (_, linear) = self.last.as_ref().expect("relit");
                 let lit = self.light.as_ref().expect("prepared");
                 for l in linear {
-                    show(
-                        l,
-                        &l.image,
-                        composite(&l.image, &lit.shown.behind),
-                        &lit.full,
-                    );
+                    let image = match behind {
+                        true => composite(&l.image, &lit.shown.behind),
+                        false => l.image.clone(),
+                    };
+                    show(l, &l.image, image, &lit.full);
                 }
             }
         }

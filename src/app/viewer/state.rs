@@ -6,7 +6,7 @@
 
 use std::path::PathBuf;
 
-use super::{EnvEntry, EnvSource};
+use super::{EnvEntry, EnvSource, LightsState};
 use crate::light::envmap::{EnvRotation, EnvSpec, SunSpec};
 use crate::light::select::Weighting;
 use crate::output::film::{ToneCurve, ToneMap};
@@ -298,16 +298,20 @@ pub struct ViewState {
     /// The camera of a per-vertex bake, turned from the bake's own (ignored by a per-pixel bake,
     /// whose view is fixed).
     pub orbit: Orbit,
+    /// The local lights, and whether the environment shines.
+    pub lights: LightsState,
 }
 
-/// What the relit values (pixels, or a per-vertex bake's vertex colours) depend on: the light
-/// and the relight, not the display or the camera.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// What the relit values (pixels, or a per-vertex bake's vertex colours) depend on: the light,
+/// the relight and the local lights, not the display or the camera.
+#[derive(Clone, Debug, PartialEq)]
 pub struct RelightKey {
     /// The light's state.
     pub light: LightState,
     /// The relight's.
     pub relight: RelightState,
+    /// The local lights'.
+    pub lights: LightsState,
 }
 
 impl ViewState {
@@ -331,6 +335,7 @@ impl ViewState {
         RelightKey {
             light: self.light,
             relight: self.relight,
+            lights: self.lights.clone(),
         }
     }
 

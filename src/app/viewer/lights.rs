@@ -1,0 +1,161 @@
+//! The viewer's local lights: whether the environment shines, and each light's switch,
+//! intensity (in stops from its scene file's), colour, place along its path and "solo"
+//! ([`LightsState`]), the weights they give the baked columns, and their panel. Changing any of
+//! it relights and nothing more: the prepared environment stays, and the lights are added to the
+//! environment's image (exactly, whatever the method), which is what the errors shown measure.
+
+use eframe::egui;
+use glam::Vec3;
+
+use crate::error::Result;
+use crate::scene::light::Light;
+use crate::scene::light_mix::{LightMix, LightSetting};
+
+/// How one light is shown.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightControl {
+    /// Whether it is on.
+    pub on: bool,
+    /// Its intensity, in stops from the scene file's (0: as baked with the file's intensity).
+    pub stops: f32,
+    /// Linear RGB colour.
+    pub color: [f32; 3],
+    /// Place along its baked positions, 0 to positions − 1.
+    pub at: f32,
+}
+
+/// The local lights of a view.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightsState {
+    /// Whether the environment shines (off: the local lights alone).
+    pub environment: bool,
+    /// Each light's controls, in the file's order.
+    pub lights: Vec<LightControl>,
+    /// One light shown alone: the environment and the other lights off.
+    pub solo: Option<usize>,
+}
+
+impl Default for LightsState {
+    fn default() -> Self {
+        LightsState {
+            environment: true,
+            lights: Vec::new(),
+            solo: None,
+        }
+    }
+}
+
+/// Stops an intensity slider spans either way.
+pub const STOPS: f32 = 10.0;
+
+impl LightsState {
+    /// Every light as its scene file says, the environment on.
+    pub fn of(lights: &[Light]) -> LightsState {
+        LightsState {
+            environment: true,
+            lights: lights
+                .iter()
+                .map(|l| LightControl {
+                    on: true,
+                    stops: 0.0,
+                    color: l.color.to_array(),
+                    at: 0.0,
+                })
+                .collect(),
+            solo: None,
+        }
+    }
+
+    /// Whether the environment is part of the image.
+    pub fn environment_shown(&self) -> bool {
+        self.environment && self.solo.is_none()
+    }
+
+    /// The relight settings of `lights` (solo applied).
+    pub fn settings(&self, lights: &[Light]) -> Vec<LightSetting> {
+        lights
+            .iter()
+            .zip(&self.lights)
+            .enumerate()
+            .map(|(i, (l, c))| LightSetting {
+                on: match self.solo {
+                    Some(s) => s == i,
+                    None => c.on,
+                },
+                color: Vec3::from_array(c.color),
+                intensity: l.intensity * c.stops.exp2(),
+                at: c.at,
+            })
+            .collect()
+    }
+
+    /// The weights of the baked columns of `lights` this state gives.
+    pub fn mix(&self, lights: &[Light]) -> Result<LightMix> {
+        LightMix::new(lights, &self.settings(lights))
+    }
+
+    /// Brings the controls into range for `lights`: one per light (reset when they do not
+    /// match), stops within ±[`STOPS`], colours finite and >= 0, places on the path, solo on a
+    /// light that exists.
+    pub fn clamp(&mut self, lights: &[Light]) {
+        if self.lights.len() != lights.len() {
+            let environment = self.environment;
+            *self = LightsState::of(lights);
+            self.environment = environment;
+        }
+        for (c, l) in self.lights.iter_mut().zip(lights) {
+            c.stops = if c.stops.is_finite() {
+                c.stops.clamp(-STOPS, STOPS)
+            } else {
+                0.0
+            };
+            for v in &mut c.color {
+                *v = if v.is_finite() { v.max(0.0) } else { 1.0 };
+            }
+            let last = (l.columns() - 1) as f32;
+            c.at = if c.at.is_finite() {
+                c.at.clamp(0.0, last)
+            } else {
+                0.0
+            };
+        }
+        if self.solo.is_some_and(|s| s >= lights.len()) {
+            self.solo = None;
+        }
+    }
+}
+
+/// The Lights panel: the environment's switch, then for every light its switch, solo, colour,
+/// intensity in stops and, for a light that moves, its place along the path.
+pub fn lights_controls(ui: &mut egui::Ui, lights: &[Light], state: &mut LightsState) {
+    ui.heading("Lights");
+    ui.checkbox(&mut state.environment, "Environment");
+    for (i, (light, c)) in lights.iter().zip(state.lights.iter_mut()).enumerate() {
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut c.on, &light.name)
+                .on_hover_text(format!("a {} light", light.shape.kind()));
+            let solo = state.solo == Some(i);
+            if ui
+                .selectable_label(solo, "solo")
+                .on_hover_text("this light alone")
+                .clicked()
+            {
+                state.solo = if solo { None } else { Some(i) };
+            }
+            ui.color_edit_button_rgb(&mut c.color);
+        });
+        ui.add(
+            egui::Slider::new(&mut c.stops, -STOPS..=STOPS).text(format!("{} stops", light.name)),
+        );
+        if light.columns() > 1 {
+            ui.add(
+                egui::Slider::new(&mut c.at, 0.0..=(light.columns() - 1) as f32)
+                    .text(format!("{} position", light.name)),
+            );
+        }
+    }
+    ui.label(
+        "Every method relights the environment; the lights are added exactly in each, and the \
+         errors shown are the environment's.",
+    );
+}
