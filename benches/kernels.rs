@@ -302,5 +302,42 @@ fn volume(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, spherical, relight, relight_gpu, volume);
+/// The local lights' columns at the many-lights scale: 256 columns of a 256² image, every light
+/// added, and one light's change (its column alone), as the viewer relights them.
+fn light_columns(c: &mut Criterion) {
+    use wavelet_prt::store::transport::LightColumns;
+    let (w, h, columns) = (256usize, 256usize, 256usize);
+    let mut cols = LightColumns::zeros(columns, w, h);
+    let mut state = 1u64;
+    let band: Vec<f32> = (0..columns * 3 * h * w)
+        .map(|_| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        })
+        .collect();
+    cols.set_rows(0, &band);
+    let all = vec![[0.3f32, 0.2, 0.1]; columns];
+    let mut one = vec![[0.0f32; 3]; columns];
+    one[columns / 2] = [0.3, 0.2, 0.1];
+    let mut pixels = vec![[0.0f32; 3]; w * h];
+    let mut g = c.benchmark_group("light_columns_256x256");
+    g.throughput(Throughput::Bytes(cols.bytes() as u64));
+    g.bench_function("all_256_lights", |b| {
+        b.iter(|| cols.add_to(&all, &mut pixels))
+    });
+    g.throughput(Throughput::Bytes((cols.bytes() / columns) as u64));
+    g.bench_function("one_light", |b| b.iter(|| cols.add_to(&one, &mut pixels)));
+    g.finish();
+}
+
+criterion_group!(
+    benches,
+    spherical,
+    relight,
+    relight_gpu,
+    volume,
+    light_columns
+);
 criterion_main!(benches);

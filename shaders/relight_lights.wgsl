@@ -1,7 +1,7 @@
 // Adds the local lights to a relit image: image += Σ weight ⊙ column over the lights that are on.
-// One thread per pixel (or vertex). The columns are 16-bit floats, two to a word, in the layout
-// [column, channel, pixel], each against the power of two of its (column, pixel row), which the
-// host decodes into `scales`. Alpha is left as it is.
+// One thread per pixel (or vertex). The columns are 16-bit integers, two to a word, in the layout
+// [column, channel, pixel], each a fraction q / 65535 of the scale of its (column, pixel row).
+// Alpha is left as it is.
 
 struct Params {
     width: u32,
@@ -19,8 +19,8 @@ struct Params {
 @group(0) @binding(3) var<storage, read> mix: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> image: array<vec4<f32>>;
 
-fn half_at(i: u32) -> f32 {
-    let pair = unpack2x16float(values[i >> 1u]);
+fn fraction_at(i: u32) -> f32 {
+    let pair = unpack2x16unorm(values[i >> 1u]);
     return select(pair.x, pair.y, (i & 1u) == 1u);
 }
 
@@ -36,7 +36,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let column = bitcast<u32>(m.w);
         let scale = scales[column * params.height + id.y];
         let base = column * 3u * params.pixels + p;
-        let v = vec3<f32>(half_at(base), half_at(base + params.pixels), half_at(base + 2u * params.pixels));
+        let v = vec3<f32>(fraction_at(base), fraction_at(base + params.pixels), fraction_at(base + 2u * params.pixels));
         sum = sum + m.xyz * v * scale;
     }
     image[p] = image[p] + vec4<f32>(sum, 0.0);

@@ -6,6 +6,8 @@ pub mod bench;
 #[cfg(feature = "app")]
 pub mod cli;
 pub mod demo;
+pub mod dusk;
+pub mod lights_bench;
 pub mod orbit;
 pub mod paper;
 #[cfg(feature = "app")]

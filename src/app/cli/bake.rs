@@ -415,6 +415,16 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
         crate::app::orbit::ORBIT_TERMS,
         o.frame_ms,
     );
+    let d = &report.dusk;
+    println!(
+        "local lights   {} ({} light columns baked in {:.1} s{}; every light added in {:.2} ms \
+         on the CPU)",
+        d.sheet_path.display(),
+        d.columns,
+        d.bake_seconds,
+        if d.reused_bake { ", reused" } else { "" },
+        d.lights_ms
+    );
     println!(
         "volume         {} (SH self-transfer baked in {:.2} s; images in {})",
         out.join("volume_sheet.png").display(),

@@ -1,5 +1,5 @@
-//! `prt bounces`: the interreflections of a scene, bounce by bounce, against the independent path
-//! tracer. Bakes the scene with 0 to B bounces at the given sampling, relights each with every
+//! `prt bounces` and `prt lights`, the sweeps held against the path tracer. `prt bounces`: the
+//! interreflections of a scene, bounce by bounce, against the independent path tracer. Bakes the scene with 0 to B bounces at the given sampling, relights each with every
 //! term, path traces the reference at each bounce count, and writes a contact sheet (bakes over
 //! references) and a markdown table of time, size and error.
 
@@ -228,4 +228,47 @@ fn markdown(rows: &[Row], a: &BouncesArgs, base: &BakeSettings) -> String {
         ));
     }
     s
+}
+
+/// Arguments of `prt lights`.
+#[derive(Args, Debug)]
+pub struct LightsArgs {
+    /// Output directory for lights.md, lights.csv, moving_light.png and the images.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Image side of the comparisons with the path tracer.
+    #[arg(long, default_value_t = 96)]
+    pub side: u32,
+    /// Paths per pixel of the path tracer.
+    #[arg(long, default_value_t = 2048)]
+    pub samples: u32,
+    /// Quad lights along each side of the many-lights grid (their square is the count).
+    #[arg(long, default_value_t = 16)]
+    pub grid: usize,
+    /// Image side of the many-lights scene.
+    #[arg(long, default_value_t = 256)]
+    pub many_side: u32,
+}
+
+pub(super) fn lights_cmd(a: LightsArgs) -> Result<()> {
+    crate::files::check_output_folder(&a.out)?;
+    crate::flags::within("--side", a.side, 8..=1024, " pixels")?;
+    crate::flags::within("--samples", a.samples, 1..=1 << 20, "")?;
+    crate::flags::within("--grid", a.grid, 1..=64, "")?;
+    crate::flags::within("--many-side", a.many_side, 8..=2048, " pixels")?;
+    let opts = crate::app::lights_bench::LightsBenchOptions {
+        side: a.side,
+        paths: a.samples,
+        grid: a.grid,
+        many_side: a.many_side,
+        ..Default::default()
+    };
+    let start = Instant::now();
+    let report = crate::app::lights_bench::run(&a.out, &opts, &mut |line| eprintln!("{line}"))?;
+    print!("{}", crate::app::lights_bench::markdown(&report, &opts));
+    println!("\nin {:.0} s; wrote", start.elapsed().as_secs_f64());
+    for f in &report.files {
+        println!("  {}", f.display());
+    }
+    Ok(())
 }

@@ -32,7 +32,8 @@ use bake::{bake_cmd, demo, info, merge_cmd, paper};
 pub use bench::BenchArgs;
 use bench::bench_cmd;
 pub use bounces::BouncesArgs;
-use bounces::bounces_cmd;
+pub use bounces::LightsArgs;
+use bounces::{bounces_cmd, lights_cmd};
 pub use relight::{EnvArgs, ReferenceArgs, RelightArgs};
 use relight::{compare_cmd, env_cmd, reference_cmd, relight_cmd};
 pub use view::ViewArgs;
@@ -92,6 +93,9 @@ pub enum Command {
     /// Bake a scene with 0 to B interreflection bounces and compare each with the path tracer:
     /// a contact sheet and a table of time, size and error.
     Bounces(BouncesArgs),
+    /// The local lights' figures: each kind against the path tracer and its bake cost, a
+    /// moving light's error against the spacing of its positions, and many lights timed.
+    Lights(LightsArgs),
     /// Open the interactive viewer (SH versus wavelet, kept terms, environments, rotation), or
     /// with --screenshot render the image it would show to a PNG and exit.
     View(ViewArgs),
@@ -214,6 +218,7 @@ fn run(command: Command) -> Result<()> {
         Command::Env(a) => env_cmd(a),
         Command::Bench(a) => bench_cmd(a),
         Command::Bounces(a) => bounces_cmd(a),
+        Command::Lights(a) => lights_cmd(a),
         Command::View(a) => view_cmd(a),
         Command::Volume(VolumeCommand::Bake(a)) => volume_bake_cmd(a),
         Command::Volume(VolumeCommand::Render(a)) => volume_render_cmd(a),

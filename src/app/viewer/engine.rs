@@ -42,6 +42,9 @@ pub struct Engine {
     maps: HashMap<PathBuf, Arc<EnvMap>>,
     light: Option<Lit>,
     last: Option<(RelightKey, Vec<LinearPane>)>,
+    /// The environment's part of the last relit panes, keyed with the local lights at their
+    /// defaults: a change of the lights alone adds them again to these, and relights nothing.
+    environment: Option<(RelightKey, Vec<LinearPane>)>,
     /// The camera a per-vertex bake was made with; `None` for a per-pixel bake.
     base_camera: Option<Camera>,
     /// The backdrop of the last per-vertex view: the camera and light it was drawn for.
@@ -86,6 +89,7 @@ impl Engine {
             maps: HashMap::new(),
             light: None,
             last: None,
+            environment: None,
             base_camera,
             backdrop: None,
             gpu: None,
@@ -98,6 +102,7 @@ impl Engine {
         self.gpu = Some(gpu);
         self.display = None;
         self.last = None;
+        self.environment = None;
     }
 
     /// The attached GPU.
@@ -260,6 +265,7 @@ impl Engine {
         )?;
         self.light = Some(Lit { shown, full });
         self.last = None;
+        self.environment = None;
         Ok((light_seconds, full_start.elapsed().as_secs_f64()))
     }
 
@@ -298,24 +304,16 @@ impl Engine {
         full: &Image,
     ) -> Result<Vec<LinearPane>> {
         let mut panes = Vec::new();
-        let mix = state.lights.mix(&self.transport.meta.lights)?;
         for (title, request) in state.requests(limits) {
             let start = Instant::now();
-            let (mut image, stats) = if state.display.gpu && self.gpu.is_some() {
+            let (image, stats) = if state.display.gpu && self.gpu.is_some() {
                 self.relight_gpu(light, &request)?
             } else {
                 relight(&self.transport, &self.ctx, light, &request)?
             };
+            let relight_seconds = start.elapsed().as_secs_f64();
             // The numbers are the environment's; the local lights are added to what is shown.
             let rel_l2 = relative_l2(&image, full, None)?;
-            if !state.lights.environment_shown() {
-                image.pixels.fill([0.0; 3]);
-            }
-            self.transport
-                .lights
-                .add_to(&mix.weights, &mut image.pixels);
-            image.check_finite("relit image")?;
-            let relight_seconds = start.elapsed().as_secs_f64();
             panes.push(LinearPane {
                 title,
                 request,
@@ -325,6 +323,37 @@ impl Engine {
                 kernel_seconds: stats.kernel_seconds,
                 relight_seconds,
                 rel_l2,
+            });
+        }
+        Ok(panes)
+    }
+
+    /// The environment's panes with the local lights of `state` added (the environment left out
+    /// when it is off): the numbers stay the environment's; the time is the lights', and the
+    /// environment's too when it was `relit` for this render.
+    fn with_lights(
+        &self,
+        state: &ViewState,
+        environment: &[LinearPane],
+        relit: bool,
+    ) -> Result<Vec<LinearPane>> {
+        let mix = state.lights.mix(&self.transport.meta.lights)?;
+        let mut panes = Vec::with_capacity(environment.len());
+        for pane in environment {
+            let start = Instant::now();
+            let mut image = pane.image.clone();
+            if !state.lights.environment_shown() {
+                image.pixels.fill([0.0; 3]);
+            }
+            self.transport
+                .lights
+                .add_to(&mix.weights, &mut image.pixels);
+            image.check_finite("relit image")?;
+            panes.push(LinearPane {
+                image,
+                relight_seconds: start.elapsed().as_secs_f64()
+                    + if relit { pane.relight_seconds } else { 0.0 },
+                ..pane.clone()
             });
         }
         Ok(panes)
@@ -351,11 +380,26 @@ impl Engine {
         let key = state.relight_key();
         let cached = self.last.as_ref().is_some_and(|(k, _)| *k == key);
         if !cached {
-            // Taken out for the loop (the GPU path borrows the engine mutably), put back after.
-            let prepared = self.light.take().expect("prepared");
-            let panes = self.relight_panes(&state, limits, &prepared.shown.light, &prepared.full);
-            self.light = Some(prepared);
-            self.last = Some((key, panes?));
+            let env_key = RelightKey {
+                lights: LightsState::default(),
+                ..key.clone()
+            };
+            let relit = !self
+                .environment
+                .as_ref()
+                .is_some_and(|(k, _)| *k == env_key);
+            if relit {
+                // Taken out for the loop (the GPU path borrows the engine mutably), put back
+                // after.
+                let prepared = self.light.take().expect("prepared");
+                let panes =
+                    self.relight_panes(&state, limits, &prepared.shown.light, &prepared.full);
+                self.light = Some(prepared);
+                self.environment = Some((env_key, panes?));
+            }
+            let (_, environment) = self.environment.as_ref().expect("relit");
+            let panes = self.with_lights(&state, environment, relit)?;
+            self.last = Some((key, panes));
         }
         let tone = state.tone_map();
         let mut panes: Vec<Pane> = Vec::new();

@@ -51,16 +51,12 @@ impl GpuLights {
                  device allows {limit}: relight with --device cpu"
             )));
         }
-        // Two halves a word, the last padded.
+        // Two integers a word, the last padded.
         let mut words = vec![0u32; lights.values.len().div_ceil(2)];
         for (i, v) in lights.values.iter().enumerate() {
             words[i / 2] |= (*v as u32) << (16 * (i % 2));
         }
-        let scales: Vec<f32> = lights
-            .exponent
-            .iter()
-            .map(|&e| 2f32.powi(e as i32))
-            .collect();
+        let scales: Vec<f32> = lights.scale.clone();
         let storage = |label: &str, bytes: &[u8]| {
             crate::gpu::buffer_with(device, label, bytes, wgpu::BufferUsages::STORAGE)
         };

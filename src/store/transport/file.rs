@@ -113,8 +113,8 @@ impl Transport {
         let columns = meta.light_columns();
         let light_tables = if columns > 0 {
             Some((
-                reader.read::<i8>("light_exponent", Dtype::I8)?,
-                reader.read::<u16>("light_value", Dtype::F16)?,
+                reader.read::<f32>("light_scale", Dtype::F32)?,
+                reader.read::<u16>("light_value", Dtype::U16)?,
             ))
         } else {
             None
@@ -181,13 +181,13 @@ impl Transport {
         expect("transport_magnitude", &magnitude_shape, &[c])?;
         expect("tile_stats", &stats_shape, &[tiles, 3])?;
         let lights = match light_tables {
-            Some(((es, exponent), (vs, values))) => {
-                expect("light_exponent", &es, &[columns, h])?;
+            Some(((ss, scale), (vs, values))) => {
+                expect("light_scale", &ss, &[columns, h])?;
                 expect("light_value", &vs, &[columns, 3, h, w])?;
                 LightColumns {
                     width: w,
                     height: h,
-                    exponent,
+                    scale,
                     values,
                 }
             }
@@ -698,12 +698,12 @@ pub(super) fn save_file<'a>(
     if columns > 0 {
         tensors.extend([
             (
-                "light_exponent",
-                Tensor::new(Dtype::I8, vec![columns, h], &tables.lights.exponent),
+                "light_scale",
+                Tensor::new(Dtype::F32, vec![columns, h], &tables.lights.scale),
             ),
             (
                 "light_value",
-                Tensor::new(Dtype::F16, vec![columns, 3, h, w], &tables.lights.values),
+                Tensor::new(Dtype::U16, vec![columns, 3, h, w], &tables.lights.values),
             ),
         ]);
     }
@@ -738,7 +738,7 @@ fn tensor_names(per_vertex: bool, lights: bool) -> Vec<&'static str> {
         names.extend(MESH_TENSOR_NAMES);
     }
     if lights {
-        names.extend(["light_exponent", "light_value"]);
+        names.extend(["light_scale", "light_value"]);
     }
     names.sort();
     names

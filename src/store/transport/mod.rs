@@ -37,7 +37,7 @@
 //! | `albedo`, `coverage` | f32 [H, W, 3], f32 [H, W] | per pixel: albedo seen, fraction of sub-samples that hit |
 //! | `transport_magnitude` | f32 [C] | mean magnitude of each coefficient over the rows (transport weighting) |
 //! | `tile_stats` | f64 [T, 3] | per tile: energy dropped by thresholding and quantisation, total energy, shadow rays |
-//! | `light_value`, `light_exponent` | f16 [L, 3, H, W], i8 [L, H] | only with local lights: each light column's RGB response per pixel, against a power of two per (column, pixel row) ([`LightColumns`]) |
+//! | `light_value`, `light_scale` | u16 [L, 3, H, W], f32 [L, H] | only with local lights: each light column's RGB response per pixel, as fractions `q / 65535` of a scale per (column, pixel row) ([`LightColumns`]) |
 //!
 //! Version 4 added the local lights (the two `light_` tensors and the metadata's `lights` and
 //! `light_samples`); a version 3 file, which has none, is read as before.
