@@ -496,6 +496,9 @@ fn toggling_and_scaling_a_light_in_the_panel_changes_the_image_by_its_column() {
     let mut h = harness(ViewerApp::new(&path, &["sun:30,45".to_string()]));
     settle(&mut h);
     h.get_by_label("Lights");
+    if let Some(out) = std::env::var_os("VIEWER_UI_LIGHTS_PNG") {
+        h.render().expect("headless wgpu render").save(out).unwrap();
+    }
     let before = h.state().rendered().expect("a CPU result").clone();
     h.get_by_label("panel").click();
     settle(&mut h);

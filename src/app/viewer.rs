@@ -28,7 +28,7 @@ pub use engine::{
     ERROR_MAP_GAIN, Engine, OnLight, error_heat_map, save_view, screenshot, view_size,
 };
 pub use gpu_view::GpuView;
-pub use lights::{LightControl, LightsState, lights_controls};
+pub use lights::{LightControl, LightsState, lights_controls, outline_quads};
 pub use state::{
     DisplayState, Layout, LightKey, LightState, Limits, RelightKey, RelightState, ViewState,
     sh_order_for_terms,

@@ -125,6 +125,26 @@ impl Camera {
         (forward, right, film_up)
     }
 
+    /// Where `p` falls on the film, in pixels (the inverse of [`Camera::ray`]); `None` for a
+    /// point at or behind the eye's plane.
+    pub fn project(&self, p: Vec3) -> Option<(f32, f32)> {
+        let (forward, right, film_up) = self.frame();
+        let d = p - self.eye;
+        let depth = d.dot(forward);
+        let near = 1e-6 * (1.0 + d.length());
+        if depth <= near || depth.is_nan() {
+            return None;
+        }
+        let tan_half = (self.fov_y_deg.to_radians() * 0.5).tan();
+        let aspect = self.width as f32 / self.height as f32;
+        let sx = d.dot(right) / (depth * tan_half * aspect);
+        let sy = d.dot(film_up) / (depth * tan_half);
+        Some((
+            (sx + 1.0) * 0.5 * self.width as f32,
+            (1.0 - sy) * 0.5 * self.height as f32,
+        ))
+    }
+
     /// The primary ray through film position (`film_x`, `film_y`), in pixels: x grows to the
     /// right, y grows downwards, and (x + 0.5, y + 0.5) is the centre of pixel (x, y). The ray
     /// starts at the eye and has a unit direction. An invalid camera (see

@@ -490,3 +490,28 @@ fn scene_without_shapes_is_rejected() {
     let text = CANONICAL.split("[[shape]]").next().unwrap();
     assert_mentions(&load_err(text), &["`shape`", "no shapes"]);
 }
+
+#[test]
+fn projecting_a_point_of_a_pixels_ray_gives_back_the_pixel() {
+    let camera = Camera {
+        eye: Vec3::new(0.3, 2.0, 4.0),
+        target: Vec3::new(0.0, 0.4, 0.0),
+        up: Vec3::Y,
+        fov_y_deg: 40.0,
+        width: 64,
+        height: 48,
+    };
+    for (x, y) in [(0.5f32, 0.5f32), (31.5, 20.25), (63.0, 47.9)] {
+        let ray = camera.ray(x, y);
+        let (px, py) = camera.project(ray.origin + ray.dir * 3.7).unwrap();
+        assert!(
+            (px - x).abs() < 1e-3 && (py - y).abs() < 1e-3,
+            "{x} {y}: {px} {py}"
+        );
+    }
+    assert!(
+        camera
+            .project(camera.eye - (camera.target - camera.eye))
+            .is_none()
+    );
+}

@@ -641,6 +641,22 @@ impl ViewerApp {
         let avail = ui.available_size();
         let (w, h) = (loaded.size.0 as f32, loaded.size.1 as f32);
         let base = loaded.camera.clone();
+        // The camera the images are seen through, for drawing the quad lights over them.
+        let view_camera = (!loaded.transport.meta.lights.is_empty())
+            .then(|| {
+                loaded.camera(&self.state).or_else(|| {
+                    let c = &loaded.transport.meta.camera;
+                    Some(crate::scene::Camera {
+                        eye: glam::Vec3::from(c.eye),
+                        target: glam::Vec3::from(c.target),
+                        up: glam::Vec3::from(c.up),
+                        fov_y_deg: c.fov_y_deg,
+                        width: loaded.transport.meta.width,
+                        height: loaded.transport.meta.height,
+                    })
+                })
+            })
+            .flatten();
         let (gap, title_h) = (8.0, 20.0);
         let scale = (((avail.x - gap * (n - 1.0)) / n) / w)
             .min((avail.y - title_h) / h)
@@ -679,6 +695,16 @@ impl ViewerApp {
                         _ => {
                             painter.image(group[0].0, rect, uv, white);
                         }
+                    }
+                    if let Some(camera) = &view_camera {
+                        super::outline_quads(
+                            &painter,
+                            rect,
+                            uv,
+                            camera,
+                            &loaded.transport.meta.lights,
+                            &self.state.lights,
+                        );
                     }
                     // A per-vertex bake's camera orbits; a fixed view zooms and pans.
                     let scroll = response

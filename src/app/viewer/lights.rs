@@ -125,6 +125,65 @@ impl LightsState {
     }
 }
 
+/// Draws the outline of every quad light over an image of `rect` showing the part `uv` of what
+/// `camera` sees: each quad at its current place, in its colour, dimmed when it is off, with a
+/// tick from its centre along the way it emits (it lights one side only).
+pub fn outline_quads(
+    painter: &egui::Painter,
+    rect: egui::Rect,
+    uv: egui::Rect,
+    camera: &crate::scene::Camera,
+    lights: &[Light],
+    state: &LightsState,
+) {
+    let to_screen = |p: Vec3| {
+        camera.project(p).map(|(x, y)| {
+            let n = egui::vec2(x / camera.width as f32, y / camera.height as f32);
+            rect.min + (n - uv.min.to_vec2()) / uv.size() * rect.size()
+        })
+    };
+    for (i, (light, c)) in lights.iter().zip(&state.lights).enumerate() {
+        let crate::scene::LightShape::Quad { corners } = light.shape else {
+            continue;
+        };
+        let centre = {
+            let (n, at) = (
+                light.positions.len(),
+                c.at.clamp(0.0, (light.columns() - 1) as f32),
+            );
+            let k = (at.floor() as usize).min(n - 1);
+            let f = at - k as f32;
+            light.positions[k] * (1.0 - f) + light.positions[(k + 1).min(n - 1)] * f
+        };
+        let shown = match state.solo {
+            Some(s) => s == i,
+            None => c.on,
+        };
+        let top = c.color.iter().copied().fold(1e-6f32, f32::max);
+        let rgb = c.color.map(|v| ((v / top) * 255.0) as u8);
+        let colour = egui::Color32::from_rgb(rgb[0], rgb[1], rgb[2]).gamma_multiply(if shown {
+            1.0
+        } else {
+            0.35
+        });
+        let stroke = egui::Stroke::new(1.5, colour);
+        let points: Vec<Option<egui::Pos2>> =
+            corners.iter().map(|&k| to_screen(centre + k)).collect();
+        for e in 0..4 {
+            if let (Some(a), Some(b)) = (points[e], points[(e + 1) % 4]) {
+                painter.line_segment([a, b], stroke);
+            }
+        }
+        let normal = (corners[1] - corners[0])
+            .cross(corners[2] - corners[0])
+            .normalize_or_zero();
+        let reach = 0.25 * (corners[2] - corners[0]).length();
+        if let (Some(a), Some(b)) = (to_screen(centre), to_screen(centre + normal * reach)) {
+            painter.line_segment([a, b], stroke);
+        }
+    }
+}
+
 /// The Lights panel: the environment's switch, then for every light its switch, solo, colour,
 /// intensity in stops and, for a light that moves, its place along the path.
 pub fn lights_controls(ui: &mut egui::Ui, lights: &[Light], state: &mut LightsState) {
