@@ -439,9 +439,9 @@ fn lights_add_linearly_to_the_environment_and_each_other() {
         for x in moved.iter_mut().take(2) {
             x.on = false;
         }
-        moved[2].at = 1.0;
+        moved[2].at = [1.0, 0.0, 0.0];
         let at_one = lights_alone(&t, &moved);
-        moved[2].at = 1.5;
+        moved[2].at = [1.5, 0.0, 0.0];
         let halfway = lights_alone(&t, &moved);
         let rgb = moved[2].color * moved[2].intensity;
         for p in 0..t.pixel_count() {
@@ -546,7 +546,7 @@ fn light_columns_with_bad_scales_or_none_at_all_are_refused() {
 fn scene_file_lights_are_checked_field_by_field() {
     let base = plane_from_above(8, 8, [0.5; 3], 1.0);
     let dir = temp_dir("lights-errors");
-    let cases: [(&str, &str); 8] = [
+    let cases: [(&str, &str); 9] = [
         (
             "[[light]]\nname = \"a\"\ntype = \"spot\"\nposition = [0.0, 1.0, 0.0]\ndirection = [0.0, -1.0, 0.0]\ncone_deg = 20.0\nfalloff_deg = 30.0\nintensity = 1.0\n",
             "light[0].falloff_deg",
@@ -578,6 +578,10 @@ fn scene_file_lights_are_checked_field_by_field() {
         (
             "[[light]]\nname = \"a\"\ntype = \"point\"\nposition = [0.0, 1.0, 0.0]\nintensity = -1.0\n",
             "light[0].intensity",
+        ),
+        (
+            "[[light]]\nname = \"a\"\ntype = \"point\"\nintensity = 1.0\ngrid = { from = [0.0, 1.0, 0.0], to = [1.0, 1.0, 0.0], counts = [2, 0, 1] }\n",
+            "light[0].grid.counts",
         ),
     ];
     for (i, (light, field)) in cases.iter().enumerate() {
@@ -755,7 +759,7 @@ fn a_moving_light_between_baked_positions_is_close_to_the_light_there() {
             let scene = scene_from(&text, "lights-moving");
             let t = bake(&scene, &lossless(1), &|_| {}).unwrap();
             let mut s = LightSetting::defaults(&t.meta.lights);
-            s[0].at = 1.0;
+            s[0].at = [1.0, 0.0, 0.0];
             let there = lights_alone(&t, &s);
             // Blend positions 0 and 2 halfway: the column of position 1 is the truth.
             let mut blended = there.clone();
@@ -811,4 +815,46 @@ fn the_lights_command_writes_its_tables_plot_and_images() {
             .count(),
         5
     );
+}
+
+/// A light baked on a grid: the file's `grid` lays its positions out x first, a place inside a
+/// cell blends the cell's corners, and the command line places it with `NAME@X,Y`.
+#[test]
+fn a_light_on_a_grid_blends_the_corners_of_its_cell() {
+    let text = with_lights(
+        &plane_from_above(16, 16, [0.6; 3], 2.0),
+        "[[light]]\nname = \"lamp\"\ntype = \"point\"\nintensity = 1.0\n\
+         grid = { from = [-0.4, 0.8, -0.4], to = [0.4, 0.8, 0.4], counts = [3, 1, 2] }\n",
+    );
+    let scene = scene_from(&text, "lights-grid");
+    let light = &scene.lights[0];
+    assert_eq!(light.grid, [3, 1, 2]);
+    assert_eq!(light.positions.len(), 6);
+    assert_eq!(light.positions[1], Vec3::new(0.0, 0.8, -0.4));
+    assert_eq!(light.positions[5], Vec3::new(0.4, 0.8, 0.4));
+    let t = bake(&scene, &lossless(1), &|_| {}).unwrap();
+    assert_eq!(t.meta.lights[0].grid, [3, 1, 2]);
+    let mut s = LightSetting::defaults(&t.meta.lights);
+    s[0].at = [0.5, 0.0, 0.25];
+    let img = lights_alone(&t, &s);
+    for (p, px) in img.pixels.iter().enumerate() {
+        let want = 0.75 * (0.5 * t.lights.value(0, 0, p) + 0.5 * t.lights.value(1, 0, p))
+            + 0.25 * (0.5 * t.lights.value(3, 0, p) + 0.5 * t.lights.value(4, 0, p));
+        assert!((px[0] - want).abs() <= 1e-6 * (1.0 + want), "pixel {p}");
+    }
+    let mut by_arg = LightSetting::defaults(&t.meta.lights);
+    wavelet_prt::scene::light_mix::apply_light_arg(&t.meta.lights, &mut by_arg, "lamp@0.5,0,0.25")
+        .unwrap();
+    assert_eq!(by_arg[0].at, [0.5, 0.0, 0.25]);
+    for bad in ["lamp@0,1", "lamp@3", "lamp@0,0,2"] {
+        assert!(
+            wavelet_prt::scene::light_mix::apply_light_arg(&t.meta.lights, &mut by_arg, bad)
+                .is_err(),
+            "{bad}"
+        );
+    }
+    // The file keeps the grid.
+    let dir = temp_dir("lights-grid-file");
+    t.save(&dir.join("g.prt")).unwrap();
+    assert_eq!(Transport::load(&dir.join("g.prt")).unwrap(), t);
 }

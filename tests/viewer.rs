@@ -752,7 +752,7 @@ fn a_local_light_adds_exactly_its_column_and_the_errors_stay_the_environments() 
         assert!((d[0] - want).abs() <= 1e-5 * (1.0 + want), "pixel {p}");
     }
     s.lights.solo = Some(1);
-    s.lights.lights[1].at = 1.0;
+    s.lights.lights[1].at = [1.0, 0.0, 0.0];
     let solo = e.render(&s).unwrap();
     let spot = &t.meta.lights[1];
     let rgb = spot.color * spot.intensity;

@@ -81,6 +81,7 @@ pub fn run_dusk(
     let lights = &t.meta.lights;
     let defaults = LightSetting::defaults(lights);
     let only = |name: &str, at: f32| -> Vec<LightSetting> {
+        let at = [at, 0.0, 0.0];
         lights
             .iter()
             .zip(&defaults)

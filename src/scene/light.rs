@@ -40,6 +40,9 @@ pub struct Light {
     /// Where it is baked, one column each: the point or spot's position, or the quad's centre.
     /// A light that does not move has one; a directional light has one, unused.
     pub positions: Vec<Vec3>,
+    /// How the positions are laid out: a grid of `x · y · z` points, x varying fastest. A path
+    /// is `[n, 1, 1]`, a light that does not move `[1, 1, 1]`.
+    pub grid: [usize; 3],
 }
 
 /// The kind of a light and its shape about its position.
@@ -157,6 +160,13 @@ impl Light {
                 self.positions.len()
             ));
         }
+        if self.grid.contains(&0) || self.grid.iter().product::<usize>() != self.positions.len() {
+            return Some(format!(
+                "a grid of {:?} points for {} positions",
+                self.grid,
+                self.positions.len()
+            ));
+        }
         if !self
             .positions
             .iter()
@@ -184,6 +194,50 @@ impl Light {
             .then(|| "a directional light needs a unit direction and 0 <= angle <= 90°".into()),
             LightShape::Quad { corners } => quad_problem(&corners),
         }
+    }
+
+    /// The positions' columns (indices into `positions`) and weights that place the light at
+    /// `at`, a place along each axis of its grid (0 to count − 1; a path uses the first): the
+    /// nearest baked positions, blended multilinearly. `at` is clamped to the grid.
+    pub fn blend(&self, at: [f32; 3]) -> Vec<(usize, f32)> {
+        let mut axes = [(0usize, 0usize, 0.0f32); 3];
+        for a in 0..3 {
+            let n = self.grid[a].max(1);
+            let t = if at[a].is_finite() {
+                at[a].clamp(0.0, (n - 1) as f32)
+            } else {
+                0.0
+            };
+            let i = (t.floor() as usize).min(n - 1);
+            axes[a] = (i, (i + 1).min(n - 1), t - i as f32);
+        }
+        let index = |x: usize, y: usize, z: usize| x + self.grid[0] * (y + self.grid[1] * z);
+        let mut out: Vec<(usize, f32)> = Vec::with_capacity(8);
+        for corner in 0..8 {
+            let mut w = 1.0;
+            let mut at = [0usize; 3];
+            for (a, &(i0, i1, f)) in axes.iter().enumerate() {
+                let high = corner >> a & 1 == 1;
+                w *= if high { f } else { 1.0 - f };
+                at[a] = if high { i1 } else { i0 };
+            }
+            if w > 0.0 {
+                let k = index(at[0], at[1], at[2]);
+                match out.iter_mut().find(|(c, _)| *c == k) {
+                    Some((_, v)) => *v += w,
+                    None => out.push((k, w)),
+                }
+            }
+        }
+        out
+    }
+
+    /// Where it stands at `at` (see [`Light::blend`]).
+    pub fn position_at(&self, at: [f32; 3]) -> Vec3 {
+        self.blend(at)
+            .into_iter()
+            .map(|(k, w)| self.positions[k] * w)
+            .sum()
     }
 
     /// Columns it is baked into: one per position.
@@ -517,6 +571,38 @@ pub fn stratified(n: usize, mut next: impl FnMut() -> f32) -> Vec<[f32; 2]> {
 mod tests {
     use super::*;
 
+    #[test]
+    fn a_place_in_a_grid_blends_its_nearest_positions_multilinearly() {
+        let light = Light {
+            name: "g".into(),
+            color: Vec3::ONE,
+            intensity: 1.0,
+            shape: LightShape::Point,
+            positions: (0..6)
+                .map(|i| Vec3::new((i % 3) as f32, (i / 3) as f32, 0.0))
+                .collect(),
+            grid: [3, 2, 1],
+        };
+        assert!(light.problem().is_none());
+        let mut b = light.blend([1.25, 0.5, 0.0]);
+        b.sort_by_key(|(k, _)| *k);
+        assert_eq!(b, vec![(1, 0.375), (2, 0.125), (4, 0.375), (5, 0.125)]);
+        assert_eq!(
+            light.position_at([1.25, 0.5, 0.0]),
+            Vec3::new(1.25, 0.5, 0.0)
+        );
+        assert_eq!(light.blend([2.0, 1.0, 0.0]), vec![(5, 1.0)]);
+        assert_eq!(light.blend([9.0, -1.0, 3.0]), vec![(2, 1.0)]);
+        assert!(
+            Light {
+                grid: [2, 2, 1],
+                ..light
+            }
+            .problem()
+            .is_some()
+        );
+    }
+
     fn quad() -> Emitter {
         Emitter::quad([
             Vec3::new(-0.5, 2.0, -0.5),
@@ -567,6 +653,7 @@ mod tests {
                 falloff: 10f32.to_radians(),
             },
             positions: vec![Vec3::new(0.0, 1.0, 0.0)],
+            grid: [1, 1, 1],
         };
         let e = light.emitter(0);
         let at = |deg: f32| Vec3::new(deg.to_radians().tan(), 0.0, 0.0);
@@ -591,6 +678,7 @@ mod tests {
                 angle: 10f32.to_radians(),
             },
             positions: vec![Vec3::ZERO],
+            grid: [1, 1, 1],
         };
         let e = light.emitter(0);
         let samples = stratified(64, || 0.5);

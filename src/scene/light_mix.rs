@@ -3,8 +3,9 @@
 //! is the environment's part plus `Σ weight_col ⊙ column_col`, exactly, whatever method, K or
 //! SH order relights the environment.
 //!
-//! A light that moves is baked at each of its positions; a place between two of them blends the
-//! two nearest columns linearly (`at` = 2.25 is a quarter of the way from position 2 to 3).
+//! A light that moves is baked at each of its positions; a place between them blends the nearest
+//! columns: linearly along a path (`at` = 2.25 is a quarter of the way from position 2 to 3),
+//! multilinearly in a grid ([`Light::blend`]).
 
 use glam::Vec3;
 
@@ -20,8 +21,9 @@ pub struct LightSetting {
     pub color: Vec3,
     /// Intensity, in the units of its kind (the colour multiplies it).
     pub intensity: f32,
-    /// Place along its baked positions, from 0 to positions − 1.
-    pub at: f32,
+    /// Place along each axis of its baked positions, from 0 to the axis's count − 1 (a path
+    /// uses the first).
+    pub at: [f32; 3],
 }
 
 impl LightSetting {
@@ -31,7 +33,7 @@ impl LightSetting {
             on: true,
             color: light.color,
             intensity: light.intensity,
-            at: 0.0,
+            at: [0.0; 3],
         }
     }
 
@@ -68,13 +70,16 @@ impl LightMix {
         let mut first = 0;
         for (light, s) in lights.iter().zip(settings) {
             let n = light.columns();
-            let last = (n - 1) as f32;
-            if !(s.at.is_finite() && (0.0..=last).contains(&s.at)) {
+            if let Some(a) = (0..3).find(|&a| {
+                !(s.at[a].is_finite() && (0.0..=(light.grid[a] - 1) as f32).contains(&s.at[a]))
+            }) {
                 return Err(PrtError::invalid(
                     "light position",
                     format!(
-                        "{} for `{}`, which is baked at positions 0 to {last}",
-                        s.at, light.name
+                        "{:?} for `{}`, whose axis {a} is baked at positions 0 to {}",
+                        s.at,
+                        light.name,
+                        light.grid[a] - 1
                     ),
                 ));
             }
@@ -86,14 +91,10 @@ impl LightMix {
                 ));
             }
             if s.on && rgb != Vec3::ZERO {
-                let i = (s.at.floor() as usize).min(n - 1);
-                let frac = s.at - i as f32;
-                for (col, share) in [(i, 1.0 - frac), ((i + 1).min(n - 1), frac)] {
-                    if share > 0.0 {
-                        let w = &mut weights[first + col];
-                        for k in 0..3 {
-                            w[k] += rgb[k] * share;
-                        }
+                for (col, share) in light.blend(s.at) {
+                    let w = &mut weights[first + col];
+                    for k in 0..3 {
+                        w[k] += rgb[k] * share;
                     }
                 }
             }
@@ -150,7 +151,7 @@ pub fn apply_light_arg(lights: &[Light], settings: &mut [LightSetting], arg: &st
     };
     if value.is_none() && at.is_none() {
         return Err(bad(
-            "give NAME=SCALE, NAME=R,G,B or NAME@POSITION".to_string()
+            "give NAME=SCALE, NAME=R,G,B or NAME@POSITION (X,Y,Z in a grid)".to_string(),
         ));
     }
     let number = |text: &str| -> Result<f32> {
@@ -163,11 +164,22 @@ pub fn apply_light_arg(lights: &[Light], settings: &mut [LightSetting], arg: &st
     let light = &lights[i];
     let s = &mut settings[i];
     if let Some(t) = at {
-        s.at = number(t)?;
-        let last = light.columns() - 1;
-        if s.at > last as f32 {
-            return Err(bad(format!("`{name}` is baked at positions 0 to {last}")));
+        let parts: Vec<&str> = t.split(',').collect();
+        if parts.len() > 3 {
+            return Err(bad("a position has at most three coordinates".to_string()));
         }
+        let mut place = [0.0f32; 3];
+        for (a, part) in parts.iter().enumerate() {
+            place[a] = number(part)?;
+            let last = light.grid[a] - 1;
+            if place[a] > last as f32 {
+                return Err(bad(format!(
+                    "`{name}` is baked at positions 0 to {last} along axis {a} (its grid is {:?})",
+                    light.grid
+                )));
+            }
+        }
+        s.at = place;
     }
     match value.map(|v| v.split(',').collect::<Vec<_>>()).as_deref() {
         None => {}
@@ -199,6 +211,7 @@ mod tests {
                 intensity: 2.0,
                 shape: LightShape::Point,
                 positions: vec![Vec3::ZERO],
+                grid: [1, 1, 1],
             },
             Light {
                 name: "b".into(),
@@ -206,6 +219,7 @@ mod tests {
                 intensity: 1.0,
                 shape: LightShape::Point,
                 positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+                grid: [3, 1, 1],
             },
         ]
     }
@@ -214,7 +228,7 @@ mod tests {
     fn a_place_between_positions_blends_the_two_nearest_columns() {
         let l = lights();
         let mut s = LightSetting::defaults(&l);
-        s[1].at = 1.25;
+        s[1].at = [1.25, 0.0, 0.0];
         let mix = LightMix::new(&l, &s).unwrap();
         assert_eq!(
             mix.weights,
@@ -229,14 +243,23 @@ mod tests {
         apply_light_arg(&l, &mut s, "a=0.5").unwrap();
         assert_eq!(s[0].intensity, 1.0);
         apply_light_arg(&l, &mut s, "b@2=0,1,0").unwrap();
-        assert_eq!((s[1].at, s[1].color), (2.0, Vec3::Y));
+        assert_eq!((s[1].at, s[1].color), ([2.0, 0.0, 0.0], Vec3::Y));
         apply_light_arg(&l, &mut s, "a=0").unwrap();
         assert!(!s[0].on);
         assert_eq!(
             LightMix::new(&l, &s).unwrap().weights,
             vec![[0.0; 3], [0.0; 3], [0.0; 3], [0.0, 1.0, 0.0]]
         );
-        for bad in ["c=1", "a", "a=-1", "a=1,2", "b@3", "a=x"] {
+        for bad in [
+            "c=1",
+            "a",
+            "a=-1",
+            "a=1,2",
+            "b@3",
+            "a=x",
+            "b@1,1",
+            "b@0,0,0,0",
+        ] {
             assert!(apply_light_arg(&l, &mut s, bad).is_err(), "{bad}");
         }
         let e = apply_light_arg(&l, &mut s, "c=1").unwrap_err().to_string();

@@ -20,8 +20,8 @@ pub struct LightControl {
     pub stops: f32,
     /// Linear RGB colour.
     pub color: [f32; 3],
-    /// Place along its baked positions, 0 to positions − 1.
-    pub at: f32,
+    /// Place along each axis of its baked positions, 0 to the axis's count − 1.
+    pub at: [f32; 3],
 }
 
 /// The local lights of a view.
@@ -59,7 +59,7 @@ impl LightsState {
                     on: true,
                     stops: 0.0,
                     color: l.color.to_array(),
-                    at: 0.0,
+                    at: [0.0; 3],
                 })
                 .collect(),
             solo: None,
@@ -112,12 +112,14 @@ impl LightsState {
             for v in &mut c.color {
                 *v = if v.is_finite() { v.max(0.0) } else { 1.0 };
             }
-            let last = (l.columns() - 1) as f32;
-            c.at = if c.at.is_finite() {
-                c.at.clamp(0.0, last)
-            } else {
-                0.0
-            };
+            for (a, at) in c.at.iter_mut().enumerate() {
+                let last = (l.grid[a] - 1) as f32;
+                *at = if at.is_finite() {
+                    at.clamp(0.0, last)
+                } else {
+                    0.0
+                };
+            }
         }
         if self.solo.is_some_and(|s| s >= lights.len()) {
             self.solo = None;
@@ -146,15 +148,7 @@ pub fn outline_quads(
         let crate::scene::LightShape::Quad { corners } = light.shape else {
             continue;
         };
-        let centre = {
-            let (n, at) = (
-                light.positions.len(),
-                c.at.clamp(0.0, (light.columns() - 1) as f32),
-            );
-            let k = (at.floor() as usize).min(n - 1);
-            let f = at - k as f32;
-            light.positions[k] * (1.0 - f) + light.positions[(k + 1).min(n - 1)] * f
-        };
+        let centre = light.position_at(c.at);
         let shown = match state.solo {
             Some(s) => s == i,
             None => c.on,
@@ -206,11 +200,15 @@ pub fn lights_controls(ui: &mut egui::Ui, lights: &[Light], state: &mut LightsSt
         ui.add(
             egui::Slider::new(&mut c.stops, -STOPS..=STOPS).text(format!("{} stops", light.name)),
         );
-        if light.columns() > 1 {
-            ui.add(
-                egui::Slider::new(&mut c.at, 0.0..=(light.columns() - 1) as f32)
-                    .text(format!("{} position", light.name)),
-            );
+        let moving = light.grid.iter().filter(|&&n| n > 1).count();
+        for (a, (at, &n)) in c.at.iter_mut().zip(&light.grid).enumerate() {
+            if n > 1 {
+                let label = match moving {
+                    1 => format!("{} position", light.name),
+                    _ => format!("{} {}", light.name, ["x", "y", "z"][a]),
+                };
+                ui.add(egui::Slider::new(at, 0.0..=(n - 1) as f32).text(label));
+            }
         }
     }
     ui.label(

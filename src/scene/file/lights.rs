@@ -30,16 +30,17 @@ impl LightKind {
 
     fn allowed_keys(self) -> &'static [&'static str] {
         match self {
-            LightKind::Point => &["position", "positions"],
+            LightKind::Point => &["position", "positions", "grid"],
             LightKind::Spot => &[
                 "position",
                 "positions",
+                "grid",
                 "direction",
                 "cone_deg",
                 "falloff_deg",
             ],
             LightKind::Directional => &["direction", "angle_deg"],
-            LightKind::Quad => &["corners", "positions"],
+            LightKind::Quad => &["corners", "positions", "grid"],
         }
     }
 }
@@ -59,13 +60,24 @@ pub(super) struct LightFile {
     falloff_deg: Option<f32>,
     angle_deg: Option<f32>,
     corners: Option<[[f32; 3]; 4]>,
+    grid: Option<GridFile>,
+}
+
+/// A light's `grid`: `counts` points from `from` to `to` along each axis (both ends included).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct GridFile {
+    from: [f32; 3],
+    to: [f32; 3],
+    counts: [u32; 3],
 }
 
 impl LightFile {
-    fn present_keys(&self) -> [(&'static str, bool); 7] {
+    fn present_keys(&self) -> [(&'static str, bool); 8] {
         [
             ("position", self.position.is_some()),
             ("positions", self.positions.is_some()),
+            ("grid", self.grid.is_some()),
             ("direction", self.direction.is_some()),
             ("cone_deg", self.cone_deg.is_some()),
             ("falloff_deg", self.falloff_deg.is_some()),
@@ -182,8 +194,57 @@ impl Loader<'_> {
                     )),
                 }
             };
-            let (shape, positions) = match kind {
-                LightKind::Point => (LightShape::Point, positions(None)?),
+            // Or a `grid` of points, x varying fastest.
+            let placed = |fixed: Option<Vec3>| -> Result<(Vec<Vec3>, [usize; 3])> {
+                let Some(g) = &l.grid else {
+                    let path = positions(fixed)?;
+                    let n = path.len();
+                    return Ok((path, [n, 1, 1]));
+                };
+                if l.position.is_some() || l.positions.is_some() {
+                    return Err(err(
+                        "grid",
+                        "give one of `position`, `positions` and `grid`".into(),
+                    ));
+                }
+                let from = position3(&self.map, &field("grid.from"), g.from)?;
+                let to = position3(&self.map, &field("grid.to"), g.to)?;
+                let counts = g.counts.map(|c| c as usize);
+                let total = counts.iter().try_fold(1usize, |p, &c| p.checked_mul(c));
+                if counts.contains(&0) || total.is_none_or(|t| t > MAX_LIGHT_COLUMNS) {
+                    return Err(err(
+                        "grid.counts",
+                        format!(
+                            "{:?}: each count at least 1, at most {MAX_LIGHT_COLUMNS} points in all",
+                            g.counts
+                        ),
+                    ));
+                }
+                let step = |a: usize| {
+                    if counts[a] > 1 {
+                        (to[a] - from[a]) / (counts[a] - 1) as f32
+                    } else {
+                        0.0
+                    }
+                };
+                let mut points = Vec::with_capacity(total.unwrap_or(0));
+                for k in 0..counts[2] {
+                    for j in 0..counts[1] {
+                        for i in 0..counts[0] {
+                            points.push(
+                                from + Vec3::new(
+                                    i as f32 * step(0),
+                                    j as f32 * step(1),
+                                    k as f32 * step(2),
+                                ),
+                            );
+                        }
+                    }
+                }
+                Ok((points, counts))
+            };
+            let (shape, (positions, grid)) = match kind {
+                LightKind::Point => (LightShape::Point, placed(None)?),
                 LightKind::Spot => {
                     let direction = direction("direction")?;
                     require("cone_deg", l.cone_deg.is_some())?;
@@ -207,14 +268,14 @@ impl Loader<'_> {
                         cone,
                         falloff,
                     };
-                    (shape, positions(None)?)
+                    (shape, placed(None)?)
                 }
                 LightKind::Directional => {
                     let direction = direction("direction")?;
                     let angle = angle("angle_deg", l.angle_deg.unwrap_or(0.0), 90.0)?;
                     (
                         LightShape::Directional { direction, angle },
-                        vec![Vec3::ZERO],
+                        (vec![Vec3::ZERO], [1, 1, 1]),
                     )
                 }
                 LightKind::Quad => {
@@ -230,7 +291,7 @@ impl Loader<'_> {
                     let shape = LightShape::Quad {
                         corners: c.map(|p| p - centre),
                     };
-                    (shape, positions(Some(centre))?)
+                    (shape, placed(Some(centre))?)
                 }
             };
             columns += positions.len();
@@ -249,6 +310,7 @@ impl Loader<'_> {
                 intensity: l.intensity,
                 shape,
                 positions,
+                grid,
             });
         }
         Ok(lights)

@@ -258,6 +258,9 @@ struct LightMetaFile {
     angle_deg: Option<f32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     corners: Option<[[f32; 3]; 4]>,
+    /// The grid of `positions` (x fastest); absent for a path.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    grid: Option<[u32; 3]>,
 }
 
 impl From<&Light> for LightMetaFile {
@@ -273,6 +276,7 @@ impl From<&Light> for LightMetaFile {
             falloff_deg: None,
             angle_deg: None,
             corners: None,
+            grid: (l.grid[1] * l.grid[2] > 1).then(|| l.grid.map(|n| n as u32)),
         };
         match l.shape {
             LightShape::Point => {}
@@ -320,6 +324,10 @@ impl LightMetaFile {
             intensity: self.intensity,
             shape,
             positions: self.positions.iter().copied().map(v).collect(),
+            grid: match self.grid {
+                Some(g) => g.map(|n| n as usize),
+                None => [self.positions.len(), 1, 1],
+            },
         })
     }
 }
