@@ -53,6 +53,20 @@ fn lossless(light_samples: u32) -> BakeSettings {
     }
 }
 
+/// `text`'s scene baked with every value kept, `light_samples` a sized light and the pixel
+/// centres alone (no edge samples, so each pixel sees one point of the plane), and its lights
+/// relit as the file says.
+fn plane_lit(text: &str, name: &str, light_samples: u32) -> (Scene, Transport, Image) {
+    let scene = scene_from(text, name);
+    let settings = BakeSettings {
+        edge_spp: 0,
+        ..lossless(light_samples)
+    };
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    let img = lights_alone(&t, &LightSetting::defaults(&t.meta.lights));
+    (scene, t, img)
+}
+
 /// The point of the plane y = 0 that pixel (x, y)'s centre sees.
 fn plane_point(scene: &Scene, x: usize, y: usize) -> Vec3 {
     let ray = scene.camera.ray(x as f32 + 0.5, y as f32 + 0.5);
@@ -69,17 +83,7 @@ fn a_point_light_over_a_plane_gives_i_cos_over_r_squared() {
             at.to_array()
         ),
     );
-    let scene = scene_from(&text, "lights-point");
-    let t = bake(
-        &scene,
-        &BakeSettings {
-            edge_spp: 0,
-            ..lossless(1)
-        },
-        &|_| {},
-    )
-    .unwrap();
-    let img = lights_alone(&t, &LightSetting::defaults(&t.meta.lights));
+    let (scene, _, img) = plane_lit(&text, "lights-point", 1);
     let mut want_img = Image::new(24, 20);
     for y in 0..20 {
         for x in 0..24 {
@@ -138,18 +142,8 @@ fn a_quad_light_over_a_plane_gives_the_rectangle_form_factor() {
             corners.map(|c| c.to_array())
         ),
     );
-    let scene = scene_from(&text, "lights-quad");
-    let t = bake(
-        &scene,
-        &BakeSettings {
-            edge_spp: 0,
-            ..lossless(256)
-        },
-        &|_| {},
-    )
-    .unwrap();
+    let (scene, t, img) = plane_lit(&text, "lights-quad", 256);
     assert_eq!(t.meta.identity.light_samples, 256);
-    let img = lights_alone(&t, &LightSetting::defaults(&t.meta.lights));
     let mut want = Image::new(24, 24);
     for y in 0..24 {
         for x in 0..24 {
@@ -276,17 +270,7 @@ fn a_spots_cone_edge_sits_where_its_angles_say() {
             at.to_array()
         ),
     );
-    let scene = scene_from(&text, "lights-spot");
-    let t = bake(
-        &scene,
-        &BakeSettings {
-            edge_spp: 0,
-            ..lossless(1)
-        },
-        &|_| {},
-    )
-    .unwrap();
-    let img = lights_alone(&t, &LightSetting::defaults(&t.meta.lights));
+    let (scene, _, img) = plane_lit(&text, "lights-spot", 1);
     let (mut inside, mut outside, mut band) = (0, 0, 0);
     for y in 0..48 {
         for x in 0..48 {

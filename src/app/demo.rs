@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::bake::{BakeProgress, BakeSettings, bake, load_if_baked_with};
+use crate::bake::{BakeProgress, BakeSettings, load_or_bake};
 use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::light::select::Weighting;
@@ -135,15 +135,11 @@ pub fn run_demo(
     let settings = demo_settings();
     let transport_path = dir.join("demo.prt");
     let bake_start = std::time::Instant::now();
-    let (transport, reused) = match load_if_baked_with(&transport_path, &scene, &settings) {
-        Some(t) => {
-            log(&format!(
-                "reusing the bake in {} (scene and settings unchanged)",
-                transport_path.display()
-            ));
-            (t, true)
-        }
-        None => {
+    let (transport, reused) = load_or_bake(
+        &transport_path,
+        &scene,
+        &settings,
+        &mut || {
             log(&format!(
                 "baking {} at {}x{}, N = {}, SH order {} ...",
                 scene.source_path.display(),
@@ -151,12 +147,16 @@ pub fn run_demo(
                 scene.camera.height,
                 settings.cube_n,
                 settings.sh_order
-            ));
-            let t = bake(&scene, &settings, progress)?;
-            t.save(&transport_path)?;
-            (t, false)
-        }
-    };
+            ))
+        },
+        progress,
+    )?;
+    if reused {
+        log(&format!(
+            "reusing the bake in {} (scene and settings unchanged)",
+            transport_path.display()
+        ));
+    }
     let bake_seconds = bake_start.elapsed().as_secs_f64();
     let ctx = LightContext::new(&transport)?;
     let images = dir.join("images");

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::bake::{BakeProgress, BakeSettings, bake, load_if_baked_with};
+use crate::bake::{BakeProgress, BakeSettings, load_or_bake};
 use crate::error::Result;
 use crate::light::envmap::{EnvRotation, EnvSpec};
 use crate::output::film::{Image, ToneMap};
@@ -48,25 +48,25 @@ pub fn run_dusk(
     let scene = Scene::load(&assets.join("scenes/dusk.toml"))?;
     let transport_path = dir.join("dusk.prt");
     let start = std::time::Instant::now();
-    let (t, reused_bake) = match load_if_baked_with(&transport_path, &scene, settings) {
-        Some(t) => {
-            log(&format!(
-                "reusing the bake in {} (scene and settings unchanged)",
-                transport_path.display()
-            ));
-            (t, true)
-        }
-        None => {
+    let (t, reused_bake) = load_or_bake(
+        &transport_path,
+        &scene,
+        settings,
+        &mut || {
             log(&format!(
                 "baking {} with its {} local lights ...",
                 scene.source_path.display(),
                 scene.lights.len()
-            ));
-            let t = bake(&scene, settings, progress)?;
-            t.save(&transport_path)?;
-            (t, false)
-        }
-    };
+            ))
+        },
+        progress,
+    )?;
+    if reused_bake {
+        log(&format!(
+            "reusing the bake in {} (scene and settings unchanged)",
+            transport_path.display()
+        ));
+    }
     let bake_seconds = start.elapsed().as_secs_f64();
     let env = EnvSpec::parse(DUSK_SUN)?.load()?;
     let ctx = LightContext::new(&t)?;

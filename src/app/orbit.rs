@@ -8,7 +8,7 @@ use crate::store::transport::BakeDomain;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::bake::{BakeProgress, BakeSettings, bake, load_if_baked_with};
+use crate::bake::{BakeProgress, BakeSettings, load_or_bake};
 use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::{Image, ToneMap};
@@ -91,18 +91,18 @@ fn bake_vertices(
         ..settings.clone()
     };
     let start = Instant::now();
-    let (t, reused) = match load_if_baked_with(path, scene, &settings) {
-        Some(t) => (t, true),
-        None => {
+    let (t, reused) = load_or_bake(
+        path,
+        scene,
+        &settings,
+        &mut || {
             log(&format!(
                 "baking {} per vertex (edges up to {edge:.3}) ...",
                 scene.source_path.display(),
-            ));
-            let t = bake(scene, &settings, progress)?;
-            t.save(path)?;
-            (t, false)
-        }
-    };
+            ))
+        },
+        progress,
+    )?;
     Ok((t, reused, start.elapsed().as_secs_f64()))
 }
 

@@ -18,7 +18,7 @@ use super::{BakeSettings, ShadingPoint};
 use crate::math::sampling::{Rng, TexelSamples};
 use crate::scene::Scene;
 use crate::scene::brdf::Lobes;
-use crate::scene::light::{Emitter, emitters, stratified};
+use crate::scene::light::{Emitter, emitters, strata, stratified};
 use crate::scene::trace::Tracer;
 
 /// Salt of the light samples' random streams, apart from every other stream of the bake.
@@ -77,34 +77,43 @@ impl LightSampler {
             }
         };
         for (e, sum) in self.emitters.iter().zip(out.iter_mut()) {
-            let points = if e.is_delta() {
-                vec![[0.5, 0.5]]
-            } else {
-                stratified(samples.unwrap_or(self.samples), || rng.next_f32())
-            };
-            let both = glossy && !e.is_delta();
-            let mut acc = Vec3::ZERO;
-            for u in &points {
-                let Some(s) = e.sample(at.origin, *u) else {
-                    continue;
+            let delta = e.is_delta();
+            let both = glossy && !delta;
+            // One light sample's `f cos L / pdf`, weighed against the BRDF's density under MIS.
+            let light = |u: [f32; 2], rays: &mut u64| -> Vec3 {
+                let Some(s) = e.sample(at.origin, u) else {
+                    return Vec3::ZERO;
                 };
                 if n.dot(s.dir) <= 0.0 {
-                    continue;
+                    return Vec3::ZERO;
                 }
                 let f = lobes.eval_cosine(n, v, s.dir);
-                if f == Vec3::ZERO || !visible(s.dir, s.dist, &mut rays) {
-                    continue;
+                if f == Vec3::ZERO || !visible(s.dir, s.dist, rays) {
+                    return Vec3::ZERO;
                 }
                 let w = if both {
                     power_heuristic(s.pdf, lobes.pdf(n, v, s.dir))
                 } else {
                     1.0
                 };
-                acc += f * (s.weight * w);
+                f * (s.weight * w)
+            };
+            if delta {
+                *sum += scale * light([0.5, 0.5], &mut rays);
+                continue;
+            }
+            // The strata are drawn as they are used, nothing kept; the BRDF's pass replays them
+            // from a copy of the stream.
+            let count = samples.unwrap_or(self.samples);
+            let replay = rng.clone();
+            let mut acc = Vec3::ZERO;
+            for u in stratified(count, || rng.next_f32()) {
+                acc += light(u, &mut rays);
             }
             if both {
                 // The BRDF's directions, stratified as the light's, that reach the light.
-                for u in &points {
+                let mut again = replay;
+                for u in stratified(count, || again.next_f32()) {
                     let Some(b) = lobes.sample(n, v, [rng.next_f32(), u[0], u[1]]) else {
                         continue;
                     };
@@ -116,7 +125,7 @@ impl LightSampler {
                     }
                 }
             }
-            *sum += scale * acc / points.len() as f32;
+            *sum += scale * acc / strata(count) as f32;
         }
         rays
     }

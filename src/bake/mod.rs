@@ -20,7 +20,7 @@ use in_order::in_tile_order;
 pub use lights::LightSampler;
 use pixels::visits;
 pub use pixels::{EdgeMap, pixel_subsamples, sample_stride};
-pub use settings::{BakeSettings, load_if_baked_with, worst_case_bytes};
+pub use settings::{BakeSettings, load_if_baked_with, load_or_bake, worst_case_bytes};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 use glam::Vec3;

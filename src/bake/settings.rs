@@ -294,6 +294,25 @@ pub fn load_if_baked_with(
     Transport::load(path).ok()
 }
 
+/// The transport at `path` when it holds this bake ([`load_if_baked_with`]); otherwise, after
+/// `starting()`, `scene` baked with `settings` and saved there. Returns it and whether it was
+/// reused: the demo's bakes, which a second run takes from the first.
+pub fn load_or_bake(
+    path: &std::path::Path,
+    scene: &Scene,
+    settings: &BakeSettings,
+    starting: &mut dyn FnMut(),
+    progress: &(dyn Fn(BakeProgress) + Sync),
+) -> Result<(Transport, bool)> {
+    if let Some(t) = load_if_baked_with(path, scene, settings) {
+        return Ok((t, true));
+    }
+    starting();
+    let t = bake(scene, settings, progress)?;
+    t.save(path)?;
+    Ok((t, false))
+}
+
 /// Bytes a bake's output will take at most (every coefficient kept), to warn or refuse up front.
 pub fn worst_case_bytes(width: usize, height: usize, settings: &BakeSettings) -> u64 {
     let c = texel_count(settings.cube_n) as u64;

@@ -345,17 +345,6 @@ fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
     t * t * (3.0 - 2.0 * t)
 }
 
-/// An orthonormal basis about unit `n` (Duff et al. 2017).
-fn basis(n: Vec3) -> (Vec3, Vec3) {
-    let sign = 1.0f32.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        Vec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
-}
-
 impl Emitter {
     /// A quad of unit radiance from its corners in winding order (planar and convex: the scene
     /// file checks both).
@@ -439,7 +428,7 @@ impl Emitter {
                 let cos = 1.0 - u[0] * (1.0 - cos_half);
                 let sin = (1.0 - cos * cos).max(0.0).sqrt();
                 let phi = std::f32::consts::TAU * u[1];
-                let (t, b) = basis(to_light);
+                let (t, b) = to_light.any_orthonormal_pair();
                 let dir =
                     (t * (sin * phi.cos()) + b * (sin * phi.sin()) + to_light * cos).normalize();
                 let pdf = 1.0 / (std::f32::consts::TAU * (1.0 - cos_half));
@@ -553,18 +542,20 @@ pub fn emitters(lights: &[Light]) -> Vec<Emitter> {
         .collect()
 }
 
-/// Stratified pairs in [0, 1)²: the cells of a ⌈√n⌉ x ⌈√n⌉ grid, each jittered by `next`.
-/// `n` is first rounded up to a square, as the bake records it.
-pub fn stratified(n: usize, mut next: impl FnMut() -> f32) -> Vec<[f32; 2]> {
-    let side = (n as f64).sqrt().ceil().max(1.0) as usize;
-    (0..side * side)
-        .map(|i| {
-            [
-                ((i % side) as f32 + next()) / side as f32,
-                ((i / side) as f32 + next()) / side as f32,
-            ]
-        })
-        .collect()
+/// How many strata [`stratified`] makes of `n`: `n` rounded up to a square, as the bake
+/// records it ([`crate::math::sampling::TexelSamples::grid_side`]).
+pub fn strata(n: usize) -> usize {
+    crate::math::sampling::TexelSamples::grid_side(n).pow(2)
+}
+
+/// Stratified pairs in [0, 1)²: the cells of a ⌈√n⌉ x ⌈√n⌉ grid, row by row, each jittered by
+/// two draws of `next` (x, then y), drawn as the pairs are taken.
+pub fn stratified(n: usize, mut next: impl FnMut() -> f32) -> impl Iterator<Item = [f32; 2]> {
+    let side = crate::math::sampling::TexelSamples::grid_side(n);
+    (0..side * side).map(move |i| {
+        let x = ((i % side) as f32 + next()) / side as f32;
+        [x, ((i / side) as f32 + next()) / side as f32]
+    })
 }
 
 #[cfg(test)]
@@ -681,7 +672,7 @@ mod tests {
             grid: [1, 1, 1],
         };
         let e = light.emitter(0);
-        let samples = stratified(64, || 0.5);
+        let samples: Vec<[f32; 2]> = stratified(64, || 0.5).collect();
         let e_n: f32 = samples
             .iter()
             .map(|&u| {

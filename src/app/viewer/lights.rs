@@ -71,6 +71,14 @@ impl LightsState {
         self.environment && self.solo.is_none()
     }
 
+    /// Whether light `i` shines: the soloed one, or else those switched on.
+    pub fn shows(&self, i: usize) -> bool {
+        match self.solo {
+            Some(s) => s == i,
+            None => self.lights.get(i).is_some_and(|c| c.on),
+        }
+    }
+
     /// The relight settings of `lights` (solo applied).
     pub fn settings(&self, lights: &[Light]) -> Vec<LightSetting> {
         lights
@@ -78,10 +86,7 @@ impl LightsState {
             .zip(&self.lights)
             .enumerate()
             .map(|(i, (l, c))| LightSetting {
-                on: match self.solo {
-                    Some(s) => s == i,
-                    None => c.on,
-                },
+                on: self.shows(i),
                 color: Vec3::from_array(c.color),
                 intensity: l.intensity * c.stops.exp2(),
                 at: c.at,
@@ -149,10 +154,7 @@ pub fn outline_quads(
             continue;
         };
         let centre = light.position_at(c.at);
-        let shown = match state.solo {
-            Some(s) => s == i,
-            None => c.on,
-        };
+        let shown = state.shows(i);
         let top = c.color.iter().copied().fold(1e-6f32, f32::max);
         let rgb = c.color.map(|v| ((v / top) * 255.0) as u8);
         let colour = egui::Color32::from_rgb(rgb[0], rgb[1], rgb[2]).gamma_multiply(if shown {

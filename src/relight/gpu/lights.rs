@@ -56,12 +56,11 @@ impl GpuLights {
         for (i, v) in lights.values.iter().enumerate() {
             words[i / 2] |= (*v as u32) << (16 * (i % 2));
         }
-        let scales: Vec<f32> = lights.scale.clone();
         let storage = |label: &str, bytes: &[u8]| {
             crate::gpu::buffer_with(device, label, bytes, wgpu::BufferUsages::STORAGE)
         };
         let values = storage("light columns", bytemuck::cast_slice(&words));
-        let scale_buf = storage("light scales", bytemuck::cast_slice(&scales));
+        let scale_buf = storage("light scales", bytemuck::cast_slice(&lights.scale));
         let mix = crate::gpu::buffer(
             device,
             "light mix",
