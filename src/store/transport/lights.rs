@@ -3,13 +3,11 @@
 //!
 //! Unlike the environment's rows, these are dense: a lamp lights most of what it can see. They
 //! are stored as 16-bit unsigned integers against a scale per (column, image row), the row's
-//! largest value: `value = q · scale / 65535`. Chosen over 16-bit floats by measurement: a point
-//! light over a plane comes within 5.0e-5 relative L2 of its closed form against 2.0e-4 with
-//! halves (an absolute error of at most 2⁻¹⁷ of the row's brightest value, against 2⁻¹² of every
-//! value), and 256 columns of a 256² image add up in 11.0 ms against 19.1 ms (criterion,
-//! `light_columns_256x256`, 2 cores), since an integer widens to f32 in the instruction that
-//! multiplies it, where a half needs a conversion the compiler does not
-//! vectorise. They hold no subnormals: a row whose largest value is below
+//! largest value: `value = q · scale / 65535`, an absolute error of at most 2⁻¹⁷ of the row's
+//! brightest value. They replaced 16-bit floats (2⁻¹² of every value), which were less accurate
+//! on the point light test (`tests/local_lights.rs`) and slower to add up (criterion,
+//! `light_columns_256x256`): an integer widens to f32 in the instruction that multiplies it,
+//! where a half needs a conversion the compiler does not vectorise. They hold no subnormals: a row whose largest value is below
 //! [`SMALLEST_SCALE`] is stored as zeros. A row belongs to one band of tile rows, so the
 //! shards of a bake hold exactly the rows of the whole bake and merge bit for bit.
 //!
