@@ -1,6 +1,7 @@
 //! Mutation testing of every loader: a seeded property test over thousands of structure-aware
 //! mutations of valid inputs, for `.prt` transports (each quantisation, and shards through a
-//! merge), `.prtv` volumes, scene TOML, OBJ meshes, `.npy` grids and EXR and HDR maps.
+//! merge), `.prtv` volumes, scene TOML, OBJ meshes, glTF (`.gltf` JSON and `.glb` containers),
+//! `.npy` grids and EXR and HDR maps.
 //!
 //! Mutations: single-value edits of every tensor with the checksums recomputed (as a careful
 //! editor would, so they reach the validation behind the checksum), edits of every metadata
@@ -37,15 +38,17 @@ use wavelet_prt::volume::{
     PhaseLight, TransferSettings, VolumeTransfer, VolumeView, bake_volume, render_volume,
 };
 
-/// Inputs each test tries (times `PRT_MUTATIONS`): 82,000 in all, about 45 s of
+/// Inputs each test tries (times `PRT_MUTATIONS`): 88,000 in all, about 45 s of
 /// `cargo test --release` on two cores. `PRT_MUTATIONS=10` (820,000) took 8 minutes and found
 /// nothing more.
-const COUNTS: [(&str, usize); 8] = [
+const COUNTS: [(&str, usize); 10] = [
     ("prt", 16000),
     ("shards", 4000),
     ("prtv", 12000),
     ("scene", 14000),
     ("obj", 8000),
+    ("gltf", 3000),
+    ("glb", 3000),
     ("npy", 8000),
     ("exr", 10000),
     ("hdr", 10000),
@@ -1256,6 +1259,113 @@ fn mutated_hdr_maps_are_errors_or_finite_light() {
         std::fs::write(&path, &bytes).unwrap();
         h.check(i, &format!("map {k}, {what}"), &path, || {
             check_env(&path, &t)
+        });
+    }
+    h.finish();
+}
+
+/// The glTF scene the glTF mutations start from, at a size `exercise_scene` bakes.
+fn gltf_framing() -> wavelet_prt::scene::Framing {
+    wavelet_prt::scene::Framing {
+        camera: None,
+        width: Some(24),
+        height: Some(16),
+    }
+}
+
+const GLTF_STRINGS: &[&str] = &[
+    "\"\"",
+    "\"x\"",
+    "\"VEC2\"",
+    "\"VEC3\"",
+    "\"SCALAR\"",
+    "\"MAT4\"",
+    "\"image/png\"",
+    "\"missing.bin\"",
+    "\"/dev/zero\"",
+    "\"data:application/octet-stream;base64,AAAA\"",
+    "\"data:,x\"",
+    "\"s_image0.png\"",
+    "\"perspective\"",
+    "\"orthographic\"",
+];
+
+#[test]
+fn mutated_gltf_json_is_an_error_or_bakes() {
+    let dir = temp_dir("mutations-gltf");
+    let env = sky();
+    let original = common::gltf::test_scene(4, false).write_gltf(&dir, "s");
+    let text = std::fs::read_to_string(&original).unwrap();
+    let mut h = Harness::new("gltf", 0x5eed_0009);
+    let path = dir.join("mutated.gltf");
+    for i in 0..count("gltf") {
+        let mut rng = Rng::new(h.seed, i as u64);
+        let (bytes, what) = mutate_text(&mut rng, &text, GLTF_STRINGS);
+        std::fs::write(&path, &bytes).unwrap();
+        h.check(i, &what, &path, || {
+            let Ok(scene) = Scene::load_with(&path, &gltf_framing()) else {
+                return Ok(true);
+            };
+            exercise_scene(&scene, &env)?;
+            Ok(false)
+        });
+    }
+    h.finish();
+}
+
+#[test]
+fn mutated_glbs_are_errors_or_bake() {
+    let dir = temp_dir("mutations-glb");
+    let env = sky();
+    let original = std::fs::read(common::gltf::test_scene(4, false).write_glb(&dir, "s")).unwrap();
+    let json_len = u32::from_le_bytes(original[12..16].try_into().unwrap()) as usize;
+    let json = String::from_utf8(original[20..20 + json_len].to_vec()).unwrap();
+    let bin = original[20 + json_len + 8..].to_vec();
+    let mut h = Harness::new("glb", 0x5eed_000a);
+    let path = dir.join("mutated.glb");
+    for i in 0..count("glb") {
+        let mut rng = Rng::new(h.seed, i as u64);
+        let (bytes, what) = match pick(&mut rng, 4) {
+            // The JSON chunk edited, the container repacked around it.
+            0 | 1 => {
+                let (text, what) = mutate_text(&mut rng, &json, GLTF_STRINGS);
+                (common::gltf::pack_glb(&text, &bin), format!("JSON: {what}"))
+            }
+            // Bytes of the binary chunk (positions, indices, the PNG) changed.
+            2 => {
+                let mut b = bin.clone();
+                let n = 1 + pick(&mut rng, 4);
+                for _ in 0..n {
+                    let at = pick(&mut rng, b.len());
+                    b[at] = *choose(&mut rng, &[0u8, 1, 0x7f, 0x80, 0xff, b[at] ^ 0x40]);
+                }
+                (
+                    common::gltf::pack_glb(json.as_bytes(), &b),
+                    format!("{n} bytes of BIN changed"),
+                )
+            }
+            // The container itself: a header or chunk length, or a cut.
+            _ => {
+                let mut b = original.clone();
+                if pick(&mut rng, 2) == 0 {
+                    let at = *choose(&mut rng, &[4usize, 8, 12, 16, 20 + json_len, 24 + json_len]);
+                    let v = interesting_int(&mut rng, 0, 0, u32::MAX as i128) as u32;
+                    b[at..at + 4].copy_from_slice(&v.to_le_bytes());
+                    (b, format!("u32 at byte {at} set to {v}"))
+                } else {
+                    let keep = pick(&mut rng, b.len());
+                    b.truncate(keep);
+                    (b, format!("cut to {keep} bytes"))
+                }
+            }
+        };
+        std::fs::write(&path, &bytes).unwrap();
+        h.check(i, &what, &path, || {
+            let Ok(scene) = Scene::load_with(&path, &gltf_framing()) else {
+                return Ok(true);
+            };
+            exercise_scene(&scene, &env)?;
+            Ok(false)
         });
     }
     h.finish();

@@ -39,6 +39,8 @@ macro_rules! asset {
 pub const ASSETS: &[Asset] = &[
     asset!("scenes/demo.toml"),
     asset!("scenes/dusk.toml"),
+    asset!("scenes/truck.toml"),
+    asset!("gltf/CesiumMilkTruck.glb"),
     asset!("scenes/spheres.toml"),
     asset!("scenes/teapot.toml"),
     asset!("scenes/cloud.toml"),
@@ -106,6 +108,8 @@ pub struct DemoReport {
     pub orbit: crate::app::orbit::OrbitReport,
     /// The dusk scene with its local lights.
     pub dusk: crate::app::dusk::DuskReport,
+    /// The glTF scene.
+    pub truck: crate::app::truck::TruckReport,
 }
 
 /// Writes the bundled assets under `dir/assets` (leaving files that already match).
@@ -123,6 +127,28 @@ pub fn write_assets(dir: &Path) -> Result<PathBuf> {
     Ok(root)
 }
 
+/// One of the demo's bakes into `path`: reused when the file holds this scene's bake with these
+/// settings, else baked after logging `what`. Returns the transport, whether it was reused and
+/// the seconds it took.
+pub(crate) fn bake_or_reuse(
+    path: &Path,
+    scene: &Scene,
+    settings: &BakeSettings,
+    what: &str,
+    log: &mut dyn FnMut(&str),
+    progress: &(dyn Fn(BakeProgress) + Sync),
+) -> Result<(crate::store::transport::Transport, bool, f64)> {
+    let start = std::time::Instant::now();
+    let (t, reused) = load_or_bake(path, scene, settings, &mut || log(what), progress)?;
+    if reused {
+        log(&format!(
+            "reusing the bake in {} (scene and settings unchanged)",
+            path.display()
+        ));
+    }
+    Ok((t, reused, start.elapsed().as_secs_f64()))
+}
+
 /// Runs the demo into `dir`. `log` receives one line per step; `progress` follows the bake.
 pub fn run_demo(
     dir: &Path,
@@ -134,30 +160,16 @@ pub fn run_demo(
     let scene = Scene::load(&assets.join("scenes/demo.toml"))?;
     let settings = demo_settings();
     let transport_path = dir.join("demo.prt");
-    let bake_start = std::time::Instant::now();
-    let (transport, reused) = load_or_bake(
-        &transport_path,
-        &scene,
-        &settings,
-        &mut || {
-            log(&format!(
-                "baking {} at {}x{}, N = {}, SH order {} ...",
-                scene.source_path.display(),
-                scene.camera.width,
-                scene.camera.height,
-                settings.cube_n,
-                settings.sh_order
-            ))
-        },
-        progress,
-    )?;
-    if reused {
-        log(&format!(
-            "reusing the bake in {} (scene and settings unchanged)",
-            transport_path.display()
-        ));
-    }
-    let bake_seconds = bake_start.elapsed().as_secs_f64();
+    let what = format!(
+        "baking {} at {}x{}, N = {}, SH order {} ...",
+        scene.source_path.display(),
+        scene.camera.width,
+        scene.camera.height,
+        settings.cube_n,
+        settings.sh_order
+    );
+    let (transport, reused, bake_seconds) =
+        bake_or_reuse(&transport_path, &scene, &settings, &what, log, progress)?;
     let ctx = LightContext::new(&transport)?;
     let images = dir.join("images");
     std::fs::create_dir_all(&images).map_err(|e| PrtError::io(&images, e))?;
@@ -256,6 +268,8 @@ pub fn run_demo(
         progress,
     )?;
     let dusk = crate::app::dusk::run_dusk(dir, &assets, &settings, DEMO_WEIGHTING, log, progress)?;
+    let truck =
+        crate::app::truck::run_truck(dir, &assets, &settings, DEMO_WEIGHTING, log, progress)?;
     let (volume_bake_seconds, volume_rows) = run_volume_demo(dir, &assets, log)?;
     let table_path = dir.join("summary.md");
     let mut table = markdown_table(&rows);
@@ -304,9 +318,40 @@ pub fn run_demo(
         if dusk.reused_bake { " (reused)" } else { "" },
         dusk.lights_ms
     ));
+    table.push_str(&format!(
+        "\nglTF (`truck_sheet.png`): `assets/scenes/truck.toml`, the Cesium Milk Truck ({} \
+         triangles with the ground, {} texels of texture), bake {:.1} s{}; relative L2 against \
+         every term:\n\n| environment |{}\n|---|{}\n",
+        truck.triangles,
+        truck.texels,
+        truck.bake_seconds,
+        if truck.reused_bake { " (reused)" } else { "" },
+        truck
+            .errors
+            .first()
+            .map(|(_, row)| row
+                .iter()
+                .map(|(c, _)| format!(" {c} |"))
+                .collect::<String>())
+            .unwrap_or_default(),
+        truck
+            .errors
+            .first()
+            .map(|(_, row)| "---:|".repeat(row.len()))
+            .unwrap_or_default(),
+    ));
+    for (env, row) in &truck.errors {
+        table.push_str(&format!(
+            "| {env} |{}\n",
+            row.iter()
+                .map(|(_, e)| format!(" {:.2}% |", 100.0 * e))
+                .collect::<String>()
+        ));
+    }
     crate::files::write_bytes_atomically(&table_path, table.as_bytes())?;
     Ok(DemoReport {
         dusk,
+        truck,
         rows,
         transport_path,
         sheet_path,

@@ -5,7 +5,8 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::bake::{BakeProgress, BakeSettings, load_or_bake};
+use crate::app::demo::bake_or_reuse;
+use crate::bake::{BakeProgress, BakeSettings};
 use crate::error::Result;
 use crate::light::envmap::{EnvRotation, EnvSpec};
 use crate::output::film::{Image, ToneMap};
@@ -47,27 +48,13 @@ pub fn run_dusk(
 ) -> Result<DuskReport> {
     let scene = Scene::load(&assets.join("scenes/dusk.toml"))?;
     let transport_path = dir.join("dusk.prt");
-    let start = std::time::Instant::now();
-    let (t, reused_bake) = load_or_bake(
-        &transport_path,
-        &scene,
-        settings,
-        &mut || {
-            log(&format!(
-                "baking {} with its {} local lights ...",
-                scene.source_path.display(),
-                scene.lights.len()
-            ))
-        },
-        progress,
-    )?;
-    if reused_bake {
-        log(&format!(
-            "reusing the bake in {} (scene and settings unchanged)",
-            transport_path.display()
-        ));
-    }
-    let bake_seconds = start.elapsed().as_secs_f64();
+    let what = format!(
+        "baking {} with its {} local lights ...",
+        scene.source_path.display(),
+        scene.lights.len()
+    );
+    let (t, reused_bake, bake_seconds) =
+        bake_or_reuse(&transport_path, &scene, settings, &what, log, progress)?;
     let env = EnvSpec::parse(DUSK_SUN)?.load()?;
     let ctx = LightContext::new(&t)?;
     let light = ctx.prepare(&env, EnvRotation::default())?;

@@ -10,5 +10,6 @@ pub mod dusk;
 pub mod lights_bench;
 pub mod orbit;
 pub mod paper;
+pub mod truck;
 #[cfg(feature = "app")]
 pub mod viewer;

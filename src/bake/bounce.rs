@@ -29,7 +29,6 @@ use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
 use crate::math::sampling::{Rng, TexelSamples};
 use crate::scene::Scene;
-use crate::scene::brdf::Lobes;
 use crate::scene::trace::Tracer;
 pub use crate::store::transport::BounceVisibility;
 
@@ -359,7 +358,7 @@ impl<'a> Bounces<'a> {
             let mut throughput = Vec3::ONE;
             let mut at = *start;
             for bounce in 1..=self.settings.bounces {
-                let lobes = Lobes::of(&self.scene.materials[at.material as usize]);
+                let lobes = self.scene.lobes_at(at.material, at.uv);
                 let mut u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
                 if bounce == 1 && path < strata * strata {
                     // The first bounce's directions on a jittered grid: the paths of a sample
@@ -402,7 +401,7 @@ impl<'a> Bounces<'a> {
         throughput: Vec3,
         out: &mut impl FnMut(usize, Vec3),
     ) -> u64 {
-        let lobes = Lobes::of(&self.scene.materials[at.material as usize]);
+        let lobes = self.scene.lobes_at(at.material, at.uv);
         let (dirs, weights) = (&self.samples.dirs, &self.samples.weights);
         let m = self.samples.per_texel;
         let diffuse = throughput * lobes.albedo * std::f32::consts::FRAC_1_PI;
@@ -463,7 +462,7 @@ impl<'a> Bounces<'a> {
     ) -> u64 {
         let mut shadow = 0;
         let rays = self.walk(start, stream, &mut |path, bounce, at, throughput| {
-            let material = &self.scene.materials[at.material as usize];
+            let lobes = self.scene.lobes_at(at.material, at.uv);
             if let Some((sampler, columns)) = lights.as_mut() {
                 shadow += self.light_vertex(
                     stream,
@@ -476,9 +475,9 @@ impl<'a> Bounces<'a> {
             }
             match self.visibility(at) {
                 Visibility::Bits(bits)
-                    if material.glossy_lobe().is_none() && self.samples.per_texel == 1 =>
+                    if lobes.specular == Vec3::ZERO && self.samples.per_texel == 1 =>
                 {
-                    let c = throughput * scale * material.albedo() * std::f32::consts::FRAC_1_PI;
+                    let c = throughput * scale * lobes.albedo * std::f32::consts::FRAC_1_PI;
                     self.add_lambertian(bits, at.normal, c, rows);
                 }
                 visibility => {
@@ -504,7 +503,7 @@ impl<'a> Bounces<'a> {
         sampler: &LightSampler,
         columns: &mut [Vec3],
     ) -> u64 {
-        let lobes = Lobes::of(&self.scene.materials[at.material as usize]);
+        let lobes = self.scene.lobes_at(at.material, at.uv);
         // A stream of its own for every vertex, apart from the camera hits' (top bit).
         let vertex = Rng::new(stream, ((index[0] as u64) << 8) | index[1] as u64).next_u64();
         sampler.add(

@@ -14,6 +14,7 @@ pub mod path_tracer;
 mod pixels;
 pub mod reference;
 mod settings;
+mod tint;
 
 use crate::store::transport::BakeDomain;
 use in_order::in_tile_order;
@@ -73,6 +74,8 @@ pub struct ShadingPoint {
     pub view: Vec3,
     /// Material index.
     pub material: u32,
+    /// Texture coordinate of the point.
+    pub uv: glam::Vec2,
 }
 
 /// Shades a camera hit seen along `ray_dir`: the offset origin for shadow rays, the normal and
@@ -83,12 +86,90 @@ pub fn shading_point(tracer: &Tracer, hit: &Hit, ray_dir: Vec3) -> ShadingPoint 
         normal: hit.normal,
         view: -ray_dir,
         material: hit.material,
+        uv: hit.uv,
     }
 }
 
-/// Diffuse albedo of a material.
-pub fn albedo(scene: &Scene, material: u32) -> [f32; 3] {
-    scene.materials[material as usize].albedo().to_array()
+/// The rows of one material seen in a pixel: its diffuse lobe's and, when glossy, its GGX
+/// lobe's; summed plainly for a constant material and weighed by each sub-sample's own colour
+/// for a textured one ([`tint::TintedRow`]).
+struct Slot {
+    material: u32,
+    diffuse: Vec<f32>,
+    glossy: Option<Vec<f32>>,
+    tinted: Option<(tint::TintedRow, Option<tint::TintedRow>)>,
+}
+
+impl Slot {
+    fn new(material: u32, texels: usize, glossy: bool, textured: bool) -> Slot {
+        let tinted = textured.then(|| {
+            (
+                tint::TintedRow::new(texels),
+                glossy.then(|| tint::TintedRow::new(texels)),
+            )
+        });
+        let plain = |on: bool| {
+            if on && !textured {
+                vec![0.0; texels]
+            } else {
+                Vec::new()
+            }
+        };
+        Slot {
+            material,
+            diffuse: plain(true),
+            glossy: (glossy && !textured).then(|| plain(true)),
+            tinted,
+        }
+    }
+
+    /// Where one sub-sample's diffuse and GGX rows go: the sums themselves for a constant
+    /// material, `scratch` cleared for a textured one (then [`Slot::fold_sample`]).
+    fn rows_for_sample<'s>(
+        &'s mut self,
+        scratch: &'s mut [Vec<f32>; 2],
+    ) -> (&'s mut [f32], Option<&'s mut [f32]>) {
+        match &self.tinted {
+            None => (&mut self.diffuse, self.glossy.as_deref_mut()),
+            Some((_, glossy)) => {
+                let glossy = glossy.is_some();
+                let [d, g] = scratch;
+                d.fill(0.0);
+                if glossy {
+                    g.fill(0.0);
+                }
+                (d, glossy.then_some(&mut g[..]))
+            }
+        }
+    }
+
+    /// Adds a textured material's sub-sample rows, left in `scratch`, with its colours.
+    fn fold_sample(&mut self, lobes: &brdf::Lobes, scratch: &[Vec<f32>; 2]) {
+        if let Some((diffuse, glossy)) = &mut self.tinted {
+            diffuse.add(lobes.albedo, &scratch[0]);
+            if let Some(g) = glossy {
+                g.add(lobes.specular, &scratch[1]);
+            }
+        }
+    }
+
+    /// The (RGB weight, row) pairs of the pixel: the material's colours with the plain sums, or
+    /// a textured material's tinted rows.
+    fn finish(self, material: &crate::scene::Material) -> Vec<([f32; 3], Vec<f32>)> {
+        match self.tinted {
+            Some((diffuse, glossy)) => {
+                let mut rows = diffuse.finish();
+                rows.extend(glossy.into_iter().flat_map(tint::TintedRow::finish));
+                rows
+            }
+            None => {
+                let specular = material.glossy_lobe().map(|(s, _)| s.to_array());
+                std::iter::once((material.albedo().to_array(), self.diffuse))
+                    .chain(self.glossy.zip(specular).map(|(row, s)| (s, row)))
+                    .collect()
+            }
+        }
+    }
 }
 
 /// For every texel sample ω, adds `scale · visibility · lobe(ω) · Ω_ω` to the rows (texel
@@ -470,6 +551,8 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
     };
     let mut order: Vec<(f32, u32)> = Vec::with_capacity(c);
     let mut scratch = Vec::new();
+    // One sub-sample's rows of a textured material, before its colour weighs them.
+    let mut scratch_rows = [vec![0.0f32; c], vec![0.0f32; c]];
     for y in tile_y * TILE..((tile_y + 1) * TILE).min(h) {
         for x in tile_x * TILE..((tile_x + 1) * TILE).min(w) {
             let visits = visits(ctx, x, y);
@@ -478,13 +561,13 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             }
             let inv_spp = 1.0 / visits.len() as f32;
             // Dense rows of this pixel per material seen: the diffuse lobe's and, for glossy
-            // materials, the GGX lobe's.
-            let mut dense: Vec<(u32, Vec<f32>, Option<Vec<f32>>)> = Vec::new();
+            // materials, the GGX lobe's; tinted per sub-sample for a textured material.
+            let mut dense: Vec<Slot> = Vec::new();
             // Interreflected light, one row per colour channel (colour bleeding mixes them).
             let mut indirect: Option<[Vec<f32>; 3]> = None;
             let mut hits = 0usize;
             let mut covered = 0.0f32;
-            let mut albedo_sum = [0.0f32; 3];
+            let mut albedo_sum = Vec3::ZERO;
             let pixel_index = (y * w + x) as u64;
             let mut light_columns = vec![Vec3::ZERO; lights.columns()];
             for (sub, visit) in visits.into_iter().enumerate() {
@@ -494,28 +577,30 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                 };
                 let seen = visit.seen;
                 hits += 1;
-                let a = albedo(scene, sp.material);
-                for k in 0..3 {
-                    albedo_sum[k] += a[k];
-                }
                 // A vertex is seen from every side: only the diffuse lobe holds for all.
-                let lobe = scene.materials[sp.material as usize]
+                let mut here = scene.lobes_at(sp.material, sp.uv);
+                if mesh.is_some() {
+                    here.specular = Vec3::ZERO;
+                }
+                albedo_sum += here.albedo;
+                let glossy = scene.materials[sp.material as usize]
                     .glossy_lobe()
-                    .filter(|_| mesh.is_none());
-                let slot = match dense.iter().position(|(m, ..)| *m == sp.material) {
+                    .is_some()
+                    && mesh.is_none();
+                let textured = scene.material_maps[sp.material as usize].is_some();
+                let slot = match dense.iter().position(|d| d.material == sp.material) {
                     Some(i) => i,
                     None => {
-                        dense.push((sp.material, vec![0.0; c], lobe.map(|_| vec![0.0; c])));
+                        dense.push(Slot::new(sp.material, c, glossy, textured));
                         dense.len() - 1
                     }
                 };
                 let stream = path_stream(pixel_index, sub, sample_stride(settings));
                 if lights.columns() > 0 {
-                    let material = &scene.materials[sp.material as usize];
                     let lobes = match mesh {
                         // A vertex is seen from every side: its diffuse lobe.
-                        Some(_) => LightSampler::diffuse(material.albedo()),
-                        None => brdf::Lobes::of(material),
+                        Some(_) => LightSampler::diffuse(here.albedo),
+                        None => here,
                     };
                     out.rays += lights.add(
                         tracer,
@@ -529,7 +614,8 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                         &mut light_columns,
                     );
                 }
-                let (_, diffuse, glossy) = &mut dense[slot];
+                let slot = &mut dense[slot];
+                let (diffuse, glossy_row) = slot.rows_for_sample(&mut scratch_rows);
                 out.rays += accumulate_direct_rows(
                     tracer,
                     samples,
@@ -538,9 +624,9 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     medium,
                     inv_spp * seen,
                     diffuse,
-                    lobe.zip(glossy.as_deref_mut())
-                        .map(|((_, alpha), row)| (alpha, row)),
+                    glossy_row.map(|row| (here.alpha, row)),
                 );
+                slot.fold_sample(&here, &scratch_rows);
                 if settings.bounces > 0 {
                     let rows =
                         indirect.get_or_insert_with(|| std::array::from_fn(|_| vec![0.0; c]));
@@ -551,7 +637,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             }
             let pixel = (y * w + x) as u32;
             let mean_albedo = if hits > 0 {
-                albedo_sum.map(|v| v / hits as f32)
+                (albedo_sum / hits as f32).to_array()
             } else {
                 [0.0; 3]
             };
@@ -559,14 +645,9 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             if !light_columns.is_empty() {
                 out.lights.push((pixel, light_columns));
             }
-            let lobes = dense.into_iter().flat_map(|(material, diffuse, glossy)| {
-                let m = &scene.materials[material as usize];
-                let specular = m
-                    .glossy_lobe()
-                    .filter(|_| mesh.is_none())
-                    .map(|(s, _)| s.to_array());
-                std::iter::once((m.albedo().to_array(), diffuse))
-                    .chain(glossy.zip(specular).map(|(row, s)| (s, row)))
+            let lobes = dense.into_iter().flat_map(|slot| {
+                let material = &scene.materials[slot.material as usize];
+                slot.finish(material)
             });
             let channels = indirect.into_iter().flat_map(|rows| {
                 rows.into_iter()

@@ -27,7 +27,6 @@ use crate::math::cubemap::CubeMap;
 use crate::math::sampling::Rng;
 use crate::output::film::Image;
 use crate::scene::Scene;
-use crate::scene::brdf::Lobes;
 use crate::scene::light::{Emitter, emitters};
 use crate::scene::light_mix::LightMix;
 use crate::scene::trace::Tracer;
@@ -208,7 +207,7 @@ fn radiance(
     let mut throughput = Vec3::ONE;
     let mut at = start;
     for depth in 0..=settings.bounces {
-        let lobes = Lobes::of(&scene.materials[at.material as usize]);
+        let lobes = scene.lobes_at(at.material, at.uv);
         let (n, v) = (at.normal, at.view);
         // Light sampling.
         if let Some(sampler) = sampler {

@@ -273,6 +273,7 @@ pub(super) fn visits(ctx: &TileContext, x: usize, y: usize) -> Vec<Visit> {
             normal,
             view: normal,
             material: mesh.materials[v],
+            uv: glam::Vec2::ZERO,
         };
         return vec![Visit {
             point: Some(point),

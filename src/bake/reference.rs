@@ -130,9 +130,10 @@ pub fn render_reference_lit(
                     };
                     *cov += inv_spp as f32;
                     let sp = shading_point(&tracer, &hit, ray.dir);
-                    let material = &scene.materials[sp.material as usize];
-                    let albedo = material.albedo();
-                    let glossy = material.glossy_lobe();
+                    let lobes = scene.lobes_at(sp.material, sp.uv);
+                    let albedo = lobes.albedo;
+                    let glossy = (lobes.specular != glam::Vec3::ZERO)
+                        .then_some((lobes.specular, lobes.alpha));
                     for (d, w) in samples.dirs.iter().zip(&samples.weights) {
                         if sp.normal.dot(*d) <= 0.0 {
                             continue;
@@ -170,7 +171,6 @@ pub fn render_reference_lit(
                         }
                     }
                     if !weights.is_empty() {
-                        let lobes = brdf::Lobes::of(material);
                         let mut columns = vec![Vec3::ZERO; weights.len()];
                         sampler.add(
                             &tracer,

@@ -11,14 +11,16 @@ use std::collections::{BTreeMap, HashMap};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use glam::{Mat3, Vec3};
+use glam::{Mat3, Vec2, Vec3};
 use serde::Deserialize;
 
 use crate::error::{PrtError, Result};
 
 use crate::medium::{DensityGrid, DensitySource, Medium};
+pub use brdf::Lobes;
 use file::Loader;
 pub use file::MAX_COORDINATE;
+pub use gltf::Framing;
 pub use light::{Emitter, Light, LightShape};
 
 /// Largest accepted image width or height, in pixels. A per-pixel bake beyond this is surely a
@@ -203,13 +205,90 @@ impl Material {
     }
 }
 
-/// A world-space triangle with per-vertex shading normals.
+/// A material whose colours vary over the surface: glTF's `pbrMetallicRoughness` with a
+/// base-colour or metallic-roughness texture. Each factor multiplies its texture's value at the
+/// hit, and [`TexturedMaterial::lobes_of`] maps the product onto this engine's lobes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexturedMaterial {
+    /// Linear RGB base colour factor.
+    pub base_color: Vec3,
+    /// Index into [`Scene::textures`] of the sRGB base-colour texture.
+    pub base_color_texture: Option<u32>,
+    /// Metallic factor in [0, 1].
+    pub metallic: f32,
+    /// Perceptual roughness factor in [0, 1].
+    pub roughness: f32,
+    /// Index into [`Scene::textures`] of the linear texture whose green channel scales the
+    /// roughness and blue channel the metallic factor.
+    pub metallic_roughness_texture: Option<u32>,
+    /// Only the diffuse lobe (what a per-vertex bake keeps).
+    pub diffuse_only: bool,
+}
+
+/// Reflectance a dielectric's GGX lobe takes at normal incidence, as glTF specifies.
+pub const DIELECTRIC_F0: f32 = 0.04;
+
+/// Lowest perceptual roughness a material may have: narrower lobes than this fall between the
+/// texels of any cube map the bake can afford.
+pub const MIN_ROUGHNESS: f32 = 0.02;
+
+impl TexturedMaterial {
+    /// glTF's metallic-roughness parameters as lobes: specular colour `F0 = 0.04 (1 − m) + m ·
+    /// base`, diffuse albedo `(1 − 0.04) (1 − m) · base` (so that the two sum to at most one),
+    /// and GGX width `α = r²` with `r` raised to [`MIN_ROUGHNESS`].
+    pub fn lobes_of(base: Vec3, metallic: f32, roughness: f32) -> Lobes {
+        let m = metallic.clamp(0.0, 1.0);
+        let base = base.clamp(Vec3::ZERO, Vec3::ONE);
+        let r = roughness.clamp(MIN_ROUGHNESS, 1.0);
+        Lobes {
+            albedo: base * ((1.0 - DIELECTRIC_F0) * (1.0 - m)),
+            specular: Vec3::splat(DIELECTRIC_F0 * (1.0 - m)) + base * m,
+            alpha: r * r,
+        }
+    }
+
+    /// The lobes at texture coordinate `uv`.
+    pub fn lobes(&self, textures: &[texture::Texture], uv: Vec2) -> Lobes {
+        let sample = |t: Option<u32>| {
+            t.and_then(|i| textures.get(i as usize))
+                .map(|t| t.sample(uv))
+        };
+        let base = self.base_color * sample(self.base_color_texture).unwrap_or(Vec3::ONE);
+        let mr = sample(self.metallic_roughness_texture).unwrap_or(Vec3::ONE);
+        let mut lobes = Self::lobes_of(base, self.metallic * mr.z, self.roughness * mr.y);
+        if self.diffuse_only {
+            lobes.specular = Vec3::ZERO;
+        }
+        lobes
+    }
+
+    /// The material with every texture at its mean: what messages and summaries quote.
+    pub fn mean(&self, textures: &[texture::Texture]) -> Material {
+        let mean = |t: Option<u32>| t.and_then(|i| textures.get(i as usize)).map(|t| t.mean());
+        let base = self.base_color * mean(self.base_color_texture).unwrap_or(Vec3::ONE);
+        let mr = mean(self.metallic_roughness_texture).unwrap_or(Vec3::ONE);
+        let l = Self::lobes_of(base, self.metallic * mr.z, self.roughness * mr.y);
+        if self.diffuse_only {
+            Material::Diffuse { albedo: l.albedo }
+        } else {
+            Material::Glossy {
+                albedo: l.albedo,
+                specular: l.specular,
+                roughness: l.alpha.sqrt(),
+            }
+        }
+    }
+}
+
+/// A world-space triangle with per-vertex shading normals and texture coordinates.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Triangle {
     /// Corner positions; their winding defines [`Triangle::geometric_normal`].
     pub vertices: [Vec3; 3],
     /// Unit shading normal at each corner (all equal to the geometric normal for flat shading).
     pub normals: [Vec3; 3],
+    /// Texture coordinate at each corner (zero where the shape has none).
+    pub uvs: [Vec2; 3],
     /// Index into [`Scene::materials`].
     pub material: u32,
 }
@@ -219,9 +298,11 @@ impl Triangle {
     pub fn turned(&self) -> Triangle {
         let [a, b, c] = self.vertices;
         let [na, nb, nc] = self.normals;
+        let [ta, tb, tc] = self.uvs;
         Triangle {
             vertices: [a, c, b],
             normals: [-na, -nc, -nb],
+            uvs: [ta, tc, tb],
             material: self.material,
         }
     }
@@ -256,8 +337,13 @@ pub struct Sphere {
 pub struct Scene {
     /// The fixed camera the scene is baked for.
     pub camera: Camera,
-    /// Materials, indexed by the `material` field of triangles and spheres.
+    /// Materials, indexed by the `material` field of triangles and spheres. A textured
+    /// material holds its textures' means here; [`Scene::lobes_at`] gives its value at a hit.
     pub materials: Vec<Material>,
+    /// The textures of each material, parallel to `materials`: `None` for a constant one.
+    pub material_maps: Vec<Option<TexturedMaterial>>,
+    /// Textures the materials read, each decoded once.
+    pub textures: Vec<texture::Texture>,
     /// Name of each material, parallel to `materials` (sorted by name).
     pub material_names: Vec<String>,
     /// All quads and meshes flattened into world-space triangles.
@@ -276,16 +362,46 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// The scene file this was loaded from (or named as such by [`Scene::from_toml_str`]).
     pub source_path: PathBuf,
-    /// Every file the scene was read from: the scene file, then its meshes and density grid.
+    /// Every file the scene was read from: the scene file, then its meshes, glTF resources and
+    /// density grid.
     pub input_files: Vec<PathBuf>,
+    /// What its glTF files hold that the engine does not use (emission, normal maps, ...), one
+    /// line each, for a warning.
+    pub ignored: Vec<String>,
     content_hash: u64,
 }
 
 impl Scene {
-    /// Reads and loads the scene file at `path`; OBJ paths in it are relative to its folder.
+    /// Reads and loads the scene at `path`: a TOML scene file (OBJ and glTF paths in it are
+    /// relative to its folder), or a glTF file (`.gltf`, `.glb`) framed by its first camera.
     pub fn load(path: &Path) -> Result<Scene> {
+        Scene::load_with(path, &Framing::default())
+    }
+
+    /// [`Scene::load`], with the glTF camera and the image size `framing` picks.
+    pub fn load_with(path: &Path, framing: &Framing) -> Result<Scene> {
+        if is_gltf(path) {
+            return gltf::scene(path, framing);
+        }
+        if let Some(name) = &framing.camera {
+            return Err(PrtError::invalid(
+                "camera",
+                format!("`{name}`: only a glTF scene has named cameras; a TOML scene has one"),
+            ));
+        }
         let text = crate::files::read_regular_text(path, crate::files::MAX_SCENE_BYTES, "scene")?;
-        Scene::from_toml_str(&text, path)
+        let mut scene = Scene::from_toml_str(&text, path)?;
+        let (w, h) = (scene.camera.width, scene.camera.height);
+        let size = (framing.width.unwrap_or(w), framing.height.unwrap_or(h));
+        if size != (w, h) {
+            // A scene's camera at another size is another bake: its hash says so.
+            (scene.camera.width, scene.camera.height) = size;
+            scene.camera.validate()?;
+            let mut hasher = file::Fnv1a(scene.content_hash);
+            gltf::hash_camera(&mut hasher, &scene.camera);
+            scene.content_hash = hasher.0;
+        }
+        Ok(scene)
     }
 
     /// Loads a scene from TOML text. `path_for_errors_and_relative_paths` names the file in
@@ -315,6 +431,9 @@ impl Scene {
         for m in &mut s.materials {
             *m = Material::Diffuse { albedo: m.albedo() };
         }
+        for maps in s.material_maps.iter_mut().flatten() {
+            maps.diffuse_only = true;
+        }
         // FNV-1a over the source hash and a tag.
         let mut h = 0xcbf2_9ce4_8422_2325u64;
         for b in self.content_hash.to_le_bytes().iter().chain(b"diffuse") {
@@ -322,6 +441,21 @@ impl Scene {
         }
         s.content_hash = h;
         s
+    }
+
+    /// The lobes of material `material` at texture coordinate `uv`: the material's own for a
+    /// constant one, its textures' values there for a textured one.
+    #[inline]
+    pub fn lobes_at(&self, material: u32, uv: Vec2) -> Lobes {
+        match self.material_maps.get(material as usize).copied().flatten() {
+            Some(maps) => maps.lobes(&self.textures, uv),
+            None => Lobes::of(&self.materials[material as usize]),
+        }
+    }
+
+    /// Whether any material reads a texture.
+    pub fn is_textured(&self) -> bool {
+        self.material_maps.iter().any(Option::is_some)
     }
 
     /// Number of triangles after flattening quads and meshes.
@@ -432,13 +566,22 @@ impl MediumSpec {
     }
 }
 
+/// Whether `path` names a glTF file, by its extension.
+pub fn is_gltf(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"))
+}
+
 pub mod brdf;
 mod diagnostics;
 mod file;
+pub mod gltf;
 pub mod light;
 pub mod light_mix;
 mod obj;
 pub mod tessellate;
+pub mod texture;
 pub mod trace;
 
 #[cfg(test)]

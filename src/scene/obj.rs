@@ -11,6 +11,7 @@ pub(super) fn flat_triangle(vertices: [Vec3; 3], material: u32) -> Option<Triang
     (n != Vec3::ZERO).then_some(Triangle {
         vertices,
         normals: [n; 3],
+        uvs: [Vec2::ZERO; 3],
         material,
     })
 }

@@ -58,6 +58,13 @@ impl VertexMesh {
                 format!("{edge_length}; it must be a finite length > 0"),
             ));
         }
+        if scene.is_textured() {
+            return Err(PrtError::invalid(
+                "per-vertex bake",
+                "the scene's materials are textured, and a per-vertex bake does not yet carry \
+                 texture coordinates: bake it per pixel",
+            ));
+        }
         // About how many vertices the length asks for (a triangle's edges end between half the
         // length and the length): refused before any work when far past the limit.
         let area: f64 = scene

@@ -9,7 +9,7 @@
 
 use std::time::Duration;
 
-use glam::{UVec2, Vec3, Vec3A};
+use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::CwBvh;
@@ -45,6 +45,8 @@ pub struct Hit {
     pub geometric_normal: Vec3,
     /// Index into [`Scene::materials`].
     pub material: u32,
+    /// Texture coordinate at the hit (zero on spheres and shapes without coordinates).
+    pub uv: Vec2,
 }
 
 /// Triangle in the form the intersection test wants, stored in BVH leaf order.
@@ -70,6 +72,7 @@ impl PackedTriangle {
 #[derive(Clone, Copy, Debug)]
 struct TriangleShading {
     normals: [Vec3; 3],
+    uvs: [Vec2; 3],
     geometric: Vec3,
     material: u32,
 }
@@ -197,6 +200,7 @@ impl Tracer {
             .iter()
             .map(|t| TriangleShading {
                 normals: t.normals,
+                uvs: t.uvs,
                 geometric: t.geometric_normal(),
                 material: t.material,
             })
@@ -298,11 +302,11 @@ impl Tracer {
         });
         let t = ray.tmax;
 
-        let (point, shading_normal, geometric, material) = if let Some(slot) = sphere_slot {
+        let (point, shading_normal, geometric, material, uv) = if let Some(slot) = sphere_slot {
             let s = &self.spheres[slot as usize];
             let n = (origin + t * dir - s.center).normalize();
             // Projecting onto the surface removes the root's rounding error from the point.
-            (s.center + n * s.radius, n, n, s.material)
+            (s.center + n * s.radius, n, n, s.material, Vec2::ZERO)
         } else {
             let slot = tri_slot? as usize;
             let sh = &self.shading[self.packed_ids[slot] as usize];
@@ -311,7 +315,8 @@ impl Tracer {
             let n = sh.normals[0] * (1.0 - u - v) + sh.normals[1] * u + sh.normals[2] * v;
             let n = n.normalize_or_zero();
             let n = if n == Vec3::ZERO { sh.geometric } else { n };
-            (origin + t * dir, n, sh.geometric, sh.material)
+            let uv = sh.uvs[0] * (1.0 - u - v) + sh.uvs[1] * u + sh.uvs[2] * v;
+            (origin + t * dir, n, sh.geometric, sh.material, uv)
         };
 
         // Two-sided surfaces: the side the ray arrived on is the side we shade.
@@ -337,6 +342,7 @@ impl Tracer {
             normal,
             geometric_normal,
             material,
+            uv,
         })
     }
 

@@ -2,6 +2,7 @@
 
 #![allow(dead_code)]
 
+pub mod gltf;
 mod shared;
 #[allow(unused_imports)]
 pub use shared::{Rng, SPHERE_ON_PLANE, assert_close, assert_rel_close, temp_dir};

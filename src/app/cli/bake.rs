@@ -7,11 +7,14 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// Arguments of `prt bake`.
 #[derive(Args, Debug)]
 pub struct BakeArgs {
-    /// Scene file (TOML).
+    /// Scene file: TOML, or glTF (.gltf, .glb).
     pub scene: PathBuf,
     /// Output transport file (.prt).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// The view: a glTF camera, the image size.
+    #[command(flatten)]
+    pub framing: FramingArgs,
     /// How the transport is sampled.
     #[command(flatten)]
     pub sampling: SamplingArgs,
@@ -64,7 +67,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
     settings.shard = a.shard.as_deref().map(parse_shard).transpose()?;
     settings.validate()?;
     crate::files::check_output(&a.output, &["prt"], "a transport file", &[])?;
-    let scene = Scene::load(&a.scene)?;
+    let scene = a.framing.load(&a.scene)?;
     let mesh = if a.per_vertex {
         let edge = a
             .edge_length
@@ -424,6 +427,14 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
         d.bake_seconds,
         if d.reused_bake { ", reused" } else { "" },
         d.lights_ms
+    );
+    let g = &report.truck;
+    println!(
+        "glTF           {} ({} triangles, textured; baked in {:.1} s{})",
+        g.sheet_path.display(),
+        g.triangles,
+        g.bake_seconds,
+        if g.reused_bake { ", reused" } else { "" },
     );
     println!(
         "volume         {} (SH self-transfer baked in {:.2} s; images in {})",

@@ -109,7 +109,13 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
             .scene
             .clone()
             .unwrap_or_else(|| PathBuf::from(&t.meta.scene_path));
-        let scene = Scene::load(&path)?;
+        // The bake's image size, which a glTF scene takes from its command line.
+        let framing = crate::scene::Framing {
+            camera: None,
+            width: Some(t.meta.width),
+            height: Some(t.meta.height),
+        };
+        let scene = Scene::load_with(&path, &framing)?;
         if scene.hash_hex() != t.meta.identity.scene_hash {
             return Err(PrtError::invalid(
                 "scene",

@@ -11,8 +11,11 @@ use crate::output::sheet::{Cell, write_sheet};
 /// Arguments of `prt bounces`.
 #[derive(Args, Debug)]
 pub struct BouncesArgs {
-    /// Scene file (TOML).
+    /// Scene file: TOML, or glTF (.gltf, .glb).
     pub scene: PathBuf,
+    /// The view: a glTF camera, the image size.
+    #[command(flatten)]
+    pub framing: FramingArgs,
     /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
     #[arg(long)]
     pub env: String,
@@ -67,7 +70,7 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
     }
     check_light_flags(a.turn.yaw, a.turn.pitch, None)?;
     crate::files::check_output_folder(&a.out)?;
-    let scene = Scene::load(&a.scene)?;
+    let scene = a.framing.load(&a.scene)?;
     let env = load_env(&a.env)?;
     let base = settings_from(&a.sampling, BakeSettings::default().sh_order, 0.01, false);
     BakeSettings {

@@ -1,7 +1,7 @@
 //! The `prt` command line: argument parsing, progress bars and printing. Everything else is the
 //! library; this module is the only place that writes to the terminal.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
 use std::time::Instant;
 
@@ -121,6 +121,43 @@ pub enum VolumeCommand {
     Bake(VolumeBakeArgs),
     /// Relight a volume file under an environment by ray marching, from any camera.
     Render(VolumeRenderArgs),
+}
+
+/// Which view of a scene: a glTF file's camera, and the image size.
+#[derive(Args, Debug, Clone, Default)]
+pub struct FramingArgs {
+    /// The glTF camera to use, by name (default: the file's first; without one, a camera that
+    /// frames the whole scene from the front).
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Image width in pixels (default: the scene file's; 256 for a glTF file).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height in pixels (default: the scene file's; for a glTF file, the width over the
+    /// camera's aspect ratio).
+    #[arg(long)]
+    pub height: Option<u32>,
+}
+
+impl FramingArgs {
+    /// Loads the scene at `path` framed as asked, warning once of what its glTF files hold
+    /// that is not used.
+    pub(super) fn load(&self, path: &Path) -> Result<Scene> {
+        let framing = crate::scene::Framing {
+            camera: self.camera.clone(),
+            width: self.width,
+            height: self.height,
+        };
+        let scene = Scene::load_with(path, &framing)?;
+        if !scene.ignored.is_empty() {
+            eprintln!(
+                "note: {}: not used: {}",
+                path.display(),
+                crate::files::printable(&scene.ignored.join("; "))
+            );
+        }
+        Ok(scene)
+    }
 }
 
 /// Options shared by the bake and the reference: how the transport is sampled.

@@ -123,8 +123,11 @@ fn check_still_memory(width: u32, height: u32) -> Result<()> {
 /// Arguments of `prt reference`.
 #[derive(Args, Debug)]
 pub struct ReferenceArgs {
-    /// Scene file (TOML).
+    /// Scene file: TOML, or glTF (.gltf, .glb).
     pub scene: PathBuf,
+    /// The view: a glTF camera, the image size.
+    #[command(flatten)]
+    pub framing: FramingArgs,
     /// Environment: an .exr/.hdr lat-long map, sun:ELEV,AZIM[,RADIUS], or none (the local
     /// lights alone).
     #[arg(long)]
@@ -312,7 +315,7 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     check_light_flags(a.turn.yaw, a.turn.pitch, None)?;
     let mut inputs = env_files(std::slice::from_ref(&a.env));
     check_image_output(&a.output, &inputs)?;
-    let scene = Scene::load(&a.scene)?;
+    let scene = a.framing.load(&a.scene)?;
     inputs.extend(scene.input_files.iter().cloned());
     check_image_output(&a.output, &inputs)?;
     let mix = light_mix(&scene.lights, &a.lights)?;

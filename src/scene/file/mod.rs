@@ -4,6 +4,7 @@
 use super::diagnostics::SourceMap;
 use super::obj::{MeshTransform, ObjData, flat_triangle, mesh_triangles, parse_obj};
 use super::*;
+use glam::Mat4;
 
 mod lights;
 
@@ -87,13 +88,14 @@ enum ShapeKind {
     Quad,
     Sphere,
     Mesh,
+    Gltf,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ShapeFile {
     r#type: ShapeKind,
-    material: String,
+    material: Option<String>,
     corners: Option<[[f32; 3]; 4]>,
     center: Option<[f32; 3]>,
     radius: Option<f32>,
@@ -106,8 +108,9 @@ struct ShapeFile {
 
 impl ShapeFile {
     /// The optional keys present in this table, for checking they suit its type.
-    fn present_keys(&self) -> [(&'static str, bool); 8] {
+    fn present_keys(&self) -> [(&'static str, bool); 9] {
         [
+            ("material", self.material.is_some()),
             ("corners", self.corners.is_some()),
             ("center", self.center.is_some()),
             ("radius", self.radius.is_some()),
@@ -126,14 +129,18 @@ impl ShapeKind {
             ShapeKind::Quad => "quad",
             ShapeKind::Sphere => "sphere",
             ShapeKind::Mesh => "mesh",
+            ShapeKind::Gltf => "gltf",
         }
     }
 
     fn allowed_keys(self) -> &'static [&'static str] {
         match self {
-            ShapeKind::Quad => &["corners"],
-            ShapeKind::Sphere => &["center", "radius"],
+            ShapeKind::Quad => &["material", "corners"],
+            ShapeKind::Sphere => &["material", "center", "radius"],
+            // A glTF file brings its own materials.
+            ShapeKind::Gltf => &["path", "scale", "rotate_y_deg", "translate"],
             ShapeKind::Mesh => &[
+                "material",
                 "path",
                 "scale",
                 "rotate_y_deg",
@@ -166,7 +173,7 @@ impl Fnv1a {
 
     /// Hashes a length-prefixed chunk, so that moving bytes from one input to the next changes
     /// the hash.
-    fn write_chunk(&mut self, bytes: &[u8]) {
+    pub(in crate::scene) fn write_chunk(&mut self, bytes: &[u8]) {
         self.write(&(bytes.len() as u64).to_le_bytes());
         self.write(bytes);
     }
@@ -264,7 +271,11 @@ impl<'a> Loader<'a> {
                 format!("must be a length > 0 and <= {MAX_COORDINATE:e}, got {e}"),
             ));
         }
-        let lights = self.lights(&file.light)?;
+        let mut lights = self.lights(&file.light)?;
+        let mut material_maps = vec![None; materials.len()];
+        let mut textures = Vec::new();
+        let mut ignored = std::collections::BTreeSet::new();
+        let mut surfaces_from_gltf = Vec::new();
         let mut triangles = Vec::new();
         let mut spheres = Vec::new();
         let mut surfaces = Vec::new();
@@ -272,20 +283,6 @@ impl<'a> Loader<'a> {
         for (i, shape) in file.shape.iter().enumerate() {
             let first_triangle = triangles.len();
             let field = |key: &str| format!("shape[{i}].{key}");
-            let material = material_names
-                .iter()
-                .position(|n| *n == shape.material)
-                .ok_or_else(|| {
-                    let known = if material_names.is_empty() {
-                        "none are defined".to_string()
-                    } else {
-                        format!("defined: {}", material_names.join(", "))
-                    };
-                    self.map.error(
-                        &field("material"),
-                        format!("unknown material `{}` ({known})", shape.material),
-                    )
-                })? as u32;
             for (key, present) in shape.present_keys() {
                 if present && !shape.r#type.allowed_keys().contains(&key) {
                     return Err(self.map.error(
@@ -304,7 +301,59 @@ impl<'a> Loader<'a> {
                     ))
                 }
             };
+            if shape.r#type != ShapeKind::Gltf {
+                require("material", shape.material.is_some())?;
+            }
+            let material = match &shape.material {
+                Some(name) => self.material_index(&material_names, name, &field("material"))?,
+                None => 0,
+            };
             match shape.r#type {
+                ShapeKind::Gltf => {
+                    require("path", shape.path.is_some())?;
+                    let data = self.gltf(i, shape)?;
+                    let first_material = materials.len() as u32;
+                    let first_texture = textures.len() as u32;
+                    for m in data.materials {
+                        materials.push(m.material);
+                        material_maps.push(m.maps.map(|mut maps| {
+                            for t in [
+                                &mut maps.base_color_texture,
+                                &mut maps.metallic_roughness_texture,
+                            ] {
+                                *t = t.map(|t| t + first_texture);
+                            }
+                            maps
+                        }));
+                        material_names.push(format!(
+                            "{}:{}",
+                            shape.path.as_deref().unwrap_or_default(),
+                            m.name
+                        ));
+                    }
+                    textures.extend(data.textures);
+                    for l in data.lights {
+                        if lights.iter().any(|k: &Light| k.name == l.name) {
+                            return Err(self.map.error(
+                                &field("path"),
+                                format!("its light `{}` has the name of another light", l.name),
+                            ));
+                        }
+                        lights.push(l);
+                    }
+                    ignored.extend(data.ignored);
+                    for (range, name) in data.surfaces {
+                        let offset = triangles.len();
+                        surfaces_from_gltf.push((
+                            range.start + offset..range.end + offset,
+                            format!("shape[{i}] {name}"),
+                        ));
+                    }
+                    triangles.extend(data.triangles.into_iter().map(|mut t| {
+                        t.material += first_material;
+                        t
+                    }));
+                }
                 ShapeKind::Sphere => {
                     require("center", shape.center.is_some())?;
                     require("radius", shape.radius.is_some())?;
@@ -348,7 +397,12 @@ impl<'a> Loader<'a> {
                     triangles.extend(mesh);
                 }
             }
-            if triangles.len() > first_triangle {
+            if shape.r#type == ShapeKind::Gltf {
+                for (range, name) in surfaces_from_gltf.drain(..) {
+                    surfaces.push(range);
+                    surface_names.push(name);
+                }
+            } else if triangles.len() > first_triangle {
                 surfaces.push(first_triangle..triangles.len());
                 surface_names.push(match &shape.path {
                     Some(p) => format!("shape[{i}] ({p})"),
@@ -359,8 +413,10 @@ impl<'a> Loader<'a> {
 
         Ok(Scene {
             camera,
+            material_maps,
             materials,
             material_names,
+            textures,
             triangles,
             surfaces,
             surface_names,
@@ -372,8 +428,43 @@ impl<'a> Loader<'a> {
             input_files: std::iter::once(self.map.file.clone())
                 .chain(self.inputs)
                 .collect(),
+            ignored: ignored.into_iter().collect(),
             content_hash: self.hasher.0,
         })
+    }
+
+    /// The index of material `name`, or an error listing those defined.
+    fn material_index(&self, names: &[String], name: &str, field: &str) -> Result<u32> {
+        names
+            .iter()
+            .position(|n| n == name)
+            .map(|i| i as u32)
+            .ok_or_else(|| {
+                let known = if names.is_empty() {
+                    "none are defined".to_string()
+                } else {
+                    format!("defined: {}", names.join(", "))
+                };
+                self.map
+                    .error(field, format!("unknown material `{name}` ({known})"))
+            })
+    }
+
+    /// A `type = "gltf"` shape's file, placed by the shape's transform.
+    fn gltf(&mut self, index: usize, shape: &ShapeFile) -> Result<super::gltf::GltfData> {
+        let transform = self.transform(index, shape)?;
+        let placement = Mat4::from_translation(transform.translate)
+            * Mat4::from_mat3(transform.rotation)
+            * Mat4::from_scale(Vec3::splat(transform.scale));
+        let path = self
+            .base_dir
+            .join(shape.path.as_deref().unwrap_or_default());
+        let data = super::gltf::read(&path, placement)?;
+        for b in &data.bytes {
+            self.hasher.write_chunk(b);
+        }
+        self.inputs.extend(data.files.iter().cloned());
+        Ok(data)
     }
 
     fn camera(&self, c: &CameraFile) -> Result<Camera> {
@@ -621,7 +712,8 @@ impl<'a> Loader<'a> {
         })
     }
 
-    fn mesh(&mut self, index: usize, shape: &ShapeFile, material: u32) -> Result<Vec<Triangle>> {
+    /// A mesh or glTF shape's placement: `scale`, `rotate_y_deg`, `translate`.
+    fn transform(&self, index: usize, shape: &ShapeFile) -> Result<MeshTransform> {
         let field = |key: &str| format!("shape[{index}].{key}");
         let scale = shape.scale.unwrap_or(1.0);
         if !(scale.is_finite() && scale > 0.0) {
@@ -642,6 +734,16 @@ impl<'a> Loader<'a> {
             &field("translate"),
             shape.translate.unwrap_or_default(),
         )?;
+        Ok(MeshTransform {
+            scale,
+            rotation: Mat3::from_rotation_y(rotate_y_deg.to_radians()),
+            translate,
+        })
+    }
+
+    fn mesh(&mut self, index: usize, shape: &ShapeFile, material: u32) -> Result<Vec<Triangle>> {
+        let field = |key: &str| format!("shape[{index}].{key}");
+        let transform = self.transform(index, shape)?;
         let rel = shape.path.as_deref().unwrap_or_default();
         let path = self.base_dir.join(rel);
         if !self.obj_cache.contains_key(&path) {
@@ -653,11 +755,6 @@ impl<'a> Loader<'a> {
         let (bytes, obj) = &self.obj_cache[&path];
         self.hasher.write_chunk(bytes);
 
-        let transform = MeshTransform {
-            scale,
-            rotation: Mat3::from_rotation_y(rotate_y_deg.to_radians()),
-            translate,
-        };
         // Every vertex a face uses, placed in the scene, within the coordinate limit (checked
         // before triangles are built: an overflowing one would only look like zero area).
         if let Some(v) = obj

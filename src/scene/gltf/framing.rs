@@ -1,0 +1,175 @@
+//! A glTF file as a whole scene: the camera the command line picks (or one that frames the
+//! geometry), the image size, and the content hash that keys its bakes.
+
+use std::path::Path;
+
+use glam::{Mat4, Vec3};
+
+use super::{GltfCamera, read};
+use crate::error::{PrtError, Result};
+use crate::scene::{Camera, Scene};
+
+/// How a scene is framed where its file does not fix it: which of a glTF file's cameras, and
+/// the image size. A TOML scene's camera takes `width` and `height` from here when they are
+/// given.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Framing {
+    /// The glTF camera to use, by name; the file's first when `None`.
+    pub camera: Option<String>,
+    /// Image width in pixels (default 256).
+    pub width: Option<u32>,
+    /// Image height in pixels (default: the width over the camera's aspect ratio, or 256).
+    pub height: Option<u32>,
+}
+
+/// Default image width of a glTF scene, pixels.
+pub const DEFAULT_WIDTH: u32 = 256;
+
+impl Framing {
+    /// The image size for a camera of aspect ratio `aspect` (width over height), if known.
+    fn size(&self, aspect: Option<f32>) -> (u32, u32) {
+        match (self.width, self.height) {
+            (Some(w), Some(h)) => (w, h),
+            (Some(w), None) => (
+                w,
+                aspect.map_or(w, |a| ((w as f32 / a).round() as u32).max(1)),
+            ),
+            (None, Some(h)) => (
+                aspect.map_or(h, |a| ((h as f32 * a).round() as u32).max(1)),
+                h,
+            ),
+            (None, None) => {
+                let w = DEFAULT_WIDTH;
+                (
+                    w,
+                    aspect.map_or(w, |a| ((w as f32 / a).round() as u32).max(1)),
+                )
+            }
+        }
+    }
+}
+
+/// A whole scene from a glTF file: its meshes, materials, lights and the camera `framing` picks
+/// (or, when the file has none, one that frames the geometry from the front, +Z, and a little
+/// above).
+pub(in crate::scene) fn scene(path: &Path, framing: &Framing) -> Result<Scene> {
+    let data = read(path, Mat4::IDENTITY)?;
+    let mut hasher = crate::scene::file::Fnv1a::new();
+    for b in &data.bytes {
+        hasher.write_chunk(b);
+    }
+    let mut scene = Scene {
+        camera: Camera {
+            eye: Vec3::Z,
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_y_deg: 45.0,
+            width: 1,
+            height: 1,
+        },
+        materials: Vec::new(),
+        material_maps: Vec::new(),
+        material_names: Vec::new(),
+        textures: data.textures,
+        triangles: data.triangles,
+        surfaces: data.surfaces.iter().map(|(r, _)| r.clone()).collect(),
+        surface_names: data.surfaces.into_iter().map(|(_, n)| n).collect(),
+        edge_length: None,
+        spheres: Vec::new(),
+        medium: None,
+        lights: data.lights,
+        source_path: path.to_path_buf(),
+        input_files: data.files,
+        ignored: data.ignored.into_iter().collect(),
+        content_hash: 0,
+    };
+    for m in data.materials {
+        scene.materials.push(m.material);
+        scene.material_maps.push(m.maps);
+        scene.material_names.push(m.name);
+    }
+    scene.camera = pick_camera(path, &data.cameras, framing, &scene)?;
+    hash_camera(&mut hasher, &scene.camera);
+    scene.content_hash = hasher.0;
+    Ok(scene)
+}
+
+/// Mixes a camera into a content hash.
+pub(in crate::scene) fn hash_camera(hasher: &mut crate::scene::file::Fnv1a, c: &Camera) {
+    for v in [c.eye, c.target, c.up] {
+        for x in v.to_array() {
+            hasher.write(&x.to_le_bytes());
+        }
+    }
+    hasher.write(&c.fov_y_deg.to_le_bytes());
+    hasher.write(&c.width.to_le_bytes());
+    hasher.write(&c.height.to_le_bytes());
+}
+
+fn pick_camera(
+    path: &Path,
+    cameras: &[GltfCamera],
+    framing: &Framing,
+    scene: &Scene,
+) -> Result<Camera> {
+    let chosen = match &framing.camera {
+        Some(name) => Some(cameras.iter().find(|c| c.name == *name).ok_or_else(|| {
+            let known = if cameras.is_empty() {
+                "it has no perspective cameras".to_string()
+            } else {
+                format!(
+                    "it has {}",
+                    cameras
+                        .iter()
+                        .map(|c| c.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            };
+            PrtError::file(path, format!("no camera named `{name}`: {known}"))
+        })?),
+        None => cameras.first(),
+    };
+    let camera = match chosen {
+        Some(c) => {
+            let (width, height) = framing.size(c.aspect);
+            Camera {
+                eye: c.eye,
+                target: c.eye + c.forward,
+                up: c.up,
+                fov_y_deg: c.fov_y_deg,
+                width,
+                height,
+            }
+        }
+        None => {
+            let (lo, hi) = scene.bounds();
+            let centre = (lo + hi) * 0.5;
+            let radius = ((hi - lo).length() * 0.5).max(1e-3);
+            let fov_y_deg = 40.0f32;
+            let (width, height) = framing.size(None);
+            // Far enough that the bounding sphere fits the narrower of the two fields of view.
+            let aspect = width as f32 / height as f32;
+            let half = (fov_y_deg.to_radians() * 0.5).tan() * aspect.min(1.0);
+            let distance = radius * (1.0 + half * half).sqrt() / half * 1.05;
+            Camera {
+                eye: centre + Vec3::new(0.0, 0.35, 1.0).normalize() * distance,
+                target: centre,
+                up: Vec3::Y,
+                fov_y_deg,
+                width,
+                height,
+            }
+        }
+    };
+    match camera.problem() {
+        None => Ok(camera),
+        Some((field, message)) => Err(PrtError::file(
+            path,
+            format!(
+                "camera {}: {field} {message}",
+                chosen.map_or("framing the scene", |c| c.name.as_str())
+            ),
+        )),
+    }
+}

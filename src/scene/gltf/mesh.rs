@@ -1,0 +1,185 @@
+//! A glTF mesh's primitives placed in the world: triangles with shading normals (through the
+//! inverse transpose of the node's matrix) and texture coordinates, every index checked.
+
+use glam::{Mat3, Mat4, Vec2, Vec3};
+use gltf::accessor::DataType;
+use gltf::mesh::Mode;
+
+use super::{MAX_TRIANGLES, Reader, printable};
+use crate::error::Result;
+use crate::scene::{MAX_COORDINATE, Triangle};
+
+impl Reader<'_> {
+    pub(super) fn place_mesh(&mut self, mesh: &gltf::Mesh, node: usize, world: Mat4) -> Result<()> {
+        let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
+        let mirrored = Mat3::from_mat4(world).determinant() < 0.0;
+        for prim in mesh.primitives() {
+            let field = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
+            let corners = match prim.mode() {
+                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan => prim.mode(),
+                other => {
+                    self.out
+                        .ignored
+                        .insert(format!("{other:?} primitives (only triangles are drawn)"));
+                    continue;
+                }
+            };
+            let Some(pos) = prim.get(&gltf::Semantic::Positions) else {
+                return Err(self.error(format!("{field}.attributes"), "has no POSITION"));
+            };
+            let positions: Vec<[f32; 3]> = self.read_floats(
+                &pos,
+                &format!("{field}.attributes.POSITION"),
+                &[DataType::F32],
+            )?;
+            let normals: Option<Vec<[f32; 3]>> = match prim.get(&gltf::Semantic::Normals) {
+                Some(a) => Some(self.read_floats(
+                    &a,
+                    &format!("{field}.attributes.NORMAL"),
+                    &[DataType::F32, DataType::I8, DataType::I16],
+                )?),
+                None => None,
+            };
+            let uvs: Option<Vec<[f32; 2]>> = match prim.get(&gltf::Semantic::TexCoords(0)) {
+                Some(a) => Some(self.read_floats(
+                    &a,
+                    &format!("{field}.attributes.TEXCOORD_0"),
+                    &[DataType::F32, DataType::U8, DataType::U16],
+                )?),
+                None => None,
+            };
+            let n = positions.len();
+            for (what, len) in [
+                ("NORMAL", normals.as_ref().map(Vec::len)),
+                ("TEXCOORD_0", uvs.as_ref().map(Vec::len)),
+            ] {
+                if let Some(len) = len.filter(|&l| l != n) {
+                    return Err(self.error(
+                        format!("{field}.attributes.{what}"),
+                        format!("has {len} elements for {n} positions"),
+                    ));
+                }
+            }
+            let indices = match prim.indices() {
+                Some(a) => self.read_indices(&a, &format!("{field}.indices"))?,
+                None => (0..n as u32).collect(),
+            };
+            if let Some((k, &bad)) = indices.iter().enumerate().find(|(_, v)| **v as usize >= n) {
+                return Err(self.error(
+                    format!("{field}.indices"),
+                    format!("index {k} is {bad}, but there are {n} vertices"),
+                ));
+            }
+            let corner_lists = triangle_corners(&indices, corners);
+            let material = self.material(prim.material().index())?;
+            let first = self.out.triangles.len();
+            if first + corner_lists.len() > MAX_TRIANGLES {
+                return Err(self.error(
+                    &field,
+                    format!("the file places more than {MAX_TRIANGLES} triangles"),
+                ));
+            }
+            let world_pos: Vec<Vec3> = positions
+                .iter()
+                .map(|p| world.transform_point3(Vec3::from(*p)))
+                .collect();
+            if let Some(v) = world_pos
+                .iter()
+                .find(|v| !(v.is_finite() && v.abs().max_element() <= MAX_COORDINATE))
+            {
+                return Err(self.error(
+                    format!("{field}.attributes.POSITION"),
+                    format!("a vertex lands at {v}, beyond ±{MAX_COORDINATE:e} scene units"),
+                ));
+            }
+            for mut c in corner_lists {
+                if mirrored {
+                    c.swap(1, 2);
+                }
+                let vertices = c.map(|i| world_pos[i as usize]);
+                let [a, b, d] = vertices;
+                let geometric = (b - a).cross(d - a).normalize_or_zero();
+                if geometric == Vec3::ZERO {
+                    continue;
+                }
+                let normals = match &normals {
+                    Some(ns) => c.map(|i| {
+                        let s = (normal_matrix * Vec3::from(ns[i as usize])).normalize_or_zero();
+                        if s.is_finite() && s != Vec3::ZERO {
+                            s
+                        } else {
+                            geometric
+                        }
+                    }),
+                    None => [geometric; 3],
+                };
+                let uvs = match &uvs {
+                    Some(t) => c.map(|i| {
+                        let uv = Vec2::from(t[i as usize]);
+                        if uv.is_finite() { uv } else { Vec2::ZERO }
+                    }),
+                    None => [Vec2::ZERO; 3],
+                };
+                self.out.triangles.push(Triangle {
+                    vertices,
+                    normals,
+                    uvs,
+                    material,
+                });
+            }
+            let end = self.out.triangles.len();
+            if end > first {
+                let name = mesh
+                    .name()
+                    .map(|n| format!(" ({})", printable(n)))
+                    .unwrap_or_default();
+                self.out.surfaces.push((
+                    first..end,
+                    format!(
+                        "mesh {}{name} primitive {} at node {node}",
+                        mesh.index(),
+                        prim.index()
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The corners of each triangle of a primitive's index list.
+fn triangle_corners(indices: &[u32], mode: Mode) -> Vec<[u32; 3]> {
+    match mode {
+        Mode::TriangleStrip => (2..indices.len())
+            .map(|i| {
+                let (a, b, c) = (indices[i - 2], indices[i - 1], indices[i]);
+                // Every other triangle of a strip is wound the other way round.
+                if i % 2 == 0 { [a, b, c] } else { [b, a, c] }
+            })
+            .collect(),
+        Mode::TriangleFan => (2..indices.len())
+            .map(|i| [indices[i - 1], indices[i], indices[0]])
+            .collect(),
+        _ => indices
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strips_and_fans_keep_their_winding() {
+        let strip = triangle_corners(&[0, 1, 2, 3], Mode::TriangleStrip);
+        assert_eq!(strip, vec![[0, 1, 2], [2, 1, 3]]);
+        let fan = triangle_corners(&[0, 1, 2, 3], Mode::TriangleFan);
+        assert_eq!(fan, vec![[1, 2, 0], [2, 3, 0]]);
+        assert_eq!(
+            triangle_corners(&[0, 1, 2, 3], Mode::Triangles),
+            vec![[0, 1, 2]]
+        );
+    }
+}

@@ -1,0 +1,469 @@
+//! glTF 2.0 scenes, `.gltf` (with external or embedded buffers) and `.glb`: the node hierarchy
+//! with its transforms, indexed triangle meshes with normals and `TEXCOORD_0`, perspective
+//! cameras, `KHR_lights_punctual` lights, and `pbrMetallicRoughness` materials with their
+//! base-colour and metallic-roughness textures.
+//!
+//! The `gltf` crate parses and validates the JSON (every index in range). Everything that
+//! touches binary data is checked here before it is read: each buffer holds the bytes it
+//! declares, each view lies inside its buffer, each accessor inside its view, each index names a
+//! vertex, and every image's size is known before it is decoded. Errors name the file, the glTF
+//! object (`meshes[3].primitives[1]`, accessor 7) and the field. What a file has that this engine
+//! does not use (emission, normal maps, ...) is listed once, for one warning per file.
+
+use std::collections::{BTreeSet, HashMap};
+use std::path::{Path, PathBuf};
+
+use glam::{Mat3, Mat4, Quat, Vec3};
+use gltf::json::extensions::scene::khr_lights_punctual::Type as LightType;
+
+use super::texture::Texture;
+use super::{MAX_COORDINATE, Material, TexturedMaterial, Triangle};
+use crate::error::{PrtError, Result};
+use crate::scene::light::{Light, LightShape, MAX_INTENSITY, valid_name};
+
+/// Largest glTF file, and largest external buffer or image it names.
+pub const MAX_GLTF_BYTES: u64 = 2 << 30;
+
+/// Largest number of triangles one file may produce (after instancing): 64 M triangles of
+/// 120 bytes each is already 7.7 GB.
+const MAX_TRIANGLES: usize = 64 << 20;
+
+/// Lumens per watt at 555 nm, by which glTF's photometric light units (candela, lux) become
+/// this engine's radiometric ones (W/sr, W/m²), as Blender's exporter converts them.
+pub const LUMENS_PER_WATT: f32 = 683.0;
+
+/// A perspective camera found in the file, placed in the world.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GltfCamera {
+    /// The camera's name, or `camera N` for an unnamed one.
+    pub name: String,
+    /// Where the node puts it.
+    pub eye: Vec3,
+    /// Unit view direction (the node's −Z).
+    pub forward: Vec3,
+    /// Unit up direction (the node's +Y).
+    pub up: Vec3,
+    /// Vertical field of view, degrees.
+    pub fov_y_deg: f32,
+    /// Width over height, when the file gives it.
+    pub aspect: Option<f32>,
+}
+
+/// One material of the file as this engine holds it.
+pub(super) struct GltfMaterial {
+    pub(super) name: String,
+    pub(super) material: Material,
+    pub(super) maps: Option<TexturedMaterial>,
+}
+
+/// Everything a glTF file contributes to a scene. Material indices of the triangles and texture
+/// indices of the materials are local to it.
+pub(super) struct GltfData {
+    pub(super) triangles: Vec<Triangle>,
+    /// Triangle range and name (`mesh 2 (Box) primitive 0 at node 4`) of each placed primitive.
+    pub(super) surfaces: Vec<(std::ops::Range<usize>, String)>,
+    pub(super) materials: Vec<GltfMaterial>,
+    pub(super) textures: Vec<Texture>,
+    pub(super) cameras: Vec<GltfCamera>,
+    pub(super) lights: Vec<Light>,
+    /// What the file has that is not used, one line each.
+    pub(super) ignored: BTreeSet<String>,
+    /// Every file read: the glTF, then its external buffers and images.
+    pub(super) files: Vec<PathBuf>,
+    /// The bytes of every file read, in order, for the scene's content hash.
+    pub(super) bytes: Vec<Vec<u8>>,
+}
+
+/// Reads the glTF file at `path`, placing its default scene (or its first, or every root
+/// node when it names none) with `placement`.
+pub(super) fn read(path: &Path, placement: Mat4) -> Result<GltfData> {
+    let bytes = crate::files::read_regular(path, MAX_GLTF_BYTES, "glTF file")?;
+    let gltf = parse(&bytes)
+        .map_err(|e| PrtError::file(path, format!("not a usable glTF 2.0 file: {e}")))?;
+    let mut reader = Reader {
+        path,
+        base: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+        doc: &gltf.document,
+        buffers: Vec::new(),
+        out: GltfData {
+            triangles: Vec::new(),
+            surfaces: Vec::new(),
+            materials: Vec::new(),
+            textures: Vec::new(),
+            cameras: Vec::new(),
+            lights: Vec::new(),
+            ignored: BTreeSet::new(),
+            files: vec![path.to_path_buf()],
+            bytes: Vec::new(),
+        },
+        material_index: HashMap::new(),
+        texture_index: HashMap::new(),
+    };
+    reader.out.bytes.push(bytes.clone());
+    for ext in gltf.document.extensions_required() {
+        if ext != "KHR_lights_punctual" && ext != "KHR_materials_emissive_strength" {
+            return Err(reader.error(
+                "extensionsRequired",
+                format!("needs the extension {ext}, which is not supported"),
+            ));
+        }
+    }
+    for ext in gltf.document.extensions_used() {
+        if ext != "KHR_lights_punctual" {
+            reader.out.ignored.insert(format!("the extension {ext}"));
+        }
+    }
+    reader.load_buffers(gltf.blob.as_deref())?;
+    reader.walk(placement)?;
+    if reader.out.triangles.is_empty() {
+        return Err(reader.error("meshes", "the scene has no triangles with non-zero area"));
+    }
+    Ok(reader.out)
+}
+
+/// Parses and validates a glTF document. The `gltf` crate's validation itself looks up each
+/// primitive's `POSITION` accessor without checking its index, so those are checked first.
+fn parse(bytes: &[u8]) -> std::result::Result<gltf::Gltf, String> {
+    use gltf::json::validation::Validate;
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| e.to_string())?;
+    let root = gltf.document.as_json();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            for (semantic, index) in &prim.attributes {
+                if index.value() >= root.accessors.len() {
+                    return Err(format!(
+                        "meshes[{m}].primitives[{p}].attributes: {semantic:?} names accessor {}, \
+                         but there are {}",
+                        index.value(),
+                        root.accessors.len()
+                    ));
+                }
+            }
+        }
+    }
+    let mut errors = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, error| {
+        errors.push(format!("{}: {error}", path()))
+    });
+    if let Some(i) = root
+        .images
+        .iter()
+        .position(|im| im.uri.is_none() && (im.buffer_view.is_none() || im.mime_type.is_none()))
+    {
+        errors.push(format!(
+            "images[{i}]: needs a uri, or a bufferView and a mimeType"
+        ));
+    }
+    if errors.is_empty() {
+        Ok(gltf)
+    } else {
+        Err(format!("invalid glTF: {}", errors.join("; ")))
+    }
+}
+
+struct Reader<'a> {
+    path: &'a Path,
+    base: PathBuf,
+    doc: &'a gltf::Document,
+    /// Each buffer's bytes, at least its declared length.
+    buffers: Vec<Vec<u8>>,
+    out: GltfData,
+    /// This engine's material of each glTF material (`None`: the default material).
+    material_index: HashMap<Option<usize>, u32>,
+    /// This engine's texture of each (glTF texture, encoding).
+    texture_index: HashMap<(usize, bool), u32>,
+}
+
+impl Reader<'_> {
+    pub(super) fn error(&self, field: impl Into<String>, message: impl Into<String>) -> PrtError {
+        PrtError::Scene {
+            path: self.path.to_path_buf(),
+            line: None,
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    /// The bytes a URI names: a base64 `data:` URI, or a file relative to the glTF's folder.
+    pub(super) fn uri_bytes(&mut self, uri: &str, field: &str) -> Result<Vec<u8>> {
+        if let Some(rest) = uri.strip_prefix("data:") {
+            let Some((_, data)) = rest.split_once(";base64,") else {
+                return Err(self.error(field, "a data URI must be base64 (`;base64,`)"));
+            };
+            return decode_base64(data)
+                .ok_or_else(|| self.error(field, "the data URI is not valid base64"));
+        }
+        let relative = percent_decode(uri)
+            .ok_or_else(|| self.error(field, format!("`{uri}` is not a valid URI")))?;
+        if relative.contains("://") || Path::new(&relative).is_absolute() {
+            return Err(self.error(
+                field,
+                format!("`{uri}`: only data URIs and paths relative to the file are read"),
+            ));
+        }
+        let path = self.base.join(&relative);
+        let bytes = crate::files::read_regular(&path, MAX_GLTF_BYTES, "glTF resource")?;
+        self.out.files.push(path);
+        self.out.bytes.push(bytes.clone());
+        Ok(bytes)
+    }
+
+    fn load_buffers(&mut self, blob: Option<&[u8]>) -> Result<()> {
+        for buffer in self.doc.buffers() {
+            let i = buffer.index();
+            let field = format!("buffers[{i}]");
+            let data = match buffer.source() {
+                gltf::buffer::Source::Bin => blob.map(<[u8]>::to_vec).ok_or_else(|| {
+                    self.error(&field, "refers to a GLB binary chunk the file lacks")
+                })?,
+                gltf::buffer::Source::Uri(uri) => self.uri_bytes(uri, &format!("{field}.uri"))?,
+            };
+            if data.len() < buffer.length() {
+                return Err(self.error(
+                    format!("{field}.byteLength"),
+                    format!(
+                        "declares {} bytes but holds {}",
+                        buffer.length(),
+                        data.len()
+                    ),
+                ));
+            }
+            self.buffers.push(data);
+        }
+        for view in self.doc.views() {
+            let end = view.offset().checked_add(view.length());
+            let held = self.buffers[view.buffer().index()].len();
+            if end.is_none_or(|e| e > held) {
+                return Err(self.error(
+                    format!("bufferViews[{}]", view.index()),
+                    format!(
+                        "bytes {} + {} run past the end of buffer {} ({held} bytes)",
+                        view.offset(),
+                        view.length(),
+                        view.buffer().index()
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Walks the scene's nodes, placing meshes, cameras and lights.
+    fn walk(&mut self, placement: Mat4) -> Result<()> {
+        let nodes = self.doc.as_json().nodes.len();
+        let roots: Vec<usize> = match self
+            .doc
+            .default_scene()
+            .or_else(|| self.doc.scenes().next())
+        {
+            Some(scene) => scene.nodes().map(|n| n.index()).collect(),
+            None => {
+                let mut child = vec![false; nodes];
+                for n in self.doc.nodes() {
+                    for c in n.children() {
+                        child[c.index()] = true;
+                    }
+                }
+                (0..nodes).filter(|&i| !child[i]).collect()
+            }
+        };
+        let mut seen = vec![false; nodes];
+        let mut stack: Vec<(usize, Mat4)> =
+            roots.into_iter().rev().map(|i| (i, placement)).collect();
+        while let Some((i, parent)) = stack.pop() {
+            if std::mem::replace(&mut seen[i], true) {
+                return Err(self.error(
+                    format!("nodes[{i}]"),
+                    "the node appears twice in the hierarchy (a cycle, or a child of two parents)",
+                ));
+            }
+            let world = parent * self.local_transform(i)?;
+            let node = self.doc.nodes().nth(i).expect("validated node index");
+            if let Some(mesh) = node.mesh() {
+                self.place_mesh(&mesh, i, world)?;
+            }
+            if let Some(c) = node.camera() {
+                self.place_camera(c.index(), i, world);
+            }
+            self.place_light(i, world)?;
+            for c in node.children().collect::<Vec<_>>().into_iter().rev() {
+                stack.push((c.index(), world));
+            }
+        }
+        Ok(())
+    }
+
+    /// Node `i`'s transform: its `matrix`, or translation · rotation · scale.
+    fn local_transform(&self, i: usize) -> Result<Mat4> {
+        let n = &self.doc.as_json().nodes[i];
+        let m = match n.matrix {
+            Some(m) => Mat4::from_cols_array(&m),
+            None => {
+                let t = Vec3::from(n.translation.unwrap_or([0.0; 3]));
+                let r = n.rotation.map_or(Quat::IDENTITY, |q| Quat::from_array(q.0));
+                let s = Vec3::from(n.scale.unwrap_or([1.0; 3]));
+                if !(r.is_finite() && r.length() > 0.5) {
+                    return Err(self.error(
+                        format!("nodes[{i}].rotation"),
+                        format!("{r} is not a unit quaternion"),
+                    ));
+                }
+                Mat4::from_scale_rotation_translation(s, r.normalize(), t)
+            }
+        };
+        if !m.is_finite() || m.abs().to_cols_array().iter().any(|&v| v > MAX_COORDINATE) {
+            return Err(self.error(format!("nodes[{i}]"), "the transform is not finite"));
+        }
+        Ok(m)
+    }
+
+    fn place_camera(&mut self, index: usize, node: usize, world: Mat4) {
+        let json = &self.doc.as_json().cameras[index];
+        let name = json
+            .name
+            .as_deref()
+            .map(printable)
+            .unwrap_or_else(|| format!("camera {index}"));
+        let Some(p) = json.perspective.as_ref() else {
+            self.out.ignored.insert(format!(
+                "orthographic camera {name} (cameras are perspective)"
+            ));
+            return;
+        };
+        let frame = Mat3::from_mat4(world);
+        let (forward, up) = (
+            (frame * Vec3::NEG_Z).normalize_or_zero(),
+            (frame * Vec3::Y).normalize_or_zero(),
+        );
+        let fov_y_deg = p.yfov.to_degrees();
+        if forward == Vec3::ZERO || up == Vec3::ZERO || !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {
+            self.out.ignored.insert(format!(
+                "camera {name} at node {node} (a degenerate transform or field of view)"
+            ));
+            return;
+        }
+        self.out.cameras.push(GltfCamera {
+            name,
+            eye: world.transform_point3(Vec3::ZERO),
+            forward,
+            up,
+            fov_y_deg,
+            aspect: p.aspect_ratio.filter(|a| a.is_finite() && *a > 0.0),
+        });
+    }
+
+    fn place_light(&mut self, node: usize, world: Mat4) -> Result<()> {
+        let json = self.doc.as_json();
+        let Some(ext) = json.nodes[node]
+            .extensions
+            .as_ref()
+            .and_then(|e| e.khr_lights_punctual.as_ref())
+        else {
+            return Ok(());
+        };
+        let index = ext.light.value();
+        let field = format!("nodes[{node}].extensions.KHR_lights_punctual.light");
+        let Some(l) = json
+            .extensions
+            .as_ref()
+            .and_then(|e| e.khr_lights_punctual.as_ref())
+            .and_then(|k| k.lights.get(index))
+        else {
+            return Err(self.error(field, format!("light {index} is not defined")));
+        };
+        let direction = (Mat3::from_mat4(world) * Vec3::NEG_Z).normalize_or_zero();
+        let position = world.transform_point3(Vec3::ZERO);
+        let shape = match l.type_ {
+            gltf::json::validation::Checked::Valid(LightType::Point) => LightShape::Point,
+            gltf::json::validation::Checked::Valid(LightType::Directional) => {
+                LightShape::Directional {
+                    direction,
+                    angle: 0.0,
+                }
+            }
+            gltf::json::validation::Checked::Valid(LightType::Spot) => {
+                let Some(spot) = l.spot.as_ref() else {
+                    return Err(
+                        self.error(format!("lights[{index}].spot"), "a spot light needs `spot`")
+                    );
+                };
+                let (inner, outer) = (spot.inner_cone_angle, spot.outer_cone_angle);
+                if !(0.0 <= inner && inner < outer && outer <= std::f32::consts::FRAC_PI_2) {
+                    return Err(self.error(
+                        format!("lights[{index}].spot"),
+                        format!("needs 0 <= innerConeAngle < outerConeAngle <= π/2, got {inner} and {outer}"),
+                    ));
+                }
+                LightShape::Spot {
+                    direction,
+                    cone: outer,
+                    falloff: outer - inner,
+                }
+            }
+            _ => return Err(self.error(format!("lights[{index}].type"), "unknown light type")),
+        };
+        let base = l
+            .name
+            .as_deref()
+            .map(|n| {
+                n.chars()
+                    .filter(|c| c.is_ascii())
+                    .map(|c| {
+                        if c.is_ascii_alphanumeric() || "_-.".contains(c) {
+                            c
+                        } else {
+                            '_'
+                        }
+                    })
+                    .take(56)
+                    .collect::<String>()
+            })
+            .filter(|n| !n.is_empty())
+            .unwrap_or_else(|| format!("light{index}"));
+        let mut name = base.clone();
+        let mut k = 2;
+        while self.out.lights.iter().any(|l| l.name == name) {
+            name = format!("{base}.{k}");
+            k += 1;
+        }
+        debug_assert!(valid_name(&name));
+        let intensity = l.intensity / LUMENS_PER_WATT;
+        if l.range.is_some() {
+            self.out
+                .ignored
+                .insert("light range (lights fall off with the inverse square of distance)".into());
+        }
+        let light = Light {
+            name,
+            color: Vec3::from(l.color),
+            intensity,
+            shape,
+            positions: vec![position],
+            grid: [1, 1, 1],
+        };
+        if let Some(problem) = light.problem() {
+            return Err(self.error(format!("lights[{index}]"), problem));
+        }
+        if intensity > MAX_INTENSITY {
+            return Err(self.error(format!("lights[{index}].intensity"), "too bright"));
+        }
+        self.out.lights.push(light);
+        Ok(())
+    }
+}
+
+/// A name from the file, with control characters replaced, for messages.
+fn printable(text: &str) -> String {
+    crate::files::printable(text)
+}
+
+mod accessors;
+mod framing;
+mod materials;
+mod mesh;
+mod uri;
+
+use uri::{decode_base64, percent_decode};
+
+pub use framing::{DEFAULT_WIDTH, Framing};
+pub(super) use framing::{hash_camera, scene};
