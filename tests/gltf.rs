@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::gltf::{GltfBuilder, cube_faces, test_scene};
+use common::gltf::{GltfBuilder, checker_texel, cube_faces, test_scene, with_metal};
 use common::{assets, full_light, temp_dir};
 use glam::{Vec2, Vec3};
 use serde_json::json;
@@ -41,17 +41,38 @@ fn lossless(n: usize) -> BakeSettings {
 #[test]
 fn a_written_gltf_bakes_and_matches_the_reference() {
     let dir = temp_dir("gltf-reference");
-    let path = test_scene(16, false).write_glb(&dir, "scene");
+    let mut b = test_scene(16, false);
+    with_metal(&mut b);
+    let path = b.write_glb(&dir, "scene");
     let scene = Scene::load_with(&path, &framed(48)).unwrap();
-    // The file's camera, at the width asked and its aspect ratio.
+    // The file's camera, at the width asked and its aspect ratio, looking down -Z of its node
+    // with +Y of its node up.
     assert_eq!((scene.camera.width, scene.camera.height), (48, 32));
+    let (forward, _, up) = scene.camera.frame();
     assert!((scene.camera.eye - Vec3::new(0.0, 4.0, 3.0)).length() < 1e-6);
+    assert!(
+        (forward - Vec3::new(0.0, -0.8, -0.6)).length() < 1e-5,
+        "{forward}"
+    );
+    assert!((up - Vec3::new(0.0, 0.6, -0.8)).length() < 1e-5, "{up}");
     assert!(scene.is_textured());
     let settings = BakeSettings {
         spp: 4,
         ..lossless(8)
     };
     let t = bake(&scene, &settings, &|_| {}).unwrap();
+    // Where the box's shadow edge crosses texel edges inside a pixel, the texture's residual
+    // rows (one colour channel each) are needed.
+    let residual = t
+        .row_weight
+        .iter()
+        .filter(|w| {
+            let mut s = **w;
+            s.sort_by(f32::total_cmp);
+            s == [0.0, 0.0, 1.0]
+        })
+        .count();
+    assert!(residual > 0, "no residual rows");
     let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
     let rotation = EnvRotation {
         yaw_deg: 75.0,
@@ -89,7 +110,6 @@ fn the_checker_shows_where_uvs_sampler_and_origin_put_it() {
     let cube = CubeMap::constant(4, [1.0; 3]).unwrap();
     let (img, _) = relight_wavelet(&t, &full_light(&cube)).unwrap();
     let tracer = wavelet_prt::scene::trace::Tracer::new(&scene);
-    let (dark, light) = (srgb_to_linear(40.0 / 255.0), srgb_to_linear(220.0 / 255.0));
     let mut checked = 0;
     for ty in 0..side {
         for tx in 0..side {
@@ -123,15 +143,18 @@ fn the_checker_shows_where_uvs_sampler_and_origin_put_it() {
             if !same {
                 continue;
             }
-            let want = if (tx + ty) % 2 == 0 { dark } else { light };
-            let got = img.pixels[y * img.width + x][0];
+            let want = checker_texel(side, tx, ty).map(|c| srgb_to_linear(c as f32 / 255.0));
+            let got = img.pixels[y * img.width + x];
             // Under a white sky, unshadowed, the diffuse part is 0.96 · albedo; the dielectric
             // lobe adds at most its 0.04.
-            assert!(
-                got >= 0.96 * want - 1e-3 && got <= 0.96 * want + 0.04,
-                "texel ({tx}, {ty}) at pixel ({x}, {y}): {got}, want about {}",
-                0.96 * want
-            );
+            for k in 0..3 {
+                assert!(
+                    got[k] >= 0.96 * want[k] - 1e-3 && got[k] <= 0.96 * want[k] + 0.04,
+                    "texel ({tx}, {ty}) at pixel ({x}, {y}), channel {k}: {}, want about {}",
+                    got[k],
+                    0.96 * want[k]
+                );
+            }
             checked += 1;
         }
     }
@@ -450,6 +473,13 @@ fn bad_files_get_errors_naming_the_file_the_object_and_the_field() {
             &["bad.gltf", "not a usable glTF"],
         ),
         (
+            "mime",
+            Box::new(|d| {
+                d["images"][0]["bufferView"] = json!(0);
+            }),
+            &["images[0]", "a bufferView needs a mimeType"],
+        ),
+        (
             "metallic",
             Box::new(|d| d["materials"][1]["pbrMetallicRoughness"]["metallicFactor"] = json!(2.0)),
             &["materials[1].pbrMetallicRoughness.metallicFactor"],
@@ -462,6 +492,14 @@ fn bad_files_get_errors_naming_the_file_the_object_and_the_field() {
             assert!(e.contains(w), "{name}: `{w}` missing from: {e}");
         }
     }
+    // A .glb whose header says it is shorter than its header.
+    let dir = temp_dir("gltf-bad-header");
+    let path = test_scene(4, false).write_glb(&dir, "short");
+    let mut bytes = std::fs::read(&path).unwrap();
+    bytes[8..12].copy_from_slice(&4u32.to_le_bytes());
+    std::fs::write(&path, &bytes).unwrap();
+    let e = Scene::load(&path).unwrap_err().to_string();
+    assert!(e.contains("short.glb") && e.contains("header"), "{e}");
     // A truncated .glb.
     let dir = temp_dir("gltf-bad-glb");
     let path = test_scene(4, false).write_glb(&dir, "cut");
@@ -469,4 +507,45 @@ fn bad_files_get_errors_naming_the_file_the_object_and_the_field() {
     std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
     let e = Scene::load(&path).unwrap_err().to_string();
     assert!(e.contains("cut.glb"), "{e}");
+}
+
+#[test]
+fn normals_take_the_inverse_transpose_and_mirrors_keep_the_winding() {
+    let dir = temp_dir("gltf-normals");
+    let mut b = GltfBuilder::default();
+    // One triangle in the plane x + y = 1 (normal (1, 1, 0) / √2), wound to face it.
+    let tri = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 1.0]];
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    let prim = b.primitive(&tri, [h, h, 0.0], None, &[0, 1, 2], 0);
+    b.set(
+        "materials",
+        json!([{"pbrMetallicRoughness": {"metallicFactor": 0.0}}]),
+    );
+    b.set("meshes", json!([{"primitives": [prim]}]));
+    // Stretched 2x along x; and mirrored in x.
+    b.set(
+        "nodes",
+        json!([{"mesh": 0, "scale": [2.0, 1.0, 1.0]}, {"mesh": 0, "scale": [-1.0, 1.0, 1.0]}]),
+    );
+    let path = b.write_glb(&dir, "normals");
+    let scene = Scene::load(&path).unwrap();
+    assert_eq!(scene.triangles.len(), 2);
+    // Stretching x by 2 tilts the plane's normal towards y: (1/2, 1, 0), not (2, 1, 0).
+    let want = Vec3::new(0.5, 1.0, 0.0).normalize();
+    let t = &scene.triangles[0];
+    for n in t.normals {
+        assert!((n - want).length() < 1e-6, "{n}");
+    }
+    assert!((t.geometric_normal() - want).length() < 1e-6);
+    // The mirror image faces (-1, 1, 0), and its winding still faces the way its normals do.
+    let m = &scene.triangles[1];
+    let want = Vec3::new(-1.0, 1.0, 0.0).normalize();
+    for n in m.normals {
+        assert!((n - want).length() < 1e-6, "{n}");
+    }
+    assert!(
+        (m.geometric_normal() - want).length() < 1e-6,
+        "{}",
+        m.geometric_normal()
+    );
 }

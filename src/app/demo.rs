@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::bake::{BakeProgress, BakeSettings, load_or_bake};
+use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::light::select::Weighting;
@@ -127,28 +127,6 @@ pub fn write_assets(dir: &Path) -> Result<PathBuf> {
     Ok(root)
 }
 
-/// One of the demo's bakes into `path`: reused when the file holds this scene's bake with these
-/// settings, else baked after logging `what`. Returns the transport, whether it was reused and
-/// the seconds it took.
-pub(crate) fn bake_or_reuse(
-    path: &Path,
-    scene: &Scene,
-    settings: &BakeSettings,
-    what: &str,
-    log: &mut dyn FnMut(&str),
-    progress: &(dyn Fn(BakeProgress) + Sync),
-) -> Result<(crate::store::transport::Transport, bool, f64)> {
-    let start = std::time::Instant::now();
-    let (t, reused) = load_or_bake(path, scene, settings, &mut || log(what), progress)?;
-    if reused {
-        log(&format!(
-            "reusing the bake in {} (scene and settings unchanged)",
-            path.display()
-        ));
-    }
-    Ok((t, reused, start.elapsed().as_secs_f64()))
-}
-
 /// Runs the demo into `dir`. `log` receives one line per step; `progress` follows the bake.
 pub fn run_demo(
     dir: &Path,
@@ -169,7 +147,7 @@ pub fn run_demo(
         settings.sh_order
     );
     let (transport, reused, bake_seconds) =
-        bake_or_reuse(&transport_path, &scene, &settings, &what, log, progress)?;
+        load_or_bake_logged(&transport_path, &scene, &settings, &what, log, progress)?;
     let ctx = LightContext::new(&transport)?;
     let images = dir.join("images");
     std::fs::create_dir_all(&images).map_err(|e| PrtError::io(&images, e))?;

@@ -5,8 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::app::demo::bake_or_reuse;
-use crate::bake::{BakeProgress, BakeSettings};
+use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::error::Result;
 use crate::light::envmap::{EnvRotation, EnvSpec};
 use crate::output::film::{Image, ToneMap};
@@ -54,7 +53,7 @@ pub fn run_dusk(
         scene.lights.len()
     );
     let (t, reused_bake, bake_seconds) =
-        bake_or_reuse(&transport_path, &scene, settings, &what, log, progress)?;
+        load_or_bake_logged(&transport_path, &scene, settings, &what, log, progress)?;
     let env = EnvSpec::parse(DUSK_SUN)?.load()?;
     let ctx = LightContext::new(&t)?;
     let light = ctx.prepare(&env, EnvRotation::default())?;

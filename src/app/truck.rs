@@ -5,8 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::app::demo::bake_or_reuse;
-use crate::bake::{BakeProgress, BakeSettings};
+use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::error::Result;
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::light::select::Weighting;
@@ -57,7 +56,7 @@ pub fn run_truck(
         scene.textures.len()
     );
     let (t, reused_bake, bake_seconds) =
-        bake_or_reuse(&transport_path, &scene, settings, &what, log, progress)?;
+        load_or_bake_logged(&transport_path, &scene, settings, &what, log, progress)?;
     let ctx = LightContext::new(&t)?;
     let requests = [
         (RelightRequest::Sh { order: 4 }, "SH order 4"),

@@ -21,7 +21,9 @@ use in_order::in_tile_order;
 pub use lights::LightSampler;
 use pixels::visits;
 pub use pixels::{EdgeMap, pixel_subsamples, sample_stride};
-pub use settings::{BakeSettings, load_if_baked_with, load_or_bake, worst_case_bytes};
+pub use settings::{
+    BakeSettings, load_if_baked_with, load_or_bake, load_or_bake_logged, worst_case_bytes,
+};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 use glam::Vec3;
@@ -587,7 +589,10 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     .glossy_lobe()
                     .is_some()
                     && mesh.is_none();
-                let textured = scene.material_maps[sp.material as usize].is_some();
+                let textured = scene
+                    .material_maps
+                    .get(sp.material as usize)
+                    .is_some_and(Option::is_some);
                 let slot = match dense.iter().position(|d| d.material == sp.material) {
                     Some(i) => i,
                     None => {

@@ -313,6 +313,27 @@ pub fn load_or_bake(
     Ok((t, false))
 }
 
+/// [`load_or_bake`] for the demo's bakes: logs `what` before baking, or that the file was
+/// reused. Returns the transport, whether it was reused and the seconds it took.
+pub fn load_or_bake_logged(
+    path: &std::path::Path,
+    scene: &Scene,
+    settings: &BakeSettings,
+    what: &str,
+    log: &mut dyn FnMut(&str),
+    progress: &(dyn Fn(BakeProgress) + Sync),
+) -> Result<(Transport, bool, f64)> {
+    let start = std::time::Instant::now();
+    let (t, reused) = load_or_bake(path, scene, settings, &mut || log(what), progress)?;
+    if reused {
+        log(&format!(
+            "reusing the bake in {} (scene and settings unchanged)",
+            path.display()
+        ));
+    }
+    Ok((t, reused, start.elapsed().as_secs_f64()))
+}
+
 /// Bytes a bake's output will take at most (every coefficient kept), to warn or refuse up front.
 pub fn worst_case_bytes(width: usize, height: usize, settings: &BakeSettings) -> u64 {
     let c = texel_count(settings.cube_n) as u64;

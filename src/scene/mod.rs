@@ -397,7 +397,7 @@ impl Scene {
             // A scene's camera at another size is another bake: its hash says so.
             (scene.camera.width, scene.camera.height) = size;
             scene.camera.validate()?;
-            let mut hasher = file::Fnv1a(scene.content_hash);
+            let mut hasher = hash::Fnv1a(scene.content_hash);
             gltf::hash_camera(&mut hasher, &scene.camera);
             scene.content_hash = hasher.0;
         }
@@ -435,11 +435,10 @@ impl Scene {
             maps.diffuse_only = true;
         }
         // FNV-1a over the source hash and a tag.
-        let mut h = 0xcbf2_9ce4_8422_2325u64;
-        for b in self.content_hash.to_le_bytes().iter().chain(b"diffuse") {
-            h = (h ^ *b as u64).wrapping_mul(0x0000_0100_0000_01b3);
-        }
-        s.content_hash = h;
+        let mut h = hash::Fnv1a::new();
+        h.write(&self.content_hash.to_le_bytes());
+        h.write(b"diffuse");
+        s.content_hash = h.0;
         s
     }
 
@@ -577,6 +576,7 @@ pub mod brdf;
 mod diagnostics;
 mod file;
 pub mod gltf;
+mod hash;
 pub mod light;
 pub mod light_mix;
 mod obj;

@@ -1,6 +1,6 @@
 //! Known answers and errors of scene loading.
 
-use super::file::Fnv1a;
+use super::hash::Fnv1a;
 use super::*;
 use crate::test_support::*;
 

@@ -16,17 +16,36 @@ pub struct GltfBuilder {
     pub json: serde_json::Map<String, Value>,
 }
 
-/// The checker the tests texture the ground with: `side` x `side` texels, texel (x, y) dark
-/// (sRGB 40) where x + y is even and light (sRGB 220) where it is odd.
+/// The checker the tests texture the ground with, `side` x `side` texels. Texel (x, y) (x to
+/// the right, y down from the top-left) codes its place, so that a flip or a swap of the axes
+/// shows: red `40 + 180 x / (side - 1)`, green `40 + 180 y / (side - 1)`, and blue a checker,
+/// dark (40) where x + y is even and light (220) where it is odd; all sRGB.
 pub fn checker_png(side: u32) -> Vec<u8> {
-    let img = image::RgbImage::from_fn(side, side, |x, y| {
-        let v = if (x + y) % 2 == 0 { 40 } else { 220 };
-        image::Rgb([v, v, v])
-    });
+    let img = image::RgbImage::from_fn(side, side, |x, y| image::Rgb(checker_texel(side, x, y)));
     let mut out = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
         .unwrap();
     out
+}
+
+/// The sRGB bytes of texel (x, y) of [`checker_png`].
+pub fn checker_texel(side: u32, x: u32, y: u32) -> [u8; 3] {
+    let ramp = |v: u32| (40 + 180 * v / (side - 1).max(1)) as u8;
+    [
+        ramp(x),
+        ramp(y),
+        if (x + y).is_multiple_of(2) { 40 } else { 220 },
+    ]
+}
+
+/// Makes the checker material metallic (factor 0.5, roughness 0.6) through a
+/// metallic-roughness texture (the same image, read linearly: roughness from green, metal from
+/// blue), so that the glossy lobe's colour and width change from texel to texel too.
+pub fn with_metal(b: &mut GltfBuilder) {
+    let m = &mut b.json.get_mut("materials").unwrap()[0]["pbrMetallicRoughness"];
+    m["metallicRoughnessTexture"] = json!({"index": 0});
+    m["metallicFactor"] = json!(0.5);
+    m["roughnessFactor"] = json!(0.6);
 }
 
 impl GltfBuilder {

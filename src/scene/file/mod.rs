@@ -2,6 +2,7 @@
 //! needs, naming the line and field of every problem through [`super::diagnostics`].
 
 use super::diagnostics::SourceMap;
+use super::hash::Fnv1a;
 use super::obj::{MeshTransform, ObjData, flat_triangle, mesh_triangles, parse_obj};
 use super::*;
 use glam::Mat4;
@@ -152,32 +153,6 @@ impl ShapeKind {
 }
 
 // ---------------------------------------------------------------------------------------------
-
-/// 64-bit FNV-1a, written out so the hash never changes with a dependency's version.
-pub(super) struct Fnv1a(pub(super) u64);
-
-impl Fnv1a {
-    const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
-    const PRIME: u64 = 0x0000_0100_0000_01b3;
-
-    pub(super) fn new() -> Self {
-        Fnv1a(Self::OFFSET)
-    }
-
-    pub(super) fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 ^= u64::from(b);
-            self.0 = self.0.wrapping_mul(Self::PRIME);
-        }
-    }
-
-    /// Hashes a length-prefixed chunk, so that moving bytes from one input to the next changes
-    /// the hash.
-    pub(in crate::scene) fn write_chunk(&mut self, bytes: &[u8]) {
-        self.write(&(bytes.len() as u64).to_le_bytes());
-        self.write(bytes);
-    }
-}
 
 fn kind_name(k: &MaterialKind) -> &'static str {
     match k {
@@ -340,6 +315,16 @@ impl<'a> Loader<'a> {
                             ));
                         }
                         lights.push(l);
+                        let columns: usize = lights.iter().map(Light::columns).sum();
+                        if columns > crate::scene::light::MAX_LIGHT_COLUMNS {
+                            return Err(self.map.error(
+                                &field("path"),
+                                format!(
+                                    "its lights take the scene past {} light columns",
+                                    crate::scene::light::MAX_LIGHT_COLUMNS
+                                ),
+                            ));
+                        }
                     }
                     ignored.extend(data.ignored);
                     for (range, name) in data.surfaces {
@@ -460,9 +445,7 @@ impl<'a> Loader<'a> {
             .base_dir
             .join(shape.path.as_deref().unwrap_or_default());
         let data = super::gltf::read(&path, placement)?;
-        for b in &data.bytes {
-            self.hasher.write_chunk(b);
-        }
+        self.hasher.write(&data.hash.to_le_bytes());
         self.inputs.extend(data.files.iter().cloned());
         Ok(data)
     }

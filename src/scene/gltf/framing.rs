@@ -54,10 +54,8 @@ impl Framing {
 /// above).
 pub(in crate::scene) fn scene(path: &Path, framing: &Framing) -> Result<Scene> {
     let data = read(path, Mat4::IDENTITY)?;
-    let mut hasher = crate::scene::file::Fnv1a::new();
-    for b in &data.bytes {
-        hasher.write_chunk(b);
-    }
+    let mut hasher = crate::scene::hash::Fnv1a::new();
+    hasher.write(&data.hash.to_le_bytes());
     let mut scene = Scene {
         camera: Camera {
             eye: Vec3::Z,
@@ -95,7 +93,7 @@ pub(in crate::scene) fn scene(path: &Path, framing: &Framing) -> Result<Scene> {
 }
 
 /// Mixes a camera into a content hash.
-pub(in crate::scene) fn hash_camera(hasher: &mut crate::scene::file::Fnv1a, c: &Camera) {
+pub(in crate::scene) fn hash_camera(hasher: &mut crate::scene::hash::Fnv1a, c: &Camera) {
     for v in [c.eye, c.target, c.up] {
         for x in v.to_array() {
             hasher.write(&x.to_le_bytes());
@@ -135,7 +133,9 @@ fn pick_camera(
             let (width, height) = framing.size(c.aspect);
             Camera {
                 eye: c.eye,
-                target: c.eye + c.forward,
+                // A step the size of the eye's distance from the origin, so that the direction
+                // survives rounding far from it.
+                target: c.eye + c.forward * c.eye.length().max(1.0),
                 up: c.up,
                 fov_y_deg: c.fov_y_deg,
                 width,

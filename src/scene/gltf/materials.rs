@@ -4,7 +4,7 @@
 
 use glam::Vec4;
 
-use super::{GltfMaterial, Reader, printable};
+use super::{GltfMaterial, MAX_TEXELS, Reader, printable};
 use crate::error::Result;
 use crate::scene::TexturedMaterial;
 use crate::scene::texture::{Encoding, Filter, Texture, Wrap};
@@ -118,27 +118,57 @@ impl Reader<'_> {
             return Ok(None);
         }
         let t = info.texture();
-        let key = (t.index(), encoding == Encoding::Srgb);
+        // Textures that share an image and a sampler share one decoded copy.
+        let key = (
+            t.source().index(),
+            t.sampler().index(),
+            encoding == Encoding::Srgb,
+        );
         if let Some(&i) = self.texture_index.get(&key) {
             return Ok(Some(i));
         }
         let image = t.source();
         let img_field = format!("images[{}]", image.index());
-        let bytes = match image.source() {
-            gltf::image::Source::View { view, .. } => self.view_bytes(&view).to_vec(),
+        // The image's bytes: a range of a shared buffer, or a URI's.
+        let (bytes, range) = match image.source() {
+            gltf::image::Source::View { view, .. } => (
+                self.buffers[view.buffer().index()].clone(),
+                view.offset()..view.offset() + view.length(),
+            ),
             gltf::image::Source::Uri { uri, .. } => {
-                self.uri_bytes(uri, &format!("{img_field}.uri"))?
+                let b = self.uri_bytes(uri, &format!("{img_field}.uri"))?;
+                let n = b.len();
+                (b, 0..n)
             }
         };
         let name = image
             .name()
             .map(printable)
             .unwrap_or_else(|| format!("image {}", image.index()));
-        let decode_error =
-            |e: String| self.error(&img_field, format!("{name}: {e} (used by {field})"));
-        let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
-            .with_guessed_format()
+        let file = self.path;
+        let decode_error = |e: String| crate::error::PrtError::Scene {
+            path: file.to_path_buf(),
+            line: None,
+            field: img_field.clone(),
+            message: format!("{name}: {e} (used by {field})"),
+        };
+        let open = || {
+            image::ImageReader::new(std::io::Cursor::new(&bytes[range.clone()]))
+                .with_guessed_format()
+                .map_err(|e| decode_error(e.to_string()))
+        };
+        // The size from the header, against what the file's textures may still take, before
+        // anything is decoded.
+        let (w, h) = open()?
+            .into_dimensions()
             .map_err(|e| decode_error(e.to_string()))?;
+        let texels = w as u64 * h as u64;
+        if texels > self.texels_left {
+            return Err(decode_error(format!(
+                "{w} x {h} texels take the file's textures past {MAX_TEXELS} texels"
+            )));
+        }
+        let mut reader = open()?;
         let mut limits = image::Limits::default();
         limits.max_image_width = Some(crate::scene::texture::MAX_TEXTURE_SIDE);
         limits.max_image_height = Some(crate::scene::texture::MAX_TEXTURE_SIDE);
@@ -147,9 +177,14 @@ impl Reader<'_> {
         let decoded = reader
             .decode()
             .map_err(|e| decode_error(e.to_string()))?
-            .to_rgb8();
+            .into_rgb8();
+        self.texels_left -= texels;
         let (w, h) = decoded.dimensions();
-        let texels = decoded.pixels().map(|p| p.0).collect();
+        let texels = decoded
+            .into_raw()
+            .chunks_exact(3)
+            .map(|p| [p[0], p[1], p[2]])
+            .collect();
         let mut texture = Texture::new(name.clone(), w, h, texels, encoding)
             .ok_or_else(|| decode_error(format!("a {w} x {h} image cannot be a texture")))?;
         let sampler = t.sampler();

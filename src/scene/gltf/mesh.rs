@@ -27,6 +27,21 @@ impl Reader<'_> {
             let Some(pos) = prim.get(&gltf::Semantic::Positions) else {
                 return Err(self.error(format!("{field}.attributes"), "has no POSITION"));
             };
+            // Every instance of a primitive is read again: its vertices and corners count
+            // against one budget for the whole file, before anything is read.
+            let work =
+                pos.count() as u64 + prim.indices().map_or(pos.count(), |a| a.count()) as u64;
+            if work > self.corners_left {
+                return Err(self.error(
+                    &field,
+                    format!(
+                        "the file's primitives, every instance counted, hold more than {} \
+                         vertices and corners",
+                        3 * MAX_TRIANGLES
+                    ),
+                ));
+            }
+            self.corners_left -= work;
             let positions: Vec<[f32; 3]> = self.read_floats(
                 &pos,
                 &format!("{field}.attributes.POSITION"),

@@ -19,7 +19,7 @@ use gltf::json::extensions::scene::khr_lights_punctual::Type as LightType;
 use super::texture::Texture;
 use super::{MAX_COORDINATE, Material, TexturedMaterial, Triangle};
 use crate::error::{PrtError, Result};
-use crate::scene::light::{Light, LightShape, MAX_INTENSITY, valid_name};
+use crate::scene::light::{Light, LightShape, MAX_INTENSITY, MAX_LIGHT_COLUMNS, valid_name};
 
 /// Largest glTF file, and largest external buffer or image it names.
 pub const MAX_GLTF_BYTES: u64 = 2 << 30;
@@ -70,14 +70,30 @@ pub(super) struct GltfData {
     pub(super) ignored: BTreeSet<String>,
     /// Every file read: the glTF, then its external buffers and images.
     pub(super) files: Vec<PathBuf>,
-    /// The bytes of every file read, in order, for the scene's content hash.
-    pub(super) bytes: Vec<Vec<u8>>,
+    /// FNV-1a over the bytes of every file read, in order: the scene's content hash takes it.
+    pub(super) hash: u64,
 }
+
+/// Largest number of texels the textures of one file may decode to (768 MiB of RGB).
+pub const MAX_TEXELS: u64 = 1 << 28;
 
 /// Reads the glTF file at `path`, placing its default scene (or its first, or every root
 /// node when it names none) with `placement`.
 pub(super) fn read(path: &Path, placement: Mat4) -> Result<GltfData> {
     let bytes = crate::files::read_regular(path, MAX_GLTF_BYTES, "glTF file")?;
+    let mut hasher = crate::scene::hash::Fnv1a::new();
+    hasher.write_chunk(&bytes);
+    // A GLB header whose length is below the header's own 12 bytes underflows in the crate.
+    if bytes.starts_with(b"glTF")
+        && bytes
+            .get(8..12)
+            .is_none_or(|l| u32::from_le_bytes([l[0], l[1], l[2], l[3]]) < 12)
+    {
+        return Err(PrtError::file(
+            path,
+            "not a usable glTF 2.0 file: the GLB header's length is shorter than the header",
+        ));
+    }
     let gltf = parse(&bytes)
         .map_err(|e| PrtError::file(path, format!("not a usable glTF 2.0 file: {e}")))?;
     let mut reader = Reader {
@@ -94,18 +110,57 @@ pub(super) fn read(path: &Path, placement: Mat4) -> Result<GltfData> {
             lights: Vec::new(),
             ignored: BTreeSet::new(),
             files: vec![path.to_path_buf()],
-            bytes: Vec::new(),
+            hash: 0,
         },
         material_index: HashMap::new(),
         texture_index: HashMap::new(),
+        files_read: HashMap::new(),
+        bytes_left: MAX_GLTF_BYTES.saturating_sub(bytes.len() as u64),
+        texels_left: MAX_TEXELS,
+        corners_left: 3 * MAX_TRIANGLES as u64,
+        hasher,
+        light_names: Default::default(),
     };
-    reader.out.bytes.push(bytes.clone());
+    drop(bytes);
     for ext in gltf.document.extensions_required() {
-        if ext != "KHR_lights_punctual" && ext != "KHR_materials_emissive_strength" {
+        if ext != "KHR_lights_punctual" {
             return Err(reader.error(
                 "extensionsRequired",
                 format!("needs the extension {ext}, which is not supported"),
             ));
+        }
+    }
+    let json = gltf.document.as_json();
+    for (what, present) in [
+        (
+            "animation (nodes keep their rest pose)",
+            !json.animations.is_empty(),
+        ),
+        (
+            "skins (meshes keep their bind pose)",
+            !json.skins.is_empty(),
+        ),
+        (
+            "vertex colours (COLOR_0)",
+            json.meshes.iter().flat_map(|m| &m.primitives).any(|p| {
+                p.attributes.keys().any(|k| {
+                    matches!(
+                        k,
+                        gltf::json::validation::Checked::Valid(gltf::Semantic::Colors(_))
+                    )
+                })
+            }),
+        ),
+        (
+            "morph targets",
+            json.meshes
+                .iter()
+                .flat_map(|m| &m.primitives)
+                .any(|p| p.targets.is_some()),
+        ),
+    ] {
+        if present {
+            reader.out.ignored.insert(what.to_string());
         }
     }
     for ext in gltf.document.extensions_used() {
@@ -113,11 +168,13 @@ pub(super) fn read(path: &Path, placement: Mat4) -> Result<GltfData> {
             reader.out.ignored.insert(format!("the extension {ext}"));
         }
     }
-    reader.load_buffers(gltf.blob.as_deref())?;
+    let blob: Option<std::sync::Arc<[u8]>> = gltf.blob.as_deref().map(std::sync::Arc::from);
+    reader.load_buffers(blob)?;
     reader.walk(placement)?;
     if reader.out.triangles.is_empty() {
         return Err(reader.error("meshes", "the scene has no triangles with non-zero area"));
     }
+    reader.out.hash = reader.hasher.0;
     Ok(reader.out)
 }
 
@@ -154,6 +211,11 @@ fn parse(bytes: &[u8]) -> std::result::Result<gltf::Gltf, String> {
             "images[{i}]: needs a uri, or a bufferView and a mimeType"
         ));
     }
+    for (i, im) in root.images.iter().enumerate() {
+        if im.buffer_view.is_some() && im.mime_type.is_none() {
+            errors.push(format!("images[{i}]: a bufferView needs a mimeType"));
+        }
+    }
     if errors.is_empty() {
         Ok(gltf)
     } else {
@@ -165,13 +227,27 @@ struct Reader<'a> {
     path: &'a Path,
     base: PathBuf,
     doc: &'a gltf::Document,
-    /// Each buffer's bytes, at least its declared length.
-    buffers: Vec<Vec<u8>>,
+    /// Each buffer's bytes, at least its declared length (the GLB chunk and files read once,
+    /// shared by every buffer that names them).
+    buffers: Vec<std::sync::Arc<[u8]>>,
+    /// Files already read, by path.
+    files_read: HashMap<PathBuf, std::sync::Arc<[u8]>>,
+    /// Bytes the file's resources may still take, all together.
+    bytes_left: u64,
+    /// Texels its textures may still decode to.
+    texels_left: u64,
+    /// Triangle corners its primitives may still make, counting every instance and the
+    /// triangles without area, so that instancing cannot multiply the work without end.
+    corners_left: u64,
+    /// The content hash of everything read.
+    hasher: crate::scene::hash::Fnv1a,
+    /// Names the lights have taken.
+    light_names: std::collections::HashSet<String>,
     out: GltfData,
     /// This engine's material of each glTF material (`None`: the default material).
     material_index: HashMap<Option<usize>, u32>,
-    /// This engine's texture of each (glTF texture, encoding).
-    texture_index: HashMap<(usize, bool), u32>,
+    /// This engine's texture of each (glTF image, sampler, encoding).
+    texture_index: HashMap<(usize, Option<usize>, bool), u32>,
 }
 
 impl Reader<'_> {
@@ -184,14 +260,16 @@ impl Reader<'_> {
         }
     }
 
-    /// The bytes a URI names: a base64 `data:` URI, or a file relative to the glTF's folder.
-    pub(super) fn uri_bytes(&mut self, uri: &str, field: &str) -> Result<Vec<u8>> {
+    /// The bytes a URI names: a base64 `data:` URI, or a file relative to the glTF's folder
+    /// (read once however many buffers and images name it).
+    pub(super) fn uri_bytes(&mut self, uri: &str, field: &str) -> Result<std::sync::Arc<[u8]>> {
         if let Some(rest) = uri.strip_prefix("data:") {
             let Some((_, data)) = rest.split_once(";base64,") else {
                 return Err(self.error(field, "a data URI must be base64 (`;base64,`)"));
             };
-            return decode_base64(data)
-                .ok_or_else(|| self.error(field, "the data URI is not valid base64"));
+            let bytes = decode_base64(data)
+                .ok_or_else(|| self.error(field, "the data URI is not valid base64"))?;
+            return Ok(bytes.into());
         }
         let relative = percent_decode(uri)
             .ok_or_else(|| self.error(field, format!("`{uri}` is not a valid URI")))?;
@@ -202,18 +280,24 @@ impl Reader<'_> {
             ));
         }
         let path = self.base.join(&relative);
-        let bytes = crate::files::read_regular(&path, MAX_GLTF_BYTES, "glTF resource")?;
+        if let Some(bytes) = self.files_read.get(&path) {
+            return Ok(bytes.clone());
+        }
+        let bytes = crate::files::read_regular(&path, self.bytes_left, "glTF file's resources")?;
+        self.bytes_left -= bytes.len() as u64;
+        self.hasher.write_chunk(&bytes);
+        let bytes: std::sync::Arc<[u8]> = bytes.into();
+        self.files_read.insert(path.clone(), bytes.clone());
         self.out.files.push(path);
-        self.out.bytes.push(bytes.clone());
         Ok(bytes)
     }
 
-    fn load_buffers(&mut self, blob: Option<&[u8]>) -> Result<()> {
+    fn load_buffers(&mut self, blob: Option<std::sync::Arc<[u8]>>) -> Result<()> {
         for buffer in self.doc.buffers() {
             let i = buffer.index();
             let field = format!("buffers[{i}]");
             let data = match buffer.source() {
-                gltf::buffer::Source::Bin => blob.map(<[u8]>::to_vec).ok_or_else(|| {
+                gltf::buffer::Source::Bin => blob.clone().ok_or_else(|| {
                     self.error(&field, "refers to a GLB binary chunk the file lacks")
                 })?,
                 gltf::buffer::Source::Uri(uri) => self.uri_bytes(uri, &format!("{field}.uri"))?,
@@ -324,7 +408,9 @@ impl Reader<'_> {
             .as_deref()
             .map(printable)
             .unwrap_or_else(|| format!("camera {index}"));
-        let Some(p) = json.perspective.as_ref() else {
+        let perspective = json.type_
+            == gltf::json::validation::Checked::Valid(gltf::json::camera::Type::Perspective);
+        let Some(p) = json.perspective.as_ref().filter(|_| perspective) else {
             self.out.ignored.insert(format!(
                 "orthographic camera {name} (cameras are perspective)"
             ));
@@ -388,10 +474,14 @@ impl Reader<'_> {
                     );
                 };
                 let (inner, outer) = (spot.inner_cone_angle, spot.outer_cone_angle);
-                if !(0.0 <= inner && inner < outer && outer <= std::f32::consts::FRAC_PI_2) {
+                if !(0.0 <= inner
+                    && inner <= outer
+                    && outer > 0.0
+                    && outer <= std::f32::consts::FRAC_PI_2)
+                {
                     return Err(self.error(
                         format!("lights[{index}].spot"),
-                        format!("needs 0 <= innerConeAngle < outerConeAngle <= π/2, got {inner} and {outer}"),
+                        format!("needs 0 <= innerConeAngle <= outerConeAngle <= π/2, outerConeAngle > 0, got {inner} and {outer}"),
                     ));
                 }
                 LightShape::Spot {
@@ -420,9 +510,17 @@ impl Reader<'_> {
             })
             .filter(|n| !n.is_empty())
             .unwrap_or_else(|| format!("light{index}"));
+        if self.out.lights.len() >= MAX_LIGHT_COLUMNS {
+            return Err(self.error(
+                format!("{field} (light {index})"),
+                format!("the file places more than {MAX_LIGHT_COLUMNS} lights"),
+            ));
+        }
+        // A name used already takes the first free suffix (its base is at most 56 bytes, so the
+        // name stays within 64).
         let mut name = base.clone();
         let mut k = 2;
-        while self.out.lights.iter().any(|l| l.name == name) {
+        while !self.light_names.insert(name.clone()) {
             name = format!("{base}.{k}");
             k += 1;
         }
