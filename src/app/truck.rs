@@ -11,7 +11,7 @@ use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::light::select::Weighting;
 use crate::output::film::ToneMap;
 use crate::output::metrics::relative_l2;
-use crate::output::sheet::{Cell, downsample, write_sheet};
+use crate::output::sheet::{Cell, write_sheet};
 use crate::relight::background::{composite, environment_behind};
 use crate::relight::{LightContext, RelightRequest, relight};
 use crate::scene::Scene;
@@ -83,7 +83,7 @@ pub fn run_truck(
                 format!("L2 error {:.1}%", 100.0 * err)
             };
             shots.push((
-                downsample(&composite(&img, &behind), 1),
+                composite(&img, &behind),
                 tone,
                 [caption.to_string(), second],
             ));
