@@ -54,6 +54,7 @@ mod assemble;
 mod file;
 mod lights;
 mod meta;
+mod reader;
 mod stream;
 
 use std::ops::Range;
