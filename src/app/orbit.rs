@@ -193,8 +193,15 @@ pub fn run_orbit(
     } = measure("demo_vertices_coarse.prt", edge * COARSE_EDGE_FACTOR)?;
     let camera = bake_camera(&t)?;
     let mesh = crate::relight::vertex::mesh_of(&t)?;
+    let texturing = crate::relight::raster::Texturing::of(mesh);
     let draw = |colours: &[[f32; 3]], camera: &crate::scene::Camera| {
-        crate::relight::raster::rasterize(camera, &mesh.positions, &mesh.triangles, colours)
+        crate::relight::raster::rasterize_textured(
+            camera,
+            &mesh.positions,
+            &mesh.triangles,
+            colours,
+            texturing.as_ref(),
+        )
     };
     // Frames as the viewer makes them: relight at K terms, draw.
     let mut times = Vec::new();

@@ -358,7 +358,7 @@ impl<'a> Bounces<'a> {
             let mut throughput = Vec3::ONE;
             let mut at = *start;
             for bounce in 1..=self.settings.bounces {
-                let lobes = self.scene.lobes_at(at.material, at.uv);
+                let lobes = at.lobes(self.scene);
                 let mut u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
                 if bounce == 1 && path < strata * strata {
                     // The first bounce's directions on a jittered grid: the paths of a sample
@@ -401,7 +401,7 @@ impl<'a> Bounces<'a> {
         throughput: Vec3,
         out: &mut impl FnMut(usize, Vec3),
     ) -> u64 {
-        let lobes = self.scene.lobes_at(at.material, at.uv);
+        let lobes = at.lobes(self.scene);
         let (dirs, weights) = (&self.samples.dirs, &self.samples.weights);
         let m = self.samples.per_texel;
         let diffuse = throughput * lobes.albedo * std::f32::consts::FRAC_1_PI;
@@ -462,7 +462,7 @@ impl<'a> Bounces<'a> {
     ) -> u64 {
         let mut shadow = 0;
         let rays = self.walk(start, stream, &mut |path, bounce, at, throughput| {
-            let lobes = self.scene.lobes_at(at.material, at.uv);
+            let lobes = at.lobes(self.scene);
             if let Some((sampler, columns)) = lights.as_mut() {
                 shadow += self.light_vertex(
                     stream,
@@ -503,7 +503,7 @@ impl<'a> Bounces<'a> {
         sampler: &LightSampler,
         columns: &mut [Vec3],
     ) -> u64 {
-        let lobes = self.scene.lobes_at(at.material, at.uv);
+        let lobes = at.lobes(self.scene);
         // A stream of its own for every vertex, apart from the camera hits' (top bit).
         let vertex = Rng::new(stream, ((index[0] as u64) << 8) | index[1] as u64).next_u64();
         sampler.add(

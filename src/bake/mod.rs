@@ -78,6 +78,23 @@ pub struct ShadingPoint {
     pub material: u32,
     /// Texture coordinate of the point.
     pub uv: glam::Vec2,
+    /// Whether the point's light is taken for a white diffuse surface, its albedo applied after
+    /// relighting: a textured vertex of a per-vertex bake, whose raster multiplies by its albedo
+    /// map per pixel.
+    pub unit_albedo: bool,
+}
+
+impl ShadingPoint {
+    /// The lobes the point reflects with: its material's at its texture coordinate, or a white
+    /// diffuse lobe for a [`ShadingPoint::unit_albedo`] point.
+    #[inline]
+    pub fn lobes(&self, scene: &Scene) -> brdf::Lobes {
+        if self.unit_albedo {
+            brdf::Lobes::of(&crate::scene::Material::Diffuse { albedo: Vec3::ONE })
+        } else {
+            scene.lobes_at(self.material, self.uv)
+        }
+    }
 }
 
 /// Shades a camera hit seen along `ray_dir`: the offset origin for shadow rays, the normal and
@@ -89,6 +106,7 @@ pub fn shading_point(tracer: &Tracer, hit: &Hit, ray_dir: Vec3) -> ShadingPoint 
         view: -ray_dir,
         material: hit.material,
         uv: hit.uv,
+        unit_albedo: false,
     }
 }
 
@@ -477,6 +495,7 @@ fn bake_tiles(
             vertices: m.vertex_count() as u32,
             triangles: m.triangles.len() as u32,
             image: [cam.width, cam.height],
+            albedo_maps: m.albedo_maps.len() as u32,
         }),
         stats: BakeStats::default(),
         lights: scene.lights.clone(),
@@ -572,6 +591,8 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             let mut albedo_sum = Vec3::ZERO;
             let pixel_index = (y * w + x) as u64;
             let mut light_columns = vec![Vec3::ZERO; lights.columns()];
+            // A textured vertex, whose rows are a white surface's.
+            let mut white = false;
             for (sub, visit) in visits.into_iter().enumerate() {
                 covered += visit.covered;
                 let Some(sp) = visit.point else {
@@ -580,7 +601,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                 let seen = visit.seen;
                 hits += 1;
                 // A vertex is seen from every side: only the diffuse lobe holds for all.
-                let mut here = scene.lobes_at(sp.material, sp.uv);
+                let mut here = sp.lobes(scene);
                 if mesh.is_some() {
                     here.specular = Vec3::ZERO;
                 }
@@ -589,10 +610,13 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     .glossy_lobe()
                     .is_some()
                     && mesh.is_none();
-                let textured = scene
-                    .material_maps
-                    .get(sp.material as usize)
-                    .is_some_and(Option::is_some);
+                // A vertex has one visit, and a textured one is baked white: no tinting.
+                let textured = !sp.unit_albedo
+                    && scene
+                        .material_maps
+                        .get(sp.material as usize)
+                        .is_some_and(Option::is_some);
+                white |= sp.unit_albedo;
                 let slot = match dense.iter().position(|d| d.material == sp.material) {
                     Some(i) => i,
                     None => {
@@ -651,7 +675,11 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                 out.lights.push((pixel, light_columns));
             }
             let lobes = dense.into_iter().flat_map(|slot| {
-                let material = &scene.materials[slot.material as usize];
+                let white_surface = crate::scene::Material::Diffuse { albedo: Vec3::ONE };
+                let material = match white {
+                    true => &white_surface,
+                    false => &scene.materials[slot.material as usize],
+                };
                 slot.finish(material)
             });
             let channels = indirect.into_iter().flat_map(|rows| {

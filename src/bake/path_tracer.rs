@@ -207,7 +207,7 @@ fn radiance(
     let mut throughput = Vec3::ONE;
     let mut at = start;
     for depth in 0..=settings.bounces {
-        let lobes = scene.lobes_at(at.material, at.uv);
+        let lobes = at.lobes(scene);
         let (n, v) = (at.normal, at.view);
         // Light sampling.
         if let Some(sampler) = sampler {

@@ -273,7 +273,8 @@ pub(super) fn visits(ctx: &TileContext, x: usize, y: usize) -> Vec<Visit> {
             normal,
             view: normal,
             material: mesh.materials[v],
-            uv: glam::Vec2::ZERO,
+            uv: mesh.uvs[v],
+            unit_albedo: mesh.is_textured(v),
         };
         return vec![Visit {
             point: Some(point),

@@ -130,7 +130,7 @@ pub fn render_reference_lit(
                     };
                     *cov += inv_spp as f32;
                     let sp = shading_point(&tracer, &hit, ray.dir);
-                    let lobes = scene.lobes_at(sp.material, sp.uv);
+                    let lobes = sp.lobes(scene);
                     let albedo = lobes.albedo;
                     let glossy = (lobes.specular != glam::Vec3::ZERO)
                         .then_some((lobes.specular, lobes.alpha));

@@ -10,16 +10,79 @@
 //! triangle's plane (homogeneous rasterisation). Only the bounding box that limits the pixels
 //! tried is taken from the part of the triangle in front of the near plane.
 //!
+//! A textured mesh ([`Texturing`]) multiplies each drawn pixel by its material's albedo map,
+//! read at the pixel's perspective-correct texture coordinate with the level of detail of
+//! [`AlbedoMap::lod`]. The coordinate's screen derivatives are those a GPU's fine derivatives take
+//! (`dpdxFine`, `dpdyFine`): differences across the pixel's aligned 2 × 2 quad, each pixel of it
+//! interpolated (or extrapolated) on the same triangle. So the twins read the same texels.
+//!
 //! The work is split in bands of rows run in parallel; each band draws the triangles whose boxes
 //! reach it, in index order, so the first of two hits at exactly the same depth wins, as with the
 //! GPU's strict depth test.
 
-use glam::{DMat4, DVec2, DVec3, DVec4, Mat4, Vec3};
+use glam::{DMat4, DVec2, DVec3, DVec4, Mat4, Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::error::{PrtError, Result};
 use crate::output::film::Image;
 use crate::scene::Camera;
+use crate::scene::albedo_map::AlbedoMap;
+use crate::scene::tessellate::VertexMesh;
+
+/// What a textured mesh adds to a draw: each vertex's texture coordinate and the albedo map its
+/// pixels are multiplied by.
+#[derive(Clone, Debug)]
+pub struct Texturing<'a> {
+    /// Texture coordinate of each vertex.
+    pub uvs: &'a [Vec2],
+    /// Index into `maps` of each vertex's map; `None` draws the vertex colours as they are.
+    pub slots: Vec<Option<u32>>,
+    /// The albedo maps.
+    pub maps: &'a [AlbedoMap],
+}
+
+impl<'a> Texturing<'a> {
+    /// The texturing of a per-vertex bake's mesh, `None` when it has no albedo maps.
+    pub fn of(mesh: &'a VertexMesh) -> Option<Texturing<'a>> {
+        (!mesh.albedo_maps.is_empty()).then(|| Texturing {
+            uvs: &mesh.uvs,
+            slots: mesh.map_slots(),
+            maps: &mesh.albedo_maps,
+        })
+    }
+
+    /// Checks one coordinate and slot per vertex of `vertices`, finite coordinates and slots
+    /// below the map count.
+    pub fn check(&self, vertices: usize) -> Result<()> {
+        if self.uvs.len() != vertices || self.slots.len() != vertices {
+            return Err(PrtError::invalid(
+                "texturing",
+                format!(
+                    "{} texture coordinates and {} map slots for {vertices} vertices",
+                    self.uvs.len(),
+                    self.slots.len()
+                ),
+            ));
+        }
+        if let Some(i) = self.uvs.iter().position(|t| !t.is_finite()) {
+            return Err(PrtError::invalid(
+                format!("uvs[{i}]"),
+                format!("must be finite, got {}", self.uvs[i]),
+            ));
+        }
+        if let Some(i) = self
+            .slots
+            .iter()
+            .position(|s| s.is_some_and(|s| s as usize >= self.maps.len()))
+        {
+            return Err(PrtError::invalid(
+                format!("slots[{i}]"),
+                format!("{:?} of {} maps", self.slots[i], self.maps.len()),
+            ));
+        }
+        Ok(())
+    }
+}
 
 /// The nearest forward distance from the eye (along the view direction) that is drawn, in scene
 /// units; both twins clip there. A hit nearer than this is not drawn.
@@ -269,6 +332,7 @@ fn draw_band(
     bin: &[u32],
     triangles: &[[u32; 3]],
     colours: &[[f32; 3]],
+    texturing: Option<&Texturing>,
     y0: usize,
     pixels: &mut [[f32; 3]],
     coverage: &mut [f32],
@@ -281,6 +345,11 @@ fn draw_band(
         let [e0, e1, e2] = s.edges;
         let tri = triangles[s.triangle as usize];
         let cs = tri.map(|v| DVec3::from(colours[v as usize].map(f64::from)));
+        // The triangle's map and corner coordinates, if textured.
+        let mapped = texturing.and_then(|t| {
+            let map = &t.maps[t.slots[tri[0] as usize]? as usize];
+            Some((map, tri.map(|v| t.uvs[v as usize].as_dvec2())))
+        });
         let first_row = (s.y[0] as usize).max(y0);
         let last_row = (s.y[1] as usize).min(y0 + rows - 1);
         for y in first_row..=last_row {
@@ -301,7 +370,27 @@ fn draw_band(
                 }
                 depth[i] = z;
                 let c = (cs[0] * w[0] + cs[1] * w[1] + cs[2] * w[2]) / sum;
-                pixels[i] = c.as_vec3().to_array();
+                let albedo = match mapped {
+                    Some((map, uvs)) => {
+                        // The coordinate at a film position, interpolated on this triangle.
+                        let uv_at = |fx: f64, fy: f64| {
+                            let w = [
+                                e0.dot(DVec3::new(fx, fy, 1.0)),
+                                e1.dot(DVec3::new(fx, fy, 1.0)),
+                                e2.dot(DVec3::new(fx, fy, 1.0)),
+                            ];
+                            ((uvs[0] * w[0] + uvs[1] * w[1] + uvs[2] * w[2]) / (w[0] + w[1] + w[2]))
+                                .as_vec2()
+                        };
+                        let (qx, qy) = (x & !1, y & !1);
+                        let uv = uv_at(fx, fy);
+                        let dx = uv_at(view.film_x(qx + 1), fy) - uv_at(view.film_x(qx), fy);
+                        let dy = uv_at(fx, view.film_y(qy + 1)) - uv_at(fx, view.film_y(qy));
+                        map.sample(uv, map.lod(dx, dy))
+                    }
+                    None => Vec3::ONE,
+                };
+                pixels[i] = (c.as_vec3() * albedo).to_array();
                 coverage[i] = 1.0;
             }
         }
@@ -317,8 +406,23 @@ pub fn rasterize(
     triangles: &[[u32; 3]],
     colours: &[[f32; 3]],
 ) -> Result<Raster> {
+    rasterize_textured(camera, positions, triangles, colours, None)
+}
+
+/// [`rasterize`], each pixel of a textured triangle multiplied by its albedo map (see the module
+/// documentation).
+pub fn rasterize_textured(
+    camera: &Camera,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    colours: &[[f32; 3]],
+    texturing: Option<&Texturing>,
+) -> Result<Raster> {
     camera.validate()?;
     check_mesh(positions, triangles, Some(colours))?;
+    if let Some(t) = texturing {
+        t.check(positions.len())?;
+    }
     let view = View::new(camera);
     let (w, h) = (view.width, view.height);
     let setups: Vec<Setup> = triangles
@@ -350,6 +454,7 @@ pub fn rasterize(
                 bin,
                 triangles,
                 colours,
+                texturing,
                 band * BAND_ROWS,
                 pixels,
                 cov,

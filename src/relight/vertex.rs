@@ -9,7 +9,7 @@ use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::Image;
 use crate::relight::background::{composite, environment_behind_camera};
-use crate::relight::raster::{Raster, rasterize};
+use crate::relight::raster::{Raster, Texturing, rasterize_textured};
 use crate::scene::Camera;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::Transport;
@@ -192,8 +192,9 @@ pub fn vertex_colours<'a>(t: &Transport, relit: &'a Image) -> Result<&'a [[f32; 
 }
 
 /// Draws a per-vertex bake relit to `colours` (one per vertex) as `camera` sees it, on the CPU,
-/// with `behind` (the environment and its turn) where no surface is drawn. Also gives the
-/// coverage, for masks and tone mapping.
+/// its textured materials multiplied by their albedo maps per pixel, with `behind` (the
+/// environment and its turn) where no surface is drawn. Also gives the coverage, for masks and
+/// tone mapping.
 pub fn draw(
     t: &Transport,
     colours: &[[f32; 3]],
@@ -201,7 +202,13 @@ pub fn draw(
     behind: Option<(&EnvMap, EnvRotation)>,
 ) -> Result<Raster> {
     let mesh = mesh_of(t)?;
-    let raster = rasterize(camera, &mesh.positions, &mesh.triangles, colours)?;
+    let raster = rasterize_textured(
+        camera,
+        &mesh.positions,
+        &mesh.triangles,
+        colours,
+        Texturing::of(mesh).as_ref(),
+    )?;
     compose(raster, camera, behind)
 }
 

@@ -572,6 +572,7 @@ pub fn is_gltf(path: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"))
 }
 
+pub mod albedo_map;
 pub mod brdf;
 mod diagnostics;
 mod file;

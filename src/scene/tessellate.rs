@@ -1,16 +1,21 @@
 //! The scene as an indexed vertex mesh, for per-vertex transport: every quad and mesh welded into
 //! shared vertices (a corner keeps one vertex per distinct shading normal, so creases stay
-//! sharp), every sphere made an icosphere, and every edge longer than a target length split at
+//! sharp, and one per texture coordinate on a texture's seams), every sphere made an icosphere, and every edge longer than a target length split at
 //! its midpoint until none is, so that shadows have vertices to land on. Open shapes (with a
 //! boundary edge, such as a quad) get a twin of every vertex and triangle facing the other way,
 //! since surfaces are two-sided (CONVENTIONS.md) and the two sides see different light. Vertices
 //! are sorted in Morton order of their positions, so a block of consecutive vertices is a compact
 //! patch whose transport rows share coefficients.
+//!
+//! A textured material's vertices carry their texture coordinates (midpoints take the mean of
+//! their edge's ends), and the mesh carries each such material's [`AlbedoMap`]: the bake stores
+//! those vertices' irradiance, and the raster multiplies it by the map per pixel.
 
 use std::collections::HashMap;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
+use super::albedo_map::AlbedoMap;
 use super::{Scene, Triangle};
 use crate::error::{PrtError, Result};
 
@@ -21,7 +26,8 @@ pub const MAX_VERTICES: usize = 1 << 24;
 /// edge the coordinate limit allows to below a millionth of it.
 const MAX_ROUNDS: usize = 40;
 
-/// An indexed triangle mesh with a shading normal and a material per vertex.
+/// An indexed triangle mesh with a shading normal, a material and a texture coordinate per
+/// vertex, and the albedo maps of its textured materials.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VertexMesh {
     /// World-space positions.
@@ -30,8 +36,13 @@ pub struct VertexMesh {
     pub normals: Vec<Vec3>,
     /// Index into [`Scene::materials`] of each vertex.
     pub materials: Vec<u32>,
+    /// Texture coordinate of each vertex: zero unless its material has an albedo map.
+    pub uvs: Vec<Vec2>,
     /// Corner indices, counter-clockwise seen from the side the normals face.
     pub triangles: Vec<[u32; 3]>,
+    /// The albedo map of every textured material the vertices use, by material index: those
+    /// vertices' light is baked for a white surface, and the raster multiplies it by the map.
+    pub albedo_maps: Vec<AlbedoMap>,
 }
 
 impl VertexMesh {
@@ -58,13 +69,6 @@ impl VertexMesh {
                 format!("{edge_length}; it must be a finite length > 0"),
             ));
         }
-        if scene.is_textured() {
-            return Err(PrtError::invalid(
-                "per-vertex bake",
-                "the scene's materials are textured, and a per-vertex bake does not yet carry \
-                 texture coordinates: bake it per pixel",
-            ));
-        }
         // About how many vertices the length asks for (a triangle's edges end between half the
         // length and the length): refused before any work when far past the limit.
         let area: f64 = scene
@@ -89,6 +93,20 @@ impl VertexMesh {
             ));
         }
         let mut mesh = VertexMesh::default();
+        let textured: Vec<bool> = (0..scene.materials.len())
+            .map(|m| {
+                scene
+                    .material_maps
+                    .get(m)
+                    .copied()
+                    .flatten()
+                    .is_some_and(|t| {
+                        t.base_color_texture
+                            .or(t.metallic_roughness_texture)
+                            .is_some()
+                    })
+            })
+            .collect();
         for range in &scene.surfaces {
             let tris = &scene.triangles[range.clone()];
             let open = has_boundary(tris);
@@ -101,7 +119,7 @@ impl VertexMesh {
                 tris
             };
             let first = mesh.positions.len();
-            let corners = mesh.weld(tris);
+            let corners = mesh.weld(tris, &textured);
             let mut refine = Refiner::new(&mut mesh, edge_length, None);
             let tris = refine.run(corners)?;
             mesh.add_shape(first, tris, open);
@@ -119,18 +137,60 @@ impl VertexMesh {
                 "the scene has no surfaces to put vertices on",
             ));
         }
+        let mut used = vec![false; scene.materials.len()];
+        for &m in &mesh.materials {
+            used[m as usize] = true;
+        }
+        mesh.albedo_maps = (0..scene.materials.len() as u32)
+            .filter(|&m| used[m as usize] && textured[m as usize])
+            .filter_map(|m| AlbedoMap::of_material(scene, m))
+            .collect();
         Ok(mesh.morton_ordered())
+    }
+
+    /// The index into [`VertexMesh::albedo_maps`] of each vertex's map, `None` for a vertex
+    /// whose material has none.
+    pub fn map_slots(&self) -> Vec<Option<u32>> {
+        let mut slot_of = HashMap::new();
+        for (i, m) in self.albedo_maps.iter().enumerate() {
+            slot_of.insert(m.material, i as u32);
+        }
+        self.materials
+            .iter()
+            .map(|m| slot_of.get(m).copied())
+            .collect()
+    }
+
+    /// Whether vertex `v`'s light is baked for a white surface, its albedo left to the raster.
+    pub fn is_textured(&self, v: usize) -> bool {
+        let m = self.materials[v];
+        self.albedo_maps.iter().any(|a| a.material == m)
     }
 
     /// Checks the mesh's own consistency (lengths, indices, finite unit normals, materials below
     /// `materials`), as a loader must before using it: the first problem, in words.
     pub fn problem(&self, materials: usize) -> Option<String> {
         let v = self.positions.len();
-        if self.normals.len() != v || self.materials.len() != v {
+        if self.normals.len() != v || self.materials.len() != v || self.uvs.len() != v {
             return Some(format!(
-                "{v} positions but {} normals and {} materials",
+                "{v} positions but {} normals, {} materials and {} texture coordinates",
                 self.normals.len(),
-                self.materials.len()
+                self.materials.len(),
+                self.uvs.len()
+            ));
+        }
+        if let Some(i) = self.uvs.iter().position(|t| !t.is_finite()) {
+            return Some(format!("vertex {i} has texture coordinate {}", self.uvs[i]));
+        }
+        let mut seen = std::collections::HashSet::new();
+        if let Some(a) = self
+            .albedo_maps
+            .iter()
+            .find(|a| a.material as usize >= materials || !seen.insert(a.material))
+        {
+            return Some(format!(
+                "an albedo map of material {} (of {materials}), or two of one material",
+                a.material
             ));
         }
         if let Some(t) = self
@@ -155,24 +215,34 @@ impl VertexMesh {
     }
 
     /// Adds a vertex and returns its index.
-    fn push(&mut self, position: Vec3, normal: Vec3, material: u32) -> u32 {
+    fn push(&mut self, position: Vec3, normal: Vec3, material: u32, uv: Vec2) -> u32 {
         self.positions.push(position);
         self.normals.push(normal);
         self.materials.push(material);
+        self.uvs.push(uv);
         (self.positions.len() - 1) as u32
     }
 
     /// The triangles of one shape as corner indices into shared vertices: corners with the same
-    /// position and normal become one vertex.
-    fn weld(&mut self, tris: &[Triangle]) -> Vec<[u32; 3]> {
-        let mut seen: HashMap<([u32; 3], [u32; 3]), u32> = HashMap::new();
+    /// position and normal, and for a textured material (`textured[material]`) the same texture
+    /// coordinate, become one vertex.
+    fn weld(&mut self, tris: &[Triangle], textured: &[bool]) -> Vec<[u32; 3]> {
+        // Position, normal and texture coordinate bits.
+        type Corner = ([u32; 3], [u32; 3], [u32; 2]);
+        let mut seen: HashMap<Corner, u32> = HashMap::new();
         tris.iter()
             .map(|t| {
+                let mapped = textured.get(t.material as usize).copied().unwrap_or(false);
                 std::array::from_fn(|k| {
-                    let key = (bits(t.vertices[k]), bits(t.normals[k]));
+                    let uv = if mapped { t.uvs[k] } else { Vec2::ZERO };
+                    let key = (
+                        bits(t.vertices[k]),
+                        bits(t.normals[k]),
+                        (uv + Vec2::ZERO).to_array().map(f32::to_bits),
+                    );
                     *seen
                         .entry(key)
-                        .or_insert_with(|| self.push(t.vertices[k], t.normals[k], t.material))
+                        .or_insert_with(|| self.push(t.vertices[k], t.normals[k], t.material, uv))
                 })
             })
             .collect()
@@ -182,7 +252,7 @@ impl VertexMesh {
     fn icosahedron(&mut self, center: Vec3, radius: f32, material: u32) -> Vec<[u32; 3]> {
         let first = self.positions.len() as u32;
         for d in icosahedron_directions() {
-            self.push(center + radius * d, d, material);
+            self.push(center + radius * d, d, material, Vec2::ZERO);
         }
         ICOSAHEDRON_FACES
             .iter()
@@ -198,7 +268,12 @@ impl VertexMesh {
             let end = self.positions.len();
             let offset = (end - first) as u32;
             for i in first..end {
-                self.push(self.positions[i], -self.normals[i], self.materials[i]);
+                self.push(
+                    self.positions[i],
+                    -self.normals[i],
+                    self.materials[i],
+                    self.uvs[i],
+                );
             }
             let back: Vec<[u32; 3]> = tris
                 .iter()
@@ -239,11 +314,13 @@ impl VertexMesh {
             positions: pick(&self.positions),
             normals: pick(&self.normals),
             materials: order.iter().map(|&i| self.materials[i as usize]).collect(),
+            uvs: order.iter().map(|&i| self.uvs[i as usize]).collect(),
             triangles: self
                 .triangles
                 .iter()
                 .map(|t| t.map(|i| new_index[i as usize]))
                 .collect(),
+            albedo_maps: self.albedo_maps,
         }
     }
 }
@@ -343,7 +420,8 @@ impl<'a> Refiner<'a> {
             None => (mid, (na + nb).normalize_or(na)),
         };
         let material = m.materials[a as usize];
-        let i = self.mesh.push(p, n, material);
+        let uv = (m.uvs[a as usize] + m.uvs[b as usize]) * 0.5;
+        let i = self.mesh.push(p, n, material, uv);
         self.midpoints.insert((a, b), i);
         Some(i)
     }

@@ -243,16 +243,23 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         Some(camera) => {
             let colours = crate::relight::vertex::vertex_colours(&t, &img)?;
             let mesh = crate::relight::vertex::mesh_of(&t)?;
+            let texturing = crate::relight::raster::Texturing::of(mesh);
             let r = match &gpu {
-                None => crate::relight::raster::rasterize(
+                None => crate::relight::raster::rasterize_textured(
                     camera,
                     &mesh.positions,
                     &mesh.triangles,
                     colours,
+                    texturing.as_ref(),
                 )?,
                 Some(gpu) => {
                     use crate::relight::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
-                    let m = GpuMesh::new(gpu, &mesh.positions, &mesh.triangles)?;
+                    let m = GpuMesh::textured(
+                        gpu,
+                        &mesh.positions,
+                        &mesh.triangles,
+                        texturing.as_ref(),
+                    )?;
                     let c = upload_colours(gpu, colours)?;
                     GpuRaster::new(gpu)?.draw(gpu, camera, &m, &c)?
                 }

@@ -60,7 +60,12 @@ impl MeshDisplay {
     pub fn new(gpu: &Gpu, t: &Transport) -> Result<MeshDisplay> {
         let mesh = mesh_of(t)?;
         Ok(MeshDisplay {
-            mesh: GpuMesh::new(gpu, &mesh.positions, &mesh.triangles)?,
+            mesh: GpuMesh::textured(
+                gpu,
+                &mesh.positions,
+                &mesh.triangles,
+                crate::relight::raster::Texturing::of(mesh).as_ref(),
+            )?,
             raster: GpuRaster::new(gpu)?,
             backdrop: None,
         })

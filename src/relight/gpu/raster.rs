@@ -20,9 +20,11 @@ use super::Gpu;
 use crate::error::{PrtError, Result};
 use crate::gpu::{map_and_read, texture_2d};
 use crate::output::film::Image;
-use crate::relight::raster::{Raster, check_mesh, clip_from_world};
+use crate::relight::raster::{Raster, Texturing, check_mesh, clip_from_world};
 use crate::scene::Camera;
-use glam::Vec3;
+use crate::scene::albedo_map::wrap_code;
+use crate::scene::texture::Filter;
+use glam::{Vec2, Vec3};
 
 /// The colour target's format: linear RGB and coverage in alpha, unclamped.
 pub const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
@@ -30,18 +32,67 @@ const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Bytes of one pixel of [`COLOUR_FORMAT`], and of one vertex's colour in a colour buffer.
 const TEXEL_BYTES: u32 = 16;
 
-/// A mesh resident on the GPU: positions (a vertex buffer of f32 x, y, z) and triangle indices.
+/// A vertex's map slot in the shader when it has no albedo map.
+const NO_MAP: u32 = u32::MAX;
+
+/// A mesh resident on the GPU: positions (a vertex buffer of f32 x, y, z), texture coordinates
+/// and albedo-map slots (vertex buffers too), triangle indices, and the albedo maps (storage
+/// buffers: the maps, their levels and their texels, as `shaders/raster.wgsl` reads them).
 pub struct GpuMesh {
     positions: wgpu::Buffer,
+    uvs: wgpu::Buffer,
+    slots: wgpu::Buffer,
     indices: wgpu::Buffer,
+    maps: wgpu::Buffer,
+    levels: wgpu::Buffer,
+    texels: wgpu::Buffer,
     vertices: u32,
     index_count: u32,
+}
+
+/// The shader's map, level and texel tables.
+type MapTables = (Vec<[u32; 4]>, Vec<[u32; 4]>, Vec<[u32; 2]>);
+
+/// The albedo maps of `texturing` as the shader's three tables: per map (first level, level
+/// count, sampler flags, 0), per level (first texel, width, height, 0), and the texels packed
+/// two to a `u32` pair.
+fn map_tables(texturing: Option<&Texturing>) -> MapTables {
+    let (mut maps, mut levels, mut texels) = (Vec::new(), Vec::new(), Vec::new());
+    for map in texturing.map_or(&[][..], |t| t.maps) {
+        let flags = wrap_code(map.wrap[0])
+            | wrap_code(map.wrap[1]) << 2
+            | ((map.filter == Filter::Nearest) as u32) << 4;
+        maps.push([levels.len() as u32, map.levels.len() as u32, flags, 0]);
+        for l in &map.levels {
+            levels.push([texels.len() as u32, l.width, l.height, 0]);
+            texels.extend(
+                l.texels
+                    .iter()
+                    .map(|t| [t[0] as u32 | (t[1] as u32) << 16, t[2] as u32]),
+            );
+        }
+    }
+    (maps, levels, texels)
 }
 
 impl GpuMesh {
     /// Uploads a mesh, checked as [`check_mesh`] checks it (finite positions, indices in range).
     pub fn new(gpu: &Gpu, positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<GpuMesh> {
+        GpuMesh::textured(gpu, positions, triangles, None)
+    }
+
+    /// Uploads a mesh with its texturing, if any: each drawn pixel of a textured vertex's
+    /// triangles is multiplied by its albedo map, as the CPU twin does.
+    pub fn textured(
+        gpu: &Gpu,
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        texturing: Option<&Texturing>,
+    ) -> Result<GpuMesh> {
         check_mesh(positions, triangles, None)?;
+        if let Some(t) = texturing {
+            t.check(positions.len())?;
+        }
         let index_count = u32::try_from(triangles.len() * 3).map_err(|_| {
             PrtError::invalid(
                 "triangles",
@@ -56,6 +107,28 @@ impl GpuMesh {
                 format!("{bytes} bytes in one buffer; the device allows {max}"),
             ));
         }
+        let (maps, levels, texels) = map_tables(texturing);
+        let texel_bytes = texels.len() as u64 * 8;
+        if texel_bytes > gpu.max_binding_bytes() {
+            return Err(PrtError::invalid(
+                "albedo maps",
+                format!(
+                    "{texel_bytes} bytes of texels with their mip levels; the device binds at \
+                     most {} (draw on the CPU with --device cpu)",
+                    gpu.max_binding_bytes()
+                ),
+            ));
+        }
+        let (uvs, slots): (Vec<Vec2>, Vec<u32>) = match texturing {
+            Some(t) => (
+                t.uvs.to_vec(),
+                t.slots.iter().map(|s| s.unwrap_or(NO_MAP)).collect(),
+            ),
+            None => (
+                vec![Vec2::ZERO; positions.len()],
+                vec![NO_MAP; positions.len()],
+            ),
+        };
         // wgpu rejects empty initialised buffers for some uses: keep at least one element.
         let buffer = |label, contents: &[u8], usage| {
             let mut data = contents.to_vec();
@@ -73,10 +146,35 @@ impl GpuMesh {
                 bytemuck::cast_slice(positions),
                 wgpu::BufferUsages::VERTEX,
             ),
+            uvs: buffer(
+                "raster texture coordinates",
+                bytemuck::cast_slice(&uvs),
+                wgpu::BufferUsages::VERTEX,
+            ),
+            slots: buffer(
+                "raster map slots",
+                bytemuck::cast_slice(&slots),
+                wgpu::BufferUsages::VERTEX,
+            ),
             indices: buffer(
                 "raster indices",
                 bytemuck::cast_slice(triangles),
                 wgpu::BufferUsages::INDEX,
+            ),
+            maps: buffer(
+                "raster albedo maps",
+                bytemuck::cast_slice(&maps),
+                wgpu::BufferUsages::STORAGE,
+            ),
+            levels: buffer(
+                "raster albedo levels",
+                bytemuck::cast_slice(&levels),
+                wgpu::BufferUsages::STORAGE,
+            ),
+            texels: buffer(
+                "raster albedo texels",
+                bytemuck::cast_slice(&texels),
+                wgpu::BufferUsages::STORAGE,
             ),
             vertices: positions.len() as u32,
             index_count,
@@ -188,11 +286,23 @@ impl GpuRaster {
                 module: &module,
                 entry_point: Some("vertex"),
                 compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: 12,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-                })],
+                buffers: &[
+                    Some(wgpu::VertexBufferLayout {
+                        array_stride: 12,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+                    }),
+                    Some(wgpu::VertexBufferLayout {
+                        array_stride: 8,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &wgpu::vertex_attr_array![1 => Float32x2],
+                    }),
+                    Some(wgpu::VertexBufferLayout {
+                        array_stride: 4,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &wgpu::vertex_attr_array![2 => Uint32],
+                    }),
+                ],
             },
             primitive: wgpu::PrimitiveState {
                 topology: wgpu::PrimitiveTopology::TriangleList,
@@ -432,6 +542,18 @@ impl GpuRaster {
                         ),
                     }),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: mesh.maps.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: mesh.levels.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: mesh.texels.as_entire_binding(),
+                },
             ],
         });
         let depth = &self
@@ -468,6 +590,8 @@ impl GpuRaster {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &group, &[]);
         pass.set_vertex_buffer(0, mesh.positions.slice(..));
+        pass.set_vertex_buffer(1, mesh.uvs.slice(..));
+        pass.set_vertex_buffer(2, mesh.slots.slice(..));
         pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.draw_indexed(0..mesh.index_count, 0, 0..1);
     }

@@ -1,4 +1,4 @@
-//! The transport file (format version 4, laid out in the [module docs](super)): writing it,
+//! The transport file (format version 5, laid out in the [module docs](super)): writing it,
 //! reading and validating all of it, and reading only its header and small tables for
 //! `prt info`. Every size and index is checked before anything is sliced or allocated.
 
@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 use super::reader::TensorReader;
 use super::*;
 use crate::error::{PrtError, Result};
+use crate::scene::albedo_map::from_table;
 use crate::store::container::{self, Tensor, check_meta_seal};
 
 impl Transport {
@@ -93,6 +94,18 @@ impl Transport {
         let tiles = tx * ty;
         let c = 6 * (meta.identity.cube_n as usize).pow(2);
         let (albedo_shape, albedo) = reader.read::<[f32; 3]>("albedo", Dtype::F32)?;
+        let map_count = meta
+            .per_vertex
+            .as_ref()
+            .map_or(0, |p| p.albedo_maps as usize);
+        let map_tables = if map_count > 0 {
+            Some((
+                reader.read::<[u32; 6]>("albedo_map", Dtype::U32)?,
+                reader.read::<[u16; 3]>("albedo_texel", Dtype::U16)?,
+            ))
+        } else {
+            None
+        };
         let (count_shape, counts) = reader.read::<u16>("col_count", Dtype::U16)?;
         let (scale_shape, col_scale) = reader.read::<u8>("col_scale", Dtype::U8)?;
         let (coverage_shape, coverage) = reader.read::<f32>("coverage", Dtype::F32)?;
@@ -128,6 +141,11 @@ impl Transport {
                 reader.read::<glam::Vec3>("mesh_position", Dtype::F32)?,
                 reader.read::<[u32; 3]>("mesh_triangle", Dtype::U32)?,
             )),
+        };
+        let mesh_uv = if map_count > 0 {
+            Some(reader.read::<glam::Vec2>("mesh_uv", Dtype::F32)?)
+        } else {
+            None
         };
         let (pixel_shape, row_pixel) = reader.read::<u32>("row_pixel", Dtype::U32)?;
         let (row_scale_shape, row_scale) = reader.read::<f32>("row_scale", Dtype::F32)?;
@@ -204,11 +222,23 @@ impl Transport {
                 expect("mesh_normal", &ns, &[v, 3])?;
                 expect("mesh_material", &ms, &[v])?;
                 expect("mesh_triangle", &ts, &[t, 3])?;
+                let (uvs, albedo_maps) = match (mesh_uv, map_tables) {
+                    (Some((us, uvs)), Some(((ms, table), (xs, texels)))) => {
+                        expect("mesh_uv", &us, &[v, 2])?;
+                        expect("albedo_map", &ms, &[map_count, 6])?;
+                        let n = xs.first().copied().unwrap_or(0);
+                        expect("albedo_texel", &xs, &[n, 3])?;
+                        (uvs, from_table(&table, texels).map_err(bad)?)
+                    }
+                    _ => (vec![glam::Vec2::ZERO; v], Vec::new()),
+                };
                 Some(VertexMesh {
                     positions,
                     normals,
                     materials,
+                    uvs,
                     triangles,
+                    albedo_maps,
                 })
             }
             _ => None,
@@ -385,6 +415,11 @@ fn read_header(path: &Path) -> Result<Header> {
     container::check_known_keys(text, &header).map_err(|m| PrtError::file(path, m))?;
     let known = tensor_names(
         header.meta.per_vertex.is_some(),
+        header
+            .meta
+            .per_vertex
+            .as_ref()
+            .is_some_and(|p| p.albedo_maps > 0),
         header.meta.light_columns() > 0,
     );
     if let Some(name) = obj
@@ -548,6 +583,28 @@ pub(super) fn save_file<'a>(
             Tensor::new(Dtype::F64, vec![tiles, 3], tables.tile_stats),
         ),
     ]);
+    // A textured mesh's maps: their table and level-0 texels.
+    let textured = tables.mesh.filter(|m| !m.albedo_maps.is_empty());
+    let (map_table, map_texels) = textured.map_or((Vec::new(), Vec::new()), |m| {
+        crate::scene::albedo_map::to_table(&m.albedo_maps)
+    });
+    let mut tensors: Vec<(&str, Tensor)> = tensors;
+    if let Some(mesh) = textured {
+        tensors.extend([
+            (
+                "albedo_map",
+                Tensor::new(Dtype::U32, vec![map_table.len(), 6], &map_table),
+            ),
+            (
+                "albedo_texel",
+                Tensor::new(Dtype::U16, vec![map_texels.len(), 3], &map_texels),
+            ),
+            (
+                "mesh_uv",
+                Tensor::new(Dtype::F32, vec![mesh.vertex_count(), 2], &mesh.uvs),
+            ),
+        ]);
+    }
     if let Some(mesh) = tables.mesh {
         let (v, t) = (mesh.vertex_count(), mesh.triangles.len());
         tensors.extend([
@@ -589,11 +646,11 @@ pub(super) fn save_file<'a>(
         ]);
     }
     tensors.sort_by_key(|(name, _)| *name);
-    if !tensors
-        .iter()
-        .map(|(n, _)| *n)
-        .eq(tensor_names(tables.mesh.is_some(), columns > 0))
-    {
+    if !tensors.iter().map(|(n, _)| *n).eq(tensor_names(
+        tables.mesh.is_some(),
+        tables.mesh.is_some_and(|m| !m.albedo_maps.is_empty()),
+        columns > 0,
+    )) {
         return Err(PrtError::file(
             path,
             "the tensors to write are not those of a transport file",
@@ -612,11 +669,14 @@ pub(super) fn save_file<'a>(
 }
 
 /// Names of the tensors in a file, in the order the checksum covers them: those of every file,
-/// a per-vertex bake's mesh, and the local lights' columns.
-fn tensor_names(per_vertex: bool, lights: bool) -> Vec<&'static str> {
+/// a per-vertex bake's mesh, its albedo maps, and the local lights' columns.
+fn tensor_names(per_vertex: bool, albedo_maps: bool, lights: bool) -> Vec<&'static str> {
     let mut names: Vec<&str> = TENSOR_NAMES.to_vec();
     if per_vertex {
         names.extend(MESH_TENSOR_NAMES);
+    }
+    if albedo_maps {
+        names.extend(["albedo_map", "albedo_texel", "mesh_uv"]);
     }
     if lights {
         names.extend(["light_scale", "light_value"]);

@@ -161,6 +161,8 @@ pub struct PerVertexMeta {
     /// Width and height of the scene camera's image: the size a still is drawn at unless asked
     /// otherwise.
     pub image: [u32; 2],
+    /// Albedo maps of the mesh's textured materials (format version 5; 0 before).
+    pub albedo_maps: u32,
 }
 
 /// Everything about a transport file but its arrays.
@@ -347,6 +349,8 @@ struct PerVertexFile {
     vertices: u32,
     triangles: u32,
     image: [u32; 2],
+    #[serde(default, skip_serializing_if = "is_zero")]
+    albedo_maps: u32,
 }
 
 fn is_zero(v: &u32) -> bool {
@@ -409,6 +413,7 @@ impl TryFrom<MetaFile> for TransportMeta {
                 vertices: p.vertices,
                 triangles: p.triangles,
                 image: p.image,
+                albedo_maps: p.albedo_maps,
             }),
             stats: f.stats,
             lights,
@@ -450,6 +455,7 @@ impl From<TransportMeta> for MetaFile {
                     vertices: p.vertices,
                     triangles: p.triangles,
                     image: p.image,
+                    albedo_maps: p.albedo_maps,
                 }),
                 _ => None,
             },

@@ -19,7 +19,7 @@
 //! with no atomics, a column touches each row at most once, and relighting with K terms reads only
 //! K columns of each block.
 //!
-//! # File (format version 4)
+//! # File (format version 5)
 //! A safetensors file (readable from Python with `safetensors.numpy.load_file`); its one metadata
 //! entry `meta` is JSON: `format = "wavelet-prt transport"`, `format_version`, `checksum` and the
 //! fields of [`TransportMeta`]. Tensors (T tiles, R rows, B blocks, C = 6 N² coefficients):
@@ -37,10 +37,14 @@
 //! | `albedo`, `coverage` | f32 [H, W, 3], f32 [H, W] | per pixel: albedo seen, fraction of sub-samples that hit |
 //! | `transport_magnitude` | f32 [C] | mean magnitude of each coefficient over the rows (transport weighting) |
 //! | `tile_stats` | f64 [T, 3] | per tile: energy dropped by thresholding and quantisation, total energy, shadow rays |
+//! | `mesh_position`, `mesh_normal`, `mesh_material`, `mesh_triangle` | f32 [V, 3], f32 [V, 3], u32 [V], u32 [F, 3] | only per vertex: the mesh ([`VertexMesh`]) |
+//! | `mesh_uv`, `albedo_map`, `albedo_texel` | f32 [V, 2], u32 [M, 6], u16 [X, 3] | only per vertex with textured materials: each vertex's texture coordinate; per albedo map its material, width, height, wrap along u and v (0 repeat, 1 mirrored repeat, 2 clamp) and filter (0 linear, 1 nearest); the maps' level-0 texels in turn, linear albedo as `q / 65535` ([`crate::scene::albedo_map`]) |
 //! | `light_value`, `light_scale` | u16 [L, 3, H, W], f32 [L, H] | only with local lights: each light column's RGB response per pixel, as fractions `q / 65535` of a scale per (column, pixel row) ([`LightColumns`]) |
 //!
 //! Version 4 added the local lights (the two `light_` tensors and the metadata's `lights` and
-//! `light_samples`); a version 3 file, which has none, is read as before.
+//! `light_samples`); a version 3 file, which has none, is read as before. Version 5 added the
+//! texture coordinates and albedo maps of a textured per-vertex bake (and `per_vertex.albedo_maps`
+//! in the metadata); older files have none and are read as before.
 //!
 //! The `checksum` covers the tensors' bytes in name order and `meta_checksum` the metadata's
 //! fields (the JSON of `meta` without `meta_checksum`, as this build writes it), so a flipped bit
@@ -78,8 +82,9 @@ pub const TILE: usize = 16;
 /// Name written in every transport file.
 pub const FORMAT_NAME: &str = container::TRANSPORT.name;
 /// Version of the layout described in this module.
-pub const FORMAT_VERSION: u32 = 4;
-/// The oldest version this build reads: version 3 differs only in having no local lights.
+pub const FORMAT_VERSION: u32 = 5;
+/// The oldest version this build reads: version 3 differs only in having no local lights, and
+/// versions 3 and 4 in having no albedo maps.
 pub const OLDEST_VERSION: u32 = 3;
 /// Largest safetensors header accepted (JSON text), checked before it is read.
 const MAX_HEADER_BYTES: u64 = 1 << 24;
@@ -471,6 +476,13 @@ impl Transport {
         }
         if let Some(p) = mesh.problem(u32::MAX as usize) {
             return Err(format!("mesh: {p}"));
+        }
+        if mesh.albedo_maps.len() != pv.albedo_maps as usize {
+            return Err(format!(
+                "{} albedo maps, the header says {}",
+                mesh.albedo_maps.len(),
+                pv.albedo_maps
+            ));
         }
         if let Some(r) = self.row_pixel.iter().find(|&&p| p as usize >= v) {
             return Err(format!("a row of pixel {r}, past the {v} vertices"));
