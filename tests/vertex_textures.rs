@@ -347,6 +347,24 @@ fn the_gpu_draws_textured_vertices_as_the_cpu_does() {
 }
 
 #[test]
+fn materials_with_the_same_map_share_it() {
+    // The box takes a copy of the checker's material: two materials, one map.
+    let dir = temp_dir("vertex-texture-shared");
+    let mut b = test_scene(8, false);
+    let checker = b.json["materials"][0].clone();
+    b.json["materials"][1] = checker;
+    let path = b.write_glb(&dir, "shared");
+    let scene = Scene::load_with(&path, &Framing::default()).unwrap();
+    assert_eq!(scene.material_maps.iter().flatten().count(), 2);
+    let mesh = wavelet_prt::scene::tessellate::VertexMesh::tessellate(&scene, 1.0).unwrap();
+    assert_eq!(mesh.albedo_maps.len(), 1);
+    let mut owners = mesh.albedo_maps[0].materials.clone();
+    owners.sort();
+    assert_eq!(owners, [0, 1]);
+    assert!(mesh.map_slots().iter().all(|s| *s == Some(0)));
+}
+
+#[test]
 fn albedo_maps_survive_the_file_and_bad_ones_are_refused() {
     let scene = checker_scene("vertex-texture-file", 8, false);
     let t = bake(&scene, &per_vertex(1.0, true), &|_| {}).unwrap();
@@ -362,19 +380,24 @@ fn albedo_maps_survive_the_file_and_bad_ones_are_refused() {
         4,
         "8, 4, 2 and 1 texels a side"
     );
-    for (edit, want) in [
+    for (tensor, edit, want) in [
         // A wrap code past clamp.
-        (3usize * 4, "wrap codes"),
+        ("albedo_map", 2 * 4, "albedo_map[0]: wrap codes"),
         // A width past the texels stored.
-        (4, "texels past"),
+        ("albedo_map", 0, "albedo_map[0]: 72 texels past"),
+        // A material's map past the maps.
+        (
+            "albedo_map_material",
+            4,
+            "albedo_map_material[0]: map 9 of 1",
+        ),
     ] {
         let mut st = StFile::read(&path);
-        let table = st.tensor_mut("albedo_map");
-        table[edit..edit + 4].copy_from_slice(&9u32.to_le_bytes());
+        st.tensor_mut(tensor)[edit..edit + 4].copy_from_slice(&9u32.to_le_bytes());
         let bad = dir.join("bad.prt");
         st.write(&bad, true);
         let e = Transport::load(&bad).unwrap_err().to_string();
-        assert!(e.contains("albedo_map[0]") && e.contains(want), "{e}");
+        assert!(e.contains(want), "{e}");
     }
     let mut st = StFile::read(&path);
     st.tensor_mut("mesh_uv")[..4].copy_from_slice(&f32::NAN.to_le_bytes());

@@ -43,8 +43,9 @@ pub struct Level {
 /// A material's diffuse albedo over its texture coordinates, with its mip levels.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AlbedoMap {
-    /// Index into [`Scene::materials`] of the material it belongs to.
-    pub material: u32,
+    /// Indices into [`Scene::materials`] of the materials it belongs to: several when their
+    /// maps are the same (as for materials that share a texture), which is stored once.
+    pub materials: Vec<u32>,
     /// Wrap along u and along v.
     pub wrap: [Wrap; 2],
     /// The magnification filter.
@@ -78,13 +79,13 @@ impl AlbedoMap {
                 scene.lobes_at(material, uv).albedo.to_array().map(quantise)
             })
             .collect();
-        AlbedoMap::from_level0(material, grid.wrap, grid.filter, w, h, texels)
+        AlbedoMap::from_level0(vec![material], grid.wrap, grid.filter, w, h, texels)
     }
 
     /// A map from its first level, with the other levels made from it; `None` when a side is 0
     /// or above [`MAX_TEXTURE_SIDE`], or the texels do not fill it.
     pub fn from_level0(
-        material: u32,
+        materials: Vec<u32>,
         wrap: [Wrap; 2],
         filter: Filter,
         width: u32,
@@ -107,11 +108,16 @@ impl AlbedoMap {
             levels.push(last.halved());
         }
         Some(AlbedoMap {
-            material,
+            materials,
             wrap,
             filter,
             levels,
         })
+    }
+
+    /// Whether `other` holds the same albedo, sampled the same way (whatever its materials).
+    pub fn same_image(&self, other: &AlbedoMap) -> bool {
+        self.wrap == other.wrap && self.filter == other.filter && self.levels[0] == other.levels[0]
     }
 
     /// Texels of all levels together.
@@ -225,15 +231,17 @@ pub fn wrap_of_code(code: u32) -> Option<Wrap> {
         .copied()
 }
 
-/// Maps as a file stores them: per map its material, level-0 width and height, wrap codes along
-/// u and v ([`wrap_code`]) and filter (0 linear, 1 nearest); and the level-0 texels of every map
-/// in turn.
-pub fn to_table(maps: &[AlbedoMap]) -> (Vec<[u32; 6]>, Vec<[u16; 3]>) {
+/// Albedo maps as a file's tensors: see [`to_table`].
+pub type FileTables = (Vec<[u32; 5]>, Vec<[u32; 2]>, Vec<[u16; 3]>);
+
+/// Maps as a file stores them: per map its level-0 width and height, wrap codes along u and v
+/// ([`wrap_code`]) and filter (0 linear, 1 nearest); per material that has one, the material and
+/// its map's index; and the level-0 texels of every map in turn.
+pub fn to_table(maps: &[AlbedoMap]) -> FileTables {
     let table = maps
         .iter()
         .map(|a| {
             [
-                a.material,
                 a.levels[0].width,
                 a.levels[0].height,
                 wrap_code(a.wrap[0]),
@@ -242,23 +250,41 @@ pub fn to_table(maps: &[AlbedoMap]) -> (Vec<[u32; 6]>, Vec<[u16; 3]>) {
             ]
         })
         .collect();
+    let materials = maps
+        .iter()
+        .enumerate()
+        .flat_map(|(i, a)| a.materials.iter().map(move |&m| [m, i as u32]))
+        .collect();
     let texels = maps
         .iter()
         .flat_map(|a| a.levels[0].texels.iter().copied())
         .collect();
-    (table, texels)
+    (table, materials, texels)
 }
 
-/// The maps of [`to_table`]'s table and texels (as a file holds them): every size and code
-/// checked before any slice.
+/// The maps of [`to_table`]'s tables (as a file holds them): every size, code and index checked
+/// before any slice.
 pub fn from_table(
-    table: &[[u32; 6]],
+    table: &[[u32; 5]],
+    materials: &[[u32; 2]],
     texels: Vec<[u16; 3]>,
 ) -> std::result::Result<Vec<AlbedoMap>, String> {
+    let mut owners: Vec<Vec<u32>> = vec![Vec::new(); table.len()];
+    for (k, &[material, map]) in materials.iter().enumerate() {
+        owners
+            .get_mut(map as usize)
+            .ok_or_else(|| format!("albedo_map_material[{k}]: map {map} of {}", table.len()))?
+            .push(material);
+    }
     let mut maps = Vec::with_capacity(table.len());
     let mut start = 0usize;
-    for (i, &[material, width, height, wrap_u, wrap_v, nearest]) in table.iter().enumerate() {
+    for (i, (&[width, height, wrap_u, wrap_v, nearest], owners)) in
+        table.iter().zip(owners).enumerate()
+    {
         let bad = |what: String| format!("albedo_map[{i}]: {what}");
+        if owners.is_empty() {
+            return Err(bad("no material has it".into()));
+        }
         let side = 1..=MAX_TEXTURE_SIDE;
         if !side.contains(&width) || !side.contains(&height) {
             return Err(bad(format!(
@@ -270,19 +296,17 @@ pub fn from_table(
             .checked_add(n)
             .filter(|&e| e <= texels.len())
             .ok_or_else(|| bad(format!("{n} texels past the {} stored", texels.len())))?;
-        let wrap = [wrap_u, wrap_v]
-            .map(wrap_of_code)
-            .into_iter()
-            .collect::<Option<Vec<_>>>()
-            .ok_or_else(|| bad(format!("wrap codes {wrap_u}, {wrap_v} (0 to 2)")))?;
+        let (Some(wu), Some(wv)) = (wrap_of_code(wrap_u), wrap_of_code(wrap_v)) else {
+            return Err(bad(format!("wrap codes {wrap_u}, {wrap_v} (0 to 2)")));
+        };
         let filter = match nearest {
             0 => Filter::Linear,
             1 => Filter::Nearest,
             f => return Err(bad(format!("filter code {f} (0 or 1)"))),
         };
         let map = AlbedoMap::from_level0(
-            material,
-            [wrap[0], wrap[1]],
+            owners,
+            [wu, wv],
             filter,
             width,
             height,
@@ -311,7 +335,7 @@ mod tests {
             .flat_map(|y| (0..4).map(move |x| (x, y)))
             .map(|(x, y)| [x as u16 * 21845, y as u16 * 65535, 32768])
             .collect();
-        AlbedoMap::from_level0(3, [wrap; 2], filter, 4, 2, texels).unwrap()
+        AlbedoMap::from_level0(vec![3], [wrap; 2], filter, 4, 2, texels).unwrap()
     }
 
     #[test]
@@ -324,10 +348,12 @@ mod tests {
         assert_eq!(last, [32768, 32768, 32768]);
         assert_eq!(m.texel_count(), 8 + 2 + 1);
         assert!(
-            AlbedoMap::from_level0(0, [Wrap::Repeat; 2], Filter::Linear, 3, 2, vec![]).is_none()
+            AlbedoMap::from_level0(vec![0], [Wrap::Repeat; 2], Filter::Linear, 3, 2, vec![])
+                .is_none()
         );
         assert!(
-            AlbedoMap::from_level0(0, [Wrap::Repeat; 2], Filter::Linear, 0, 0, vec![]).is_none()
+            AlbedoMap::from_level0(vec![0], [Wrap::Repeat; 2], Filter::Linear, 0, 0, vec![])
+                .is_none()
         );
     }
 

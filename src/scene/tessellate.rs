@@ -141,10 +141,16 @@ impl VertexMesh {
         for &m in &mesh.materials {
             used[m as usize] = true;
         }
-        mesh.albedo_maps = (0..scene.materials.len() as u32)
+        // One map for materials whose maps are the same (such as two that share a texture).
+        for map in (0..scene.materials.len() as u32)
             .filter(|&m| used[m as usize] && textured[m as usize])
             .filter_map(|m| AlbedoMap::of_material(scene, m))
-            .collect();
+        {
+            match mesh.albedo_maps.iter_mut().find(|a| a.same_image(&map)) {
+                Some(same) => same.materials.extend(map.materials),
+                None => mesh.albedo_maps.push(map),
+            }
+        }
         Ok(mesh.morton_ordered())
     }
 
@@ -152,8 +158,10 @@ impl VertexMesh {
     /// whose material has none.
     pub fn map_slots(&self) -> Vec<Option<u32>> {
         let mut slot_of = HashMap::new();
-        for (i, m) in self.albedo_maps.iter().enumerate() {
-            slot_of.insert(m.material, i as u32);
+        for (i, map) in self.albedo_maps.iter().enumerate() {
+            for &m in &map.materials {
+                slot_of.insert(m, i as u32);
+            }
         }
         self.materials
             .iter()
@@ -164,7 +172,7 @@ impl VertexMesh {
     /// Whether vertex `v`'s light is baked for a white surface, its albedo left to the raster.
     pub fn is_textured(&self, v: usize) -> bool {
         let m = self.materials[v];
-        self.albedo_maps.iter().any(|a| a.material == m)
+        self.albedo_maps.iter().any(|a| a.materials.contains(&m))
     }
 
     /// Checks the mesh's own consistency (lengths, indices, finite unit normals, materials below
@@ -183,15 +191,18 @@ impl VertexMesh {
             return Some(format!("vertex {i} has texture coordinate {}", self.uvs[i]));
         }
         let mut seen = std::collections::HashSet::new();
-        if let Some(a) = self
+        if let Some(m) = self
             .albedo_maps
             .iter()
-            .find(|a| a.material as usize >= materials || !seen.insert(a.material))
+            .flat_map(|a| &a.materials)
+            .find(|&&m| m as usize >= materials || !seen.insert(m))
         {
             return Some(format!(
-                "an albedo map of material {} (of {materials}), or two of one material",
-                a.material
+                "an albedo map of material {m} (of {materials}), or two of one material"
             ));
+        }
+        if self.albedo_maps.iter().any(|a| a.materials.is_empty()) {
+            return Some("an albedo map of no material".into());
         }
         if let Some(t) = self
             .triangles

@@ -123,9 +123,17 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
     let at = match (&mesh, settings.domain) {
         (Some(m), BakeDomain::Vertices { edge_length: edge }) => format!(
-            "per vertex: {} vertices, {} triangles, edges up to {edge:.4}; spp does not apply",
+            "per vertex: {} vertices, {} triangles, edges up to {edge:.4}{}; spp does not apply",
             m.vertex_count(),
-            m.triangles.len()
+            m.triangles.len(),
+            match m.albedo_maps.len() {
+                0 => String::new(),
+                n => format!(
+                    ", {} of {:.1} M texels with their mip levels",
+                    plural(n, "albedo map", "albedo maps"),
+                    m.albedo_maps.iter().map(|a| a.texel_count()).sum::<usize>() as f64 / 1e6
+                ),
+            }
         ),
         _ => format!("at {w}x{h}, {} spp", settings.spp),
     };
@@ -226,6 +234,13 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
              the file's camera is the scene's)",
             pv.vertices, pv.triangles, edge_length
         );
+        if pv.albedo_maps > 0 {
+            println!(
+                "textures      {} albedo map(s): the textured vertices hold a white surface's \
+                 light, which the raster multiplies by their map per pixel",
+                pv.albedo_maps
+            );
+        }
     }
     println!(
         "image         {} x {} ({} tiles of {}²)",

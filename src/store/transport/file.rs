@@ -100,7 +100,8 @@ impl Transport {
             .map_or(0, |p| p.albedo_maps as usize);
         let map_tables = if map_count > 0 {
             Some((
-                reader.read::<[u32; 6]>("albedo_map", Dtype::U32)?,
+                reader.read::<[u32; 5]>("albedo_map", Dtype::U32)?,
+                reader.read::<[u32; 2]>("albedo_map_material", Dtype::U32)?,
                 reader.read::<[u16; 3]>("albedo_texel", Dtype::U16)?,
             ))
         } else {
@@ -223,12 +224,14 @@ impl Transport {
                 expect("mesh_material", &ms, &[v])?;
                 expect("mesh_triangle", &ts, &[t, 3])?;
                 let (uvs, albedo_maps) = match (mesh_uv, map_tables) {
-                    (Some((us, uvs)), Some(((ms, table), (xs, texels)))) => {
+                    (Some((us, uvs)), Some(((ms, table), (os, owners), (xs, texels)))) => {
                         expect("mesh_uv", &us, &[v, 2])?;
-                        expect("albedo_map", &ms, &[map_count, 6])?;
+                        expect("albedo_map", &ms, &[map_count, 5])?;
+                        let n = os.first().copied().unwrap_or(0);
+                        expect("albedo_map_material", &os, &[n, 2])?;
                         let n = xs.first().copied().unwrap_or(0);
                         expect("albedo_texel", &xs, &[n, 3])?;
-                        (uvs, from_table(&table, texels).map_err(bad)?)
+                        (uvs, from_table(&table, &owners, texels).map_err(bad)?)
                     }
                     _ => (vec![glam::Vec2::ZERO; v], Vec::new()),
                 };
@@ -585,15 +588,20 @@ pub(super) fn save_file<'a>(
     ]);
     // A textured mesh's maps: their table and level-0 texels.
     let textured = tables.mesh.filter(|m| !m.albedo_maps.is_empty());
-    let (map_table, map_texels) = textured.map_or((Vec::new(), Vec::new()), |m| {
-        crate::scene::albedo_map::to_table(&m.albedo_maps)
-    });
+    let (map_table, map_materials, map_texels) = textured
+        .map_or((Vec::new(), Vec::new(), Vec::new()), |m| {
+            crate::scene::albedo_map::to_table(&m.albedo_maps)
+        });
     let mut tensors: Vec<(&str, Tensor)> = tensors;
     if let Some(mesh) = textured {
         tensors.extend([
             (
                 "albedo_map",
-                Tensor::new(Dtype::U32, vec![map_table.len(), 6], &map_table),
+                Tensor::new(Dtype::U32, vec![map_table.len(), 5], &map_table),
+            ),
+            (
+                "albedo_map_material",
+                Tensor::new(Dtype::U32, vec![map_materials.len(), 2], &map_materials),
             ),
             (
                 "albedo_texel",
@@ -676,7 +684,12 @@ fn tensor_names(per_vertex: bool, albedo_maps: bool, lights: bool) -> Vec<&'stat
         names.extend(MESH_TENSOR_NAMES);
     }
     if albedo_maps {
-        names.extend(["albedo_map", "albedo_texel", "mesh_uv"]);
+        names.extend([
+            "albedo_map",
+            "albedo_map_material",
+            "albedo_texel",
+            "mesh_uv",
+        ]);
     }
     if lights {
         names.extend(["light_scale", "light_value"]);

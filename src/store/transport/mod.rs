@@ -38,7 +38,7 @@
 //! | `transport_magnitude` | f32 [C] | mean magnitude of each coefficient over the rows (transport weighting) |
 //! | `tile_stats` | f64 [T, 3] | per tile: energy dropped by thresholding and quantisation, total energy, shadow rays |
 //! | `mesh_position`, `mesh_normal`, `mesh_material`, `mesh_triangle` | f32 [V, 3], f32 [V, 3], u32 [V], u32 [F, 3] | only per vertex: the mesh ([`VertexMesh`]) |
-//! | `mesh_uv`, `albedo_map`, `albedo_texel` | f32 [V, 2], u32 [M, 6], u16 [X, 3] | only per vertex with textured materials: each vertex's texture coordinate; per albedo map its material, width, height, wrap along u and v (0 repeat, 1 mirrored repeat, 2 clamp) and filter (0 linear, 1 nearest); the maps' level-0 texels in turn, linear albedo as `q / 65535` ([`crate::scene::albedo_map`]) |
+//! | `mesh_uv`, `albedo_map`, `albedo_map_material`, `albedo_texel` | f32 [V, 2], u32 [M, 5], u32 [K, 2], u16 [X, 3] | only per vertex with textured materials: each vertex's texture coordinate; per albedo map its width, height, wrap along u and v (0 repeat, 1 mirrored repeat, 2 clamp) and filter (0 linear, 1 nearest); per textured material, the material and its map (materials with the same map share it); the maps' level-0 texels in turn, linear albedo as `q / 65535` ([`crate::scene::albedo_map`]) |
 //! | `light_value`, `light_scale` | u16 [L, 3, H, W], f32 [L, H] | only with local lights: each light column's RGB response per pixel, as fractions `q / 65535` of a scale per (column, pixel row) ([`LightColumns`]) |
 //!
 //! Version 4 added the local lights (the two `light_` tensors and the metadata's `lights` and
