@@ -90,6 +90,7 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
         gpu: None,
         references: Some(&references),
         reference_coverage: None,
+        camera: None,
     };
     let mut calls = 0;
     let points = run(&t, &envs, &opts, &extras, &mut |_, _| calls += 1).unwrap();
@@ -378,6 +379,7 @@ fn per_vertex_bench(text: &str, name: &str, edge: f32, env: &EnvMap) -> (f64, f6
         gpu: None,
         references: Some(&references),
         reference_coverage: Some(&r.coverage),
+        camera: None,
     };
     let envs = [("env".to_string(), env.clone())];
     let points = run(&t, &envs, &opts, &extras, &mut |_, _| {}).unwrap();

@@ -222,6 +222,40 @@ fn prt_bake_per_vertex_reports_its_vertices_and_info_reads_them() {
     assert_eq!(code, 0, "{text}");
     let v = t.domain.mesh().unwrap().vertex_count();
     assert!(text.contains(&format!("{v} vertices")), "{text}");
+    // The bench holds the bake to the brute force from the scene's camera and from another.
+    let mut errors = Vec::new();
+    for view in [
+        &[][..],
+        &["--eye=-2,1.5,3", "--width", "40", "--height", "30"][..],
+    ] {
+        let bench = dir.join(format!("bench{}", errors.len()));
+        let mut args = vec![
+            "bench",
+            out.to_str().unwrap(),
+            "--env",
+            "sun:30,40",
+            "--out",
+            bench.to_str().unwrap(),
+            "--terms",
+            "20",
+            "--sh-orders",
+            "1",
+            "--sh-light-orders",
+            "none",
+            "--reference",
+        ];
+        args.extend(view);
+        let (code, text) = prt(&args);
+        assert_eq!(code, 0, "{text}");
+        let summary = std::fs::read_to_string(bench.join("summary.md")).unwrap();
+        let line = summary
+            .lines()
+            .find(|l| l.contains("against the brute-force reference"))
+            .unwrap_or_else(|| panic!("{summary}"))
+            .to_string();
+        errors.push(line);
+    }
+    assert_ne!(errors[0], errors[1], "the camera made no difference");
     // The edge length is for per-vertex bakes only.
     let (code, text) = prt(&[
         "bake",

@@ -162,21 +162,28 @@ pub struct BenchExtras<'a> {
     /// per-vertex bake's points are drawn from its camera and compared over the pixels both the
     /// drawing and the reference cover fully; per-pixel points use the transport's coverage.
     pub reference_coverage: Option<&'a [f32]>,
+    /// The camera a per-vertex bake is drawn from for the references (the references' own);
+    /// `None` takes the bake's camera.
+    pub camera: Option<&'a crate::scene::Camera>,
 }
 
 /// Relative L2 of a relit image against a brute-force reference. A per-vertex bake's image
-/// (one colour per vertex) is drawn first from the bake's camera, and compared over the pixels
-/// both cover fully: so the error holds the interpolation between vertices.
+/// (one colour per vertex) is drawn first from `camera` (the bake's when `None`), and compared
+/// over the pixels both cover fully: so the error holds the interpolation between vertices.
 fn reference_error(
     t: &Transport,
     img: &Image,
     reference: &Image,
     reference_coverage: Option<&[f32]>,
+    camera: Option<&crate::scene::Camera>,
 ) -> Result<f64> {
     if t.domain == Domain::View {
         return relative_l2(img, reference, Some(&t.coverage));
     }
-    let camera = crate::relight::vertex::bake_camera(t)?;
+    let camera = match camera {
+        Some(c) => c.clone(),
+        None => crate::relight::vertex::bake_camera(t)?,
+    };
     let colours = crate::relight::vertex::vertex_colours(t, img)?;
     let drawn = crate::relight::vertex::draw(t, colours, &camera, None)?;
     let both: Vec<f32> = match reference_coverage {
@@ -252,7 +259,13 @@ pub fn run(
                     light_rel_l2,
                     error: compare(&img, &full, mask)?,
                     reference_rel_l2: match reference {
-                        Some(r) => Some(reference_error(t, &img, r, extras.reference_coverage)?),
+                        Some(r) => Some(reference_error(
+                            t,
+                            &img,
+                            r,
+                            extras.reference_coverage,
+                            extras.camera,
+                        )?),
                         None => None,
                     },
                     cpu_ms,

@@ -41,7 +41,14 @@ pub struct BenchArgs {
     /// Scene file for --reference and --compression (default: the one the file was baked from).
     #[arg(long)]
     pub scene: Option<PathBuf>,
+    /// The camera a per-vertex bake is drawn from and its reference rendered from (`--eye`,
+    /// `--target`, `--width`, `--height`; default: the scene's).
+    #[command(flatten)]
+    pub view: super::relight::StillArgs,
 }
+
+/// Camera sub-samples a pixel of a textured scene's reference takes for a per-vertex bake.
+const TEXTURED_REFERENCE_SPP: u32 = 16;
 
 pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
     crate::files::check_output_folder(&a.out)?;
@@ -73,6 +80,7 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         opts.weightings = w.iter().map(|s| s.parse()).collect::<Result<_>>()?;
     }
     opts.validate(&t)?;
+    let still = a.view.camera(&t)?;
     let mut envs = Vec::new();
     for spec in &a.env {
         let name: String = std::path::Path::new(spec)
@@ -109,11 +117,17 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
             .scene
             .clone()
             .unwrap_or_else(|| PathBuf::from(&t.meta.scene_path));
-        // The bake's image size, which a glTF scene takes from its command line.
+        // The bake's image size, which a glTF scene takes from its command line (a per-vertex
+        // bake's is its scene camera's, not its vertex image's).
+        let [width, height] = t
+            .meta
+            .per_vertex
+            .as_ref()
+            .map_or([t.meta.width, t.meta.height], |pv| pv.image);
         let framing = crate::scene::Framing {
             camera: None,
-            width: Some(t.meta.width),
-            height: Some(t.meta.height),
+            width: Some(width),
+            height: Some(height),
         };
         let scene = Scene::load_with(&path, &framing)?;
         if scene.hash_hex() != t.meta.identity.scene_hash {
@@ -137,11 +151,23 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
             let diffuse;
             let (scene, settings) = match &t.domain {
                 Domain::Mesh(_) => {
-                    diffuse = scene.with_diffuse_materials();
+                    let mut d = scene.with_diffuse_materials();
+                    if let Some(c) = &still {
+                        d.camera = c.clone();
+                    }
+                    diffuse = d;
+                    // The raster filters textures by their mip levels; against one sample a
+                    // pixel (which aliases a minified texture) the error would be the
+                    // reference's, so a textured scene's reference takes 16 a pixel.
+                    let spp = match diffuse.is_textured() {
+                        true => settings.spp.max(TEXTURED_REFERENCE_SPP),
+                        false => settings.spp,
+                    };
                     (
                         &diffuse,
                         BakeSettings {
                             domain: BakeDomain::View,
+                            spp,
                             ..settings.clone()
                         },
                     )
@@ -180,6 +206,7 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         gpu: backend.as_ref().map(|b| b as &dyn crate::relight::Backend),
         references: references.as_ref().map(|(r, _)| r.as_slice()),
         reference_coverage: references.as_ref().map(|(_, c)| c.as_slice()),
+        camera: still.as_ref(),
     };
     let points = crate::app::bench::run(&t, &envs, &opts, &extras, &mut |done, total| {
         points_bar.set_length(total as u64);
