@@ -22,6 +22,10 @@ use crate::error::{PrtError, Result};
 /// Most vertices a tessellation may make; a finer one is surely a typo in the edge length.
 pub const MAX_VERTICES: usize = 1 << 24;
 
+/// Most vertices the default edge length makes ([`VertexMesh::default_edge_length`]), where the
+/// scene allows: about 0.3 GB of transport at N = 32.
+pub const DEFAULT_MAX_VERTICES: usize = 150_000;
+
 /// Rounds of edge splitting at most: each halves the longest edges, so 40 rounds refine any
 /// edge the coordinate limit allows to below a millionth of it.
 const MAX_ROUNDS: usize = 40;
@@ -47,12 +51,26 @@ pub struct VertexMesh {
 
 impl VertexMesh {
     /// The edge length of a per-vertex bake when none is given: the scene's `edge_length`, else
-    /// 1/160 of the diagonal of its bounds (about 100,000 vertices for the demo scene).
+    /// 1/160 of the diagonal of its bounds (about 100,000 vertices for the demo scene), made
+    /// longer where that would split the scene into more than [`DEFAULT_MAX_VERTICES`]: a model
+    /// of many small parts on its own (no ground around it) has a short diagonal for its area.
     pub fn default_edge_length(scene: &Scene) -> f32 {
-        scene.edge_length.unwrap_or_else(|| {
-            let (lo, hi) = scene.bounds();
-            ((hi - lo).length() / 160.0).max(1e-6)
-        })
+        if let Some(e) = scene.edge_length {
+            return e;
+        }
+        let (lo, hi) = scene.bounds();
+        let mut edge = ((hi - lo).length() / 160.0).max(1e-6);
+        // The count falls about as the square of the length grows; a few rounds settle it.
+        for _ in 0..4 {
+            match VertexMesh::tessellate(scene, edge) {
+                Ok(m) if m.vertex_count() > DEFAULT_MAX_VERTICES => {
+                    let over = m.vertex_count() as f32 / (0.8 * DEFAULT_MAX_VERTICES as f32);
+                    edge *= over.sqrt();
+                }
+                _ => break,
+            }
+        }
+        edge
     }
 
     /// Number of vertices.
@@ -642,6 +660,38 @@ mod tests {
         assert!(
             edges(&m)
                 .all(|(a, b)| { m.positions[a as usize].distance(m.positions[b as usize]) <= 0.1 })
+        );
+    }
+
+    #[test]
+    fn the_default_edge_length_keeps_a_dense_scene_within_the_vertex_budget() {
+        // Forty 1 x 1 quads stacked 0.01 apart: a short diagonal for their area, so 1/160 of it
+        // would split them into about 700,000 vertices.
+        let quads: String = (0..40)
+            .map(|k| {
+                let y = k as f32 * 0.01;
+                format!(
+                    "[[shape]]\ntype = \"quad\"\ncorners = [[0.0, {y}, 0.0], [0.0, {y}, 1.0], \
+                     [1.0, {y}, 1.0], [1.0, {y}, 0.0]]\nmaterial = \"m\"\n"
+                )
+            })
+            .collect();
+        let s = scene(&quads);
+        let (lo, hi) = s.bounds();
+        let plain = (hi - lo).length() / 160.0;
+        let edge = VertexMesh::default_edge_length(&s);
+        assert!(edge > plain, "{edge} against {plain}");
+        let n = VertexMesh::tessellate(&s, edge).unwrap().vertex_count();
+        assert!(
+            (DEFAULT_MAX_VERTICES / 3..=DEFAULT_MAX_VERTICES).contains(&n),
+            "{n} vertices at {edge}"
+        );
+        // A scene within the budget keeps 1/160 of its diagonal.
+        let one = scene(QUAD);
+        let (lo, hi) = one.bounds();
+        assert_eq!(
+            VertexMesh::default_edge_length(&one),
+            (hi - lo).length() / 160.0
         );
     }
 
