@@ -361,7 +361,8 @@ fn materials_with_the_same_map_share_it() {
     let mut owners = mesh.albedo_maps[0].materials.clone();
     owners.sort();
     assert_eq!(owners, [0, 1]);
-    assert!(mesh.map_slots().iter().all(|s| *s == Some(0)));
+    let slots = mesh.map_slots();
+    assert!(mesh.materials.iter().all(|&m| slots[m as usize] == Some(0)));
 }
 
 #[test]

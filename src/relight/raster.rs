@@ -29,13 +29,16 @@ use crate::scene::Camera;
 use crate::scene::albedo_map::AlbedoMap;
 use crate::scene::tessellate::VertexMesh;
 
-/// What a textured mesh adds to a draw: each vertex's texture coordinate and the albedo map its
-/// pixels are multiplied by.
+/// What a textured mesh adds to a draw: each vertex's texture coordinate and material, and the
+/// albedo map each material's pixels are multiplied by.
 #[derive(Clone, Debug)]
 pub struct Texturing<'a> {
     /// Texture coordinate of each vertex.
     pub uvs: &'a [Vec2],
-    /// Index into `maps` of each vertex's map; `None` draws the vertex colours as they are.
+    /// Material of each vertex.
+    pub materials: &'a [u32],
+    /// Index into `maps` of each material's map (by material index; past its end, or `None`,
+    /// the vertex colours are drawn as they are).
     pub slots: Vec<Option<u32>>,
     /// The albedo maps.
     pub maps: &'a [AlbedoMap],
@@ -46,21 +49,31 @@ impl<'a> Texturing<'a> {
     pub fn of(mesh: &'a VertexMesh) -> Option<Texturing<'a>> {
         (!mesh.albedo_maps.is_empty()).then(|| Texturing {
             uvs: &mesh.uvs,
+            materials: &mesh.materials,
             slots: mesh.map_slots(),
             maps: &mesh.albedo_maps,
         })
     }
 
-    /// Checks one coordinate and slot per vertex of `vertices`, finite coordinates and slots
+    /// The map of vertex `v`, if its material has one.
+    #[inline]
+    pub fn slot(&self, v: usize) -> Option<u32> {
+        self.slots
+            .get(self.materials[v] as usize)
+            .copied()
+            .flatten()
+    }
+
+    /// Checks one coordinate and material per vertex of `vertices`, finite coordinates and slots
     /// below the map count.
     pub fn check(&self, vertices: usize) -> Result<()> {
-        if self.uvs.len() != vertices || self.slots.len() != vertices {
+        if self.uvs.len() != vertices || self.materials.len() != vertices {
             return Err(PrtError::invalid(
                 "texturing",
                 format!(
-                    "{} texture coordinates and {} map slots for {vertices} vertices",
+                    "{} texture coordinates and {} materials for {vertices} vertices",
                     self.uvs.len(),
-                    self.slots.len()
+                    self.materials.len()
                 ),
             ));
         }
@@ -347,7 +360,7 @@ fn draw_band(
         let cs = tri.map(|v| DVec3::from(colours[v as usize].map(f64::from)));
         // The triangle's map and corner coordinates, if textured.
         let mapped = texturing.and_then(|t| {
-            let map = &t.maps[t.slots[tri[0] as usize]? as usize];
+            let map = &t.maps[t.slot(tri[0] as usize)? as usize];
             Some((map, tri.map(|v| t.uvs[v as usize].as_dvec2())))
         });
         let first_row = (s.y[0] as usize).max(y0);
@@ -374,18 +387,17 @@ fn draw_band(
                     Some((map, uvs)) => {
                         // The coordinate at a film position, interpolated on this triangle.
                         let uv_at = |fx: f64, fy: f64| {
-                            let w = [
-                                e0.dot(DVec3::new(fx, fy, 1.0)),
-                                e1.dot(DVec3::new(fx, fy, 1.0)),
-                                e2.dot(DVec3::new(fx, fy, 1.0)),
-                            ];
+                            let d = DVec3::new(fx, fy, 1.0);
+                            let w = [e0.dot(d), e1.dot(d), e2.dot(d)];
                             ((uvs[0] * w[0] + uvs[1] * w[1] + uvs[2] * w[2]) / (w[0] + w[1] + w[2]))
                                 .as_vec2()
                         };
-                        let (qx, qy) = (x & !1, y & !1);
-                        let uv = uv_at(fx, fy);
-                        let dx = uv_at(view.film_x(qx + 1), fy) - uv_at(view.film_x(qx), fy);
-                        let dy = uv_at(fx, view.film_y(qy + 1)) - uv_at(fx, view.film_y(qy));
+                        let uv = ((uvs[0] * w[0] + uvs[1] * w[1] + uvs[2] * w[2]) / sum).as_vec2();
+                        // Fine derivatives: the odd pixel of the quad's pair minus the even one.
+                        let (across, down) =
+                            (uv_at(view.film_x(x ^ 1), fy), uv_at(fx, view.film_y(y ^ 1)));
+                        let dx = if x % 2 == 0 { across - uv } else { uv - across };
+                        let dy = if y % 2 == 0 { down - uv } else { uv - down };
                         map.sample(uv, map.lod(dx, dy))
                     }
                     None => Vec3::ONE,

@@ -111,20 +111,11 @@ impl VertexMesh {
             ));
         }
         let mut mesh = VertexMesh::default();
-        let textured: Vec<bool> = (0..scene.materials.len())
-            .map(|m| {
-                scene
-                    .material_maps
-                    .get(m)
-                    .copied()
-                    .flatten()
-                    .is_some_and(|t| {
-                        t.base_color_texture
-                            .or(t.metallic_roughness_texture)
-                            .is_some()
-                    })
-            })
+        // The albedo map of every textured material; their vertices keep texture coordinates.
+        let maps: Vec<Option<AlbedoMap>> = (0..scene.materials.len() as u32)
+            .map(|m| AlbedoMap::of_material(scene, m))
             .collect();
+        let textured: Vec<bool> = maps.iter().map(Option::is_some).collect();
         for range in &scene.surfaces {
             let tris = &scene.triangles[range.clone()];
             let open = has_boundary(tris);
@@ -160,9 +151,11 @@ impl VertexMesh {
             used[m as usize] = true;
         }
         // One map for materials whose maps are the same (such as two that share a texture).
-        for map in (0..scene.materials.len() as u32)
-            .filter(|&m| used[m as usize] && textured[m as usize])
-            .filter_map(|m| AlbedoMap::of_material(scene, m))
+        for map in maps
+            .into_iter()
+            .enumerate()
+            .filter(|(m, _)| used[*m])
+            .filter_map(|(_, map)| map)
         {
             match mesh.albedo_maps.iter_mut().find(|a| a.same_image(&map)) {
                 Some(same) => same.materials.extend(map.materials),
@@ -172,19 +165,22 @@ impl VertexMesh {
         Ok(mesh.morton_ordered())
     }
 
-    /// The index into [`VertexMesh::albedo_maps`] of each vertex's map, `None` for a vertex
-    /// whose material has none.
+    /// The index into [`VertexMesh::albedo_maps`] of each material's map (by material index, up
+    /// to the last material that has one), `None` for a material without.
     pub fn map_slots(&self) -> Vec<Option<u32>> {
-        let mut slot_of = HashMap::new();
+        let materials = self
+            .albedo_maps
+            .iter()
+            .flat_map(|a| &a.materials)
+            .max()
+            .map_or(0, |&m| m as usize + 1);
+        let mut slots = vec![None; materials];
         for (i, map) in self.albedo_maps.iter().enumerate() {
             for &m in &map.materials {
-                slot_of.insert(m, i as u32);
+                slots[m as usize] = Some(i as u32);
             }
         }
-        self.materials
-            .iter()
-            .map(|m| slot_of.get(m).copied())
-            .collect()
+        slots
     }
 
     /// Whether vertex `v`'s light is baked for a white surface, its albedo left to the raster.

@@ -122,7 +122,9 @@ impl GpuMesh {
         let (uvs, slots): (Vec<Vec2>, Vec<u32>) = match texturing {
             Some(t) => (
                 t.uvs.to_vec(),
-                t.slots.iter().map(|s| s.unwrap_or(NO_MAP)).collect(),
+                (0..positions.len())
+                    .map(|v| t.slot(v).unwrap_or(NO_MAP))
+                    .collect(),
             ),
             None => (
                 vec![Vec2::ZERO; positions.len()],
