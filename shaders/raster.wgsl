@@ -1,17 +1,38 @@
 // Draws a mesh with one colour per vertex (Gouraud shading), the GPU twin of the CPU rasteriser
 // in src/relight/raster.rs. The colours are read from a storage buffer of vec4<f32> per vertex,
-// indexed by the vertex's index (an indexed draw's vertex_index is the index value), so a relit
-// buffer can be drawn without leaving the GPU. Clip space (`clip_from_world`) puts x right and y
-// up over the film, w the forward distance from the eye and z the near distance, so the depth is
-// near / w: reversed depth, cleared to 0 and tested with `greater`. Coverage is the alpha.
+// indexed by the vertex's index, so a relit buffer can be drawn without leaving the GPU. Clip
+// space (`clip_from_world`) puts x right and y up over the film, w the forward distance from the
+// eye and z the near distance, so the depth is near / w: reversed depth, cleared to 0 and tested
+// with `greater`. Coverage is the alpha.
+//
+// The hardware decides which pixels a triangle covers and which triangle is nearest; what a pixel
+// shows is computed here as the CPU twin computes it. The draw is not indexed: corner k of
+// triangle t is vertex `indices[3t + k]`, read from storage, and each fragment knows its triangle
+// (a flat varying). It reads the triangle's three vertices and takes the barycentrics of the
+// point its pixel centre's ray hits on the triangle's plane, in the camera's frame. That is
+// perspective-correct interpolation, but from the vertices as given rather than from corners
+// snapped to the rasteriser's sub-pixel grid, and through clipping without new vertices: GPUs
+// differ in both (an NVIDIA H100 moved colours by up to 9e-3 where lavapipe agreed with the CPU to
+// 1e-4), so the hardware's own interpolation would make the twins disagree on some GPUs.
 //
 // A vertex with an albedo map (its slot is not NO_MAP) has its colour multiplied per pixel by the
 // map, read as src/scene/albedo_map.rs reads it: texels fetched and filtered here in f32 rather
 // than by a sampler, whose filtering precision differs between GPUs, with the level of detail
-// taken from the fine derivatives of the texture coordinate.
+// taken from the texture coordinate's fine derivatives. Those are taken here too, as on the CPU:
+// the coordinate at the other pixels of the 2 x 2 quad, on the same triangle (extrapolated past
+// its edges), rather than whatever the quad's neighbours hold.
 
 struct View {
     clip_from_world: mat4x4<f32>,
+    // The camera's frame (src/relight/raster.rs, Frame): the eye, then the film's right and up
+    // axes with half the film's width and height at unit distance in their w, and the view
+    // direction.
+    eye: vec4<f32>,
+    right: vec4<f32>,
+    up: vec4<f32>,
+    forward: vec4<f32>,
+    // The image's width and height in pixels.
+    size: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -24,33 +45,49 @@ struct View {
 @group(0) @binding(3) var<storage, read> levels: array<vec4<u32>>;
 // Per texel: red | green << 16, then blue, sixteen-bit fractions of one.
 @group(0) @binding(4) var<storage, read> texels: array<vec2<u32>>;
+// Per vertex, VERTEX_WORDS words: the position's x, y and z and the texture coordinate's u and v
+// (f32 bits), then the albedo map's slot.
+@group(0) @binding(5) var<storage, read> vertices: array<u32>;
+// Per triangle, its three vertices.
+@group(0) @binding(6) var<storage, read> indices: array<u32>;
 
 const NO_MAP: u32 = 0xffffffffu;
+const VERTEX_WORDS: u32 = 6u;
 const UNORM: f32 = 1.0 / 65535.0;
 // Largest texel coordinate read: past it f32 holds no fraction, and the index must fit an i32.
 const COORD_LIMIT: f32 = 1073741824.0;
 
 struct Varyings {
     @builtin(position) position: vec4<f32>,
-    // Perspective-correct, like the CPU twin's barycentrics of the hit point.
-    @location(0) colour: vec3<f32>,
-    @location(1) uv: vec2<f32>,
-    @location(2) @interpolate(flat) slot: u32,
+    @location(0) @interpolate(flat) triangle: u32,
 };
 
+fn position_of(v: u32) -> vec3<f32> {
+    let o = v * VERTEX_WORDS;
+    return vec3<f32>(
+        bitcast<f32>(vertices[o]),
+        bitcast<f32>(vertices[o + 1u]),
+        bitcast<f32>(vertices[o + 2u]),
+    );
+}
+
+fn uv_of(v: u32) -> vec2<f32> {
+    let o = v * VERTEX_WORDS;
+    return vec2<f32>(bitcast<f32>(vertices[o + 3u]), bitcast<f32>(vertices[o + 4u]));
+}
+
 @vertex
-fn vertex(
-    @location(0) position: vec3<f32>,
-    @location(1) uv: vec2<f32>,
-    @location(2) slot: u32,
-    @builtin(vertex_index) index: u32,
-) -> Varyings {
+fn vertex(@builtin(vertex_index) corner: u32) -> Varyings {
     var out: Varyings;
-    out.position = view.clip_from_world * vec4<f32>(position, 1.0);
-    out.colour = colours[index].rgb;
-    out.uv = uv;
-    out.slot = slot;
+    out.position = view.clip_from_world * vec4<f32>(position_of(indices[corner]), 1.0);
+    out.triangle = corner / 3u;
     return out;
+}
+
+// A point in the camera's frame: along the film's right, the film's up and the view direction.
+fn camera_coords(p: vec3<f32>) -> vec3<f32> {
+    let q = p - view.eye.xyz;
+    return vec3<f32>(dot(q, view.right.xyz), dot(q, view.up.xyz), dot(q, view.forward.xyz));
 }
 
 // The texel index that integer index i of a row of n reads.
@@ -123,14 +160,57 @@ fn albedo(slot: u32, uv: vec2<f32>, dx: vec2<f32>, dy: vec2<f32>) -> vec3<f32> {
     return a + (b - a) * blend;
 }
 
+// The texture coordinate on the triangle (camera-frame corners a, b, c) where the ray through
+// film position `film` meets its plane: inside the triangle or extrapolated past its edges.
+fn uv_at(film: vec2<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, uvs: array<vec2<f32>, 3>)
+    -> vec2<f32> {
+    let d = vec3<f32>(film, 1.0);
+    let w = vec3<f32>(dot(d, cross(b, c)), dot(d, cross(c, a)), dot(d, cross(a, b)));
+    return (uvs[0] * w.x + uvs[1] * w.y + uvs[2] * w.z) / (w.x + w.y + w.z);
+}
+
+// The film position, at unit forward distance, of the pixel whose centre is at `pixel`.
+fn film_at(pixel: vec2<f32>) -> vec2<f32> {
+    return vec2<f32>(
+        (2.0 * pixel.x / view.size.x - 1.0) * view.right.w,
+        (1.0 - 2.0 * pixel.y / view.size.y) * view.up.w,
+    );
+}
+
 @fragment
 fn fragment(in: Varyings) -> @location(0) vec4<f32> {
-    // Taken before any branch: derivatives need the whole quad.
-    let dx = dpdxFine(in.uv);
-    let dy = dpdyFine(in.uv);
-    var colour = in.colour;
-    if in.slot != NO_MAP {
-        colour = colour * albedo(in.slot, in.uv, dx, dy);
+    let first = in.triangle * 3u;
+    let corners = vec3<u32>(indices[first], indices[first + 1u], indices[first + 2u]);
+    let a = camera_coords(position_of(corners.x));
+    let b = camera_coords(position_of(corners.y));
+    let c = camera_coords(position_of(corners.z));
+    // The pixel centre's direction (the fragment's position is its pixel's centre).
+    let d = vec3<f32>(film_at(in.position.xy), 1.0);
+    let w = vec3<f32>(dot(d, cross(b, c)), dot(d, cross(c, a)), dot(d, cross(a, b)));
+    let sum = w.x + w.y + w.z;
+    // Only a triangle seen edge-on can cover a pixel whose ray misses its plane: the CPU draws
+    // nothing there either.
+    if !(sum > 0.0) {
+        discard;
+    }
+    let bary = w / sum;
+    var colour = colours[corners.x].rgb * bary.x + colours[corners.y].rgb * bary.y
+        + colours[corners.z].rgb * bary.z;
+    let slot = vertices[corners.x * VERTEX_WORDS + 5u];
+    if slot != NO_MAP {
+        let uvs = array<vec2<f32>, 3>(uv_of(corners.x), uv_of(corners.y), uv_of(corners.z));
+        let uv = uvs[0] * bary.x + uvs[1] * bary.y + uvs[2] * bary.z;
+        // Fine derivatives, as dpdxFine and dpdyFine take them, but on this triangle whatever
+        // covers the quad's other pixels: the odd pixel of the quad's pair minus the even one.
+        let pixel = floor(in.position.xy);
+        let odd = vec2<bool>((u32(pixel.x) & 1u) == 1u, (u32(pixel.y) & 1u) == 1u);
+        let across = uv_at(
+            film_at(in.position.xy + vec2<f32>(select(1.0, -1.0, odd.x), 0.0)), a, b, c, uvs);
+        let down = uv_at(
+            film_at(in.position.xy + vec2<f32>(0.0, select(1.0, -1.0, odd.y))), a, b, c, uvs);
+        let dx = select(across - uv, uv - across, odd.x);
+        let dy = select(down - uv, uv - down, odd.y);
+        colour = colour * albedo(slot, uv, dx, dy);
     }
     return vec4<f32>(colour, 1.0);
 }

@@ -4,8 +4,9 @@
 //! A pixel is covered when the ray of [`Camera::ray`] through its centre hits a triangle that
 //! faces the eye (its right-handed winding normal `(b − a) × (c − a)` points towards the eye) at
 //! a forward distance of at least [`NEAR`]; the nearest such hit wins, and the pixel takes the
-//! vertex colours interpolated with the barycentrics of that 3D hit point (perspective-correct,
-//! as GPUs interpolate). Nothing is projected before the test, so triangles that straddle the eye
+//! vertex colours interpolated with the barycentrics of that 3D hit point (perspective-correct;
+//! the GPU twin takes the same barycentrics in its fragment shader rather than trusting the
+//! hardware's interpolation). Nothing is projected before the test, so triangles that straddle the eye
 //! plane need no clipping to be drawn right: each pixel intersects its own ray with the
 //! triangle's plane (homogeneous rasterisation). Only the bounding box that limits the pixels
 //! tried is taken from the part of the triangle in front of the near plane.
@@ -183,8 +184,44 @@ pub fn check_mesh(
     Ok(())
 }
 
-/// The camera as both rasterisers see it: its frame and film scale, computed as
-/// [`Camera::ray`] computes them (in f32), then widened to f64.
+/// The camera's frame as both rasterisers take it, computed as [`Camera::ray`] computes it (in
+/// f32): the eye, the film's right and up axes and the view direction (a left-handed basis:
+/// right × up = −forward), and half the film's width and height at unit forward distance. A
+/// pixel centre's direction is `(film_x, film_y, 1)` in that basis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frame {
+    /// The eye.
+    pub eye: Vec3,
+    /// The film's right axis.
+    pub right: Vec3,
+    /// The film's up axis.
+    pub up: Vec3,
+    /// The view direction.
+    pub forward: Vec3,
+    /// Half the film's width at unit forward distance.
+    pub half_w: f32,
+    /// Half the film's height at unit forward distance.
+    pub half_h: f32,
+}
+
+impl Frame {
+    /// The frame of `camera`.
+    pub fn new(camera: &Camera) -> Frame {
+        let (forward, right, up) = camera.frame();
+        let tan_half = (camera.fov_y_deg.to_radians() * 0.5).tan();
+        let aspect = camera.width as f32 / camera.height as f32;
+        Frame {
+            eye: camera.eye,
+            right,
+            up,
+            forward,
+            half_w: tan_half * aspect,
+            half_h: tan_half,
+        }
+    }
+}
+
+/// The CPU's view: [`Frame`] widened to f64, and the image size.
 #[derive(Clone, Copy, Debug)]
 struct View {
     eye: DVec3,
@@ -200,16 +237,14 @@ struct View {
 
 impl View {
     fn new(camera: &Camera) -> View {
-        let (forward, right, up) = camera.frame();
-        let tan_half = (camera.fov_y_deg.to_radians() * 0.5).tan();
-        let aspect = camera.width as f32 / camera.height as f32;
+        let f = Frame::new(camera);
         View {
-            eye: camera.eye.as_dvec3(),
-            right: right.as_dvec3(),
-            up: up.as_dvec3(),
-            forward: forward.as_dvec3(),
-            half_w: (tan_half * aspect) as f64,
-            half_h: tan_half as f64,
+            eye: f.eye.as_dvec3(),
+            right: f.right.as_dvec3(),
+            up: f.up.as_dvec3(),
+            forward: f.forward.as_dvec3(),
+            half_w: f.half_w as f64,
+            half_h: f.half_h as f64,
             width: camera.width as usize,
             height: camera.height as usize,
         }

@@ -1,7 +1,9 @@
 //! Drawing a mesh with one colour per vertex on the GPU (a wgpu render pipeline,
 //! `shaders/raster.wgsl`): the twin of the CPU rasteriser [`crate::relight::raster`], with the
-//! same camera, culling, near plane and interpolation, so the two give the same pixels but at
-//! exact edges.
+//! same camera, culling and near plane, so the two give the same pixels but at exact edges. The
+//! hardware rasterises and depth-tests; each fragment then takes the barycentrics of its pixel's
+//! ray on its triangle as the CPU does, rather than the hardware's interpolation, which works
+//! from corners snapped to a sub-pixel grid that differs between GPUs.
 //!
 //! The colours come from a storage buffer of `vec4<f32>` per vertex (vertex `i` at index `i`, the
 //! layout of the relight's output image buffer when vertex `i` is its pixel `i`), so relit
@@ -20,11 +22,11 @@ use super::Gpu;
 use crate::error::{PrtError, Result};
 use crate::gpu::{map_and_read, texture_2d};
 use crate::output::film::Image;
-use crate::relight::raster::{Raster, Texturing, check_mesh, clip_from_world};
+use crate::relight::raster::{Frame, Raster, Texturing, check_mesh, clip_from_world};
 use crate::scene::Camera;
 use crate::scene::albedo_map::wrap_code;
 use crate::scene::texture::Filter;
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 
 /// The colour target's format: linear RGB and coverage in alpha, unclamped.
 pub const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
@@ -34,14 +36,17 @@ const TEXEL_BYTES: u32 = 16;
 
 /// A vertex's map slot in the shader when it has no albedo map.
 const NO_MAP: u32 = u32::MAX;
+/// Words (`u32`) of one vertex in the shader's vertex table: position, texture coordinate, slot.
+const VERTEX_WORDS: usize = 6;
+/// Bytes of the view uniform: the clip transform, then five `vec4<f32>` (the camera's frame and
+/// the image size).
+const VIEW_BYTES: u64 = 64 + 5 * 16;
 
-/// A mesh resident on the GPU: positions (a vertex buffer of f32 x, y, z), texture coordinates
-/// and albedo-map slots (vertex buffers too), triangle indices, and the albedo maps (storage
-/// buffers: the maps, their levels and their texels, as `shaders/raster.wgsl` reads them).
+/// A mesh resident on the GPU, in storage buffers as `shaders/raster.wgsl` reads them: per vertex
+/// its position, texture coordinate and albedo-map slot, per triangle its three vertices, and the
+/// albedo maps (the maps, their levels and their texels).
 pub struct GpuMesh {
-    positions: wgpu::Buffer,
-    uvs: wgpu::Buffer,
-    slots: wgpu::Buffer,
+    table: wgpu::Buffer,
     indices: wgpu::Buffer,
     maps: wgpu::Buffer,
     levels: wgpu::Buffer,
@@ -99,12 +104,12 @@ impl GpuMesh {
                 format!("{} triangles: too many to draw at once", triangles.len()),
             )
         })?;
-        let max = gpu.device.limits().max_buffer_size;
-        let bytes = (positions.len() as u64 * 12).max(index_count as u64 * 4);
+        let max = gpu.max_binding_bytes();
+        let bytes = (positions.len() as u64 * VERTEX_WORDS as u64 * 4).max(index_count as u64 * 4);
         if bytes > max {
             return Err(PrtError::invalid(
                 "mesh",
-                format!("{bytes} bytes in one buffer; the device allows {max}"),
+                format!("{bytes} bytes in one binding; the device binds at most {max}"),
             ));
         }
         let (maps, levels, texels) = map_tables(texturing);
@@ -119,18 +124,15 @@ impl GpuMesh {
                 ),
             ));
         }
-        let (uvs, slots): (Vec<Vec2>, Vec<u32>) = match texturing {
-            Some(t) => (
-                t.uvs.to_vec(),
-                (0..positions.len())
-                    .map(|v| t.slot(v).unwrap_or(NO_MAP))
-                    .collect(),
-            ),
-            None => (
-                vec![Vec2::ZERO; positions.len()],
-                vec![NO_MAP; positions.len()],
-            ),
-        };
+        let mut table = Vec::with_capacity(positions.len() * VERTEX_WORDS);
+        for (v, p) in positions.iter().enumerate() {
+            let (uv, slot) = match texturing {
+                Some(t) => (t.uvs[v].to_array(), t.slot(v).unwrap_or(NO_MAP)),
+                None => ([0.0; 2], NO_MAP),
+            };
+            table.extend([p.x, p.y, p.z, uv[0], uv[1]].map(f32::to_bits));
+            table.push(slot);
+        }
         // wgpu rejects empty initialised buffers for some uses: keep at least one element.
         let buffer = |label, contents: &[u8], usage| {
             let mut data = contents.to_vec();
@@ -143,25 +145,15 @@ impl GpuMesh {
                 })
         };
         Ok(GpuMesh {
-            positions: buffer(
-                "raster positions",
-                bytemuck::cast_slice(positions),
-                wgpu::BufferUsages::VERTEX,
-            ),
-            uvs: buffer(
-                "raster texture coordinates",
-                bytemuck::cast_slice(&uvs),
-                wgpu::BufferUsages::VERTEX,
-            ),
-            slots: buffer(
-                "raster map slots",
-                bytemuck::cast_slice(&slots),
-                wgpu::BufferUsages::VERTEX,
+            table: buffer(
+                "raster vertices",
+                bytemuck::cast_slice(&table),
+                wgpu::BufferUsages::STORAGE,
             ),
             indices: buffer(
                 "raster indices",
                 bytemuck::cast_slice(triangles),
-                wgpu::BufferUsages::INDEX,
+                wgpu::BufferUsages::STORAGE,
             ),
             maps: buffer(
                 "raster albedo maps",
@@ -288,23 +280,7 @@ impl GpuRaster {
                 module: &module,
                 entry_point: Some("vertex"),
                 compilation_options: Default::default(),
-                buffers: &[
-                    Some(wgpu::VertexBufferLayout {
-                        array_stride: 12,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-                    }),
-                    Some(wgpu::VertexBufferLayout {
-                        array_stride: 8,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &wgpu::vertex_attr_array![1 => Float32x2],
-                    }),
-                    Some(wgpu::VertexBufferLayout {
-                        array_stride: 4,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &wgpu::vertex_attr_array![2 => Uint32],
-                    }),
-                ],
+                buffers: &[],
             },
             primitive: wgpu::PrimitiveState {
                 topology: wgpu::PrimitiveTopology::TriangleList,
@@ -332,7 +308,7 @@ impl GpuRaster {
         let view = crate::gpu::buffer(
             device,
             "raster view",
-            64,
+            VIEW_BYTES,
             wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         );
         if let Some(e) = pollster::block_on(scope.pop()) {
@@ -521,9 +497,16 @@ impl GpuRaster {
         colour: &wgpu::TextureView,
         encoder: &mut wgpu::CommandEncoder,
     ) {
-        let m = clip_from_world(camera);
+        let f = Frame::new(camera);
+        let mut uniform = clip_from_world(camera).to_cols_array().to_vec();
+        uniform.extend(f.eye.extend(0.0).to_array());
+        uniform.extend(f.right.extend(f.half_w).to_array());
+        uniform.extend(f.up.extend(f.half_h).to_array());
+        uniform.extend(f.forward.extend(0.0).to_array());
+        uniform.extend([camera.width as f32, camera.height as f32, 0.0, 0.0]);
+        debug_assert_eq!(uniform.len() as u64 * 4, VIEW_BYTES);
         gpu.queue
-            .write_buffer(&self.view, 0, bytemuck::cast_slice(&m.to_cols_array()));
+            .write_buffer(&self.view, 0, bytemuck::cast_slice(&uniform));
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("raster"),
             layout: &self.pipeline.get_bind_group_layout(0),
@@ -555,6 +538,14 @@ impl GpuRaster {
                 wgpu::BindGroupEntry {
                     binding: 4,
                     resource: mesh.texels.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: mesh.table.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: mesh.indices.as_entire_binding(),
                 },
             ],
         });
@@ -591,10 +582,7 @@ impl GpuRaster {
         }
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &group, &[]);
-        pass.set_vertex_buffer(0, mesh.positions.slice(..));
-        pass.set_vertex_buffer(1, mesh.uvs.slice(..));
-        pass.set_vertex_buffer(2, mesh.slots.slice(..));
-        pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-        pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+        // Not indexed: the shader reads each corner's vertex from `indices` itself.
+        pass.draw(0..mesh.index_count, 0..1);
     }
 }
