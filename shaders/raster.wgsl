@@ -31,7 +31,9 @@ struct View {
     right: vec4<f32>,
     up: vec4<f32>,
     forward: vec4<f32>,
-    // The image's width and height in pixels.
+    // The image's width and height in pixels, then where in each pixel this pass samples, from
+    // its centre, in pixels (y down): the film is shifted by as much, so the hardware's pixel
+    // centre is the sample.
     size: vec4<f32>,
 };
 
@@ -169,11 +171,12 @@ fn uv_at(film: vec2<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, uvs: array<v
     return (uvs[0] * w.x + uvs[1] * w.y + uvs[2] * w.z) / (w.x + w.y + w.z);
 }
 
-// The film position, at unit forward distance, of the pixel whose centre is at `pixel`.
+// The film position, at unit forward distance, of the sample of the pixel whose centre is at
+// `pixel`.
 fn film_at(pixel: vec2<f32>) -> vec2<f32> {
     return vec2<f32>(
-        (2.0 * pixel.x / view.size.x - 1.0) * view.right.w,
-        (1.0 - 2.0 * pixel.y / view.size.y) * view.up.w,
+        (2.0 * (pixel.x + view.size.z) / view.size.x - 1.0) * view.right.w,
+        (1.0 - 2.0 * (pixel.y + view.size.w) / view.size.y) * view.up.w,
     );
 }
 

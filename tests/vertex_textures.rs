@@ -15,7 +15,9 @@ use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::metrics::relative_l2;
-use wavelet_prt::relight::raster::{Texturing, rasterize, rasterize_textured};
+use wavelet_prt::relight::raster::{
+    Texturing, rasterize, rasterize_multisampled, rasterize_textured,
+};
 use wavelet_prt::relight::relight_wavelet;
 use wavelet_prt::relight::vertex::{bake_camera, draw, orbit, vertex_colours};
 use wavelet_prt::scene::texture::srgb_to_linear;
@@ -147,7 +149,7 @@ fn a_coarse_per_vertex_bake_shows_the_checker_where_a_new_camera_sees_it() {
     assert!(up.iter().all(|c| c == &white), "{up:?}");
     assert!((white[0] - 1.0).abs() < 0.01, "{white:?}");
     let cam = new_camera(&t, 35.0, 10.0, 1.0, 160, 120);
-    let drawn = draw(&t, colours, &cam, None).unwrap();
+    let drawn = draw(&t, colours, &cam, None, 1).unwrap();
     let tracer = wavelet_prt::scene::trace::Tracer::new(&scene);
     let texel = 4.0 / side as f32;
     let (mut checked, mut light, mut dark) = (0, 0, 0);
@@ -216,7 +218,7 @@ fn a_per_vertex_bake_drawn_from_a_new_camera_matches_the_per_pixel_reference() {
         (-70.0, -5.0, 1.6, 96, VERTEX_VS_REFERENCE_MINIFIED),
     ] {
         let cam = new_camera(&t, az, el, d, w, w * 2 / 3);
-        let drawn = draw(&t, colours, &cam, None).unwrap();
+        let drawn = draw(&t, colours, &cam, None, 1).unwrap();
         // The per-pixel reference from the same camera, of what a per-vertex bake holds (the
         // diffuse base of every material).
         let mut seen = scene.with_diffuse_materials();
@@ -301,19 +303,23 @@ fn the_gpu_draws_textured_vertices_as_the_cpu_does() {
     let texturing = Texturing::of(mesh).unwrap();
     let g = GpuMesh::textured(&gpu, &mesh.positions, &mesh.triangles, Some(&texturing)).unwrap();
     let c = upload_colours(&gpu, colours).unwrap();
-    let mut raster = GpuRaster::new(&gpu).unwrap();
-    for (az, d, w, h) in [
-        (20.0, 0.5, 128, 96),
-        (-50.0, 1.0, 96, 64),
-        (130.0, 3.0, 40, 30),
+    // The last camera also with 4 samples a pixel, each sample's texture derivatives taken
+    // from the same sample of its quad.
+    for (az, d, w, h, samples) in [
+        (20.0, 0.5, 128, 96, 1),
+        (-50.0, 1.0, 96, 64, 1),
+        (130.0, 3.0, 40, 30, 1),
+        (-50.0, 1.0, 96, 64, 4),
     ] {
+        let mut raster = GpuRaster::multisampled(&gpu, samples).unwrap();
         let cam = new_camera(&t, az, 5.0, d, w, h);
-        let cpu = rasterize_textured(
+        let cpu = rasterize_multisampled(
             &cam,
             &mesh.positions,
             &mesh.triangles,
             colours,
             Some(&texturing),
+            samples,
         )
         .unwrap();
         let dev = raster.draw(&gpu, &cam, &g, &c).unwrap();
@@ -333,7 +339,7 @@ fn the_gpu_draws_textured_vertices_as_the_cpu_does() {
             })
             .count();
         eprintln!(
-            "{az}°, distance {d}: {differ} of {} pixels differ",
+            "{az}°, distance {d}, {samples} sample(s): {differ} of {} pixels differ",
             cpu.coverage.len()
         );
         assert!(

@@ -547,7 +547,7 @@ fn per_vertex_engine() -> (Engine, ViewState) {
 fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
     use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
     use wavelet_prt::relight::background::environment_behind_camera;
-    use wavelet_prt::relight::raster::rasterize;
+    use wavelet_prt::relight::raster::{DRAW_SAMPLES, rasterize_multisampled};
     use wavelet_prt::relight::vertex::{Orbit, bake_camera, vertex_colours};
     use wavelet_prt::relight::{LightContext, RelightRequest, relight};
     let (mut e, mut s) = per_vertex_engine();
@@ -581,21 +581,28 @@ fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
             (r.width, r.height),
             (camera.width as usize, camera.height as usize)
         );
-        // Covered pixels are the drawn vertex colours; open pixels the environment along the
-        // camera's ray, turned with the light.
-        let drawn = rasterize(&camera, &mesh.positions, &mesh.triangles, colours).unwrap();
+        // Drawn with the viewer's samples a pixel: covered pixels are the drawn vertex colours,
+        // open pixels the environment along the camera's ray, turned with the light, and pixels
+        // on a silhouette the drawn samples' mean plus the open ones' share of the environment.
+        let drawn = rasterize_multisampled(
+            &camera,
+            &mesh.positions,
+            &mesh.triangles,
+            colours,
+            None,
+            DRAW_SAMPLES,
+        )
+        .unwrap();
         let open = vec![0.0; drawn.coverage.len()];
         let sky = environment_behind_camera(&camera, &open, &env, EnvRotation::yaw(30.0)).unwrap();
         let shown = &r.panes[0].linear.image;
         let (mut covered, mut uncovered) = (0, 0);
         for (i, p) in shown.pixels.iter().enumerate() {
-            let want = if drawn.coverage[i] == 1.0 {
-                covered += 1;
-                drawn.image.pixels[i]
-            } else {
-                uncovered += 1;
-                sky.pixels[i]
-            };
+            let c = drawn.coverage[i];
+            covered += (c == 1.0) as usize;
+            uncovered += (c == 0.0) as usize;
+            let want: [f32; 3] =
+                std::array::from_fn(|k| drawn.image.pixels[i][k] + (1.0 - c) * sky.pixels[i][k]);
             for k in 0..3 {
                 assert!(
                     (p[k] - want[k]).abs()

@@ -151,7 +151,7 @@ pub fn run_orbit(
         let (full, _) = relight(&t, &ctx, &light, &full_req)?;
         let (k_img, _) = relight(&t, &ctx, &light, &k_req)?;
         let camera = bake_camera(&t)?;
-        let drawn = crate::relight::vertex::draw(&t, vertex_colours(&t, &full)?, &camera, None)?;
+        let drawn = crate::relight::vertex::draw(&t, vertex_colours(&t, &full)?, &camera, None, 1)?;
         let both: Vec<f32> = drawn
             .coverage
             .iter()

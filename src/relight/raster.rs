@@ -233,10 +233,12 @@ struct View {
     half_h: f64,
     width: usize,
     height: usize,
+    /// Where in each pixel this view samples, from the pixel's centre, in pixels (y down).
+    offset: DVec2,
 }
 
 impl View {
-    fn new(camera: &Camera) -> View {
+    fn new(camera: &Camera, offset: [f32; 2]) -> View {
         let f = Frame::new(camera);
         View {
             eye: f.eye.as_dvec3(),
@@ -247,6 +249,7 @@ impl View {
             half_h: f.half_h as f64,
             width: camera.width as usize,
             height: camera.height as usize,
+            offset: DVec2::new(offset[0] as f64, offset[1] as f64),
         }
     }
 
@@ -257,14 +260,14 @@ impl View {
         DVec3::new(q.dot(self.right), q.dot(self.up), q.dot(self.forward))
     }
 
-    /// The film coordinate at unit forward distance of the centre of column `x`.
+    /// The film coordinate at unit forward distance of column `x`'s sample.
     fn film_x(&self, x: usize) -> f64 {
-        (2.0 * (x as f64 + 0.5) / self.width as f64 - 1.0) * self.half_w
+        (2.0 * (x as f64 + 0.5 + self.offset.x) / self.width as f64 - 1.0) * self.half_w
     }
 
-    /// The film coordinate at unit forward distance of the centre of row `y` (up is positive).
+    /// The film coordinate at unit forward distance of row `y`'s sample (up is positive).
     fn film_y(&self, y: usize) -> f64 {
-        (1.0 - 2.0 * (y as f64 + 0.5) / self.height as f64) * self.half_h
+        (1.0 - 2.0 * (y as f64 + 0.5 + self.offset.y) / self.height as f64) * self.half_h
     }
 
     /// The film position, in pixels, of a camera-space point in front of the eye.
@@ -280,18 +283,26 @@ impl View {
 /// the forward distance from the eye and z the constant [`NEAR`], so depth is `NEAR / w`
 /// (reversed depth: 1 on the near plane, falling towards 0 at infinity, where f32 keeps its
 /// relative precision at every distance) and the clip volume's `0 <= z <= w` is exactly
-/// `w >= NEAR`. Built in f64, rounded to f32 once.
-pub fn clip_from_world(camera: &Camera) -> Mat4 {
-    let v = View::new(camera);
+/// `w >= NEAR`. With an `offset` (in pixels from a pixel's centre, y down; see
+/// [`sample_offsets`]) the film is shifted so that each pixel's sample at that offset lands on the
+/// pixel centre the hardware rasterises at. Built in f64, rounded to f32 once.
+pub fn clip_from_world(camera: &Camera, offset: [f32; 2]) -> Mat4 {
+    let v = View::new(camera, offset);
     let row = |axis: DVec3, scale: f64| {
         let a = axis / scale;
         DVec4::new(a.x, a.y, a.z, -a.dot(v.eye))
     };
+    let w = row(v.forward, 1.0);
+    // NDC x falls by 2 offset.x / width, NDC y (up) rises by 2 offset.y / height.
+    let (sx, sy) = (
+        2.0 * v.offset.x / v.width as f64,
+        2.0 * v.offset.y / v.height as f64,
+    );
     let rows = [
-        row(v.right, v.half_w),
-        row(v.up, v.half_h),
+        row(v.right, v.half_w) - w * sx,
+        row(v.up, v.half_h) + w * sy,
         DVec4::new(0.0, 0.0, 0.0, NEAR as f64),
-        row(v.forward, 1.0),
+        w,
     ];
     DMat4::from_cols(rows[0], rows[1], rows[2], rows[3])
         .transpose()
@@ -355,17 +366,17 @@ fn setup(view: &View, positions: &[Vec3], corners: [u32; 3], index: u32) -> Opti
     // Pixels whose centres may lie in the box, widened a little: the per-pixel test is exact,
     // the box only has to be conservative.
     const SLACK: f64 = 1e-3;
-    let range = |lo: f64, hi: f64, size: usize| -> Option<[u16; 2]> {
-        let first = (lo - 0.5 - SLACK).ceil().max(0.0);
-        let last = (hi - 0.5 + SLACK).floor().min(size as f64 - 1.0);
+    let range = |lo: f64, hi: f64, offset: f64, size: usize| -> Option<[u16; 2]> {
+        let first = (lo - 0.5 - offset - SLACK).ceil().max(0.0);
+        let last = (hi - 0.5 - offset + SLACK).floor().min(size as f64 - 1.0);
         (first <= last).then_some([first as u16, last as u16])
     };
     Some(Setup {
         edges,
         volume,
         clipped: corners.iter().any(|p| p.z < near),
-        x: range(lo.x, hi.x, view.width)?,
-        y: range(lo.y, hi.y, view.height)?,
+        x: range(lo.x, hi.x, view.offset.x, view.width)?,
+        y: range(lo.y, hi.y, view.offset.y, view.height)?,
         triangle: index,
     })
 }
@@ -470,12 +481,107 @@ pub fn rasterize_textured(
     if let Some(t) = texturing {
         t.check(positions.len())?;
     }
-    let view = View::new(camera);
+    Ok(draw(
+        &View::new(camera, [0.0; 2]),
+        positions,
+        triangles,
+        colours,
+        texturing,
+    ))
+}
+
+/// Samples a pixel that `prt relight` and the viewer draw a per-vertex bake with.
+pub const DRAW_SAMPLES: u32 = 4;
+
+/// The standard positions of 4 samples in a pixel (Vulkan's, Direct3D's and Metal's for 4x
+/// multisampling: a rotated grid), from the pixel's centre, in pixels with y down.
+pub const FOUR_SAMPLES: [[f32; 2]; 4] = [
+    [-0.125, -0.375],
+    [0.375, -0.125],
+    [-0.375, 0.125],
+    [0.125, 0.375],
+];
+
+/// Where `samples` samples lie in a pixel, from its centre: the centre alone for 1, the standard
+/// rotated grid ([`FOUR_SAMPLES`]) for 4; any other count is an error.
+pub fn sample_offsets(samples: u32) -> Result<&'static [[f32; 2]]> {
+    match samples {
+        1 => Ok(&[[0.0, 0.0]]),
+        4 => Ok(&FOUR_SAMPLES),
+        _ => Err(PrtError::invalid(
+            "samples",
+            format!("{samples} a pixel; 1 or 4 are drawn"),
+        )),
+    }
+}
+
+/// Draws as [`rasterize_textured`] does, with `samples` samples a pixel ([`sample_offsets`]):
+/// each sample is drawn as a pixel centre would be (its own depth test, its colour and texture
+/// coordinate at its own ray, the texture's derivatives from the same sample of the quad's other
+/// pixels), and a pixel is the mean of its samples, black where a sample draws nothing: RGB is
+/// then premultiplied by the coverage, the fraction of the samples drawn. One sample is
+/// [`rasterize_textured`].
+pub fn rasterize_multisampled(
+    camera: &Camera,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    colours: &[[f32; 3]],
+    texturing: Option<&Texturing>,
+    samples: u32,
+) -> Result<Raster> {
+    let offsets = sample_offsets(samples)?;
+    camera.validate()?;
+    check_mesh(positions, triangles, Some(colours))?;
+    if let Some(t) = texturing {
+        t.check(positions.len())?;
+    }
+    let mut sum: Option<Raster> = None;
+    for &offset in offsets {
+        let r = draw(
+            &View::new(camera, offset),
+            positions,
+            triangles,
+            colours,
+            texturing,
+        );
+        match &mut sum {
+            None => sum = Some(r),
+            Some(s) => {
+                for (a, b) in s.image.pixels.iter_mut().zip(&r.image.pixels) {
+                    for k in 0..3 {
+                        a[k] += b[k];
+                    }
+                }
+                for (a, b) in s.coverage.iter_mut().zip(&r.coverage) {
+                    *a += b;
+                }
+            }
+        }
+    }
+    let mut r = sum.expect("at least one sample");
+    let scale = 1.0 / offsets.len() as f32;
+    for p in &mut r.image.pixels {
+        *p = p.map(|v| v * scale);
+    }
+    for c in &mut r.coverage {
+        *c *= scale;
+    }
+    Ok(r)
+}
+
+/// Draws a checked mesh at `view`'s sample of every pixel.
+fn draw(
+    view: &View,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    colours: &[[f32; 3]],
+    texturing: Option<&Texturing>,
+) -> Raster {
     let (w, h) = (view.width, view.height);
     let setups: Vec<Setup> = triangles
         .par_iter()
         .enumerate()
-        .filter_map(|(i, &tri)| setup(&view, positions, tri, i as u32))
+        .filter_map(|(i, &tri)| setup(view, positions, tri, i as u32))
         .collect();
     let bands = h.div_ceil(BAND_ROWS);
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); bands];
@@ -495,7 +601,7 @@ pub fn rasterize_textured(
         .enumerate()
         .for_each(|(band, ((pixels, cov), bin))| {
             draw_band(
-                &view,
+                view,
                 &film_x,
                 &setups,
                 bin,
@@ -507,7 +613,7 @@ pub fn rasterize_textured(
                 cov,
             );
         });
-    Ok(Raster { image, coverage })
+    Raster { image, coverage }
 }
 
 #[cfg(test)]
@@ -539,7 +645,18 @@ mod tests {
         x: usize,
         y: usize,
     ) -> Option<(usize, DVec3)> {
-        let ray = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+        ray_cast_at(cam, positions, triangles, x as f32 + 0.5, y as f32 + 0.5)
+    }
+
+    /// [`ray_cast`] of the ray through film position (`px`, `py`), in pixels.
+    fn ray_cast_at(
+        cam: &Camera,
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        px: f32,
+        py: f32,
+    ) -> Option<(usize, DVec3)> {
+        let ray = cam.ray(px, py);
         let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
         let forward = cam.frame().0.as_dvec3();
         let mut best: Option<(usize, DVec3, f64)> = None;
@@ -639,6 +756,50 @@ mod tests {
             }
         }
         assert!(seen.iter().all(|&n| n > 20), "pixels per triangle {seen:?}");
+    }
+
+    #[test]
+    fn four_samples_draw_the_mean_of_what_rays_through_them_hit() {
+        let (cam, positions, triangles) = scene();
+        let colour = |p: DVec3| DVec3::new(1.0 + 0.2 * p.x, 1.5 - 0.3 * p.y, 1.2 + 0.1 * p.z);
+        let colours: Vec<[f32; 3]> = positions
+            .iter()
+            .map(|p| colour(p.as_dvec3()).as_vec3().to_array())
+            .collect();
+        let r = rasterize_multisampled(&cam, &positions, &triangles, &colours, None, 4).unwrap();
+        let w = cam.width as usize;
+        let mut partial = 0;
+        for (i, px) in r.image.pixels.iter().enumerate() {
+            let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+            let hits: Vec<DVec3> = FOUR_SAMPLES
+                .iter()
+                .filter_map(|o| ray_cast_at(&cam, &positions, &triangles, x + o[0], y + o[1]))
+                .map(|(_, p)| p)
+                .collect();
+            assert_eq!(r.coverage[i], hits.len() as f32 / 4.0, "pixel {i}");
+            partial += (1..4).contains(&hits.len()) as usize;
+            let want = hits.iter().map(|&p| colour(p)).sum::<DVec3>() / 4.0;
+            for k in 0..3 {
+                let err = (px[k] as f64 - want[k]).abs() / want[k].abs().max(1.0);
+                assert!(
+                    err < AFFINE_COLOUR_REL,
+                    "pixel {i}: {px:?}, expected {want}"
+                );
+            }
+        }
+        // The edges are antialiased: many pixels are partly covered.
+        assert!(partial > 40, "{partial} partly covered pixels");
+        // One sample is the plain raster.
+        let one = rasterize_multisampled(&cam, &positions, &triangles, &colours, None, 1).unwrap();
+        assert_eq!(
+            one,
+            rasterize(&cam, &positions, &triangles, &colours).unwrap()
+        );
+        for samples in [0, 2, 3, 8] {
+            let e = rasterize_multisampled(&cam, &positions, &triangles, &colours, None, samples)
+                .unwrap_err();
+            assert!(e.to_string().contains("samples"), "{e}");
+        }
     }
 
     #[test]
@@ -787,21 +948,32 @@ mod tests {
             up: Vec3::new(0.2, 1.0, 0.1),
             ..camera(Vec3::new(1.0, 2.0, 5.0), Vec3::new(-0.5, 0.3, 0.0), 64, 40)
         };
-        let m = clip_from_world(&cam).as_dmat4();
         let forward = cam.frame().0.as_dvec3();
-        for (x, y, dist) in [(0, 0, 0.01), (63, 39, 3.0), (17, 30, 12.0), (40, 5, 100.0)] {
-            let ray = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
-            let p = ray.origin.as_dvec3() + ray.dir.as_dvec3() * dist;
-            let clip = m * p.extend(1.0);
-            let ndc = clip.truncate() / clip.w;
-            let want_x = 2.0 * (x as f64 + 0.5) / 64.0 - 1.0;
-            let want_y = 1.0 - 2.0 * (y as f64 + 0.5) / 40.0;
-            // f32 rounding of the matrix and of the ray, the eye offset's over the forward distance.
-            let tol = 4.0 * f32::EPSILON as f64 * (1.0 + (1.0 + cam.eye.length() as f64) / clip.w);
-            assert!((ndc.x - want_x).abs() < tol, "{ndc} at ({x}, {y})");
-            assert!((ndc.y - want_y).abs() < tol, "{ndc} at ({x}, {y})");
-            let depth = NEAR as f64 / (dist * ray.dir.as_dvec3().dot(forward));
-            assert!((ndc.z - depth).abs() < tol * depth, "{} vs {depth}", ndc.z);
+        // With a sample offset, the ray through the pixel's sample lands on its centre.
+        for offset in std::iter::once([0.0; 2]).chain(FOUR_SAMPLES) {
+            let m = clip_from_world(&cam, offset).as_dmat4();
+            for (x, y, dist) in [(0, 0, 0.01), (63, 39, 3.0), (17, 30, 12.0), (40, 5, 100.0)] {
+                let ray = cam.ray(x as f32 + 0.5 + offset[0], y as f32 + 0.5 + offset[1]);
+                let p = ray.origin.as_dvec3() + ray.dir.as_dvec3() * dist;
+                let clip = m * p.extend(1.0);
+                let ndc = clip.truncate() / clip.w;
+                let want_x = 2.0 * (x as f64 + 0.5) / 64.0 - 1.0;
+                let want_y = 1.0 - 2.0 * (y as f64 + 0.5) / 40.0;
+                // f32 rounding of the matrix and of the ray, the eye offset's over the forward
+                // distance.
+                let tol =
+                    4.0 * f32::EPSILON as f64 * (1.0 + (1.0 + cam.eye.length() as f64) / clip.w);
+                assert!(
+                    (ndc.x - want_x).abs() < tol,
+                    "{ndc} at ({x}, {y}), {offset:?}"
+                );
+                assert!(
+                    (ndc.y - want_y).abs() < tol,
+                    "{ndc} at ({x}, {y}), {offset:?}"
+                );
+                let depth = NEAR as f64 / (dist * ray.dir.as_dvec3().dot(forward));
+                assert!((ndc.z - depth).abs() < tol * depth, "{} vs {depth}", ndc.z);
+            }
         }
     }
 }

@@ -9,7 +9,7 @@ use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::Image;
 use crate::relight::background::{composite, environment_behind_camera};
-use crate::relight::raster::{Raster, Texturing, rasterize_textured};
+use crate::relight::raster::{Raster, Texturing, rasterize_multisampled};
 use crate::scene::Camera;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::Transport;
@@ -193,21 +193,23 @@ pub fn vertex_colours<'a>(t: &Transport, relit: &'a Image) -> Result<&'a [[f32; 
 
 /// Draws a per-vertex bake relit to `colours` (one per vertex) as `camera` sees it, on the CPU,
 /// its textured materials multiplied by their albedo maps per pixel, with `behind` (the
-/// environment and its turn) where no surface is drawn. Also gives the coverage, for masks and
-/// tone mapping.
+/// environment and its turn) where no surface is drawn, with `samples` samples a pixel (see
+/// [`rasterize_multisampled`]). Also gives the coverage, for masks and tone mapping.
 pub fn draw(
     t: &Transport,
     colours: &[[f32; 3]],
     camera: &Camera,
     behind: Option<(&EnvMap, EnvRotation)>,
+    samples: u32,
 ) -> Result<Raster> {
     let mesh = mesh_of(t)?;
-    let raster = rasterize_textured(
+    let raster = rasterize_multisampled(
         camera,
         &mesh.positions,
         &mesh.triangles,
         colours,
         Texturing::of(mesh).as_ref(),
+        samples,
     )?;
     compose(raster, camera, behind)
 }

@@ -53,6 +53,10 @@ pub struct RelightArgs {
     /// The camera of a per-vertex bake's still.
     #[command(flatten)]
     pub view: StillArgs,
+    /// Per-vertex bakes: samples a pixel, 1 (its centre) or 4 (the standard 4x rotated grid),
+    /// each drawn and depth-tested on its own and the pixel their mean.
+    #[arg(long, default_value_t = crate::relight::raster::DRAW_SAMPLES)]
+    pub samples: u32,
 }
 
 /// Where a per-vertex bake is seen from (a per-pixel bake's view is fixed).
@@ -195,6 +199,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let mut inputs = env_files(std::slice::from_ref(&a.env));
     inputs.push(a.file.clone());
     check_image_output(&a.output, &inputs)?;
+    crate::relight::raster::sample_offsets(a.samples)?;
     let gpu = open_device(a.device)?;
     let t = Transport::load(&a.file)?;
     let still = a.view.camera(&t)?;
@@ -245,12 +250,13 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
             let mesh = crate::relight::vertex::mesh_of(&t)?;
             let texturing = crate::relight::raster::Texturing::of(mesh);
             let r = match &gpu {
-                None => crate::relight::raster::rasterize_textured(
+                None => crate::relight::raster::rasterize_multisampled(
                     camera,
                     &mesh.positions,
                     &mesh.triangles,
                     colours,
                     texturing.as_ref(),
+                    a.samples,
                 )?,
                 Some(gpu) => {
                     use crate::relight::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
@@ -261,7 +267,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
                         texturing.as_ref(),
                     )?;
                     let c = upload_colours(gpu, colours)?;
-                    GpuRaster::new(gpu)?.draw(gpu, camera, &m, &c)?
+                    GpuRaster::multisampled(gpu, a.samples)?.draw(gpu, camera, &m, &c)?
                 }
             };
             (r.image, r.coverage)

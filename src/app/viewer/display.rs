@@ -11,6 +11,7 @@ use super::{GpuView, LightKey, LightShown, backdrop};
 use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
 use crate::relight::gpu::{Gpu, GpuMesh, GpuRaster, GpuTransport};
+use crate::relight::raster::DRAW_SAMPLES;
 use crate::relight::vertex::mesh_of;
 use crate::relight::{LightContext, LightMix, RelightRequest, Terms};
 use crate::scene::Camera;
@@ -66,7 +67,7 @@ impl MeshDisplay {
                 &mesh.triangles,
                 crate::relight::raster::Texturing::of(mesh).as_ref(),
             )?,
-            raster: GpuRaster::new(gpu)?,
+            raster: GpuRaster::multisampled(gpu, DRAW_SAMPLES)?,
             backdrop: None,
         })
     }

@@ -15,6 +15,7 @@ use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::relight::background::{composite, environment_behind};
 use crate::relight::gpu::{Gpu, GpuBackend, GpuTransport};
+use crate::relight::raster::DRAW_SAMPLES;
 use crate::relight::vertex::{self, bake_camera};
 use crate::relight::{Backend, LightContext, PreparedLight, RelightRequest, RelightStats, relight};
 use crate::scene::Camera;
@@ -289,7 +290,13 @@ impl Engine {
         Ok(match self.camera(&s) {
             Some(camera) => {
                 let t = &self.transport;
-                let drawn = vertex::draw(t, vertex::vertex_colours(t, full)?, &camera, None)?;
+                let drawn = vertex::draw(
+                    t,
+                    vertex::vertex_colours(t, full)?,
+                    &camera,
+                    None,
+                    DRAW_SAMPLES,
+                )?;
                 ToneMap::auto(&drawn.image, Some(&drawn.coverage)).exposure
             }
             None => ToneMap::auto(full, None).exposure,
@@ -484,7 +491,13 @@ impl Engine {
         let (_, _, back) = self.backdrop.as_ref().expect("drawn");
         let t = &self.transport;
         let draw = |relit: &Image| -> Result<(Image, Image)> {
-            let raster = vertex::draw(t, vertex::vertex_colours(t, relit)?, camera, None)?;
+            let raster = vertex::draw(
+                t,
+                vertex::vertex_colours(t, relit)?,
+                camera,
+                None,
+                DRAW_SAMPLES,
+            )?;
             let mut over = raster.image.clone();
             for ((o, b), c) in over
                 .pixels

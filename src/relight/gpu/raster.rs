@@ -22,7 +22,9 @@ use super::Gpu;
 use crate::error::{PrtError, Result};
 use crate::gpu::{map_and_read, texture_2d};
 use crate::output::film::Image;
-use crate::relight::raster::{Frame, Raster, Texturing, check_mesh, clip_from_world};
+use crate::relight::raster::{
+    Frame, Raster, Texturing, check_mesh, clip_from_world, sample_offsets,
+};
 use crate::scene::Camera;
 use crate::scene::albedo_map::wrap_code;
 use crate::scene::texture::Filter;
@@ -221,10 +223,12 @@ struct Targets {
     depth: wgpu::TextureView,
     readback: wgpu::Buffer,
     row_bytes: u32,
+    /// With several samples a pixel: one layer per sample, and the view of each layer.
+    layers: Option<(wgpu::TextureView, Vec<wgpu::TextureView>)>,
 }
 
 impl Targets {
-    fn new(device: &wgpu::Device, width: u32, height: u32) -> Targets {
+    fn new(device: &wgpu::Device, width: u32, height: u32, samples: u32) -> Targets {
         let texture =
             |label, format, usage| texture_2d(device, label, [width, height], format, usage);
         let colour = texture(
@@ -245,6 +249,38 @@ impl Targets {
             row_bytes as u64 * height as u64,
             wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         );
+        let layers = (samples > 1).then(|| {
+            let texture = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("raster samples"),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: samples,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: COLOUR_FORMAT,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            });
+            let all = texture.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            });
+            let each = (0..samples)
+                .map(|k| {
+                    texture.create_view(&wgpu::TextureViewDescriptor {
+                        dimension: Some(wgpu::TextureViewDimension::D2),
+                        base_array_layer: k,
+                        array_layer_count: Some(1),
+                        ..Default::default()
+                    })
+                })
+                .collect();
+            (all, each)
+        });
         Targets {
             width,
             height,
@@ -252,71 +288,78 @@ impl Targets {
             depth,
             readback,
             row_bytes,
+            layers,
         }
     }
 }
 
-/// The render pipeline of `shaders/raster.wgsl`, its view uniform, and the targets of the last
+/// The render pipeline of `shaders/raster.wgsl`, a view uniform per sample, the resolve pipeline
+/// of `shaders/raster_resolve.wgsl` with several samples a pixel, and the targets of the last
 /// image size drawn.
 pub struct GpuRaster {
     pipeline: wgpu::RenderPipeline,
-    view: wgpu::Buffer,
+    views: Vec<wgpu::Buffer>,
+    offsets: &'static [[f32; 2]],
+    resolve: Option<(wgpu::RenderPipeline, wgpu::BindGroupLayout)>,
     targets: Option<Targets>,
 }
 
 impl GpuRaster {
-    /// Builds the pipeline on `gpu`'s device.
+    /// Builds the pipeline on `gpu`'s device, drawing one sample a pixel, at its centre.
     pub fn new(gpu: &Gpu) -> Result<GpuRaster> {
+        GpuRaster::multisampled(gpu, 1)
+    }
+
+    /// Builds the pipeline on `gpu`'s device, drawing `samples` samples a pixel (1 or 4, at the
+    /// positions of [`sample_offsets`]), as [`crate::relight::raster::rasterize_multisampled`]
+    /// draws them: each sample in a pass of its own, then each pixel the mean of its samples.
+    pub fn multisampled(gpu: &Gpu, samples: u32) -> Result<GpuRaster> {
+        let offsets = sample_offsets(samples)?;
         let device = &gpu.device;
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("raster"),
             source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/raster.wgsl").into()),
         });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("raster"),
-            layout: None,
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vertex"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState {
+        let pipeline = render_pipeline(
+            device,
+            "raster",
+            &module,
+            None,
+            wgpu::PrimitiveState {
                 topology: wgpu::PrimitiveTopology::TriangleList,
                 front_face: wgpu::FrontFace::Ccw,
                 cull_mode: Some(wgpu::Face::Back),
                 ..Default::default()
             },
-            depth_stencil: Some(wgpu::DepthStencilState {
+            Some(wgpu::DepthStencilState {
                 format: DEPTH_FORMAT,
                 depth_write_enabled: Some(true),
                 depth_compare: Some(wgpu::CompareFunction::Greater),
                 stencil: Default::default(),
                 bias: Default::default(),
             }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fragment"),
-                compilation_options: Default::default(),
-                targets: &[Some(COLOUR_FORMAT.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        let view = crate::gpu::buffer(
-            device,
-            "raster view",
-            VIEW_BYTES,
-            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         );
+        let views = offsets
+            .iter()
+            .map(|_| {
+                crate::gpu::buffer(
+                    device,
+                    "raster view",
+                    VIEW_BYTES,
+                    wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                )
+            })
+            .collect();
+        let resolve = (offsets.len() > 1).then(|| resolve_pipeline(device));
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!("building the raster pipeline: {e}")));
         }
         Ok(GpuRaster {
             pipeline,
-            view,
+            views,
+            offsets,
+            resolve,
             targets: None,
         })
     }
@@ -483,11 +526,13 @@ impl GpuRaster {
             .as_ref()
             .is_none_or(|t| (t.width, t.height) != (w, h))
         {
-            self.targets = Some(Targets::new(&gpu.device, w, h));
+            self.targets = Some(Targets::new(&gpu.device, w, h, self.offsets.len() as u32));
         }
     }
 
-    /// Records the render pass into `colour` (with the depth buffer of the current targets).
+    /// Records the render passes into `colour` (with the depth buffer of the current targets):
+    /// straight into it with one sample a pixel, else one pass per sample into its layer and the
+    /// resolve into `colour`.
     fn encode(
         &self,
         gpu: &Gpu,
@@ -497,23 +542,83 @@ impl GpuRaster {
         colour: &wgpu::TextureView,
         encoder: &mut wgpu::CommandEncoder,
     ) {
+        let t = self
+            .targets
+            .as_ref()
+            .expect("targets are made before encoding");
         let f = Frame::new(camera);
-        let mut uniform = clip_from_world(camera).to_cols_array().to_vec();
-        uniform.extend(f.eye.extend(0.0).to_array());
-        uniform.extend(f.right.extend(f.half_w).to_array());
-        uniform.extend(f.up.extend(f.half_h).to_array());
-        uniform.extend(f.forward.extend(0.0).to_array());
-        uniform.extend([camera.width as f32, camera.height as f32, 0.0, 0.0]);
-        debug_assert_eq!(uniform.len() as u64 * 4, VIEW_BYTES);
-        gpu.queue
-            .write_buffer(&self.view, 0, bytemuck::cast_slice(&uniform));
+        for (k, (&offset, view)) in self.offsets.iter().zip(&self.views).enumerate() {
+            let mut uniform = clip_from_world(camera, offset).to_cols_array().to_vec();
+            uniform.extend(f.eye.extend(0.0).to_array());
+            uniform.extend(f.right.extend(f.half_w).to_array());
+            uniform.extend(f.up.extend(f.half_h).to_array());
+            uniform.extend(f.forward.extend(0.0).to_array());
+            uniform.extend([
+                camera.width as f32,
+                camera.height as f32,
+                offset[0],
+                offset[1],
+            ]);
+            debug_assert_eq!(uniform.len() as u64 * 4, VIEW_BYTES);
+            gpu.queue
+                .write_buffer(view, 0, bytemuck::cast_slice(&uniform));
+            let target = match &t.layers {
+                Some((_, each)) => &each[k],
+                None => colour,
+            };
+            self.draw_pass(gpu, mesh, colours, view, target, &t.depth, encoder);
+        }
+        if let (Some((pipeline, layout)), Some((all, _))) = (&self.resolve, &t.layers) {
+            let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("raster resolve"),
+                layout,
+                entries: &[wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(all),
+                }],
+            });
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("raster resolve"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: colour,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.draw(0..3, 0..1);
+        }
+    }
+
+    /// Records one sample's pass: the mesh drawn with `view`'s uniform into `target`, with the
+    /// depth buffer cleared first.
+    #[allow(clippy::too_many_arguments)]
+    fn draw_pass(
+        &self,
+        gpu: &Gpu,
+        mesh: &GpuMesh,
+        colours: &wgpu::Buffer,
+        view: &wgpu::Buffer,
+        target: &wgpu::TextureView,
+        depth: &wgpu::TextureView,
+        encoder: &mut wgpu::CommandEncoder,
+    ) {
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("raster"),
             layout: &self.pipeline.get_bind_group_layout(0),
             entries: &[
                 wgpu::BindGroupEntry {
                     binding: 0,
-                    resource: self.view.as_entire_binding(),
+                    resource: view.as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
                     binding: 1,
@@ -549,15 +654,10 @@ impl GpuRaster {
                 },
             ],
         });
-        let depth = &self
-            .targets
-            .as_ref()
-            .expect("targets are made before encoding")
-            .depth;
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("raster"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: colour,
+                view: target,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
@@ -585,4 +685,76 @@ impl GpuRaster {
         // Not indexed: the shader reads each corner's vertex from `indices` itself.
         pass.draw(0..mesh.index_count, 0..1);
     }
+}
+
+/// The resolve pipeline (`shaders/raster_resolve.wgsl`) into a [`COLOUR_FORMAT`] target, and its
+/// bind group's layout: the samples' layers, read with `textureLoad` (32-bit floats are not
+/// filterable everywhere, so the layout says so rather than being derived).
+fn resolve_pipeline(device: &wgpu::Device) -> (wgpu::RenderPipeline, wgpu::BindGroupLayout) {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("raster resolve"),
+        source: wgpu::ShaderSource::Wgsl(
+            include_str!("../../../shaders/raster_resolve.wgsl").into(),
+        ),
+    });
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("raster resolve"),
+        entries: &[wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D2Array,
+                multisampled: false,
+            },
+            count: None,
+        }],
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("raster resolve"),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let pipeline = render_pipeline(
+        device,
+        "raster resolve",
+        &module,
+        Some(&pipeline_layout),
+        Default::default(),
+        None,
+    );
+    (pipeline, layout)
+}
+
+/// A render pipeline of `module`'s `vertex` and `fragment` entry points, with no vertex buffers,
+/// into one [`COLOUR_FORMAT`] target.
+fn render_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    layout: Option<&wgpu::PipelineLayout>,
+    primitive: wgpu::PrimitiveState,
+    depth_stencil: Option<wgpu::DepthStencilState>,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout,
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vertex"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive,
+        depth_stencil,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fragment"),
+            compilation_options: Default::default(),
+            targets: &[Some(COLOUR_FORMAT.into())],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
 }
