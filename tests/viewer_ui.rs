@@ -455,6 +455,21 @@ fn a_per_vertex_window_orbits_on_drag_and_draws_on_the_gpu() {
         .expect("the camera controls of a per-vertex bake");
     assert_eq!(h.state().state.orbit, Orbit::default());
     assert_eq!(h.state().gpu_timings().len(), 1, "drawn on the GPU");
+    // Drawn at the pane's size in pixels, not the bake's, in the bake's aspect; the worker's
+    // images too.
+    let t = wavelet_prt::store::transport::Transport::load(&common::per_vertex_transport_path())
+        .unwrap();
+    let bake = wavelet_prt::relight::vertex::bake_camera(&t).unwrap();
+    let (w, hh) = h.state().state.draw_size.expect("a draw size");
+    assert!(
+        w > 2 * bake.width && w < 1000,
+        "{w} x {hh} for a {} bake",
+        bake.width
+    );
+    let aspect = |a: u32, b: u32| a as f32 / b as f32;
+    assert!((aspect(w, hh) - aspect(bake.width, bake.height)).abs() < 0.02);
+    let r = h.state().rendered().unwrap();
+    assert_eq!((r.width, r.height), (w as usize, hh as usize));
     let error = rel_l2(&h);
     let first = h.state().rendered().unwrap().panes[0].linear.image.clone();
     let before = h.render().expect("render");

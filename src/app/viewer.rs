@@ -30,8 +30,8 @@ pub use engine::{
 pub use gpu_view::GpuView;
 pub use lights::{LightControl, LightsState, lights_controls, outline_quads};
 pub use state::{
-    DisplayState, Layout, LightKey, LightState, Limits, RelightKey, RelightState, ViewState,
-    sh_order_for_terms,
+    DisplayState, Layout, LightKey, LightState, Limits, MAX_DRAW_SIDE, RelightKey, RelightState,
+    ViewState, sh_order_for_terms,
 };
 pub use viewport::Viewport;
 pub use volume_app::{VolumeApp, VolumeEngine, VolumeFrame, VolumeState, volume_screenshot};

@@ -13,7 +13,8 @@ use super::camera;
 use super::viewport::Viewport;
 use super::worker::{Job, Loaded, Reply, TransportWorker};
 use super::{
-    DisplayPath, GpuTiming, GpuView, Layout, LightShown, Rendered, ViewState, sh_order_for_terms,
+    DisplayPath, GpuTiming, GpuView, Layout, LightShown, MAX_DRAW_SIDE, Rendered, ViewState,
+    sh_order_for_terms,
 };
 use crate::light::select::Weighting;
 use crate::relight::Method;
@@ -268,7 +269,10 @@ impl ViewerApp {
             return Ok(());
         }
         let camera = loaded.camera(&self.state);
-        let (w, h) = (loaded.size.0 as u32, loaded.size.1 as u32);
+        let (w, h) = match &camera {
+            Some(c) => (c.width, c.height),
+            None => (loaded.size.0 as u32, loaded.size.1 as u32),
+        };
         let requests = self.state.requests(loaded.limits);
         let mut lights = self.state.lights.clone();
         lights.clamp(&loaded.transport.meta.lights);
@@ -662,6 +666,15 @@ impl ViewerApp {
             .min((avail.y - title_h) / h)
             .max(0.01);
         let size = egui::vec2(w * scale, h * scale);
+        // A per-vertex bake is drawn at the pane's size in pixels.
+        if base.is_some() {
+            let ppp = ui.ctx().pixels_per_point();
+            let side = |points: f32| ((points * ppp).round() as u32).clamp(1, MAX_DRAW_SIDE);
+            let pixels = Some((side(size.x), side(size.y)));
+            if self.state.draw_size != pixels {
+                self.state.draw_size = pixels;
+            }
+        }
         let uv = self.viewport.uv();
         let split = self.state.display.split;
         let mut viewport = self.viewport;

@@ -182,7 +182,7 @@ impl Engine {
     /// The camera `state` looks through: a per-vertex bake's camera turned by
     /// [`ViewState::orbit`]; `None` for a per-pixel bake, whose view is fixed.
     pub fn camera(&self, state: &ViewState) -> Option<Camera> {
-        self.base_camera.as_ref().map(|c| state.orbit.camera(c))
+        self.base_camera.as_ref().map(|c| state.camera_of(c))
     }
 
     /// Width and height of the images shown: the bake's, or a per-vertex bake's camera's.
@@ -456,7 +456,11 @@ impl Engine {
             }
         }
         panes.extend(maps);
-        let (width, height) = self.view_size();
+        // A per-vertex bake's images are its camera's size, which the draw size sets.
+        let (width, height) = match self.camera(&state) {
+            Some(c) => (c.width as usize, c.height as usize),
+            None => self.view_size(),
+        };
         Ok(Rendered {
             width,
             height,

@@ -300,7 +300,13 @@ pub struct ViewState {
     pub orbit: Orbit,
     /// The local lights, and whether the environment shines.
     pub lights: LightsState,
+    /// The size a per-vertex bake is drawn at, in pixels: the window sets its pane's, so the
+    /// mesh is drawn at the resolution it is shown at; `None` draws at the bake camera's.
+    pub draw_size: Option<(u32, u32)>,
 }
+
+/// Largest side a per-vertex bake is drawn at in the viewer, in pixels.
+pub const MAX_DRAW_SIDE: u32 = 4096;
 
 /// What the relit values (pixels, or a per-vertex bake's vertex colours) depend on: the light,
 /// the relight and the local lights, not the display or the camera.
@@ -315,6 +321,16 @@ pub struct RelightKey {
 }
 
 impl ViewState {
+    /// The camera a per-vertex bake made from `base` is drawn through: turned by the orbit, at
+    /// the draw size.
+    pub fn camera_of(&self, base: &crate::scene::Camera) -> crate::scene::Camera {
+        let mut c = self.orbit.camera(base);
+        if let Some((w, h)) = self.draw_size {
+            (c.width, c.height) = (w.clamp(1, MAX_DRAW_SIDE), h.clamp(1, MAX_DRAW_SIDE));
+        }
+        c
+    }
+
     /// Brings every part into range; returns a note for each value that was out of range.
     pub fn clamp(&mut self, limits: Limits) -> Vec<String> {
         let mut notes = self.relight.clamp(limits);

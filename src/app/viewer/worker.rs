@@ -41,7 +41,7 @@ pub struct Loaded {
 impl Loaded {
     /// The camera `state` looks through, as [`Engine::camera`] gives it.
     pub fn camera(&self, state: &ViewState) -> Option<Camera> {
-        self.camera.as_ref().map(|c| state.orbit.camera(c))
+        self.camera.as_ref().map(|c| state.camera_of(c))
     }
 }
 
