@@ -4,7 +4,10 @@
 //!
 //! - `exact_prepare`: what `LightContext::prepare` did before, the direct splat for the unturned
 //!   cube (SH) and for the turned one (wavelets);
-//! - `first_prepare`: the same through the fast path with an empty weight cache (weights built);
+//! - `first_prepare`: the same through the fast path with an empty weight cache and the disk
+//!   off (weights recorded);
+//! - `fresh_prepare`: a fresh process's first call with the disk on: the unturned weights read
+//!   from the file an earlier process wrote (`resample::use_disk`);
 //! - `yaw_drag`: cached weights, a new yaw every iteration;
 //! - `map_switch`: cached weights, alternating between two bundled maps of the same size, each at
 //!   a new yaw;
@@ -66,7 +69,19 @@ fn prepare(c: &mut Criterion) {
         g.bench_with_input(BenchmarkId::new("exact_prepare", n), &n, |b, _| {
             b.iter(|| exact_prepare(&ctx, black_box(&sunrise), rotation))
         });
+        // The first call of a process: with the disk off the weights are recorded; with it on
+        // (the default) they are read from the file the previous process left.
+        resample::use_disk(false);
         g.bench_with_input(BenchmarkId::new("first_prepare", n), &n, |b, _| {
+            b.iter(|| {
+                resample::clear_cache();
+                ctx.prepare(black_box(&sunrise), rotation).unwrap()
+            })
+        });
+        resample::use_disk(true);
+        resample::clear_cache();
+        ctx.prepare(&sunrise, rotation).unwrap();
+        g.bench_with_input(BenchmarkId::new("fresh_prepare", n), &n, |b, _| {
             b.iter(|| {
                 resample::clear_cache();
                 ctx.prepare(black_box(&sunrise), rotation).unwrap()

@@ -1,6 +1,7 @@
 //! The process-wide cache of lat-long -> cube weights: the last few (W, H, N, pitch) asked for,
 //! most recently used first, under a lock held only to look up and insert.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use super::LatLongWeights;
@@ -34,7 +35,7 @@ pub fn weights(
             return Ok(hit);
         }
     }
-    let built = Arc::new(LatLongWeights::build(width, height, n, pitch_deg)?);
+    let built = Arc::new(build(width, height, n, pitch_deg)?);
     let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
     cache.retain(|w| !key(w));
     cache.insert(0, built.clone());
@@ -48,6 +49,35 @@ pub fn weights(
         .count();
     cache.truncate(keep.clamp(1, CACHE_ENTRIES));
     Ok(built)
+}
+
+/// Unturned weights from the disk ([`super::disk`]) when a valid file is there, else recorded
+/// (and then stored there, if the folder can be written); other pitches are recorded.
+fn build(width: usize, height: usize, n: usize, pitch_deg: f64) -> Result<LatLongWeights> {
+    let dir = (pitch_deg == 0.0 && USE_DISK.load(Ordering::Relaxed))
+        .then(super::disk::folder)
+        .flatten();
+    if let Some(dir) = &dir
+        && let Some(w) = super::disk::load(dir, width, height, n)
+    {
+        return Ok(w);
+    }
+    let w = LatLongWeights::build(width, height, n, pitch_deg)?;
+    if let Some(dir) = &dir {
+        // The disk only saves the next process the recording: a folder that cannot be written
+        // costs nothing else.
+        let _ = super::disk::store(dir, &w);
+    }
+    Ok(w)
+}
+
+/// Whether unturned weights are read from and written to the disk (on unless turned off).
+static USE_DISK: AtomicBool = AtomicBool::new(true);
+
+/// Turns the disk of unturned weights on or off for this process (benchmarks time the recording
+/// with it off).
+pub fn use_disk(on: bool) {
+    USE_DISK.store(on, Ordering::Relaxed);
 }
 
 /// Most recently used first.

@@ -40,11 +40,14 @@
 //! # Cache
 //! Weights (the `cache` module) are kept process-wide for the last few (W, H, N, pitch) asked for, under a lock that is
 //! only held to look up and insert, so the viewer's worker thread and parallel tests share them.
+//! The unturned ones (pitch 0) are also kept on disk (the `disk` module), so a fresh process
+//! reads them rather than recording them again.
 
 mod cache;
+mod disk;
 mod record;
 
-pub use cache::{clear_cache, weights};
+pub use cache::{clear_cache, use_disk, weights};
 use record::*;
 
 use std::f64::consts::{PI, TAU};
