@@ -26,8 +26,7 @@ use rayon::prelude::*;
 
 use super::{LAST, LatLongWeights, MAX_SUBCOLUMNS, TAIL_SCALE, TEXEL_BITS, UNEVEN};
 use crate::error::{PrtError, Result};
-use crate::light::latlong::pixel_solid_angle;
-use crate::math::cubemap::{solid_angles, texel_count};
+use crate::math::cubemap::texel_count;
 
 const MAGIC: &[u8; 4] = b"PRTW";
 /// Version of the layout; a file of another version is recorded again.
@@ -233,28 +232,15 @@ fn read(
     if let Some(&t) = tail.iter().find(|&&t| t as f64 > TAIL_SCALE) {
         return Err(bad(format!("a table holds {t}, past {TAIL_SCALE}")));
     }
-    let mut received = vec![0.0f64; count];
-    for (&v, &wt) in word.iter().zip(&weight) {
-        received[(v & TEXEL_BITS) as usize] += wt as f64;
-    }
-    Ok(LatLongWeights {
-        width,
-        height,
-        n,
-        pitch_deg: 0.0,
+    Ok(LatLongWeights::from_parts(
+        [width, height, n],
+        0.0,
         word,
         weight,
-        row_start,
-        row_uneven,
-        subcolumns: q,
-        resolves_cuts: resolves == 1,
+        [row_start, row_uneven],
+        (q, resolves == 1),
         tail,
-        received,
-        omega: solid_angles(n),
-        row_omega: (0..height)
-            .map(|y| pixel_solid_angle(width, height, y))
-            .collect(),
-    })
+    ))
 }
 
 /// Largest weights file read: far above the 8192 x 4096 map's (see [`super::MAX_RECORDED_PIXELS`]).

@@ -262,11 +262,34 @@ impl LatLongWeights {
                 }
             }
         }
+        Ok(LatLongWeights::from_parts(
+            [width, height, n],
+            pitch_deg,
+            word,
+            weight,
+            [row_start, row_uneven],
+            (q, largest / (q as f64) < finest),
+            tail,
+        ))
+    }
+
+    /// The weights of these recorded (or read) parts, with what the gather derives from them:
+    /// the solid angle each texel received (the sum of its f32 shares in f64, in share order),
+    /// the exact texel solid angles and the solid angle of a pixel of each row.
+    fn from_parts(
+        [width, height, n]: [usize; 3],
+        pitch_deg: f64,
+        word: Vec<u32>,
+        weight: Vec<f32>,
+        [row_start, row_uneven]: [Vec<usize>; 2],
+        (subcolumns, resolves_cuts): (usize, bool),
+        tail: Vec<u16>,
+    ) -> LatLongWeights {
         let mut received = vec![0.0f64; texel_count(n)];
         for (&w, &s) in word.iter().zip(&weight) {
             received[(w & TEXEL_BITS) as usize] += s as f64;
         }
-        Ok(LatLongWeights {
+        LatLongWeights {
             width,
             height,
             n,
@@ -275,15 +298,15 @@ impl LatLongWeights {
             weight,
             row_start,
             row_uneven,
-            subcolumns: q,
-            resolves_cuts: largest / (q as f64) < finest,
+            subcolumns,
+            resolves_cuts,
             tail,
             received,
             omega: solid_angles(n),
             row_omega: (0..height)
                 .map(|y| pixel_solid_angle(width, height, y))
                 .collect(),
-        })
+        }
     }
 
     /// Recorded shares (non-zeros of the matrix): (all, uneven across their cell's width).
