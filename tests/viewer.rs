@@ -547,7 +547,7 @@ fn per_vertex_engine() -> (Engine, ViewState) {
 fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
     use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
     use wavelet_prt::relight::background::environment_behind_camera;
-    use wavelet_prt::relight::raster::{DRAW_SAMPLES, rasterize_multisampled};
+    use wavelet_prt::relight::raster::rasterize_multisampled;
     use wavelet_prt::relight::vertex::{Orbit, bake_camera, vertex_colours};
     use wavelet_prt::relight::{LightContext, RelightRequest, relight};
     let (mut e, mut s) = per_vertex_engine();
@@ -590,7 +590,7 @@ fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
             &mesh.triangles,
             colours,
             None,
-            DRAW_SAMPLES,
+            s.draw_samples(),
         )
         .unwrap();
         let open = vec![0.0; drawn.coverage.len()];
@@ -653,6 +653,8 @@ fn the_gpu_view_of_a_per_vertex_bake_shows_what_the_cpu_path_shows() {
     };
     let (mut e, mut s) = per_vertex_engine();
     e.attach_gpu(gpu);
+    // As the window shows the GPU's images: the CPU path draws as many samples as they do.
+    s.display.gpu = true;
     s.orbit.azimuth_deg = 50.0;
     s.orbit.elevation_deg = 15.0;
     for (method, compare) in [(Method::Wavelet, false), (Method::Sh, true)] {

@@ -15,7 +15,6 @@ use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::relight::background::{composite, environment_behind};
 use crate::relight::gpu::{Gpu, GpuBackend, GpuTransport};
-use crate::relight::raster::DRAW_SAMPLES;
 use crate::relight::vertex::{self, bake_camera};
 use crate::relight::{Backend, LightContext, PreparedLight, RelightRequest, RelightStats, relight};
 use crate::scene::Camera;
@@ -295,7 +294,7 @@ impl Engine {
                     vertex::vertex_colours(t, full)?,
                     &camera,
                     None,
-                    DRAW_SAMPLES,
+                    s.draw_samples(),
                 )?;
                 ToneMap::auto(&drawn.image, Some(&drawn.coverage)).exposure
             }
@@ -500,7 +499,7 @@ impl Engine {
                 vertex::vertex_colours(t, relit)?,
                 camera,
                 None,
-                DRAW_SAMPLES,
+                state.draw_samples(),
             )?;
             let mut over = raster.image.clone();
             for ((o, b), c) in over
