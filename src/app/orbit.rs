@@ -194,23 +194,24 @@ pub fn run_orbit(
     let camera = bake_camera(&t)?;
     let mesh = crate::relight::vertex::mesh_of(&t)?;
     let texturing = crate::relight::raster::Texturing::of(mesh);
-    let draw = |colours: &[[f32; 3]], camera: &crate::scene::Camera| {
-        crate::relight::raster::rasterize_textured(
+    let draw = |colours: &[[f32; 3]], camera: &crate::scene::Camera, samples: u32| {
+        crate::relight::raster::rasterize_multisampled(
             camera,
             &mesh.positions,
             &mesh.triangles,
             colours,
             texturing.as_ref(),
+            samples,
         )
     };
-    // Frames as the viewer makes them: relight at K terms, draw.
+    // Frames as the viewer makes them on the CPU: relight at K terms, draw the pixel centres.
     let mut times = Vec::new();
     let mut k_img = k_img;
     for _ in 0..5 {
         let t0 = Instant::now();
         let (img, _) = relight(&t, &ctx, &light, &k_req)?;
         let t1 = Instant::now();
-        let raster = draw(vertex_colours(&t, &img)?, &camera)?;
+        let raster = draw(vertex_colours(&t, &img)?, &camera, 1)?;
         let t2 = Instant::now();
         times.push([
             (t1 - t0).as_secs_f64(),
@@ -230,7 +231,12 @@ pub fn run_orbit(
     let mut shots: Vec<(Image, [String; 2])> = Vec::new();
     for az in ORBIT_AZIMUTHS {
         let cam = orbit(&camera, az, 0.0);
-        let shot = compose(draw(colours, &cam)?, &cam, Some((env, rotation)))?;
+        // Drawn as `prt relight` and the GPU display draw: antialiased.
+        let shot = compose(
+            draw(colours, &cam, crate::relight::raster::DRAW_SAMPLES)?,
+            &cam,
+            Some((env, rotation)),
+        )?;
         shots.push((
             shot.image,
             [format!("K = {ORBIT_TERMS}, turned {az}°"), name.to_string()],
