@@ -481,18 +481,7 @@ pub fn rasterize_textured(
     colours: &[[f32; 3]],
     texturing: Option<&Texturing>,
 ) -> Result<Raster> {
-    camera.validate()?;
-    check_mesh(positions, triangles, Some(colours))?;
-    if let Some(t) = texturing {
-        t.check(positions.len())?;
-    }
-    Ok(draw(
-        &View::new(camera, [0.0; 2]),
-        positions,
-        triangles,
-        colours,
-        texturing,
-    ))
+    rasterize_multisampled(camera, positions, triangles, colours, texturing, 1)
 }
 
 /// Samples a pixel that `prt relight` and the viewer draw a per-vertex bake with.
@@ -524,8 +513,8 @@ pub fn sample_offsets(samples: u32) -> Result<&'static [[f32; 2]]> {
 /// each sample is drawn as a pixel centre would be (its own depth test, its colour and texture
 /// coordinate at its own ray, the texture's derivatives from the same sample of the quad's other
 /// pixels), and a pixel is the mean of its samples, black where a sample draws nothing: RGB is
-/// then premultiplied by the coverage, the fraction of the samples drawn. One sample is
-/// [`rasterize_textured`].
+/// then premultiplied by the coverage, the fraction of the samples drawn. Errors as
+/// [`rasterize_textured`] does, and on a sample count other than 1 or 4.
 pub fn rasterize_multisampled(
     camera: &Camera,
     positions: &[Vec3],
@@ -564,12 +553,14 @@ pub fn rasterize_multisampled(
         }
     }
     let mut r = sum.expect("at least one sample");
-    let scale = 1.0 / offsets.len() as f32;
-    for p in &mut r.image.pixels {
-        *p = p.map(|v| v * scale);
-    }
-    for c in &mut r.coverage {
-        *c *= scale;
+    if offsets.len() > 1 {
+        let scale = 1.0 / offsets.len() as f32;
+        for p in &mut r.image.pixels {
+            *p = p.map(|v| v * scale);
+        }
+        for c in &mut r.coverage {
+            *c *= scale;
+        }
     }
     Ok(r)
 }

@@ -670,10 +670,7 @@ impl ViewerApp {
         if base.is_some() {
             let ppp = ui.ctx().pixels_per_point();
             let side = |points: f32| ((points * ppp).round() as u32).clamp(1, MAX_DRAW_SIDE);
-            let pixels = Some((side(size.x), side(size.y)));
-            if self.state.draw_size != pixels {
-                self.state.draw_size = pixels;
-            }
+            self.state.draw_size = Some((side(size.x), side(size.y)));
         }
         let uv = self.viewport.uv();
         let split = self.state.display.split;
