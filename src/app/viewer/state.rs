@@ -324,7 +324,7 @@ impl ViewState {
     /// Samples a pixel a per-vertex bake is drawn with on the CPU: [`DRAW_SAMPLES`] when the
     /// window shows the GPU's images (which draw that many; the CPU's are then for saving),
     /// else 1, so a window without a GPU stays interactive at its pane's size (on 2 cores, a
-    /// 760² draw of the demo's 84k vertices takes 14 ms at 1 sample and 60 ms at 4).
+    /// 760² draw of the demo's 84k vertices takes 13 ms at 1 sample and 61 ms at 4).
     ///
     /// [`DRAW_SAMPLES`]: crate::relight::raster::DRAW_SAMPLES
     pub fn draw_samples(&self) -> u32 {
