@@ -12,6 +12,7 @@
 
 mod file;
 pub mod gpu;
+pub mod path_trace;
 pub mod render;
 
 use glam::Vec3;
@@ -184,4 +185,4 @@ pub fn bake_transfer(
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -1,4 +1,5 @@
-//! `prt volume bake` and `prt volume render`: the SH self-transfer of a medium and its ray march.
+//! `prt volume bake`, `prt volume render` and `prt volume reference`: the SH self-transfer of a
+//! medium, its ray march, and the volumetric path tracer that holds both.
 
 use super::*;
 
@@ -61,6 +62,56 @@ pub struct VolumeRenderArgs {
     /// software one included).
     #[arg(long, value_enum, default_value_t = Device::Auto)]
     pub device: Device,
+    /// Exposure in stops for a .png (default automatic).
+    #[arg(long, allow_negative_numbers = true)]
+    pub exposure: Option<f32>,
+}
+
+/// Arguments of `prt volume reference`.
+#[derive(Args, Debug)]
+pub struct VolumeReferenceArgs {
+    /// Scene file (TOML) with a [medium], or a volume file (.prtv), whose density grid and
+    /// default view it takes (none of its transfer).
+    pub file: PathBuf,
+    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    #[arg(long)]
+    pub env: String,
+    /// Output image (.exr linear, .png tone-mapped).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Paths per pixel.
+    #[arg(long, default_value_t = 256)]
+    pub samples: u32,
+    /// Most scattering events on a path (1 is single scattering; default: every order).
+    #[arg(long)]
+    pub max_order: Option<u32>,
+    /// Voxels along the longest side of a scene's medium (as `prt volume bake --grid`).
+    #[arg(long)]
+    pub grid: Option<usize>,
+    /// Albedo R,G,B in place of the medium's (as the viewer's slider sets it).
+    #[arg(long, value_parser = parse_vec3)]
+    pub albedo: Option<glam::Vec3>,
+    /// Camera position X,Y,Z (default: the scene's camera).
+    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true)]
+    pub eye: Option<glam::Vec3>,
+    /// Point the camera looks at, X,Y,Z (default: the scene's target).
+    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true)]
+    pub target: Option<glam::Vec3>,
+    /// Image width (default: the scene's).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height (default: the scene's).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// How the environment is turned.
+    #[command(flatten)]
+    pub turn: TurnArgs,
+    /// Cube face size the environment is resampled to (as `prt volume render`'s light).
+    #[arg(long, default_value_t = 32)]
+    pub cube: usize,
+    /// Seed of the paths.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
     /// Exposure in stops for a .png (default automatic).
     #[arg(long, allow_negative_numbers = true)]
     pub exposure: Option<f32>,
@@ -159,6 +210,82 @@ pub(super) fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
         camera.width,
         camera.height,
         view.name()
+    );
+    println!("wrote {}", a.output.display());
+    Ok(())
+}
+
+pub(super) fn volume_reference_cmd(a: VolumeReferenceArgs) -> Result<()> {
+    use crate::volume::path_trace::{VolumeTraceSettings, path_trace_volume};
+    use crate::volume::{VolumeTransfer, is_volume_file};
+    check_light_flags(a.turn.yaw, a.turn.pitch, a.exposure)?;
+    let mut inputs = env_files(std::slice::from_ref(&a.env));
+    inputs.push(a.file.clone());
+    check_image_output(&a.output, &inputs)?;
+    let size = |w: u32, h: u32| match (a.width, a.height) {
+        (None, None) => None,
+        (x, y) => Some((x.unwrap_or(w), y.unwrap_or(h))),
+    };
+    let (mut medium, camera) = if is_volume_file(&a.file) {
+        if a.grid.is_some() {
+            return Err(PrtError::invalid(
+                "--grid",
+                "a volume file keeps the grid it was baked on; give the scene to resample",
+            ));
+        }
+        let vt = VolumeTransfer::load(&a.file)?;
+        let camera = vt.camera(a.eye, a.target, size(vt.meta.width, vt.meta.height))?;
+        (vt.medium(), camera)
+    } else {
+        let scene = Scene::load(&a.file)?;
+        let spec = scene
+            .medium
+            .as_ref()
+            .ok_or_else(|| PrtError::file(&a.file, "the scene has no [medium] to trace"))?;
+        let mut camera = scene.camera.clone();
+        camera.eye = a.eye.unwrap_or(camera.eye);
+        camera.target = a.target.unwrap_or(camera.target);
+        if let Some((w, h)) = size(camera.width, camera.height) {
+            (camera.width, camera.height) = (w, h);
+        }
+        camera.validate()?;
+        (spec.build(a.grid)?, camera)
+    };
+    if let Some(albedo) = a.albedo {
+        medium.albedo = albedo;
+    }
+    crate::math::cubemap::validate_n(a.cube)?;
+    let env = load_env(&a.env)?;
+    let cube = env.to_cube(a.cube, a.turn.rotation())?;
+    let settings = VolumeTraceSettings {
+        samples: a.samples,
+        max_order: a.max_order,
+        seed: a.seed,
+    };
+    let start = Instant::now();
+    let rows = bar(camera.height as u64, "rows");
+    let traced = path_trace_volume(&medium, &cube, &camera, &settings, &|done, _| {
+        rows.set_position(done as u64)
+    })?;
+    rows.finish_and_clear();
+    traced.image.check_finite("volume reference image")?;
+    let tone = match a.exposure {
+        Some(e) => ToneMap::exposure(e),
+        None => ToneMap::auto(&traced.image, None),
+    };
+    traced.image.save(&a.output, tone)?;
+    let orders = match a.max_order {
+        Some(m) => format!("up to {m} scattering events"),
+        None => "every scattering order".into(),
+    };
+    println!(
+        "volume reference: {}x{}, {} paths per pixel, {orders}, {:.1} s; standard error {:.3}% \
+         of the image (relative L2)",
+        camera.width,
+        camera.height,
+        a.samples,
+        start.elapsed().as_secs_f64(),
+        100.0 * traced.relative_noise(None)
     );
     println!("wrote {}", a.output.display());
     Ok(())
