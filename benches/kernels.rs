@@ -244,8 +244,8 @@ fn cloud64() -> wavelet_prt::medium::Medium {
 
 fn volume(c: &mut Criterion) {
     use wavelet_prt::volume::{
-        PhaseLight, TransferSettings, VolumeMeta, VolumeTransfer, VolumeView, bake_transfer,
-        render_volume,
+        PhaseLight, TransferSettings, VolumeLight, VolumeMeta, VolumeTransfer, VolumeView,
+        bake_transfer, render_volume,
     };
     let medium = cloud64();
     let mut g = c.benchmark_group("volume");
@@ -254,6 +254,7 @@ fn volume(c: &mut Criterion) {
         let settings = TransferSettings {
             sh_order: order,
             directions: 512,
+            ..TransferSettings::default()
         };
         g.bench_function(format!("transfer_bake_64^3_512dirs_order{order}"), |b| {
             b.iter(|| bake_transfer(black_box(&medium), &settings, &|_, _| {}).unwrap())
@@ -279,12 +280,14 @@ fn volume(c: &mut Criterion) {
             width: 512,
             height: 512,
             scene_hash: String::new(),
+            scatter: None,
         },
         density: medium.grid.data.clone(),
         transfer,
+        scatter: None,
     };
     let cube = sunrise().to_cube(32, EnvRotation::default()).unwrap();
-    let light = PhaseLight::new(&cube, 3, medium.g);
+    let light = VolumeLight::single(&cube, 3, medium.albedo, medium.g);
     let cam = vt.camera(None, None, None).unwrap();
     g.bench_function("march_cpu_512x512_order3", |b| {
         b.iter(|| render_volume(&vt, &light, &cam, VolumeView::Full))

@@ -2,6 +2,8 @@
 // twin, step for step): one thread per pixel marches its camera ray in half-voxel steps through
 // the density's support, and at each sample adds T_cam · sigma_t · dt · albedo · Σ_i P_i(d) T_i(x),
 // with T_i trilinear (clamped) from the transfer grid and P(d) bilinear from the phase-light table.
+// Scattering of orders 2 and above adds T_cam · sigma_t · dt · Σ_a g^l Y_a(d) F_a(x), with the
+// light's scattered field F (albedo powers included) trilinear like the transfer.
 
 struct Params {
     eye: vec3<f32>,
@@ -20,6 +22,10 @@ struct Params {
     extinction: f32,
     albedo: vec3<f32>,
     step: f32,
+    g: f32,
+    ms_n2: u32,             // coefficients of the scattered field per voxel (0: single scattering)
+    pad0: u32,
+    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -27,9 +33,28 @@ struct Params {
 @group(0) @binding(2) var<storage, read> transfer: array<f32>;
 @group(0) @binding(3) var<storage, read> table: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> image: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read> scatter: array<vec4<f32>>;
 
 const PI: f32 = 3.14159265358979;
 const MAX_N2: u32 = 64u;
+const MAX_MS_N2: u32 = 9u;
+
+// Real SH to band 2 in the project's convention (CONVENTIONS.md: Condon–Shortley phase, +z
+// polar), times g^l: the weights of the scattered field's coefficients along d.
+fn field_weights(d: vec3<f32>, g: f32) -> array<f32, MAX_MS_N2> {
+    let g2 = g * g;
+    return array<f32, MAX_MS_N2>(
+        0.2820948,
+        -0.4886025 * d.y * g,
+        0.4886025 * d.z * g,
+        -0.4886025 * d.x * g,
+        1.0925484 * d.x * d.y * g2,
+        -1.0925484 * d.y * d.z * g2,
+        0.3153916 * (3.0 * d.z * d.z - 1.0) * g2,
+        -1.0925484 * d.x * d.z * g2,
+        0.5462742 * (d.x * d.x - d.y * d.y) * g2,
+    );
+}
 
 fn voxel(x: i32, y: i32, z: i32) -> f32 {
     let d = vec3<i32>(params.dims);
@@ -124,6 +149,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let t0 = max(max(max(tmin.x, tmin.y), tmin.z), 0.0);
     let t1 = min(min(tmax.x, tmax.y), tmax.z);
     var sum = vec3<f32>(0.0);
+    var more = vec3<f32>(0.0);
+    let ms_n2 = params.ms_n2;
+    let cw = field_weights(dir, params.g);
     var transmittance = 1.0;
     if t1 > t0 {
         let steps = max(ceil((t1 - t0) / params.step), 1.0);
@@ -149,6 +177,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                 let cy = axis_coord(u.y, dims.y);
                 let cz = axis_coord(u.z, dims.z);
                 var acc = vec3<f32>(0.0);
+                var acc_ms = vec3<f32>(0.0);
                 for (var corner = 0u; corner < 8u; corner++) {
                     let bx = corner & 1u;
                     let by = (corner >> 1u) & 1u;
@@ -158,7 +187,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                     let iz = u32(select(cz.x, cz.y, bz == 1u));
                     let w = select(1.0 - cx.z, cx.z, bx == 1u) * select(1.0 - cy.z, cy.z, by == 1u)
                         * select(1.0 - cz.z, cz.z, bz == 1u);
-                    let base = ((iz * dims.y + iy) * dims.x + ix) * n2;
+                    let voxel_index = (iz * dims.y + iy) * dims.x + ix;
+                    let base = voxel_index * n2;
+                    if params.view <= 1u {
+                        for (var a = 0u; a < ms_n2; a++) {
+                            acc_ms += w * cw[a] * scatter[voxel_index * ms_n2 + a].xyz;
+                        }
+                    }
                     if params.view == 3u {
                         acc.x += w * transfer[base];
                     } else {
@@ -171,6 +206,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                     sum += vec3<f32>(weight * acc.x * 0.5 / sqrt(PI));
                 } else {
                     sum += weight * acc;
+                    more += weight * acc_ms;
                 }
             }
             if params.view != 1u && transmittance < 1e-4 {
@@ -179,7 +215,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             }
         }
     }
-    var rgb = sum * params.albedo;
+    var rgb = sum * params.albedo + more;
     if params.view == 2u {
         rgb = vec3<f32>(transmittance);
     } else if params.view == 3u {

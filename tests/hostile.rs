@@ -37,6 +37,16 @@ fn transport_file(dir: &Path) -> PathBuf {
 }
 
 /// A small volume file of the fog blob in `dir`.
+/// Two scattering orders at low resolution: enough to write and read the scattered fields.
+fn small_scatter() -> wavelet_prt::volume::ScatterSettings {
+    wavelet_prt::volume::ScatterSettings {
+        orders: 2,
+        angular: 2,
+        light: 2,
+        directions: 16,
+    }
+}
+
 fn volume_file(dir: &Path) -> PathBuf {
     let scene_path = dir.join("fog.toml");
     std::fs::write(&scene_path, fog_scene(0.3, 12, 10)).unwrap();
@@ -44,6 +54,7 @@ fn volume_file(dir: &Path) -> PathBuf {
     let settings = TransferSettings {
         sh_order: 2,
         directions: 32,
+        scatter: small_scatter(),
     };
     let vt = bake_volume(&scene, Some(8), &settings, &|_, _| {}).unwrap();
     let p = dir.join("fog.prtv");
@@ -729,9 +740,13 @@ fn a_medium_box_far_longer_than_its_grid_sweeps_without_a_giant_buffer() {
     let settings = TransferSettings {
         sh_order: 2,
         directions: 64,
+        scatter: small_scatter(),
     };
     let vt = bake_volume(&scene, None, &settings, &|_, _| {}).unwrap();
     assert!(vt.transfer.iter().all(|v| v.is_finite()));
+    let scattered = vt.scatter.as_ref().unwrap();
+    assert!(scattered.fields.iter().flatten().all(|v| v.is_finite()));
+    assert!(scattered.tail_ratio.is_finite());
     let bake_settings = BakeSettings {
         cube_n: 2,
         sh_order: 1,

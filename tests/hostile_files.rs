@@ -482,6 +482,12 @@ fn metadata_cannot_switch_off_its_own_checks() {
     let settings = TransferSettings {
         sh_order: 2,
         directions: 32,
+        scatter: wavelet_prt::volume::ScatterSettings {
+            orders: 2,
+            angular: 2,
+            light: 2,
+            directions: 16,
+        },
     };
     let scene = wavelet_prt::scene::Scene::load(&scene).unwrap();
     let vpath = dir.join("fog.prtv");

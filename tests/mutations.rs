@@ -35,7 +35,8 @@ use wavelet_prt::relight::{LightContext, PreparedLight, RelightRequest, relight}
 use wavelet_prt::scene::Scene;
 use wavelet_prt::store::transport::{Quantization, Transport};
 use wavelet_prt::volume::{
-    PhaseLight, TransferSettings, VolumeTransfer, VolumeView, bake_volume, render_volume,
+    MediumLook, ScatterSettings, TransferSettings, VolumeLight, VolumeTransfer, VolumeView,
+    bake_volume, render_volume,
 };
 
 /// Inputs each test tries (times `PRT_MUTATIONS`): 88,000 in all, about 45 s of
@@ -634,7 +635,7 @@ fn exercise_volume(vt: &VolumeTransfer, env: &EnvMap) -> Result<(), String> {
         .to_cube(4, EnvRotation::default())
         .map_err(|e| e.to_string())?;
     for view in VolumeView::ALL {
-        let light = PhaseLight::new(&cube, vt.meta.sh_order, vt.meta.g);
+        let light = VolumeLight::new(vt, &cube, &MediumLook::of(vt)).map_err(|e| e.to_string())?;
         let image = render_volume(vt, &light, &camera, view);
         // The commands refuse an image with a NaN; here it only counts as refused.
         let _ = image.check_finite("volume image");
@@ -649,11 +650,19 @@ fn mutated_volumes_are_errors_or_render() {
     let scene_path = dir.join("fog.toml");
     std::fs::write(&scene_path, fog_scene(0.3, 12, 10)).unwrap();
     let scene = Scene::load(&scene_path).unwrap();
+    // Three orders, so that the scattered fields and their metadata are damaged too.
     let settings = TransferSettings {
         sh_order: 2,
         directions: 16,
+        scatter: ScatterSettings {
+            orders: 3,
+            angular: 2,
+            light: 2,
+            directions: 16,
+        },
     };
     let vt = bake_volume(&scene, Some(6), &settings, &|_, _| {}).unwrap();
+    assert!(vt.scatter.is_some());
     let good = dir.join("fog.prtv");
     vt.save(&good).unwrap();
     let file = StFile::read(&good);
@@ -1036,6 +1045,12 @@ fn mutated_grids_are_errors_or_render() {
             let settings = TransferSettings {
                 sh_order: 2,
                 directions: 16,
+                scatter: ScatterSettings {
+                    orders: 2,
+                    angular: 2,
+                    light: 2,
+                    directions: 16,
+                },
             };
             let Ok(vt) = bake_volume(&scene, None, &settings, &|_, _| {}) else {
                 return Ok(true);

@@ -14,7 +14,21 @@ use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::RelightRequest;
 use wavelet_prt::scene::Scene;
-use wavelet_prt::volume::{PhaseLight, TransferSettings, VolumeView, bake_volume, render_volume};
+use wavelet_prt::volume::{
+    MediumLook, ScatterSettings, TransferSettings, VolumeLight, VolumeView, bake_volume,
+    render_volume,
+};
+
+/// Single scattering alone: what the brute-force reference of a medium computes.
+fn single() -> TransferSettings {
+    TransferSettings {
+        scatter: ScatterSettings {
+            orders: 1,
+            ..ScatterSettings::default()
+        },
+        ..TransferSettings::default()
+    }
+}
 
 /// The transmittance view (the camera march, half-voxel steps) against the medium's own
 /// transmittance (one-voxel midpoint steps) along each pixel's ray: two discretisations of one
@@ -197,12 +211,12 @@ fn sh_march_matches_the_brute_force_reference_under_low_frequency_light() {
     // the light-phase product).
     for (g, tolerance) in [(0.0f32, SH_MARCH_ISOTROPIC), (0.4, SH_MARCH_FORWARD)] {
         let scene = scene_from(&fog(g), &format!("vol-sh-{g}"));
-        let vt = bake_volume(&scene, None, &TransferSettings::default(), &|_, _| {}).unwrap();
+        let vt = bake_volume(&scene, None, &single(), &|_, _| {}).unwrap();
         for (name, cube) in [
             ("constant", CubeMap::constant(8, [1.0, 0.9, 0.8]).unwrap()),
             ("sky", sky_cube(8)),
         ] {
-            let light = PhaseLight::new(&cube, 3, g);
+            let light = VolumeLight::new(&vt, &cube, &MediumLook::of(&vt)).unwrap();
             let img = render_volume(&vt, &light, &scene.camera, VolumeView::Full);
             let settings = BakeSettings {
                 cube_n: 8,
@@ -219,9 +233,9 @@ fn sh_march_matches_the_brute_force_reference_under_low_frequency_light() {
 #[test]
 fn debug_views_agree_with_what_they_show() {
     let scene = scene_from(&fog(0.0), "vol-views");
-    let vt = bake_volume(&scene, None, &TransferSettings::default(), &|_, _| {}).unwrap();
+    let vt = bake_volume(&scene, None, &single(), &|_, _| {}).unwrap();
     let cube = CubeMap::constant(8, [1.0; 3]).unwrap();
-    let light = PhaseLight::new(&cube, 3, 0.0);
+    let light = VolumeLight::new(&vt, &cube, &MediumLook::of(&vt)).unwrap();
     let cam = &scene.camera;
     let t = render_volume(&vt, &light, cam, VolumeView::Transmittance);
     let full = render_volume(&vt, &light, cam, VolumeView::Full);
@@ -257,7 +271,9 @@ fn gpu_march_equals_the_cpu_march() {
         let vt = bake_volume(&scene, None, &TransferSettings::default(), &|_, _| {}).unwrap();
         let env = EnvMap::load(&common::assets().join("envmaps/blender_sunrise.exr")).unwrap();
         let cube = env.to_cube(16, EnvRotation::default()).unwrap();
-        let light = PhaseLight::new(&cube, 3, g);
+        // Every baked order, with the scattered field the march adds.
+        assert!(vt.orders() > 1);
+        let light = VolumeLight::new(&vt, &cube, &MediumLook::of(&vt)).unwrap();
         let mut gv = wavelet_prt::volume::gpu::GpuVolume::new(&gpu, &vt).unwrap();
         // A free camera away from the baked one, at a size 8x8 workgroups do not divide.
         let cam = vt

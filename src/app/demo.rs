@@ -349,7 +349,9 @@ fn run_volume_demo(
     assets: &Path,
     log: &mut dyn FnMut(&str),
 ) -> Result<(f64, Vec<(String, f64)>)> {
-    use crate::volume::{PhaseLight, TransferSettings, VolumeView, bake_volume, render_volume};
+    use crate::volume::{
+        MediumLook, TransferSettings, VolumeLight, VolumeView, bake_volume, render_volume,
+    };
     let scene = Scene::load(&assets.join("scenes/cloud.toml"))?;
     let start = std::time::Instant::now();
     let vt = bake_volume(&scene, None, &TransferSettings::default(), &|_, _| {})?;
@@ -371,7 +373,7 @@ fn run_volume_demo(
     for entry in bundled_envs(assets) {
         let (name, env) = entry?;
         let cube = env.to_cube(32, EnvRotation::default())?;
-        let light = PhaseLight::new(&cube, vt.meta.sh_order, vt.meta.g);
+        let light = VolumeLight::new(&vt, &cube, &MediumLook::of(&vt))?;
         let start = std::time::Instant::now();
         let img = render_volume(&vt, &light, &camera, VolumeView::Full);
         rows.push((name.clone(), start.elapsed().as_secs_f64() * 1e3));

@@ -3,6 +3,12 @@
 //! the per-pixel medium rows use it). Each voxel takes the optical depth of the point one slice
 //! upstream (bilinear in the previous slice, the same weights for the whole slice) plus the
 //! trapezoid of the density over that step.
+//!
+//! The same sweep also gathers what a source inside the medium sends along a direction
+//! ([`Sweeper::gather`], for scattering of higher orders): the short-characteristics scheme of
+//! radiative transfer, where each voxel takes the gathered radiance of its upstream point,
+//! attenuated over the step, plus the step's own emission with the source linear in optical
+//! depth between the two ends.
 
 use glam::Vec3;
 
@@ -152,21 +158,8 @@ impl Sweeper {
         let [a, b, c] = layout.axes;
         let [na, nb, nc] = layout.n;
         let h = self.cell[a] / dir[a].abs();
-        // The upstream point's offset in cells along b and c. Very flat voxels (a box far
-        // longer than its grid is fine) can put it many grids away: beyond one grid it only
-        // reads the empty padding, so it is cut there (and the padding stays small).
-        let offset = |o: f32, n: usize| -> (f32, f32) {
-            let limit = n as f32 + 1.0;
-            if o.abs() <= limit {
-                (o.floor(), o - o.floor())
-            } else if o > limit {
-                (limit, 0.0)
-            } else {
-                (-limit - 1.0, 0.0)
-            }
-        };
-        let (fb, wb) = offset(h * dir[b] / self.cell[b], nb);
-        let (fc, wc) = offset(h * dir[c] / self.cell[c], nc);
+        let (fb, wb) = upstream_offset(h * dir[b] / self.cell[b], nb);
+        let (fc, wc) = upstream_offset(h * dir[c] / self.cell[c], nc);
         let (ib, ic) = (fb as isize, fc as isize);
         let pad = [ib, ib + 1, ic, ic + 1]
             .iter()
@@ -205,6 +198,138 @@ impl Sweeper {
             }
             std::mem::swap(&mut up, &mut next);
         }
+    }
+}
+
+impl Sweeper {
+    /// Voxels in the layout of `dir`'s sweep axis (every layout holds them all).
+    pub fn voxel_count(&self) -> usize {
+        self.dims.iter().product()
+    }
+
+    /// Gathers towards every voxel centre `x` what `channels` sources send along `−dir`:
+    /// `I(x) = ∫₀^∞ e^(−tau(x, x + s·dir)) sigma_t(x + s·dir) S(x + s·dir) ds`, the radiance
+    /// arriving at `x` from direction `dir` (unit) emitted by the source `S` (per unit optical
+    /// depth). `source` and `out` are in the layout of `dir`'s axis
+    /// ([`Sweeper::local_of_global`]), `channels` values per voxel.
+    ///
+    /// Each voxel takes the upstream point's `I`, `S` and `sigma_t` (bilinear in the previous
+    /// slice; outside the grid `I` and `sigma_t` are zero and `S` is the voxel's own), and over the step of optical depth `Δ = h (sigma_x +
+    /// sigma_up) / 2` adds `e^−Δ I_up + S_x (1 − (1 − e^−Δ)/Δ) + S_up ((1 − e^−Δ)/Δ − e^−Δ)`,
+    /// the exact integral for a source linear in optical depth.
+    pub fn gather(&self, dir: Vec3, channels: usize, source: &[f32], out: &mut [f32]) {
+        let layout = &self.layouts[Self::axis_of(dir)];
+        let [a, b, c] = layout.axes;
+        let [na, nb, nc] = layout.n;
+        let ch = channels;
+        debug_assert_eq!(source.len(), na * nb * nc * ch);
+        debug_assert_eq!(out.len(), na * nb * nc * ch);
+        let h = self.cell[a] / dir[a].abs();
+        let (fb, wb) = upstream_offset(h * dir[b] / self.cell[b], nb);
+        let (fc, wc) = upstream_offset(h * dir[c] / self.cell[c], nc);
+        let (ib, ic) = (fb as isize, fc as isize);
+        let pad = [ib, ib + 1, ic, ic + 1]
+            .iter()
+            .map(|v| v.unsigned_abs())
+            .max()
+            .unwrap_or(1);
+        let (pb, pc) = (nb + 2 * pad, nc + 2 * pad);
+        // The previous slice, padded with zeros: sigma_t, then source and gathered values.
+        let mut sig_up = vec![0.0f32; pb * pc];
+        // 1 inside the grid: the source is known there, and the padding takes the nearest.
+        let mut inside = vec![0.0f32; pb * pc];
+        let mut src_up = vec![0.0f32; pb * pc * ch];
+        let mut out_up = vec![0.0f32; pb * pc * ch];
+        let weights = [
+            (0usize, 0usize, (1.0 - wb) * (1.0 - wc)),
+            (0, 1, (1.0 - wb) * wc),
+            (1, 0, wb * (1.0 - wc)),
+            (1, 1, wb * wc),
+        ];
+        let mut s_up = vec![0.0f32; ch];
+        let mut i_up = vec![0.0f32; ch];
+        let slices: Box<dyn Iterator<Item = usize>> = if dir[a] > 0.0 {
+            Box::new((0..na).rev())
+        } else {
+            Box::new(0..na)
+        };
+        for s in slices {
+            let plane = nb * nc;
+            let sig = &layout.sigma[s * plane..(s + 1) * plane];
+            let src = &source[s * plane * ch..(s + 1) * plane * ch];
+            let dst = &mut out[s * plane * ch..(s + 1) * plane * ch];
+            for jb in 0..nb {
+                let r0 = (jb as isize + pad as isize + ib) as usize;
+                let base = (pad as isize + ic) as usize;
+                for jc in 0..nc {
+                    let k = base + jc;
+                    let (mut sigma_up, mut known) = (0.0f32, 0.0f32);
+                    s_up.fill(0.0);
+                    i_up.fill(0.0);
+                    for &(db, dc, w) in &weights {
+                        if w == 0.0 {
+                            continue;
+                        }
+                        let q = (r0 + db) * pc + k + dc;
+                        sigma_up += w * sig_up[q];
+                        known += w * inside[q];
+                        for ((su, iu), (sv, ov)) in s_up.iter_mut().zip(i_up.iter_mut()).zip(
+                            src_up[q * ch..(q + 1) * ch]
+                                .iter()
+                                .zip(&out_up[q * ch..(q + 1) * ch]),
+                        ) {
+                            *su += w * sv;
+                            *iu += w * ov;
+                        }
+                    }
+                    let v = jb * nc + jc;
+                    // Outside the grid the source is the nearest known one (the density, and
+                    // so the emission, falls to zero there anyway).
+                    if known < 1.0 {
+                        let own = &src[v * ch..(v + 1) * ch];
+                        for (su, sv) in s_up.iter_mut().zip(own) {
+                            *su += (1.0 - known) * sv;
+                        }
+                    }
+                    let delta = 0.5 * h * (sig[v] + sigma_up);
+                    let e = (-delta).exp();
+                    let (wx, wu) = if delta < 1e-3 {
+                        (delta * (0.5 - delta / 6.0), delta * (0.5 - delta / 3.0))
+                    } else {
+                        let q = (1.0 - e) / delta;
+                        (1.0 - q, q - e)
+                    };
+                    for j in 0..ch {
+                        dst[v * ch + j] = e * i_up[j] + wx * src[v * ch + j] + wu * s_up[j];
+                    }
+                }
+            }
+            // This slice becomes the upstream one.
+            for jb in 0..nb {
+                let row = (jb + pad) * pc + pad;
+                sig_up[row..row + nc].copy_from_slice(&sig[jb * nc..(jb + 1) * nc]);
+                inside[row..row + nc].fill(1.0);
+                src_up[row * ch..(row + nc) * ch]
+                    .copy_from_slice(&src[jb * nc * ch..(jb + 1) * nc * ch]);
+                out_up[row * ch..(row + nc) * ch]
+                    .copy_from_slice(&dst[jb * nc * ch..(jb + 1) * nc * ch]);
+            }
+        }
+    }
+}
+
+/// The upstream point's offset in cells along a slice axis of `n` voxels: its whole cells and
+/// the bilinear fraction. Very flat voxels (a box far longer than its grid is fine) can put it
+/// many grids away: beyond one grid it only reads the empty padding, so it is cut there (and the
+/// padding stays small).
+fn upstream_offset(o: f32, n: usize) -> (f32, f32) {
+    let limit = n as f32 + 1.0;
+    if o.abs() <= limit {
+        (o.floor(), o - o.floor())
+    } else if o > limit {
+        (limit, 0.0)
+    } else {
+        (-limit - 1.0, 0.0)
     }
 }
 

@@ -13,6 +13,7 @@ use crate::medium::{DensityGrid, Medium};
 use crate::store::container::{self, Tensor, check_meta_seal, checksum};
 use crate::store::transport::CameraMeta;
 
+use super::scatter::{ScatterFields, ScatterSettings};
 use super::{FORMAT_NAME, FORMAT_VERSION, MAX_TRANSFER_ORDER};
 
 /// Metadata of a volume transfer file.
@@ -42,10 +43,28 @@ pub struct VolumeMeta {
     pub height: u32,
     /// Hash of the scene the medium came from.
     pub scene_hash: String,
+    /// The baked fields of scattering orders 2 and above (absent: single scattering only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scatter: Option<ScatterMeta>,
 }
 
-/// The tensors of a volume file.
-const TENSOR_NAMES: [&str; 2] = ["density", "transfer"];
+/// How the fields of the higher scattering orders were baked (see [`super::scatter`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ScatterMeta {
+    /// Scattering orders N the file holds, single scattering included (at least 2).
+    pub orders: usize,
+    /// SH order of the fields in direction.
+    pub angular: usize,
+    /// SH order of the light the fields respond to.
+    pub light: usize,
+    /// Directions of each gather.
+    pub directions: usize,
+    /// Ratio of each order to the one before, beyond the last, in [0, 1).
+    pub tail_ratio: f32,
+}
+
+/// The tensors of a volume file (`scatter` only with higher orders).
+const TENSOR_NAMES: [&str; 3] = ["density", "transfer", "scatter"];
 
 /// The one metadata entry of a volume file (`meta_checksum` follows in the text, as in a
 /// transport file).
@@ -53,16 +72,15 @@ const TENSOR_NAMES: [&str; 2] = ["density", "transfer"];
 struct FileHeader {
     format: String,
     format_version: u32,
-    /// Of the tensors, `density` then `transfer`.
+    /// Of the tensors in the order of their names: `density`, `scatter` (when present) and
+    /// `transfer`.
     checksum: String,
     meta: VolumeMeta,
 }
 
-/// Largest volume file: [`crate::medium::MAX_VOXELS`] voxels of density and order-8 transfer,
-/// and a header.
-pub const MAX_VOLUME_BYTES: u64 =
-    crate::medium::MAX_VOXELS as u64 * 4 * (1 + (MAX_TRANSFER_ORDER * MAX_TRANSFER_ORDER) as u64)
-        + (16 << 20);
+/// Largest volume file: 16 GiB, checked before reading (a 512³ grid at order 8 holds 8.6 GB of
+/// transfer; the scattered fields are bounded by the same size).
+pub const MAX_VOLUME_BYTES: u64 = 16 << 30;
 
 /// A medium and its SH self-transfer.
 #[derive(Clone, Debug, PartialEq)]
@@ -73,6 +91,8 @@ pub struct VolumeTransfer {
     pub density: Vec<f32>,
     /// `n²` SH coefficients per voxel, voxel-major.
     pub transfer: Vec<f32>,
+    /// The fields of scattering orders 2 and above, when baked.
+    pub scatter: Option<ScatterFields>,
 }
 
 impl VolumeTransfer {
@@ -84,6 +104,11 @@ impl VolumeTransfer {
     /// Number of voxels, `nx · ny · nz`.
     pub fn voxel_count(&self) -> usize {
         self.meta.dims.iter().product()
+    }
+
+    /// Scattering orders the file holds, single scattering included.
+    pub fn orders(&self) -> usize {
+        self.scatter.as_ref().map_or(1, ScatterFields::orders)
     }
 
     /// The medium the transfer was baked for.
@@ -104,54 +129,42 @@ impl VolumeTransfer {
     /// The transfer vector at `p`, trilinear between voxel centres and clamped to the edge
     /// voxels, into `out` (`n²` values).
     pub fn transfer_at(&self, p: Vec3, out: &mut [f32]) {
-        let n = self.sh_count();
-        let d = self.meta.dims;
-        let (min, max) = (Vec3::from(self.meta.min), Vec3::from(self.meta.max));
-        let cell = (max - min) / Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
-        let u = (p - min) / cell - 0.5;
-        let axis = |v: f32, n: usize| -> (usize, usize, f32) {
-            let v = v.clamp(0.0, (n - 1) as f32);
-            let i = (v as usize).min(n.saturating_sub(2));
-            (i, (i + 1).min(n - 1), v - i as f32)
-        };
-        let (x0, x1, fx) = axis(u.x, d[0]);
-        let (y0, y1, fy) = axis(u.y, d[1]);
-        let (z0, z1, fz) = axis(u.z, d[2]);
-        out[..n].fill(0.0);
-        for (z, wz) in [(z0, 1.0 - fz), (z1, fz)] {
-            for (y, wy) in [(y0, 1.0 - fy), (y1, fy)] {
-                for (x, wx) in [(x0, 1.0 - fx), (x1, fx)] {
-                    let w = wx * wy * wz;
-                    if w == 0.0 {
-                        continue;
-                    }
-                    let v = (z * d[1] + y) * d[0] + x;
-                    for (o, t) in out.iter_mut().zip(&self.transfer[v * n..(v + 1) * n]) {
-                        *o += w * t;
-                    }
-                }
-            }
-        }
+        trilinear(&self.meta, &self.transfer, self.sh_count(), p, out);
     }
 
-    /// Writes the file atomically: safetensors with `density` `[nz, ny, nx]` and `transfer`
-    /// `[voxels, n²]` (f32), and one metadata entry `meta` (JSON).
+    /// Writes the file atomically: safetensors with `density` `[nz, ny, nx]`, `transfer`
+    /// `[voxels, n²]` and, with higher orders, `scatter` `[orders − 1, voxels, angular² ·
+    /// light²]` (f32), and one metadata entry `meta` (JSON).
     pub fn save(&self, path: &Path) -> Result<()> {
         let [nx, ny, nz] = self.meta.dims;
-        let tensors = vec![
-            (
-                "density",
-                Tensor::new(Dtype::F32, vec![nz, ny, nx], &self.density),
-            ),
-            (
-                "transfer",
+        let scatter: Vec<f32> = self
+            .scatter
+            .iter()
+            .flat_map(|s| s.fields.iter().flatten().copied())
+            .collect();
+        // In the order of their names, as the checksum takes them.
+        let mut tensors = vec![(
+            "density",
+            Tensor::new(Dtype::F32, vec![nz, ny, nx], &self.density),
+        )];
+        if let Some(s) = &self.scatter {
+            tensors.push((
+                "scatter",
                 Tensor::new(
                     Dtype::F32,
-                    vec![self.voxel_count(), self.sh_count()],
-                    &self.transfer,
+                    vec![s.fields.len(), self.voxel_count(), s.per_voxel()],
+                    &scatter,
                 ),
+            ));
+        }
+        tensors.push((
+            "transfer",
+            Tensor::new(
+                Dtype::F32,
+                vec![self.voxel_count(), self.sh_count()],
+                &self.transfer,
             ),
-        ];
+        ));
         container::save(path, tensors, |checksum| {
             serde_json::to_string(&FileHeader {
                 format: FORMAT_NAME.into(),
@@ -203,7 +216,8 @@ impl VolumeTransfer {
                 header.format
             )));
         }
-        if header.format_version != FORMAT_VERSION {
+        // Version 1 files hold single scattering only and read as they are.
+        if header.format_version != FORMAT_VERSION && header.format_version != 1 {
             return Err(bad(format!(
                 "format version {}, this build reads {FORMAT_VERSION}",
                 header.format_version
@@ -236,12 +250,28 @@ impl VolumeTransfer {
                 .collect())
         };
         let v = voxels.unwrap_or(0);
+        if let Some(sm) = &m.scatter {
+            check_scatter_meta(sm).map_err(bad)?;
+        } else if names.contains_key("scatter") {
+            return Err(bad(
+                "tensor `scatter` without its metadata `scatter`: the header was edited".into(),
+            ));
+        }
         let density = tensor("density", v)?;
         let transfer = tensor("transfer", v * m.sh_order * m.sh_order)?;
-        let sum = checksum([
-            bytemuck::cast_slice::<f32, u8>(&density),
-            bytemuck::cast_slice::<f32, u8>(&transfer),
-        ]);
+        let scatter = match &m.scatter {
+            None => Vec::new(),
+            Some(sm) => {
+                let per = sm.angular.pow(2) * sm.light.pow(2);
+                tensor("scatter", (sm.orders - 1) * v * per)?
+            }
+        };
+        let mut parts = vec![bytemuck::cast_slice::<f32, u8>(&density)];
+        if m.scatter.is_some() {
+            parts.push(bytemuck::cast_slice::<f32, u8>(&scatter));
+        }
+        parts.push(bytemuck::cast_slice::<f32, u8>(&transfer));
+        let sum = checksum(parts);
         if format!("{sum:016x}") != header.checksum {
             return Err(bad("checksum mismatch: the file is damaged".into()));
         }
@@ -258,10 +288,27 @@ impl VolumeTransfer {
                 m.directions
             )));
         }
+        if let Some(i) = scatter.iter().position(|v| !v.is_finite()) {
+            return Err(bad(format!(
+                "tensor `scatter`: value {} at {i} is not finite",
+                scatter[i]
+            )));
+        }
+        let scatter = m.scatter.as_ref().map(|sm| {
+            let per = sm.angular.pow(2) * sm.light.pow(2);
+            ScatterFields {
+                angular: sm.angular,
+                light: sm.light,
+                directions: sm.directions,
+                tail_ratio: sm.tail_ratio,
+                fields: scatter.chunks_exact(v * per).map(<[f32]>::to_vec).collect(),
+            }
+        });
         let vt = VolumeTransfer {
             meta: header.meta,
             density,
             transfer,
+            scatter,
         };
         vt.medium()
             .validate()
@@ -271,6 +318,65 @@ impl VolumeTransfer {
             .map_err(|e| bad(format!("metadata, the default view: {e}")))?;
         Ok(vt)
     }
+}
+
+/// `stride` values per voxel of `data` at `p`, trilinear between the voxel centres of `meta`'s
+/// grid and clamped to the edge voxels, into `out`.
+pub fn trilinear(meta: &VolumeMeta, data: &[f32], stride: usize, p: Vec3, out: &mut [f32]) {
+    let n = stride;
+    let d = meta.dims;
+    let (min, max) = (Vec3::from(meta.min), Vec3::from(meta.max));
+    let cell = (max - min) / Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
+    let u = (p - min) / cell - 0.5;
+    let axis = |v: f32, n: usize| -> (usize, usize, f32) {
+        let v = v.clamp(0.0, (n - 1) as f32);
+        let i = (v as usize).min(n.saturating_sub(2));
+        (i, (i + 1).min(n - 1), v - i as f32)
+    };
+    let (x0, x1, fx) = axis(u.x, d[0]);
+    let (y0, y1, fy) = axis(u.y, d[1]);
+    let (z0, z1, fz) = axis(u.z, d[2]);
+    out[..n].fill(0.0);
+    for (z, wz) in [(z0, 1.0 - fz), (z1, fz)] {
+        for (y, wy) in [(y0, 1.0 - fy), (y1, fy)] {
+            for (x, wx) in [(x0, 1.0 - fx), (x1, fx)] {
+                let w = wx * wy * wz;
+                if w == 0.0 {
+                    continue;
+                }
+                let v = (z * d[1] + y) * d[0] + x;
+                for (o, t) in out.iter_mut().zip(&data[v * n..(v + 1) * n]) {
+                    *o += w * t;
+                }
+            }
+        }
+    }
+}
+
+/// Checks the scattered fields' metadata before their tensor is sized by it.
+fn check_scatter_meta(sm: &ScatterMeta) -> std::result::Result<(), String> {
+    let settings = ScatterSettings {
+        orders: sm.orders,
+        angular: sm.angular,
+        light: sm.light,
+        directions: sm.directions,
+    };
+    settings
+        .validate()
+        .map_err(|e| format!("metadata `scatter`: {e}"))?;
+    if sm.orders < 2 {
+        return Err(format!(
+            "metadata `scatter`: {} orders; a file with scattered fields holds at least 2",
+            sm.orders
+        ));
+    }
+    if !(sm.tail_ratio.is_finite() && (0.0..1.0).contains(&sm.tail_ratio)) {
+        return Err(format!(
+            "metadata `scatter`: tail ratio {} is outside [0, 1)",
+            sm.tail_ratio
+        ));
+    }
+    Ok(())
 }
 
 /// Whether `path` is a volume transfer file (by its header, not its name).

@@ -1,9 +1,9 @@
 //! Ray-marched volume relighting on the GPU (wgpu compute, `shaders/volume_march.wgsl`): the same
 //! march as [`super::render_volume`], one thread per pixel. The density and the transfer grid are
-//! uploaded once; per frame only the phase-light table (when the environment changes), the camera
-//! and the view go up.
+//! uploaded once; per frame only the light (the phase-light table and the scattered field, when
+//! the environment or the look changes), the camera and the view go up.
 
-use super::{PhaseLight, VolumeTransfer, VolumeView};
+use super::{VolumeLight, VolumeTransfer, VolumeView};
 use crate::error::{PrtError, Result};
 use crate::gpu::{GpuDevice, Workgroup2, wait_and_read};
 use crate::output::film::Image;
@@ -32,8 +32,22 @@ struct Params {
     extinction: f32,
     albedo: [f32; 3],
     step: f32,
+    g: f32,
+    ms_n2: u32,
+    pad: [u32; 2],
 }
-const _: () = assert!(std::mem::size_of::<Params>() == 128);
+const _: () = assert!(std::mem::size_of::<Params>() == 144);
+
+/// The most coefficients of the scattered field the march takes per voxel (SH order 3).
+const MAX_FIELD_COEFFS: usize = 9;
+
+/// The light as uploaded: the phase-light table and the scattered field (a 16-byte zero when
+/// there is none).
+struct Uploaded {
+    light: VolumeLight,
+    table: wgpu::Buffer,
+    field: wgpu::Buffer,
+}
 
 /// A volume transfer resident on the GPU.
 pub struct GpuVolume {
@@ -41,7 +55,7 @@ pub struct GpuVolume {
     density: wgpu::Buffer,
     transfer: wgpu::Buffer,
     params: wgpu::Buffer,
-    table: Option<(PhaseLight, wgpu::Buffer)>,
+    light: Option<Uploaded>,
     base: Params,
 }
 
@@ -89,7 +103,6 @@ impl GpuVolume {
             cell: cell.to_array(),
             dims: vt.meta.dims.map(|d| d as u32),
             extinction: vt.meta.extinction,
-            albedo: vt.meta.albedo,
             step: medium.camera_step(),
             ..Params::default()
         };
@@ -98,7 +111,7 @@ impl GpuVolume {
             density,
             transfer,
             params,
-            table: None,
+            light: None,
             base,
         })
     }
@@ -108,11 +121,18 @@ impl GpuVolume {
     pub fn render(
         &mut self,
         gpu: &GpuDevice,
-        light: &PhaseLight,
+        light: &VolumeLight,
         camera: &Camera,
         view: VolumeView,
     ) -> Result<(Image, f64)> {
-        let n2 = light.order * light.order;
+        let n2 = light.phase.order * light.phase.order;
+        let ms_n2 = light.scatter.as_ref().map_or(0, |s| s.angular.pow(2));
+        if ms_n2 > MAX_FIELD_COEFFS {
+            return Err(PrtError::invalid(
+                "scattered field's SH order",
+                "the GPU march takes up to order 3",
+            ));
+        }
         if n2 > 64 {
             return Err(PrtError::invalid(
                 "SH order",
@@ -120,19 +140,35 @@ impl GpuVolume {
             ));
         }
         let device = &gpu.device;
-        if self.table.as_ref().is_none_or(|(l, _)| l != light) {
-            let rgba: Vec<[f32; 4]> = light
-                .table
-                .iter()
-                .map(|c| [c[0], c[1], c[2], 0.0])
-                .collect();
-            let buffer = crate::gpu::buffer_with(
-                device,
-                "phase light",
-                bytemuck::cast_slice(&rgba),
-                wgpu::BufferUsages::STORAGE,
-            );
-            self.table = Some((light.clone(), buffer));
+        if self.light.as_ref().is_none_or(|u| &u.light != light) {
+            let rgba = |v: &[[f32; 3]]| -> Vec<[f32; 4]> {
+                v.iter().map(|c| [c[0], c[1], c[2], 0.0]).collect()
+            };
+            let storage = |label, data: &[[f32; 4]]| {
+                crate::gpu::buffer_with(
+                    device,
+                    label,
+                    bytemuck::cast_slice(data),
+                    wgpu::BufferUsages::STORAGE,
+                )
+            };
+            let field = match &light.scatter {
+                Some(s) => rgba(&s.field),
+                None => vec![[0.0; 4]],
+            };
+            let bytes = (field.len() * 16) as u64;
+            if bytes > gpu.max_binding_bytes() {
+                return Err(PrtError::Gpu(format!(
+                    "the scattered field ({bytes} bytes) exceeds this device's storage binding \
+                     limit ({} bytes); bake a smaller grid",
+                    gpu.max_binding_bytes()
+                )));
+            }
+            self.light = Some(Uploaded {
+                light: light.clone(),
+                table: storage("phase light", &rgba(&light.phase.table)),
+                field: storage("scattered field", &field),
+            });
         }
         let (w, h) = (camera.width, camera.height);
         let (forward, right, up) = camera.frame();
@@ -147,8 +183,11 @@ impl GpuVolume {
             n2: n2 as u32,
             up: (up * tan_half).to_array(),
             view: view.index(),
-            table_w: light.width as u32,
-            table_h: light.height as u32,
+            table_w: light.phase.width as u32,
+            table_h: light.phase.height as u32,
+            albedo: light.albedo.to_array(),
+            g: light.g,
+            ms_n2: ms_n2 as u32,
             ..self.base
         };
         gpu.queue
@@ -156,7 +195,7 @@ impl GpuVolume {
         let image_bytes = w as u64 * h as u64 * 16;
         let (image, readback) = crate::gpu::image_buffers(device, "volume image", w, h);
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let table = &self.table.as_ref().expect("uploaded").1;
+        let uploaded = self.light.as_ref().expect("uploaded");
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("volume march"),
             layout: &self.pipeline.get_bind_group_layout(0),
@@ -175,11 +214,15 @@ impl GpuVolume {
                 },
                 wgpu::BindGroupEntry {
                     binding: 3,
-                    resource: table.as_entire_binding(),
+                    resource: uploaded.table.as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
                     binding: 4,
                     resource: image.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: uploaded.field.as_entire_binding(),
                 },
             ],
         });

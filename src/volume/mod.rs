@@ -12,8 +12,10 @@
 
 mod file;
 pub mod gpu;
+mod light;
 pub mod path_trace;
 pub mod render;
+pub mod scatter;
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -23,13 +25,16 @@ use crate::medium::sweep::Sweeper;
 use crate::medium::{Medium, fibonacci_directions};
 use crate::store::transport::CameraMeta;
 
-pub use file::{MAX_VOLUME_BYTES, VolumeMeta, VolumeTransfer, is_volume_file};
+pub use file::{MAX_VOLUME_BYTES, ScatterMeta, VolumeMeta, VolumeTransfer, is_volume_file};
+pub use light::{MediumLook, VolumeLight};
 pub use render::{PhaseLight, VolumeView, render_volume};
+pub use scatter::{ScatterFields, ScatterSettings};
 
 /// The format name in a volume transfer file's metadata.
 pub const FORMAT_NAME: &str = crate::store::container::VOLUME.name;
-/// Version of the volume file layout; a file of any other version is refused.
-pub const FORMAT_VERSION: u32 = 1;
+/// Version of the volume file layout: 2 adds the fields of the higher scattering orders. Files of
+/// version 1 (single scattering) are read; any other version is refused.
+pub const FORMAT_VERSION: u32 = 2;
 /// Highest SH order of a transfer bake.
 pub const MAX_TRANSFER_ORDER: usize = 8;
 
@@ -40,6 +45,8 @@ pub struct TransferSettings {
     pub sh_order: usize,
     /// Directions D of the projection.
     pub directions: usize,
+    /// The higher scattering orders (`orders: 1` bakes single scattering alone).
+    pub scatter: ScatterSettings,
 }
 
 impl Default for TransferSettings {
@@ -47,6 +54,7 @@ impl Default for TransferSettings {
         TransferSettings {
             sh_order: 3,
             directions: 512,
+            scatter: ScatterSettings::default(),
         }
     }
 }
@@ -66,7 +74,7 @@ impl TransferSettings {
                 format!("{} is outside 16 to 65536", self.directions),
             ));
         }
-        Ok(())
+        self.scatter.validate()
     }
 }
 
@@ -85,7 +93,21 @@ pub fn bake_volume(
         )
     })?;
     let medium = spec.build(resolution)?;
-    let transfer = bake_transfer(&medium, settings, progress)?;
+    settings.validate()?;
+    // Progress over both parts, in directions swept.
+    let first = settings.directions;
+    let total =
+        first + ScatterSettings::gathers(settings.scatter.orders) * settings.scatter.directions;
+    let transfer = bake_transfer(&medium, settings, &|done, _| progress(done, total))?;
+    let scatter = if settings.scatter.orders > 1 {
+        Some(scatter::bake_scatter(
+            &medium,
+            &settings.scatter,
+            &|done, _| progress(first + done, total),
+        )?)
+    } else {
+        None
+    };
     let cam = &scene.camera;
     Ok(VolumeTransfer {
         meta: VolumeMeta {
@@ -106,9 +128,17 @@ pub fn bake_volume(
             width: cam.width,
             height: cam.height,
             scene_hash: scene.hash_hex(),
+            scatter: scatter.as_ref().map(|s| ScatterMeta {
+                orders: s.orders(),
+                angular: s.angular,
+                light: s.light,
+                directions: s.directions,
+                tail_ratio: s.tail_ratio,
+            }),
         },
         density: medium.grid.data,
         transfer,
+        scatter,
     })
 }
 

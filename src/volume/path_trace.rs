@@ -501,7 +501,7 @@ mod tests {
 
     #[test]
     fn order_one_is_single_scattering_and_thin_media_barely_scatter_twice() {
-        use crate::volume::{PhaseLight, TransferSettings, VolumeTransfer, bake_transfer};
+        use crate::volume::{TransferSettings, VolumeLight, VolumeTransfer, bake_transfer};
         // An optically thin sphere (depth about 0.15 across) lit by a sky with a bright patch.
         let src = DensitySource::Ellipsoid {
             center: Vec3::ZERO,
@@ -538,8 +538,9 @@ mod tests {
             meta: crate::volume::tests::meta_for(&m, 3, settings.directions),
             density: m.grid.data.clone(),
             transfer: bake_transfer(&m, &settings, &|_, _| {}).unwrap(),
+            scatter: None,
         };
-        let light = PhaseLight::new(&cube, 3, m.g);
+        let light = VolumeLight::single(&cube, 3, m.albedo, m.g);
         let marched = crate::volume::render_volume(&vt, &light, &cam, Default::default());
         let err = crate::output::metrics::relative_l2(&marched, &traced.image, None).unwrap();
         let noise = traced.relative_noise(None);

@@ -9,11 +9,16 @@
 //! direction only, not on the voxel: [`PhaseLight`] tabulates it once per environment over a
 //! lat-long grid of directions and each pixel interpolates it. For an isotropic medium
 //! `P_i = L_i / (4π)`, the formula of [`crate::conventions`], and the table is one entry.
+//!
+//! Scattering of orders 2 and above adds `Σ_a g^(l_a) Y_a(d) F_a(x)` per unit optical depth,
+//! with `F` the light's scattered field ([`crate::volume::scatter::ScatterLight`], albedo powers
+//! included) trilinear between voxel centres.
 
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::VolumeTransfer;
+use super::file::trilinear;
+use super::{VolumeLight, VolumeTransfer};
 use crate::math::cubemap::{CubeMap, solid_angles, texel_dirs};
 use crate::medium::{MarchSample, henyey_greenstein};
 use crate::output::film::Image;
@@ -190,14 +195,19 @@ crate::named!(VolumeView, "view");
 /// Ray-marches `vt` lit by `light` through `camera` (CPU, rayon over rows).
 pub fn render_volume(
     vt: &VolumeTransfer,
-    light: &PhaseLight,
+    light: &VolumeLight,
     camera: &Camera,
     view: VolumeView,
 ) -> Image {
     let medium = vt.medium();
     let (w, h) = (camera.width as usize, camera.height as usize);
+    let albedo = light.albedo;
+    let scatter = light.scatter.as_ref();
+    let field: &[f32] = scatter.map_or(&[], |s| bytemuck::cast_slice(&s.field));
+    let stride = scatter.map_or(0, |s| s.angular.pow(2) * 3);
+    let g = light.g;
+    let light = &light.phase;
     let n2 = vt.sh_count().min(light.order * light.order);
-    let albedo = medium.albedo;
     let dc_scale = 0.5 / std::f32::consts::PI.sqrt();
     let mut image = Image::new(w, h);
     image
@@ -208,6 +218,7 @@ pub fn render_volume(
             let mut samples: Vec<MarchSample> = Vec::new();
             let mut t = vec![0.0f32; vt.sh_count()];
             let mut p = vec![[0.0f32; 3]; light.order * light.order];
+            let mut f = vec![0.0f32; stride];
             for (x, px) in line.iter_mut().enumerate() {
                 let ray = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
                 let early = view != VolumeView::InScatter;
@@ -230,7 +241,8 @@ pub fn render_volume(
                     }
                     VolumeView::Full | VolumeView::InScatter => {
                         light.at(ray.dir, &mut p);
-                        let mut s = [0.0f32; 3];
+                        let view_weights = scatter.map(|s| s.view_weights(g, ray.dir));
+                        let (mut s, mut more) = ([0.0f32; 3], [0.0f32; 3]);
                         for m in &samples {
                             vt.transfer_at(m.pos, &mut t);
                             let wgt = if view == VolumeView::Full {
@@ -243,8 +255,16 @@ pub fn render_volume(
                                     s[c] += wgt * ti * pi[c];
                                 }
                             }
+                            if let Some(vw) = &view_weights {
+                                trilinear(&vt.meta, field, stride, m.pos, &mut f);
+                                for (ca, fa) in vw.iter().zip(f.chunks_exact(3)) {
+                                    for c in 0..3 {
+                                        more[c] += wgt * ca * fa[c];
+                                    }
+                                }
+                            }
                         }
-                        [s[0] * albedo.x, s[1] * albedo.y, s[2] * albedo.z]
+                        std::array::from_fn(|c| s[c] * albedo[c] + more[c])
                     }
                 };
             }

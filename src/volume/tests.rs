@@ -66,6 +66,7 @@ fn sphere_centre_sees_exp_minus_sigma_r_every_way() {
         meta: meta_for(&m, 3, 512),
         density: m.grid.data.clone(),
         transfer: t,
+        scatter: None,
     };
     let mut v = [0.0f32; 9];
     vt.transfer_at(Vec3::ZERO, &mut v);
@@ -163,6 +164,7 @@ pub(crate) fn meta_for(m: &Medium, order: usize, directions: usize) -> VolumeMet
         width: 32,
         height: 24,
         scene_hash: "0".into(),
+        scatter: None,
     }
 }
 
@@ -174,6 +176,7 @@ fn file_round_trip_and_damage() {
         meta: meta_for(&m, 3, 512),
         density: m.grid.data.clone(),
         transfer: t,
+        scatter: None,
     };
     let dir = std::env::temp_dir().join(format!("prt-vol-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -189,5 +192,110 @@ fn file_round_trip_and_damage() {
     std::fs::write(&path, b"junk").unwrap();
     let e = VolumeTransfer::load(&path).unwrap_err().to_string();
     assert!(e.contains("not a volume transfer file"), "{e}");
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn scattered_fields_round_trip_and_lying_headers_are_refused() {
+    let m = sphere(6, 0.7, 4.0);
+    let settings = TransferSettings {
+        sh_order: 2,
+        directions: 32,
+        scatter: ScatterSettings {
+            orders: 3,
+            angular: 2,
+            light: 2,
+            directions: 16,
+        },
+    };
+    let fields = scatter::bake_scatter(&m, &settings.scatter, &|_, _| {}).unwrap();
+    let scatter_meta = ScatterMeta {
+        orders: fields.orders(),
+        angular: fields.angular,
+        light: fields.light,
+        directions: fields.directions,
+        tail_ratio: fields.tail_ratio,
+    };
+    let vt = VolumeTransfer {
+        meta: VolumeMeta {
+            scatter: Some(scatter_meta.clone()),
+            ..meta_for(&m, 2, 32)
+        },
+        density: m.grid.data.clone(),
+        transfer: bake_transfer(&m, &settings, &|_, _| {}).unwrap(),
+        scatter: Some(fields),
+    };
+    let dir = std::env::temp_dir().join(format!("prt-vol-scatter-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("v.prtv");
+    vt.save(&path).unwrap();
+    let back = VolumeTransfer::load(&path).unwrap();
+    assert_eq!(back, vt);
+    assert_eq!(back.orders(), 3);
+    // Each lie is sealed as a real file would be, so only the loader's checks can catch it.
+    let lies: [(&str, VolumeTransfer, &str); 4] = [
+        (
+            "more orders than the tensor holds",
+            VolumeTransfer {
+                meta: VolumeMeta {
+                    scatter: Some(ScatterMeta {
+                        orders: 5,
+                        ..scatter_meta.clone()
+                    }),
+                    ..vt.meta.clone()
+                },
+                ..vt.clone()
+            },
+            "tensor `scatter`: expected",
+        ),
+        (
+            "a tensor without its metadata",
+            VolumeTransfer {
+                meta: VolumeMeta {
+                    scatter: None,
+                    ..vt.meta.clone()
+                },
+                ..vt.clone()
+            },
+            "without its metadata",
+        ),
+        (
+            "a tail ratio of 1, an infinite tail",
+            VolumeTransfer {
+                meta: VolumeMeta {
+                    scatter: Some(ScatterMeta {
+                        tail_ratio: 1.0,
+                        ..scatter_meta.clone()
+                    }),
+                    ..vt.meta.clone()
+                },
+                ..vt.clone()
+            },
+            "tail ratio",
+        ),
+        (
+            "a light order past the largest",
+            VolumeTransfer {
+                meta: VolumeMeta {
+                    scatter: Some(ScatterMeta {
+                        light: 40,
+                        ..scatter_meta.clone()
+                    }),
+                    ..vt.meta.clone()
+                },
+                ..vt.clone()
+            },
+            "light's SH order",
+        ),
+    ];
+    for (what, lie, want) in lies {
+        lie.save(&path).unwrap();
+        let e = VolumeTransfer::load(&path).unwrap_err().to_string();
+        assert!(e.contains(want), "{what}: {e}");
+        assert!(
+            e.contains("v.prtv"),
+            "{what}: the error names the file: {e}"
+        );
+    }
     std::fs::remove_dir_all(dir).unwrap();
 }

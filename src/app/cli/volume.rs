@@ -2,6 +2,7 @@
 //! medium, its ray march, and the volumetric path tracer that holds both.
 
 use super::*;
+use crate::volume::ScatterSettings;
 
 /// Arguments of `prt volume bake`.
 #[derive(Args, Debug)]
@@ -21,6 +22,19 @@ pub struct VolumeBakeArgs {
     /// Directions D of the projection (a Fibonacci sphere).
     #[arg(long, default_value_t = 512)]
     pub directions: usize,
+    /// Scattering orders N baked (1: single scattering only); the orders beyond N are
+    /// extrapolated at run time.
+    #[arg(long, default_value_t = ScatterSettings::default().orders)]
+    pub orders: usize,
+    /// Directions of each gather of the higher orders.
+    #[arg(long, default_value_t = ScatterSettings::default().directions)]
+    pub scatter_directions: usize,
+    /// SH order of the higher orders' field in direction (1 to 3).
+    #[arg(long, default_value_t = ScatterSettings::default().angular)]
+    pub scatter_order: usize,
+    /// SH order of the light the higher orders respond to (1 to 6).
+    #[arg(long, default_value_t = ScatterSettings::default().light)]
+    pub scatter_light_order: usize,
 }
 
 /// Arguments of `prt volume render`.
@@ -52,6 +66,19 @@ pub struct VolumeRenderArgs {
     /// SH order to relight with (default: the baked order).
     #[arg(long)]
     pub sh_order: Option<usize>,
+    /// Scattering orders to draw, 1 to the file's (default: all it holds, and the tail beyond).
+    #[arg(long)]
+    pub orders: Option<usize>,
+    /// Draw only the baked orders, without the geometric tail of the ones beyond.
+    #[arg(long)]
+    pub no_tail: bool,
+    /// Albedo R,G,B in place of the baked one (order k scales by albedo^k; no new bake).
+    #[arg(long, value_parser = parse_vec3)]
+    pub albedo: Option<glam::Vec3>,
+    /// Henyey–Greenstein g in place of the baked one (exact for single scattering and the last
+    /// scattering of higher orders).
+    #[arg(long, allow_negative_numbers = true)]
+    pub g: Option<f32>,
     /// How the environment is turned.
     #[command(flatten)]
     pub turn: TurnArgs,
@@ -140,9 +167,17 @@ pub(super) fn volume_bake_cmd(a: VolumeBakeArgs) -> Result<()> {
     let settings = TransferSettings {
         sh_order: a.sh_order,
         directions: a.directions,
+        scatter: ScatterSettings {
+            orders: a.orders,
+            angular: a.scatter_order,
+            light: a.scatter_light_order,
+            directions: a.scatter_directions,
+        },
     };
     settings.validate()?;
-    let bar = ProgressBar::new(settings.directions as u64);
+    let sweeps = settings.directions
+        + ScatterSettings::gathers(settings.scatter.orders) * settings.scatter.directions;
+    let bar = ProgressBar::new(sweeps as u64);
     bar.set_style(
         ProgressStyle::with_template(
             "{elapsed_precise} [{bar:30}] {pos}/{len} directions  ETA {eta}",
@@ -158,18 +193,23 @@ pub(super) fn volume_bake_cmd(a: VolumeBakeArgs) -> Result<()> {
     let seconds = start.elapsed().as_secs_f64();
     vt.save(&a.output)?;
     let [nx, ny, nz] = vt.meta.dims;
+    let orders = match &vt.meta.scatter {
+        Some(s) => format!(
+            ", scattering orders 1 to {} (tail ratio {:.3})",
+            s.orders, s.tail_ratio
+        ),
+        None => ", single scattering".into(),
+    };
     println!(
-        "baked {nx}x{ny}x{nz} voxels x {} directions at SH order {} in {seconds:.2} s ({:.1} M voxel-directions/s)",
-        settings.directions,
-        settings.sh_order,
-        (vt.voxel_count() * settings.directions) as f64 / seconds / 1e6
+        "baked {nx}x{ny}x{nz} voxels x {} directions at SH order {}{orders} in {seconds:.2} s ",
+        settings.directions, settings.sh_order,
     );
     println!("wrote {}", a.output.display());
     Ok(())
 }
 
 pub(super) fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
-    use crate::volume::{PhaseLight, VolumeTransfer, render_volume};
+    use crate::volume::{MediumLook, VolumeLight, VolumeTransfer, render_volume};
     let view = a.view;
     check_light_flags(a.turn.yaw, a.turn.pitch, a.exposure)?;
     let mut inputs = env_files(std::slice::from_ref(&a.env));
@@ -182,12 +222,20 @@ pub(super) fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
     };
     let camera = vt.camera(a.eye, a.target, size)?;
     let order = a.sh_order.unwrap_or(vt.meta.sh_order);
-    crate::flags::sh_order(order, vt.meta.sh_order)?;
+    let file_look = MediumLook::of(&vt);
+    let look = MediumLook {
+        sh_order: order,
+        albedo: a.albedo.unwrap_or(file_look.albedo),
+        g: a.g.unwrap_or(file_look.g),
+        orders: a.orders.unwrap_or(file_look.orders),
+        tail: file_look.tail && !a.no_tail,
+    };
+    look.validate(&vt)?;
     crate::math::cubemap::validate_n(a.cube)?;
     let env = load_env(&a.env)?;
     let start = Instant::now();
     let cube = env.to_cube(a.cube, a.turn.rotation())?;
-    let light = PhaseLight::new(&cube, order, vt.meta.g);
+    let light = VolumeLight::new(&vt, &cube, &look)?;
     let light_ms = start.elapsed().as_secs_f64() * 1e3;
     let start = Instant::now();
     let (img, device) = match open_device(a.device)? {
@@ -205,8 +253,13 @@ pub(super) fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
         None => ToneMap::auto(&img, None),
     };
     img.save(&a.output, tone)?;
+    let orders = match (look.orders, look.tail) {
+        (1, _) => "single scattering".to_string(),
+        (n, true) => format!("orders 1 to {n} and the tail"),
+        (n, false) => format!("orders 1 to {n}"),
+    };
     println!(
-        "{}x{} {} view at SH order {order} on {device}: environment to light {light_ms:.0} ms, march {march_ms:.1} ms",
+        "{}x{} {} view at SH order {order}, {orders}, on {device}: environment to light {light_ms:.0} ms, march {march_ms:.1} ms",
         camera.width,
         camera.height,
         view.name()

@@ -1,7 +1,8 @@
 //! The volume path of the viewer (`prt view FILE.prtv`): a medium relit from its SH self-transfer
 //! by ray marching, with an orbit camera (drag to turn, scroll to move in and out), the
-//! environment list and the sun of the transport viewer, the SH order, the debug views, and
-//! exposure. A worker thread prepares the light and marches (on the GPU when the window has one);
+//! environment list and the sun of the transport viewer, the SH order, the medium's look
+//! (albedo, Henyey–Greenstein g and scattering orders, none of which needs a new bake), the
+//! debug views, and exposure. A worker thread prepares the light and marches (on the GPU when the window has one);
 //! the window shows the newest finished frame and never waits.
 
 use std::path::Path;
@@ -18,7 +19,7 @@ use crate::output::film::{Image, ToneCurve, ToneMap};
 use crate::relight::vertex::Orbit;
 use crate::scene::Camera;
 use crate::volume::gpu::GpuVolume;
-use crate::volume::{PhaseLight, VolumeTransfer, VolumeView, render_volume};
+use crate::volume::{MediumLook, VolumeLight, VolumeTransfer, VolumeView, render_volume};
 
 /// Cube face size the environment is resampled to for the volume light.
 const LIGHT_CUBE: usize = 32;
@@ -31,6 +32,13 @@ pub struct VolumeState {
     pub view: VolumeView,
     /// SH order of the light (1 to the baked order).
     pub sh_order: usize,
+    /// Single-scattering albedo per channel (order k is scaled by albedo^k).
+    pub albedo: Vec3,
+    /// Henyey–Greenstein asymmetry (exact for the last scattering of every order; the inner
+    /// scatterings of orders 2 and above keep the baked g).
+    pub g: f32,
+    /// Scattering orders drawn, 1 to the file's; the orders beyond are added by their tail.
+    pub orders: usize,
     /// The light.
     pub light: LightState,
     /// The camera, turned from the file's own.
@@ -49,6 +57,9 @@ impl VolumeState {
         VolumeState {
             view: VolumeView::Full,
             sh_order: vt.meta.sh_order,
+            albedo: Vec3::from(vt.meta.albedo),
+            g: vt.meta.g,
+            orders: vt.orders(),
             light: LightState::default(),
             orbit: Orbit::default(),
             exposure: 0.0,
@@ -60,6 +71,17 @@ impl VolumeState {
     /// The orbit camera at the file's field of view and image size.
     pub fn camera(&self, vt: &VolumeTransfer) -> Camera {
         self.orbit.camera(&file_camera(vt))
+    }
+
+    /// The medium's look in this state, for `vt`.
+    pub fn look(&self, vt: &VolumeTransfer) -> MediumLook {
+        MediumLook {
+            sh_order: self.sh_order.clamp(1, vt.meta.sh_order),
+            albedo: self.albedo,
+            g: self.g,
+            orders: self.orders.clamp(1, vt.orders()),
+            tail: vt.scatter.is_some(),
+        }
     }
 
     /// The tone mapping of this state.
@@ -114,7 +136,7 @@ pub struct VolumeEngine {
     /// The environment list.
     pub envs: Vec<EnvEntry>,
     /// The phase light, with the light and SH order it was made for.
-    light: Option<((LightKey, usize), PhaseLight)>,
+    light: Option<((LightKey, MediumLook), VolumeLight)>,
     gpu: Option<(GpuDevice, GpuVolume)>,
 }
 
@@ -143,12 +165,12 @@ impl VolumeEngine {
 
     /// The linear frame of `state`.
     pub fn render(&mut self, state: &VolumeState) -> Result<VolumeFrame> {
-        let key = (state.light.key(&self.envs), state.sh_order);
+        let key = (state.light.key(&self.envs), state.look(&self.vt));
         let start = Instant::now();
         if self.light.as_ref().is_none_or(|(k, _)| *k != key) {
             let cube = key.0.env.load()?.to_cube(LIGHT_CUBE, key.0.rotation)?;
-            let order = state.sh_order.clamp(1, self.vt.meta.sh_order);
-            self.light = Some((key, PhaseLight::new(&cube, order, self.vt.meta.g)));
+            let light = VolumeLight::new(&self.vt, &cube, &key.1)?;
+            self.light = Some((key, light));
         }
         let light_seconds = start.elapsed().as_secs_f64();
         let (_, light) = self.light.as_ref().expect("prepared");
@@ -200,6 +222,8 @@ pub struct VolumeApp {
     pub error: Option<String>,
     envs: Vec<EnvEntry>,
     vt_meta_order: usize,
+    /// Scattering orders the file holds.
+    most_orders: usize,
     /// The file's camera, which the orbit turns.
     base: Camera,
     has_gpu: bool,
@@ -217,7 +241,7 @@ impl VolumeApp {
             light,
             ..VolumeState::initial(&vt)
         };
-        let (order, base) = (vt.meta.sh_order, file_camera(&vt));
+        let (order, base, most_orders) = (vt.meta.sh_order, file_camera(&vt), vt.orders());
         let mut engine = VolumeEngine::new(vt, envs.clone());
         let mut error = None;
         if let Some(g) = gpu {
@@ -249,6 +273,7 @@ impl VolumeApp {
             error,
             envs,
             vt_meta_order: order,
+            most_orders,
             base,
             has_gpu,
             worker,
@@ -308,6 +333,23 @@ impl VolumeApp {
                 }
             });
         ui.add(egui::Slider::new(&mut s.sh_order, 1..=self.vt_meta_order).text("SH order"));
+        let mut grey = s.albedo.max_element();
+        if ui
+            .add(egui::Slider::new(&mut grey, 0.0..=1.0).text("albedo"))
+            .on_hover_text("Scales scattering order k by albedo^k, with no new bake")
+            .changed()
+        {
+            s.albedo = Vec3::splat(grey);
+        }
+        ui.add(egui::Slider::new(&mut s.g, -0.95..=0.95).text("g (phase)"))
+            .on_hover_text(
+                "Henyey–Greenstein asymmetry: exact for single scattering and for the last \
+                 scattering of higher orders; their inner scatterings keep the baked g",
+            );
+        if self.most_orders > 1 {
+            ui.add(egui::Slider::new(&mut s.orders, 1..=self.most_orders).text("orders"))
+                .on_hover_text("Scattering orders drawn; the orders beyond are extrapolated");
+        }
         if self.has_gpu {
             ui.checkbox(&mut s.gpu, "March on the GPU");
         } else {
