@@ -13,3 +13,4 @@ pub mod paper;
 pub mod truck;
 #[cfg(feature = "app")]
 pub mod viewer;
+pub mod volume_orders;

@@ -38,8 +38,8 @@ pub use relight::{EnvArgs, ReferenceArgs, RelightArgs};
 use relight::{compare_cmd, env_cmd, reference_cmd, relight_cmd};
 pub use view::ViewArgs;
 use view::view_cmd;
-pub use volume::{VolumeBakeArgs, VolumeReferenceArgs, VolumeRenderArgs};
-use volume::{volume_bake_cmd, volume_reference_cmd, volume_render_cmd};
+pub use volume::{VolumeBakeArgs, VolumeOrdersArgs, VolumeReferenceArgs, VolumeRenderArgs};
+use volume::{volume_bake_cmd, volume_orders_cmd, volume_reference_cmd, volume_render_cmd};
 
 /// All-frequency relighting: bake a view, relight it under any HDR environment with Haar wavelets
 /// or spherical harmonics.
@@ -124,6 +124,9 @@ pub enum VolumeCommand {
     /// Path trace a medium under an environment (delta tracking, no transfer data): the
     /// reference its bakes are held to.
     Reference(VolumeReferenceArgs),
+    /// Study scattering orders: error against the path tracer, bake time and size per order
+    /// count and grid, and the run-time albedo against the path tracer at that albedo.
+    Orders(VolumeOrdersArgs),
 }
 
 /// Which view of a scene: a glTF file's camera, and the image size.
@@ -263,6 +266,7 @@ fn run(command: Command) -> Result<()> {
         Command::Volume(VolumeCommand::Bake(a)) => volume_bake_cmd(a),
         Command::Volume(VolumeCommand::Render(a)) => volume_render_cmd(a),
         Command::Volume(VolumeCommand::Reference(a)) => volume_reference_cmd(a),
+        Command::Volume(VolumeCommand::Orders(a)) => volume_orders_cmd(a),
         Command::Compare {
             image,
             reference,
