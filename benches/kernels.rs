@@ -244,8 +244,9 @@ fn cloud64() -> wavelet_prt::medium::Medium {
 
 fn volume(c: &mut Criterion) {
     use wavelet_prt::volume::{
-        PhaseLight, TransferSettings, VolumeLight, VolumeMeta, VolumeTransfer, VolumeView,
-        bake_transfer, render_volume,
+        MediumLook, PhaseLight, ScatterMeta, ScatterSettings, TransferSettings, VolumeLight,
+        VolumeMeta, VolumeTransfer, VolumeView, bake_transfer, render_volume,
+        scatter::bake_scatter,
     };
     let medium = cloud64();
     let mut g = c.benchmark_group("volume");
@@ -295,11 +296,45 @@ fn volume(c: &mut Criterion) {
     g.bench_function("phase_light_table_n32_order3", |b| {
         b.iter(|| PhaseLight::new(&cube, 3, medium.g))
     });
+    // The higher scattering orders at the default settings: their bake, the light applied to
+    // their fields (what a change of light or albedo costs), and the march that adds them.
+    let scatter_settings = ScatterSettings::default();
+    let n = scatter_settings.orders;
+    g.bench_function(format!("scatter_bake_64^3_orders{n}"), |b| {
+        b.iter(|| bake_scatter(black_box(&medium), &scatter_settings, &|_, _| {}).unwrap())
+    });
+    let fields = bake_scatter(&medium, &scatter_settings, &|_, _| {}).unwrap();
+    let vt_orders = VolumeTransfer {
+        meta: VolumeMeta {
+            scatter: Some(ScatterMeta {
+                orders: fields.orders(),
+                angular: fields.angular,
+                light: fields.light,
+                directions: fields.directions,
+                tail_ratio: fields.tail_ratio,
+            }),
+            ..vt.meta.clone()
+        },
+        scatter: Some(fields),
+        ..vt.clone()
+    };
+    let look = MediumLook::of(&vt_orders);
+    g.bench_function(format!("scatter_light_64^3_orders{n}"), |b| {
+        b.iter(|| VolumeLight::new(&vt_orders, &cube, &look).unwrap())
+    });
+    let every = VolumeLight::new(&vt_orders, &cube, &look).unwrap();
+    g.bench_function(format!("march_cpu_512x512_order3_orders{n}"), |b| {
+        b.iter(|| render_volume(&vt_orders, &every, &cam, VolumeView::Full))
+    });
     if let Ok(gpu) = wavelet_prt::relight::gpu::Gpu::new() {
         eprintln!("volume: GPU march on {}", gpu.adapter);
         let mut gv = wavelet_prt::volume::gpu::GpuVolume::new(&gpu, &vt).unwrap();
         g.bench_function("march_gpu_512x512_order3", |b| {
             b.iter(|| gv.render(&gpu, &light, &cam, VolumeView::Full).unwrap())
+        });
+        let mut gv = wavelet_prt::volume::gpu::GpuVolume::new(&gpu, &vt_orders).unwrap();
+        g.bench_function(format!("march_gpu_512x512_order3_orders{n}"), |b| {
+            b.iter(|| gv.render(&gpu, &every, &cam, VolumeView::Full).unwrap())
         });
     }
     g.finish();

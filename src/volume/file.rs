@@ -132,15 +132,19 @@ impl VolumeTransfer {
         trilinear(&self.meta, &self.transfer, self.sh_count(), p, out);
     }
 
-    /// Writes the file atomically: safetensors with `density` `[nz, ny, nx]`, `transfer`
-    /// `[voxels, n²]` and, with higher orders, `scatter` `[orders − 1, voxels, angular² ·
-    /// light²]` (f32), and one metadata entry `meta` (JSON).
+    /// Writes the file atomically: safetensors with `density` `[nz, ny, nx]` and `transfer`
+    /// `[voxels, n²]` (f32) and, with higher orders, `scatter` `[orders − 1, voxels, angular² ·
+    /// light²]` (f16, so a loaded file's fields are the baked ones rounded to half precision),
+    /// and one metadata entry `meta` (JSON).
     pub fn save(&self, path: &Path) -> Result<()> {
         let [nx, ny, nz] = self.meta.dims;
-        let scatter: Vec<f32> = self
+        // The scattered fields in half precision: smooth, positive radiance that 11 bits of
+        // mantissa hold to 5e-4, at half the bytes.
+        let scatter: Vec<u16> = self
             .scatter
             .iter()
-            .flat_map(|s| s.fields.iter().flatten().copied())
+            .flat_map(|s| s.fields.iter().flatten())
+            .map(|&v| half::f16::from_f32(v).to_bits())
             .collect();
         // In the order of their names, as the checksum takes them.
         let mut tensors = vec![(
@@ -151,7 +155,7 @@ impl VolumeTransfer {
             tensors.push((
                 "scatter",
                 Tensor::new(
-                    Dtype::F32,
+                    Dtype::F16,
                     vec![s.fields.len(), self.voxel_count(), s.per_voxel()],
                     &scatter,
                 ),
@@ -259,16 +263,30 @@ impl VolumeTransfer {
         }
         let density = tensor("density", v)?;
         let transfer = tensor("transfer", v * m.sh_order * m.sh_order)?;
-        let scatter = match &m.scatter {
-            None => Vec::new(),
+        let scatter_bytes: &[u8] = match &m.scatter {
+            None => &[],
             Some(sm) => {
-                let per = sm.angular.pow(2) * sm.light.pow(2);
-                tensor("scatter", (sm.orders - 1) * v * per)?
+                let len = (sm.orders - 1) * v * sm.angular.pow(2) * sm.light.pow(2);
+                let t = st
+                    .tensor("scatter")
+                    .map_err(|_| bad("tensor `scatter` is missing".into()))?;
+                if t.dtype() != Dtype::F16 || t.data().len() != len * 2 {
+                    return Err(bad(format!(
+                        "tensor `scatter`: expected {len} f16 values, got {:?} of {} bytes",
+                        t.dtype(),
+                        t.data().len()
+                    )));
+                }
+                t.data()
             }
         };
+        let scatter: Vec<f32> = scatter_bytes
+            .chunks_exact(2)
+            .map(|c| half::f16::from_bits(u16::from_le_bytes([c[0], c[1]])).to_f32())
+            .collect();
         let mut parts = vec![bytemuck::cast_slice::<f32, u8>(&density)];
         if m.scatter.is_some() {
-            parts.push(bytemuck::cast_slice::<f32, u8>(&scatter));
+            parts.push(scatter_bytes);
         }
         parts.push(bytemuck::cast_slice::<f32, u8>(&transfer));
         let sum = checksum(parts);

@@ -96,8 +96,7 @@ pub fn bake_volume(
     settings.validate()?;
     // Progress over both parts, in directions swept.
     let first = settings.directions;
-    let total =
-        first + ScatterSettings::gathers(settings.scatter.orders) * settings.scatter.directions;
+    let total = first + settings.scatter.sweeps();
     let transfer = bake_transfer(&medium, settings, &|done, _| progress(done, total))?;
     let scatter = if settings.scatter.orders > 1 {
         Some(scatter::bake_scatter(

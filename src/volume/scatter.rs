@@ -96,13 +96,27 @@ impl ScatterSettings {
     }
 
     /// Gathers a bake of `orders` runs: one per stored order above the first, and on to order
-    /// `max(2 orders, 8)` (unstored) to measure the tail's ratio where it has settled.
+    /// `max(2 orders, 8)` (unstored, with [`ScatterSettings::ratio_directions`] and the uniform
+    /// sky's column alone) to measure the tail's ratio where it has settled.
     pub fn gathers(orders: usize) -> usize {
         if orders < 2 {
             0
         } else {
             (2 * orders).max(8) - 1
         }
+    }
+
+    /// Directions of the gathers that only measure the tail's ratio: a quarter of `directions`,
+    /// at least 32.
+    pub fn ratio_directions(directions: usize) -> usize {
+        (directions / 4).max(32)
+    }
+
+    /// Directional sweeps of the whole bake of the higher orders (its progress's total).
+    pub fn sweeps(&self) -> usize {
+        let passes = self.orders.saturating_sub(1);
+        passes * self.directions
+            + (Self::gathers(self.orders) - passes) * Self::ratio_directions(self.directions)
     }
 
     /// Floats per voxel and order: `angular² · light²`.
@@ -169,7 +183,7 @@ pub fn bake_scatter(
     let weight = 4.0 * std::f32::consts::PI / dirs.len() as f32;
     let passes = settings.orders.saturating_sub(1);
     let gathers = ScatterSettings::gathers(settings.orders);
-    let total = gathers * dirs.len();
+    let total = settings.sweeps();
     let mut fields: Vec<Vec<f32>> = Vec::with_capacity(passes);
     if passes == 0 {
         return Ok(ScatterFields {
@@ -181,16 +195,10 @@ pub fn bake_scatter(
         });
     }
     const BATCH: usize = 8;
-    let by_axis: Vec<(usize, Vec<Vec3>)> = (0..3)
-        .map(|axis| {
-            let group = dirs
-                .iter()
-                .copied()
-                .filter(|d| Sweeper::axis_of(*d) == axis)
-                .collect();
-            (axis, group)
-        })
-        .collect();
+    let by_axis = group_by_axis(&dirs);
+    // The orders beyond the stored ones only measure λ, a ratio of grid sums that a coarser
+    // quadrature gives as well.
+    let coarse = fibonacci_directions(ScatterSettings::ratio_directions(settings.directions));
     // Order 0: ∫ tau Y_a Y_j, the exact δ_aj plus the quadrature of tau − 1.
     let mut field = vec![0.0f32; voxels * per];
     for (axis, group) in &by_axis {
@@ -239,6 +247,13 @@ pub fn bake_scatter(
         weight,
         voxels,
     };
+    let coarse_axes = group_by_axis(&coarse);
+    let ratio_pass = Pass {
+        by_axis: &coarse_axes,
+        weight: 4.0 * std::f32::consts::PI / coarse.len() as f32,
+        bands: pass.bands.clone(),
+        ..pass
+    };
     let mut done = 0;
     let mut responses = Vec::with_capacity(gathers);
     let mut column: Option<Vec<f32>> = None;
@@ -261,8 +276,8 @@ pub fn bake_scatter(
                     .map(|row| row[0])
                     .collect::<Vec<f32>>()
             });
-            let next = pass.run(&from, 1, tick);
-            responses.push(pass.isotropic(&next, 1));
+            let next = ratio_pass.run(&from, 1, tick);
+            responses.push(ratio_pass.isotropic(&next, 1));
             column = Some(next);
         }
     }
@@ -280,6 +295,20 @@ pub fn bake_scatter(
         tail_ratio,
         fields,
     })
+}
+
+/// Directions grouped by their sweep axis.
+fn group_by_axis(dirs: &[Vec3]) -> Vec<(usize, Vec<Vec3>)> {
+    (0..3)
+        .map(|axis| {
+            let group = dirs
+                .iter()
+                .copied()
+                .filter(|d| Sweeper::axis_of(*d) == axis)
+                .collect();
+            (axis, group)
+        })
+        .collect()
 }
 
 /// One scattering order: the sweeps and what every gather shares.

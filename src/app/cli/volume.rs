@@ -242,8 +242,7 @@ pub(super) fn volume_bake_cmd(a: VolumeBakeArgs) -> Result<()> {
         },
     };
     settings.validate()?;
-    let sweeps = settings.directions
-        + ScatterSettings::gathers(settings.scatter.orders) * settings.scatter.directions;
+    let sweeps = settings.directions + settings.scatter.sweeps();
     let bar = ProgressBar::new(sweeps as u64);
     bar.set_style(
         ProgressStyle::with_template(
