@@ -37,23 +37,46 @@ struct Params {
 
 const PI: f32 = 3.14159265358979;
 const MAX_N2: u32 = 64u;
-const MAX_MS_N2: u32 = 9u;
 
 // Real SH to band 2 in the project's convention (CONVENTIONS.md: Condon–Shortley phase, +z
-// polar), times g^l: the weights of the scattered field's coefficients along d.
-fn field_weights(d: vec3<f32>, g: f32) -> array<f32, MAX_MS_N2> {
+// polar), times g^l: the weights of the scattered field's coefficients along d, in registers
+// (bands 0-1 in `low`, band 2 in `high` and `last`) so that no per-sample loop indexes an array.
+struct FieldWeights {
+    low: vec4<f32>,
+    high: vec4<f32>,
+    last: f32,
+}
+
+fn field_weights(d: vec3<f32>, g: f32) -> FieldWeights {
     let g2 = g * g;
-    return array<f32, MAX_MS_N2>(
-        0.2820948,
-        -0.4886025 * d.y * g,
-        0.4886025 * d.z * g,
-        -0.4886025 * d.x * g,
-        1.0925484 * d.x * d.y * g2,
-        -1.0925484 * d.y * d.z * g2,
-        0.3153916 * (3.0 * d.z * d.z - 1.0) * g2,
-        -1.0925484 * d.x * d.z * g2,
+    return FieldWeights(
+        vec4<f32>(0.2820948, -0.4886025 * d.y * g, 0.4886025 * d.z * g, -0.4886025 * d.x * g),
+        vec4<f32>(
+            1.0925484 * d.x * d.y * g2,
+            -1.0925484 * d.y * d.z * g2,
+            0.3153916 * (3.0 * d.z * d.z - 1.0) * g2,
+            -1.0925484 * d.x * d.z * g2,
+        ),
         0.5462742 * (d.x * d.x - d.y * d.y) * g2,
     );
+}
+
+// The scattered field of one voxel along the march's direction: Σ_a w_a F_a (1, 4 or 9
+// coefficients a voxel).
+fn field_at(voxel: u32, cw: FieldWeights) -> vec3<f32> {
+    let n = params.ms_n2;
+    let b = voxel * n;
+    var s = cw.low.x * scatter[b].xyz;
+    if n >= 4u {
+        s += cw.low.y * scatter[b + 1u].xyz + cw.low.z * scatter[b + 2u].xyz
+            + cw.low.w * scatter[b + 3u].xyz;
+    }
+    if n >= 9u {
+        s += cw.high.x * scatter[b + 4u].xyz + cw.high.y * scatter[b + 5u].xyz
+            + cw.high.z * scatter[b + 6u].xyz + cw.high.w * scatter[b + 7u].xyz
+            + cw.last * scatter[b + 8u].xyz;
+    }
+    return s;
 }
 
 fn voxel(x: i32, y: i32, z: i32) -> f32 {
@@ -189,10 +212,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                         * select(1.0 - cz.z, cz.z, bz == 1u);
                     let voxel_index = (iz * dims.y + iy) * dims.x + ix;
                     let base = voxel_index * n2;
-                    if params.view <= 1u {
-                        for (var a = 0u; a < ms_n2; a++) {
-                            acc_ms += w * cw[a] * scatter[voxel_index * ms_n2 + a].xyz;
-                        }
+                    if ms_n2 > 0u && params.view <= 1u {
+                        acc_ms += w * field_at(voxel_index, cw);
                     }
                     if params.view == 3u {
                         acc.x += w * transfer[base];

@@ -452,7 +452,7 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
         if g.reused_bake { ", reused" } else { "" },
     );
     println!(
-        "volume         {} (SH self-transfer baked in {:.2} s; images in {})",
+        "volume         {} (SH self-transfer and scattering orders ready in {:.2} s; images in {})",
         out.join("volume_sheet.png").display(),
         report.volume_bake_seconds,
         out.join("volume").display()
