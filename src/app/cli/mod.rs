@@ -99,7 +99,8 @@ pub enum Command {
     /// Open the interactive viewer (SH versus wavelet, kept terms, environments, rotation), or
     /// with --screenshot render the image it would show to a PNG and exit.
     View(ViewArgs),
-    /// Participating media: bake SH self-transfer over a grid, relight it by ray marching.
+    /// Participating media: bake SH self-transfer and higher scattering orders over a grid,
+    /// relight it by ray marching, path trace it for reference.
     #[command(subcommand)]
     Volume(VolumeCommand),
     /// Compare two linear EXR images: relative L2, RMSE, PSNR, gradient error, 1 - SSIM.
@@ -117,7 +118,8 @@ pub enum Command {
 /// The commands of `prt volume`.
 #[derive(Subcommand, Debug)]
 pub enum VolumeCommand {
-    /// Bake the SH self-transfer of a scene's [medium] into a volume file (.prtv).
+    /// Bake the SH self-transfer of a scene's [medium] and its higher scattering orders into a
+    /// volume file (.prtv).
     Bake(VolumeBakeArgs),
     /// Relight a volume file under an environment by ray marching, from any camera.
     Render(VolumeRenderArgs),
