@@ -10,6 +10,7 @@ use glam::Vec3;
 
 use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
+use crate::math::cubemap::CubeMap;
 use crate::output::film::Image;
 use crate::output::metrics::relative_l2;
 use crate::scene::{Camera, Scene};
@@ -65,17 +66,17 @@ struct References {
 
 fn trace_all(
     study: &OrdersStudy,
+    cubes: &[CubeMap],
     medium: &crate::medium::Medium,
     camera: &Camera,
     log: &mut dyn FnMut(&str),
 ) -> Result<References> {
     let start = Instant::now();
     let mut images = Vec::new();
-    for (name, env) in &study.envs {
-        let cube = env.to_cube(study.cube, EnvRotation::default())?;
+    for ((name, _), cube) in study.envs.iter().zip(cubes) {
         let traced = path_trace_volume(
             medium,
-            &cube,
+            cube,
             camera,
             &VolumeTraceSettings {
                 samples: study.samples,
@@ -97,11 +98,14 @@ fn trace_all(
     })
 }
 
-fn march(vt: &VolumeTransfer, env: &EnvMap, cube: usize, look: &MediumLook) -> Result<Image> {
-    let cube = env.to_cube(cube, EnvRotation::default())?;
-    let light = VolumeLight::new(vt, &cube, look)?;
+/// The relative L2 of `vt` relit by `light` from its own camera against `reference`.
+fn error(vt: &VolumeTransfer, light: &VolumeLight, reference: &Image) -> Result<f64> {
     let camera = vt.camera(None, None, None)?;
-    Ok(render_volume(vt, &light, &camera, VolumeView::Full))
+    relative_l2(
+        &render_volume(vt, light, &camera, VolumeView::Full),
+        reference,
+        None,
+    )
 }
 
 /// Runs the study, writing its bakes into `scratch` (each removed once measured) and calling
@@ -122,12 +126,18 @@ pub fn run_orders_study(
         .medium
         .as_ref()
         .ok_or_else(|| PrtError::file(&study.scene, "the scene has no [medium] to study"))?;
+    // Each environment resampled once, for the references and every march alike.
+    let cubes = study
+        .envs
+        .iter()
+        .map(|(_, env)| env.to_cube(study.cube, EnvRotation::default()))
+        .collect::<Result<Vec<CubeMap>>>()?;
     let mut bakes = Vec::new();
     let mut reference_seconds = Vec::new();
     for &grid in &study.grids {
         let medium = spec.build(Some(grid))?;
         log(&format!("grid {grid}: {:?} voxels", medium.grid.dims));
-        let refs = trace_all(study, &medium, &scene.camera, log)?;
+        let refs = trace_all(study, &cubes, &medium, &scene.camera, log)?;
         reference_seconds.push((grid, refs.seconds));
         for &orders in &study.orders {
             let settings = TransferSettings {
@@ -147,15 +157,16 @@ pub fn run_orders_study(
                 .len();
             std::fs::remove_file(&path).map_err(|e| PrtError::io(&path, e))?;
             let mut errors = Vec::new();
-            for ((_, env), (reference, _)) in study.envs.iter().zip(&refs.images) {
+            for (cube, (reference, _)) in cubes.iter().zip(&refs.images) {
                 let look = MediumLook::of(&vt);
-                let with = relative_l2(&march(&vt, env, study.cube, &look)?, reference, None)?;
+                let light = VolumeLight::new(&vt, cube, &look)?;
+                let with = error(&vt, &light, reference)?;
                 let without = if orders > 1 {
                     let bare = MediumLook {
                         tail: false,
                         ..look
                     };
-                    relative_l2(&march(&vt, env, study.cube, &bare)?, reference, None)?
+                    error(&vt, &light.with_look(&vt, cube, &bare)?, reference)?
                 } else {
                     with
                 };
@@ -190,6 +201,7 @@ pub fn run_orders_study(
         log(&format!("albedo {a}"));
         let refs = trace_all(
             study,
+            &cubes,
             &crate::medium::Medium {
                 albedo,
                 ..medium.clone()
@@ -198,14 +210,15 @@ pub fn run_orders_study(
             log,
         )?;
         let mut errors = Vec::new();
-        for ((_, env), (reference, noise)) in study.envs.iter().zip(&refs.images) {
+        for (cube, (reference, noise)) in cubes.iter().zip(&refs.images) {
             let look = MediumLook {
                 albedo,
                 ..MediumLook::of(&vt)
             };
-            let every = relative_l2(&march(&vt, env, study.cube, &look)?, reference, None)?;
+            let light = VolumeLight::new(&vt, cube, &look)?;
+            let every = error(&vt, &light, reference)?;
             let once = MediumLook { orders: 1, ..look };
-            let single = relative_l2(&march(&vt, env, study.cube, &once)?, reference, None)?;
+            let single = error(&vt, &light.with_look(&vt, cube, &once)?, reference)?;
             errors.push((every, single, *noise));
         }
         albedos.push(AlbedoRow { albedo: a, errors });

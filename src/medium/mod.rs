@@ -215,6 +215,28 @@ pub fn henyey_greenstein(g: f32, cos_theta: f32) -> f32 {
     (1.0 - g * g) / (4.0 * PI * denom * denom.sqrt())
 }
 
+/// Checks a single-scattering albedo, `what` naming it: each channel in [0, 1].
+pub fn check_albedo(what: &str, albedo: Vec3) -> Result<()> {
+    if albedo.is_finite() && albedo.cmpge(Vec3::ZERO).all() && albedo.cmple(Vec3::ONE).all() {
+        return Ok(());
+    }
+    Err(PrtError::invalid(
+        what,
+        format!("each channel must be in [0, 1], got {albedo}"),
+    ))
+}
+
+/// Checks a Henyey–Greenstein asymmetry, `what` naming it: in (−1, 1).
+pub fn check_g(what: &str, g: f32) -> Result<()> {
+    if g.is_finite() && g.abs() < 1.0 {
+        return Ok(());
+    }
+    Err(PrtError::invalid(
+        what,
+        format!("must be in (-1, 1), got {g}"),
+    ))
+}
+
 /// `count` quasi-uniform unit directions (a Fibonacci sphere).
 pub fn fibonacci_directions(count: usize) -> Vec<Vec3> {
     let golden = PI * (3.0 - 5f32.sqrt());
@@ -238,22 +260,8 @@ impl Medium {
                 format!("must be finite and >= 0, got {}", self.extinction),
             ));
         }
-        if !(self.albedo.is_finite()
-            && self.albedo.cmpge(Vec3::ZERO).all()
-            && self.albedo.cmple(Vec3::ONE).all())
-        {
-            return Err(PrtError::invalid(
-                "medium.albedo",
-                format!("each channel must be in [0, 1], got {}", self.albedo),
-            ));
-        }
-        if !(self.g.is_finite() && self.g.abs() < 1.0) {
-            return Err(PrtError::invalid(
-                "medium.g",
-                format!("must be in (-1, 1), got {}", self.g),
-            ));
-        }
-        Ok(())
+        check_albedo("medium.albedo", self.albedo)?;
+        check_g("medium.g", self.g)
     }
 
     /// sigma_t at `p`.

@@ -154,28 +154,22 @@ impl Sweeper {
 
     /// Sweeps `dir`, writing `f(tau)` per voxel into `out` (the layout of `dir`'s axis).
     pub fn sweep(&self, dir: Vec3, out: &mut [f32], f: impl Fn(f32) -> f32) {
-        let layout = &self.layouts[Self::axis_of(dir)];
-        let [a, b, c] = layout.axes;
-        let [na, nb, nc] = layout.n;
-        let h = self.cell[a] / dir[a].abs();
-        let (fb, wb) = upstream_offset(h * dir[b] / self.cell[b], nb);
-        let (fc, wc) = upstream_offset(h * dir[c] / self.cell[c], nc);
-        let (ib, ic) = (fb as isize, fc as isize);
-        let pad = [ib, ib + 1, ic, ic + 1]
-            .iter()
-            .map(|v| v.unsigned_abs())
-            .max()
-            .unwrap_or(1);
-        let (pb, pc) = (nb + 2 * pad, nc + 2 * pad);
-        let mut up = vec![0.0f32; pb * pc];
-        let mut next = vec![0.0f32; pb * pc];
+        let (layout, st) = self.stepping(dir);
+        let Stepping {
+            n: [_, nb, nc],
+            h,
+            wb,
+            wc,
+            ib,
+            ic,
+            pad,
+            pc,
+            ..
+        } = st;
+        let mut up = vec![0.0f32; st.padded()];
+        let mut next = vec![0.0f32; st.padded()];
         let hh = 0.5 * h;
-        let slices: Box<dyn Iterator<Item = usize>> = if dir[a] > 0.0 {
-            Box::new((0..na).rev())
-        } else {
-            Box::new(0..na)
-        };
-        for s in slices {
+        for s in st.slices() {
             let sig = &layout.sigma[s * nb * nc..(s + 1) * nb * nc];
             let dst = &mut out[s * nb * nc..(s + 1) * nb * nc];
             for jb in 0..nb {
@@ -218,28 +212,27 @@ impl Sweeper {
     /// sigma_up) / 2` adds `e^−Δ I_up + S_x (1 − (1 − e^−Δ)/Δ) + S_up ((1 − e^−Δ)/Δ − e^−Δ)`,
     /// the exact integral for a source linear in optical depth.
     pub fn gather(&self, dir: Vec3, channels: usize, source: &[f32], out: &mut [f32]) {
-        let layout = &self.layouts[Self::axis_of(dir)];
-        let [a, b, c] = layout.axes;
-        let [na, nb, nc] = layout.n;
+        let (layout, st) = self.stepping(dir);
+        let Stepping {
+            n: [na, nb, nc],
+            h,
+            wb,
+            wc,
+            ib,
+            ic,
+            pad,
+            pc,
+            ..
+        } = st;
         let ch = channels;
         debug_assert_eq!(source.len(), na * nb * nc * ch);
         debug_assert_eq!(out.len(), na * nb * nc * ch);
-        let h = self.cell[a] / dir[a].abs();
-        let (fb, wb) = upstream_offset(h * dir[b] / self.cell[b], nb);
-        let (fc, wc) = upstream_offset(h * dir[c] / self.cell[c], nc);
-        let (ib, ic) = (fb as isize, fc as isize);
-        let pad = [ib, ib + 1, ic, ic + 1]
-            .iter()
-            .map(|v| v.unsigned_abs())
-            .max()
-            .unwrap_or(1);
-        let (pb, pc) = (nb + 2 * pad, nc + 2 * pad);
         // The previous slice, padded with zeros: sigma_t, then source and gathered values.
-        let mut sig_up = vec![0.0f32; pb * pc];
+        let mut sig_up = vec![0.0f32; st.padded()];
         // 1 inside the grid: the source is known there, and the padding takes the nearest.
-        let mut inside = vec![0.0f32; pb * pc];
-        let mut src_up = vec![0.0f32; pb * pc * ch];
-        let mut out_up = vec![0.0f32; pb * pc * ch];
+        let mut inside = vec![0.0f32; st.padded()];
+        let mut src_up = vec![0.0f32; st.padded() * ch];
+        let mut out_up = vec![0.0f32; st.padded() * ch];
         let weights = [
             (0usize, 0usize, (1.0 - wb) * (1.0 - wc)),
             (0, 1, (1.0 - wb) * wc),
@@ -248,12 +241,7 @@ impl Sweeper {
         ];
         let mut s_up = vec![0.0f32; ch];
         let mut i_up = vec![0.0f32; ch];
-        let slices: Box<dyn Iterator<Item = usize>> = if dir[a] > 0.0 {
-            Box::new((0..na).rev())
-        } else {
-            Box::new(0..na)
-        };
-        for s in slices {
+        for s in st.slices() {
             let plane = nb * nc;
             let sig = &layout.sigma[s * plane..(s + 1) * plane];
             let src = &source[s * plane * ch..(s + 1) * plane * ch];
@@ -315,6 +303,75 @@ impl Sweeper {
                     .copy_from_slice(&dst[jb * nc * ch..(jb + 1) * nc * ch]);
             }
         }
+    }
+}
+
+/// How a sweep towards one direction steps through its axis layout: slice by slice from the
+/// side the light comes from, each voxel reading the point one slice upstream bilinearly in the
+/// previous slice, which is held padded with `pad` cells of zeros on each side.
+#[derive(Clone, Copy)]
+struct Stepping {
+    /// Voxels along the sweep axis a and the slice axes b and c.
+    n: [usize; 3],
+    /// Path length from one slice to the next.
+    h: f32,
+    /// Bilinear fractions of the upstream point along b and c.
+    wb: f32,
+    wc: f32,
+    /// Whole cells from a voxel to its upstream point along b and c.
+    ib: isize,
+    ic: isize,
+    /// Padding cells on each side of a held slice.
+    pad: usize,
+    /// Row length of a held slice, padding included.
+    pc: usize,
+    /// Whether the sweep runs towards decreasing a (the light comes from +a).
+    backwards: bool,
+}
+
+impl Stepping {
+    /// Cells of one held slice, padding included.
+    fn padded(&self) -> usize {
+        (self.n[1] + 2 * self.pad) * self.pc
+    }
+
+    /// The slices along a, upstream first.
+    fn slices(&self) -> Box<dyn Iterator<Item = usize>> {
+        if self.backwards {
+            Box::new((0..self.n[0]).rev())
+        } else {
+            Box::new(0..self.n[0])
+        }
+    }
+}
+
+impl Sweeper {
+    /// The layout of `dir`'s sweep axis and how a sweep towards `dir` steps through it.
+    fn stepping(&self, dir: Vec3) -> (&AxisLayout, Stepping) {
+        let layout = &self.layouts[Self::axis_of(dir)];
+        let [a, b, c] = layout.axes;
+        let [_, nb, nc] = layout.n;
+        let h = self.cell[a] / dir[a].abs();
+        let (fb, wb) = upstream_offset(h * dir[b] / self.cell[b], nb);
+        let (fc, wc) = upstream_offset(h * dir[c] / self.cell[c], nc);
+        let (ib, ic) = (fb as isize, fc as isize);
+        let pad = [ib, ib + 1, ic, ic + 1]
+            .iter()
+            .map(|v| v.unsigned_abs())
+            .max()
+            .unwrap_or(1);
+        let stepping = Stepping {
+            n: layout.n,
+            h,
+            wb,
+            wc,
+            ib,
+            ic,
+            pad,
+            pc: nc + 2 * pad,
+            backwards: dir[a] > 0.0,
+        };
+        (layout, stepping)
     }
 }
 

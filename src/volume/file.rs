@@ -129,7 +129,8 @@ impl VolumeTransfer {
     /// The transfer vector at `p`, trilinear between voxel centres and clamped to the edge
     /// voxels, into `out` (`n²` values).
     pub fn transfer_at(&self, p: Vec3, out: &mut [f32]) {
-        trilinear(&self.meta, &self.transfer, self.sh_count(), p, out);
+        let corners = trilinear_corners(&self.meta, p);
+        trilinear_at(&corners, &self.transfer, self.sh_count(), out);
     }
 
     /// Writes the file atomically: safetensors with `density` `[nz, ny, nx]` and `transfer`
@@ -338,10 +339,9 @@ impl VolumeTransfer {
     }
 }
 
-/// `stride` values per voxel of `data` at `p`, trilinear between the voxel centres of `meta`'s
-/// grid and clamped to the edge voxels, into `out`.
-pub fn trilinear(meta: &VolumeMeta, data: &[f32], stride: usize, p: Vec3, out: &mut [f32]) {
-    let n = stride;
+/// The eight voxels around `p` in `meta`'s grid and their trilinear weights, between voxel
+/// centres and clamped to the edge voxels (weights of 0 included).
+pub fn trilinear_corners(meta: &VolumeMeta, p: Vec3) -> [(usize, f32); 8] {
     let d = meta.dims;
     let (min, max) = (Vec3::from(meta.min), Vec3::from(meta.max));
     let cell = (max - min) / Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
@@ -354,19 +354,24 @@ pub fn trilinear(meta: &VolumeMeta, data: &[f32], stride: usize, p: Vec3, out: &
     let (x0, x1, fx) = axis(u.x, d[0]);
     let (y0, y1, fy) = axis(u.y, d[1]);
     let (z0, z1, fz) = axis(u.z, d[2]);
+    std::array::from_fn(|k| {
+        let (z, wz) = if k & 4 == 0 { (z0, 1.0 - fz) } else { (z1, fz) };
+        let (y, wy) = if k & 2 == 0 { (y0, 1.0 - fy) } else { (y1, fy) };
+        let (x, wx) = if k & 1 == 0 { (x0, 1.0 - fx) } else { (x1, fx) };
+        ((z * d[1] + y) * d[0] + x, wx * wy * wz)
+    })
+}
+
+/// `stride` values per voxel of `data` at the `corners` of a point, into `out`.
+pub fn trilinear_at(corners: &[(usize, f32); 8], data: &[f32], stride: usize, out: &mut [f32]) {
+    let n = stride;
     out[..n].fill(0.0);
-    for (z, wz) in [(z0, 1.0 - fz), (z1, fz)] {
-        for (y, wy) in [(y0, 1.0 - fy), (y1, fy)] {
-            for (x, wx) in [(x0, 1.0 - fx), (x1, fx)] {
-                let w = wx * wy * wz;
-                if w == 0.0 {
-                    continue;
-                }
-                let v = (z * d[1] + y) * d[0] + x;
-                for (o, t) in out.iter_mut().zip(&data[v * n..(v + 1) * n]) {
-                    *o += w * t;
-                }
-            }
+    for &(v, w) in corners {
+        if w == 0.0 {
+            continue;
+        }
+        for (o, t) in out.iter_mut().zip(&data[v * n..(v + 1) * n]) {
+            *o += w * t;
         }
     }
 }

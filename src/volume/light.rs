@@ -42,21 +42,8 @@ impl MediumLook {
     /// Checks the look against the file it relights.
     pub fn validate(&self, vt: &VolumeTransfer) -> Result<()> {
         crate::flags::sh_order(self.sh_order, vt.meta.sh_order)?;
-        if !(self.albedo.is_finite()
-            && self.albedo.cmpge(Vec3::ZERO).all()
-            && self.albedo.cmple(Vec3::ONE).all())
-        {
-            return Err(PrtError::invalid(
-                "albedo",
-                format!("each channel must be in [0, 1], got {}", self.albedo),
-            ));
-        }
-        if !(self.g.is_finite() && self.g.abs() < 1.0) {
-            return Err(PrtError::invalid(
-                "g",
-                format!("must be in (-1, 1), got {}", self.g),
-            ));
-        }
+        crate::medium::check_albedo("albedo", self.albedo)?;
+        crate::medium::check_g("g", self.g)?;
         if !(1..=vt.orders()).contains(&self.orders) {
             return Err(PrtError::invalid(
                 "orders",
@@ -89,22 +76,31 @@ impl VolumeLight {
     /// The light of `vt` under `cube` with `look`.
     pub fn new(vt: &VolumeTransfer, cube: &CubeMap, look: &MediumLook) -> Result<VolumeLight> {
         look.validate(vt)?;
-        let phase = PhaseLight::new(cube, look.sh_order, look.g);
-        let scatter = match &vt.scatter {
-            Some(fields) if look.orders > 1 => Some(ScatterLight::new(
-                fields,
-                &light_sh(cube, fields.light),
-                look.albedo,
-                look.orders,
-                look.tail,
-            )),
-            _ => None,
-        };
         Ok(VolumeLight {
-            phase,
+            phase: PhaseLight::new(cube, look.sh_order, look.g),
             albedo: look.albedo,
             g: look.g,
-            scatter,
+            scatter: scattered(vt, cube, look),
+        })
+    }
+
+    /// This light (made from `cube`) in another look: the phase table is kept when the SH order
+    /// and g are the same, so an albedo or orders change only re-applies the scattered fields.
+    pub fn with_look(
+        self,
+        vt: &VolumeTransfer,
+        cube: &CubeMap,
+        look: &MediumLook,
+    ) -> Result<VolumeLight> {
+        if self.phase.order != look.sh_order || self.g != look.g {
+            return VolumeLight::new(vt, cube, look);
+        }
+        look.validate(vt)?;
+        Ok(VolumeLight {
+            phase: self.phase,
+            albedo: look.albedo,
+            g: look.g,
+            scatter: scattered(vt, cube, look),
         })
     }
 
@@ -118,4 +114,16 @@ impl VolumeLight {
             scatter: None,
         }
     }
+}
+
+/// The scattered light of orders 2 and above under `cube` in `look`, when drawn.
+fn scattered(vt: &VolumeTransfer, cube: &CubeMap, look: &MediumLook) -> Option<ScatterLight> {
+    let fields = vt.scatter.as_ref().filter(|_| look.orders > 1)?;
+    Some(ScatterLight::new(
+        fields,
+        &light_sh(cube, fields.light),
+        look.albedo,
+        look.orders,
+        look.tail,
+    ))
 }

@@ -157,15 +157,62 @@ pub fn bake_transfer(
     let dirs = fibonacci_directions(settings.directions);
     let weight = 4.0 * std::f64::consts::PI / dirs.len() as f64;
     let mut acc = vec![0.0f32; voxels * n2];
-    // Directions grouped by sweep axis; batches of B share one pass over the accumulator.
-    const BATCH: usize = 8;
     let mut done = 0;
-    for axis in 0..3 {
-        let group: Vec<Vec3> = dirs
-            .iter()
-            .copied()
-            .filter(|d| Sweeper::axis_of(*d) == axis)
-            .collect();
+    project_transmittance(
+        &sweeper,
+        &dirs,
+        n2,
+        |d| {
+            crate::math::sh::eval_vec(order, d.as_dvec3())
+                .into_iter()
+                .map(|y| (y * weight) as f32)
+                .collect()
+        },
+        &mut acc,
+        |n| {
+            done += n;
+            progress(done, dirs.len());
+        },
+    );
+    // The exact projection of tau = 1.
+    let dc = 2.0 * std::f32::consts::PI.sqrt();
+    for v in acc.chunks_exact_mut(n2) {
+        v[0] += dc;
+    }
+    Ok(acc)
+}
+
+/// Directions grouped by their sweep axis, x then y then z.
+pub(crate) fn group_by_axis(dirs: &[Vec3]) -> Vec<(usize, Vec<Vec3>)> {
+    (0..3)
+        .map(|axis| {
+            let group = dirs
+                .iter()
+                .copied()
+                .filter(|d| Sweeper::axis_of(*d) == axis)
+                .collect();
+            (axis, group)
+        })
+        .collect()
+}
+
+/// Adds `Σ_d (tau(x, d) − 1) · w(d)` over `dirs` to `acc`, `per` values a voxel in global order:
+/// one transmittance sweep per direction, grouped by sweep axis, each batch of eight sharing one
+/// pass over the accumulator. `weights(d)` gives `w(d)` (`per` values, quadrature weight
+/// included); `tick(n)` follows each batch of `n` directions. The projections of the
+/// self-transfer and of the scattered fields' order 0 both add the exact projection of `tau = 1`
+/// to this.
+pub(crate) fn project_transmittance(
+    sweeper: &Sweeper,
+    dirs: &[Vec3],
+    per: usize,
+    weights: impl Fn(Vec3) -> Vec<f32>,
+    acc: &mut [f32],
+    mut tick: impl FnMut(usize),
+) {
+    const BATCH: usize = 8;
+    let voxels = sweeper.voxel_count();
+    for (axis, group) in group_by_axis(dirs) {
         let local = sweeper.local_of_global(axis);
         for batch in group.chunks(BATCH) {
             let fields: Vec<Vec<f32>> = batch
@@ -176,21 +223,12 @@ pub fn bake_transfer(
                     t
                 })
                 .collect();
-            let basis: Vec<Vec<f32>> = batch
-                .iter()
-                .map(|d| {
-                    crate::math::sh::eval_vec(order, d.as_dvec3())
-                        .into_iter()
-                        .map(|y| (y * weight) as f32)
-                        .collect()
-                })
-                .collect();
-            acc.par_chunks_mut(n2 * 1024)
+            let basis: Vec<Vec<f32>> = batch.iter().map(|d| weights(*d)).collect();
+            acc.par_chunks_mut(per * 1024)
                 .enumerate()
                 .for_each(|(chunk, out)| {
-                    for (k, coeffs) in out.chunks_exact_mut(n2).enumerate() {
-                        let g = chunk * 1024 + k;
-                        let l = local[g] as usize;
+                    for (k, coeffs) in out.chunks_exact_mut(per).enumerate() {
+                        let l = local[chunk * 1024 + k] as usize;
                         for (field, y) in fields.iter().zip(&basis) {
                             let t = field[l];
                             if t != 0.0 {
@@ -201,16 +239,9 @@ pub fn bake_transfer(
                         }
                     }
                 });
-            done += batch.len();
-            progress(done, dirs.len());
+            tick(batch.len());
         }
     }
-    // The exact projection of tau = 1.
-    let dc = 2.0 * std::f32::consts::PI.sqrt();
-    for v in acc.chunks_exact_mut(n2) {
-        v[0] += dc;
-    }
-    Ok(acc)
 }
 
 #[cfg(test)]

@@ -301,28 +301,6 @@ pub fn path_trace_volume(
     })
 }
 
-/// Ratio-tracked transmittance along `o + t d` out of `medium`, averaged over `count` estimates
-/// (for tests of the tracker against closed forms).
-pub fn estimate_transmittance(medium: &Medium, o: Vec3, d: Vec3, count: u32, seed: u64) -> f64 {
-    let tracker = Tracker::new(medium);
-    let mut rng = Rng::new(seed, 0);
-    (0..count)
-        .map(|_| tracker.transmittance(o, d, &mut rng) as f64)
-        .sum::<f64>()
-        / count as f64
-}
-
-/// The fraction of `count` delta-tracked rays along `o + t d` that leave `medium` without a real
-/// collision: an estimate of the same transmittance by the other tracker.
-pub fn estimate_escape(medium: &Medium, o: Vec3, d: Vec3, count: u32, seed: u64) -> f64 {
-    let tracker = Tracker::new(medium);
-    let mut rng = Rng::new(seed, 0);
-    (0..count)
-        .filter(|_| tracker.collide(o, d, &mut rng).is_none())
-        .count() as f64
-        / count as f64
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -353,6 +331,28 @@ mod tests {
             width: size,
             height: size,
         }
+    }
+
+    /// Ratio-tracked transmittance along `o + t d` out of `medium`, averaged over `count` estimates
+    /// (against closed forms).
+    fn estimate_transmittance(medium: &Medium, o: Vec3, d: Vec3, count: u32, seed: u64) -> f64 {
+        let tracker = Tracker::new(medium);
+        let mut rng = Rng::new(seed, 0);
+        (0..count)
+            .map(|_| tracker.transmittance(o, d, &mut rng) as f64)
+            .sum::<f64>()
+            / count as f64
+    }
+
+    /// The fraction of `count` delta-tracked rays along `o + t d` that leave `medium` without a real
+    /// collision: an estimate of the same transmittance by the other tracker.
+    fn estimate_escape(medium: &Medium, o: Vec3, d: Vec3, count: u32, seed: u64) -> f64 {
+        let tracker = Tracker::new(medium);
+        let mut rng = Rng::new(seed, 0);
+        (0..count)
+            .filter(|_| tracker.collide(o, d, &mut rng).is_none())
+            .count() as f64
+            / count as f64
     }
 
     /// The optical depth of the trilinear density along a ray, by a fine midpoint rule (1,000

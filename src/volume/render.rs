@@ -17,7 +17,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::file::trilinear;
+use super::file::{trilinear_at, trilinear_corners};
 use super::{VolumeLight, VolumeTransfer};
 use crate::math::cubemap::{CubeMap, solid_angles, texel_dirs};
 use crate::medium::{MarchSample, henyey_greenstein};
@@ -244,7 +244,9 @@ pub fn render_volume(
                         let view_weights = scatter.map(|s| s.view_weights(g, ray.dir));
                         let (mut s, mut more) = ([0.0f32; 3], [0.0f32; 3]);
                         for m in &samples {
-                            vt.transfer_at(m.pos, &mut t);
+                            // One lookup of the cell serves the transfer and the field.
+                            let corners = trilinear_corners(&vt.meta, m.pos);
+                            trilinear_at(&corners, &vt.transfer, t.len(), &mut t);
                             let wgt = if view == VolumeView::Full {
                                 m.weight
                             } else {
@@ -256,7 +258,7 @@ pub fn render_volume(
                                 }
                             }
                             if let Some(vw) = &view_weights {
-                                trilinear(&vt.meta, field, stride, m.pos, &mut f);
+                                trilinear_at(&corners, field, stride, &mut f);
                                 for (ca, fa) in vw.iter().zip(f.chunks_exact(3)) {
                                     for c in 0..3 {
                                         more[c] += wgt * ca * fa[c];

@@ -29,6 +29,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use super::group_by_axis;
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::{CubeMap, solid_angles, texel_dirs};
 use crate::medium::sweep::Sweeper;
@@ -194,46 +195,25 @@ pub fn bake_scatter(
             fields,
         });
     }
-    const BATCH: usize = 8;
     let by_axis = group_by_axis(&dirs);
     // The orders beyond the stored ones only measure λ, a ratio of grid sums that a coarser
     // quadrature gives as well.
     let coarse = fibonacci_directions(ScatterSettings::ratio_directions(settings.directions));
     // Order 0: ∫ tau Y_a Y_j, the exact δ_aj plus the quadrature of tau − 1.
     let mut field = vec![0.0f32; voxels * per];
-    for (axis, group) in &by_axis {
-        let local = sweeper.local_of_global(*axis);
-        for batch in group.chunks(BATCH) {
-            let taus: Vec<Vec<f32>> = batch
-                .par_iter()
-                .map(|d| {
-                    let mut t = vec![0.0f32; voxels];
-                    sweeper.sweep(*d, &mut t, |tau| (-tau).exp() - 1.0);
-                    t
-                })
-                .collect();
-            let pairs: Vec<Vec<f32>> = batch
-                .iter()
-                .map(|d| {
-                    let (ya, yj) = (sh(settings.angular, *d), sh(settings.light, *d));
-                    ya.iter()
-                        .flat_map(|a| yj.iter().map(move |j| a * j * weight))
-                        .collect()
-                })
-                .collect();
-            field.par_chunks_mut(per).enumerate().for_each(|(g, out)| {
-                let l = local[g] as usize;
-                for (t, y) in taus.iter().zip(&pairs) {
-                    let t = t[l];
-                    if t != 0.0 {
-                        for (o, yy) in out.iter_mut().zip(y) {
-                            *o += t * yy;
-                        }
-                    }
-                }
-            });
-        }
-    }
+    super::project_transmittance(
+        &sweeper,
+        &dirs,
+        per,
+        |d| {
+            let (ya, yj) = (sh(settings.angular, d), sh(settings.light, d));
+            ya.iter()
+                .flat_map(|a| yj.iter().map(move |j| a * j * weight))
+                .collect()
+        },
+        &mut field,
+        |_| {},
+    );
     for v in field.chunks_exact_mut(per) {
         for a in 0..na2.min(nl2) {
             v[a * nl2 + a] += 1.0;
@@ -295,20 +275,6 @@ pub fn bake_scatter(
         tail_ratio,
         fields,
     })
-}
-
-/// Directions grouped by their sweep axis.
-fn group_by_axis(dirs: &[Vec3]) -> Vec<(usize, Vec<Vec3>)> {
-    (0..3)
-        .map(|axis| {
-            let group = dirs
-                .iter()
-                .copied()
-                .filter(|d| Sweeper::axis_of(*d) == axis)
-                .collect();
-            (axis, group)
-        })
-        .collect()
 }
 
 /// One scattering order: the sweeps and what every gather shares.

@@ -317,3 +317,64 @@ fn scattered_fields_round_trip_and_lying_headers_are_refused() {
     }
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+#[test]
+fn a_light_in_another_look_equals_one_made_afresh() {
+    let m = sphere(6, 0.7, 4.0);
+    let settings = TransferSettings {
+        sh_order: 2,
+        directions: 32,
+        scatter: ScatterSettings {
+            orders: 3,
+            angular: 2,
+            light: 2,
+            directions: 16,
+        },
+    };
+    let fields = scatter::bake_scatter(&m, &settings.scatter, &|_, _| {}).unwrap();
+    let vt = VolumeTransfer {
+        meta: VolumeMeta {
+            scatter: Some(ScatterMeta {
+                orders: fields.orders(),
+                angular: fields.angular,
+                light: fields.light,
+                directions: fields.directions,
+                tail_ratio: fields.tail_ratio,
+            }),
+            ..meta_for(&m, 2, 32)
+        },
+        density: m.grid.data.clone(),
+        transfer: bake_transfer(&m, &settings, &|_, _| {}).unwrap(),
+        scatter: Some(fields),
+    };
+    let cube = crate::math::cubemap::CubeMap::constant(4, [1.0, 0.5, 0.25]).unwrap();
+    let base = MediumLook::of(&vt);
+    let first = VolumeLight::new(&vt, &cube, &base).unwrap();
+    // The phase table kept (albedo, orders, tail) and made anew (g, SH order).
+    for look in [
+        MediumLook {
+            albedo: Vec3::splat(0.5),
+            ..base.clone()
+        },
+        MediumLook {
+            orders: 1,
+            ..base.clone()
+        },
+        MediumLook {
+            tail: false,
+            ..base.clone()
+        },
+        MediumLook {
+            g: -0.2,
+            ..base.clone()
+        },
+        MediumLook {
+            sh_order: 1,
+            ..base.clone()
+        },
+    ] {
+        let fresh = VolumeLight::new(&vt, &cube, &look).unwrap();
+        let kept = first.clone().with_look(&vt, &cube, &look).unwrap();
+        assert_eq!(kept, fresh, "{look:?}");
+    }
+}

@@ -38,7 +38,9 @@ pub use relight::{EnvArgs, ReferenceArgs, RelightArgs};
 use relight::{compare_cmd, env_cmd, reference_cmd, relight_cmd};
 pub use view::ViewArgs;
 use view::view_cmd;
-pub use volume::{VolumeBakeArgs, VolumeOrdersArgs, VolumeReferenceArgs, VolumeRenderArgs};
+pub use volume::{
+    VolumeBakeArgs, VolumeCameraArgs, VolumeOrdersArgs, VolumeReferenceArgs, VolumeRenderArgs,
+};
 use volume::{volume_bake_cmd, volume_orders_cmd, volume_reference_cmd, volume_render_cmd};
 
 /// All-frequency relighting: bake a view, relight it under any HDR environment with Haar wavelets

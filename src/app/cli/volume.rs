@@ -37,17 +37,9 @@ pub struct VolumeBakeArgs {
     pub scatter_light_order: usize,
 }
 
-/// Arguments of `prt volume render`.
+/// Where a volume is seen from: the scene's camera, moved and resized.
 #[derive(Args, Debug)]
-pub struct VolumeRenderArgs {
-    /// Volume file (.prtv).
-    pub file: PathBuf,
-    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
-    #[arg(long)]
-    pub env: String,
-    /// Output image (.exr linear, .png tone-mapped).
-    #[arg(short, long)]
-    pub output: PathBuf,
+pub struct VolumeCameraArgs {
     /// Camera position X,Y,Z (default: the scene's camera).
     #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true)]
     pub eye: Option<glam::Vec3>,
@@ -60,6 +52,33 @@ pub struct VolumeRenderArgs {
     /// Image height (default: the scene's).
     #[arg(long)]
     pub height: Option<u32>,
+}
+
+impl VolumeCameraArgs {
+    /// The image size asked for, each side defaulting to `width` × `height`; `None` when
+    /// neither was given.
+    fn size(&self, width: u32, height: u32) -> Option<(u32, u32)> {
+        match (self.width, self.height) {
+            (None, None) => None,
+            (w, h) => Some((w.unwrap_or(width), h.unwrap_or(height))),
+        }
+    }
+}
+
+/// Arguments of `prt volume render`.
+#[derive(Args, Debug)]
+pub struct VolumeRenderArgs {
+    /// Volume file (.prtv).
+    pub file: PathBuf,
+    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    #[arg(long)]
+    pub env: String,
+    /// Output image (.exr linear, .png tone-mapped).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// The camera, moved and resized from the scene's.
+    #[command(flatten)]
+    pub view_camera: VolumeCameraArgs,
     /// full, inscatter, transmittance or dc (the self-shadow map).
     #[arg(long, default_value = "full", value_parser = VolumeView::from_str)]
     pub view: VolumeView,
@@ -118,18 +137,9 @@ pub struct VolumeReferenceArgs {
     /// Albedo R,G,B in place of the medium's (as the viewer's slider sets it).
     #[arg(long, value_parser = parse_vec3)]
     pub albedo: Option<glam::Vec3>,
-    /// Camera position X,Y,Z (default: the scene's camera).
-    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true)]
-    pub eye: Option<glam::Vec3>,
-    /// Point the camera looks at, X,Y,Z (default: the scene's target).
-    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true)]
-    pub target: Option<glam::Vec3>,
-    /// Image width (default: the scene's).
-    #[arg(long)]
-    pub width: Option<u32>,
-    /// Image height (default: the scene's).
-    #[arg(long)]
-    pub height: Option<u32>,
+    /// The camera, moved and resized from the scene's.
+    #[command(flatten)]
+    pub view_camera: VolumeCameraArgs,
     /// How the environment is turned.
     #[command(flatten)]
     pub turn: TurnArgs,
@@ -282,11 +292,8 @@ pub(super) fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
     inputs.push(a.file.clone());
     check_image_output(&a.output, &inputs)?;
     let vt = VolumeTransfer::load(&a.file)?;
-    let size = match (a.width, a.height) {
-        (None, None) => None,
-        (w, h) => Some((w.unwrap_or(vt.meta.width), h.unwrap_or(vt.meta.height))),
-    };
-    let camera = vt.camera(a.eye, a.target, size)?;
+    let c = &a.view_camera;
+    let camera = vt.camera(c.eye, c.target, c.size(vt.meta.width, vt.meta.height))?;
     let order = a.sh_order.unwrap_or(vt.meta.sh_order);
     let file_look = MediumLook::of(&vt);
     let look = MediumLook {
@@ -341,10 +348,7 @@ pub(super) fn volume_reference_cmd(a: VolumeReferenceArgs) -> Result<()> {
     let mut inputs = env_files(std::slice::from_ref(&a.env));
     inputs.push(a.file.clone());
     check_image_output(&a.output, &inputs)?;
-    let size = |w: u32, h: u32| match (a.width, a.height) {
-        (None, None) => None,
-        (x, y) => Some((x.unwrap_or(w), y.unwrap_or(h))),
-    };
+    let c = &a.view_camera;
     let (mut medium, camera) = if is_volume_file(&a.file) {
         if a.grid.is_some() {
             return Err(PrtError::invalid(
@@ -353,7 +357,7 @@ pub(super) fn volume_reference_cmd(a: VolumeReferenceArgs) -> Result<()> {
             ));
         }
         let vt = VolumeTransfer::load(&a.file)?;
-        let camera = vt.camera(a.eye, a.target, size(vt.meta.width, vt.meta.height))?;
+        let camera = vt.camera(c.eye, c.target, c.size(vt.meta.width, vt.meta.height))?;
         (vt.medium(), camera)
     } else {
         let scene = Scene::load(&a.file)?;
@@ -362,9 +366,9 @@ pub(super) fn volume_reference_cmd(a: VolumeReferenceArgs) -> Result<()> {
             .as_ref()
             .ok_or_else(|| PrtError::file(&a.file, "the scene has no [medium] to trace"))?;
         let mut camera = scene.camera.clone();
-        camera.eye = a.eye.unwrap_or(camera.eye);
-        camera.target = a.target.unwrap_or(camera.target);
-        if let Some((w, h)) = size(camera.width, camera.height) {
+        camera.eye = c.eye.unwrap_or(camera.eye);
+        camera.target = c.target.unwrap_or(camera.target);
+        if let Some((w, h)) = c.size(camera.width, camera.height) {
             (camera.width, camera.height) = (w, h);
         }
         camera.validate()?;

@@ -15,6 +15,7 @@ use super::worker::{Worker, next_batch};
 use super::{EnvEntry, LightKey, LightState, env_entries};
 use crate::error::Result;
 use crate::gpu::GpuDevice;
+use crate::math::cubemap::CubeMap;
 use crate::output::film::{Image, ToneCurve, ToneMap};
 use crate::relight::vertex::Orbit;
 use crate::scene::Camera;
@@ -136,7 +137,8 @@ pub struct VolumeEngine {
     /// The environment list.
     pub envs: Vec<EnvEntry>,
     /// The phase light, with the light and SH order it was made for.
-    light: Option<((LightKey, MediumLook), VolumeLight)>,
+    /// The light prepared last: its key, the cube it came from and the light.
+    light: Option<((LightKey, MediumLook), CubeMap, VolumeLight)>,
     gpu: Option<(GpuDevice, GpuVolume)>,
 }
 
@@ -167,13 +169,22 @@ impl VolumeEngine {
     pub fn render(&mut self, state: &VolumeState) -> Result<VolumeFrame> {
         let key = (state.light.key(&self.envs), state.look(&self.vt));
         let start = Instant::now();
-        if self.light.as_ref().is_none_or(|(k, _)| *k != key) {
-            let cube = key.0.env.load()?.to_cube(LIGHT_CUBE, key.0.rotation)?;
-            let light = VolumeLight::new(&self.vt, &cube, &key.1)?;
-            self.light = Some((key, light));
+        match self.light.take() {
+            Some((k, cube, light)) if k == key => self.light = Some((k, cube, light)),
+            // The same environment in another look: its cube, and its phase table where the SH
+            // order and g are unchanged (an albedo or orders drag), are kept.
+            Some((k, cube, light)) if k.0 == key.0 => {
+                let light = light.with_look(&self.vt, &cube, &key.1)?;
+                self.light = Some((key, cube, light));
+            }
+            _ => {
+                let cube = key.0.env.load()?.to_cube(LIGHT_CUBE, key.0.rotation)?;
+                let light = VolumeLight::new(&self.vt, &cube, &key.1)?;
+                self.light = Some((key, cube, light));
+            }
         }
         let light_seconds = start.elapsed().as_secs_f64();
-        let (_, light) = self.light.as_ref().expect("prepared");
+        let (_, _, light) = self.light.as_ref().expect("prepared");
         let camera = state.camera(&self.vt);
         let start = Instant::now();
         let (image, device) = match &mut self.gpu {
