@@ -15,6 +15,7 @@
 use glam::Vec3;
 
 use super::{BakeSettings, ShadingPoint};
+pub use crate::math::sampling::power_heuristic;
 use crate::math::sampling::{Rng, TexelSamples};
 use crate::scene::Scene;
 use crate::scene::brdf::Lobes;
@@ -129,13 +130,6 @@ impl LightSampler {
         }
         rays
     }
-}
-
-/// Power heuristic weight of a strategy with density `a` against one with density `b` (one
-/// sample of each).
-pub fn power_heuristic(a: f32, b: f32) -> f32 {
-    let (a2, b2) = (a * a, b * b);
-    if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
 }
 
 impl LightSampler {

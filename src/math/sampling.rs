@@ -134,6 +134,13 @@ impl TexelSamples {
     }
 }
 
+/// Power heuristic weight of a strategy with density `a` against one with density `b` (one
+/// sample of each).
+pub fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -8,6 +8,7 @@
 //! and `sigma_s = albedo · sigma_t` (see [`crate::conventions`], volumes).
 
 pub mod sweep;
+pub mod tracking;
 
 use std::f32::consts::PI;
 use std::path::Path;

@@ -1,0 +1,253 @@
+//! The surface cache of the interreflections: visibility bits at surface points, shared by the
+//! path vertices near them (see [`VisibilityCache`]).
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::Bounces;
+use crate::bake::{
+    EdgeMap, ShadingPoint, path_stream, pixel_subsamples, sample_stride, shading_point,
+};
+use crate::error::{PrtError, Result};
+use crate::scene::Scene;
+use crate::scene::trace::Tracer;
+
+/// A cache cell: grid cell, octahedral normal bin and material.
+#[derive(Clone, Copy, Debug, Hash, PartialEq, Eq)]
+struct CellKey {
+    cell: [i64; 3],
+    normal: u8,
+    material: u32,
+}
+
+/// Normal bins per side of the octahedral map (8 x 8 bins, about 25° wide).
+const NORMAL_BINS: f32 = 8.0;
+
+fn normal_bin(n: Vec3) -> u8 {
+    let p = n / (n.x.abs() + n.y.abs() + n.z.abs()).max(1e-20);
+    let (mut u, mut v) = (p.x, p.y);
+    if p.z < 0.0 {
+        (u, v) = (
+            (1.0 - p.y.abs()) * p.x.signum(),
+            (1.0 - p.x.abs()) * p.y.signum(),
+        );
+    }
+    let bin = |x: f32| (((x + 1.0) * 0.5 * NORMAL_BINS) as i32).clamp(0, NORMAL_BINS as i32 - 1);
+    (bin(u) * NORMAL_BINS as i32 + bin(v)) as u8
+}
+
+/// Visibility bits at surface points, shared by the bounce vertices near them.
+///
+/// The points are chosen before the bake: every path the bake will trace is walked once (the
+/// paths are seeded per pixel, so the walk is the bake's own), and each occupied cell keeps the
+/// first vertex that fell in it, first in (pixel, sub-sample, path, bounce) order. The choice is
+/// therefore the same for a whole bake and for each of its shards, which keeps shards identical to
+/// the whole; a shard traces the bits of the cells its own pixels reach.
+pub struct VisibilityCache {
+    cell: f32,
+    index: HashMap<CellKey, u32>,
+    bits: Vec<u64>,
+    words: usize,
+    /// Cache points of the whole image.
+    pub points: usize,
+    /// Points whose bits this bake traced (all of them, or a shard's).
+    pub traced: usize,
+    /// Shadow rays the cache traced.
+    pub rays: u64,
+}
+
+/// First vertex found in a cell.
+#[derive(Clone, Copy)]
+struct Candidate {
+    order: u128,
+    origin: Vec3,
+    normal: Vec3,
+    mine: bool,
+}
+
+impl VisibilityCache {
+    /// Width of a cache cell: `spacing` pixel footprints at the median depth of the view, and at
+    /// most `spacing` / 512 of the scene's diagonal (so that a small image does not get a coarse
+    /// cache).
+    pub fn cell_size(scene: &Scene, tracer: &Tracer, spacing: f32) -> Option<f32> {
+        let cam = &scene.camera;
+        let per_unit = 2.0 * (cam.fov_y_deg.to_radians() * 0.5).tan() / cam.height as f32;
+        let mut depths: Vec<f32> = (0..cam.height)
+            .step_by(4)
+            .flat_map(|y| (0..cam.width).step_by(4).map(move |x| (x, y)))
+            .filter_map(|(x, y)| {
+                let ray = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+                tracer
+                    .closest_hit(ray.origin, ray.dir, f32::INFINITY)
+                    .map(|h| h.t)
+            })
+            .collect();
+        if depths.is_empty() {
+            return None;
+        }
+        let mid = depths.len() / 2;
+        let (_, median, _) = depths.select_nth_unstable_by(mid, f32::total_cmp);
+        let (lo, hi) = scene.bounds();
+        let cap = (hi - lo).length() * spacing / 512.0;
+        Some(
+            (*median * per_unit * spacing)
+                .min(cap)
+                .max(tracer.spawn_offset() * 16.0),
+        )
+    }
+
+    fn key(&self, at: &ShadingPoint) -> CellKey {
+        let c = (at.origin / self.cell).floor();
+        CellKey {
+            cell: [c.x as i64, c.y as i64, c.z as i64],
+            normal: normal_bin(at.normal),
+            material: at.material,
+        }
+    }
+
+    /// Walks every path of the bake, picks the cache points, and traces the bits of those that
+    /// pixels with `mine(pixel)` reach. `progress(done, total)` follows the tracing.
+    pub fn build(
+        bounces: &Bounces,
+        edges: &EdgeMap,
+        mine: &(dyn Fn(usize) -> bool + Sync),
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<Option<VisibilityCache>> {
+        let Bounces {
+            scene,
+            tracer,
+            settings,
+            samples,
+            ..
+        } = *bounces;
+        let Some(cell) = Self::cell_size(scene, tracer, settings.cache_spacing) else {
+            return Ok(None);
+        };
+        let mut cache = VisibilityCache {
+            cell,
+            index: HashMap::new(),
+            bits: Vec::new(),
+            words: samples.dirs.len().div_ceil(64),
+            points: 0,
+            traced: 0,
+            rays: 0,
+        };
+        let cam = &scene.camera;
+        let (w, h) = (cam.width as usize, cam.height as usize);
+        let stride = sample_stride(settings);
+        let found: HashMap<CellKey, Candidate> = (0..h)
+            .into_par_iter()
+            .fold(HashMap::new, |mut map, y| {
+                for x in 0..w {
+                    let pixel = y * w + x;
+                    let is_mine = mine(pixel);
+                    let subs = pixel_subsamples(edges, cam, settings, x as u32, y as u32);
+                    for (sub, (fx, fy)) in subs.into_iter().enumerate() {
+                        let ray = cam.ray(fx, fy);
+                        let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY)
+                        else {
+                            continue;
+                        };
+                        let start = shading_point(tracer, &hit, ray.dir);
+                        let stream = path_stream(pixel as u64, sub, stride);
+                        bounces.walk(&start, stream, &mut |path, bounce, at, _| {
+                            let order = ((pixel as u128) << 64)
+                                | ((sub as u128) << 40)
+                                | ((path as u128) << 8)
+                                | bounce as u128;
+                            let candidate = Candidate {
+                                order,
+                                origin: at.origin,
+                                normal: at.normal,
+                                mine: is_mine,
+                            };
+                            map.entry(cache.key(at))
+                                .and_modify(|c: &mut Candidate| {
+                                    c.mine |= is_mine;
+                                    if order < c.order {
+                                        *c = Candidate {
+                                            mine: c.mine,
+                                            ..candidate
+                                        };
+                                    }
+                                })
+                                .or_insert(candidate);
+                        });
+                    }
+                }
+                map
+            })
+            .reduce(HashMap::new, |mut a, b| {
+                for (k, c) in b {
+                    a.entry(k)
+                        .and_modify(|e| {
+                            let mine = e.mine | c.mine;
+                            if c.order < e.order {
+                                *e = c;
+                            }
+                            e.mine = mine;
+                        })
+                        .or_insert(c);
+                }
+                a
+            });
+        cache.points = found.len();
+        let mut chosen: Vec<(CellKey, Candidate)> =
+            found.into_iter().filter(|(_, c)| c.mine).collect();
+        chosen.sort_by_key(|(_, c)| c.order);
+        cache.traced = chosen.len();
+        let total_bytes = chosen.len() as u64 * cache.words as u64 * 8;
+        if total_bytes > 16 << 30 {
+            return Err(PrtError::invalid(
+                "cache spacing",
+                format!(
+                    "the surface cache would take {:.1} GiB ({} points); raise --cache-spacing",
+                    total_bytes as f64 / (1u64 << 30) as f64,
+                    chosen.len()
+                ),
+            ));
+        }
+        let done = AtomicUsize::new(0);
+        let traced: Vec<(Vec<u64>, u64)> = chosen
+            .par_iter()
+            .map(|(_, c)| {
+                let mut bits = vec![0u64; cache.words];
+                let mut rays = 0;
+                for (s, d) in samples.dirs.iter().enumerate() {
+                    if c.normal.dot(*d) > 0.0 {
+                        rays += 1;
+                        if !tracer.occluded(c.origin, *d, f32::INFINITY) {
+                            bits[s / 64] |= 1 << (s % 64);
+                        }
+                    }
+                }
+                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+                if n.is_multiple_of(256) || n == chosen.len() {
+                    progress(n, chosen.len());
+                }
+                (bits, rays)
+            })
+            .collect();
+        cache.bits.reserve_exact(chosen.len() * cache.words);
+        for (i, ((key, _), (bits, rays))) in chosen.iter().zip(traced).enumerate() {
+            cache.index.insert(*key, i as u32);
+            cache.bits.extend_from_slice(&bits);
+            cache.rays += rays;
+        }
+        Ok(Some(cache))
+    }
+
+    /// The bits of the cache point for a vertex, if the vertex's cell has one.
+    pub(super) fn lookup(&self, at: &ShadingPoint) -> Option<&[u64]> {
+        let i = *self.index.get(&self.key(at))? as usize;
+        Some(&self.bits[i * self.words..(i + 1) * self.words])
+    }
+
+    /// Bytes the cache holds.
+    pub fn bytes(&self) -> usize {
+        self.bits.len() * 8 + self.index.len() * (std::mem::size_of::<CellKey>() + 8)
+    }
+}
