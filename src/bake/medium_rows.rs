@@ -1,7 +1,8 @@
 //! The medium through the per-pixel wavelet bake: for every pixel, the single-scattered radiance
 //! along its camera ray from each cube texel light,
-//! `row_t = Σ_k T_cam(x_k) sigma_t(x_k) dt · Σ_m p(w_m·d) Ω_m · exp(−tau(x_k, w_t))`
-//! (the medium's albedo is the row's RGB weight), up to the surface the ray hits.
+//! `row_t = Σ_k T_cam(x_k) sigma_t(x_k) dt · Σ_m p(w_m·d) Ω_m · exp(−tau(x_k, w_t)) V(x_k, w_t)`
+//! (the medium's albedo is the row's RGB weight), up to the surface the ray hits; V is whether a
+//! surface blocks the texel, from the lattice of [`MediumLight`].
 //!
 //! The rows are computed texel by texel: one [`Sweeper`] pass gives the transmittance towards
 //! the texel's centre direction at every voxel, and every pixel's march samples (located in the
@@ -11,6 +12,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::bake::medium_light::{LatticePoint, MediumLight, Seen};
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::{texel_count, texel_dirs};
 use crate::math::sampling::{TexelSamples, pixel_samples};
@@ -29,7 +31,9 @@ struct SubRay {
 }
 
 /// A pixel's camera sub-rays and their march samples (located, weighted).
-type PixelMarch = (Vec<SubRay>, Vec<([Located; 3], f32)>);
+/// A pixel's camera sub-rays and their march samples: located in the sweeps with their weights,
+/// and apart (read only for texels some surface hides) located in the visibility lattice.
+type PixelMarch = (Vec<SubRay>, Vec<([Located; 3], f32)>, Vec<LatticePoint>);
 
 /// The medium rows of every pixel, texel-major.
 pub struct MediumRows {
@@ -47,10 +51,12 @@ pub struct MediumRows {
 
 impl MediumRows {
     /// Bakes the rows of the pixels `wanted(pixel)` of `scene`'s view (sub-samples as the bake's:
-    /// `spp`, `seed`), texel lights of `samples`. Calls `progress(texels done, texels)`.
+    /// `spp`, `seed`), texel lights of `samples`, surfaces' visibility of `light`. Calls
+    /// `progress(texels done, texels)`.
     #[allow(clippy::too_many_arguments)]
     pub fn bake(
         medium: &Medium,
+        light: &MediumLight,
         scene: &Scene,
         tracer: &Tracer,
         samples: &TexelSamples,
@@ -80,9 +86,9 @@ impl MediumRows {
         let per_pixel: Vec<PixelMarch> = (0..w * h)
             .into_par_iter()
             .map(|p| {
-                let (mut rays, mut marks) = (Vec::new(), Vec::new());
+                let (mut rays, mut marks, mut points) = (Vec::new(), Vec::new(), Vec::new());
                 if !wanted(p) {
-                    return (rays, marks);
+                    return (rays, marks, points);
                 }
                 let (x, y) = (p % w, p / w);
                 let subs = pixel_samples(x as u32, y as u32, w as u32, spp, seed);
@@ -100,6 +106,7 @@ impl MediumRows {
                             .iter()
                             .map(|s| (sweeper.locate(s.pos), s.weight * inv)),
                     );
+                    points.extend(march.iter().map(|s| light.locate(s.pos)));
                     if marks.len() > start {
                         rays.push(SubRay {
                             dir: ray.dir,
@@ -107,13 +114,13 @@ impl MediumRows {
                         });
                     }
                 }
-                (rays, marks)
+                (rays, marks, points)
             })
             .collect();
-        let touched: Vec<bool> = per_pixel.iter().map(|(r, _)| !r.is_empty()).collect();
+        let touched: Vec<bool> = per_pixel.iter().map(|(r, _, _)| !r.is_empty()).collect();
         let opacity: Vec<f32> = per_pixel
             .iter()
-            .map(|(_, marks)| marks.iter().map(|(_, w)| w).sum())
+            .map(|(_, marks, _)| marks.iter().map(|(_, w)| w).sum())
             .collect();
         let unshadowed_energy: f64 = (0..texels)
             .map(|t| {
@@ -125,31 +132,18 @@ impl MediumRows {
             })
             .sum();
         let centres: Vec<Vec3> = texel_dirs(n).iter().map(|d| d.as_vec3()).collect();
-        let m = samples.per_texel;
         let pixels = w * h;
         let mut cols = vec![0.0f32; texels * pixels];
         let done = std::sync::atomic::AtomicUsize::new(0);
         cols.par_chunks_mut(pixels)
             .enumerate()
             .for_each(|(t, col)| {
-                let open = sweeper.transmittance(centres[t]);
-                let dirs = &samples.dirs[t * m..(t + 1) * m];
-                let omegas = &samples.weights[t * m..(t + 1) * m];
-                for (p, (rays, marks)) in per_pixel.iter().enumerate() {
-                    let mut sum = 0.0f32;
-                    for ray in rays {
-                        let phase: f32 = dirs
-                            .iter()
-                            .zip(omegas)
-                            .map(|(wd, o)| henyey_greenstein(medium.g, wd.dot(ray.dir)) * o)
-                            .sum();
-                        let mut s = 0.0f32;
-                        for (loc, weight) in &marks[ray.samples.clone()] {
-                            s += weight * open.at_located(loc);
-                        }
-                        sum += phase * s;
-                    }
-                    col[p] = sum;
+                let seen_from = light.seen(t);
+                // Where surfaces hide the texel from the whole medium, its column stays 0.
+                if seen_from != Seen::Nowhere {
+                    medium_column(
+                        medium, light, &sweeper, samples, centres[t], t, &per_pixel, col,
+                    );
                 }
                 let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 if d.is_multiple_of(64) || d == texels {
@@ -181,5 +175,50 @@ impl MediumRows {
                 .map(|t| self.cols[t * self.pixels + pixel])
                 .collect()
         })
+    }
+}
+
+/// The medium rows' column of texel `t` (centre direction `centre`) for every pixel, into `col`.
+#[allow(clippy::too_many_arguments)]
+fn medium_column(
+    medium: &Medium,
+    light: &MediumLight,
+    sweeper: &Sweeper,
+    samples: &TexelSamples,
+    centre: Vec3,
+    t: usize,
+    per_pixel: &[PixelMarch],
+    col: &mut [f32],
+) {
+    let m = samples.per_texel;
+    let open = sweeper.transmittance(centre);
+    let dirs = &samples.dirs[t * m..(t + 1) * m];
+    let omegas = &samples.weights[t * m..(t + 1) * m];
+    let partly = light.seen(t) == Seen::Partly;
+    for (p, (rays, marks, points)) in per_pixel.iter().enumerate() {
+        let mut sum = 0.0f32;
+        for ray in rays {
+            let phase: f32 = dirs
+                .iter()
+                .zip(omegas)
+                .map(|(wd, o)| henyey_greenstein(medium.g, wd.dot(ray.dir)) * o)
+                .sum();
+            let mut s = 0.0f32;
+            let range = ray.samples.clone();
+            if partly {
+                for ((loc, weight), at) in marks[range.clone()].iter().zip(&points[range]) {
+                    let seen = light.visibility(t, at);
+                    if seen > 0.0 {
+                        s += weight * open.at_located(loc) * seen;
+                    }
+                }
+            } else {
+                for (loc, weight) in &marks[range] {
+                    s += weight * open.at_located(loc);
+                }
+            }
+            sum += phase * s;
+        }
+        col[p] = sum;
     }
 }

@@ -9,6 +9,7 @@
 pub mod bounce;
 mod in_order;
 pub mod lights;
+pub mod medium_light;
 pub mod medium_rows;
 pub mod path_tracer;
 mod pixels;
@@ -28,6 +29,7 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 use glam::Vec3;
 
+use crate::bake::medium_light::MediumLight;
 use crate::bake::medium_rows::MediumRows;
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::{texel_count, validate_n};
@@ -361,9 +363,21 @@ fn bake_tiles(
             cache_points,
         })
     };
-    let medium_rows = match &medium {
-        Some(m) => Some(MediumRows::bake(
+    // What the medium's points see of the texels; the transmittance table for bounces.
+    let medium_light = match &medium {
+        Some(m) => Some(MediumLight::build(
             m,
+            &tracer,
+            n,
+            settings.bounces > 0,
+            &|done, total| stage([done, total], [0, 0]),
+        )?),
+        None => None,
+    };
+    let medium_rows = match medium.as_ref().zip(medium_light.as_ref()) {
+        Some((m, light)) => Some(MediumRows::bake(
+            m,
+            light,
             scene,
             &tracer,
             &samples,
@@ -374,11 +388,12 @@ fn bake_tiles(
         )?),
         None => None,
     };
-    let bounces = bounce::Bounces::new(scene, &tracer, settings, &samples).with_cache(
-        &edges,
-        &mine_pixel,
-        &|done, total| stage([0, 0], [done, total]),
-    )?;
+    let through = medium.as_ref().zip(medium_light.as_ref());
+    let bounces = bounce::Bounces::new(scene, &tracer, settings, &samples)
+        .with_medium(through.filter(|_| settings.bounces > 0))
+        .with_cache(&edges, &mine_pixel, &|done, total| {
+            stage([0, 0], [done, total])
+        })?;
     let light_sampler = LightSampler::new(scene, settings);
     let mut reference_haar = unoccluded_row(&samples);
     let reference_energy: f64 = reference_haar.iter().map(|&v| (v as f64).powi(2)).sum();
@@ -595,6 +610,17 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             let mut white = false;
             for (sub, visit) in visits.into_iter().enumerate() {
                 covered += visit.covered;
+                let stream = path_stream(pixel_index, sub, sample_stride(settings));
+                if settings.bounces > 0
+                    && let Some(ray) = visit.ray
+                    && medium.is_some()
+                {
+                    // Paths that start at collisions along the camera ray.
+                    let rows =
+                        indirect.get_or_insert_with(|| std::array::from_fn(|_| vec![0.0; c]));
+                    let scale = inv_spp / settings.paths as f32;
+                    out.rays += bounces.add_camera_rows(ray, stream, scale, rows);
+                }
                 let Some(sp) = visit.point else {
                     continue;
                 };
@@ -624,7 +650,6 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                         dense.len() - 1
                     }
                 };
-                let stream = path_stream(pixel_index, sub, sample_stride(settings));
                 if lights.columns() > 0 {
                     let lobes = match mesh {
                         // A vertex is seen from every side: its diffuse lobe.
@@ -659,7 +684,8 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                 if settings.bounces > 0 {
                     let rows =
                         indirect.get_or_insert_with(|| std::array::from_fn(|_| vec![0.0; c]));
-                    let scale = inv_spp / settings.paths as f32;
+                    // What the camera sees of the surface is attenuated by a medium in between.
+                    let scale = inv_spp * seen / settings.paths as f32;
                     let lit = (lights.columns() > 0).then_some((lights, &mut light_columns[..]));
                     out.rays += bounces.add_rows(&sp, stream, scale, rows, lit);
                 }

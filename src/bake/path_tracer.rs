@@ -14,17 +14,28 @@
 //! points and spots as deltas), and a material-sampled direction that reaches a quad or a disc
 //! before any surface brings its light too, the two weighed by the power heuristic, so small
 //! lights and glossy surfaces both converge. It uses none of the bake's light samples.
+//!
+//! A medium ([`path_trace`] of a scene with a `[medium]`) is tracked, not marched: every segment,
+//! the camera ray's included, draws its free path by delta tracking ([`Tracker`]), so it either
+//! reaches the next surface or collides in the medium. A collision is a vertex like a surface's:
+//! it takes the albedo, samples the map (its transmittance by ratio tracking, and the surfaces by
+//! a shadow ray) and the Henyey–Greenstein lobe, weighed by the power heuristic, and counts as a
+//! bounce. Shadow rays from surfaces take the medium's ratio-tracked transmittance. It uses none
+//! of the bake's tables: no sweep, no lattice, no transmittance table.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::bake::bounce::Vertex;
 use crate::bake::{BakeSettings, EdgeMap, pixel_subsamples, shading_point};
 use crate::error::{PrtError, Result};
 use crate::light::importance::CubeSampler;
 use crate::math::cubemap::CubeMap;
 use crate::math::sampling::Rng;
+use crate::medium::henyey_greenstein;
+use crate::medium::tracking::{Tracker, sample_hg};
 use crate::output::film::Image;
 use crate::scene::Scene;
 use crate::scene::light::{Emitter, emitters};
@@ -101,13 +112,18 @@ pub fn path_trace_lit(
         .map(|(e, w)| (e, Vec3::from_array(*w)))
         .filter(|(_, w)| *w != Vec3::ZERO)
         .collect();
-    if scene.medium.is_some() {
+    if scene.medium.is_some() && !lit.is_empty() {
         return Err(PrtError::invalid(
-            "reference",
-            "the path tracer does not trace media; use --estimator texels for a scene with a \
-             [medium]",
+            "lights",
+            "local lights are not traced through a medium yet; light a scene with a [medium] by \
+             its environment only",
         ));
     }
+    let medium = match &scene.medium {
+        Some(spec) => Some(spec.build(None)?),
+        None => None,
+    };
+    let tracker = medium.as_ref().map(Tracker::new);
     if !(1..=1 << 20).contains(&samples) {
         return Err(PrtError::invalid(
             "samples",
@@ -139,21 +155,38 @@ pub fn path_trace_lit(
                 for i in 0..count {
                     let (fx, fy) = subs[i % subs.len()];
                     let ray = cam.ray(fx, fy);
-                    let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
-                        continue;
+                    let hit = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
+                    let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
+                    let collision = tracker
+                        .as_ref()
+                        .and_then(|t| Some((t.collide(ray.origin, ray.dir, t_hit, &mut rng)?, t)));
+                    let (first, throughput) = match (collision, hit) {
+                        (Some((t, tracker)), _) => (
+                            Vertex::Medium {
+                                pos: ray.origin + ray.dir * t,
+                                dir: ray.dir,
+                            },
+                            tracker.medium().albedo,
+                        ),
+                        (None, Some(hit)) => (
+                            Vertex::Surface(shading_point(&tracer, &hit, ray.dir)),
+                            Vec3::ONE,
+                        ),
+                        (None, None) => continue,
                     };
                     hits += 1;
                     let lighting = Lighting {
                         cube,
                         sampler: sampler.as_ref(),
                         lights: &lit,
+                        tracker: tracker.as_ref(),
                     };
                     let l = radiance(
                         scene,
                         &tracer,
                         &lighting,
                         settings,
-                        shading_point(&tracer, &hit, ray.dir),
+                        (first, throughput),
                         &mut rng,
                     );
                     for k in 0..3 {
@@ -186,88 +219,135 @@ struct Lighting<'a> {
     cube: &'a CubeMap,
     sampler: Option<&'a CubeSampler>,
     lights: &'a [(Emitter, Vec3)],
+    /// The medium's trackers, with a medium.
+    tracker: Option<&'a Tracker<'a>>,
 }
 
-/// Radiance leaving the camera hit `start` towards the camera, by one path.
+/// Radiance leaving the first vertex (a camera hit, or a collision along the camera ray with
+/// its albedo as the throughput) towards the camera, by one path.
 fn radiance(
     scene: &Scene,
     tracer: &Tracer,
     lighting: &Lighting,
     settings: &BakeSettings,
-    start: crate::bake::ShadingPoint,
+    (first, mut throughput): (Vertex, Vec3),
     rng: &mut Rng,
 ) -> Vec3 {
     let Lighting {
         cube,
         sampler,
         lights,
+        tracker,
     } = *lighting;
     let env = |d: Vec3| Vec3::from(cube.lookup(d.as_dvec3()));
     let mut total = Vec3::ZERO;
-    let mut throughput = Vec3::ONE;
-    let mut at = start;
+    let mut at = first;
+    // The medium's transmittance along a shadow ray, by ratio tracking.
+    let through = |o: Vec3, d: Vec3, rng: &mut Rng| match tracker {
+        Some(t) if !settings.unshadowed => t.transmittance(o, d, f32::INFINITY, rng),
+        _ => 1.0,
+    };
     for depth in 0..=settings.bounces {
-        let lobes = at.lobes(scene);
-        let (n, v) = (at.normal, at.view);
-        // Light sampling.
-        if let Some(sampler) = sampler {
-            let (d, p_light) = sampler.sample([rng.next_f64(), rng.next_f64(), rng.next_f64()]);
-            if p_light > 0.0
-                && n.dot(d) > 0.0
-                && (settings.unshadowed || !tracer.occluded(at.origin, d, f32::INFINITY))
-            {
-                let f = lobes.eval_cosine(n, v, d);
-                let w = power_heuristic(p_light, lobes.pdf(n, v, d));
-                total += throughput * f * env(d) * (w / p_light);
+        // Light sampling, then the next direction with its weight and density.
+        let (origin, dir, weight, pdf) = match &at {
+            Vertex::Surface(sp) => {
+                let lobes = sp.lobes(scene);
+                let (n, v) = (sp.normal, sp.view);
+                if let Some(sampler) = sampler {
+                    let u = [rng.next_f64(), rng.next_f64(), rng.next_f64()];
+                    let (d, p_light) = sampler.sample(u);
+                    if p_light > 0.0
+                        && n.dot(d) > 0.0
+                        && (settings.unshadowed || !tracer.occluded(sp.origin, d, f32::INFINITY))
+                    {
+                        let f = lobes.eval_cosine(n, v, d);
+                        let w = power_heuristic(p_light, lobes.pdf(n, v, d));
+                        let tr = through(sp.origin, d, rng);
+                        total += throughput * f * env(d) * (tr * w / p_light);
+                    }
+                }
+                // Local lights: one sample of each.
+                for (e, rgb) in lights {
+                    let u = [rng.next_f32(), rng.next_f32()];
+                    let Some(ls) = e.sample(sp.origin, u) else {
+                        continue;
+                    };
+                    if n.dot(ls.dir) <= 0.0
+                        || (!settings.unshadowed && tracer.occluded(sp.origin, ls.dir, ls.dist))
+                    {
+                        continue;
+                    }
+                    let f = lobes.eval_cosine(n, v, ls.dir);
+                    let w = if ls.pdf > 0.0 {
+                        power_heuristic(ls.pdf, lobes.pdf(n, v, ls.dir))
+                    } else {
+                        1.0
+                    };
+                    total += throughput * f * *rgb * (ls.weight * w);
+                }
+                let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+                let Some(s) = lobes.sample(n, v, u) else {
+                    break;
+                };
+                (sp.origin, s.dir, s.weight, s.pdf)
             }
-        }
-        // Local lights: one sample of each.
-        for (e, rgb) in lights {
-            let u = [rng.next_f32(), rng.next_f32()];
-            let Some(ls) = e.sample(at.origin, u) else {
-                continue;
-            };
-            if n.dot(ls.dir) <= 0.0
-                || (!settings.unshadowed && tracer.occluded(at.origin, ls.dir, ls.dist))
-            {
-                continue;
+            Vertex::Medium { pos, dir } => {
+                let g = tracker.map_or(0.0, |t| t.medium().g);
+                if let Some(sampler) = sampler {
+                    let u = [rng.next_f64(), rng.next_f64(), rng.next_f64()];
+                    let (d, p_light) = sampler.sample(u);
+                    if p_light > 0.0
+                        && (settings.unshadowed || !tracer.occluded(*pos, d, f32::INFINITY))
+                    {
+                        let phase = henyey_greenstein(g, d.dot(*dir));
+                        let tr = through(*pos, d, rng);
+                        let w = power_heuristic(p_light, phase);
+                        total += throughput * env(d) * (tr * phase * w / p_light);
+                    }
+                }
+                let d = sample_hg(g, *dir, [rng.next_f32(), rng.next_f32()]);
+                (*pos, d, Vec3::ONE, henyey_greenstein(g, d.dot(*dir)))
             }
-            let f = lobes.eval_cosine(n, v, ls.dir);
-            let w = if ls.pdf > 0.0 {
-                power_heuristic(ls.pdf, lobes.pdf(n, v, ls.dir))
-            } else {
-                1.0
-            };
-            total += throughput * f * *rgb * (ls.weight * w);
-        }
-        // Material sampling: light where the path escapes or meets a local light, and the next
-        // vertex.
-        let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
-        let Some(s) = lobes.sample(n, v, u) else {
-            break;
         };
-        let hit = tracer.closest_hit(at.origin, s.dir, f32::INFINITY);
-        if hit.is_none() || settings.unshadowed {
-            let p_light = sampler.map_or(0.0, |c| c.pdf(s.dir));
-            total += throughput * s.weight * env(s.dir) * power_heuristic(s.pdf, p_light);
-        }
+        // The next segment: a collision in the medium, a surface, or the map.
+        let hit = tracer.closest_hit(origin, dir, f32::INFINITY);
         let t_hit = match &hit {
             Some(h) if !settings.unshadowed => h.t,
             _ => f32::INFINITY,
         };
-        for (e, rgb) in lights {
-            if let Some((t, radiance, p_light)) = e.hit(at.origin, s.dir)
-                && t <= t_hit
-            {
-                total +=
-                    throughput * s.weight * *rgb * (radiance * power_heuristic(s.pdf, p_light));
+        let collision = match tracker {
+            Some(t) if !settings.unshadowed => t.collide(origin, dir, t_hit, rng),
+            _ => None,
+        };
+        if collision.is_none() && (hit.is_none() || settings.unshadowed) {
+            let p_light = sampler.map_or(0.0, |c| c.pdf(dir));
+            total += throughput * weight * env(dir) * power_heuristic(pdf, p_light);
+        }
+        if collision.is_none() {
+            for (e, rgb) in lights {
+                if let Some((t, radiance, p_light)) = e.hit(origin, dir)
+                    && t <= t_hit
+                {
+                    total +=
+                        throughput * weight * *rgb * (radiance * power_heuristic(pdf, p_light));
+                }
             }
         }
-        throughput *= s.weight;
-        match hit {
-            Some(hit) if depth < settings.bounces => at = shading_point(tracer, &hit, s.dir),
-            _ => break,
+        throughput *= weight;
+        if depth == settings.bounces {
+            break;
         }
+        at = match (collision, hit, tracker) {
+            (Some(t), _, Some(tracker)) => {
+                throughput *= tracker.medium().albedo;
+                Vertex::Medium {
+                    pos: origin + dir * t,
+                    dir,
+                }
+            }
+            (None, Some(hit), _) => Vertex::Surface(shading_point(tracer, &hit, dir)),
+            _ => break,
+        };
     }
     total
 }

@@ -253,6 +253,9 @@ pub fn sample_stride(settings: &BakeSettings) -> u32 {
 pub(super) struct Visit {
     pub(super) point: Option<ShadingPoint>,
     pub(super) seen: f32,
+    /// The camera ray (origin, direction, distance to the surface it hits or infinity); `None`
+    /// for a vertex.
+    pub(super) ray: Option<(Vec3, Vec3, f32)>,
     /// How much of the environment behind the sub-sample is hidden: 1 behind a surface, the
     /// opacity 1 − T of a medium the ray only crosses, 0 for a clear miss.
     pub(super) covered: f32,
@@ -279,6 +282,7 @@ pub(super) fn visits(ctx: &TileContext, x: usize, y: usize) -> Vec<Visit> {
         return vec![Visit {
             point: Some(point),
             seen: 1.0,
+            ray: None,
             covered: 1.0,
         }];
     }
@@ -310,6 +314,7 @@ pub(super) fn visits(ctx: &TileContext, x: usize, y: usize) -> Vec<Visit> {
             Visit {
                 point: found.map(|hit| shading_point(tracer, &hit, ray.dir)),
                 seen,
+                ray: Some((ray.origin, ray.dir, found.map_or(f32::INFINITY, |h| h.t))),
                 covered,
             }
         })

@@ -6,8 +6,10 @@
 //! own direct light (so this checks the matrix's bookkeeping; the independent check of the
 //! interreflections is [`crate::bake::path_tracer`]).
 //! A medium attenuates what the camera sees and every shadow ray, and adds single scattering along
-//! the camera ray: at every march sample and texel sample direction, the shadow ray's
-//! transmittance is marched through the medium directly (no sweep, no SH, no matrix).
+//! the camera ray: at every march sample and texel sample direction, a shadow ray is traced
+//! against the surfaces and its transmittance marched through the medium directly (no sweep, no
+//! SH, no matrix). With bounces, the bake's own paths through the medium, those from the camera
+//! hit and those from collisions along the camera ray, with its transmittance table.
 
 use rayon::prelude::*;
 
@@ -15,6 +17,7 @@ use glam::Vec3;
 
 use crate::bake::LightSampler;
 use crate::bake::bounce::Bounces;
+use crate::bake::medium_light::MediumLight;
 use crate::bake::{
     BakeSettings, EdgeMap, path_stream, pixel_subsamples, sample_stride, shading_point,
 };
@@ -77,11 +80,15 @@ pub fn render_reference_lit(
     let medium = medium.as_ref();
     // The bake's own paths and surface cache, so that this checks the matrix's bookkeeping.
     let edges = EdgeMap::new(scene, &tracer, settings);
-    let bounces = Bounces::new(scene, &tracer, settings, &samples).with_cache(
-        &edges,
-        &|_| true,
-        &|_, _| {},
-    )?;
+    let light = match medium {
+        Some(m) if settings.bounces > 0 => {
+            Some(MediumLight::build(m, &tracer, cube.n, true, &|_, _| {})?)
+        }
+        _ => None,
+    };
+    let bounces = Bounces::new(scene, &tracer, settings, &samples)
+        .with_medium(medium.zip(light.as_ref()))
+        .with_cache(&edges, &|_| true, &|_, _| {})?;
     let sampler = LightSampler::new(scene, settings);
     let weights = light_weights(lights, sampler.columns())?;
     let mut image = Image::new(w, h);
@@ -108,6 +115,9 @@ pub fn render_reference_lit(
                         m.march_camera(ray.origin, ray.dir, t_hit, &mut march);
                         for s in &march {
                             for (d, w) in samples.dirs.iter().zip(&samples.weights) {
+                                if tracer.occluded(s.pos, *d, f32::INFINITY) {
+                                    continue;
+                                }
                                 let tau = m.optical_depth(s.pos, *d, f32::INFINITY);
                                 let f = s.weight as f64
                                     * henyey_greenstein(m.g, d.dot(ray.dir)) as f64
@@ -119,6 +129,13 @@ pub fn render_reference_lit(
                                     sum[k] += f * m.albedo[k] as f64 * l[k] as f64;
                                 }
                             }
+                        }
+                    }
+                    let stream = path_stream((y * w + x) as u64, sub, sample_stride(settings));
+                    if settings.bounces > 0 && medium.is_some() {
+                        let l = bounces.camera_radiance((ray.origin, ray.dir, t_hit), stream, cube);
+                        for k in 0..3 {
+                            sum[k] += l[k] * inv_spp;
                         }
                     }
                     let Some(hit) = found else {
@@ -161,13 +178,12 @@ pub fn render_reference_lit(
                             sum[k] += f as f64 * *w as f64 * inv_spp * l[k] as f64 * visible;
                         }
                     }
-                    let stream = path_stream((y * w + x) as u64, sub, sample_stride(settings));
                     // Interreflections: every vertex of the bake's paths brings its throughput
-                    // times its own direct light.
+                    // times its own direct light, seen through the medium.
                     if settings.bounces > 0 {
                         let l = bounces.radiance(&sp, stream, cube);
                         for k in 0..3 {
-                            sum[k] += l[k] * inv_spp;
+                            sum[k] += l[k] * inv_spp * seen;
                         }
                     }
                     if !weights.is_empty() {

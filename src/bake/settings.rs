@@ -168,7 +168,7 @@ impl BakeSettings {
     }
 
     /// Checks what depends on the scene as well as the settings, before any work: a scene with a
-    /// medium is baked per pixel, without interreflections.
+    /// medium is baked per pixel, lit by its environment only.
     pub fn validate_for(&self, scene: &Scene) -> Result<()> {
         self.validate()?;
         if scene.medium.is_some() && self.domain != BakeDomain::View {
@@ -183,13 +183,6 @@ impl BakeSettings {
                 "lights",
                 "local lights are not baked through a medium yet; light a scene with a [medium] \
                  by its environment only (remove its [[light]] tables)",
-            ));
-        }
-        if scene.medium.is_some() && self.bounces > 0 {
-            return Err(PrtError::invalid(
-                "bounces",
-                "interreflections are not traced through a medium; bake a scene with a [medium] \
-                 with --bounces 0",
             ));
         }
         Ok(())

@@ -199,7 +199,8 @@ pub struct SamplingArgs {
     pub seed: u64,
     /// Interreflection bounces added to the direct light: paths from each camera hit, every
     /// vertex they reach adding its own direct row to the pixel's (next-event estimation into
-    /// every texel; see --bounce-visibility).
+    /// every texel; see --bounce-visibility). Through a [medium], paths also start at
+    /// collisions along the camera ray, and a collision counts as a bounce.
     #[arg(long, default_value_t = 0)]
     pub bounces: u32,
     /// Paths per camera sub-sample for --bounces.

@@ -8,6 +8,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::Bounces;
+use super::Vertex;
 use crate::bake::{
     EdgeMap, ShadingPoint, path_stream, pixel_subsamples, sample_stride, shading_point,
 };
@@ -51,6 +52,9 @@ pub struct VisibilityCache {
     index: HashMap<CellKey, u32>,
     bits: Vec<u64>,
     words: usize,
+    /// With a medium, the transmittance towards every texel per point, in 255ths.
+    transmittance: Vec<u8>,
+    texels: usize,
     /// Cache points of the whole image.
     pub points: usize,
     /// Points whose bits this bake traced (all of them, or a shard's).
@@ -131,6 +135,8 @@ impl VisibilityCache {
             index: HashMap::new(),
             bits: Vec::new(),
             words: samples.dirs.len().div_ceil(64),
+            transmittance: Vec::new(),
+            texels: samples.dirs.len() / samples.per_texel,
             points: 0,
             traced: 0,
             rays: 0,
@@ -147,14 +153,17 @@ impl VisibilityCache {
                     let subs = pixel_subsamples(edges, cam, settings, x as u32, y as u32);
                     for (sub, (fx, fy)) in subs.into_iter().enumerate() {
                         let ray = cam.ray(fx, fy);
-                        let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY)
-                        else {
-                            continue;
-                        };
-                        let start = shading_point(tracer, &hit, ray.dir);
+                        let found = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
                         let stream = path_stream(pixel as u64, sub, stride);
-                        bounces.walk(&start, stream, &mut |path, bounce, at, _| {
+                        let from_medium = std::cell::Cell::new(false);
+                        let mut visit = |path: u32, bounce: u32, at: &Vertex, _| {
+                            let Vertex::Surface(at) = at else {
+                                return;
+                            };
+                            // The paths from camera-ray collisions after those from the hit.
+                            let from_medium = u128::from(from_medium.get()) << 63;
                             let order = ((pixel as u128) << 64)
+                                | from_medium
                                 | ((sub as u128) << 40)
                                 | ((path as u128) << 8)
                                 | bounce as u128;
@@ -175,7 +184,14 @@ impl VisibilityCache {
                                     }
                                 })
                                 .or_insert(candidate);
-                        });
+                        };
+                        if let Some(hit) = found {
+                            let start = shading_point(tracer, &hit, ray.dir);
+                            bounces.walk(&start, stream, &mut visit);
+                        }
+                        let t_hit = found.map_or(f32::INFINITY, |h| h.t);
+                        from_medium.set(true);
+                        bounces.walk_camera(ray.origin, ray.dir, t_hit, stream, &mut visit);
                     }
                 }
                 map
@@ -211,9 +227,17 @@ impl VisibilityCache {
             ));
         }
         let done = AtomicUsize::new(0);
-        let traced: Vec<(Vec<u64>, u64)> = chosen
+        let light = bounces.medium.as_ref().map(|(_, light)| *light);
+        let texels = cache.texels;
+        let traced: Vec<(Vec<u64>, u64, Vec<u8>)> = chosen
             .par_iter()
             .map(|(_, c)| {
+                let mut transmittance = Vec::new();
+                if let Some(light) = light {
+                    let mut t = vec![0.0f32; texels];
+                    light.surface_transmittance(c.origin, &mut t);
+                    transmittance = t.iter().map(|v| (v * 255.0).round() as u8).collect();
+                }
                 let mut bits = vec![0u64; cache.words];
                 let mut rays = 0;
                 for (s, d) in samples.dirs.iter().enumerate() {
@@ -228,13 +252,14 @@ impl VisibilityCache {
                 if n.is_multiple_of(256) || n == chosen.len() {
                     progress(n, chosen.len());
                 }
-                (bits, rays)
+                (bits, rays, transmittance)
             })
             .collect();
         cache.bits.reserve_exact(chosen.len() * cache.words);
-        for (i, ((key, _), (bits, rays))) in chosen.iter().zip(traced).enumerate() {
+        for (i, ((key, _), (bits, rays, transmittance))) in chosen.iter().zip(traced).enumerate() {
             cache.index.insert(*key, i as u32);
             cache.bits.extend_from_slice(&bits);
+            cache.transmittance.extend_from_slice(&transmittance);
             cache.rays += rays;
         }
         Ok(Some(cache))
@@ -246,8 +271,18 @@ impl VisibilityCache {
         Some(&self.bits[i * self.words..(i + 1) * self.words])
     }
 
+    /// The transmittance through the medium towards every texel at the cache point for a
+    /// vertex, if the vertex's cell has one and the bake a medium.
+    pub(super) fn transmittance(&self, at: &ShadingPoint) -> Option<&[u8]> {
+        let i = *self.index.get(&self.key(at))? as usize;
+        self.transmittance
+            .get(i * self.texels..(i + 1) * self.texels)
+    }
+
     /// Bytes the cache holds.
     pub fn bytes(&self) -> usize {
-        self.bits.len() * 8 + self.index.len() * (std::mem::size_of::<CellKey>() + 8)
+        self.bits.len() * 8
+            + self.transmittance.len()
+            + self.index.len() * (std::mem::size_of::<CellKey>() + 8)
     }
 }

@@ -14,6 +14,14 @@
 //! per texel sample at cache points, one point per cell of a grid a few pixel footprints wide, per
 //! normal direction and material. Cosine and BRDF are evaluated exactly at the vertex itself. With
 //! [`BounceVisibility::Exact`] every vertex traces its own 6 N² shadow rays instead.
+//!
+//! With a medium, paths are tracked through it ([`Tracker`]): a segment either reaches the next
+//! surface (with the probability of its transmittance) or collides in the medium, and a
+//! collision is a vertex that takes the albedo, sends its own light to every texel
+//! ([`MediumLight::vertex_weights`]) and goes on in a direction drawn from the phase function.
+//! Paths also start at collisions along camera rays ([`Bounces::add_camera_rows`]), whose own
+//! light is the single scattering of [`super::medium_rows`]. A surface vertex's row is
+//! attenuated by the transmittance towards each texel, kept per cache point with its bits.
 
 use glam::Vec3;
 
@@ -23,12 +31,29 @@ use crate::bake::{BakeSettings, EdgeMap, ShadingPoint, shading_point};
 use crate::error::Result;
 use crate::math::cubemap::CubeMap;
 use crate::math::sampling::{Rng, TexelSamples};
+use crate::medium::Medium;
+use crate::medium::tracking::{Tracker, sample_hg};
 use crate::scene::Scene;
 use crate::scene::trace::Tracer;
 pub use crate::store::transport::BounceVisibility;
 pub use cache::VisibilityCache;
 
 use super::lights::LightSampler;
+use super::medium_light::MediumLight;
+
+/// A vertex of an interreflection path.
+#[derive(Clone, Copy, Debug)]
+pub enum Vertex {
+    /// On a surface.
+    Surface(ShadingPoint),
+    /// A collision in the medium at `pos`, reached travelling along `dir`.
+    Medium {
+        /// Where the path collided.
+        pos: Vec3,
+        /// The direction it was travelling in.
+        dir: Vec3,
+    },
+}
 
 /// Where the visibility of one vertex comes from.
 #[derive(Clone, Copy)]
@@ -48,6 +73,8 @@ pub struct Bounces<'a> {
     settings: &'a BakeSettings,
     samples: &'a TexelSamples,
     cache: Option<VisibilityCache>,
+    /// The medium's trackers and what its points see, with a medium.
+    medium: Option<(Tracker<'a>, &'a MediumLight)>,
     /// The texel sample directions times their solid angles, by coordinate: `max(0, n·ω) Ω` is
     /// `max(0, n·(ω Ω))`, which a loop over these vectorises.
     weighted: [Vec<f32>; 3],
@@ -75,8 +102,17 @@ impl<'a> Bounces<'a> {
             settings,
             samples,
             cache: None,
+            medium: None,
             weighted,
         }
+    }
+
+    /// Tracks the paths through `medium`, whose points see the texels as `light` says (built
+    /// with its table). Before [`Bounces::with_cache`], whose points then keep their
+    /// transmittance.
+    pub fn with_medium(mut self, medium: Option<(&'a Medium, &'a MediumLight)>) -> Self {
+        self.medium = medium.map(|(m, light)| (Tracker::new(m), light));
+        self
     }
 
     /// Builds the surface cache when the settings call for one (bounces, shadows, cache
@@ -101,41 +137,105 @@ impl<'a> Bounces<'a> {
 
     /// Walks the `paths` paths of one camera sub-sample from `start` and calls
     /// `visit(path, bounce, vertex, throughput)` at every vertex reached (bounce 1 to `bounces`);
-    /// the throughput is the product of `f cos / pdf` along the way. The first bounce is
-    /// stratified over the paths (a jittered grid of ⌊√P⌋² cells). Seeded per stream; returns the
-    /// rays traced.
+    /// the throughput is the product of `f cos / pdf` along the way, and of the albedo at
+    /// collisions in a medium. The first bounce is stratified over the paths (a jittered grid of
+    /// ⌊√P⌋² cells). Seeded per stream; returns the rays traced.
     pub fn walk(
         &self,
         start: &ShadingPoint,
         stream: u64,
-        visit: &mut dyn FnMut(u32, u32, &ShadingPoint, Vec3),
+        visit: &mut dyn FnMut(u32, u32, &Vertex, Vec3),
     ) -> u64 {
-        let mut rays = 0;
         let mut rng = Rng::new(self.settings.seed ^ 0x5eed_ba11, stream);
-        let strata = (self.settings.paths as f64).sqrt() as u32;
+        (0..self.settings.paths)
+            .map(|path| self.follow(Vertex::Surface(*start), Vec3::ONE, path, &mut rng, visit))
+            .sum()
+    }
+
+    /// The paths of one camera sub-sample that start in the medium: each tracks the camera ray
+    /// (from `origin` along `dir` up to `t_max`, the surface it hits) and, where it collides,
+    /// goes on from there as [`Bounces::walk`] does (its first vertex, the collision itself,
+    /// is not visited: its light is the medium's single-scattering row). Nothing without a
+    /// medium.
+    pub fn walk_camera(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        t_max: f32,
+        stream: u64,
+        visit: &mut dyn FnMut(u32, u32, &Vertex, Vec3),
+    ) -> u64 {
+        let Some((tracker, _)) = &self.medium else {
+            return 0;
+        };
+        let mut rng = Rng::new(self.settings.seed ^ 0xc10d_5eed, stream);
+        let albedo = tracker.medium().albedo;
+        let mut rays = 0;
         for path in 0..self.settings.paths {
-            let mut throughput = Vec3::ONE;
-            let mut at = *start;
-            for bounce in 1..=self.settings.bounces {
-                let lobes = at.lobes(self.scene);
-                let mut u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
-                if bounce == 1 && path < strata * strata {
-                    // The first bounce's directions on a jittered grid: the paths of a sample
-                    // cover its hemisphere evenly.
-                    u[1] = ((path % strata) as f32 + u[1]) / strata as f32;
-                    u[2] = ((path / strata) as f32 + u[2]) / strata as f32;
-                }
-                let Some(s) = lobes.sample(at.normal, at.view, u) else {
-                    break;
+            if let Some(t) = tracker.collide(origin, dir, t_max, &mut rng) {
+                let first = Vertex::Medium {
+                    pos: origin + dir * t,
+                    dir,
                 };
-                throughput *= s.weight;
-                rays += 1;
-                let Some(hit) = self.tracer.closest_hit(at.origin, s.dir, f32::INFINITY) else {
-                    break;
-                };
-                at = shading_point(self.tracer, &hit, s.dir);
-                visit(path, bounce, &at, throughput);
+                rays += self.follow(first, albedo, path, &mut rng, visit);
             }
+        }
+        rays
+    }
+
+    /// One path from `first` with `throughput` (see [`Bounces::walk`]).
+    fn follow(
+        &self,
+        first: Vertex,
+        mut throughput: Vec3,
+        path: u32,
+        rng: &mut Rng,
+        visit: &mut dyn FnMut(u32, u32, &Vertex, Vec3),
+    ) -> u64 {
+        let strata = (self.settings.paths as f64).sqrt() as u32;
+        let mut at = first;
+        let mut rays = 0;
+        for bounce in 1..=self.settings.bounces {
+            let mut u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+            if bounce == 1 && path < strata * strata {
+                // The first bounce's directions on a jittered grid: the paths of a sample
+                // cover its hemisphere (or sphere) evenly.
+                u[1] = ((path % strata) as f32 + u[1]) / strata as f32;
+                u[2] = ((path / strata) as f32 + u[2]) / strata as f32;
+            }
+            let (origin, dir) = match &at {
+                Vertex::Surface(sp) => {
+                    let lobes = sp.lobes(self.scene);
+                    let Some(s) = lobes.sample(sp.normal, sp.view, u) else {
+                        break;
+                    };
+                    throughput *= s.weight;
+                    (sp.origin, s.dir)
+                }
+                // The phase function's draw weighs 1.
+                Vertex::Medium { pos, dir } => {
+                    let g = self.medium.as_ref().map_or(0.0, |(t, _)| t.medium().g);
+                    (*pos, sample_hg(g, *dir, [u[1], u[2]]))
+                }
+            };
+            rays += 1;
+            let hit = self.tracer.closest_hit(origin, dir, f32::INFINITY);
+            let t_hit = hit.as_ref().map_or(f32::INFINITY, |h| h.t);
+            let collision = self.medium.as_ref().and_then(|(tracker, _)| {
+                Some((tracker.collide(origin, dir, t_hit, rng)?, tracker))
+            });
+            at = match (collision, hit) {
+                (Some((t, tracker)), _) => {
+                    throughput *= tracker.medium().albedo;
+                    Vertex::Medium {
+                        pos: origin + dir * t,
+                        dir,
+                    }
+                }
+                (None, Some(hit)) => Vertex::Surface(shading_point(self.tracer, &hit, dir)),
+                (None, None) => break,
+            };
+            visit(path, bounce, &at, throughput);
         }
         rays
     }
@@ -160,6 +260,7 @@ impl<'a> Bounces<'a> {
         throughput: Vec3,
         out: &mut impl FnMut(usize, Vec3),
     ) -> u64 {
+        let transmittance = self.surface_transmittance(at);
         let lobes = at.lobes(self.scene);
         let (dirs, weights) = (&self.samples.dirs, &self.samples.weights);
         let m = self.samples.per_texel;
@@ -171,7 +272,8 @@ impl<'a> Bounces<'a> {
             } else {
                 diffuse * cos
             };
-            out(s / m, value * weights[s]);
+            let through = transmittance.as_ref().map_or(1.0, |t| t[s / m]);
+            out(s / m, value * (weights[s] * through));
         };
         let mut rays = 0;
         match visibility {
@@ -221,8 +323,7 @@ impl<'a> Bounces<'a> {
     ) -> u64 {
         let mut shadow = 0;
         let rays = self.walk(start, stream, &mut |path, bounce, at, throughput| {
-            let lobes = at.lobes(self.scene);
-            if let Some((sampler, columns)) = lights.as_mut() {
+            if let (Some((sampler, columns)), Vertex::Surface(at)) = (lights.as_mut(), at) {
                 shadow += self.light_vertex(
                     stream,
                     [path, bounce],
@@ -232,23 +333,86 @@ impl<'a> Bounces<'a> {
                     columns,
                 );
             }
-            match self.visibility(at) {
-                Visibility::Bits(bits)
-                    if lobes.specular == Vec3::ZERO && self.samples.per_texel == 1 =>
-                {
-                    let c = throughput * scale * lobes.albedo * std::f32::consts::FRAC_1_PI;
-                    self.add_lambertian(bits, at.normal, c, rows);
-                }
-                visibility => {
-                    shadow += self.vertex_row(at, visibility, throughput * scale, &mut |j, v| {
+            shadow += self.vertex_rows(at, throughput * scale, rows);
+        });
+        rays + shadow
+    }
+
+    /// Adds `scale` times the rows of the paths that start in the medium along a camera
+    /// sub-sample's ray (from `origin` along `dir` up to `t_max`; see [`Bounces::walk_camera`]) to
+    /// `rows`. Returns the rays traced.
+    pub fn add_camera_rows(
+        &self,
+        (origin, dir, t_max): (Vec3, Vec3, f32),
+        stream: u64,
+        scale: f32,
+        rows: &mut [Vec<f32>; 3],
+    ) -> u64 {
+        let mut shadow = 0;
+        let rays = self.walk_camera(origin, dir, t_max, stream, &mut |_, _, at, throughput| {
+            shadow += self.vertex_rows(at, throughput * scale, rows);
+        });
+        rays + shadow
+    }
+
+    /// Adds the row of any vertex, times `throughput`, to `rows`. Returns the shadow rays.
+    fn vertex_rows(&self, at: &Vertex, throughput: Vec3, rows: &mut [Vec<f32>; 3]) -> u64 {
+        match at {
+            Vertex::Medium { pos, dir } => {
+                self.medium_vertex(*pos, *dir, throughput, rows);
+                0
+            }
+            Vertex::Surface(at) => {
+                let lobes = at.lobes(self.scene);
+                match self.visibility(at) {
+                    Visibility::Bits(bits)
+                        if lobes.specular == Vec3::ZERO && self.samples.per_texel == 1 =>
+                    {
+                        let c = throughput * lobes.albedo * std::f32::consts::FRAC_1_PI;
+                        let transmittance = self.surface_transmittance(at);
+                        self.add_lambertian(bits, at.normal, c, transmittance.as_deref(), rows);
+                        0
+                    }
+                    visibility => self.vertex_row(at, visibility, throughput, &mut |j, v| {
                         rows[0][j] += v.x;
                         rows[1][j] += v.y;
                         rows[2][j] += v.z;
-                    });
+                    }),
                 }
             }
-        });
-        rays + shadow
+        }
+    }
+
+    /// Adds the row of a vertex in the medium at `pos`, reached along `dir`, times `throughput`
+    /// (the albedo of the collision included) to `rows`.
+    fn medium_vertex(&self, pos: Vec3, dir: Vec3, throughput: Vec3, rows: &mut [Vec<f32>; 3]) {
+        let Some((tracker, light)) = &self.medium else {
+            return;
+        };
+        let weights = light.vertex_weights(pos, dir, tracker.medium().g, self.samples);
+        for (j, w) in weights.iter().enumerate() {
+            if *w != 0.0 {
+                rows[0][j] += throughput.x * w;
+                rows[1][j] += throughput.y * w;
+                rows[2][j] += throughput.z * w;
+            }
+        }
+    }
+
+    /// The transmittance through the medium from a surface vertex towards every texel: the
+    /// cache point's where the vertex has one, else read at the vertex. `None` without a medium
+    /// or in an unshadowed bake.
+    fn surface_transmittance(&self, at: &ShadingPoint) -> Option<Vec<f32>> {
+        let (_, light) = self.medium.as_ref()?;
+        if self.settings.unshadowed {
+            return None;
+        }
+        if let Some(t) = self.cache.as_ref().and_then(|c| c.transmittance(at)) {
+            return Some(t.iter().map(|&b| b as f32 / 255.0).collect());
+        }
+        let mut t = vec![0.0f32; self.samples.dirs.len() / self.samples.per_texel];
+        light.surface_transmittance(at.origin, &mut t);
+        Some(t)
     }
 
     /// At path vertex `at` (path and bounce `index` of the sub-sample's `stream`), adds
@@ -290,6 +454,10 @@ impl<'a> Bounces<'a> {
         columns: &mut [Vec3],
     ) {
         self.walk(start, stream, &mut |path, bounce, at, throughput| {
+            // Local lights are not baked through a medium (the settings refuse them).
+            let Vertex::Surface(at) = at else {
+                return;
+            };
             self.light_vertex(
                 stream,
                 [path, bounce],
@@ -303,8 +471,31 @@ impl<'a> Bounces<'a> {
 
     /// The fast case of [`Bounces::vertex_row`]: a Lambertian vertex, one sample a texel,
     /// visibility from the cache. Adds `c max(0, n·ω) Ω` to the rows at every visible texel, 64
-    /// texels a word, without branches, so that the loop vectorises.
-    fn add_lambertian(&self, bits: &[u64], n: Vec3, c: Vec3, rows: &mut [Vec<f32>; 3]) {
+    /// texels a word, without branches, so that the loop vectorises; times the transmittance
+    /// through a medium towards each texel, given one.
+    fn add_lambertian(
+        &self,
+        bits: &[u64],
+        n: Vec3,
+        c: Vec3,
+        transmittance: Option<&[f32]>,
+        rows: &mut [Vec<f32>; 3],
+    ) {
+        if let Some(t) = transmittance {
+            let [wx, wy, wz] = &self.weighted;
+            for (wi, &word) in bits.iter().enumerate() {
+                let mut word = word;
+                while word != 0 {
+                    let j = wi * 64 + word.trailing_zeros() as usize;
+                    word &= word - 1;
+                    let cos = (n.x * wx[j] + n.y * wy[j] + n.z * wz[j]).max(0.0) * t[j];
+                    rows[0][j] += c.x * cos;
+                    rows[1][j] += c.y * cos;
+                    rows[2][j] += c.z * cos;
+                }
+            }
+            return;
+        }
         let [wx, wy, wz] = &self.weighted;
         let [r0, r1, r2] = rows;
         let chunks = wx.chunks(64).zip(wy.chunks(64)).zip(wz.chunks(64)).zip(
@@ -339,13 +530,46 @@ impl<'a> Bounces<'a> {
     pub fn radiance(&self, start: &ShadingPoint, stream: u64, cube: &CubeMap) -> [f64; 3] {
         let mut sum = [0.0f64; 3];
         self.walk(start, stream, &mut |_, _, at, throughput| {
-            self.vertex_row(at, self.visibility(at), throughput, &mut |j, v| {
-                let l = cube.texels[j];
-                for k in 0..3 {
-                    sum[k] += v[k] as f64 * l[k] as f64;
-                }
-            });
+            self.vertex_radiance(at, throughput, cube, &mut sum);
         });
         sum.map(|v| v / self.settings.paths as f64)
+    }
+
+    /// [`Bounces::radiance`] for the paths that start in the medium along a camera ray (see
+    /// [`Bounces::add_camera_rows`]).
+    pub fn camera_radiance(
+        &self,
+        (origin, dir, t_max): (Vec3, Vec3, f32),
+        stream: u64,
+        cube: &CubeMap,
+    ) -> [f64; 3] {
+        let mut sum = [0.0f64; 3];
+        self.walk_camera(origin, dir, t_max, stream, &mut |_, _, at, throughput| {
+            self.vertex_radiance(at, throughput, cube, &mut sum);
+        });
+        sum.map(|v| v / self.settings.paths as f64)
+    }
+
+    /// Adds the light a vertex sends on lit by `cube`, times `throughput`, to `sum`.
+    fn vertex_radiance(&self, at: &Vertex, throughput: Vec3, cube: &CubeMap, sum: &mut [f64; 3]) {
+        let mut add = |j: usize, v: Vec3| {
+            let l = cube.texels[j];
+            for k in 0..3 {
+                sum[k] += v[k] as f64 * l[k] as f64;
+            }
+        };
+        match at {
+            Vertex::Surface(at) => {
+                self.vertex_row(at, self.visibility(at), throughput, &mut add);
+            }
+            Vertex::Medium { pos, dir } => {
+                if let Some((tracker, light)) = &self.medium {
+                    let w = light.vertex_weights(*pos, *dir, tracker.medium().g, self.samples);
+                    for (j, w) in w.iter().enumerate() {
+                        add(j, throughput * *w);
+                    }
+                }
+            }
+        }
     }
 }
