@@ -122,7 +122,13 @@ pub(crate) mod tests {
     /// turned the wrong way) is off by tens of them.
     const SIGMAS: f64 = 4.5;
 
-    fn medium(dims: [usize; 3], f: impl Fn(Vec3) -> f32, extinction: f32, albedo: f32) -> Medium {
+    /// A medium over [-1, 1]³ of density `f` on a grid of `dims`, g = 0.3.
+    pub(crate) fn medium(
+        dims: [usize; 3],
+        f: impl Fn(Vec3) -> f32,
+        extinction: f32,
+        albedo: f32,
+    ) -> Medium {
         Medium {
             grid: DensityGrid::from_fn(dims, Vec3::splat(-1.0), Vec3::splat(1.0), f),
             extinction,

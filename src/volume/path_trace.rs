@@ -207,20 +207,12 @@ pub fn path_trace_volume(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::medium::{DensityGrid, DensitySource};
+    use crate::medium::DensitySource;
+    use crate::medium::tracking::tests::medium;
 
     /// Standard errors an estimate may stray: a true failure (a wrong free-path law, a lobe
     /// turned the wrong way) is off by tens of them.
     const SIGMAS: f64 = 4.5;
-
-    fn medium(dims: [usize; 3], f: impl Fn(Vec3) -> f32, extinction: f32, albedo: f32) -> Medium {
-        Medium {
-            grid: DensityGrid::from_fn(dims, Vec3::splat(-1.0), Vec3::splat(1.0), f),
-            extinction,
-            albedo: Vec3::splat(albedo),
-            g: 0.3,
-        }
-    }
 
     fn camera(size: u32) -> Camera {
         Camera {
