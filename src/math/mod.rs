@@ -1,11 +1,13 @@
 //! The mathematics every stage shares: real spherical harmonics (and their table at a cube's
 //! texels), the per-face Haar transform, cube map texels and their solid angles, seeded sampling,
-//! and the magnitude that ranks an RGB coefficient. Nothing here knows of scenes or files.
+//! the magnitude that ranks an RGB coefficient, and the leading singular triplets of a matrix.
+//! Nothing here knows of scenes or files.
 
 pub mod cubemap;
 pub mod haar;
 pub mod sampling;
 pub mod sh;
+pub mod svd;
 pub mod texel_sh;
 
 /// Magnitude used to rank an RGB coefficient: Rec. 709 luminance weights on absolute values, so

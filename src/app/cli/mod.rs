@@ -23,6 +23,7 @@ use crate::volume::VolumeView;
 mod bake;
 mod bench;
 mod bounces;
+mod brdf;
 mod relight;
 mod view;
 mod volume;
@@ -34,6 +35,8 @@ use bench::bench_cmd;
 pub use bounces::BouncesArgs;
 pub use bounces::LightsArgs;
 use bounces::{bounces_cmd, lights_cmd};
+pub use brdf::BrdfArgs;
+use brdf::brdf_cmd;
 pub use relight::{EnvArgs, ReferenceArgs, RelightArgs};
 use relight::{compare_cmd, env_cmd, reference_cmd, relight_cmd};
 pub use view::ViewArgs;
@@ -95,6 +98,9 @@ pub enum Command {
     /// Bake a scene with 0 to B interreflection bounces and compare each with the path tracer:
     /// a contact sheet and a table of time, size and error.
     Bounces(BouncesArgs),
+    /// Factorise GGX lobes into in-out terms (the separable BRDF a glossy per-vertex bake
+    /// needs): the error against the number of terms per roughness, as a table and a plot.
+    Brdf(BrdfArgs),
     /// The local lights' figures: each kind against the path tracer and its bake cost, a
     /// moving light's error against the spacing of its positions, and many lights timed.
     Lights(LightsArgs),
@@ -267,6 +273,7 @@ fn run(command: Command) -> Result<()> {
         Command::Bench(a) => bench_cmd(a),
         Command::Bounces(a) => bounces_cmd(a),
         Command::Lights(a) => lights_cmd(a),
+        Command::Brdf(a) => brdf_cmd(a),
         Command::View(a) => view_cmd(a),
         Command::Volume(VolumeCommand::Bake(a)) => volume_bake_cmd(a),
         Command::Volume(VolumeCommand::Render(a)) => volume_render_cmd(a),
