@@ -207,7 +207,9 @@ impl MediumLight {
         let done = AtomicUsize::new(0);
         let step = |count: usize| {
             let d = done.fetch_add(count, Ordering::Relaxed) + count;
-            progress(d, steps);
+            if d.is_multiple_of(64) || d == steps {
+                progress(d, steps);
+            }
         };
         // The surfaces' visibility, texel by texel.
         let nodes = visible.count();

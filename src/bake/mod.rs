@@ -59,8 +59,12 @@ pub struct BakeProgress {
     /// Pixels of the view that take `edge_spp` sub-samples ([`EdgeMap`]), found before the first
     /// stage.
     pub edge_pixels: usize,
-    /// Texel lights done and in all for a scene's medium rows (a first stage; `[0, 0]` without a
-    /// medium).
+    /// Passes done and in all over the texels for what a medium's points see of them: the
+    /// surfaces' visibility, then with bounces the transmittance table (the first stage; `[0, 0]`
+    /// without a medium).
+    pub medium_light: [usize; 2],
+    /// Texel lights done and in all for a scene's medium rows (the next stage; `[0, 0]` without
+    /// a medium).
     pub medium_texels: [usize; 2],
     /// Surface cache points traced and in all for the interreflections (a first stage; `[0, 0]`
     /// without it).
@@ -353,12 +357,13 @@ fn bake_tiles(
     let edge_pixels = edges.count();
     // Whether a pixel is this bake's (its tile is), and the progress of a first stage.
     let mine_pixel = |p: usize| mine((p / w / TILE) * tx + (p % w) / TILE);
-    let stage = |medium_texels: [usize; 2], cache_points: [usize; 2]| {
+    let stage = |medium_light: [usize; 2], medium_texels: [usize; 2], cache_points: [usize; 2]| {
         progress(BakeProgress {
             pixels_done: 0,
             pixels_total,
             shadow_rays: 0,
             edge_pixels,
+            medium_light,
             medium_texels,
             cache_points,
         })
@@ -370,7 +375,7 @@ fn bake_tiles(
             &tracer,
             n,
             settings.bounces > 0,
-            &|done, total| stage([done, total], [0, 0]),
+            &|done, total| stage([done, total], [0, 0], [0, 0]),
         )?),
         None => None,
     };
@@ -384,7 +389,7 @@ fn bake_tiles(
             settings.spp,
             settings.seed,
             &mine_pixel,
-            &|done, total| stage([done, total], [0, 0]),
+            &|done, total| stage([0, 0], [done, total], [0, 0]),
         )?),
         None => None,
     };
@@ -392,7 +397,7 @@ fn bake_tiles(
     let bounces = bounce::Bounces::new(scene, &tracer, settings, &samples)
         .with_medium(through.filter(|_| settings.bounces > 0))
         .with_cache(&edges, &mine_pixel, &|done, total| {
-            stage([0, 0], [done, total])
+            stage([0, 0], [0, 0], [done, total])
         })?;
     let light_sampler = LightSampler::new(scene, settings);
     let mut reference_haar = unoccluded_row(&samples);
@@ -445,6 +450,7 @@ fn bake_tiles(
                 pixels_total,
                 shadow_rays: rays.fetch_add(out.rays, Ordering::Relaxed) + out.rays,
                 edge_pixels,
+                medium_light: [0, 0],
                 medium_texels: [0, 0],
                 cache_points: [0, 0],
             });

@@ -400,6 +400,13 @@ fn bake_progress(bar: &ProgressBar, start: Instant) -> impl Fn(BakeProgress) + S
             ));
             return;
         }
+        if p.medium_light[1] > 0 {
+            bar.set_message(format!(
+                "medium: what its points see, {}/{} passes over the texel lights",
+                p.medium_light[0], p.medium_light[1]
+            ));
+            return;
+        }
         if p.medium_texels[1] > 0 {
             bar.set_message(format!(
                 "medium rows: {}/{} texel lights",
