@@ -410,31 +410,32 @@ impl MediumLight {
     }
 
     /// The transmittance from the surface point `p` through the medium towards every texel
-    /// (needs the table): T where the texel's ray from `p` enters the medium's box, 1 where it
-    /// misses the box.
-    pub fn surface_transmittance(&self, p: Vec3, out: &mut [f32]) {
+    /// (needs the table), in 255ths like the table: T where the texel's ray from `p` enters the
+    /// medium's box, 1 where it misses the box.
+    pub fn surface_transmittance(&self, p: Vec3) -> Vec<u8> {
         let inside = p.cmpge(self.lo).all() && p.cmple(self.hi).all();
-        for (t, (o, &dir)) in out.iter_mut().zip(&self.centres).enumerate() {
-            let at = if inside {
-                p
-            } else {
-                match ray_box(p, dir, self.lo, self.hi) {
-                    Some((t0, _)) => p + dir * t0.max(0.0),
-                    None => {
-                        *o = 1.0;
-                        continue;
+        let byte = |v: f32| (v * 255.0).round() as u8;
+        (0..self.texels)
+            .map(|t| {
+                let dir = self.centres[t];
+                let at = if inside {
+                    p
+                } else {
+                    match ray_box(p, dir, self.lo, self.hi) {
+                        Some((t0, _)) => p + dir * t0.max(0.0),
+                        None => return byte(1.0),
                     }
-                }
-            };
-            let c = self.voxels.corners(self.voxel_coords(at));
-            *o = c
-                .index
-                .iter()
-                .zip(&c.weight)
-                .map(|(&i, &w)| w * self.transmittance[i as usize * self.texels + t] as f32)
-                .sum::<f32>()
-                / 255.0;
-        }
+                };
+                let c = self.voxels.corners(self.voxel_coords(at));
+                let sum: f32 = c
+                    .index
+                    .iter()
+                    .zip(&c.weight)
+                    .map(|(&i, &w)| w * self.transmittance[i as usize * self.texels + t] as f32)
+                    .sum();
+                byte(sum / 255.0)
+            })
+            .collect()
     }
 
     /// Bytes the tables take.

@@ -195,8 +195,9 @@ fn file_round_trip_and_damage() {
     std::fs::remove_dir_all(dir).unwrap();
 }
 
-#[test]
-fn scattered_fields_round_trip_and_lying_headers_are_refused() {
+/// A small sphere with three scattering orders baked coarsely: the medium, its settings and
+/// its fields.
+fn small_scatter() -> (Medium, TransferSettings, scatter::ScatterFields) {
     let m = sphere(6, 0.7, 4.0);
     let settings = TransferSettings {
         sh_order: 2,
@@ -209,6 +210,12 @@ fn scattered_fields_round_trip_and_lying_headers_are_refused() {
         },
     };
     let fields = scatter::bake_scatter(&m, &settings.scatter, &|_, _| {}).unwrap();
+    (m, settings, fields)
+}
+
+#[test]
+fn scattered_fields_round_trip_and_lying_headers_are_refused() {
+    let (m, settings, fields) = small_scatter();
     let scatter_meta = ScatterMeta {
         orders: fields.orders(),
         angular: fields.angular,
@@ -320,18 +327,7 @@ fn scattered_fields_round_trip_and_lying_headers_are_refused() {
 
 #[test]
 fn a_light_in_another_look_equals_one_made_afresh() {
-    let m = sphere(6, 0.7, 4.0);
-    let settings = TransferSettings {
-        sh_order: 2,
-        directions: 32,
-        scatter: ScatterSettings {
-            orders: 3,
-            angular: 2,
-            light: 2,
-            directions: 16,
-        },
-    };
-    let fields = scatter::bake_scatter(&m, &settings.scatter, &|_, _| {}).unwrap();
+    let (m, settings, fields) = small_scatter();
     let vt = VolumeTransfer {
         meta: VolumeMeta {
             scatter: Some(ScatterMeta {

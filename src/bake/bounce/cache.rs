@@ -228,16 +228,10 @@ impl VisibilityCache {
         }
         let done = AtomicUsize::new(0);
         let light = bounces.medium.as_ref().map(|(_, light)| *light);
-        let texels = cache.texels;
         let traced: Vec<(Vec<u64>, u64, Vec<u8>)> = chosen
             .par_iter()
             .map(|(_, c)| {
-                let mut transmittance = Vec::new();
-                if let Some(light) = light {
-                    let mut t = vec![0.0f32; texels];
-                    light.surface_transmittance(c.origin, &mut t);
-                    transmittance = t.iter().map(|v| (v * 255.0).round() as u8).collect();
-                }
+                let transmittance = light.map_or(Vec::new(), |l| l.surface_transmittance(c.origin));
                 let mut bits = vec![0u64; cache.words];
                 let mut rays = 0;
                 for (s, d) in samples.dirs.iter().enumerate() {

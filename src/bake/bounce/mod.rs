@@ -23,6 +23,8 @@
 //! light is the single scattering of [`super::medium_rows`]. A surface vertex's row is
 //! attenuated by the transmittance towards each texel, kept per cache point with its bits.
 
+use std::borrow::Cow;
+
 use glam::Vec3;
 
 mod cache;
@@ -272,7 +274,9 @@ impl<'a> Bounces<'a> {
             } else {
                 diffuse * cos
             };
-            let through = transmittance.as_ref().map_or(1.0, |t| t[s / m]);
+            let through = transmittance
+                .as_ref()
+                .map_or(1.0, |t| t[s / m] as f32 / 255.0);
             out(s / m, value * (weights[s] * through));
         };
         let mut rays = 0;
@@ -359,7 +363,11 @@ impl<'a> Bounces<'a> {
     fn vertex_rows(&self, at: &Vertex, throughput: Vec3, rows: &mut [Vec<f32>; 3]) -> u64 {
         match at {
             Vertex::Medium { pos, dir } => {
-                self.medium_vertex(*pos, *dir, throughput, rows);
+                self.medium_vertex(*pos, *dir, throughput, &mut |j, v| {
+                    rows[0][j] += v.x;
+                    rows[1][j] += v.y;
+                    rows[2][j] += v.z;
+                });
                 0
             }
             Vertex::Surface(at) => {
@@ -383,36 +391,40 @@ impl<'a> Bounces<'a> {
         }
     }
 
-    /// Adds the row of a vertex in the medium at `pos`, reached along `dir`, times `throughput`
-    /// (the albedo of the collision included) to `rows`.
-    fn medium_vertex(&self, pos: Vec3, dir: Vec3, throughput: Vec3, rows: &mut [Vec<f32>; 3]) {
+    /// The row of a vertex in the medium at `pos`, reached along `dir`, times `throughput` (the
+    /// albedo of the collision included): `out(texel, value)` for every texel it sees.
+    fn medium_vertex(
+        &self,
+        pos: Vec3,
+        dir: Vec3,
+        throughput: Vec3,
+        out: &mut impl FnMut(usize, Vec3),
+    ) {
         let Some((tracker, light)) = &self.medium else {
             return;
         };
         let weights = light.vertex_weights(pos, dir, tracker.medium().g, self.samples);
         for (j, w) in weights.iter().enumerate() {
             if *w != 0.0 {
-                rows[0][j] += throughput.x * w;
-                rows[1][j] += throughput.y * w;
-                rows[2][j] += throughput.z * w;
+                out(j, throughput * *w);
             }
         }
     }
 
-    /// The transmittance through the medium from a surface vertex towards every texel: the
-    /// cache point's where the vertex has one, else read at the vertex. `None` without a medium
-    /// or in an unshadowed bake.
-    fn surface_transmittance(&self, at: &ShadingPoint) -> Option<Vec<f32>> {
+    /// The transmittance through the medium from a surface vertex towards every texel, in
+    /// 255ths: the cache point's where the vertex has one, else read at the vertex. `None`
+    /// without a medium or in an unshadowed bake.
+    fn surface_transmittance(&self, at: &ShadingPoint) -> Option<Cow<'_, [u8]>> {
         let (_, light) = self.medium.as_ref()?;
         if self.settings.unshadowed {
             return None;
         }
-        if let Some(t) = self.cache.as_ref().and_then(|c| c.transmittance(at)) {
-            return Some(t.iter().map(|&b| b as f32 / 255.0).collect());
-        }
-        let mut t = vec![0.0f32; self.samples.dirs.len() / self.samples.per_texel];
-        light.surface_transmittance(at.origin, &mut t);
-        Some(t)
+        Some(
+            match self.cache.as_ref().and_then(|c| c.transmittance(at)) {
+                Some(t) => Cow::Borrowed(t),
+                None => Cow::Owned(light.surface_transmittance(at.origin)),
+            },
+        )
     }
 
     /// At path vertex `at` (path and bounce `index` of the sub-sample's `stream`), adds
@@ -478,7 +490,7 @@ impl<'a> Bounces<'a> {
         bits: &[u64],
         n: Vec3,
         c: Vec3,
-        transmittance: Option<&[f32]>,
+        transmittance: Option<&[u8]>,
         rows: &mut [Vec<f32>; 3],
     ) {
         if let Some(t) = transmittance {
@@ -488,7 +500,8 @@ impl<'a> Bounces<'a> {
                 while word != 0 {
                     let j = wi * 64 + word.trailing_zeros() as usize;
                     word &= word - 1;
-                    let cos = (n.x * wx[j] + n.y * wy[j] + n.z * wz[j]).max(0.0) * t[j];
+                    let through = t[j] as f32 / 255.0;
+                    let cos = (n.x * wx[j] + n.y * wy[j] + n.z * wz[j]).max(0.0) * through;
                     rows[0][j] += c.x * cos;
                     rows[1][j] += c.y * cos;
                     rows[2][j] += c.z * cos;
@@ -562,14 +575,7 @@ impl<'a> Bounces<'a> {
             Vertex::Surface(at) => {
                 self.vertex_row(at, self.visibility(at), throughput, &mut add);
             }
-            Vertex::Medium { pos, dir } => {
-                if let Some((tracker, light)) = &self.medium {
-                    let w = light.vertex_weights(*pos, *dir, tracker.medium().g, self.samples);
-                    for (j, w) in w.iter().enumerate() {
-                        add(j, throughput * *w);
-                    }
-                }
-            }
+            Vertex::Medium { pos, dir } => self.medium_vertex(*pos, *dir, throughput, &mut add),
         }
     }
 }
