@@ -15,6 +15,7 @@ pub mod path_tracer;
 mod pixels;
 pub mod reference;
 mod settings;
+mod slot;
 mod tint;
 
 use crate::store::transport::BakeDomain;
@@ -25,6 +26,7 @@ pub use pixels::{EdgeMap, pixel_subsamples, sample_stride};
 pub use settings::{
     BakeSettings, load_if_baked_with, load_or_bake, load_or_bake_logged, worst_case_bytes,
 };
+use slot::Slot;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 use glam::Vec3;
@@ -113,88 +115,6 @@ pub fn shading_point(tracer: &Tracer, hit: &Hit, ray_dir: Vec3) -> ShadingPoint 
         material: hit.material,
         uv: hit.uv,
         unit_albedo: false,
-    }
-}
-
-/// The rows of one material seen in a pixel: its diffuse lobe's and, when glossy, its GGX
-/// lobe's; summed plainly for a constant material and weighed by each sub-sample's own colour
-/// for a textured one ([`tint::TintedRow`]).
-struct Slot {
-    material: u32,
-    diffuse: Vec<f32>,
-    glossy: Option<Vec<f32>>,
-    tinted: Option<(tint::TintedRow, Option<tint::TintedRow>)>,
-}
-
-impl Slot {
-    fn new(material: u32, texels: usize, glossy: bool, textured: bool) -> Slot {
-        let tinted = textured.then(|| {
-            (
-                tint::TintedRow::new(texels),
-                glossy.then(|| tint::TintedRow::new(texels)),
-            )
-        });
-        let plain = |on: bool| {
-            if on && !textured {
-                vec![0.0; texels]
-            } else {
-                Vec::new()
-            }
-        };
-        Slot {
-            material,
-            diffuse: plain(true),
-            glossy: (glossy && !textured).then(|| plain(true)),
-            tinted,
-        }
-    }
-
-    /// Where one sub-sample's diffuse and GGX rows go: the sums themselves for a constant
-    /// material, `scratch` cleared for a textured one (then [`Slot::fold_sample`]).
-    fn rows_for_sample<'s>(
-        &'s mut self,
-        scratch: &'s mut [Vec<f32>; 2],
-    ) -> (&'s mut [f32], Option<&'s mut [f32]>) {
-        match &self.tinted {
-            None => (&mut self.diffuse, self.glossy.as_deref_mut()),
-            Some((_, glossy)) => {
-                let glossy = glossy.is_some();
-                let [d, g] = scratch;
-                d.fill(0.0);
-                if glossy {
-                    g.fill(0.0);
-                }
-                (d, glossy.then_some(&mut g[..]))
-            }
-        }
-    }
-
-    /// Adds a textured material's sub-sample rows, left in `scratch`, with its colours.
-    fn fold_sample(&mut self, lobes: &brdf::Lobes, scratch: &[Vec<f32>; 2]) {
-        if let Some((diffuse, glossy)) = &mut self.tinted {
-            diffuse.add(lobes.albedo, &scratch[0]);
-            if let Some(g) = glossy {
-                g.add(lobes.specular, &scratch[1]);
-            }
-        }
-    }
-
-    /// The (RGB weight, row) pairs of the pixel: the material's colours with the plain sums, or
-    /// a textured material's tinted rows.
-    fn finish(self, material: &crate::scene::Material) -> Vec<([f32; 3], Vec<f32>)> {
-        match self.tinted {
-            Some((diffuse, glossy)) => {
-                let mut rows = diffuse.finish();
-                rows.extend(glossy.into_iter().flat_map(tint::TintedRow::finish));
-                rows
-            }
-            None => {
-                let specular = material.glossy_lobe().map(|(s, _)| s.to_array());
-                std::iter::once((material.albedo().to_array(), self.diffuse))
-                    .chain(self.glossy.zip(specular).map(|(row, s)| (s, row)))
-                    .collect()
-            }
-        }
     }
 }
 
