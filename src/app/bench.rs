@@ -184,8 +184,7 @@ fn reference_error(
         Some(c) => c.clone(),
         None => crate::relight::vertex::bake_camera(t)?,
     };
-    let colours = crate::relight::vertex::vertex_colours(t, img)?;
-    let drawn = crate::relight::vertex::draw(t, colours, &camera, None, 1)?;
+    let drawn = crate::relight::vertex::draw_relit(t, img, &camera, None, 1, Default::default())?;
     let both: Vec<f32> = match reference_coverage {
         Some(c) if c.len() == drawn.coverage.len() => drawn
             .coverage

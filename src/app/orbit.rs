@@ -14,7 +14,7 @@ use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{Cell, write_sheet};
-use crate::relight::vertex::{bake_camera, compose, orbit, vertex_colours};
+use crate::relight::vertex::{GlossEval, bake_camera, compose, orbit};
 use crate::relight::{LightContext, RelightRequest, relight};
 use crate::scene::Scene;
 use crate::scene::tessellate::VertexMesh;
@@ -151,7 +151,8 @@ pub fn run_orbit(
         let (full, _) = relight(&t, &ctx, &light, &full_req)?;
         let (k_img, _) = relight(&t, &ctx, &light, &k_req)?;
         let camera = bake_camera(&t)?;
-        let drawn = crate::relight::vertex::draw(&t, vertex_colours(&t, &full)?, &camera, None, 1)?;
+        let drawn =
+            crate::relight::vertex::draw_relit(&t, &full, &camera, None, 1, GlossEval::PerPixel)?;
         let both: Vec<f32> = drawn
             .coverage
             .iter()
@@ -192,17 +193,8 @@ pub fn run_orbit(
         ..
     } = measure("demo_vertices_coarse.prt", edge * COARSE_EDGE_FACTOR)?;
     let camera = bake_camera(&t)?;
-    let mesh = crate::relight::vertex::mesh_of(&t)?;
-    let texturing = crate::relight::raster::Texturing::of(mesh);
-    let draw = |colours: &[[f32; 3]], camera: &crate::scene::Camera, samples: u32| {
-        crate::relight::raster::rasterize_multisampled(
-            camera,
-            &mesh.positions,
-            &mesh.triangles,
-            colours,
-            texturing.as_ref(),
-            samples,
-        )
+    let draw = |relit: &Image, camera: &crate::scene::Camera, samples: u32| {
+        crate::relight::vertex::draw_relit(&t, relit, camera, None, samples, GlossEval::PerPixel)
     };
     // Frames as the viewer makes them on the CPU: relight at K terms, draw the pixel centres.
     let mut times = Vec::new();
@@ -211,7 +203,7 @@ pub fn run_orbit(
         let t0 = Instant::now();
         let (img, _) = relight(&t, &ctx, &light, &k_req)?;
         let t1 = Instant::now();
-        let raster = draw(vertex_colours(&t, &img)?, &camera, 1)?;
+        let raster = draw(&img, &camera, 1)?;
         let t2 = Instant::now();
         times.push([
             (t1 - t0).as_secs_f64(),
@@ -226,14 +218,13 @@ pub fn run_orbit(
         v.sort_by(f64::total_cmp);
         v[v.len() / 2] * 1e3
     };
-    let colours = vertex_colours(&t, &k_img)?;
     let tone = ToneMap::auto(&pixel_full, Some(&per_pixel.coverage));
     let mut shots: Vec<(Image, [String; 2])> = Vec::new();
     for az in ORBIT_AZIMUTHS {
         let cam = orbit(&camera, az, 0.0);
         // Drawn as `prt relight` and the GPU display draw: antialiased.
         let shot = compose(
-            draw(colours, &cam, crate::relight::raster::DRAW_SAMPLES)?,
+            draw(&k_img, &cam, crate::relight::raster::DRAW_SAMPLES)?,
             &cam,
             Some((env, rotation)),
         )?;

@@ -7,6 +7,7 @@
 //! under way, whatever the size of its output.
 
 pub mod bounce;
+mod gloss;
 mod in_order;
 pub mod lights;
 pub mod medium_light;
@@ -232,12 +233,21 @@ fn bake_tiles(
     let tracer = Tracer::new(scene);
     let cam = &scene.camera;
     let mesh = match settings.domain {
-        BakeDomain::Vertices { edge_length } => Some(VertexMesh::tessellate(scene, edge_length)?),
+        BakeDomain::Vertices { edge_length } => {
+            let mut m = VertexMesh::tessellate(scene, edge_length)?;
+            m.factors = crate::scene::brdf_factor::BrdfFactors::for_materials(
+                &scene.materials,
+                settings.brdf_terms as usize,
+                settings.brdf_error as f64,
+            )
+            .map(Box::new);
+            Some(m)
+        }
         BakeDomain::View => None,
     };
-    // Vertex v is pixel v of an image one tile wide.
+    // Vertex v's terms are pixels v · stride + k of an image one tile wide.
     let (w, h) = match &mesh {
-        Some(m) => (TILE, m.vertex_count().div_ceil(TILE)),
+        Some(m) => (TILE, m.pixel_count().div_ceil(TILE)),
         None => (cam.width as usize, cam.height as usize),
     };
     let n = settings.cube_n;
@@ -261,7 +271,7 @@ fn bake_tiles(
         .filter(|&t| mine(t))
         .map(|t| match &mesh {
             Some(m) => m
-                .vertex_count()
+                .pixel_count()
                 .saturating_sub(t * TILE * TILE)
                 .min(TILE * TILE),
             None => tile_pixels(w, h, t % tx, t / tx),
@@ -437,6 +447,8 @@ fn bake_tiles(
             triangles: m.triangles.len() as u32,
             image: [cam.width, cam.height],
             albedo_maps: m.albedo_maps.len() as u32,
+            brdf_stride: m.stride() as u32,
+            brdf_map: m.factors.as_ref().map_or(0, |f| f.map.res as u32),
         }),
         stats: BakeStats::default(),
         lights: scene.lights.clone(),
@@ -534,6 +546,8 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             let mut light_columns = vec![Vec3::ZERO; lights.columns()];
             // A textured vertex, whose rows are a white surface's.
             let mut white = false;
+            // A glossy vertex's in-out BRDF terms 1.., and the material they belong to.
+            let mut terms: Option<(u32, Vec<Vec<f32>>)> = None;
             for (sub, visit) in visits.into_iter().enumerate() {
                 covered += visit.covered;
                 let stream = path_stream(pixel_index, sub, sample_stride(settings));
@@ -596,16 +610,34 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                 }
                 let slot = &mut dense[slot];
                 let (diffuse, glossy_row) = slot.rows_for_sample(&mut scratch_rows);
-                out.rays += accumulate_direct_rows(
-                    tracer,
-                    samples,
-                    &sp,
-                    settings.unshadowed,
-                    medium,
-                    inv_spp * seen,
-                    diffuse,
-                    glossy_row.map(|row| (here.alpha, row)),
-                );
+                let factors = gloss::factors_of(mesh.and_then(|m| m.factors.as_deref()), &sp);
+                out.rays += match factors {
+                    Some(f) => {
+                        let count = f.terms_of(sp.material) - 1;
+                        let (_, rows) =
+                            terms.get_or_insert_with(|| (sp.material, vec![vec![0.0; c]; count]));
+                        gloss::accumulate_term_rows(
+                            tracer,
+                            samples,
+                            &sp,
+                            settings.unshadowed,
+                            f,
+                            inv_spp * seen,
+                            diffuse,
+                            rows,
+                        )
+                    }
+                    None => accumulate_direct_rows(
+                        tracer,
+                        samples,
+                        &sp,
+                        settings.unshadowed,
+                        medium,
+                        inv_spp * seen,
+                        diffuse,
+                        glossy_row.map(|row| (here.alpha, row)),
+                    ),
+                };
                 slot.fold_sample(&here, &scratch_rows);
                 if settings.bounces > 0 {
                     let rows =
@@ -639,15 +671,37 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     .enumerate()
                     .map(|(k, row)| (std::array::from_fn(|i| (i == k) as u8 as f32), row))
             });
-            // Every row with the scale of its thresholding budget.
+            // Every row with its pixel and the scale of its thresholding budget.
             let lobes = lobes
                 .chain(channels)
-                .map(|(weight, row)| (weight, row, reference_energy));
+                .map(|(weight, row)| (pixel, weight, row, reference_energy));
             let scattered = medium.zip(medium_rows).and_then(|(m, rows)| {
                 let p = pixel as usize;
-                Some((m.albedo.to_array(), rows.row(p)?, rows.reference_energy(p)))
+                Some((
+                    pixel,
+                    m.albedo.to_array(),
+                    rows.row(p)?,
+                    rows.reference_energy(p),
+                ))
             });
-            for (weight, mut row, budget_scale) in lobes.chain(scattered) {
+            // A glossy vertex's terms, each budget scaled so that its error is the diffuse
+            // row's once multiplied by the largest g_k.
+            let factors = mesh.and_then(|m| m.factors.as_ref());
+            let terms = terms.zip(factors).into_iter().flat_map(|((m, rows), f)| {
+                let specular = scene.materials[m as usize]
+                    .glossy_lobe()
+                    .map_or([0.0; 3], |(s, _)| s.to_array());
+                rows.into_iter().enumerate().map(move |(i, row)| {
+                    let peak = f.view_peak(m, i + 1).max(1e-6) as f64;
+                    (
+                        pixel + i as u32 + 1,
+                        specular,
+                        row,
+                        reference_energy / (peak * peak),
+                    )
+                })
+            });
+            for (pixel, weight, mut row, budget_scale) in lobes.chain(scattered).chain(terms) {
                 let mut sh = vec![0.0f32; shc];
                 basis.project_row(&row, &mut sh);
                 haar::forward_face_all(&mut row, n, &mut scratch);

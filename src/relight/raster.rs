@@ -33,6 +33,7 @@ use crate::error::{PrtError, Result};
 use crate::output::film::Image;
 use crate::scene::Camera;
 use crate::scene::albedo_map::AlbedoMap;
+use crate::scene::brdf_factor::{BrdfFactors, to_local};
 use crate::scene::tessellate::VertexMesh;
 
 /// What a textured mesh adds to a draw: each vertex's texture coordinate and material, and the
@@ -100,6 +101,90 @@ impl<'a> Texturing<'a> {
             ));
         }
         Ok(())
+    }
+}
+
+/// What a glossy per-vertex bake adds to a draw: each vertex's in-out BRDF responses for terms
+/// `1..K_b` of its material, interpolated across the triangle and multiplied per pixel by
+/// `g_k` of the direction to the eye in the frame of the interpolated normal
+/// ([`crate::scene::brdf_factor`]). The responses are not multiplied by an albedo map.
+#[derive(Clone, Debug)]
+pub struct Gloss<'a> {
+    /// Unit shading normal of each vertex.
+    pub normals: &'a [Vec3],
+    /// Material of each vertex.
+    pub materials: &'a [u32],
+    /// The factors: each material's K_b and its `g_k`.
+    pub factors: &'a BrdfFactors,
+    /// Vertex `v`'s response of term k at `[v · (stride − 1) + k − 1]`.
+    pub terms: &'a [[f32; 3]],
+}
+
+impl Gloss<'_> {
+    /// Checks one normal, material and `stride − 1` finite responses per vertex of `vertices`.
+    pub fn check(&self, vertices: usize) -> Result<()> {
+        let per = self.factors.stride - 1;
+        if self.normals.len() != vertices
+            || self.materials.len() != vertices
+            || self.terms.len() != vertices * per
+        {
+            return Err(PrtError::invalid(
+                "gloss",
+                format!(
+                    "{} normals, {} materials and {} term responses for {vertices} vertices of \
+                     {per} terms",
+                    self.normals.len(),
+                    self.materials.len(),
+                    self.terms.len()
+                ),
+            ));
+        }
+        check_colours(self.terms)
+    }
+
+    /// The glossy light of a point of triangle `tri` at barycentrics `b` (summing to 1), seen
+    /// along `to_eye` (unit, from the point towards the eye).
+    fn shade(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> DVec3 {
+        let m = self.materials[tri[0] as usize];
+        let k_b = self.factors.terms_of(m);
+        if k_b <= 1 {
+            return DVec3::ZERO;
+        }
+        let n = (0..3)
+            .map(|i| self.normals[tri[i] as usize].as_dvec3() * b[i])
+            .sum::<DVec3>();
+        let Some(n) = n.try_normalize() else {
+            return DVec3::ZERO;
+        };
+        let local = to_local(n.as_vec3(), to_eye.as_vec3());
+        let per = self.factors.stride - 1;
+        (1..k_b)
+            .map(|k| {
+                let g = self.factors.view_at(m, k, local) as f64;
+                let r = (0..3)
+                    .map(|i| {
+                        DVec3::from(self.terms[tri[i] as usize * per + k - 1].map(f64::from)) * b[i]
+                    })
+                    .sum::<DVec3>();
+                r * g
+            })
+            .sum()
+    }
+
+    /// The vertex colours with each vertex's glossy light added as seen from `eye` (the
+    /// direction to the eye taken at the vertex): the per-vertex evaluation that
+    /// [`rasterize_glossy`]'s per-pixel one is compared with.
+    pub fn per_vertex(&self, positions: &[Vec3], colours: &[[f32; 3]], eye: Vec3) -> Vec<[f32; 3]> {
+        colours
+            .iter()
+            .enumerate()
+            .map(|(v, c)| {
+                let to_eye = (eye - positions[v]).normalize_or_zero().as_dvec3();
+                let v32 = v as u32;
+                let add = self.shade([v32; 3], [1.0, 0.0, 0.0], to_eye);
+                std::array::from_fn(|i| (c[i] + add[i] as f32).max(0.0))
+            })
+            .collect()
     }
 }
 
@@ -397,6 +482,7 @@ fn draw_band(
     triangles: &[[u32; 3]],
     colours: &[[f32; 3]],
     texturing: Option<&Texturing>,
+    gloss: Option<&Gloss>,
     y0: usize,
     pixels: &mut [[f32; 3]],
     coverage: &mut [f32],
@@ -453,7 +539,14 @@ fn draw_band(
                     }
                     None => Vec3::ONE,
                 };
-                pixels[i] = (c.as_vec3() * albedo).to_array();
+                let mut colour = c.as_vec3() * albedo;
+                if let Some(g) = gloss {
+                    let dir = view.right * fx + view.up * fy + view.forward;
+                    let b = w.map(|x| x / sum);
+                    // A truncated factorisation can undershoot: radiance stays non-negative.
+                    colour = (colour + g.shade(tri, b, -dir.normalize()).as_vec3()).max(Vec3::ZERO);
+                }
+                pixels[i] = colour.to_array();
                 coverage[i] = 1.0;
             }
         }
@@ -523,11 +616,29 @@ pub fn rasterize_multisampled(
     texturing: Option<&Texturing>,
     samples: u32,
 ) -> Result<Raster> {
+    rasterize_glossy(
+        camera, positions, triangles, colours, texturing, None, samples,
+    )
+}
+
+/// [`rasterize_multisampled`] with a glossy bake's light added per sample ([`Gloss`]).
+pub fn rasterize_glossy(
+    camera: &Camera,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    colours: &[[f32; 3]],
+    texturing: Option<&Texturing>,
+    gloss: Option<&Gloss>,
+    samples: u32,
+) -> Result<Raster> {
     let offsets = sample_offsets(samples)?;
     camera.validate()?;
     check_mesh(positions, triangles, Some(colours))?;
     if let Some(t) = texturing {
         t.check(positions.len())?;
+    }
+    if let Some(g) = gloss {
+        g.check(positions.len())?;
     }
     let mut sum: Option<Raster> = None;
     for &offset in offsets {
@@ -537,6 +648,7 @@ pub fn rasterize_multisampled(
             triangles,
             colours,
             texturing,
+            gloss,
         );
         match &mut sum {
             None => sum = Some(r),
@@ -572,6 +684,7 @@ fn draw(
     triangles: &[[u32; 3]],
     colours: &[[f32; 3]],
     texturing: Option<&Texturing>,
+    gloss: Option<&Gloss>,
 ) -> Raster {
     let (w, h) = (view.width, view.height);
     let setups: Vec<Setup> = triangles
@@ -604,6 +717,7 @@ fn draw(
                 triangles,
                 colours,
                 texturing,
+                gloss,
                 band * BAND_ROWS,
                 pixels,
                 cov,

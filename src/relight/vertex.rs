@@ -1,6 +1,7 @@
 //! A per-vertex bake seen from any camera: the relit image of such a bake holds one colour per
-//! vertex (vertex `v` is pixel `v`), which [`crate::relight::raster`] draws with Gouraud shading
-//! and a depth test, over the environment behind. The orbit camera turns the bake's own camera
+//! vertex (vertex `v` is pixel `v`; with in-out BRDF terms, `v · stride` and its terms after it),
+//! which [`crate::relight::raster`] draws with Gouraud shading and a depth test, the glossy
+//! terms weighed per pixel by the direction to the eye, over the environment behind. The orbit camera turns the bake's own camera
 //! about its target.
 
 use glam::{Quat, Vec3};
@@ -9,7 +10,9 @@ use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::Image;
 use crate::relight::background::{composite, environment_behind_camera};
-use crate::relight::raster::{Raster, Texturing, rasterize_multisampled};
+use std::borrow::Cow;
+
+use crate::relight::raster::{Gloss, Raster, Texturing, rasterize_glossy};
 use crate::scene::Camera;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::Transport;
@@ -180,21 +183,127 @@ impl std::str::FromStr for Orbit {
     }
 }
 
-/// The vertex colours in a per-vertex bake's relit image.
-pub fn vertex_colours<'a>(t: &Transport, relit: &'a Image) -> Result<&'a [[f32; 3]]> {
-    let v = mesh_of(t)?.vertex_count();
-    relit.pixels.get(..v).ok_or_else(|| {
+/// The vertex colours in a per-vertex bake's relit image: each vertex's first pixel, its diffuse
+/// light (the whole of it unless the bake keeps in-out BRDF terms).
+pub fn vertex_colours<'a>(t: &Transport, relit: &'a Image) -> Result<Cow<'a, [[f32; 3]]>> {
+    let mesh = mesh_of(t)?;
+    let (v, stride) = (mesh.vertex_count(), mesh.stride());
+    let pixels = relit.pixels.get(..v * stride).ok_or_else(|| {
         PrtError::invalid(
             "relit image",
-            format!("{} pixels for {v} vertices", relit.pixels.len()),
+            format!(
+                "{} pixels for {v} vertices of {stride} pixels each",
+                relit.pixels.len()
+            ),
         )
+    })?;
+    Ok(match stride {
+        1 => Cow::Borrowed(pixels),
+        _ => Cow::Owned(pixels.iter().step_by(stride).copied().collect()),
     })
 }
 
-/// Draws a per-vertex bake relit to `colours` (one per vertex) as `camera` sees it, on the CPU,
-/// its textured materials multiplied by their albedo maps per pixel, with `behind` (the
-/// environment and its turn) where no surface is drawn, with `samples` samples a pixel (see
-/// [`rasterize_multisampled`]). Also gives the coverage, for masks and tone mapping.
+/// A glossy per-vertex bake's term responses in its relit image, vertex `v`'s term k at
+/// `[v · (stride − 1) + k − 1]` (see [`Gloss`]); `None` for the diffuse base.
+pub fn vertex_terms(t: &Transport, relit: &Image) -> Result<Option<Vec<[f32; 3]>>> {
+    let mesh = mesh_of(t)?;
+    let stride = mesh.stride();
+    if mesh.factors.is_none() {
+        return Ok(None);
+    }
+    let pixels = relit
+        .pixels
+        .get(..mesh.vertex_count() * stride)
+        .ok_or_else(|| {
+            PrtError::invalid(
+                "relit image",
+                format!(
+                    "{} pixels for {} vertices",
+                    relit.pixels.len(),
+                    mesh.vertex_count()
+                ),
+            )
+        })?;
+    Ok(Some(
+        pixels
+            .chunks_exact(stride)
+            .flat_map(|v| v[1..].iter().copied())
+            .collect(),
+    ))
+}
+
+/// How the glossy light of a per-vertex bake is evaluated when drawn.
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::VariantArray,
+)]
+#[strum(serialize_all = "kebab-case")]
+pub enum GlossEval {
+    /// `g_k` of the direction to the eye at every sample, the responses interpolated.
+    #[default]
+    PerPixel,
+    /// `g_k` at each vertex, the colours interpolated (Gouraud).
+    PerVertex,
+}
+
+crate::named!(GlossEval, "gloss evaluation");
+
+/// Draws a per-vertex bake relit to `relit` as `camera` sees it, on the CPU: its vertex colours
+/// (its diffuse light; see [`vertex_colours`]), its textured materials multiplied by their
+/// albedo maps per pixel, the glossy light of a bake with in-out terms added as `eval` says,
+/// with `behind` (the environment and its turn) where no surface is drawn, with `samples`
+/// samples a pixel (see [`crate::relight::raster::rasterize_multisampled`]). Also gives the
+/// coverage, for masks and tone mapping.
+pub fn draw_relit(
+    t: &Transport,
+    relit: &Image,
+    camera: &Camera,
+    behind: Option<(&EnvMap, EnvRotation)>,
+    samples: u32,
+    eval: GlossEval,
+) -> Result<Raster> {
+    let mesh = mesh_of(t)?;
+    let colours = vertex_colours(t, relit)?;
+    let terms = vertex_terms(t, relit)?;
+    let gloss = mesh
+        .factors
+        .as_ref()
+        .zip(terms.as_deref())
+        .map(|(f, terms)| Gloss {
+            normals: &mesh.normals,
+            materials: &mesh.materials,
+            factors: f,
+            terms,
+        });
+    let per_vertex;
+    let (colours, gloss) = match (eval, &gloss) {
+        (GlossEval::PerVertex, Some(g)) => {
+            per_vertex = g.per_vertex(&mesh.positions, &colours, camera.eye);
+            (&per_vertex[..], None)
+        }
+        _ => (&colours[..], gloss.as_ref()),
+    };
+    let raster = rasterize_glossy(
+        camera,
+        &mesh.positions,
+        &mesh.triangles,
+        colours,
+        Texturing::of(mesh).as_ref(),
+        gloss,
+        samples,
+    )?;
+    compose(raster, camera, behind)
+}
+
+/// Draws a per-vertex bake with the given vertex `colours` (one per vertex, its glossy terms
+/// left out) as [`draw_relit`] does.
 pub fn draw(
     t: &Transport,
     colours: &[[f32; 3]],
@@ -203,12 +312,13 @@ pub fn draw(
     samples: u32,
 ) -> Result<Raster> {
     let mesh = mesh_of(t)?;
-    let raster = rasterize_multisampled(
+    let raster = rasterize_glossy(
         camera,
         &mesh.positions,
         &mesh.triangles,
         colours,
         Texturing::of(mesh).as_ref(),
+        None,
         samples,
     )?;
     compose(raster, camera, behind)

@@ -206,6 +206,14 @@ impl GgxFactors {
             .iter()
             .map(|v| v.iter().zip(&root).map(|(x, r)| (x / r) as f32).collect())
             .collect();
+        // Each term's sign is free: make its view factor's mean positive, so that the first
+        // term is the lobe's positive average.
+        let (mut view, mut light): (Vec<Vec<f32>>, Vec<Vec<f32>>) = (view, light);
+        for (g, h) in view.iter_mut().zip(&mut light) {
+            if g.iter().map(|&x| x as f64).sum::<f64>() < 0.0 {
+                g.iter_mut().chain(h.iter_mut()).for_each(|x| *x = -*x);
+            }
+        }
         GgxFactors {
             alpha,
             map,
@@ -263,6 +271,195 @@ impl GgxFactors {
     }
 }
 
+/// The local shading frame of a unit normal `n`, as `(tangent, bitangent)`: the world's +X and −Z
+/// turned by the shortest rotation that takes +Y to `n`, so that `(tangent, bitangent, n)` is
+/// right-handed. A per-vertex bake takes `h_k` and the raster takes `g_k` in this frame, so both
+/// sides build it here (and the GPU's WGSL with the same formula). It turns continuously with the
+/// normal everywhere but at `n = −Y`, the undersides that face straight down, where it is +X and
+/// +Z within 0.01 rad of the pole.
+pub fn local_frame(n: Vec3) -> (Vec3, Vec3) {
+    let c = 1.0 + n.y;
+    let t = if c > 5e-5 {
+        Vec3::new(n.y + n.z * n.z / c, -n.x, -n.x * n.z / c)
+    } else {
+        Vec3::X
+    };
+    (t, n.cross(t))
+}
+
+/// `d` in the local frame of normal `n` ([`local_frame`]), the normal along +z.
+#[inline]
+pub fn to_local(n: Vec3, d: Vec3) -> Vec3 {
+    let (t, b) = local_frame(n);
+    Vec3::new(d.dot(t), d.dot(b), d.dot(n))
+}
+
+/// Map cells per side of a bake's factor maps (the 32² octahedral maps).
+pub const BAKE_MAP_RES: usize = 32;
+
+/// The most terms K_b a material is baked with per vertex.
+pub const MAX_TERMS: usize = 16;
+
+/// The in-out factors a per-vertex bake keeps of each material: K_b per material (1 for a diffuse
+/// one, whose Lambertian lobe is term 0), and for terms `1..K_b` the GGX factors `g_k` (view) and
+/// `h_k` (light) on one hemi-octahedral map. A vertex's terms are the pixels
+/// `v · stride + k` of the relit image, `stride` the smallest power of two that holds every
+/// material's K_b, so that a tile of pixels holds whole vertices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BrdfFactors {
+    /// The map both factors are parameterised by.
+    pub map: HemiOct,
+    /// Pixels a vertex takes in the relit image: a power of two, at least every K_b.
+    pub stride: usize,
+    /// K_b of each material.
+    pub terms: Vec<u32>,
+    /// `g_k` of material `m` and term `k` (1 ≤ k < stride) at `[(m · (stride − 1) + k − 1) ·
+    /// cells ..][..cells]`: singular value included, zero past the material's K_b.
+    pub view: Vec<f32>,
+    /// `h_k`, laid out as `view`.
+    pub light: Vec<f32>,
+}
+
+impl BrdfFactors {
+    /// The factors of `materials` for a per-vertex bake: each glossy material takes `max_terms`
+    /// terms, or the fewest of those that bring its whole lobe within `target` (relative L2 of
+    /// the luminances' lobe, see [`GgxFactors::material_error`]; 0 takes `max_terms`). `None`
+    /// when no material takes more than one term: the bake is the diffuse base.
+    pub fn for_materials(
+        materials: &[crate::scene::Material],
+        max_terms: usize,
+        target: f64,
+    ) -> Option<BrdfFactors> {
+        let max_terms = max_terms.clamp(1, MAX_TERMS);
+        let map = HemiOct { res: BAKE_MAP_RES };
+        let luminance = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722)) as f64;
+        let mut by_alpha: Vec<(u32, GgxFactors)> = Vec::new();
+        let mut chosen: Vec<(u32, Option<usize>)> = Vec::new();
+        for m in materials {
+            let Some((specular, alpha)) = m.glossy_lobe().filter(|_| max_terms > 1) else {
+                chosen.push((1, None));
+                continue;
+            };
+            let slot = match by_alpha.iter().position(|(a, _)| *a == alpha.to_bits()) {
+                Some(i) => i,
+                None => {
+                    let f = GgxFactors::new(alpha, map.res, max_terms - 1);
+                    by_alpha.push((alpha.to_bits(), f));
+                    by_alpha.len() - 1
+                }
+            };
+            let f = &by_alpha[slot].1;
+            let k_b = if target > 0.0 {
+                f.terms_for(luminance(m.albedo()), luminance(specular), target)
+            } else {
+                max_terms
+            }
+            .min(f.terms() + 1);
+            chosen.push((k_b as u32, Some(slot)));
+        }
+        let widest = chosen.iter().map(|c| c.0).max().unwrap_or(1) as usize;
+        if widest <= 1 {
+            return None;
+        }
+        let stride = widest.next_power_of_two();
+        let cells = map.cells();
+        let mut view = vec![0.0f32; materials.len() * (stride - 1) * cells];
+        let mut light = view.clone();
+        for (m, (k_b, slot)) in chosen.iter().enumerate() {
+            let Some(f) = slot.map(|s| &by_alpha[s].1) else {
+                continue;
+            };
+            for k in 1..*k_b as usize {
+                let at = (m * (stride - 1) + k - 1) * cells;
+                view[at..at + cells].copy_from_slice(&f.view[k - 1]);
+                light[at..at + cells].copy_from_slice(&f.light[k - 1]);
+            }
+        }
+        Some(BrdfFactors {
+            map,
+            stride,
+            terms: chosen.iter().map(|c| c.0).collect(),
+            view,
+            light,
+        })
+    }
+
+    /// K_b of material `m` (1 past the table).
+    #[inline]
+    pub fn terms_of(&self, m: u32) -> usize {
+        self.terms.get(m as usize).map_or(1, |&k| k as usize)
+    }
+
+    fn slice<'a>(&self, table: &'a [f32], m: u32, k: usize) -> &'a [f32] {
+        let cells = self.map.cells();
+        let at = (m as usize * (self.stride - 1) + k - 1) * cells;
+        &table[at..at + cells]
+    }
+
+    /// `g_k` of material `m` (1 ≤ k < its K_b) at a local view direction; 0 below the horizon.
+    #[inline]
+    pub fn view_at(&self, m: u32, k: usize, local: Vec3) -> f32 {
+        if local.z <= 0.0 {
+            return 0.0;
+        }
+        self.map.lookup(self.slice(&self.view, m, k), local)
+    }
+
+    /// `h_k` of material `m` (1 ≤ k < its K_b) at a local light direction; 0 below the horizon.
+    #[inline]
+    pub fn light_at(&self, m: u32, k: usize, local: Vec3) -> f32 {
+        if local.z <= 0.0 {
+            return 0.0;
+        }
+        self.map.lookup(self.slice(&self.light, m, k), local)
+    }
+
+    /// The largest `|g_k|` of material `m`: what an error in the term's response is multiplied
+    /// by at most when drawn.
+    pub fn view_peak(&self, m: u32, k: usize) -> f32 {
+        self.slice(&self.view, m, k)
+            .iter()
+            .fold(0.0f32, |a, v| a.max(v.abs()))
+    }
+
+    /// What is wrong with the factors for `materials` materials, if anything: the stride a power
+    /// of two from 2 to [`MAX_TERMS`], a K_b from 1 to the stride per material, tables of the
+    /// right length and finite.
+    pub fn problem(&self, materials: usize) -> Option<String> {
+        let s = self.stride;
+        if !(2..=MAX_TERMS).contains(&s) || !s.is_power_of_two() {
+            return Some(format!(
+                "factor stride {s}; it must be a power of two from 2 to {MAX_TERMS}"
+            ));
+        }
+        if !(1..=64).contains(&self.map.res) {
+            return Some(format!("factor map of {} cells a side", self.map.res));
+        }
+        if self.terms.len() != materials {
+            return Some(format!(
+                "{} materials' terms for {materials} materials",
+                self.terms.len()
+            ));
+        }
+        if let Some(m) = self.terms.iter().position(|&k| k == 0 || k as usize > s) {
+            return Some(format!(
+                "material {m} has {} terms; 1 to {s} fit",
+                self.terms[m]
+            ));
+        }
+        let len = materials * (s - 1) * self.map.cells();
+        for (name, table) in [("view", &self.view), ("light", &self.light)] {
+            if table.len() != len {
+                return Some(format!("{name} factors hold {}, not {len}", table.len()));
+            }
+            if let Some(i) = table.iter().position(|v| !v.is_finite()) {
+                return Some(format!("{name} factor {i} is {}", table[i]));
+            }
+        }
+        None
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -279,6 +476,82 @@ mod tests {
             let back = HemiOct::decode(u, v);
             assert!((back - d).length() < 1e-5, "cell {c}");
         }
+    }
+
+    #[test]
+    fn the_local_frame_is_orthonormal_right_handed_and_turns_smoothly() {
+        let mut rng = crate::math::sampling::Rng::new(3, 0);
+        for _ in 0..2000 {
+            let (z, phi) = (
+                2.0 * rng.next_f32() - 1.0,
+                std::f32::consts::TAU * rng.next_f32(),
+            );
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let n = Vec3::new(r * phi.cos(), z, r * phi.sin());
+            let (t, b) = local_frame(n);
+            for (x, y) in [(t, b), (t, n), (b, n)] {
+                assert!(x.dot(y).abs() < 1e-5, "{n}: {x} {y}");
+            }
+            assert!((t.length() - 1.0).abs() < 1e-5 && (b.length() - 1.0).abs() < 1e-5);
+            assert!((t.cross(b) - n).length() < 1e-5, "{n}");
+            // A normal turned by 0.001 rad turns the frame about as little, away from −Y.
+            if n.y > -0.9 {
+                let m = (n + n.any_orthonormal_vector() * 1e-3).normalize();
+                let (u, _) = local_frame(m);
+                assert!((u - t).length() < 1e-2, "{n}: {t} -> {u}");
+            }
+            // The frame of +Y is the world's.
+        }
+        assert_eq!(local_frame(Vec3::Y), (Vec3::X, Vec3::new(0.0, 0.0, -1.0)));
+        assert_eq!(local_frame(Vec3::NEG_Y).0, Vec3::X);
+        let d = Vec3::new(0.3, 0.5, -0.2);
+        let n = Vec3::new(0.1, 0.9, 0.3).normalize();
+        assert!((to_local(n, n) - Vec3::Z).length() < 1e-6);
+        assert!((to_local(n, d).length() - d.length()).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_bake_keeps_factors_of_glossy_materials_only() {
+        use crate::scene::Material;
+        let matte = Material::Diffuse {
+            albedo: Vec3::splat(0.5),
+        };
+        let glossy = Material::Glossy {
+            albedo: Vec3::splat(0.2),
+            specular: Vec3::splat(0.5),
+            roughness: 0.5,
+        };
+        assert!(BrdfFactors::for_materials(&[matte, matte], 4, 0.0).is_none());
+        assert!(BrdfFactors::for_materials(&[matte, glossy], 1, 0.0).is_none());
+        let f = BrdfFactors::for_materials(&[matte, glossy], 3, 0.0).unwrap();
+        assert_eq!((f.stride, f.terms.clone()), (4, vec![1, 3]));
+        assert_eq!(f.problem(2), None);
+        assert_eq!(f.terms_of(0), 1);
+        assert_eq!(f.terms_of(7), 1);
+        // The matte material's maps and the glossy one's past its K_b stay zero.
+        let cells = f.map.cells();
+        assert!(f.view[..3 * cells].iter().all(|&v| v == 0.0));
+        assert!(f.view[5 * cells..].iter().all(|&v| v == 0.0));
+        assert!(f.view[3 * cells..4 * cells].iter().any(|&v| v != 0.0));
+        assert!(f.view_peak(1, 1) > 0.0);
+        // An error target takes the fewest terms that reach it.
+        let g = GgxFactors::new(0.25, BAKE_MAP_RES, 7);
+        let target = g.material_error(0.2, 0.5, 3) * 1.001;
+        let lax = BrdfFactors::for_materials(&[matte, glossy], 8, target).unwrap();
+        let strict = BrdfFactors::for_materials(&[matte, glossy], 8, 0.01).unwrap();
+        assert_eq!((lax.terms[1], lax.stride), (3, 4));
+        assert_eq!((strict.terms[1], strict.stride), (8, 8));
+        // Broken tables are named.
+        let mut bad = f.clone();
+        bad.terms[1] = 5;
+        assert!(bad.problem(2).unwrap().contains("terms"));
+        let mut bad = f.clone();
+        bad.stride = 3;
+        assert!(bad.problem(2).unwrap().contains("stride"));
+        let mut bad = f.clone();
+        bad.light.pop();
+        assert!(bad.problem(2).unwrap().contains("light"));
+        assert!(f.problem(3).is_some());
     }
 
     #[test]

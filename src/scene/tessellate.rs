@@ -16,6 +16,7 @@ use std::collections::HashMap;
 use glam::{Vec2, Vec3};
 
 use super::albedo_map::AlbedoMap;
+use super::brdf_factor::BrdfFactors;
 use super::{Scene, Triangle};
 use crate::error::{PrtError, Result};
 
@@ -47,6 +48,9 @@ pub struct VertexMesh {
     /// The albedo map of every textured material the vertices use, by material index: those
     /// vertices' light is baked for a white surface, and the raster multiplies it by the map.
     pub albedo_maps: Vec<AlbedoMap>,
+    /// The in-out factors of its glossy materials when they are baked with more than their
+    /// diffuse term (see [`BrdfFactors`]): vertex `v`'s terms are pixels `v · stride + k`.
+    pub factors: Option<Box<BrdfFactors>>,
 }
 
 impl VertexMesh {
@@ -76,6 +80,16 @@ impl VertexMesh {
     /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
         self.positions.len()
+    }
+
+    /// Pixels each vertex takes in a relit image: its K_b terms' stride (1 for the diffuse base).
+    pub fn stride(&self) -> usize {
+        self.factors.as_ref().map_or(1, |f| f.stride)
+    }
+
+    /// Pixels of the relit image the vertices take: `vertex_count · stride`.
+    pub fn pixel_count(&self) -> usize {
+        self.vertex_count() * self.stride()
     }
 
     /// Welds, refines and orders the surfaces of `scene` so that no edge is longer than
@@ -225,6 +239,17 @@ impl VertexMesh {
         {
             return Some(format!("triangle {t:?} indexes past the {v} vertices"));
         }
+        if let Some(f) = &self.factors {
+            if f.terms.len() > materials {
+                return Some(format!(
+                    "BRDF terms of {} materials, of {materials}",
+                    f.terms.len()
+                ));
+            }
+            if let Some(p) = f.problem(f.terms.len()) {
+                return Some(p);
+            }
+        }
         if let Some(m) = self.materials.iter().find(|&&m| m as usize >= materials) {
             return Some(format!("material {m} of {materials}"));
         }
@@ -346,6 +371,7 @@ impl VertexMesh {
                 .map(|t| t.map(|i| new_index[i as usize]))
                 .collect(),
             albedo_maps: self.albedo_maps,
+            factors: self.factors,
         }
     }
 }

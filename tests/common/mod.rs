@@ -320,6 +320,8 @@ pub fn random_transport(
             indirect: None,
             domain: BakeDomain::View,
             light_samples: 0,
+            brdf_terms: 1,
+            brdf_error: 0.0,
         },
         cache_points: 0,
         per_vertex: None,

@@ -39,10 +39,21 @@ pub struct BakeArgs {
     #[arg(long, value_name = "I/COUNT")]
     pub shard: Option<String>,
     /// Bake one row per mesh vertex instead of one per pixel, so that the camera can move
-    /// (`prt relight --eye`, the viewer's orbit). Diffuse light only: glossy materials keep
-    /// their diffuse base.
+    /// (`prt relight --eye`, the viewer's orbit). Glossy materials keep their diffuse base
+    /// unless --brdf-terms gives them in-out terms.
     #[arg(long)]
     pub per_vertex: bool,
+    /// Per-vertex bakes: the most in-out BRDF terms K_b of a glossy material (1 to 16): its
+    /// diffuse term and K_b − 1 terms of its GGX lobe factorised as Σ g_k(view) h_k(light),
+    /// each a row per vertex, the g_k weighed per pixel by the direction to the camera. 1 keeps
+    /// the diffuse base alone. See `prt brdf` for the factor error of each K_b.
+    #[arg(long, default_value_t = 1, requires = "per_vertex")]
+    pub brdf_terms: u32,
+    /// Per-vertex bakes: give each glossy material the fewest terms, up to --brdf-terms, whose
+    /// factor error (relative L2 of its lobe) is at most this; 0 gives every glossy material
+    /// --brdf-terms.
+    #[arg(long, default_value_t = 0.0, requires = "per_vertex")]
+    pub brdf_error: f32,
     /// Longest triangle edge of a per-vertex bake, in scene units: longer edges of quads,
     /// spheres and meshes are split. Default: the scene's `edge_length`, else 1/160 of the
     /// diagonal of its bounds.
@@ -73,6 +84,8 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
             .edge_length
             .unwrap_or_else(|| crate::scene::tessellate::VertexMesh::default_edge_length(&scene));
         settings.domain = BakeDomain::Vertices { edge_length: edge };
+        settings.brdf_terms = a.brdf_terms;
+        settings.brdf_error = a.brdf_error;
         settings.validate()?;
         let glossy: Vec<&str> = scene
             .materials
@@ -81,11 +94,17 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
             .filter(|(m, _)| m.glossy_lobe().is_some())
             .map(|(_, n)| n.as_str())
             .collect();
-        if !glossy.is_empty() {
+        if !glossy.is_empty() && a.brdf_terms > 1 {
+            eprintln!(
+                "the glossy material(s) {} take up to {} in-out BRDF terms a vertex",
+                glossy.join(", "),
+                a.brdf_terms
+            );
+        } else if !glossy.is_empty() {
             eprintln!(
                 "warning: per vertex, the glossy material(s) {} keep only their diffuse base: a \
-                 glossy lobe depends on the direction to the camera, which moves (bake per pixel \
-                 for the fixed view's highlights)",
+                 glossy lobe depends on the direction to the camera, which moves (--brdf-terms 4 \
+                 keeps it in in-out terms)",
                 glossy.join(", ")
             );
         }
@@ -115,7 +134,10 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         return Ok(());
     }
     let (w, h) = match &mesh {
-        Some(m) => (m.vertex_count(), 1),
+        Some(m) => (
+            m.vertex_count() * (a.brdf_terms as usize).next_power_of_two(),
+            1,
+        ),
         None => (scene.camera.width as usize, scene.camera.height as usize),
     };
     let worst = worst_case_bytes(w, h, &settings);
@@ -234,6 +256,19 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
              the file's camera is the scene's)",
             pv.vertices, pv.triangles, edge_length
         );
+        if pv.brdf_stride > 1 {
+            println!(
+                "gloss         in-out BRDF terms, up to {} a vertex (at most {} asked{}), view \
+                 factors on {}² hemi-octahedral maps",
+                pv.brdf_stride,
+                id.brdf_terms,
+                match id.brdf_error {
+                    0.0 => String::new(),
+                    e => format!(", chosen for a factor error of {e}"),
+                },
+                pv.brdf_map
+            );
+        }
         if pv.albedo_maps > 0 {
             println!(
                 "textures      {} albedo map(s): the textured vertices hold a white surface's \

@@ -147,11 +147,15 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
     let references = match (&scene, a.reference) {
         (Some(scene), true) => {
             // A per-vertex bake holds the diffuse light at its vertices: its reference is the
-            // per-pixel brute force of the same scene with glossy materials at their diffuse base.
+            // per-pixel brute force of the same scene with glossy materials at their diffuse base,
+            // unless the bake keeps in-out BRDF terms, whose reference keeps the glossy lobes.
             let diffuse;
             let (scene, settings) = match &t.domain {
-                Domain::Mesh(_) => {
-                    let mut d = scene.with_diffuse_materials();
+                Domain::Mesh(mesh) => {
+                    let mut d = match mesh.factors {
+                        Some(_) => scene.clone(),
+                        None => scene.with_diffuse_materials(),
+                    };
                     if let Some(c) = &still {
                         d.camera = c.clone();
                     }

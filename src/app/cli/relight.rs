@@ -57,6 +57,11 @@ pub struct RelightArgs {
     /// each drawn and depth-tested on its own and the pixel their mean.
     #[arg(long, default_value_t = crate::relight::raster::DRAW_SAMPLES)]
     pub samples: u32,
+    /// Per-vertex bakes with in-out BRDF terms: where the view factors g_k are evaluated,
+    /// per-pixel (the direction to the eye at every sample) or per-vertex (at the vertices,
+    /// the colours interpolated).
+    #[arg(long = "gloss", default_value = "per-pixel", value_parser = crate::relight::vertex::GlossEval::from_str)]
+    pub gloss_eval: crate::relight::vertex::GlossEval,
 }
 
 /// Where a per-vertex bake is seen from (a per-pixel bake's view is fixed).
@@ -132,6 +137,13 @@ pub struct ReferenceArgs {
     /// The view: a glTF camera, the image size.
     #[command(flatten)]
     pub framing: FramingArgs,
+    /// Camera position X,Y,Z (default: the scene's camera): the reference of a per-vertex bake
+    /// drawn with `prt relight --eye`.
+    #[arg(long, value_parser = super::volume::parse_vec3, allow_negative_numbers = true)]
+    pub eye: Option<glam::Vec3>,
+    /// The point the camera looks at, X,Y,Z (default: the scene's target).
+    #[arg(long, value_parser = super::volume::parse_vec3, allow_negative_numbers = true)]
+    pub target: Option<glam::Vec3>,
     /// Environment: an .exr/.hdr lat-long map, sun:ELEV,AZIM[,RADIUS], or none (the local
     /// lights alone).
     #[arg(long)]
@@ -244,21 +256,30 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     };
     img.check_finite("relit image")?;
     // A per-vertex bake's image holds its vertex colours: drawn from the camera asked for.
+    let drawing = Instant::now();
+    let mut drawn = String::new();
     let (img, coverage) = match &still {
         Some(camera) => {
-            let colours = crate::relight::vertex::vertex_colours(&t, &img)?;
             let mesh = crate::relight::vertex::mesh_of(&t)?;
             let texturing = crate::relight::raster::Texturing::of(mesh);
-            let r = match &gpu {
-                None => crate::relight::raster::rasterize_multisampled(
+            let glossy = mesh.factors.is_some();
+            if glossy && gpu.is_some() {
+                eprintln!(
+                    "the GPU raster draws one colour a vertex: this bake's glossy terms are \
+                     drawn on the CPU"
+                );
+            }
+            let r = match gpu.as_ref().filter(|_| !glossy) {
+                None => crate::relight::vertex::draw_relit(
+                    &t,
+                    &img,
                     camera,
-                    &mesh.positions,
-                    &mesh.triangles,
-                    colours,
-                    texturing.as_ref(),
+                    None,
                     a.samples,
+                    a.gloss_eval,
                 )?,
                 Some(gpu) => {
+                    let colours = crate::relight::vertex::vertex_colours(&t, &img)?;
                     use crate::relight::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
                     let m = GpuMesh::textured(
                         gpu,
@@ -266,10 +287,21 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
                         &mesh.triangles,
                         texturing.as_ref(),
                     )?;
-                    let c = upload_colours(gpu, colours)?;
+                    let c = upload_colours(gpu, &colours)?;
                     GpuRaster::multisampled(gpu, a.samples)?.draw(gpu, camera, &m, &c)?
                 }
             };
+            drawn = format!(
+                ", drawn {}x{} ({} sample(s) a pixel{}) in {:.1} ms",
+                camera.width,
+                camera.height,
+                a.samples,
+                match glossy {
+                    true => format!(", glossy terms {}", a.gloss_eval),
+                    false => String::new(),
+                },
+                drawing.elapsed().as_secs_f64() * 1e3
+            );
             (r.image, r.coverage)
         }
         None => (img, t.coverage.clone()),
@@ -299,7 +331,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         n => format!(", {n} light column(s) added"),
     };
     println!(
-        "{method}: {} terms{}{lit}, {} nonzeros touched ({:.1} MiB), light {:.1} ms, kernel {:.2} ms on the {} -> {}",
+        "{method}: {} terms{}{lit}, {} nonzeros touched ({:.1} MiB), light {:.1} ms, kernel {:.2} ms on the {}{drawn} -> {}",
         stats.terms,
         match (&env, req) {
             (None, _) => " (environment off)".to_string(),
@@ -328,7 +360,10 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     check_light_flags(a.turn.yaw, a.turn.pitch, None)?;
     let mut inputs = env_files(std::slice::from_ref(&a.env));
     check_image_output(&a.output, &inputs)?;
-    let scene = a.framing.load(&a.scene)?;
+    let mut scene = a.framing.load(&a.scene)?;
+    scene.camera.eye = a.eye.unwrap_or(scene.camera.eye);
+    scene.camera.target = a.target.unwrap_or(scene.camera.target);
+    scene.camera.validate()?;
     inputs.extend(scene.input_files.iter().cloned());
     check_image_output(&a.output, &inputs)?;
     let mix = light_mix(&scene.lights, &a.lights)?;

@@ -60,6 +60,13 @@ impl MeshDisplay {
     /// Uploads the mesh of `t` (an error for a per-pixel bake).
     pub fn new(gpu: &Gpu, t: &Transport) -> Result<MeshDisplay> {
         let mesh = mesh_of(t)?;
+        if mesh.factors.is_some() {
+            return Err(PrtError::invalid(
+                "GPU display",
+                "the GPU raster draws one colour a vertex; this bake's glossy in-out terms are \
+                 drawn on the CPU",
+            ));
+        }
         Ok(MeshDisplay {
             mesh: GpuMesh::textured(
                 gpu,

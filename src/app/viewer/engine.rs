@@ -289,12 +289,13 @@ impl Engine {
         Ok(match self.camera(&s) {
             Some(camera) => {
                 let t = &self.transport;
-                let drawn = vertex::draw(
+                let drawn = vertex::draw_relit(
                     t,
-                    vertex::vertex_colours(t, full)?,
+                    full,
                     &camera,
                     None,
                     s.draw_samples(),
+                    Default::default(),
                 )?;
                 ToneMap::auto(&drawn.image, Some(&drawn.coverage)).exposure
             }
@@ -494,12 +495,13 @@ impl Engine {
         let (_, _, back) = self.backdrop.as_ref().expect("drawn");
         let t = &self.transport;
         let draw = |relit: &Image| -> Result<(Image, Image)> {
-            let raster = vertex::draw(
+            let raster = vertex::draw_relit(
                 t,
-                vertex::vertex_colours(t, relit)?,
+                relit,
                 camera,
                 None,
                 state.draw_samples(),
+                Default::default(),
             )?;
             let mut over = raster.image.clone();
             for ((o, b), c) in over

@@ -107,6 +107,19 @@ impl Transport {
         } else {
             None
         };
+        let brdf = meta
+            .per_vertex
+            .as_ref()
+            .filter(|p| p.brdf_stride > 1)
+            .map(|p| (p.brdf_stride as usize, p.brdf_map as usize));
+        let brdf_tables = match brdf {
+            Some(_) => Some((
+                reader.read::<f32>("brdf_light", Dtype::F32)?,
+                reader.read::<u32>("brdf_terms", Dtype::U32)?,
+                reader.read::<f32>("brdf_view", Dtype::F32)?,
+            )),
+            None => None,
+        };
         let (count_shape, counts) = reader.read::<u16>("col_count", Dtype::U16)?;
         let (scale_shape, col_scale) = reader.read::<u8>("col_scale", Dtype::U8)?;
         let (coverage_shape, coverage) = reader.read::<f32>("coverage", Dtype::F32)?;
@@ -235,6 +248,23 @@ impl Transport {
                     }
                     _ => (vec![glam::Vec2::ZERO; v], Vec::new()),
                 };
+                let factors = match (brdf, brdf_tables) {
+                    (Some((stride, res)), Some(((ls, light), (ks, terms), (vs, view)))) => {
+                        let m = ks.first().copied().unwrap_or(0);
+                        expect("brdf_terms", &ks, &[m])?;
+                        let shape = [m, stride.saturating_sub(1), res * res];
+                        expect("brdf_light", &ls, &shape)?;
+                        expect("brdf_view", &vs, &shape)?;
+                        Some(Box::new(crate::scene::brdf_factor::BrdfFactors {
+                            map: crate::scene::brdf_factor::HemiOct { res },
+                            stride,
+                            terms,
+                            view,
+                            light,
+                        }))
+                    }
+                    _ => None,
+                };
                 Some(VertexMesh {
                     positions,
                     normals,
@@ -242,6 +272,7 @@ impl Transport {
                     uvs,
                     triangles,
                     albedo_maps,
+                    factors,
                 })
             }
             _ => None,
@@ -423,6 +454,11 @@ fn read_header(path: &Path) -> Result<Header> {
             .per_vertex
             .as_ref()
             .is_some_and(|p| p.albedo_maps > 0),
+        header
+            .meta
+            .per_vertex
+            .as_ref()
+            .is_some_and(|p| p.brdf_stride > 1),
         header.meta.light_columns() > 0,
     );
     if let Some(name) = obj
@@ -481,7 +517,8 @@ struct FileHeader {
 fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
     // A per-vertex bake's image is one tile wide and as tall as its vertices need.
     let tallest = match m.per_vertex {
-        Some(_) => crate::scene::tessellate::MAX_VERTICES.div_ceil(TILE) as u32,
+        Some(_) => (crate::scene::tessellate::MAX_VERTICES * crate::scene::brdf_factor::MAX_TERMS)
+            .div_ceil(TILE) as u32,
         None => 16384,
     };
     if m.width == 0 || m.height == 0 || m.width > 16384 || m.height > tallest {
@@ -613,6 +650,20 @@ pub(super) fn save_file<'a>(
             ),
         ]);
     }
+    if let Some(f) = tables.mesh.and_then(|m| m.factors.as_ref()) {
+        let shape = vec![f.terms.len(), f.stride - 1, f.map.cells()];
+        tensors.extend([
+            (
+                "brdf_light",
+                Tensor::new(Dtype::F32, shape.clone(), &f.light),
+            ),
+            (
+                "brdf_terms",
+                Tensor::new(Dtype::U32, vec![f.terms.len()], &f.terms),
+            ),
+            ("brdf_view", Tensor::new(Dtype::F32, shape, &f.view)),
+        ]);
+    }
     if let Some(mesh) = tables.mesh {
         let (v, t) = (mesh.vertex_count(), mesh.triangles.len());
         tensors.extend([
@@ -657,6 +708,7 @@ pub(super) fn save_file<'a>(
     if !tensors.iter().map(|(n, _)| *n).eq(tensor_names(
         tables.mesh.is_some(),
         tables.mesh.is_some_and(|m| !m.albedo_maps.is_empty()),
+        tables.mesh.is_some_and(|m| m.factors.is_some()),
         columns > 0,
     )) {
         return Err(PrtError::file(
@@ -678,10 +730,18 @@ pub(super) fn save_file<'a>(
 
 /// Names of the tensors in a file, in the order the checksum covers them: those of every file,
 /// a per-vertex bake's mesh, its albedo maps, and the local lights' columns.
-fn tensor_names(per_vertex: bool, albedo_maps: bool, lights: bool) -> Vec<&'static str> {
+fn tensor_names(
+    per_vertex: bool,
+    albedo_maps: bool,
+    brdf: bool,
+    lights: bool,
+) -> Vec<&'static str> {
     let mut names: Vec<&str> = TENSOR_NAMES.to_vec();
     if per_vertex {
         names.extend(MESH_TENSOR_NAMES);
+    }
+    if brdf {
+        names.extend(["brdf_light", "brdf_terms", "brdf_view"]);
     }
     if albedo_maps {
         names.extend([

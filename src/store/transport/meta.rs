@@ -147,6 +147,12 @@ pub struct BakeIdentity {
     /// Samples per point of each sized light (quad, sun disc), a square; 0 without sized
     /// lights.
     pub light_samples: u32,
+    /// The most in-out BRDF terms K_b a glossy material of a per-vertex bake takes (1: the
+    /// diffuse base alone, and always 1 for a view).
+    pub brdf_terms: u32,
+    /// The factor error a glossy material's K_b is chosen for (0: every glossy material takes
+    /// `brdf_terms`; always 0 for a view).
+    pub brdf_error: f32,
 }
 
 /// How many vertices and triangles a per-vertex bake's mesh has, and the image it is drawn at:
@@ -163,6 +169,11 @@ pub struct PerVertexMeta {
     pub image: [u32; 2],
     /// Albedo maps of the mesh's textured materials (format version 5; 0 before).
     pub albedo_maps: u32,
+    /// Pixels a vertex takes in the relit image, its in-out BRDF terms (format version 6; 1
+    /// before, and for the diffuse base).
+    pub brdf_stride: u32,
+    /// Cells a side of the factor maps (0 for the diffuse base).
+    pub brdf_map: u32,
 }
 
 /// Everything about a transport file but its arrays.
@@ -351,10 +362,30 @@ struct PerVertexFile {
     image: [u32; 2],
     #[serde(default, skip_serializing_if = "is_zero")]
     albedo_maps: u32,
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    brdf_terms: u32,
+    #[serde(default, skip_serializing_if = "is_zero_f32")]
+    brdf_error: f32,
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    brdf_stride: u32,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    brdf_map: u32,
 }
 
 fn is_zero(v: &u32) -> bool {
     *v == 0
+}
+
+fn is_one(v: &u32) -> bool {
+    *v == 1
+}
+
+fn one() -> u32 {
+    1
+}
+
+fn is_zero_f32(v: &f32) -> bool {
+    *v == 0.0
 }
 
 impl TryFrom<MetaFile> for TransportMeta {
@@ -407,6 +438,8 @@ impl TryFrom<MetaFile> for TransportMeta {
                     None => BakeDomain::View,
                 },
                 light_samples: f.light_samples,
+                brdf_terms: f.per_vertex.as_ref().map_or(1, |p| p.brdf_terms),
+                brdf_error: f.per_vertex.as_ref().map_or(0.0, |p| p.brdf_error),
             },
             cache_points: f.indirect.as_ref().map_or(0, |i| i.cache_points),
             per_vertex: f.per_vertex.map(|p| PerVertexMeta {
@@ -414,6 +447,8 @@ impl TryFrom<MetaFile> for TransportMeta {
                 triangles: p.triangles,
                 image: p.image,
                 albedo_maps: p.albedo_maps,
+                brdf_stride: p.brdf_stride,
+                brdf_map: p.brdf_map,
             }),
             stats: f.stats,
             lights,
@@ -456,6 +491,10 @@ impl From<TransportMeta> for MetaFile {
                     triangles: p.triangles,
                     image: p.image,
                     albedo_maps: p.albedo_maps,
+                    brdf_terms: id.brdf_terms,
+                    brdf_error: id.brdf_error,
+                    brdf_stride: p.brdf_stride,
+                    brdf_map: p.brdf_map,
                 }),
                 _ => None,
             },

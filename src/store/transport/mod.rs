@@ -19,7 +19,7 @@
 //! with no atomics, a column touches each row at most once, and relighting with K terms reads only
 //! K columns of each block.
 //!
-//! # File (format version 5)
+//! # File (format version 6)
 //! A safetensors file (readable from Python with `safetensors.numpy.load_file`); its one metadata
 //! entry `meta` is JSON: `format = "wavelet-prt transport"`, `format_version`, `checksum` and the
 //! fields of [`TransportMeta`]. Tensors (T tiles, R rows, B blocks, C = 6 N² coefficients):
@@ -39,12 +39,16 @@
 //! | `tile_stats` | f64 [T, 3] | per tile: energy dropped by thresholding and quantisation, total energy, shadow rays |
 //! | `mesh_position`, `mesh_normal`, `mesh_material`, `mesh_triangle` | f32 [V, 3], f32 [V, 3], u32 [V], u32 [F, 3] | only per vertex: the mesh ([`VertexMesh`]) |
 //! | `mesh_uv`, `albedo_map`, `albedo_map_material`, `albedo_texel` | f32 [V, 2], u32 [M, 5], u32 [K, 2], u16 [X, 3] | only per vertex with textured materials: each vertex's texture coordinate; per albedo map its width, height, wrap along u and v (0 repeat, 1 mirrored repeat, 2 clamp) and filter (0 linear, 1 nearest); per textured material, the material and its map (materials with the same map share it); the maps' level-0 texels in turn, linear albedo as `q / 65535` ([`crate::scene::albedo_map`]) |
+//! | `brdf_terms`, `brdf_view`, `brdf_light` | u32 [M], f32 [M, S−1, r²], f32 [M, S−1, r²] | only per vertex with glossy materials baked with in-out terms: K_b of each material, and `g_k` and `h_k` of its terms 1..K_b on `r × r` hemi-octahedral maps (zero past its K_b), S the pixels a vertex takes (`per_vertex.brdf_stride`; r is `per_vertex.brdf_map`) ([`crate::scene::brdf_factor::BrdfFactors`]) |
 //! | `light_value`, `light_scale` | u16 [L, 3, H, W], f32 [L, H] | only with local lights: each light column's RGB response per pixel, as fractions `q / 65535` of a scale per (column, pixel row) ([`LightColumns`]) |
 //!
 //! Version 4 added the local lights (the two `light_` tensors and the metadata's `lights` and
 //! `light_samples`); a version 3 file, which has none, is read as before. Version 5 added the
 //! texture coordinates and albedo maps of a textured per-vertex bake (and `per_vertex.albedo_maps`
-//! in the metadata); older files have none and are read as before.
+//! in the metadata); older files have none and are read as before. Version 6 added the in-out
+//! BRDF terms of a glossy per-vertex bake (the `brdf_` tensors and `per_vertex.brdf_terms`,
+//! `brdf_error`, `brdf_stride` and `brdf_map`): vertex v's terms are pixels `v · S + k`; older
+//! files have one pixel a vertex and are read as before.
 //!
 //! The `checksum` covers the tensors' bytes in name order and `meta_checksum` the metadata's
 //! fields (the JSON of `meta` without `meta_checksum`, as this build writes it), so a flipped bit
@@ -82,9 +86,10 @@ pub const TILE: usize = 16;
 /// Name written in every transport file.
 pub const FORMAT_NAME: &str = container::TRANSPORT.name;
 /// Version of the layout described in this module.
-pub const FORMAT_VERSION: u32 = 5;
+pub const FORMAT_VERSION: u32 = 6;
 /// The oldest version this build reads: version 3 differs only in having no local lights, and
-/// versions 3 and 4 in having no albedo maps.
+/// versions 3 and 4 in having no albedo maps, and versions 3 to 5 in having no in-out BRDF
+/// terms.
 pub const OLDEST_VERSION: u32 = 3;
 /// Largest safetensors header accepted (JSON text), checked before it is read.
 const MAX_HEADER_BYTES: u64 = 1 << 24;
@@ -451,11 +456,21 @@ impl Transport {
             (None, Some(_)) => return Err("a mesh without the per-vertex header".into()),
         };
         let v = pv.vertices as usize;
-        let pixels = (self.meta.width * self.meta.height) as usize;
-        if self.meta.width as usize != TILE || v > pixels || v + TILE <= pixels {
+        let stride = mesh.stride();
+        if pv.brdf_stride as usize != stride
+            || pv.brdf_map as usize != mesh.factors.as_ref().map_or(0, |f| f.map.res)
+        {
             return Err(format!(
-                "{v} vertices do not fill an image {} x {} (it must be {TILE} wide, with only \
-                 its last row part empty)",
+                "the header's BRDF stride {} and map {} do not match the factors' tables",
+                pv.brdf_stride, pv.brdf_map
+            ));
+        }
+        let pixels = (self.meta.width * self.meta.height) as usize;
+        let used = v * stride;
+        if self.meta.width as usize != TILE || used > pixels || used + TILE <= pixels {
+            return Err(format!(
+                "{v} vertices of {stride} pixels each do not fill an image {} x {} (it must be \
+                 {TILE} wide, with only its last row part empty)",
                 self.meta.width, self.meta.height
             ));
         }
@@ -484,8 +499,10 @@ impl Transport {
                 pv.albedo_maps
             ));
         }
-        if let Some(r) = self.row_pixel.iter().find(|&&p| p as usize >= v) {
-            return Err(format!("a row of pixel {r}, past the {v} vertices"));
+        if let Some(r) = self.row_pixel.iter().find(|&&p| p as usize >= used) {
+            return Err(format!(
+                "a row of pixel {r}, past the {v} vertices' {used} pixels"
+            ));
         }
         Ok(())
     }
