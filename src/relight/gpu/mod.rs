@@ -19,6 +19,7 @@
 
 mod backend;
 mod lights;
+mod mesh;
 pub mod raster;
 mod transport;
 
@@ -27,7 +28,8 @@ use crate::gpu::{GpuDevice, Workgroup2, wgsl};
 use crate::store::quant::BLOCK_ROWS;
 
 pub use backend::GpuBackend;
-pub use raster::{GpuMesh, GpuRaster, upload_colours};
+pub use mesh::{GpuMesh, upload_colours};
+pub use raster::GpuRaster;
 pub use transport::{GpuTransport, TERMS_PER_DISPATCH};
 
 /// Threads per workgroup of the relight kernels: one per pixel of a tile. The shaders receive it

@@ -16,203 +16,22 @@
 //! CPU) and triangles counter-clockwise in NDC are front faces, which is the CPU's rule that the
 //! right-handed winding normal points at the eye.
 
-use wgpu::util::DeviceExt;
-
 use super::Gpu;
+use super::mesh::TEXEL_BYTES;
+pub use super::mesh::{GpuMesh, upload_colours};
 use crate::error::{PrtError, Result};
 use crate::gpu::{map_and_read, texture_2d};
 use crate::output::film::Image;
-use crate::relight::raster::{
-    Frame, Raster, Texturing, check_mesh, clip_from_world, sample_offsets,
-};
+use crate::relight::raster::{Frame, Raster, clip_from_world, sample_offsets};
 use crate::scene::Camera;
-use crate::scene::albedo_map::wrap_code;
-use crate::scene::texture::Filter;
-use glam::Vec3;
 
 /// The colour target's format: linear RGB and coverage in alpha, unclamped.
 pub const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Bytes of one pixel of [`COLOUR_FORMAT`], and of one vertex's colour in a colour buffer.
-const TEXEL_BYTES: u32 = 16;
 
-/// A vertex's map slot in the shader when it has no albedo map.
-const NO_MAP: u32 = u32::MAX;
-/// Words (`u32`) of one vertex in the shader's vertex table: position, texture coordinate, slot.
-const VERTEX_WORDS: usize = 6;
 /// Bytes of the view uniform: the clip transform, then five `vec4<f32>` (the camera's frame and
 /// the image size).
 const VIEW_BYTES: u64 = 64 + 5 * 16;
-
-/// A mesh resident on the GPU, in storage buffers as `shaders/raster.wgsl` reads them: per vertex
-/// its position, texture coordinate and albedo-map slot, per triangle its three vertices, and the
-/// albedo maps (the maps, their levels and their texels).
-pub struct GpuMesh {
-    table: wgpu::Buffer,
-    indices: wgpu::Buffer,
-    maps: wgpu::Buffer,
-    levels: wgpu::Buffer,
-    texels: wgpu::Buffer,
-    vertices: u32,
-    index_count: u32,
-}
-
-/// The shader's map, level and texel tables.
-type MapTables = (Vec<[u32; 4]>, Vec<[u32; 4]>, Vec<[u32; 2]>);
-
-/// The albedo maps of `texturing` as the shader's three tables: per map (first level, level
-/// count, sampler flags, 0), per level (first texel, width, height, 0), and the texels packed
-/// two to a `u32` pair.
-fn map_tables(texturing: Option<&Texturing>) -> MapTables {
-    let (mut maps, mut levels, mut texels) = (Vec::new(), Vec::new(), Vec::new());
-    for map in texturing.map_or(&[][..], |t| t.maps) {
-        let flags = wrap_code(map.wrap[0])
-            | wrap_code(map.wrap[1]) << 2
-            | ((map.filter == Filter::Nearest) as u32) << 4;
-        maps.push([levels.len() as u32, map.levels.len() as u32, flags, 0]);
-        for l in &map.levels {
-            levels.push([texels.len() as u32, l.width, l.height, 0]);
-            texels.extend(
-                l.texels
-                    .iter()
-                    .map(|t| [t[0] as u32 | (t[1] as u32) << 16, t[2] as u32]),
-            );
-        }
-    }
-    (maps, levels, texels)
-}
-
-impl GpuMesh {
-    /// Uploads a mesh, checked as [`check_mesh`] checks it (finite positions, indices in range).
-    pub fn new(gpu: &Gpu, positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<GpuMesh> {
-        GpuMesh::textured(gpu, positions, triangles, None)
-    }
-
-    /// Uploads a mesh with its texturing, if any: each drawn pixel of a textured vertex's
-    /// triangles is multiplied by its albedo map, as the CPU twin does.
-    pub fn textured(
-        gpu: &Gpu,
-        positions: &[Vec3],
-        triangles: &[[u32; 3]],
-        texturing: Option<&Texturing>,
-    ) -> Result<GpuMesh> {
-        check_mesh(positions, triangles, None)?;
-        if let Some(t) = texturing {
-            t.check(positions.len())?;
-        }
-        let index_count = u32::try_from(triangles.len() * 3).map_err(|_| {
-            PrtError::invalid(
-                "triangles",
-                format!("{} triangles: too many to draw at once", triangles.len()),
-            )
-        })?;
-        let max = gpu.max_binding_bytes();
-        let bytes = (positions.len() as u64 * VERTEX_WORDS as u64 * 4).max(index_count as u64 * 4);
-        if bytes > max {
-            return Err(PrtError::invalid(
-                "mesh",
-                format!("{bytes} bytes in one binding; the device binds at most {max}"),
-            ));
-        }
-        let (maps, levels, texels) = map_tables(texturing);
-        let texel_bytes = texels.len() as u64 * 8;
-        if texel_bytes > gpu.max_binding_bytes() {
-            return Err(PrtError::invalid(
-                "albedo maps",
-                format!(
-                    "{texel_bytes} bytes of texels with their mip levels; the device binds at \
-                     most {} (draw on the CPU with --device cpu)",
-                    gpu.max_binding_bytes()
-                ),
-            ));
-        }
-        let mut table = Vec::with_capacity(positions.len() * VERTEX_WORDS);
-        for (v, p) in positions.iter().enumerate() {
-            let (uv, slot) = match texturing {
-                Some(t) => (t.uvs[v].to_array(), t.slot(v).unwrap_or(NO_MAP)),
-                None => ([0.0; 2], NO_MAP),
-            };
-            table.extend([p.x, p.y, p.z, uv[0], uv[1]].map(f32::to_bits));
-            table.push(slot);
-        }
-        // wgpu rejects empty initialised buffers for some uses: keep at least one element.
-        let buffer = |label, contents: &[u8], usage| {
-            let mut data = contents.to_vec();
-            data.resize(data.len().max(16), 0);
-            gpu.device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents: &data,
-                    usage,
-                })
-        };
-        Ok(GpuMesh {
-            table: buffer(
-                "raster vertices",
-                bytemuck::cast_slice(&table),
-                wgpu::BufferUsages::STORAGE,
-            ),
-            indices: buffer(
-                "raster indices",
-                bytemuck::cast_slice(triangles),
-                wgpu::BufferUsages::STORAGE,
-            ),
-            maps: buffer(
-                "raster albedo maps",
-                bytemuck::cast_slice(&maps),
-                wgpu::BufferUsages::STORAGE,
-            ),
-            levels: buffer(
-                "raster albedo levels",
-                bytemuck::cast_slice(&levels),
-                wgpu::BufferUsages::STORAGE,
-            ),
-            texels: buffer(
-                "raster albedo texels",
-                bytemuck::cast_slice(&texels),
-                wgpu::BufferUsages::STORAGE,
-            ),
-            vertices: positions.len() as u32,
-            index_count,
-        })
-    }
-
-    /// Vertices of the mesh: a colour buffer needs one `vec4<f32>` for each.
-    pub fn vertex_count(&self) -> usize {
-        self.vertices as usize
-    }
-
-    /// Triangles of the mesh.
-    pub fn triangle_count(&self) -> usize {
-        self.index_count as usize / 3
-    }
-}
-
-/// Uploads per-vertex colours into a storage buffer of `vec4<f32>` (alpha 1), the layout
-/// [`GpuRaster::draw`] reads. Non-finite colours are an error.
-pub fn upload_colours(gpu: &Gpu, colours: &[[f32; 3]]) -> Result<wgpu::Buffer> {
-    crate::relight::raster::check_colours(colours)?;
-    let (bytes, max) = (
-        colours.len() as u64 * TEXEL_BYTES as u64,
-        gpu.max_binding_bytes(),
-    );
-    if bytes > max {
-        return Err(PrtError::invalid(
-            "colours",
-            format!("{bytes} bytes; the device binds at most {max}"),
-        ));
-    }
-    let mut data: Vec<[f32; 4]> = colours.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
-    if data.is_empty() {
-        data.push([0.0; 4]);
-    }
-    Ok(crate::gpu::buffer_with(
-        &gpu.device,
-        "raster colours",
-        bytemuck::cast_slice(&data),
-        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-    ))
-}
 
 /// The textures of one image size: the offscreen colour target, the depth buffer and the buffer
 /// the colours are read back through (rows padded to wgpu's copy alignment).
