@@ -22,6 +22,13 @@
 // the coordinate at the other pixels of the 2 x 2 quad, on the same triangle (extrapolated past
 // its edges), rather than whatever the quad's neighbours hold.
 
+// A glossy per-vertex bake (view.gloss.x, its stride, above 1) keeps in-out BRDF terms: vertex v's
+// diffuse colour is colours[v * stride] and its term k's response colours[v * stride + k]. A
+// fragment interpolates each response with the barycentrics, weighs it by the view factor g_k of
+// the direction to the eye in the frame of the interpolated normal, and adds it, as
+// src/relight/raster.rs (Gloss) does: the frame, the hemi-octahedral map and its bilinear lookup
+// are those of src/scene/brdf_factor.rs, written again here.
+
 struct View {
     clip_from_world: mat4x4<f32>,
     // The camera's frame (src/relight/raster.rs, Frame): the eye, then the film's right and up
@@ -35,6 +42,8 @@ struct View {
     // its centre, in pixels (y down): the film is shifted by as much, so the hardware's pixel
     // centre is the sample.
     size: vec4<f32>,
+    // A glossy bake's stride (1 without terms), its factor maps' cells a side, and its materials.
+    gloss: vec4<u32>,
 };
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -48,13 +57,16 @@ struct View {
 // Per texel: red | green << 16, then blue, sixteen-bit fractions of one.
 @group(0) @binding(4) var<storage, read> texels: array<vec2<u32>>;
 // Per vertex, VERTEX_WORDS words: the position's x, y and z and the texture coordinate's u and v
-// (f32 bits), then the albedo map's slot.
+// (f32 bits), the albedo map's slot, the shading normal's x, y and z (f32 bits) and the material.
 @group(0) @binding(5) var<storage, read> vertices: array<u32>;
 // Per triangle, its three vertices.
 @group(0) @binding(6) var<storage, read> indices: array<u32>;
+// A glossy bake's factors: K_b of each material, then the view factors g_k (f32 bits) of
+// material m's term k at ((m * (stride - 1) + k - 1) * cells) (one word when there are none).
+@group(0) @binding(7) var<storage, read> gloss: array<u32>;
 
 const NO_MAP: u32 = 0xffffffffu;
-const VERTEX_WORDS: u32 = 6u;
+const VERTEX_WORDS: u32 = 10u;
 const UNORM: f32 = 1.0 / 65535.0;
 // Largest texel coordinate read: past it f32 holds no fraction, and the index must fit an i32.
 const COORD_LIMIT: f32 = 1073741824.0;
@@ -71,6 +83,77 @@ fn position_of(v: u32) -> vec3<f32> {
         bitcast<f32>(vertices[o + 1u]),
         bitcast<f32>(vertices[o + 2u]),
     );
+}
+
+fn normal_of(v: u32) -> vec3<f32> {
+    let o = v * VERTEX_WORDS + 6u;
+    return vec3<f32>(
+        bitcast<f32>(vertices[o]),
+        bitcast<f32>(vertices[o + 1u]),
+        bitcast<f32>(vertices[o + 2u]),
+    );
+}
+
+// The local frame's tangent of a unit normal: +X turned by the shortest rotation that takes +Y
+// to n (the bitangent is n x t).
+fn tangent_of(n: vec3<f32>) -> vec3<f32> {
+    let c = 1.0 + n.y;
+    if c > 5e-5 {
+        return vec3<f32>(n.y + n.z * n.z / c, -n.x, -n.x * n.z / c);
+    }
+    return vec3<f32>(1.0, 0.0, 0.0);
+}
+
+// View factor k of material m at a local direction (z along the normal), bilinear between the
+// hemi-octahedral map's cell centres.
+fn view_factor(m: u32, k: u32, d: vec3<f32>) -> f32 {
+    let res = view.gloss.y;
+    let n = f32(res);
+    let dz = max(d.z, 0.0);
+    let p = vec3<f32>(d.x, d.y, dz) / max(abs(d.x) + abs(d.y) + dz, 1e-20);
+    let uv = vec2<f32>(p.x + p.y, p.x - p.y);
+    let t = clamp((uv + 1.0) * 0.5 * n - 0.5, vec2<f32>(0.0), vec2<f32>(n - 1.0));
+    let i0 = min(vec2<u32>(t), vec2<u32>(max(res, 2u) - 2u));
+    let i1 = min(i0 + 1u, vec2<u32>(res - 1u));
+    let f = t - vec2<f32>(i0);
+    let base = view.gloss.z + (m * (view.gloss.x - 1u) + k - 1u) * res * res;
+    let a = bitcast<f32>(gloss[base + i0.y * res + i0.x]);
+    let b = bitcast<f32>(gloss[base + i0.y * res + i1.x]);
+    let c = bitcast<f32>(gloss[base + i1.y * res + i0.x]);
+    let e = bitcast<f32>(gloss[base + i1.y * res + i1.x]);
+    let top = a + (b - a) * f.x;
+    let bottom = c + (e - c) * f.x;
+    return top + (bottom - top) * f.y;
+}
+
+// The glossy light of a point of the triangle with `corners` at barycentrics `bary`, seen from
+// the eye along `to_eye` (unit).
+fn glossy(corners: vec3<u32>, bary: vec3<f32>, to_eye: vec3<f32>) -> vec3<f32> {
+    let stride = view.gloss.x;
+    let m = vertices[corners.x * VERTEX_WORDS + 9u];
+    if stride <= 1u || m >= view.gloss.z {
+        return vec3<f32>(0.0);
+    }
+    let k_b = gloss[m];
+    let sum = normal_of(corners.x) * bary.x + normal_of(corners.y) * bary.y
+        + normal_of(corners.z) * bary.z;
+    if !(dot(sum, sum) > 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let n = normalize(sum);
+    let t = tangent_of(n);
+    let local = vec3<f32>(dot(to_eye, t), dot(to_eye, cross(n, t)), dot(to_eye, n));
+    if local.z <= 0.0 {
+        return vec3<f32>(0.0);
+    }
+    var light = vec3<f32>(0.0);
+    for (var k = 1u; k < k_b; k++) {
+        let r = colours[corners.x * stride + k].rgb * bary.x
+            + colours[corners.y * stride + k].rgb * bary.y
+            + colours[corners.z * stride + k].rgb * bary.z;
+        light += r * view_factor(m, k, local);
+    }
+    return light;
 }
 
 fn uv_of(v: u32) -> vec2<f32> {
@@ -197,8 +280,9 @@ fn fragment(in: Varyings) -> @location(0) vec4<f32> {
         discard;
     }
     let bary = w / sum;
-    var colour = colours[corners.x].rgb * bary.x + colours[corners.y].rgb * bary.y
-        + colours[corners.z].rgb * bary.z;
+    let stride = view.gloss.x;
+    var colour = colours[corners.x * stride].rgb * bary.x
+        + colours[corners.y * stride].rgb * bary.y + colours[corners.z * stride].rgb * bary.z;
     let slot = vertices[corners.x * VERTEX_WORDS + 5u];
     if slot != NO_MAP {
         let uvs = array<vec2<f32>, 3>(uv_of(corners.x), uv_of(corners.y), uv_of(corners.z));
@@ -214,6 +298,11 @@ fn fragment(in: Varyings) -> @location(0) vec4<f32> {
         let dx = select(across - uv, uv - across, odd.x);
         let dy = select(down - uv, uv - down, odd.y);
         colour = colour * albedo(slot, uv, dx, dy);
+    }
+    if stride > 1u {
+        let dir = view.right.xyz * d.x + view.up.xyz * d.y + view.forward.xyz;
+        // A truncated factorisation can undershoot: radiance stays non-negative.
+        colour = max(colour + glossy(corners, bary, -normalize(dir)), vec3<f32>(0.0));
     }
     return vec4<f32>(colour, 1.0);
 }

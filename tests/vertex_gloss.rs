@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{StFile, assets, prt, relit, scene_from, temp_dir};
+use common::{StFile, assets, gpu_or_skip, prt, relit, scene_from, temp_dir};
 use glam::Vec3;
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
@@ -65,6 +65,12 @@ const FACTORED_VS_EXACT: f64 = 0.7;
 /// measured 70.4% and 89.4% off; the factored terms must be closer by this factor (measured 1.30
 /// and 1.51).
 const FACTORED_GAIN_OVER_DIFFUSE: f64 = 1.2;
+/// A GPU pixel of a glossy draw against the CPU's, relative to the brightest: the GPU takes the
+/// frame, the lookups and the sums in f32 where the CPU interpolates in f64.
+const GPU_GLOSS_OF_BRIGHTEST: f32 = 1e-4;
+/// Pixels (a share) allowed to differ more: samples so near a silhouette that the GPU's sub-pixel
+/// snapping puts them on the other side (0.2%, as for the plain raster).
+const GPU_PIXELS_APART: usize = 500;
 /// A pixel drawn with its terms weighed per pixel against `g_k` of the pixel's own ray, relative
 /// to the brightest: the raster's f64 film rays against the camera's f32 ones.
 const PER_PIXEL_OF_BRIGHTEST: f32 = 2e-4;
@@ -419,4 +425,51 @@ fn the_command_line_bakes_draws_and_describes_a_glossy_vertex_bake() {
     let (code, out) = prt(&["bake", s, "-o", file, "--brdf-terms", "4"]);
     assert_ne!(code, 0);
     assert!(out.contains("--per-vertex"), "{out}");
+}
+
+#[test]
+fn the_gpu_draws_a_glossy_bake_as_the_cpu_does() {
+    use wavelet_prt::relight::gpu::{GpuMesh, GpuRaster, upload_colours};
+    use wavelet_prt::relight::vertex::{GlossEval, draw_relit, orbit};
+    let Some(gpu) = gpu_or_skip("the_gpu_draws_a_glossy_bake_as_the_cpu_does") else {
+        return;
+    };
+    let scene = scene_from(GLOSSY_SPHERE, "vertex-gloss-gpu");
+    let t = bake(&scene, &glossy_settings(4), &|_| {}).unwrap();
+    let env = EnvMap::load(&assets().join("envmaps/blender_studio.exr")).unwrap();
+    let image = relit(&t, &env, EnvRotation::default(), RelightRequest::Full);
+    let mesh = t.domain.mesh().unwrap();
+    let m = GpuMesh::of_bake(&gpu, mesh).unwrap();
+    let buffer = upload_colours(&gpu, &image.pixels[..mesh.pixel_count()]).unwrap();
+    let base = wavelet_prt::relight::vertex::bake_camera(&t).unwrap();
+    for samples in [1, 4] {
+        let mut raster = GpuRaster::multisampled(&gpu, samples).unwrap();
+        for az in [0.0, 130.0] {
+            let camera = Camera {
+                width: 64,
+                height: 48,
+                ..orbit(&base, az, 10.0)
+            };
+            let cpu = draw_relit(&t, &image, &camera, None, samples, GlossEval::PerPixel).unwrap();
+            let dev = raster.draw(&gpu, &camera, &m, &buffer).unwrap();
+            let brightest = cpu
+                .image
+                .pixels
+                .iter()
+                .flatten()
+                .fold(0.0f32, |a, b| a.max(*b));
+            let apart = (0..cpu.coverage.len())
+                .filter(|&i| {
+                    let (a, b) = (dev.image.pixels[i], cpu.image.pixels[i]);
+                    dev.coverage[i] != cpu.coverage[i]
+                        || (0..3).any(|c| (a[c] - b[c]).abs() > GPU_GLOSS_OF_BRIGHTEST * brightest)
+                })
+                .count();
+            eprintln!("{samples} sample(s), turned {az}°: {apart} pixels apart");
+            assert!(
+                apart * 100_000 <= GPU_PIXELS_APART * cpu.coverage.len(),
+                "{samples} sample(s), turned {az}°: {apart} pixels apart"
+            );
+        }
+    }
 }

@@ -261,15 +261,15 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let (img, coverage) = match &still {
         Some(camera) => {
             let mesh = crate::relight::vertex::mesh_of(&t)?;
-            let texturing = crate::relight::raster::Texturing::of(mesh);
             let glossy = mesh.factors.is_some();
-            if glossy && gpu.is_some() {
-                eprintln!(
-                    "the GPU raster draws one colour a vertex: this bake's glossy terms are \
-                     drawn on the CPU"
-                );
+            if glossy
+                && gpu.is_some()
+                && a.gloss_eval == crate::relight::vertex::GlossEval::PerVertex
+            {
+                eprintln!("the GPU raster weighs glossy terms per pixel: drawn on the CPU");
             }
-            let r = match gpu.as_ref().filter(|_| !glossy) {
+            let per_vertex = a.gloss_eval == crate::relight::vertex::GlossEval::PerVertex;
+            let r = match gpu.as_ref().filter(|_| !(glossy && per_vertex)) {
                 None => crate::relight::vertex::draw_relit(
                     &t,
                     &img,
@@ -279,15 +279,12 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
                     a.gloss_eval,
                 )?,
                 Some(gpu) => {
-                    let colours = crate::relight::vertex::vertex_colours(&t, &img)?;
                     use crate::relight::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
-                    let m = GpuMesh::textured(
-                        gpu,
-                        &mesh.positions,
-                        &mesh.triangles,
-                        texturing.as_ref(),
-                    )?;
-                    let c = upload_colours(gpu, &colours)?;
+                    // A vertex's colours are its pixels of the relit image (its terms after
+                    // its diffuse colour in a glossy bake).
+                    let pixels = &img.pixels[..mesh.pixel_count().min(img.pixels.len())];
+                    let m = GpuMesh::of_bake(gpu, mesh)?;
+                    let c = upload_colours(gpu, pixels)?;
                     GpuRaster::multisampled(gpu, a.samples)?.draw(gpu, camera, &m, &c)?
                 }
             };

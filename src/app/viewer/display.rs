@@ -59,21 +59,8 @@ pub struct MeshDisplay {
 impl MeshDisplay {
     /// Uploads the mesh of `t` (an error for a per-pixel bake).
     pub fn new(gpu: &Gpu, t: &Transport) -> Result<MeshDisplay> {
-        let mesh = mesh_of(t)?;
-        if mesh.factors.is_some() {
-            return Err(PrtError::invalid(
-                "GPU display",
-                "the GPU raster draws one colour a vertex; this bake's glossy in-out terms are \
-                 drawn on the CPU",
-            ));
-        }
         Ok(MeshDisplay {
-            mesh: GpuMesh::textured(
-                gpu,
-                &mesh.positions,
-                &mesh.triangles,
-                crate::relight::raster::Texturing::of(mesh).as_ref(),
-            )?,
+            mesh: GpuMesh::of_bake(gpu, mesh_of(t)?)?,
             raster: GpuRaster::multisampled(gpu, DRAW_SAMPLES)?,
             backdrop: None,
         })

@@ -8,6 +8,8 @@ use super::Gpu;
 use crate::error::{PrtError, Result};
 use crate::relight::raster::{Texturing, check_mesh};
 use crate::scene::albedo_map::wrap_code;
+use crate::scene::brdf_factor::BrdfFactors;
+use crate::scene::tessellate::VertexMesh;
 use crate::scene::texture::Filter;
 use glam::Vec3;
 
@@ -17,8 +19,32 @@ pub(super) const TEXEL_BYTES: u32 = 16;
 
 /// A vertex's map slot in the shader when it has no albedo map.
 const NO_MAP: u32 = u32::MAX;
-/// Words (`u32`) of one vertex in the shader's vertex table: position, texture coordinate, slot.
-const VERTEX_WORDS: usize = 6;
+/// Words (`u32`) of one vertex in the shader's vertex table: position, texture coordinate, slot,
+/// shading normal, material.
+const VERTEX_WORDS: usize = 10;
+
+/// What a glossy per-vertex bake adds to its mesh on the GPU: each vertex's shading normal and
+/// material, and the in-out factors (each material's K_b and view factors `g_k`).
+#[derive(Clone, Copy, Debug)]
+pub struct GlossMesh<'a> {
+    /// Unit shading normal of each vertex.
+    pub normals: &'a [Vec3],
+    /// Material of each vertex.
+    pub materials: &'a [u32],
+    /// The factors.
+    pub factors: &'a BrdfFactors,
+}
+
+impl<'a> GlossMesh<'a> {
+    /// The gloss of a per-vertex bake's mesh, `None` for its diffuse base.
+    pub fn of(mesh: &'a VertexMesh) -> Option<GlossMesh<'a>> {
+        mesh.factors.as_deref().map(|factors| GlossMesh {
+            normals: &mesh.normals,
+            materials: &mesh.materials,
+            factors,
+        })
+    }
+}
 /// A mesh resident on the GPU, in storage buffers as `shaders/raster.wgsl` reads them: per vertex
 /// its position, texture coordinate and albedo-map slot, per triangle its three vertices, and the
 /// albedo maps (the maps, their levels and their texels).
@@ -30,6 +56,10 @@ pub struct GpuMesh {
     pub(super) texels: wgpu::Buffer,
     pub(super) vertices: u32,
     pub(super) index_count: u32,
+    /// Each material's K_b, then the view factors (one word without gloss).
+    pub(super) gloss: wgpu::Buffer,
+    /// `[stride, map cells a side, materials]` of a glossy bake; `[1, 0, 0]` without gloss.
+    pub(super) gloss_shape: [u32; 3],
 }
 
 /// The shader's map, level and texel tables.
@@ -71,9 +101,50 @@ impl GpuMesh {
         triangles: &[[u32; 3]],
         texturing: Option<&Texturing>,
     ) -> Result<GpuMesh> {
+        GpuMesh::glossy(gpu, positions, triangles, texturing, None)
+    }
+
+    /// Uploads a per-vertex bake's mesh: its texturing and its gloss.
+    pub fn of_bake(gpu: &Gpu, mesh: &VertexMesh) -> Result<GpuMesh> {
+        GpuMesh::glossy(
+            gpu,
+            &mesh.positions,
+            &mesh.triangles,
+            Texturing::of(mesh).as_ref(),
+            GlossMesh::of(mesh),
+        )
+    }
+
+    /// Uploads a mesh with its texturing and its gloss, if any: each drawn pixel of a glossy
+    /// vertex's triangles adds its terms weighed by the view factors, as the CPU twin does; the
+    /// colour buffer then holds `stride` colours a vertex.
+    pub fn glossy(
+        gpu: &Gpu,
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        texturing: Option<&Texturing>,
+        gloss: Option<GlossMesh>,
+    ) -> Result<GpuMesh> {
         check_mesh(positions, triangles, None)?;
         if let Some(t) = texturing {
             t.check(positions.len())?;
+        }
+        if let Some(g) = &gloss {
+            let f = g.factors;
+            if let Some(p) = f.problem(f.terms.len()) {
+                return Err(PrtError::invalid("BRDF factors", p));
+            }
+            if g.normals.len() != positions.len() || g.materials.len() != positions.len() {
+                return Err(PrtError::invalid(
+                    "gloss",
+                    format!(
+                        "{} normals and {} materials for {} vertices",
+                        g.normals.len(),
+                        g.materials.len(),
+                        positions.len()
+                    ),
+                ));
+            }
         }
         let index_count = u32::try_from(triangles.len() * 3).map_err(|_| {
             PrtError::invalid(
@@ -101,6 +172,28 @@ impl GpuMesh {
                 ),
             ));
         }
+        let (gloss_words, gloss_shape): (Vec<u32>, [u32; 3]) = match &gloss {
+            Some(g) => {
+                let f = g.factors;
+                let words = f
+                    .terms
+                    .iter()
+                    .copied()
+                    .chain(f.view.iter().map(|v| v.to_bits()))
+                    .collect();
+                (
+                    words,
+                    [f.stride as u32, f.map.res as u32, f.terms.len() as u32],
+                )
+            }
+            None => (vec![0], [1, 0, 0]),
+        };
+        if gloss_words.len() as u64 * 4 > gpu.max_binding_bytes() {
+            return Err(PrtError::invalid(
+                "BRDF factors",
+                format!("{} words; too many for one binding", gloss_words.len()),
+            ));
+        }
         let mut table = Vec::with_capacity(positions.len() * VERTEX_WORDS);
         for (v, p) in positions.iter().enumerate() {
             let (uv, slot) = match texturing {
@@ -109,6 +202,12 @@ impl GpuMesh {
             };
             table.extend([p.x, p.y, p.z, uv[0], uv[1]].map(f32::to_bits));
             table.push(slot);
+            let (n, m) = match &gloss {
+                Some(g) => (g.normals[v], g.materials[v]),
+                None => (Vec3::Z, u32::MAX),
+            };
+            table.extend([n.x, n.y, n.z].map(f32::to_bits));
+            table.push(m);
         }
         // wgpu rejects empty initialised buffers for some uses: keep at least one element.
         let buffer = |label, contents: &[u8], usage| {
@@ -149,12 +248,23 @@ impl GpuMesh {
             ),
             vertices: positions.len() as u32,
             index_count,
+            gloss: buffer(
+                "raster gloss",
+                bytemuck::cast_slice(&gloss_words),
+                wgpu::BufferUsages::STORAGE,
+            ),
+            gloss_shape,
         })
     }
 
-    /// Vertices of the mesh: a colour buffer needs one `vec4<f32>` for each.
+    /// Vertices of the mesh.
     pub fn vertex_count(&self) -> usize {
         self.vertices as usize
+    }
+
+    /// Colours a vertex takes in the colour buffer: its stride (1 without gloss).
+    pub fn stride(&self) -> usize {
+        self.gloss_shape[0] as usize
     }
 
     /// Triangles of the mesh.

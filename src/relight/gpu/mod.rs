@@ -28,7 +28,7 @@ use crate::gpu::{GpuDevice, Workgroup2, wgsl};
 use crate::store::quant::BLOCK_ROWS;
 
 pub use backend::GpuBackend;
-pub use mesh::{GpuMesh, upload_colours};
+pub use mesh::{GlossMesh, GpuMesh, upload_colours};
 pub use raster::GpuRaster;
 pub use transport::{GpuTransport, TERMS_PER_DISPATCH};
 

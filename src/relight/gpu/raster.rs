@@ -7,7 +7,9 @@
 //!
 //! The colours come from a storage buffer of `vec4<f32>` per vertex (vertex `i` at index `i`, the
 //! layout of the relight's output image buffer when vertex `i` is its pixel `i`), so relit
-//! colours need not leave the GPU. [`GpuRaster::draw`] renders offscreen and reads the image and
+//! colours need not leave the GPU. A glossy per-vertex bake's mesh ([`super::GlossMesh`]) reads
+//! `stride` of them a vertex, its diffuse colour and its in-out terms' responses, and weighs the
+//! terms per pixel by the view factors as the CPU's [`crate::relight::raster::Gloss`] does. [`GpuRaster::draw`] renders offscreen and reads the image and
 //! coverage back; [`GpuRaster::render`] draws into a caller's texture for display.
 //!
 //! Conventions: clip space comes from [`clip_from_world`] (NDC y up is the film's top row, as
@@ -31,7 +33,7 @@ const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 /// Bytes of the view uniform: the clip transform, then five `vec4<f32>` (the camera's frame and
 /// the image size).
-const VIEW_BYTES: u64 = 64 + 5 * 16;
+const VIEW_BYTES: u64 = 64 + 6 * 16;
 
 /// The textures of one image size: the offscreen colour target, the depth buffer and the buffer
 /// the colours are read back through (rows padded to wgpu's copy alignment).
@@ -317,7 +319,7 @@ impl GpuRaster {
                 ),
             ));
         }
-        let need = mesh.vertices as u64 * TEXEL_BYTES as u64;
+        let need = mesh.vertices as u64 * mesh.stride() as u64 * TEXEL_BYTES as u64;
         if colours.size() < need
             || need > gpu.max_binding_bytes()
             || !colours.usage().contains(wgpu::BufferUsages::STORAGE)
@@ -378,6 +380,8 @@ impl GpuRaster {
                 offset[0],
                 offset[1],
             ]);
+            let [stride, res, materials] = mesh.gloss_shape;
+            uniform.extend([stride, res, materials, 0].map(f32::from_bits));
             debug_assert_eq!(uniform.len() as u64 * 4, VIEW_BYTES);
             gpu.queue
                 .write_buffer(view, 0, bytemuck::cast_slice(&uniform));
@@ -439,7 +443,10 @@ impl GpuRaster {
                         buffer: colours,
                         offset: 0,
                         size: wgpu::BufferSize::new(
-                            (mesh.vertices.max(1) as u64 * TEXEL_BYTES as u64).min(colours.size()),
+                            (mesh.vertices.max(1) as u64
+                                * mesh.stride() as u64
+                                * TEXEL_BYTES as u64)
+                                .min(colours.size()),
                         ),
                     }),
                 },
@@ -462,6 +469,10 @@ impl GpuRaster {
                 wgpu::BindGroupEntry {
                     binding: 6,
                     resource: mesh.indices.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 7,
+                    resource: mesh.gloss.as_entire_binding(),
                 },
             ],
         });
