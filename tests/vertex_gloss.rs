@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{StFile, assets, gpu_or_skip, prt, relit, scene_from, temp_dir};
+use common::{SPHERE_ON_PLANE, StFile, assets, gpu_or_skip, prt, relit, scene_from, temp_dir};
 use glam::Vec3;
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
@@ -19,37 +19,16 @@ use wavelet_prt::scene::brdf_factor::{BrdfFactors, HemiOct, to_local};
 use wavelet_prt::scene::trace::Tracer;
 use wavelet_prt::store::transport::{BakeDomain, Transport};
 
-/// A glossy sphere (GGX roughness 0.5) on a matte ground.
-const GLOSSY_SPHERE: &str = r#"
-[camera]
-eye = [0.0, 1.5, 4.0]
-target = [0.0, 0.5, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y_deg = 40.0
-width = 32
-height = 32
-
-[material.ground]
-type = "diffuse"
-albedo = [0.8, 0.8, 0.8]
-
-[material.gloss]
-type = "glossy"
-albedo = [0.3, 0.1, 0.05]
-specular = [0.5, 0.5, 0.5]
-roughness = 0.5
-
-[[shape]]
-type = "quad"
-corners = [[-2.0, 0.0, -2.0], [-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]]
-material = "ground"
-
-[[shape]]
-type = "sphere"
-center = [0.0, 0.6, 0.0]
-radius = 0.6
-material = "gloss"
-"#;
+/// A glossy sphere (GGX roughness 0.5) on a matte ground: the shared sphere on its plane with
+/// its clay made glossy.
+fn glossy_sphere() -> String {
+    let clay = "type = \"diffuse\"\nalbedo = [0.8, 0.3, 0.2]";
+    assert!(SPHERE_ON_PLANE.contains(clay));
+    SPHERE_ON_PLANE.replace(
+        clay,
+        "type = \"glossy\"\nalbedo = [0.3, 0.1, 0.05]\nspecular = [0.5, 0.5, 0.5]\nroughness = 0.5",
+    )
+}
 
 /// A vertex's colour from the bake, its terms weighed by `g_k` towards the eye, against the same
 /// factored lobe integrated here over the cube's texel centres: one sum through f32 rows, Haar
@@ -100,7 +79,7 @@ fn rel_l2(got: &[[f64; 3]], want: &[[f64; 3]], which: &[usize]) -> f64 {
 
 #[test]
 fn glossy_vertices_equal_their_factored_lobe_integrated_at_each_vertex() {
-    let scene = scene_from(GLOSSY_SPHERE, "vertex-gloss");
+    let scene = scene_from(&glossy_sphere(), "vertex-gloss");
     let t = bake(&scene, &glossy_settings(4), &|_| {}).unwrap();
     let mesh = t.domain.mesh().unwrap();
     let f = mesh
@@ -299,7 +278,7 @@ fn a_glossy_draw_weighs_each_pixel_by_the_view_factors_of_its_own_ray() {
 
 #[test]
 fn a_glossy_file_keeps_its_factors_and_one_term_is_the_diffuse_base() {
-    let scene = scene_from(GLOSSY_SPHERE, "vertex-gloss-file");
+    let scene = scene_from(&glossy_sphere(), "vertex-gloss-file");
     let settings = BakeSettings {
         lossless: false,
         ..glossy_settings(2)
@@ -367,7 +346,7 @@ fn a_glossy_file_keeps_its_factors_and_one_term_is_the_diffuse_base() {
 fn the_command_line_bakes_draws_and_describes_a_glossy_vertex_bake() {
     let dir = temp_dir("vertex-gloss-cli");
     let scene = dir.join("scene.toml");
-    std::fs::write(&scene, GLOSSY_SPHERE).unwrap();
+    std::fs::write(&scene, glossy_sphere()).unwrap();
     let (s, f) = (scene.to_str().unwrap(), dir.join("g.prt"));
     let file = f.to_str().unwrap();
     let common = ["--cube", "8", "--sh-order", "2", "--edge-length", "0.4"];
@@ -434,7 +413,7 @@ fn the_gpu_draws_a_glossy_bake_as_the_cpu_does() {
     let Some(gpu) = gpu_or_skip("the_gpu_draws_a_glossy_bake_as_the_cpu_does") else {
         return;
     };
-    let scene = scene_from(GLOSSY_SPHERE, "vertex-gloss-gpu");
+    let scene = scene_from(&glossy_sphere(), "vertex-gloss-gpu");
     let t = bake(&scene, &glossy_settings(4), &|_| {}).unwrap();
     let env = EnvMap::load(&assets().join("envmaps/blender_studio.exr")).unwrap();
     let image = relit(&t, &env, EnvRotation::default(), RelightRequest::Full);
