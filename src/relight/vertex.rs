@@ -290,16 +290,7 @@ pub fn draw_relit(
         }
         _ => (&colours[..], gloss.as_ref()),
     };
-    let raster = rasterize_glossy(
-        camera,
-        &mesh.positions,
-        &mesh.triangles,
-        colours,
-        Texturing::of(mesh).as_ref(),
-        gloss,
-        samples,
-    )?;
-    compose(raster, camera, behind)
+    draw_mesh(mesh, colours, gloss, camera, behind, samples)
 }
 
 /// Draws a per-vertex bake with the given vertex `colours` (one per vertex, its glossy terms
@@ -311,14 +302,25 @@ pub fn draw(
     behind: Option<(&EnvMap, EnvRotation)>,
     samples: u32,
 ) -> Result<Raster> {
-    let mesh = mesh_of(t)?;
+    draw_mesh(mesh_of(t)?, colours, None, camera, behind, samples)
+}
+
+/// Draws `mesh` with its texturing, `colours` and `gloss`, over what is `behind`.
+fn draw_mesh(
+    mesh: &VertexMesh,
+    colours: &[[f32; 3]],
+    gloss: Option<&Gloss>,
+    camera: &Camera,
+    behind: Option<(&EnvMap, EnvRotation)>,
+    samples: u32,
+) -> Result<Raster> {
     let raster = rasterize_glossy(
         camera,
         &mesh.positions,
         &mesh.triangles,
         colours,
         Texturing::of(mesh).as_ref(),
-        None,
+        gloss,
         samples,
     )?;
     compose(raster, camera, behind)
