@@ -472,7 +472,7 @@ struct TileContext<'a> {
     /// Size of the image the rows belong to: the view's, or one tile wide for a mesh.
     width: usize,
     height: usize,
-    /// The mesh of a per-vertex bake: pixel v is vertex v.
+    /// The mesh of a per-vertex bake: pixel `v · stride` is vertex v (its terms after it).
     mesh: Option<&'a VertexMesh>,
     tracer: &'a Tracer,
     /// The pixels that take `edge_spp` sub-samples.
@@ -655,6 +655,10 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                 [0.0; 3]
             };
             out.pixels.push((pixel, mean_albedo, covered * inv_spp));
+            // A vertex's term pixels are its own: covered as it is, so that masks keep them.
+            for k in 1..mesh.map_or(1, VertexMesh::stride) as u32 {
+                out.pixels.push((pixel + k, [0.0; 3], covered * inv_spp));
+            }
             if !light_columns.is_empty() {
                 out.lights.push((pixel, light_columns));
             }

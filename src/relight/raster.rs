@@ -121,8 +121,12 @@ pub struct Gloss<'a> {
 }
 
 impl Gloss<'_> {
-    /// Checks one normal, material and `stride − 1` finite responses per vertex of `vertices`.
+    /// Checks the factors ([`BrdfFactors::problem`]), and one normal, material and
+    /// `stride − 1` finite responses per vertex of `vertices`.
     pub fn check(&self, vertices: usize) -> Result<()> {
+        if let Some(p) = self.factors.problem(self.factors.terms.len()) {
+            return Err(PrtError::invalid("BRDF factors", p));
+        }
         let per = self.factors.stride - 1;
         if self.normals.len() != vertices
             || self.materials.len() != vertices
@@ -173,9 +177,22 @@ impl Gloss<'_> {
 
     /// The vertex colours with each vertex's glossy light added as seen from `eye` (the
     /// direction to the eye taken at the vertex): the per-vertex evaluation that
-    /// [`rasterize_glossy`]'s per-pixel one is compared with.
-    pub fn per_vertex(&self, positions: &[Vec3], colours: &[[f32; 3]], eye: Vec3) -> Vec<[f32; 3]> {
-        colours
+    /// [`rasterize_glossy`]'s per-pixel one is compared with. Errors as [`Gloss::check`] does,
+    /// and unless there is one colour per position.
+    pub fn per_vertex(
+        &self,
+        positions: &[Vec3],
+        colours: &[[f32; 3]],
+        eye: Vec3,
+    ) -> Result<Vec<[f32; 3]>> {
+        self.check(positions.len())?;
+        if colours.len() != positions.len() {
+            return Err(PrtError::invalid(
+                "colours",
+                format!("{} colours for {} vertices", colours.len(), positions.len()),
+            ));
+        }
+        Ok(colours
             .iter()
             .enumerate()
             .map(|(v, c)| {
@@ -184,7 +201,7 @@ impl Gloss<'_> {
                 let add = self.shade([v32; 3], [1.0, 0.0, 0.0], to_eye);
                 std::array::from_fn(|i| (c[i] + add[i] as f32).max(0.0))
             })
-            .collect()
+            .collect())
     }
 }
 

@@ -285,7 +285,7 @@ pub fn draw_relit(
     let per_vertex;
     let (colours, gloss) = match (eval, &gloss) {
         (GlossEval::PerVertex, Some(g)) => {
-            per_vertex = g.per_vertex(&mesh.positions, &colours, camera.eye);
+            per_vertex = g.per_vertex(&mesh.positions, &colours, camera.eye)?;
             (&per_vertex[..], None)
         }
         _ => (&colours[..], gloss.as_ref()),

@@ -100,6 +100,27 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
                 glossy.join(", "),
                 a.brdf_terms
             );
+            let textured: Vec<&str> = scene
+                .materials
+                .iter()
+                .zip(&scene.material_names)
+                .zip(&scene.material_maps)
+                .filter(|((m, _), maps)| m.glossy_lobe().is_some() && maps.is_some())
+                .map(|((_, n), _)| n.as_str())
+                .collect();
+            if !textured.is_empty() {
+                eprintln!(
+                    "warning: the textured glossy material(s) {} keep their diffuse base: their \
+                     vertices are baked white for their albedo maps",
+                    textured.join(", ")
+                );
+            }
+            if !scene.lights.is_empty() {
+                eprintln!(
+                    "warning: the local lights' columns are diffuse at every vertex; only the \
+                     environment's light takes the in-out terms"
+                );
+            }
         } else if !glossy.is_empty() {
             eprintln!(
                 "warning: per vertex, the glossy material(s) {} keep only their diffuse base: a \
@@ -258,14 +279,14 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
         );
         if pv.brdf_stride > 1 {
             println!(
-                "gloss         in-out BRDF terms, up to {} a vertex (at most {} asked{}), view \
-                 factors on {}² hemi-octahedral maps",
-                pv.brdf_stride,
+                "gloss         in-out BRDF terms: up to {} a glossy material{}, {} pixels a \
+                 vertex, factors on {}² hemi-octahedral maps",
                 id.brdf_terms,
                 match id.brdf_error {
                     0.0 => String::new(),
                     e => format!(", chosen for a factor error of {e}"),
                 },
+                pv.brdf_stride,
                 pv.brdf_map
             );
         }

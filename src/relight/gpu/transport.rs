@@ -547,7 +547,7 @@ impl GpuTransport {
 
     /// Relights with `terms` into this transport's own image buffer and submits, with no
     /// readback: for a pass that reads [`GpuTransport::image_buffer`] next, such as the raster of
-    /// a per-vertex bake (whose pixel `v` is vertex `v`).
+    /// a per-vertex bake (whose pixel `v · stride` is vertex `v`).
     pub fn relight_terms_in_place(
         &self,
         gpu: &Gpu,

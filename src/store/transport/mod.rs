@@ -221,8 +221,9 @@ pub enum Domain {
     /// and the camera cannot move.
     #[default]
     View,
-    /// The vertices of this mesh, vertex `v` as pixel `v` of an image [`TILE`] wide: the relit
-    /// values are vertex colours, drawn from any camera.
+    /// The vertices of this mesh, vertex `v` as pixel `v · stride` of an image [`TILE`] wide
+    /// (its in-out BRDF terms after it): the relit values are vertex colours, drawn from any
+    /// camera.
     Mesh(VertexMesh),
 }
 
