@@ -47,9 +47,12 @@ pub fn accumulate_term_rows(
                 }
             }
             acc[0] += brdf::diffuse_cosine(sp.normal, *d) * w;
-            let local = Vec3::new(d.dot(t), d.dot(b), d.dot(sp.normal));
+            // Above the horizon (tested above): the direction's taps serve every term.
+            let taps = factors
+                .map
+                .taps(Vec3::new(d.dot(t), d.dot(b), d.dot(sp.normal)));
             for (k, a) in acc.iter_mut().enumerate().skip(1) {
-                *a += factors.light_at(sp.material, k, local) * w;
+                *a += factors.light_with(sp.material, k, &taps) * w;
             }
         }
         *out += acc[0] * scale;

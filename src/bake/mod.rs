@@ -333,6 +333,16 @@ fn bake_tiles(
     let mut reference_haar = unoccluded_row(&samples);
     let reference_energy: f64 = reference_haar.iter().map(|&v| (v as f64).powi(2)).sum();
     haar::forward_face_all(&mut reference_haar, n, &mut Vec::new());
+    // The thresholding budget of each glossy term's rows (material-major, as the factors): the
+    // diffuse row's, divided by the square of the largest g_k the term's response is multiplied
+    // by, so that its error once drawn is at most the diffuse row's.
+    let term_budgets: Vec<f64> = match mesh.as_ref().and_then(|m| m.factors.as_deref()) {
+        Some(f) => (0..f.terms.len() as u32)
+            .flat_map(|m| (1..f.stride).map(move |k| (m, k)))
+            .map(|(m, k)| reference_energy / (f.view_peak(m, k).max(1e-6) as f64).powi(2))
+            .collect(),
+        None => Vec::new(),
+    };
     let ctx = TileContext {
         scene,
         width: w,
@@ -342,6 +352,7 @@ fn bake_tiles(
         edges: &edges,
         settings,
         reference_energy,
+        term_budgets,
         thresholder: Thresholder::new(identity.budget, identity.threshold, n, &reference_haar),
         samples: &samples,
         basis: &basis,
@@ -482,6 +493,8 @@ struct TileContext<'a> {
     basis: &'a TexelShBasis,
     /// Energy of an unshadowed row, the scale of the thresholding budget.
     reference_energy: f64,
+    /// The scale of each glossy term's thresholding budget, `[m · (stride − 1) + k − 1]`.
+    term_budgets: Vec<f64>,
     /// The thresholding budget.
     thresholder: Thresholder,
     /// The scene's medium and its rows, if it has one.
@@ -506,6 +519,7 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
         samples,
         basis,
         reference_energy,
+        ref term_budgets,
         ref thresholder,
         medium,
         medium_rows,
@@ -688,21 +702,15 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     rows.reference_energy(p),
                 ))
             });
-            // A glossy vertex's terms, each budget scaled so that its error is the diffuse
-            // row's once multiplied by the largest g_k.
-            let factors = mesh.and_then(|m| m.factors.as_ref());
-            let terms = terms.zip(factors).into_iter().flat_map(|((m, rows), f)| {
+            // A glossy vertex's terms, each with its budget.
+            let per = mesh.map_or(1, VertexMesh::stride) - 1;
+            let terms = terms.into_iter().flat_map(|(m, rows)| {
                 let specular = scene.materials[m as usize]
                     .glossy_lobe()
                     .map_or([0.0; 3], |(s, _)| s.to_array());
+                let first = m as usize * per;
                 rows.into_iter().enumerate().map(move |(i, row)| {
-                    let peak = f.view_peak(m, i + 1).max(1e-6) as f64;
-                    (
-                        pixel + i as u32 + 1,
-                        specular,
-                        row,
-                        reference_energy / (peak * peak),
-                    )
+                    (pixel + i as u32 + 1, specular, row, term_budgets[first + i])
                 })
             });
             for (pixel, weight, mut row, budget_scale) in lobes.chain(scattered).chain(terms) {

@@ -161,10 +161,15 @@ impl Gloss<'_> {
             return DVec3::ZERO;
         };
         let local = to_local(n.as_vec3(), to_eye.as_vec3());
+        if local.z <= 0.0 {
+            return DVec3::ZERO;
+        }
+        // The direction's taps serve every term.
+        let taps = self.factors.map.taps(local);
         let per = self.factors.stride - 1;
         (1..k_b)
             .map(|k| {
-                let g = self.factors.view_at(m, k, local) as f64;
+                let g = self.factors.view_with(m, k, &taps) as f64;
                 let r = (0..3)
                     .map(|i| {
                         DVec3::from(self.terms[tri[i] as usize * per + k - 1].map(f64::from)) * b[i]

@@ -183,9 +183,11 @@ impl std::str::FromStr for Orbit {
     }
 }
 
-/// The vertex colours in a per-vertex bake's relit image: each vertex's first pixel, its diffuse
-/// light (the whole of it unless the bake keeps in-out BRDF terms).
-pub fn vertex_colours<'a>(t: &Transport, relit: &'a Image) -> Result<Cow<'a, [[f32; 3]]>> {
+/// A per-vertex bake's mesh, and the pixels of `relit` its vertices take (`stride` each).
+fn vertex_pixels<'t, 'r>(
+    t: &'t Transport,
+    relit: &'r Image,
+) -> Result<(&'t VertexMesh, &'r [[f32; 3]])> {
     let mesh = mesh_of(t)?;
     let (v, stride) = (mesh.vertex_count(), mesh.stride());
     let pixels = relit.pixels.get(..v * stride).ok_or_else(|| {
@@ -197,36 +199,29 @@ pub fn vertex_colours<'a>(t: &Transport, relit: &'a Image) -> Result<Cow<'a, [[f
             ),
         )
     })?;
-    Ok(match stride {
+    Ok((mesh, pixels))
+}
+
+/// The vertex colours in a per-vertex bake's relit image: each vertex's first pixel, its diffuse
+/// light (the whole of it unless the bake keeps in-out BRDF terms).
+pub fn vertex_colours<'a>(t: &Transport, relit: &'a Image) -> Result<Cow<'a, [[f32; 3]]>> {
+    let (mesh, pixels) = vertex_pixels(t, relit)?;
+    Ok(match mesh.stride() {
         1 => Cow::Borrowed(pixels),
-        _ => Cow::Owned(pixels.iter().step_by(stride).copied().collect()),
+        stride => Cow::Owned(pixels.iter().step_by(stride).copied().collect()),
     })
 }
 
 /// A glossy per-vertex bake's term responses in its relit image, vertex `v`'s term k at
 /// `[v · (stride − 1) + k − 1]` (see [`Gloss`]); `None` for the diffuse base.
 pub fn vertex_terms(t: &Transport, relit: &Image) -> Result<Option<Vec<[f32; 3]>>> {
-    let mesh = mesh_of(t)?;
-    let stride = mesh.stride();
+    let (mesh, pixels) = vertex_pixels(t, relit)?;
     if mesh.factors.is_none() {
         return Ok(None);
     }
-    let pixels = relit
-        .pixels
-        .get(..mesh.vertex_count() * stride)
-        .ok_or_else(|| {
-            PrtError::invalid(
-                "relit image",
-                format!(
-                    "{} pixels for {} vertices",
-                    relit.pixels.len(),
-                    mesh.vertex_count()
-                ),
-            )
-        })?;
     Ok(Some(
         pixels
-            .chunks_exact(stride)
+            .chunks_exact(mesh.stride())
             .flat_map(|v| v[1..].iter().copied())
             .collect(),
     ))

@@ -89,6 +89,12 @@ impl HemiOct {
 
     /// Bilinear lookup of `map` (one value per cell, cell centres at the samples) at `d`.
     pub fn lookup(&self, map: &[f32], d: Vec3) -> f32 {
+        Taps::read(map, &self.taps(d))
+    }
+
+    /// The cells and weights a bilinear lookup at `d` reads: found once for a direction, read
+    /// from every map of this size.
+    pub fn taps(&self, d: Vec3) -> Taps {
         let (u, v) = Self::encode(d);
         let n = self.res;
         let coord = |x: f32| -> (usize, usize, f32) {
@@ -98,13 +104,30 @@ impl HemiOct {
         };
         let (i0, i1, fx) = coord(u);
         let (j0, j1, fy) = coord(v);
-        let at = |i: usize, j: usize| map[j * n + i];
-        let lerp = |a: f32, b: f32, f: f32| a + (b - a) * f;
-        lerp(
-            lerp(at(i0, j0), at(i1, j0), fx),
-            lerp(at(i0, j1), at(i1, j1), fx),
+        Taps {
+            cells: [j0 * n + i0, j0 * n + i1, j1 * n + i0, j1 * n + i1],
+            fx,
             fy,
-        )
+        }
+    }
+}
+
+/// Where a bilinear lookup of a [`HemiOct`] map reads ([`HemiOct::taps`]): the cells at the
+/// corners (row-major: the lower row's two, then the upper row's) and the weights across and up.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Taps {
+    cells: [usize; 4],
+    fx: f32,
+    fy: f32,
+}
+
+impl Taps {
+    /// `map` read at these taps.
+    #[inline]
+    pub fn read(map: &[f32], t: &Taps) -> f32 {
+        let lerp = |a: f32, b: f32, f: f32| a + (b - a) * f;
+        let [a, b, c, d] = t.cells.map(|i| map[i]);
+        lerp(lerp(a, b, t.fx), lerp(c, d, t.fx), t.fy)
     }
 }
 
@@ -402,7 +425,14 @@ impl BrdfFactors {
         if local.z <= 0.0 {
             return 0.0;
         }
-        self.map.lookup(self.slice(&self.view, m, k), local)
+        self.view_with(m, k, &self.map.taps(local))
+    }
+
+    /// `g_k` of material `m` (1 ≤ k < its K_b) read at `taps` of a direction above the horizon:
+    /// one direction's taps serve every term.
+    #[inline]
+    pub fn view_with(&self, m: u32, k: usize, taps: &Taps) -> f32 {
+        Taps::read(self.slice(&self.view, m, k), taps)
     }
 
     /// `h_k` of material `m` (1 ≤ k < its K_b) at a local light direction; 0 below the horizon.
@@ -411,7 +441,13 @@ impl BrdfFactors {
         if local.z <= 0.0 {
             return 0.0;
         }
-        self.map.lookup(self.slice(&self.light, m, k), local)
+        self.light_with(m, k, &self.map.taps(local))
+    }
+
+    /// `h_k` of material `m` read at `taps`, as [`BrdfFactors::view_with`].
+    #[inline]
+    pub fn light_with(&self, m: u32, k: usize, taps: &Taps) -> f32 {
+        Taps::read(self.slice(&self.light, m, k), taps)
     }
 
     /// The largest `|g_k|` of material `m`: what an error in the term's response is multiplied

@@ -262,14 +262,12 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         Some(camera) => {
             let mesh = crate::relight::vertex::mesh_of(&t)?;
             let glossy = mesh.factors.is_some();
-            if glossy
-                && gpu.is_some()
-                && a.gloss_eval == crate::relight::vertex::GlossEval::PerVertex
-            {
+            // The GPU raster weighs glossy terms per pixel only.
+            let on_cpu = glossy && a.gloss_eval == crate::relight::vertex::GlossEval::PerVertex;
+            if on_cpu && gpu.is_some() {
                 eprintln!("the GPU raster weighs glossy terms per pixel: drawn on the CPU");
             }
-            let per_vertex = a.gloss_eval == crate::relight::vertex::GlossEval::PerVertex;
-            let r = match gpu.as_ref().filter(|_| !(glossy && per_vertex)) {
+            let r = match gpu.as_ref().filter(|_| !on_cpu) {
                 None => crate::relight::vertex::draw_relit(
                     &t,
                     &img,
