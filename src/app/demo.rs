@@ -106,6 +106,9 @@ pub struct DemoReport {
     pub volume_rows: Vec<(String, f64)>,
     /// The per-vertex bake drawn from four angles, and its error against the per-pixel bake.
     pub orbit: crate::app::orbit::OrbitReport,
+    /// The per-vertex bake with in-out BRDF terms, drawn from four angles and held to the path
+    /// tracer from one.
+    pub gloss: crate::app::gloss_orbit::GlossReport,
     /// The dusk scene with its local lights.
     pub dusk: crate::app::dusk::DuskReport,
     /// The glTF scene.
@@ -245,6 +248,14 @@ pub fn run_demo(
         log,
         progress,
     )?;
+    let gloss = crate::app::gloss_orbit::run_gloss_orbit(
+        dir,
+        &scene,
+        &settings,
+        ("sunrise", &sunrise),
+        log,
+        progress,
+    )?;
     let dusk = crate::app::dusk::run_dusk(dir, &assets, &settings, DEMO_WEIGHTING, log, progress)?;
     let truck =
         crate::app::truck::run_truck(dir, &assets, &settings, DEMO_WEIGHTING, log, progress)?;
@@ -285,6 +296,25 @@ pub fn run_demo(
         orbit.relight_ms,
         orbit.draw_ms,
         orbit.frame_ms
+    ));
+    table.push_str(&format!(
+        "\nGlossy per vertex (`gloss_sheet.png`): the same scene per vertex with {} in-out terms \
+         for its porcelain teapot ({} vertices, {:.1} KB a vertex), bake {:.1} s{}; from {}° \
+         round, under sunrise, against the path tracer ({} paths a pixel{}), the whole image: \
+         {:.1}% with the terms, {:.1}% for the diffuse base.\n",
+        crate::app::gloss_orbit::GLOSS_BRDF_TERMS,
+        gloss.vertices,
+        gloss.bytes_per_vertex / 1e3,
+        gloss.bake_seconds,
+        if gloss.reused_bake { " (reused)" } else { "" },
+        crate::app::gloss_orbit::GLOSS_REFERENCE_AZIMUTH,
+        crate::app::gloss_orbit::GLOSS_REFERENCE_PATHS,
+        gloss
+            .reference_noise
+            .map(|n| format!(", noise {:.1}%", 100.0 * n))
+            .unwrap_or_default(),
+        100.0 * gloss.glossy_error,
+        100.0 * gloss.diffuse_error
     ));
     table.push_str(&format!(
         "\nLocal lights (`dusk_sheet.png`): `assets/scenes/dusk.toml` under `{}` with a quad \
@@ -328,6 +358,7 @@ pub fn run_demo(
     }
     crate::files::write_bytes_atomically(&table_path, table.as_bytes())?;
     Ok(DemoReport {
+        gloss,
         dusk,
         truck,
         rows,

@@ -489,6 +489,18 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
         crate::app::orbit::ORBIT_TERMS,
         o.frame_ms,
     );
+    let s = &report.gloss;
+    println!(
+        "glossy orbit   {} ({} vertices with {} in-out terms baked in {:.1} s{}; {:.1}% from the \
+         path tracer, {:.1}% for the diffuse base)",
+        s.sheet_path.display(),
+        s.vertices,
+        crate::app::gloss_orbit::GLOSS_BRDF_TERMS,
+        s.bake_seconds,
+        if s.reused_bake { ", reused" } else { "" },
+        100.0 * s.glossy_error,
+        100.0 * s.diffuse_error,
+    );
     let d = &report.dusk;
     println!(
         "local lights   {} ({} light columns baked in {:.1} s{}; every light added in {:.2} ms \

@@ -1,0 +1,216 @@
+//! The demo's glossy orbit: the demo scene baked per vertex with in-out BRDF terms for its
+//! porcelain teapot (`--brdf-terms 4`), relit once and drawn from four angles, its highlight
+//! following the camera, beside the diffuse base (term 0 of the same bake) and the independent
+//! path tracer from one of those angles (`gloss_sheet.png`), with both errors against it.
+
+use std::path::{Path, PathBuf};
+
+use crate::app::orbit::ORBIT_AZIMUTHS;
+use crate::bake::path_tracer::path_trace;
+use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::error::Result;
+use crate::light::envmap::{EnvMap, EnvRotation};
+use crate::output::film::{Image, ToneMap};
+use crate::output::metrics::relative_l2;
+use crate::output::sheet::{Cell, write_sheet};
+use crate::relight::background::{composite, environment_behind_camera};
+use crate::relight::raster::DRAW_SAMPLES;
+use crate::relight::vertex::{GlossEval, bake_camera, compose, draw, draw_relit, orbit};
+use crate::relight::{LightContext, RelightRequest, relight};
+use crate::scene::Scene;
+use crate::scene::tessellate::VertexMesh;
+use crate::store::transport::BakeDomain;
+
+/// In-out terms of the glossy orbit's glossy materials.
+pub const GLOSS_BRDF_TERMS: u32 = 4;
+/// The angle of the orbit the path tracer renders, degrees about +Y from the scene's camera.
+pub const GLOSS_REFERENCE_AZIMUTH: f32 = 90.0;
+/// Paths a pixel of that reference.
+pub const GLOSS_REFERENCE_PATHS: u32 = 512;
+
+/// What the glossy orbit produced.
+pub struct GlossReport {
+    /// The bake, `dir/demo_glossy.prt`.
+    pub transport_path: PathBuf,
+    /// The sheet, `dir/gloss_sheet.png`.
+    pub sheet_path: PathBuf,
+    /// Whether the bake was reused.
+    pub reused_bake: bool,
+    /// Time to bake (or to load the cached bake), seconds.
+    pub bake_seconds: f64,
+    /// Vertices of the bake.
+    pub vertices: usize,
+    /// The file's size over its vertices, bytes.
+    pub bytes_per_vertex: f64,
+    /// The path tracer's own noise (relative L2), or `None` when its image was kept from the
+    /// last run.
+    pub reference_noise: Option<f64>,
+    /// Every term with the in-out terms, against the path tracer, relative L2 over the image.
+    pub glossy_error: f64,
+    /// The diffuse base (term 0 alone) against the path tracer.
+    pub diffuse_error: f64,
+}
+
+/// Bakes (or reuses) `scene` per vertex at its default edge length with
+/// [`GLOSS_BRDF_TERMS`] in-out terms into `dir/demo_glossy.prt` (`settings` otherwise, the
+/// demo's per-pixel ones), relights it under `env` with every term, and writes
+/// `dir/gloss_sheet.png`.
+pub fn run_gloss_orbit(
+    dir: &Path,
+    scene: &Scene,
+    settings: &BakeSettings,
+    env: (&str, &EnvMap),
+    log: &mut dyn FnMut(&str),
+    progress: &(dyn Fn(BakeProgress) + Sync),
+) -> Result<GlossReport> {
+    let (name, env) = env;
+    let rotation = EnvRotation::default();
+    let glossy_settings = BakeSettings {
+        domain: BakeDomain::Vertices {
+            edge_length: VertexMesh::default_edge_length(scene),
+        },
+        brdf_terms: GLOSS_BRDF_TERMS,
+        ..settings.clone()
+    };
+    let transport_path = dir.join("demo_glossy.prt");
+    let what = format!(
+        "baking {} per vertex with {GLOSS_BRDF_TERMS} in-out terms for its glossy materials ...",
+        scene.source_path.display()
+    );
+    let (t, reused_bake, bake_seconds) = load_or_bake_logged(
+        &transport_path,
+        scene,
+        &glossy_settings,
+        &what,
+        log,
+        progress,
+    )?;
+    let ctx = LightContext::new(&t)?;
+    let light = ctx.prepare(env, rotation)?;
+    let (full, _) = relight(&t, &ctx, &light, &RelightRequest::Full)?;
+    let camera = bake_camera(&t)?;
+    let behind = Some((env, rotation));
+    let shots = ORBIT_AZIMUTHS
+        .iter()
+        .map(|&az| {
+            let cam = orbit(&camera, az, 0.0);
+            let drawn = draw_relit(&t, &full, &cam, behind, DRAW_SAMPLES, GlossEval::PerPixel)?;
+            Ok((drawn.image, az))
+        })
+        .collect::<Result<Vec<_>>>()?;
+
+    // One angle against the path tracer, the background black in all three.
+    let cam = orbit(&camera, GLOSS_REFERENCE_AZIMUTH, 0.0);
+    let glossy = draw_relit(&t, &full, &cam, None, DRAW_SAMPLES, GlossEval::PerPixel)?;
+    let colours = crate::relight::vertex::vertex_colours(&t, &full)?;
+    let diffuse = draw(&t, &colours, &cam, None, DRAW_SAMPLES)?;
+    let exr = dir.join("gloss_path_traced.exr");
+    let kept = Image::load_exr(&exr).ok().filter(|i| {
+        reused_bake && (i.width, i.height) == (cam.width as usize, cam.height as usize)
+    });
+    let (reference, reference_noise) = match kept {
+        Some(image) => (image, None),
+        None => {
+            log(&format!(
+                "path tracing the demo from {GLOSS_REFERENCE_AZIMUTH}° round \
+                 ({GLOSS_REFERENCE_PATHS} paths a pixel) ..."
+            ));
+            let mut turned = scene.clone();
+            turned.camera = cam.clone();
+            let cube = env.to_cube(settings.cube_n, rotation)?;
+            let traced = path_trace(&turned, &cube, settings, GLOSS_REFERENCE_PATHS, &|_, _| {})?;
+            traced.image.check_finite("path-traced image")?;
+            traced
+                .image
+                .save(&exr, ToneMap::auto(&traced.image, None))?;
+            let noise = traced.relative_noise(None);
+            (traced.image, Some(noise))
+        }
+    };
+    let glossy_error = relative_l2(&glossy.image, &reference, None)?;
+    let diffuse_error = relative_l2(&diffuse.image, &reference, None)?;
+    // The environment behind, where the raster from the same camera draws nothing.
+    let reference_shown = composite(
+        &reference,
+        &environment_behind_camera(&cam, &glossy.coverage, env, rotation)?,
+    );
+    let tone = ToneMap::auto(&reference, None);
+    let az = GLOSS_REFERENCE_AZIMUTH;
+    let mut cells: Vec<Cell> = shots
+        .iter()
+        .map(|(image, az)| Cell {
+            image,
+            tone,
+            caption: [
+                format!("K_b = {GLOSS_BRDF_TERMS}, turned {az}°"),
+                format!("every term, {name}"),
+            ],
+        })
+        .collect();
+    let diffuse_shown = compose(diffuse, &cam, behind)?.image;
+    let glossy_shown = compose(glossy, &cam, behind)?.image;
+    let noise = match reference_noise {
+        Some(n) => format!("noise {:.1}%", 100.0 * n),
+        None => "kept from the last run".to_string(),
+    };
+    cells.extend([
+        Cell {
+            image: &diffuse_shown,
+            tone,
+            caption: [
+                format!("diffuse base, turned {az}°"),
+                format!("L2 {:.1}% vs path traced", 100.0 * diffuse_error),
+            ],
+        },
+        Cell {
+            image: &glossy_shown,
+            tone,
+            caption: [
+                format!("K_b = {GLOSS_BRDF_TERMS}, turned {az}°"),
+                format!("L2 {:.1}% vs path traced", 100.0 * glossy_error),
+            ],
+        },
+        Cell {
+            image: &reference_shown,
+            tone,
+            caption: [
+                format!("path traced, turned {az}°"),
+                format!("{GLOSS_REFERENCE_PATHS} paths, {noise}"),
+            ],
+        },
+    ]);
+    let sheet_path = dir.join("gloss_sheet.png");
+    let vertices = t
+        .meta
+        .per_vertex
+        .as_ref()
+        .map_or(0, |p| p.vertices as usize);
+    write_sheet(
+        &sheet_path,
+        4,
+        &cells,
+        &format!(
+            "Glossy per-vertex transport ({vertices} vertices, {GLOSS_BRDF_TERMS} in-out terms): \
+             the highlight follows the camera"
+        ),
+    )?;
+    log(&format!(
+        "drew the glossy per-vertex bake from {} angles; from {az}° round, against the path \
+         tracer: {:.1}% with {GLOSS_BRDF_TERMS} in-out terms, {:.1}% for the diffuse base",
+        ORBIT_AZIMUTHS.len(),
+        100.0 * glossy_error,
+        100.0 * diffuse_error
+    ));
+    let bytes = std::fs::metadata(&transport_path).map_or(0, |m| m.len());
+    Ok(GlossReport {
+        transport_path,
+        sheet_path,
+        reused_bake,
+        bake_seconds,
+        vertices,
+        bytes_per_vertex: bytes as f64 / vertices.max(1) as f64,
+        reference_noise,
+        glossy_error,
+        diffuse_error,
+    })
+}
