@@ -7,6 +7,7 @@ pub mod bench;
 pub mod cli;
 pub mod demo;
 pub mod dusk;
+pub mod gloss_bench;
 pub mod gloss_orbit;
 pub mod lights_bench;
 pub mod orbit;

@@ -1,5 +1,6 @@
-//! `prt brdf`: the in-out factorisation of GGX lobes, its error against the number of terms per
-//! roughness, as a table and a plot.
+//! `prt brdf` and `prt gloss`: the in-out factorisation of GGX lobes (its error against the number
+//! of terms per roughness, as a table and a plot), and glossy per-vertex bakes against the path
+//! tracer.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -129,5 +130,112 @@ pub(super) fn brdf_cmd(a: BrdfArgs) -> Result<()> {
         &series,
     )?;
     println!("wrote {} and {}", table.display(), figure.display());
+    Ok(())
+}
+
+/// Arguments of `prt gloss`.
+#[derive(Args, Debug)]
+pub struct GlossArgs {
+    /// Scene file with glossy materials (TOML).
+    pub scene: PathBuf,
+    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    #[arg(long)]
+    pub env: String,
+    /// Output directory for gloss.md, gloss.csv, gloss_error.png, the bakes (`bakes/`, reused
+    /// when the scene is unchanged) and the compared images (`images/`).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Counts of in-out terms K_b to bake, comma-separated (1 is the diffuse base).
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8")]
+    pub brdf_terms: Vec<u32>,
+    /// Tessellations, as multiples of the scene's default edge length, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    pub edge_factors: Vec<f32>,
+    /// A camera position X,Y,Z; give the flag once per camera (`--eye=-3,2,1` when it starts
+    /// with a minus). Default: the scene's camera turned 60°, 180° and 300° about its target.
+    #[arg(long = "eye", value_parser = super::volume::parse_vec3, allow_negative_numbers = true)]
+    pub eyes: Vec<glam::Vec3>,
+    /// The point the cameras look at, X,Y,Z (default: the scene's target).
+    #[arg(long, value_parser = super::volume::parse_vec3, allow_negative_numbers = true)]
+    pub target: Option<glam::Vec3>,
+    /// Paths a pixel of the path tracer.
+    #[arg(long, default_value_t = 1024)]
+    pub paths: u32,
+    /// Samples a pixel of the drawings compared with it.
+    #[arg(long, default_value_t = 4)]
+    pub samples: u32,
+    /// Light terms K, comma-separated: each one's error against every term, and a frame's time.
+    #[arg(long, value_delimiter = ',', default_value = "100,200")]
+    pub terms: Vec<usize>,
+    /// Side of the timed frames, pixels (one sample a pixel).
+    #[arg(long, default_value_t = 512)]
+    pub frame_side: u32,
+    /// Where frames are timed beside the CPU: auto (a hardware GPU when one exists), cpu, or
+    /// gpu (any adapter, a software one included).
+    #[arg(long, value_enum, default_value_t = super::Device::Auto)]
+    pub device: super::Device,
+}
+
+/// Azimuths of `prt gloss`'s default cameras about the scene's target, degrees.
+const DEFAULT_AZIMUTHS: [f32; 3] = [60.0, 180.0, 300.0];
+
+pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
+    crate::files::check_output_folder(&a.out)?;
+    let scene = crate::scene::Scene::load(&a.scene)?;
+    let mut cameras = match a.eyes.is_empty() {
+        true => crate::app::gloss_bench::turned_cameras(&scene, &DEFAULT_AZIMUTHS),
+        false => a
+            .eyes
+            .iter()
+            .map(|&eye| crate::scene::Camera {
+                eye,
+                ..scene.camera.clone()
+            })
+            .collect(),
+    };
+    for c in &mut cameras {
+        c.target = a.target.unwrap_or(c.target);
+    }
+    let opts = crate::app::gloss_bench::GlossBenchOptions {
+        brdf_terms: a.brdf_terms,
+        edge_factors: a.edge_factors,
+        cameras,
+        paths: a.paths,
+        samples: a.samples,
+        light_terms: a.terms,
+        frame_side: a.frame_side,
+        runs: 5,
+        bake: crate::bake::BakeSettings::default(),
+    };
+    opts.validate()?;
+    let env = super::load_env(&a.env)?;
+    let name = std::path::Path::new(&a.env)
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or(&a.env)
+        .to_string();
+    let gpu = super::open_device(a.device)?;
+    if let Some(g) = &gpu {
+        eprintln!("gpu: {}", g.adapter);
+    }
+    std::fs::create_dir_all(&a.out).map_err(|e| PrtError::io(&a.out, e))?;
+    let start = Instant::now();
+    let bar = super::progress_bar(0);
+    let progress = super::bake_progress(&bar, Instant::now());
+    let report = crate::app::gloss_bench::run(
+        &a.out,
+        &scene,
+        (&name, &env),
+        &opts,
+        gpu.as_ref(),
+        &mut |line| bar.println(line),
+        &progress,
+    )?;
+    bar.finish_and_clear();
+    print!("{}", crate::app::gloss_bench::markdown(&report, &opts));
+    println!("\nin {:.0} s; wrote", start.elapsed().as_secs_f64());
+    for f in &report.files {
+        println!("  {}", f.display());
+    }
     Ok(())
 }

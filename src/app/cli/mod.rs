@@ -35,8 +35,8 @@ use bench::bench_cmd;
 pub use bounces::BouncesArgs;
 pub use bounces::LightsArgs;
 use bounces::{bounces_cmd, lights_cmd};
-pub use brdf::BrdfArgs;
-use brdf::brdf_cmd;
+pub use brdf::{BrdfArgs, GlossArgs};
+use brdf::{brdf_cmd, gloss_cmd};
 pub use relight::{EnvArgs, ReferenceArgs, RelightArgs};
 use relight::{compare_cmd, env_cmd, reference_cmd, relight_cmd};
 pub use view::ViewArgs;
@@ -101,6 +101,10 @@ pub enum Command {
     /// Factorise GGX lobes into in-out terms (the separable BRDF a glossy per-vertex bake
     /// needs): the error against the number of terms per roughness, as a table and a plot.
     Brdf(BrdfArgs),
+    /// Glossy per-vertex bakes against the path tracer: each count of in-out terms and
+    /// tessellation drawn from cameras the bake never saw, with the interpolation and the
+    /// light's terms apart, the bytes a vertex, the bake and frame times.
+    Gloss(GlossArgs),
     /// The local lights' figures: each kind against the path tracer and its bake cost, a
     /// moving light's error against the spacing of its positions, and many lights timed.
     Lights(LightsArgs),
@@ -274,6 +278,7 @@ fn run(command: Command) -> Result<()> {
         Command::Bounces(a) => bounces_cmd(a),
         Command::Lights(a) => lights_cmd(a),
         Command::Brdf(a) => brdf_cmd(a),
+        Command::Gloss(a) => gloss_cmd(a),
         Command::View(a) => view_cmd(a),
         Command::Volume(VolumeCommand::Bake(a)) => volume_bake_cmd(a),
         Command::Volume(VolumeCommand::Render(a)) => volume_render_cmd(a),

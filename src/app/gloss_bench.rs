@@ -1,0 +1,662 @@
+//! The glossy per-vertex figures (`prt gloss`): a scene baked per vertex at each count of in-out
+//! BRDF terms K_b and each tessellation, drawn from cameras the bake never saw and held to the
+//! independent path tracer, with the two other errors apart: the interpolation between vertices
+//! (the diffuse base drawn against the brute force of the scene made diffuse, which no
+//! factorisation touches) and the light's K terms (against every term, per vertex). With them,
+//! the file's bytes a vertex, the bake's time, and a frame's time at each K on the CPU and, when
+//! given one, the GPU.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::bake::path_tracer::path_trace;
+use crate::bake::reference::render_reference_with;
+use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::error::{PrtError, Result};
+use crate::light::envmap::{EnvMap, EnvRotation};
+use crate::light::select::Weighting;
+use crate::output::film::ToneMap;
+use crate::output::metrics::relative_l2;
+use crate::output::plot::{self, PALETTE, PlotSpec, Series};
+use crate::relight::gpu::Gpu;
+use crate::relight::vertex::{GlossEval, draw, draw_relit, vertex_colours};
+use crate::relight::{Backend, LightContext, RelightRequest, Terms, relight};
+use crate::scene::tessellate::VertexMesh;
+use crate::scene::{Camera, Scene};
+use crate::store::transport::{BakeDomain, Transport};
+
+/// What to measure.
+#[derive(Clone, Debug)]
+pub struct GlossBenchOptions {
+    /// Counts of in-out terms K_b (1 is the diffuse base).
+    pub brdf_terms: Vec<u32>,
+    /// Tessellations, as multiples of the scene's default edge length.
+    pub edge_factors: Vec<f32>,
+    /// The cameras the bakes are drawn from (none of them the bake's: a per-vertex bake has no
+    /// view).
+    pub cameras: Vec<Camera>,
+    /// Paths a pixel of the path tracer.
+    pub paths: u32,
+    /// Samples a pixel of the drawings compared with it.
+    pub samples: u32,
+    /// Light terms K whose error and frame time are measured.
+    pub light_terms: Vec<usize>,
+    /// Side of the timed frames (square, one sample a pixel), pixels.
+    pub frame_side: u32,
+    /// Frames timed per point; the median is reported.
+    pub runs: usize,
+    /// The bakes' settings but for their tessellation and K_b (`prt bake`'s defaults from the
+    /// command line); the references take their cube and camera sub-samples.
+    pub bake: BakeSettings,
+}
+
+/// A frame's median times, milliseconds: the relight (its kernel alone on a GPU) and the
+/// drawing (on a GPU: the colours uploaded, drawn and read back).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FrameTime {
+    /// The relight.
+    pub relight_ms: f64,
+    /// The drawing.
+    pub draw_ms: f64,
+}
+
+/// One bake: its tessellation and K_b, its cost, and its errors.
+#[derive(Clone, Debug)]
+pub struct GlossBakeRow {
+    /// Edge length as a multiple of the default.
+    pub edge_factor: f32,
+    /// Longest edge, scene units.
+    pub edge_length: f32,
+    /// In-out terms of the glossy materials.
+    pub brdf_terms: u32,
+    /// Vertices.
+    pub vertices: usize,
+    /// The file's bytes.
+    pub bytes: u64,
+    /// Time to bake (or to load the kept bake), seconds.
+    pub bake_seconds: f64,
+    /// Whether the bake was kept from an earlier run.
+    pub reused: bool,
+    /// Per camera: every term, `g_k` per pixel, against the path tracer (relative L2 over the
+    /// image).
+    pub error: Vec<f64>,
+    /// Per camera: the same with `g_k` at the vertices.
+    pub error_per_vertex: Vec<f64>,
+    /// Per K of [`GlossBenchOptions::light_terms`]: K terms against every term, per vertex.
+    pub light_error: Vec<f64>,
+    /// Per K: a CPU frame.
+    pub cpu: Vec<FrameTime>,
+    /// Per K: a GPU frame, when a GPU was given.
+    pub gpu: Option<Vec<FrameTime>>,
+}
+
+/// One camera: its path-traced reference and the interpolation error at each tessellation.
+#[derive(Clone, Debug)]
+pub struct GlossCameraRow {
+    /// Where it is.
+    pub eye: [f32; 3],
+    /// What it looks at.
+    pub target: [f32; 3],
+    /// The path tracer's own noise, relative L2.
+    pub noise: f64,
+    /// Per tessellation: the diffuse base drawn against the brute force of the scene made
+    /// diffuse, over the pixels both cover whole.
+    pub interpolation: Vec<f64>,
+}
+
+/// Everything measured.
+#[derive(Clone, Debug)]
+pub struct GlossBenchReport {
+    /// The scene's glossy materials: name, roughness.
+    pub glossy: Vec<(String, f32)>,
+    /// The environment's name.
+    pub env: String,
+    /// Every bake, tessellation by tessellation, K_b in the order given.
+    pub bakes: Vec<GlossBakeRow>,
+    /// Every camera.
+    pub cameras: Vec<GlossCameraRow>,
+    /// The GPU's name, when one was given.
+    pub gpu: Option<String>,
+    /// What was written.
+    pub files: Vec<PathBuf>,
+}
+
+impl GlossBenchOptions {
+    /// Checks the lists.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |what: &str, why: String| Err(PrtError::invalid(what, why));
+        if self.brdf_terms.is_empty() || self.brdf_terms.iter().any(|k| !(1..=16).contains(k)) {
+            return bad(
+                "--brdf-terms",
+                format!("{:?}; each must be from 1 to 16", self.brdf_terms),
+            );
+        }
+        let mut seen = self.edge_factors.clone();
+        seen.sort_by(f32::total_cmp);
+        seen.dedup();
+        if seen.len() != self.edge_factors.len() {
+            return bad(
+                "--edge-factors",
+                format!("{:?} names one twice", self.edge_factors),
+            );
+        }
+        if self.edge_factors.is_empty()
+            || self
+                .edge_factors
+                .iter()
+                .any(|f| !(f.is_finite() && (0.25..=16.0).contains(f)))
+        {
+            return bad(
+                "--edge-factors",
+                format!("{:?}; each must be from 0.25 to 16", self.edge_factors),
+            );
+        }
+        if self.cameras.is_empty() || self.cameras.len() > PALETTE.len() {
+            return bad(
+                "--eye",
+                format!(
+                    "{} cameras; give from 1 to {}",
+                    self.cameras.len(),
+                    PALETTE.len()
+                ),
+            );
+        }
+        for c in &self.cameras {
+            c.validate()?;
+        }
+        if self.light_terms.is_empty() {
+            return bad("--terms", "no light term counts".into());
+        }
+        crate::relight::raster::sample_offsets(self.samples)?;
+        crate::flags::within("--paths", self.paths, 1..=1 << 20, "")?;
+        crate::flags::within("--frame-side", self.frame_side, 16..=4096, " pixels")?;
+        self.bake.validate()
+    }
+}
+
+/// The scene's camera turned about its target to `azimuths_deg` (see
+/// [`crate::relight::vertex::orbit`]): default cameras that the bake never saw.
+pub fn turned_cameras(scene: &Scene, azimuths_deg: &[f32]) -> Vec<Camera> {
+    azimuths_deg
+        .iter()
+        .map(|&az| crate::relight::vertex::orbit(&scene.camera, az, 0.0))
+        .collect()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Runs the measurements on `scene` under `env` (named `env_name`) and writes `gloss.md`,
+/// `gloss.csv`, `gloss_error.png`, the bakes (`bakes/`, reused on the next run when the scene and
+/// settings are unchanged) and every compared image (`images/`) into `dir`.
+#[allow(clippy::too_many_arguments)]
+pub fn run(
+    dir: &Path,
+    scene: &Scene,
+    env: (&str, &EnvMap),
+    opts: &GlossBenchOptions,
+    gpu: Option<&Gpu>,
+    log: &mut dyn FnMut(&str),
+    progress: &(dyn Fn(BakeProgress) + Sync),
+) -> Result<GlossBenchReport> {
+    opts.validate()?;
+    let (env_name, env) = env;
+    let glossy: Vec<(String, f32)> = scene
+        .materials
+        .iter()
+        .zip(&scene.material_names)
+        .filter_map(|(m, name)| Some((name.clone(), m.glossy_lobe()?.1.sqrt())))
+        .collect();
+    if glossy.is_empty() {
+        return Err(PrtError::invalid(
+            "scene",
+            format!(
+                "{} has no glossy material: its per-vertex bake keeps one term whatever K_b",
+                scene.source_path.display()
+            ),
+        ));
+    }
+    let images = dir.join("images");
+    std::fs::create_dir_all(&images).map_err(|e| PrtError::io(&images, e))?;
+    let bakes_dir = dir.join("bakes");
+    std::fs::create_dir_all(&bakes_dir).map_err(|e| PrtError::io(&bakes_dir, e))?;
+    let rotation = EnvRotation::default();
+    let base = BakeSettings {
+        domain: BakeDomain::View,
+        ..opts.bake.clone()
+    };
+    let cube = env.to_cube(base.cube_n, rotation)?;
+
+    // The references of each camera: the path tracer (exact lobes) and the brute force of the
+    // scene made diffuse (for the interpolation).
+    let diffuse_scene = scene.with_diffuse_materials();
+    let mut references = Vec::new();
+    let mut cameras = Vec::new();
+    for (i, cam) in opts.cameras.iter().enumerate() {
+        log(&format!(
+            "camera {}: path tracing ({} paths a pixel) and the diffuse brute force ...",
+            i + 1,
+            opts.paths
+        ));
+        let mut at = scene.clone();
+        at.camera = cam.clone();
+        let traced = path_trace(&at, &cube, &base, opts.paths, &|_, _| {})?;
+        traced.image.check_finite("path-traced image")?;
+        let tone = ToneMap::auto(&traced.image, None);
+        traced.image.save(
+            &images.join(format!("camera{}_path_traced.exr", i + 1)),
+            tone,
+        )?;
+        let mut diffuse = diffuse_scene.clone();
+        diffuse.camera = cam.clone();
+        let brute = render_reference_with(&diffuse, &cube, &base, &|_, _| {})?;
+        cameras.push(GlossCameraRow {
+            eye: cam.eye.to_array(),
+            target: cam.target.to_array(),
+            noise: traced.relative_noise(None),
+            interpolation: Vec::new(),
+        });
+        references.push((traced.image, brute, tone));
+    }
+
+    let default_edge = VertexMesh::default_edge_length(scene);
+    let k_reqs: Vec<RelightRequest> = opts
+        .light_terms
+        .iter()
+        .map(|&k| RelightRequest::Wavelet {
+            k,
+            weighting: Weighting::Transport,
+        })
+        .collect();
+    let mut bakes = Vec::new();
+    for &factor in &opts.edge_factors {
+        for (b, &k_b) in opts.brdf_terms.iter().enumerate() {
+            let settings = BakeSettings {
+                domain: BakeDomain::Vertices {
+                    edge_length: default_edge * factor,
+                },
+                brdf_terms: k_b,
+                ..base.clone()
+            };
+            let path = bakes_dir.join(format!("edges{factor}_kb{k_b}.prt"));
+            let what = format!("baking with edges of {factor}x the default, K_b = {k_b} ...");
+            let (t, reused, bake_seconds) =
+                load_or_bake_logged(&path, scene, &settings, &what, log, progress)?;
+            for k in &opts.light_terms {
+                crate::flags::terms(*k, t.meta.identity.cube_n as usize)?;
+            }
+            let ctx = LightContext::new(&t)?;
+            let light = ctx.prepare(env, rotation)?;
+            let (full, _) = relight(&t, &ctx, &light, &RelightRequest::Full)?;
+            let mut row = GlossBakeRow {
+                edge_factor: factor,
+                edge_length: t.meta.identity.domain.edge_length().unwrap_or_default(),
+                brdf_terms: k_b,
+                vertices: t
+                    .meta
+                    .per_vertex
+                    .as_ref()
+                    .map_or(0, |p| p.vertices as usize),
+                bytes: std::fs::metadata(&path).map_or(0, |m| m.len()),
+                bake_seconds,
+                reused,
+                error: Vec::new(),
+                error_per_vertex: Vec::new(),
+                light_error: Vec::new(),
+                cpu: Vec::new(),
+                gpu: None,
+            };
+            for (i, (cam, (traced, brute, tone))) in
+                opts.cameras.iter().zip(&references).enumerate()
+            {
+                for (eval, errors) in [
+                    (GlossEval::PerPixel, &mut row.error),
+                    (GlossEval::PerVertex, &mut row.error_per_vertex),
+                ] {
+                    let drawn = draw_relit(&t, &full, cam, None, opts.samples, eval)?;
+                    errors.push(relative_l2(&drawn.image, traced, None)?);
+                    if eval == GlossEval::PerPixel {
+                        drawn.image.save(
+                            &images.join(format!("camera{}_edges{factor}_kb{k_b}.exr", i + 1)),
+                            *tone,
+                        )?;
+                    }
+                }
+                // The interpolation: once per tessellation (term 0 is the same diffuse base at
+                // every K_b).
+                if b == 0 {
+                    let base = draw(&t, &vertex_colours(&t, &full)?, cam, None, opts.samples)?;
+                    let both: Vec<f32> = base
+                        .coverage
+                        .iter()
+                        .zip(&brute.coverage)
+                        .map(|(a, b)| (*a == 1.0 && *b == 1.0) as u8 as f32)
+                        .collect();
+                    cameras[i].interpolation.push(relative_l2(
+                        &base.image,
+                        &brute.image,
+                        Some(&both),
+                    )?);
+                }
+            }
+            let frame_cam = Camera {
+                width: opts.frame_side,
+                height: opts.frame_side,
+                ..opts.cameras[0].clone()
+            };
+            for req in &k_reqs {
+                let (k_img, _) = relight(&t, &ctx, &light, req)?;
+                row.light_error
+                    .push(relative_l2(&k_img, &full, Some(&t.coverage))?);
+                let mut times = Vec::new();
+                for _ in 0..opts.runs {
+                    let t0 = Instant::now();
+                    let (img, _) = relight(&t, &ctx, &light, req)?;
+                    let t1 = Instant::now();
+                    draw_relit(&t, &img, &frame_cam, None, 1, GlossEval::PerPixel)?;
+                    times.push([t0, t1, Instant::now()]);
+                }
+                row.cpu.push(FrameTime {
+                    relight_ms: median(times.iter().map(|t| ms(t[0], t[1])).collect()),
+                    draw_ms: median(times.iter().map(|t| ms(t[1], t[2])).collect()),
+                });
+            }
+            if let Some(gpu) = gpu {
+                row.gpu = Some(gpu_frames(
+                    gpu, &t, &ctx, &light, &k_reqs, &frame_cam, opts,
+                )?);
+            }
+            log(&format!(
+                "edges {factor}x, K_b = {k_b}: {} vertices, {:.1} KB a vertex; against the path \
+                 tracer {}",
+                row.vertices,
+                row.bytes as f64 / row.vertices.max(1) as f64 / 1e3,
+                row.error
+                    .iter()
+                    .map(|e| format!("{:.1}%", 100.0 * e))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+            bakes.push(row);
+        }
+    }
+    let mut report = GlossBenchReport {
+        glossy,
+        env: env_name.to_string(),
+        bakes,
+        cameras,
+        gpu: gpu.map(|g| g.adapter.clone()),
+        files: Vec::new(),
+    };
+    let files = vec![
+        dir.join("gloss.md"),
+        dir.join("gloss.csv"),
+        dir.join("gloss_error.png"),
+    ];
+    crate::files::write_bytes_atomically(&files[0], markdown(&report, opts).as_bytes())?;
+    crate::files::write_bytes_atomically(&files[1], csv(&report).as_bytes())?;
+    plot::write(
+        &files[2],
+        &PlotSpec {
+            title: format!(
+                "Glossy per-vertex bakes under {}: error against the path tracer",
+                report.env
+            ),
+            x_label: "in-out BRDF terms K_b (1: the diffuse base)".into(),
+            y_label: "relative L2 against the path tracer".into(),
+            log_x: true,
+            log_y: false,
+            width: 720,
+            height: 440,
+        },
+        &error_series(&report, opts),
+    )?;
+    report.files = files;
+    Ok(report)
+}
+
+fn ms(a: Instant, b: Instant) -> f64 {
+    (b - a).as_secs_f64() * 1e3
+}
+
+/// A GPU frame at each K: the kernel's own time, then the colours uploaded, drawn and read back.
+fn gpu_frames(
+    gpu: &Gpu,
+    t: &Transport,
+    ctx: &LightContext,
+    light: &crate::relight::PreparedLight,
+    reqs: &[RelightRequest],
+    camera: &Camera,
+    opts: &GlossBenchOptions,
+) -> Result<Vec<FrameTime>> {
+    use crate::relight::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
+    let resident = crate::relight::gpu::GpuTransport::upload(gpu, t, None)?;
+    let backend = crate::relight::gpu::GpuBackend::new(gpu, &resident, t)?;
+    let mesh = crate::relight::vertex::mesh_of(t)?;
+    let m = GpuMesh::of_bake(gpu, mesh)?;
+    let mut raster = GpuRaster::multisampled(gpu, 1)?;
+    reqs.iter()
+        .map(|req| {
+            let terms = Terms::of(t, ctx, light, req)?;
+            let mut kernel = Vec::new();
+            let mut drawing = Vec::new();
+            // One frame first, unmeasured: pipelines and buffers are made on first use.
+            for run in 0..=opts.runs {
+                let (img, stats) = backend.relight_terms(&terms)?;
+                let t0 = Instant::now();
+                let pixels = &img.pixels[..mesh.pixel_count().min(img.pixels.len())];
+                let c = upload_colours(gpu, pixels)?;
+                raster.draw(gpu, camera, &m, &c)?;
+                if run > 0 {
+                    kernel.push(stats.kernel_seconds * 1e3);
+                    drawing.push(ms(t0, Instant::now()));
+                }
+            }
+            Ok(FrameTime {
+                relight_ms: median(kernel),
+                draw_ms: median(drawing),
+            })
+        })
+        .collect()
+}
+
+/// The plot's curves: per tessellation and camera, the error against K_b.
+fn error_series(r: &GlossBenchReport, opts: &GlossBenchOptions) -> Vec<Series> {
+    let mut out = Vec::new();
+    for (f, &factor) in opts.edge_factors.iter().enumerate() {
+        for (c, _) in r.cameras.iter().enumerate() {
+            out.push(Series {
+                label: format!("camera {}, edges {factor}x", c + 1),
+                points: r
+                    .bakes
+                    .iter()
+                    .filter(|b| b.edge_factor == factor)
+                    .map(|b| (b.brdf_terms as f64, b.error[c]))
+                    .collect(),
+                color: PALETTE[c % PALETTE.len()],
+                dashed: f > 0,
+            });
+        }
+    }
+    out
+}
+
+/// The report as markdown.
+pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
+    let mut s = String::new();
+    let glossy: Vec<String> = r
+        .glossy
+        .iter()
+        .map(|(n, rough)| format!("`{n}` (roughness {rough})"))
+        .collect();
+    let _ = writeln!(
+        s,
+        "# Glossy per-vertex bakes against the path tracer\n\nUnder `{}`; glossy materials {}. \
+         Relative L2 over the whole image (the background black), every stored term, `g_k` per \
+         pixel ({} samples a pixel); the path tracer at {} paths a pixel.\n",
+        r.env,
+        glossy.join(", "),
+        opts.samples,
+        opts.paths
+    );
+    let _ = writeln!(
+        s,
+        "## Cameras\n\n| camera | eye | target | path tracer's noise | interpolation, per tessellation |\n|---:|---|---|---:|---|"
+    );
+    for (i, c) in r.cameras.iter().enumerate() {
+        let interp: Vec<String> = c
+            .interpolation
+            .iter()
+            .zip(&opts.edge_factors)
+            .map(|(e, f)| format!("{:.2}% (edges {f}x)", 100.0 * e))
+            .collect();
+        let _ = writeln!(
+            s,
+            "| {} | {:.2}, {:.2}, {:.2} | {:.2}, {:.2}, {:.2} | {:.1}% | {} |",
+            i + 1,
+            c.eye[0],
+            c.eye[1],
+            c.eye[2],
+            c.target[0],
+            c.target[1],
+            c.target[2],
+            100.0 * c.noise,
+            interp.join(", ")
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nThe interpolation is the diffuse base drawn against the brute force of the scene made \
+         diffuse, over the pixels both cover whole: what drawing between vertices costs, apart \
+         from the factorisation.\n"
+    );
+    let cams = (1..=r.cameras.len())
+        .map(|i| format!(" camera {i} |"))
+        .collect::<String>();
+    let ks = opts
+        .light_terms
+        .iter()
+        .map(|k| format!(" K = {k} vs every term |"))
+        .collect::<String>();
+    let _ = writeln!(
+        s,
+        "## Error against the path tracer\n\n| edges | vertices | K_b |{cams} `g_k` per vertex, \
+         camera 1 |{ks} file | bytes a vertex | bake (s) |\n|---|---:|---:|{}{}---:|---:|---:|",
+        "---:|".repeat(r.cameras.len() + 1),
+        "---:|".repeat(opts.light_terms.len())
+    );
+    for b in &r.bakes {
+        let errors: String = b
+            .error
+            .iter()
+            .map(|e| format!(" {:.2}% |", 100.0 * e))
+            .collect();
+        let light: String = b
+            .light_error
+            .iter()
+            .map(|e| format!(" {:.2}% |", 100.0 * e))
+            .collect();
+        let _ = writeln!(
+            s,
+            "| {}x ({:.3}) | {} | {} |{errors} {:.2}% |{light} {:.1} MiB | {:.0} | {:.1}{} |",
+            b.edge_factor,
+            b.edge_length,
+            b.vertices,
+            b.brdf_terms,
+            100.0 * b.error_per_vertex.first().copied().unwrap_or(0.0),
+            b.bytes as f64 / (1u64 << 20) as f64,
+            b.bytes as f64 / b.vertices.max(1) as f64,
+            b.bake_seconds,
+            if b.reused { " (kept)" } else { "" }
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\n## Frame time\n\nRelight at K terms, then draw {0}x{0} at one sample a pixel from \
+         camera 1, median of {1}, milliseconds (relight + draw){2}.\n",
+        opts.frame_side,
+        opts.runs,
+        match &r.gpu {
+            Some(g) => format!(
+                "; on the GPU ({g}) the kernel's own time, then the colours uploaded, drawn and \
+                 read back"
+            ),
+            None => String::new(),
+        }
+    );
+    let heads: String = opts
+        .light_terms
+        .iter()
+        .map(|k| {
+            let mut h = format!(" CPU, K = {k} |");
+            if r.gpu.is_some() {
+                let _ = write!(h, " GPU, K = {k} |");
+            }
+            h
+        })
+        .collect();
+    let cols = opts.light_terms.len() * (1 + r.gpu.is_some() as usize);
+    let _ = writeln!(
+        s,
+        "| edges | K_b |{heads}\n|---|---:|{}",
+        "---:|".repeat(cols)
+    );
+    let cell = |f: &FrameTime| {
+        format!(
+            " {:.1} + {:.1} = {:.1} |",
+            f.relight_ms,
+            f.draw_ms,
+            f.relight_ms + f.draw_ms
+        )
+    };
+    for b in &r.bakes {
+        let mut line = format!("| {}x | {} |", b.edge_factor, b.brdf_terms);
+        for (i, c) in b.cpu.iter().enumerate() {
+            line.push_str(&cell(c));
+            if let Some(g) = b.gpu.as_ref().and_then(|g| g.get(i)) {
+                line.push_str(&cell(g));
+            }
+        }
+        let _ = writeln!(s, "{line}");
+    }
+    s
+}
+
+/// The report as CSV: one line per bake and camera.
+pub fn csv(r: &GlossBenchReport) -> String {
+    let mut s = String::from(
+        "edge_factor,edge_length,vertices,brdf_terms,bytes,bake_seconds,camera,rel_l2,rel_l2_per_vertex_gloss,interpolation,path_tracer_noise\n",
+    );
+    let factors: Vec<f32> = {
+        let mut f: Vec<f32> = r.bakes.iter().map(|b| b.edge_factor).collect();
+        f.dedup();
+        f
+    };
+    for b in &r.bakes {
+        let t = factors
+            .iter()
+            .position(|f| *f == b.edge_factor)
+            .unwrap_or(0);
+        for (c, cam) in r.cameras.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "{},{},{},{},{},{:.3},{},{:.6},{:.6},{:.6},{:.6}",
+                b.edge_factor,
+                b.edge_length,
+                b.vertices,
+                b.brdf_terms,
+                b.bytes,
+                b.bake_seconds,
+                c + 1,
+                b.error[c],
+                b.error_per_vertex[c],
+                cam.interpolation.get(t).copied().unwrap_or_default(),
+                cam.noise
+            );
+        }
+    }
+    s
+}
