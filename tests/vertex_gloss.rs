@@ -5,7 +5,9 @@
 
 mod common;
 
-use common::{SPHERE_ON_PLANE, StFile, assets, gpu_or_skip, prt, relit, scene_from, temp_dir};
+use common::{
+    SPHERE_ON_PLANE, StFile, assets, glossy_sphere, gpu_or_skip, prt, relit, scene_from, temp_dir,
+};
 use glam::Vec3;
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
@@ -18,17 +20,6 @@ use wavelet_prt::scene::brdf::ggx_cosine;
 use wavelet_prt::scene::brdf_factor::{BrdfFactors, HemiOct, to_local};
 use wavelet_prt::scene::trace::Tracer;
 use wavelet_prt::store::transport::{BakeDomain, Transport};
-
-/// A glossy sphere (GGX roughness 0.5) on a matte ground: the shared sphere on its plane with
-/// its clay made glossy.
-fn glossy_sphere() -> String {
-    let clay = "type = \"diffuse\"\nalbedo = [0.8, 0.3, 0.2]";
-    assert!(SPHERE_ON_PLANE.contains(clay));
-    SPHERE_ON_PLANE.replace(
-        clay,
-        "type = \"glossy\"\nalbedo = [0.3, 0.1, 0.05]\nspecular = [0.5, 0.5, 0.5]\nroughness = 0.5",
-    )
-}
 
 /// A vertex's colour from the bake, its terms weighed by `g_k` towards the eye, against the same
 /// factored lobe integrated here over the cube's texel centres: one sum through f32 rows, Haar

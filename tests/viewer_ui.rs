@@ -562,3 +562,98 @@ fn toggling_and_scaling_a_light_in_the_panel_changes_the_image_by_its_column() {
         assert!((x[0] - want).abs() <= 1e-5 * (1.0 + want), "pixel {p}");
     }
 }
+
+#[test]
+fn a_glossy_per_vertex_window_moves_its_highlight_as_the_camera_orbits() {
+    use wavelet_prt::bake::{BakeSettings, bake};
+    use wavelet_prt::relight::vertex::bake_camera;
+    use wavelet_prt::store::transport::BakeDomain;
+    let scene = common::scene_from(&common::glossy_sphere(), "viewer-gloss");
+    let settings = BakeSettings {
+        cube_n: 8,
+        sh_order: 2,
+        lossless: true,
+        domain: BakeDomain::Vertices { edge_length: 0.15 },
+        brdf_terms: 4,
+        ..BakeSettings::default()
+    };
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    let file = common::temp_dir("viewer-gloss").join("glossy.prt");
+    t.save(&file).unwrap();
+    // The sun of `sun:ELEV,AZIM` (CONVENTIONS.md).
+    let (elevation, azimuth) = (30f32.to_radians(), 160f32.to_radians());
+    let sun = glam::Vec3::new(
+        azimuth.sin() * elevation.cos(),
+        elevation.sin(),
+        -azimuth.cos() * elevation.cos(),
+    );
+    let mut h = harness(ViewerApp::new(&file, &["sun:30,160".to_string()]));
+    // The first image comes at the bake's size; the pane's size is known once it is shown.
+    settle(&mut h);
+    settle(&mut h);
+    assert!(h.state().error.is_none(), "{:?}", h.state().error);
+    let base = bake_camera(&t).unwrap();
+    // What the window shows and the camera it was drawn from.
+    let shown = |h: &Harness<'static, ViewerApp>| {
+        let r = h.state().rendered().expect("a CPU result");
+        let camera = wavelet_prt::scene::Camera {
+            width: r.width as u32,
+            height: r.height as u32,
+            ..r.state.camera_of(&base)
+        };
+        (camera, r.panes[0].linear.image.clone())
+    };
+    let (before_cam, before) = shown(&h);
+    assert_eq!(
+        Some((before_cam.width, before_cam.height)),
+        h.state().state.draw_size,
+        "drawn at the pane's size"
+    );
+    h.hover_at(egui::pos2(600.0, 350.0));
+    h.run();
+    h.drag_at(egui::pos2(600.0, 350.0));
+    h.hover_at(egui::pos2(700.0, 350.0));
+    h.drop_at(egui::pos2(700.0, 350.0));
+    settle(&mut h);
+    let (after_cam, after) = shown(&h);
+    let turned = (after_cam.eye - after_cam.target)
+        .angle_between(before_cam.eye - before_cam.target)
+        .to_degrees();
+    assert!(turned > 20.0, "the drag turned the camera {turned}°");
+    // The sphere's point where a camera sees the sun's highlight: its normal halfway between
+    // the sun and the eye.
+    let sphere = &scene.spheres[0];
+    let highlight = |c: &wavelet_prt::scene::Camera| {
+        let n = (sun + (c.eye - sphere.center).normalize()).normalize();
+        sphere.center + n * sphere.radius * 1.001
+    };
+    // A point's brightness in a view: the pixel it falls on, summed over RGB.
+    let at = |c: &wavelet_prt::scene::Camera, img: &wavelet_prt::output::film::Image, p| {
+        let (x, y) = c.project(p).expect("in front of the camera");
+        let (x, y) = (x as usize, y as usize);
+        assert!(x < img.width && y < img.height, "({x}, {y}) off the image");
+        img.pixels[y * img.width + x].iter().sum::<f32>()
+    };
+    // The vertex colours (the diffuse light and every term's response) are the same in both
+    // views; only the terms' weights follow the eye. So each view is brighter than the other at
+    // its own highlight (measured 1.13x and 1.63x; a draw that kept the first view's weights, or
+    // none, would be 1x at both, as the ground is).
+    let (p_before, p_after) = (highlight(&before_cam), highlight(&after_cam));
+    // Both points face both cameras squarely, far from the silhouette.
+    for p in [p_before, p_after] {
+        for c in [&before_cam, &after_cam] {
+            let facing = (p - sphere.center).normalize().dot((c.eye - p).normalize());
+            assert!(facing > 0.5, "{p} seen at {facing} from {}", c.eye);
+        }
+    }
+    let mine = at(&before_cam, &before, p_before) / at(&after_cam, &after, p_before);
+    let theirs = at(&after_cam, &after, p_after) / at(&before_cam, &before, p_after);
+    assert!(
+        mine > 1.05 && theirs > 1.05,
+        "at the first view's highlight {mine}x the second's brightness, at the second's {theirs}x"
+    );
+    // A matte point on the ground is the same from both sides (measured 1.00004x).
+    let ground = glam::Vec3::new(1.2, 0.0, 1.2);
+    let matte = at(&before_cam, &before, ground) / at(&after_cam, &after, ground);
+    assert!((matte - 1.0).abs() < 0.02, "the ground changed {matte}x");
+}

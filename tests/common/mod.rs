@@ -44,6 +44,18 @@ pub fn full_light(
     }
 }
 
+/// A glossy sphere (GGX roughness 0.5) on a matte ground: the shared sphere on its plane with
+/// its clay made glossy.
+#[allow(dead_code)]
+pub fn glossy_sphere() -> String {
+    let clay = "type = \"diffuse\"\nalbedo = [0.8, 0.3, 0.2]";
+    assert!(SPHERE_ON_PLANE.contains(clay));
+    SPHERE_ON_PLANE.replace(
+        clay,
+        "type = \"glossy\"\nalbedo = [0.3, 0.1, 0.05]\nspecular = [0.5, 0.5, 0.5]\nroughness = 0.5",
+    )
+}
+
 /// Writes `text` as a scene file in its own temp dir and loads it. Every call gets a directory
 /// of its own: tests of one binary run in parallel and may load the same scene at once.
 pub fn scene_from(text: &str, name: &str) -> Scene {
