@@ -226,7 +226,7 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
             &settings,
             thresholds,
             &envs,
-            &mut |l| sweep.println(l),
+            &mut |l| sweep.suspend(|| eprintln!("{l}")),
             &progress,
         )?;
         sweep.finish_and_clear();

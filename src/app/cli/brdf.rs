@@ -228,7 +228,7 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
         (&name, &env),
         &opts,
         gpu.as_ref(),
-        &mut |line| bar.println(line),
+        &mut |line| bar.suspend(|| eprintln!("{line}")),
         &progress,
     )?;
     bar.finish_and_clear();
