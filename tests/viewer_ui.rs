@@ -580,7 +580,7 @@ fn a_glossy_per_vertex_window_moves_its_highlight_as_the_camera_orbits() {
     let t = bake(&scene, &settings, &|_| {}).unwrap();
     let file = common::temp_dir("viewer-gloss").join("glossy.prt");
     t.save(&file).unwrap();
-    // The sun of `sun:ELEV,AZIM` (CONVENTIONS.md).
+    // The direction of `sun:ELEV,AZIM` (`SunSky` in `src/light/envmap.rs`).
     let (elevation, azimuth) = (30f32.to_radians(), 160f32.to_radians());
     let sun = glam::Vec3::new(
         azimuth.sin() * elevation.cos(),
@@ -630,8 +630,11 @@ fn a_glossy_per_vertex_window_moves_its_highlight_as_the_camera_orbits() {
     // A point's brightness in a view: the pixel it falls on, summed over RGB.
     let at = |c: &wavelet_prt::scene::Camera, img: &wavelet_prt::output::film::Image, p| {
         let (x, y) = c.project(p).expect("in front of the camera");
+        assert!(
+            (0.0..img.width as f32).contains(&x) && (0.0..img.height as f32).contains(&y),
+            "({x}, {y}) off the image"
+        );
         let (x, y) = (x as usize, y as usize);
-        assert!(x < img.width && y < img.height, "({x}, {y}) off the image");
         img.pixels[y * img.width + x].iter().sum::<f32>()
     };
     // The vertex colours (the diffuse light and every term's response) are the same in both

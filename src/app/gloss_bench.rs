@@ -168,10 +168,49 @@ impl GlossBenchOptions {
         if self.light_terms.is_empty() {
             return bad("--terms", "no light term counts".into());
         }
+        for &k in &self.light_terms {
+            crate::flags::terms(k, self.bake.cube_n)?;
+        }
+        if self.runs == 0 {
+            return bad("runs", "no frames to time".into());
+        }
         crate::relight::raster::sample_offsets(self.samples)?;
         crate::flags::within("--paths", self.paths, 1..=1 << 20, "")?;
         crate::flags::within("--frame-side", self.frame_side, 16..=4096, " pixels")?;
         self.bake.validate()
+    }
+}
+
+/// The name and roughness of each of `scene`'s glossy materials; an error when it has none
+/// (its per-vertex bake would keep one term whatever K_b).
+pub fn glossy_materials(scene: &Scene) -> Result<Vec<(String, f32)>> {
+    let glossy: Vec<(String, f32)> = scene
+        .materials
+        .iter()
+        .zip(&scene.material_names)
+        .filter_map(|(m, name)| Some((name.clone(), m.glossy_lobe()?.1.sqrt())))
+        .collect();
+    if glossy.is_empty() {
+        return Err(PrtError::invalid(
+            "scene",
+            format!(
+                "{} has no glossy material: its per-vertex bake keeps one term whatever K_b",
+                scene.source_path.display()
+            ),
+        ));
+    }
+    Ok(glossy)
+}
+
+/// A relative error that can be reported: finite (a reference dark over the compared pixels
+/// has none).
+fn reportable(e: f64, what: impl FnOnce() -> String) -> Result<f64> {
+    match e.is_finite() {
+        true => Ok(e),
+        false => Err(PrtError::invalid(
+            "gloss",
+            format!("{}: the reference is dark where compared", what()),
+        )),
     }
 }
 
@@ -204,21 +243,7 @@ pub fn run(
 ) -> Result<GlossBenchReport> {
     opts.validate()?;
     let (env_name, env) = env;
-    let glossy: Vec<(String, f32)> = scene
-        .materials
-        .iter()
-        .zip(&scene.material_names)
-        .filter_map(|(m, name)| Some((name.clone(), m.glossy_lobe()?.1.sqrt())))
-        .collect();
-    if glossy.is_empty() {
-        return Err(PrtError::invalid(
-            "scene",
-            format!(
-                "{} has no glossy material: its per-vertex bake keeps one term whatever K_b",
-                scene.source_path.display()
-            ),
-        ));
-    }
+    let glossy = glossy_materials(scene)?;
     let images = dir.join("images");
     std::fs::create_dir_all(&images).map_err(|e| PrtError::io(&images, e))?;
     let bakes_dir = dir.join("bakes");
@@ -285,9 +310,6 @@ pub fn run(
             let what = format!("baking with edges of {factor}x the default, K_b = {k_b} ...");
             let (t, reused, bake_seconds) =
                 load_or_bake_logged(&path, scene, &settings, &what, log, progress)?;
-            for k in &opts.light_terms {
-                crate::flags::terms(*k, t.meta.identity.cube_n as usize)?;
-            }
             let ctx = LightContext::new(&t)?;
             let light = ctx.prepare(env, rotation)?;
             let (full, _) = relight(&t, &ctx, &light, &RelightRequest::Full)?;
@@ -317,7 +339,10 @@ pub fn run(
                     (GlossEval::PerVertex, &mut row.error_per_vertex),
                 ] {
                     let drawn = draw_relit(&t, &full, cam, None, opts.samples, eval)?;
-                    errors.push(relative_l2(&drawn.image, traced, None)?);
+                    errors.push(reportable(
+                        relative_l2(&drawn.image, traced, None)?,
+                        || format!("camera {}", i + 1),
+                    )?);
                     if eval == GlossEval::PerPixel {
                         drawn.image.save(
                             &images.join(format!("camera{}_edges{factor}_kb{k_b}.exr", i + 1)),
@@ -335,10 +360,9 @@ pub fn run(
                         .zip(&brute.coverage)
                         .map(|(a, b)| (*a == 1.0 && *b == 1.0) as u8 as f32)
                         .collect();
-                    cameras[i].interpolation.push(relative_l2(
-                        &base.image,
-                        &brute.image,
-                        Some(&both),
+                    cameras[i].interpolation.push(reportable(
+                        relative_l2(&base.image, &brute.image, Some(&both))?,
+                        || format!("camera {}: the diffuse brute force", i + 1),
                     )?);
                 }
             }
@@ -349,8 +373,10 @@ pub fn run(
             };
             for req in &k_reqs {
                 let (k_img, _) = relight(&t, &ctx, &light, req)?;
-                row.light_error
-                    .push(relative_l2(&k_img, &full, Some(&t.coverage))?);
+                row.light_error.push(reportable(
+                    relative_l2(&k_img, &full, Some(&t.coverage))?,
+                    || "the light's K terms".to_string(),
+                )?);
                 let mut times = Vec::new();
                 for _ in 0..opts.runs {
                     let t0 = Instant::now();
@@ -476,8 +502,8 @@ fn error_series(r: &GlossBenchReport, opts: &GlossBenchOptions) -> Vec<Series> {
                     .filter(|b| b.edge_factor == factor)
                     .map(|b| (b.brdf_terms as f64, b.error[c]))
                     .collect(),
-                color: PALETTE[c % PALETTE.len()],
-                dashed: f > 0,
+                color: PALETTE[(f * r.cameras.len() + c) % PALETTE.len()],
+                dashed: f % 2 == 1,
             });
         }
     }
@@ -628,7 +654,7 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
 /// The report as CSV: one line per bake and camera.
 pub fn csv(r: &GlossBenchReport) -> String {
     let mut s = String::from(
-        "edge_factor,edge_length,vertices,brdf_terms,bytes,bake_seconds,camera,rel_l2,rel_l2_per_vertex_gloss,interpolation,path_tracer_noise\n",
+        "edge_factor,edge_length,vertices,brdf_terms,bytes,bake_seconds,reused,camera,rel_l2,rel_l2_per_vertex_gloss,interpolation,path_tracer_noise\n",
     );
     let factors: Vec<f32> = {
         let mut f: Vec<f32> = r.bakes.iter().map(|b| b.edge_factor).collect();
@@ -643,13 +669,14 @@ pub fn csv(r: &GlossBenchReport) -> String {
         for (c, cam) in r.cameras.iter().enumerate() {
             let _ = writeln!(
                 s,
-                "{},{},{},{},{},{:.3},{},{:.6},{:.6},{:.6},{:.6}",
+                "{},{},{},{},{},{:.3},{},{},{:.6},{:.6},{:.6},{:.6}",
                 b.edge_factor,
                 b.edge_length,
                 b.vertices,
                 b.brdf_terms,
                 b.bytes,
                 b.bake_seconds,
+                b.reused,
                 c + 1,
                 b.error[c],
                 b.error_per_vertex[c],
