@@ -11,7 +11,11 @@
 //! - `yaw_drag`: cached weights, a new yaw every iteration;
 //! - `map_switch`: cached weights, alternating between two bundled maps of the same size, each at
 //!   a new yaw;
-//! - `pitch_drag`: a new pitch every iteration, so its weights are built each time;
+//! - `pitch_drag`: a new pitch every iteration, splatted at sub-cell centres
+//!   (`resample::pitch`);
+//! - `pitched_yaw_drag`: a new yaw every iteration at a pitch of 30°, the same path;
+//! - `pitch_drag_recorded`: a new pitch every iteration through weights recorded for it, as every
+//!   pitch was prepared before (the cube by `resample_latlong_recorded`, then as `prepare`);
 //! - `cube_gather`: one cached cube at a fractional yaw, the resampling alone.
 
 use std::hint::black_box;
@@ -113,6 +117,42 @@ fn prepare(c: &mut Criterion) {
                     pitch_deg: pitch,
                 };
                 ctx.prepare(black_box(&sunrise), rotation).unwrap()
+            })
+        });
+        let mut yaw = YAW;
+        g.bench_with_input(BenchmarkId::new("pitched_yaw_drag", n), &n, |b, _| {
+            b.iter(|| {
+                yaw += 1.37;
+                let rotation = EnvRotation {
+                    yaw_deg: yaw,
+                    pitch_deg: 30.0,
+                };
+                ctx.prepare(black_box(&sunrise), rotation).unwrap()
+            })
+        });
+        let unturned_sh = ctx.prepare_sh(&sunrise).unwrap();
+        let mut pitch = 0.0;
+        g.bench_with_input(BenchmarkId::new("pitch_drag_recorded", n), &n, |b, &n| {
+            b.iter(|| {
+                pitch += 0.73;
+                let rotation = EnvRotation {
+                    yaw_deg: YAW,
+                    pitch_deg: pitch,
+                };
+                let cube = resample::resample_latlong_recorded(
+                    sunrise.width,
+                    sunrise.height,
+                    black_box(&sunrise.pixels),
+                    n,
+                    rotation,
+                )
+                .unwrap();
+                PreparedLight {
+                    wavelet: WaveletLight::from_cube(&cube).unwrap(),
+                    sh: sh::Rotation::new(ctx.sh_order, rotation.world_from_map())
+                        .unwrap()
+                        .apply_rgb(&unturned_sh),
+                }
             })
         });
         g.bench_with_input(BenchmarkId::new("cube_gather", n), &n, |b, &n| {
