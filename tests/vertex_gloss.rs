@@ -522,16 +522,19 @@ fn the_gloss_bench_holds_each_k_b_to_the_path_tracer_with_the_interpolation_apar
         },
     };
     let dir = temp_dir("gloss-bench");
-    let r = run(
-        &dir,
-        &scene,
-        ("sunrise", &env),
-        &opts,
-        None,
-        &mut |_| {},
-        &|_| {},
-    )
-    .unwrap();
+    let bench = || {
+        run(
+            &dir,
+            &scene,
+            ("sunrise", &env),
+            &opts,
+            None,
+            &mut |_| {},
+            &|_| {},
+        )
+        .unwrap()
+    };
+    let r = bench();
     assert_eq!(r.glossy.len(), 1);
     assert!((r.glossy[0].1 - 0.5).abs() < 1e-6, "{:?}", r.glossy);
     let [diffuse, glossy] = &r.bakes[..] else {
@@ -563,16 +566,7 @@ fn the_gloss_bench_holds_each_k_b_to_the_path_tracer_with_the_interpolation_apar
     }
     assert!(dir.join("images/camera2_path_traced.exr").exists());
     // Run again: the bakes are kept.
-    let again = run(
-        &dir,
-        &scene,
-        ("sunrise", &env),
-        &opts,
-        None,
-        &mut |_| {},
-        &|_| {},
-    )
-    .unwrap();
+    let again = bench();
     assert!(again.bakes.iter().all(|b| b.reused));
     assert_eq!(again.bakes[1].error, glossy.error);
 }
