@@ -1,0 +1,130 @@
+//! The bake's shadow rays, written out for an independent tracer and timed on this one: the rays
+//! a direct-light bake of SCENE traces (from the first hit of each pixel of an every-STRIDE-th
+//! grid, one ray a cube texel at N = 32 towards the texel's centre, on the side the normal faces),
+//! with the scene's triangles, so that `scripts/embree_shadow_rays.py` can trace the same rays
+//! with Embree's one-ray query (`rtcOccluded1`) and compare the rates.
+//!
+//! ```sh
+//! cargo run --release --example shadow_rays -- assets/scenes/demo.toml DIR [STRIDE]
+//! python3 scripts/embree_shadow_rays.py DIR
+//! ```
+//!
+//! Writes `DIR/triangles.f32` (F x 3 x 3 corner positions), `DIR/rays.f32` (R x 7: origin,
+//! direction, t_max), `DIR/occluded.u8` (this tracer's answer per ray) and `DIR/rays.json` (the
+//! counts and this tracer's rate). The rate is taken on one thread, so rays per second are rays
+//! per CPU-second; the median of three passes. A scene's analytic spheres are not written (the
+//! script traces triangles): the example refuses a scene that has any.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use wavelet_prt::bake::shading_point;
+use wavelet_prt::math::sampling::TexelSamples;
+use wavelet_prt::scene::Scene;
+use wavelet_prt::scene::trace::Tracer;
+
+/// Cube face size of the rays' directions (the demo bake's).
+const CUBE_N: usize = 32;
+/// Passes over the rays; the median is reported.
+const PASSES: usize = 3;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let [scene_path, dir, rest @ ..] = &args[..] else {
+        return Err("usage: shadow_rays SCENE.toml DIR [STRIDE]".into());
+    };
+    let stride: u32 = match rest.first() {
+        Some(s) => s
+            .parse()
+            .map_err(|_| format!("STRIDE '{s}' is not a count"))?,
+        None => 8,
+    };
+    if stride == 0 {
+        return Err("STRIDE must be at least 1".into());
+    }
+    let scene = Scene::load(std::path::Path::new(scene_path))?;
+    if !scene.spheres.is_empty() {
+        return Err(format!(
+            "{scene_path} has {} analytic spheres; the Embree script traces triangles only",
+            scene.spheres.len()
+        )
+        .into());
+    }
+    let dir = PathBuf::from(dir);
+    std::fs::create_dir_all(&dir)?;
+    let tracer = Tracer::new(&scene);
+    let samples = TexelSamples::new(CUBE_N, 1, 0);
+    let cam = &scene.camera;
+    let mut rays: Vec<[f32; 7]> = Vec::new();
+    let mut hits = 0usize;
+    for y in (0..cam.height).step_by(stride as usize) {
+        for x in (0..cam.width).step_by(stride as usize) {
+            let ray = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+            let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
+                continue;
+            };
+            hits += 1;
+            let sp = shading_point(&tracer, &hit, ray.dir);
+            for d in &samples.dirs {
+                if sp.normal.dot(*d) > 0.0 {
+                    let (o, d) = (sp.origin, *d);
+                    rays.push([o.x, o.y, o.z, d.x, d.y, d.z, f32::INFINITY]);
+                }
+            }
+        }
+    }
+    if rays.is_empty() {
+        return Err("no camera ray hit the scene".into());
+    }
+    let mut occluded = vec![0u8; rays.len()];
+    let mut seconds = Vec::new();
+    for _ in 0..PASSES {
+        let start = Instant::now();
+        for (r, o) in rays.iter().zip(&mut occluded) {
+            let origin = glam::Vec3::new(r[0], r[1], r[2]);
+            let d = glam::Vec3::new(r[3], r[4], r[5]);
+            *o = tracer.occluded(origin, d, r[6]) as u8;
+        }
+        seconds.push(start.elapsed().as_secs_f64());
+    }
+    seconds.sort_by(f64::total_cmp);
+    let median = seconds[PASSES / 2];
+    let rate = rays.len() as f64 / median;
+    let blocked = occluded.iter().filter(|&&o| o == 1).count();
+    let mut tri = std::io::BufWriter::new(std::fs::File::create(dir.join("triangles.f32"))?);
+    for t in &scene.triangles {
+        for v in &t.vertices {
+            for c in v.to_array() {
+                tri.write_all(&c.to_le_bytes())?;
+            }
+        }
+    }
+    tri.flush()?;
+    let mut out = std::io::BufWriter::new(std::fs::File::create(dir.join("rays.f32"))?);
+    for r in &rays {
+        for c in r {
+            out.write_all(&c.to_le_bytes())?;
+        }
+    }
+    out.flush()?;
+    std::fs::write(dir.join("occluded.u8"), &occluded)?;
+    let json = format!(
+        "{{\"scene\": {scene_path:?}, \"triangles\": {}, \"hits\": {hits}, \"rays\": {}, \
+         \"occluded\": {blocked}, \"seconds\": {median}, \"rays_per_cpu_second\": {rate}}}\n",
+        scene.triangles.len(),
+        rays.len()
+    );
+    std::fs::write(dir.join("rays.json"), &json)?;
+    println!(
+        "{}: {} triangles, {hits} hits, {} shadow rays ({:.1}% occluded); this tracer on one \
+         thread: {:.2} M rays per CPU-second (median of {PASSES} passes, {:.2} s)",
+        scene_path,
+        scene.triangles.len(),
+        rays.len(),
+        100.0 * blocked as f64 / rays.len() as f64,
+        rate / 1e6,
+        median
+    );
+    Ok(())
+}
