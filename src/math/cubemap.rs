@@ -374,27 +374,37 @@ pub fn resample_latlong_exact(
     // Radiance is power over the solid angle the splat actually gave the texel, so a constant map
     // gives a constant cube; a last global factor per channel then restores the total power
     // exactly (it differs from 1 by the residual border error, about 1e-3 at most).
-    let omega = solid_angles(n);
-    let mut texels: Vec<[f64; 3]> = power
-        .iter()
-        .map(|p| {
-            if p[3] > 0.0 {
-                [p[0] / p[3], p[1] / p[3], p[2] / p[3]]
-            } else {
-                [0.0; 3]
-            }
-        })
+    let want = std::array::from_fn(|c| power.iter().map(|p| p[c]).sum());
+    Ok(splat_radiance(
+        n,
+        power.iter().map(|p| ([p[0], p[1], p[2]], p[3])),
+        want,
+        &solid_angles(n),
+    ))
+}
+
+/// The cube a splat of face size `n` leaves: each texel's power over the solid angle it
+/// received (`received`, texel by texel; black where it received none), then one factor per
+/// channel that makes the cube's power (over the exact solid angles `omega`) `want`, in f32.
+/// The exact splat, the recorded one and the pitch's all finish this way.
+pub(crate) fn splat_radiance(
+    n: usize,
+    received: impl Iterator<Item = ([f64; 3], f64)>,
+    want: [f64; 3],
+    omega: &[f64],
+) -> CubeMap {
+    let mut texels: Vec<[f64; 3]> = received
+        .map(|(p, a)| if a > 0.0 { p.map(|v| v / a) } else { [0.0; 3] })
         .collect();
-    for c in 0..3 {
-        let want: f64 = power.iter().map(|p| p[c]).sum();
-        let got: f64 = texels.iter().zip(&omega).map(|(t, w)| t[c] * w).sum();
+    for (c, want) in want.iter().enumerate() {
+        let got: f64 = texels.iter().zip(omega).map(|(t, w)| t[c] * w).sum();
         if got > 0.0 {
             let f = want / got;
             texels.iter_mut().for_each(|t| t[c] *= f);
         }
     }
     let texels = texels.iter().map(|t| t.map(|v| v as f32)).collect();
-    Ok(CubeMap { n, texels })
+    CubeMap { n, texels }
 }
 
 #[cfg(test)]

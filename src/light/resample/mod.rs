@@ -61,7 +61,8 @@ use crate::error::{PrtError, Result};
 use crate::light::latlong::{EnvRotation, pixel_solid_angle};
 use crate::math::cubemap::{
     CubeMap, Cut, check_latlong, dir_to_face_st, dir_to_texel, resample_latlong_exact,
-    solid_angles, splat_limits, texel_count, texel_dirs, texel_index, validate_n, widest_sin,
+    solid_angles, splat_limits, splat_radiance, texel_count, texel_dirs, texel_index, validate_n,
+    widest_sin,
 };
 
 /// Largest map whose split is recorded: a larger one's shares would outweigh its pixels (2.3 GB
@@ -460,28 +461,12 @@ impl LatLongWeights {
             );
         // As the exact splat: radiance is power over the solid angle received, then one factor
         // per channel restores the total power.
-        let mut texels: Vec<[f64; 3]> = power
-            .iter()
-            .zip(&self.received)
-            .map(|(p, &a)| {
-                if a > 0.0 {
-                    [p[0] / a, p[1] / a, p[2] / a]
-                } else {
-                    [0.0; 3]
-                }
-            })
-            .collect();
-        for (c, want) in want.iter().enumerate() {
-            let got: f64 = texels.iter().zip(&self.omega).map(|(t, w)| t[c] * w).sum();
-            if got > 0.0 {
-                let f = want / got;
-                texels.iter_mut().for_each(|t| t[c] *= f);
-            }
-        }
-        Ok(CubeMap {
-            n: self.n,
-            texels: texels.iter().map(|t| t.map(|v| v as f32)).collect(),
-        })
+        Ok(splat_radiance(
+            self.n,
+            power.iter().copied().zip(self.received.iter().copied()),
+            want,
+            &self.omega,
+        ))
     }
 }
 

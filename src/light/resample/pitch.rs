@@ -37,7 +37,9 @@ use rayon::prelude::*;
 
 use super::{EnvRotation, yaw_shift};
 use crate::error::Result;
-use crate::math::cubemap::{CubeMap, dir_to_texel, solid_angles, splat_limits, texel_count};
+use crate::math::cubemap::{
+    CubeMap, dir_to_texel, solid_angles, splat_limits, splat_radiance, texel_count,
+};
 
 /// Whether a `width` x `height` map's cells are small enough, against a cube of face `n`, to be
 /// splatted at their centres: none larger than the smallest texel.
@@ -150,23 +152,12 @@ pub(super) fn splat(
     }
     // The map's exact power: each row's turned means keep its sum.
     let want: [f64; 3] = std::array::from_fn(|c| power.iter().map(|p| p[c]).sum());
-    let omega = solid_angles(n);
-    let mut texels: Vec<[f64; 3]> = power
-        .iter()
-        .zip(&received)
-        .map(|(p, &a)| p.map(|v| v / a))
-        .collect();
-    for (c, want) in want.iter().enumerate() {
-        let got: f64 = texels.iter().zip(&omega).map(|(t, w)| t[c] * w).sum();
-        if got > 0.0 {
-            let f = want / got;
-            texels.iter_mut().for_each(|t| t[c] *= f);
-        }
-    }
-    Ok(Some(CubeMap {
+    Ok(Some(splat_radiance(
         n,
-        texels: texels.iter().map(|t| t.map(|v| v as f32)).collect(),
-    }))
+        power.iter().copied().zip(received.iter().copied()),
+        want,
+        &solid_angles(n),
+    )))
 }
 
 #[cfg(test)]
