@@ -4,7 +4,7 @@
 //! A caption may hold a `|` to split it over its two lines.
 
 use wavelet_prt::output::film::{Image, ToneMap};
-use wavelet_prt::output::sheet::{Cell, write_sheet};
+use wavelet_prt::output::sheet::{cells_at, write_sheet};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -33,14 +33,7 @@ fn main() {
         std::process::exit(2)
     };
     let tone = ToneMap::auto(reference, None);
-    let cells: Vec<Cell> = loaded
-        .iter()
-        .map(|(image, caption)| Cell {
-            image,
-            tone,
-            caption: caption.clone(),
-        })
-        .collect();
+    let cells = cells_at(&loaded, tone);
     if let Err(e) = write_sheet(std::path::Path::new(out), columns, &cells, title) {
         eprintln!("{e}");
         std::process::exit(1);

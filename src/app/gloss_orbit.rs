@@ -8,11 +8,11 @@ use std::path::{Path, PathBuf};
 use crate::app::orbit::ORBIT_AZIMUTHS;
 use crate::bake::path_tracer::path_trace;
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
-use crate::error::Result;
+use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
-use crate::output::sheet::{Cell, write_sheet};
+use crate::output::sheet::{cells_at, write_sheet};
 use crate::relight::background::{composite, environment_behind_camera};
 use crate::relight::raster::DRAW_SAMPLES;
 use crate::relight::vertex::{GlossEval, bake_camera, compose, draw, draw_relit, orbit};
@@ -23,8 +23,9 @@ use crate::store::transport::BakeDomain;
 
 /// In-out terms of the glossy orbit's glossy materials.
 pub const GLOSS_BRDF_TERMS: u32 = 4;
-/// The angle of the orbit the path tracer renders, degrees about +Y from the scene's camera.
-pub const GLOSS_REFERENCE_AZIMUTH: f32 = 90.0;
+/// The angle of the orbit the path tracer renders, degrees about +Y from the scene's camera: the
+/// second of [`ORBIT_AZIMUTHS`].
+pub const GLOSS_REFERENCE_AZIMUTH: f32 = ORBIT_AZIMUTHS[1];
 /// Paths a pixel of that reference.
 pub const GLOSS_REFERENCE_PATHS: u32 = 512;
 
@@ -90,18 +91,32 @@ pub fn run_gloss_orbit(
     let (full, _) = relight(&t, &ctx, &light, &RelightRequest::Full)?;
     let camera = bake_camera(&t)?;
     let behind = Some((env, rotation));
-    let shots = ORBIT_AZIMUTHS
-        .iter()
-        .map(|&az| {
-            let cam = orbit(&camera, az, 0.0);
-            let drawn = draw_relit(&t, &full, &cam, behind, DRAW_SAMPLES, GlossEval::PerPixel)?;
-            Ok((drawn.image, az))
-        })
-        .collect::<Result<Vec<_>>>()?;
+    // Every angle drawn once, the reference's kept unlit behind for the errors.
+    let mut shots: Vec<(Image, [String; 2])> = Vec::new();
+    let mut glossy = None;
+    for az in ORBIT_AZIMUTHS {
+        let cam = orbit(&camera, az, 0.0);
+        let drawn = draw_relit(&t, &full, &cam, None, DRAW_SAMPLES, GlossEval::PerPixel)?;
+        if az == GLOSS_REFERENCE_AZIMUTH {
+            glossy = Some(drawn.clone());
+        }
+        shots.push((
+            compose(drawn, &cam, behind)?.image,
+            [
+                format!("K_b = {GLOSS_BRDF_TERMS}, turned {az}°"),
+                format!("every term, {name}"),
+            ],
+        ));
+    }
+    let glossy = glossy.ok_or_else(|| {
+        PrtError::invalid(
+            "gloss orbit",
+            "the reference's angle is not one of the orbit's",
+        )
+    })?;
 
     // One angle against the path tracer, the background black in all three.
     let cam = orbit(&camera, GLOSS_REFERENCE_AZIMUTH, 0.0);
-    let glossy = draw_relit(&t, &full, &cam, None, DRAW_SAMPLES, GlossEval::PerPixel)?;
     let colours = crate::relight::vertex::vertex_colours(&t, &full)?;
     let diffuse = draw(&t, &colours, &cam, None, DRAW_SAMPLES)?;
     let exr = dir.join("gloss_path_traced.exr");
@@ -136,49 +151,34 @@ pub fn run_gloss_orbit(
     );
     let tone = ToneMap::auto(&reference, None);
     let az = GLOSS_REFERENCE_AZIMUTH;
-    let mut cells: Vec<Cell> = shots
-        .iter()
-        .map(|(image, az)| Cell {
-            image,
-            tone,
-            caption: [
-                format!("K_b = {GLOSS_BRDF_TERMS}, turned {az}°"),
-                format!("every term, {name}"),
-            ],
-        })
-        .collect();
-    let diffuse_shown = compose(diffuse, &cam, behind)?.image;
-    let glossy_shown = compose(glossy, &cam, behind)?.image;
     let noise = match reference_noise {
         Some(n) => format!("noise {:.1}%", 100.0 * n),
         None => "kept from the last run".to_string(),
     };
-    cells.extend([
-        Cell {
-            image: &diffuse_shown,
-            tone,
-            caption: [
+    shots.extend([
+        (
+            compose(diffuse, &cam, behind)?.image,
+            [
                 format!("diffuse base, turned {az}°"),
                 format!("L2 {:.1}% vs path traced", 100.0 * diffuse_error),
             ],
-        },
-        Cell {
-            image: &glossy_shown,
-            tone,
-            caption: [
+        ),
+        (
+            compose(glossy, &cam, behind)?.image,
+            [
                 format!("K_b = {GLOSS_BRDF_TERMS}, turned {az}°"),
                 format!("L2 {:.1}% vs path traced", 100.0 * glossy_error),
             ],
-        },
-        Cell {
-            image: &reference_shown,
-            tone,
-            caption: [
+        ),
+        (
+            reference_shown,
+            [
                 format!("path traced, turned {az}°"),
                 format!("{GLOSS_REFERENCE_PATHS} paths, {noise}"),
             ],
-        },
+        ),
     ]);
+    let cells = cells_at(&shots, tone);
     let sheet_path = dir.join("gloss_sheet.png");
     let vertices = t
         .meta

@@ -13,7 +13,7 @@ use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
-use crate::output::sheet::{Cell, write_sheet};
+use crate::output::sheet::{cells_at, write_sheet};
 use crate::relight::vertex::{GlossEval, bake_camera, compose, orbit};
 use crate::relight::{LightContext, RelightRequest, relight};
 use crate::scene::Scene;
@@ -255,14 +255,7 @@ pub fn run_orbit(
             ],
         ));
     }
-    let cells: Vec<Cell> = shots
-        .iter()
-        .map(|(image, caption)| Cell {
-            image,
-            tone,
-            caption: caption.clone(),
-        })
-        .collect();
+    let cells = cells_at(&shots, tone);
     let sheet_path = dir.join("orbit_sheet.png");
     write_sheet(
         &sheet_path,

@@ -15,7 +15,7 @@ use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::light::select::Weighting;
 use crate::output::film::{Image, ToneMap};
-use crate::output::sheet::{Cell, downsample, write_sheet};
+use crate::output::sheet::{cells_at, downsample, write_sheet};
 use crate::relight::{LightContext, RelightRequest, relight};
 use crate::scene::Scene;
 use crate::store::transport::Transport;
@@ -201,14 +201,7 @@ pub fn run_paper(
     let (sunrise_name, sunrise) = &envs[0];
     let shots = picture_row(&t, sunrise)?;
     let tone = ToneMap::auto(&shots[1].0, Some(&t.coverage));
-    let cells: Vec<Cell> = shots
-        .iter()
-        .map(|(img, caption)| Cell {
-            image: img,
-            tone,
-            caption: caption.clone(),
-        })
-        .collect();
+    let cells = cells_at(&shots, tone);
     let picture = dir.join("ng2003_row.png");
     write_sheet(
         &picture,

@@ -17,6 +17,18 @@ pub struct Cell<'a> {
     pub caption: [String; 2],
 }
 
+/// Cells of captioned images, all brought to display values by `tone`.
+pub fn cells_at(shots: &[(Image, [String; 2])], tone: ToneMap) -> Vec<Cell<'_>> {
+    shots
+        .iter()
+        .map(|(image, caption)| Cell {
+            image,
+            tone,
+            caption: caption.clone(),
+        })
+        .collect()
+}
+
 const LINE_H: usize = CAPTION_PX + 4;
 const PAD: usize = 4;
 
