@@ -404,33 +404,14 @@ fn the_command_line_bakes_draws_and_describes_a_glossy_vertex_bake() {
     let bench = out_dir.to_str().unwrap();
     let env = assets().join("envmaps/blender_studio.exr");
     let env = env.to_str().unwrap();
-    let (code, out) = prt(&[
-        "gloss",
-        s,
-        "--env",
-        env,
-        "--out",
-        bench,
-        "--brdf-terms",
-        "0,4",
-    ]);
-    assert_ne!(code, 0);
-    assert!(out.contains("--brdf-terms"), "{out}");
-    let (code, out) = prt(&[
-        "gloss",
-        s,
-        "--env",
-        env,
-        "--out",
-        bench,
-        "--edge-factors",
-        "2,2",
-    ]);
-    assert_ne!(code, 0);
-    assert!(
-        out.contains("--edge-factors") && out.contains("twice"),
-        "{out}"
-    );
+    for (flag, value, said) in [
+        ("--brdf-terms", "0,4", "--brdf-terms"),
+        ("--edge-factors", "2,2", "twice"),
+    ] {
+        let (code, out) = prt(&["gloss", s, "--env", env, "--out", bench, flag, value]);
+        assert_ne!(code, 0);
+        assert!(out.contains(flag) && out.contains(said), "{out}");
+    }
     let matte = dir.join("matte.toml");
     std::fs::write(&matte, SPHERE_ON_PLANE).unwrap();
     let (code, out) = prt(&[
