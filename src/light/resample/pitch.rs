@@ -1,6 +1,6 @@
-//! Pitch without weights of its own. Recording the splat under a pitch takes 76 ms at N = 32 for a
-//! 1024 x 512 map and 259 ms at N = 64, and every pitch of a drag is new, so a pitch drag cost 27
-//! and 53 times a yaw drag. Where the map's cells are no larger than the
+//! Pitch without weights of its own. Recording the splat under a pitch takes 80 ms at N = 32 for a
+//! 1024 x 512 map and 264 ms at N = 64, and every pitch of a drag is new, so a pitch drag cost 30
+//! and 56 times a yaw drag. Where the map's cells are no larger than the
 //! smallest texels, a pitched light is instead splatted at the centres of sub-cells:
 //! - each cell of the world grid (world = R_x(pitch) · R_y(yaw) · map, see
 //!   [`crate::conventions`]) is cut into q x q sub-cells no wider than half the smallest texel;
@@ -23,8 +23,8 @@
 //! pitch as before, as does any splat that leaves a texel without a cell.
 //!
 //! On the 2-core machine (`cargo bench --bench light`, blender_sunrise, one run, the README's
-//! table): a pitch drag prepares a light in 6.0 ms at N = 32 and 20.0 ms at N = 64, against 75.6
-//! and 259 ms through weights recorded for each pitch, and 2.75 and 4.90 ms for a yaw drag.
+//! table): a pitch drag prepares a light in 6.05 ms at N = 32 and 20.3 ms at N = 64, against 80.3
+//! and 264 ms through weights recorded for each pitch, and 2.72 and 4.70 ms for a yaw drag.
 //!
 //! Pitch 0 keeps the recorded weights, exact to the band of the recorded splat: a light that
 //! leaves pitch 0 steps by the difference above (on a small sun crossing a texel border, a few
