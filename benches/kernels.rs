@@ -21,6 +21,7 @@ use wavelet_prt::bake::{BakeSettings, bake, load_if_baked_with};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::light::select::{WaveletLight, Weighting};
 use wavelet_prt::math::haar;
+use wavelet_prt::relight::strip_kernel::{StripPath, relight_strips};
 use wavelet_prt::relight::{LightContext, light_sh_order, relight_sh, relight_wavelet};
 use wavelet_prt::scene::Scene;
 use wavelet_prt::store::transport::Transport;
@@ -148,7 +149,11 @@ fn relight(c: &mut Criterion) {
     });
     drop(csc);
     let total = t.coeff_count();
-    for k in [1, 10, 100, 1000, total] {
+    // The strips the kernel reads, made from the stored columns (once per transport).
+    g.bench_function("strips_of_columns", |b| {
+        b.iter(|| wavelet_prt::store::transport::Strips::of(&t).unwrap())
+    });
+    for k in [1, 10, 100, 200, 1000, total] {
         let sparse = light
             .wavelet
             .select(k, Weighting::Area, &ctx.support_area, None)
@@ -158,6 +163,13 @@ fn relight(c: &mut Criterion) {
         g.bench_with_input(BenchmarkId::new("wavelet", k), &sparse, |b, s| {
             b.iter(|| relight_wavelet(&t, s).unwrap())
         });
+        // The portable inner loop, the SIMD one's twin, on the same strips.
+        if [200, total].contains(&k) {
+            let strips = t.strips().unwrap();
+            g.bench_with_input(BenchmarkId::new("wavelet_portable", k), &sparse, |b, s| {
+                b.iter(|| relight_strips(&t, strips, s, StripPath::Portable))
+            });
+        }
     }
     for order in [4, 8] {
         let sh = light_sh_order(&light.sh, order, t.meta.identity.sh_order as usize).unwrap();

@@ -1,6 +1,7 @@
 //! The house rules of ARCHITECTURE.md, checked on the source: every `crate::` path in library code
 //! runs from a stage to the same stage or one before it, the modules import each other without a
-//! loop, and no source file outgrows about 800 lines (its test module aside).
+//! loop, no source file outgrows about 800 lines (its test module aside), and `unsafe` stays in
+//! the one module that needs it.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -276,6 +277,29 @@ fn no_source_file_outgrows_the_limit() {
         long.is_empty(),
         "files over {MAX_LINES} lines (test modules aside):\n{}",
         long.join("\n")
+    );
+}
+
+/// The one module allowed `unsafe` (it calls AVX2 intrinsics behind run-time detection);
+/// `Cargo.toml` denies it everywhere else, and this keeps the exception from spreading.
+const UNSAFE_ALLOWED: &str = "relight::strip_kernel";
+
+#[test]
+fn only_the_strip_kernel_allows_unsafe_code() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    sources(&src, &mut files);
+    let mut found = Vec::new();
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap();
+        if text.contains("unsafe_code") || text.contains("unsafe ") {
+            found.push(module_of(&src, f));
+        }
+    }
+    assert_eq!(
+        found,
+        [UNSAFE_ALLOWED],
+        "modules that allow or use unsafe code"
     );
 }
 

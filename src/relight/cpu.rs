@@ -1,16 +1,18 @@
-//! The CPU kernels (rayon over tile rows): the tiled sparse wavelet product, the SH dot product,
-//! and the dense product that is their slow twin in the tests.
+//! The CPU kernels (rayon over tile rows): the sparse wavelet product (its inner loops in
+//! [`super::strip_kernel`]), the SH dot product, and the dense product that is their slow twin in
+//! the tests.
 
 use std::time::Instant;
 
 use rayon::prelude::*;
 
 use super::RelightStats;
+use super::strip_kernel::{StripPath, relight_strips};
 use crate::error::{PrtError, Result};
 use crate::light::select::SparseLight;
 use crate::output::film::Image;
-use crate::store::quant::{BLOCK_ROWS, scale_of};
-use crate::store::transport::{TILE, Transport, Values, tile_grid};
+use crate::store::transport::strips::{STRIP_ROWS, Slot};
+use crate::store::transport::{TILE, Transport, tile_grid};
 
 /// Transport values the sparse product reads for `light`: the lengths of its kept columns in
 /// every block.
@@ -28,33 +30,10 @@ pub fn nonzeros_touched(t: &Transport, light: &SparseLight) -> u64 {
         .sum()
 }
 
-/// Widens a stored value (an integer, or a lossless float) to f32; the column's scale is applied
-/// to the light term instead, once per block and column.
-trait StoredValue: Copy + Send + Sync {
-    fn f32(self) -> f32;
-}
-impl StoredValue for f32 {
-    #[inline(always)]
-    fn f32(self) -> f32 {
-        self
-    }
-}
-impl StoredValue for i8 {
-    #[inline(always)]
-    fn f32(self) -> f32 {
-        self as f32
-    }
-}
-impl StoredValue for i16 {
-    #[inline(always)]
-    fn f32(self) -> f32 {
-        self as f32
-    }
-}
-
-/// The tiled sparse product: for every block of every tile, every kept light term's column adds
-/// `integer · (scale · L)` to its rows; the rows then add `weight ⊙ sum` to their pixels. Checks
-/// that the light fits the transport (N, index range).
+/// The sparse wavelet product (see [`super::strip_kernel`]): the matrix's strips in light-major
+/// bands, every kept term's strips added to the band's rows. Checks that the light fits the
+/// transport (N, index range). The first call makes the transport's strips
+/// ([`Transport::strips`]), outside the kernel's time.
 pub fn relight_wavelet(t: &Transport, light: &SparseLight) -> Result<(Image, RelightStats)> {
     let c = t.coeff_count();
     if light.indices.iter().any(|&j| j as usize >= c) || light.indices.len() != light.values.len() {
@@ -63,99 +42,19 @@ pub fn relight_wavelet(t: &Transport, light: &SparseLight) -> Result<(Image, Rel
             format!("its coefficients do not fit a transport with 6·N² = {c} coefficients"),
         ));
     }
+    let strips = t.strips()?;
     let start = Instant::now();
-    let (image, touched) = match &t.values {
-        Values::Q8(v) => wavelet_kernel(t, light, v),
-        Values::Q16(v) => wavelet_kernel(t, light, v),
-        Values::F32(v) => wavelet_kernel(t, light, v),
-    };
+    let (image, read) = relight_strips(t, strips, light, StripPath::Best);
+    let kernel_seconds = start.elapsed().as_secs_f64();
     let stats = RelightStats {
         terms: light.len(),
-        nonzeros_touched: touched,
-        bytes_touched: touched * (1 + t.values.value_bytes() as u64)
-            + t.block_count() as u64 * light.len() as u64 * 9,
-        kernel_seconds: start.elapsed().as_secs_f64(),
+        nonzeros_touched: nonzeros_touched(t, light),
+        bytes_touched: read * (1 + STRIP_ROWS * t.values.value_bytes()) as u64
+            + (t.block_count() * light.len() * std::mem::size_of::<Slot>()) as u64,
+        kernel_seconds,
         light_columns: 0,
     };
     Ok((image, stats))
-}
-
-/// One block's accumulators: a row index is a byte, so indexing needs no bounds check.
-type BlockAcc = [[f32; 4]; BLOCK_ROWS];
-
-/// Entries widened to f32 together before they are scattered.
-const CHUNK: usize = 32;
-
-fn wavelet_kernel<V: StoredValue>(
-    t: &Transport,
-    light: &SparseLight,
-    values: &[V],
-) -> (Image, u64) {
-    let (w, h) = (t.meta.width as usize, t.meta.height as usize);
-    let (tx, _) = tile_grid(w, h);
-    let c = t.coeff_count();
-    let mut image = Image::new(w, h);
-    let touched: u64 = image
-        .pixels
-        .par_chunks_mut(w * TILE)
-        .enumerate()
-        .map_init(
-            || Box::new([[0.0f32; 4]; BLOCK_ROWS]),
-            |acc: &mut Box<BlockAcc>, (ty, band)| {
-                let mut touched = 0u64;
-                let y0 = ty * TILE * w;
-                for tile in ty * tx..(ty + 1) * tx {
-                    for b in t.blocks(tile) {
-                        let (r0, r1) = (
-                            t.block_row_start[b] as usize,
-                            t.block_row_start[b + 1] as usize,
-                        );
-                        acc[..r1 - r0].fill([0.0; 4]);
-                        let base = t.block_entry_start[b] as usize;
-                        let ptr = &t.col_ptr[b * (c + 1)..(b + 1) * (c + 1)];
-                        let codes = &t.col_scale[b * c..(b + 1) * c];
-                        for (&j, l) in light.indices.iter().zip(&light.values) {
-                            let j = j as usize;
-                            let (e0, e1) = (base + ptr[j] as usize, base + ptr[j + 1] as usize);
-                            if e0 == e1 {
-                                continue;
-                            }
-                            touched += (e1 - e0) as u64;
-                            // Four lanes (the last unused) so one vector op updates a row.
-                            let s = scale_of(codes[j]);
-                            let l = [l[0] * s, l[1] * s, l[2] * s, 0.0];
-                            // Widen a chunk of values at once (a vector conversion), then
-                            // scatter: one row update per entry with no scalar conversion.
-                            let rows = t.entry_row[e0..e1].chunks(CHUNK);
-                            for (rows, vals) in rows.zip(values[e0..e1].chunks(CHUNK)) {
-                                let mut wide = [0.0f32; CHUNK];
-                                for (w, &v) in wide.iter_mut().zip(vals) {
-                                    *w = v.f32();
-                                }
-                                for (&r, &v) in rows.iter().zip(&wide) {
-                                    let a = &mut acc[r as usize];
-                                    for k in 0..4 {
-                                        a[k] += v * l[k];
-                                    }
-                                }
-                            }
-                        }
-                        for (r, a) in acc[..r1 - r0].iter().enumerate() {
-                            let p = t.row_pixel[r0 + r] as usize - y0;
-                            let wgt = t.row_weight[r0 + r];
-                            let s = t.row_scale[r0 + r];
-                            let px = &mut band[p];
-                            for k in 0..3 {
-                                px[k] += wgt[k] * (a[k] * s);
-                            }
-                        }
-                    }
-                }
-                touched
-            },
-        )
-        .sum();
-    (image, touched)
 }
 
 /// SH relighting: every row's SH transport (its first `sh.len()` coefficients) dotted with the SH

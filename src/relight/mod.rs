@@ -11,6 +11,7 @@ pub mod gpu;
 pub mod prepare;
 pub mod raster;
 pub mod sh_light;
+pub mod strip_kernel;
 pub mod vertex;
 
 pub use crate::scene::light_mix::{LightMix, LightSetting};

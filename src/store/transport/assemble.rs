@@ -256,6 +256,7 @@ impl Transport {
             tile_stats,
             domain: Domain::from_mesh(mesh),
             lights,
+            kernel: KernelLayout::default(),
         };
         t.validate().map_err(invalid)?;
         t.finish();

@@ -64,8 +64,10 @@ mod lights;
 mod meta;
 mod reader;
 mod stream;
+pub mod strips;
 
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use crate::scene::tessellate::VertexMesh;
 use crate::store::container;
@@ -80,6 +82,7 @@ pub use meta::{
     PerVertexMeta, TransportMeta,
 };
 pub use stream::TransportWriter;
+pub use strips::Strips;
 
 /// Pixels on a side of a tile.
 pub const TILE: usize = 16;
@@ -212,6 +215,36 @@ pub struct Transport {
     /// The local lights' dense columns (none without local lights; `meta.lights` says which
     /// light each column is).
     pub lights: LightColumns,
+    /// The Haar matrix as the CPU kernel reads it, made from the columns on first use
+    /// ([`Transport::strips`]).
+    pub kernel: KernelLayout,
+}
+
+/// A transport's [`Strips`], made from its columns when first asked for and kept. Derived data:
+/// it takes no part in comparisons, and a clone makes its own. Change no column of a transport
+/// after its strips are made.
+#[derive(Default)]
+pub struct KernelLayout(OnceLock<Strips>);
+
+impl Clone for KernelLayout {
+    fn clone(&self) -> Self {
+        KernelLayout::default()
+    }
+}
+
+impl PartialEq for KernelLayout {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for KernelLayout {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let made = self.0.get().map(Strips::strip_count);
+        f.debug_struct("KernelLayout")
+            .field("strips", &made)
+            .finish()
+    }
 }
 
 /// What a transport's rows belong to, and so what can draw it.
@@ -253,6 +286,16 @@ pub fn blocks_of(rows: usize) -> usize {
 }
 
 impl Transport {
+    /// The Haar matrix as the CPU kernel reads it: made from the columns (in parallel) on the
+    /// first call, then kept.
+    pub fn strips(&self) -> crate::error::Result<&Strips> {
+        if let Some(s) = self.kernel.0.get() {
+            return Ok(s);
+        }
+        let made = Strips::of(self).map_err(|m| crate::error::PrtError::invalid("transport", m))?;
+        Ok(self.kernel.0.get_or_init(|| made))
+    }
+
     /// Haar coefficients per row, 6 N².
     pub fn coeff_count(&self) -> usize {
         6 * (self.meta.identity.cube_n as usize).pow(2)

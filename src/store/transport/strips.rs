@@ -1,0 +1,213 @@
+//! The Haar matrix in the layout the CPU kernel reads: dense strips of [`STRIP_ROWS`] rows in
+//! light-major bands of blocks.
+//!
+//! A block's column (coefficient j of up to 256 rows) is cut into aligned strips of 8 rows; a
+//! strip that holds at least one entry is kept whole, its missing rows as zeros. On the demo bake
+//! 88% of the values of kept strips are entries, so a strip (a byte for its place in the block and
+//! 8 values) costs fewer bytes than the entries it holds, each a row byte and a value, and the
+//! kernel widens and adds 8 values with one vector instruction each instead of scattering them
+//! one by one.
+//!
+//! The blocks of a tile row are grouped into *bands* of at most [`BAND_BLOCKS`] blocks, and a
+//! band's strips are stored coefficient by coefficient (light-major, the order of Ng et al. 2003):
+//! coefficient j's strips of the band's first block, then of its second, and so on. So a K-term
+//! product reads K contiguous runs per band, and the band's accumulators (3 x 16 x 256 floats,
+//! 48 KiB) stay in the nearest caches while it does.
+
+use std::ops::Range;
+
+use rayon::prelude::*;
+
+use super::{TILE, Transport, Values, tile_grid};
+use crate::store::quant::BLOCK_ROWS;
+
+/// Rows of one strip.
+pub const STRIP_ROWS: usize = 8;
+/// Strips in a block of [`BLOCK_ROWS`] rows.
+pub const STRIPS_PER_BLOCK: usize = BLOCK_ROWS / STRIP_ROWS;
+/// Most blocks in one band.
+pub const BAND_BLOCKS: usize = 16;
+
+/// Where a (block, coefficient)'s strips are: the first, how many, and the column's scale code.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Slot {
+    /// Its first strip.
+    pub first: u32,
+    /// Its strips (at most [`STRIPS_PER_BLOCK`]).
+    pub count: u8,
+    /// The scale code of the block's column ([`crate::store::quant::scale_of`]).
+    pub code: u8,
+}
+
+/// The strips of a transport's Haar matrix (see the module's documentation).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Strips {
+    /// Band i holds blocks `band_block_start[i] .. band_block_start[i + 1]`, all of one tile row.
+    pub band_block_start: Vec<u32>,
+    /// Tile row y holds bands `row_band_start[y] .. row_band_start[y + 1]`.
+    pub row_band_start: Vec<u32>,
+    /// Per band, coefficient and block of the band, in that order: where its strips are, so a
+    /// term's slots of one band are side by side.
+    pub slots: Vec<Slot>,
+    /// Per strip: its place in its block (rows `8 s .. 8 s + 8`).
+    pub index: Vec<u8>,
+    /// Per strip, [`STRIP_ROWS`] stored values (integers against the column's scale, or floats),
+    /// zero where the row has no entry.
+    pub values: Values,
+}
+
+/// One tile row's strips, made apart from the others' (in parallel), then joined.
+struct RowStrips<V> {
+    bands: Vec<u32>,
+    slots: Vec<Slot>,
+    index: Vec<u8>,
+    values: Vec<V>,
+}
+
+/// A stored value type: where a transport keeps its values, and how strips keep theirs.
+trait Stored: Copy + Default + PartialEq + Send + Sync {
+    fn wrap(v: Vec<Self>) -> Values;
+}
+impl Stored for i8 {
+    fn wrap(v: Vec<i8>) -> Values {
+        Values::Q8(v)
+    }
+}
+impl Stored for i16 {
+    fn wrap(v: Vec<i16>) -> Values {
+        Values::Q16(v)
+    }
+}
+impl Stored for f32 {
+    fn wrap(v: Vec<f32>) -> Values {
+        Values::F32(v)
+    }
+}
+
+impl Strips {
+    /// The strips of `t`'s matrix, in bands of [`BAND_BLOCKS`] blocks (the last of a tile row
+    /// may have fewer). Tile rows are laid out in parallel. An error when the strips would not
+    /// be counted in 32 bits (a matrix of more than 2^32 strips, some 30 GB).
+    pub fn of(t: &Transport) -> std::result::Result<Strips, String> {
+        match &t.values {
+            Values::Q8(v) => Self::of_values(t, v),
+            Values::Q16(v) => Self::of_values(t, v),
+            Values::F32(v) => Self::of_values(t, v),
+        }
+    }
+
+    fn of_values<V: Stored>(t: &Transport, values: &[V]) -> std::result::Result<Strips, String> {
+        let c = t.coeff_count();
+        let (w, h) = (t.meta.width as usize, t.meta.height as usize);
+        let (tx, ty) = tile_grid(w, h);
+        let rows: Vec<RowStrips<V>> = (0..ty)
+            .into_par_iter()
+            .map(|y| {
+                let blocks =
+                    t.tile_block_start[y * tx] as usize..t.tile_block_start[(y + 1) * tx] as usize;
+                let entries = t.block_entry_start[blocks.start] as usize
+                    ..t.block_entry_start[blocks.end] as usize;
+                // About one strip in 7 entries; the exact count is known only at the end.
+                let mut row = RowStrips {
+                    bands: Vec::new(),
+                    slots: Vec::with_capacity(blocks.len() * c),
+                    index: Vec::with_capacity(entries.len() / 6),
+                    values: Vec::with_capacity(entries.len() * 4 / 3),
+                };
+                for b0 in blocks.clone().step_by(BAND_BLOCKS) {
+                    let band = b0..(b0 + BAND_BLOCKS).min(blocks.end);
+                    row.bands.push(band.end as u32);
+                    for j in 0..c {
+                        for b in band.clone() {
+                            let first = row.index.len() as u32;
+                            let column = t.block_column(b, j);
+                            let rows = &t.entry_row[column.clone()];
+                            for (&r, &v) in rows.iter().zip(&values[column]) {
+                                let place = r / STRIP_ROWS as u8;
+                                if row.index.len() as u32 == first
+                                    || row.index.last() != Some(&place)
+                                {
+                                    row.index.push(place);
+                                    row.values.extend([V::default(); STRIP_ROWS]);
+                                }
+                                let at = row.values.len() - STRIP_ROWS + r as usize % STRIP_ROWS;
+                                row.values[at] = v;
+                            }
+                            row.slots.push(Slot {
+                                first,
+                                count: (row.index.len() as u32 - first) as u8,
+                                code: t.col_scale[b * c + j],
+                            });
+                        }
+                    }
+                }
+                row
+            })
+            .collect();
+        let total: usize = rows.iter().map(|r| r.index.len()).sum();
+        if u32::try_from(total).is_err() {
+            return Err(format!(
+                "{total} strips of 8 rows are more than the kernel counts in 32 bits"
+            ));
+        }
+        let mut s = Strips {
+            band_block_start: vec![0],
+            row_band_start: vec![0],
+            slots: Vec::with_capacity(t.block_count() * c),
+            index: Vec::with_capacity(total),
+            values: Values::empty(t.values.quantization()),
+        };
+        let mut values = Vec::with_capacity(total * STRIP_ROWS);
+        for row in rows {
+            let base = s.index.len() as u32;
+            s.band_block_start.extend_from_slice(&row.bands);
+            s.row_band_start.push(s.band_block_start.len() as u32 - 1);
+            s.slots.extend(row.slots.iter().map(|slot| Slot {
+                first: slot.first + base,
+                ..*slot
+            }));
+            s.index.extend_from_slice(&row.index);
+            values.extend_from_slice(&row.values);
+        }
+        s.values = V::wrap(values);
+        debug_assert_eq!(TILE * TILE, BLOCK_ROWS);
+        Ok(s)
+    }
+
+    /// Number of bands.
+    pub fn band_count(&self) -> usize {
+        self.band_block_start.len() - 1
+    }
+
+    /// The blocks of band `band`.
+    #[inline]
+    pub fn band_blocks(&self, band: usize) -> Range<usize> {
+        self.band_block_start[band] as usize..self.band_block_start[band + 1] as usize
+    }
+
+    /// The bands of tile row `y`.
+    #[inline]
+    pub fn row_bands(&self, y: usize) -> Range<usize> {
+        self.row_band_start[y] as usize..self.row_band_start[y + 1] as usize
+    }
+
+    /// The slots of coefficient `j` in band `band` (one per block of the band), for a transport
+    /// of `c` coefficients.
+    #[inline]
+    pub fn term_slots(&self, band: usize, j: usize, c: usize) -> &[Slot] {
+        let blocks = self.band_blocks(band);
+        let start = blocks.start * c + j * blocks.len();
+        &self.slots[start..start + blocks.len()]
+    }
+
+    /// Number of strips.
+    pub fn strip_count(&self) -> usize {
+        self.index.len()
+    }
+
+    /// Bytes of the strips and their tables as a file would store them: per strip its place and
+    /// values, per (block, coefficient) a strip count and a scale code.
+    pub fn bytes(&self) -> usize {
+        self.index.len() * (1 + STRIP_ROWS * self.values.value_bytes()) + self.slots.len() * 2
+    }
+}
