@@ -15,10 +15,10 @@ struct Params {
     coeffs: u32,
     // Light terms in `light` (K, or n^2 for SH).
     terms: u32,
-    // How entries are packed: 0 = q8 (two 16-bit halves per word, row | i8 << 8),
-    // 1 = q16 (row | i16 << 16), 2 = f32 ((row, f32 bits) pairs).
+    // How strip values are packed: 0 = q8 (four i8 to a word), 1 = q16 (two i16 to a word),
+    // 2 = f32.
     format: u32,
-    // First global row of this dispatch's buffers (entries and SH rows are stored per chunk).
+    // First global row of this dispatch's buffers (strips and SH rows are stored per chunk).
     row_base: u32,
     // Tiles with at most this many rows accumulate in workgroup memory (capped by the shader).
     shared_rows: u32,
@@ -30,7 +30,8 @@ struct Params {
     // its image to what an earlier batch of terms wrote.
     term_base: u32,
     accumulate: u32,
-    _pad0: u32,
+    // Where the strips' values begin in `strips`, in words (after their places).
+    values_base: u32,
 };
 
 // TILE and WORKGROUP (= TILE * TILE) are defined by the Rust side, which prepends them.

@@ -1,10 +1,12 @@
-// The tiled sparse wavelet product. A tile's rows are stored in blocks of at most BLOCK_ROWS rows;
-// inside a block, each coefficient's entries are (row byte, integer) pairs whose value is the
-// integer times the scale of the block's column. For each kept light term (coefficient j, RGB
-// value L), the workgroup walks column j of every block of its tile: every entry adds
-// integer x (scale x L) to its row's accumulator. A column holds each row at most once and blocks
-// hold different rows, so the threads of one term never collide; a barrier separates terms. Then
-// each thread sums the rows of the pixel it owns.
+// The tiled sparse wavelet product over dense strips. A tile's rows are stored in blocks of at
+// most BLOCK_ROWS rows; a block's column (coefficient j) is cut into strips of 8 rows, each kept
+// whole (its place in the block and 8 values, zero where a row has no entry), and every value is
+// the stored integer times the scale of the block's column. For each kept light term
+// (coefficient j, RGB value L), the workgroup walks column j's strips in every block of its tile:
+// each thread takes values of the strips in turn, and each adds integer x (scale x L) to its row's
+// accumulator. A column holds each row at most once and blocks hold different rows, so the
+// threads of one term never collide; a barrier separates terms. Then each thread sums the rows
+// of the pixel it owns.
 //
 // A relight with many terms is run in batches of terms, one dispatch each (see
 // TERMS_PER_DISPATCH on the Rust side): a batch reads light[params.term_base ..] and, after the
@@ -15,11 +17,12 @@
 
 // Per row: the row's dot product with the light (xyz), for tiles with too many rows.
 @group(0) @binding(3) var<storage, read_write> acc: array<vec4<f32>>;
-// Entries of this chunk, packed as params.format says.
-@group(0) @binding(5) var<storage, read> entries: array<u32>;
-// Per block of this chunk: coeffs + 1 column pointers (entry indices within the chunk), then the
-// coeffs scale codes, four bytes to a word.
-@group(0) @binding(6) var<storage, read> col_ptr: array<u32>;
+// The strips of this chunk: their places in their blocks, four bytes to a word, then from word
+// params.values_base on their values, eight a strip, packed as params.format says.
+@group(0) @binding(5) var<storage, read> strips: array<u32>;
+// Per block of this chunk and coefficient: two words, the first strip (within the chunk), and
+// the count of strips with the column's scale code in bits 8..15.
+@group(0) @binding(6) var<storage, read> slots: array<u32>;
 // Kept light terms: RGB in xyz, coefficient index (bitcast) in w.
 @group(0) @binding(7) var<storage, read> light: array<vec4<f32>>;
 // The scale of every code: scale(code) = scales[code / 4][code % 4].
@@ -29,18 +32,27 @@
 const SHARED_ROWS: u32 = 1024u;
 var<workgroup> shared_acc: array<vec4<f32>, SHARED_ROWS>;
 
-// The row (inside its block) and the stored integer or float of entry e.
-fn entry(e: u32) -> vec2<f32> {
+// Rows of a strip.
+const STRIP_ROWS: u32 = 8u;
+
+// The place in its block of strip s: its rows are place * 8 .. place * 8 + 8.
+fn place(s: u32) -> u32 {
+    return (strips[s >> 2u] >> ((s & 3u) * 8u)) & 0xffu;
+}
+
+// Stored value i of the chunk (value v of strip s is i = 8 s + v): the integer, or the float.
+fn value(i: u32) -> f32 {
+    let base = params.values_base;
     if (params.format == 0u) {
-        let half = entries[e >> 1u] >> ((e & 1u) * 16u);
-        // Bits 8..15 hold the signed byte: move them to the top, then shift back with sign.
-        return vec2<f32>(f32(half & 0xffu), f32(bitcast<i32>(half << 16u) >> 24u));
+        // Move the byte to the top, then shift back with its sign.
+        let w = strips[base + (i >> 2u)];
+        return f32(bitcast<i32>(w << (24u - (i & 3u) * 8u)) >> 24u);
     }
     if (params.format == 1u) {
-        let w = entries[e];
-        return vec2<f32>(f32(w & 0xffu), f32(bitcast<i32>(w) >> 16u));
+        let w = strips[base + (i >> 1u)];
+        return f32(bitcast<i32>(w << (16u - (i & 1u) * 16u)) >> 16u);
     }
-    return vec2<f32>(f32(entries[2u * e]), bitcast<f32>(entries[2u * e + 1u]));
+    return bitcast<f32>(strips[base + i]);
 }
 
 @compute @workgroup_size(WORKGROUP)
@@ -63,24 +75,30 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     }
     workgroupBarrier();
     storageBarrier();
-    let stride = params.coeffs + 1u + (params.coeffs + 3u) / 4u;
+    let stride = 2u * params.coeffs;
     for (var k = 0u; k < params.terms; k = k + 1u) {
         let term = light[params.term_base + k];
         let j = bitcast<u32>(term.w);
         for (var b = b0; b < b1; b = b + 1u) {
-            let base = (b - params.block_base) * stride;
-            let e0 = col_ptr[base + j];
-            let e1 = col_ptr[base + j + 1u];
-            if (e0 == e1) {
+            let slot = (b - params.block_base) * stride + 2u * j;
+            let s0 = slots[slot];
+            let count = slots[slot + 1u] & 0xffu;
+            if (count == 0u) {
                 continue;
             }
-            let code = (col_ptr[base + params.coeffs + 1u + j / 4u] >> ((j % 4u) * 8u)) & 0xffu;
+            let code = (slots[slot + 1u] >> 8u) & 0xffu;
             let l = term.xyz * scales[code / 4u][code % 4u];
             let row_base = (b - b0) * BLOCK_ROWS;
-            for (var e = e0 + lid; e < e1; e = e + WORKGROUP) {
-                let rv = entry(e);
-                let row = row_base + u32(rv.x);
-                let add = vec4<f32>(rv.y * l, 0.0);
+            // A strip of the last, partial block may reach past the tile's rows (as zeros).
+            let block_rows = min(BLOCK_ROWS, n - row_base);
+            for (var e = lid; e < count * STRIP_ROWS; e = e + WORKGROUP) {
+                let s = s0 + e / STRIP_ROWS;
+                let r = place(s) * STRIP_ROWS + e % STRIP_ROWS;
+                if (r >= block_rows) {
+                    continue;
+                }
+                let row = row_base + r;
+                let add = vec4<f32>(value(s * STRIP_ROWS + e % STRIP_ROWS) * l, 0.0);
                 if (in_shared) {
                     shared_acc[row] = shared_acc[row] + add;
                 } else {

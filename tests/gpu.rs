@@ -102,14 +102,25 @@ fn gpu_equals_cpu_when_split_across_bindings() {
         return;
     };
     for t in bakes() {
-        // Small enough that the entries of a few tiles fill a binding.
-        let device_bytes = match t.meta.identity.quantization {
-            wavelet_prt::store::quant::Quantization::Q8 => 2,
-            wavelet_prt::store::quant::Quantization::Q16 => 4,
-            wavelet_prt::store::quant::Quantization::F32 => 8,
+        // As small as the largest tile allows, so that a few tiles fill a binding: a strip is
+        // its place and 8 values, a block's slots two words a coefficient.
+        let value_bytes = t.meta.identity.quantization.value_bytes() as u64;
+        let strips = t.strips().unwrap();
+        let c = t.coeff_count();
+        let tile_bytes = |tile: usize| -> u64 {
+            t.blocks(tile)
+                .map(|b| {
+                    let n: u64 = strips.block_slots(b, c).map(|s| s.count as u64).sum();
+                    (n * (1 + 8 * value_bytes)).max(8 * c as u64)
+                })
+                .sum::<u64>()
+                + 4
         };
-        let limit =
-            (t.entry_row.len() as u64 * device_bytes / 3).max(t.row_pixel.len() as u64 * 16);
+        let limit = (0..t.tile_count())
+            .map(tile_bytes)
+            .max()
+            .unwrap()
+            .max(t.row_pixel.len() as u64 * 16);
         // Also with every tile accumulating in device memory rather than workgroup memory.
         let chunks = check(&gpu, &t, Some(limit), Some(0));
         assert!(

@@ -245,10 +245,10 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
             let upload = Instant::now();
             let g = crate::relight::gpu::GpuTransport::upload(gpu, &t, None)?;
             eprintln!(
-                "gpu: {} ({} chunk(s), {} bytes per nonzero, upload {:.0} ms)",
+                "gpu: {} ({} chunk(s), {} bytes a strip of 8 values, upload {:.0} ms)",
                 gpu.adapter,
                 g.chunk_count(),
-                g.bytes_per_nonzero(),
+                g.bytes_per_strip(),
                 upload.elapsed().as_secs_f64() * 1e3
             );
             crate::relight::gpu::GpuBackend::new(gpu, &g, &t)?.relight_lit(&terms, &mix)?

@@ -48,12 +48,13 @@ impl Backend for GpuBackend<'_> {
         crate::relight::check_mix(self.transport, lights)?;
         let (image, mut stats) = self.resident.relight_lit(self.gpu, terms, lights)?;
         if let Terms::Wavelet(light) | Terms::ShLight { haar: light, .. } = terms {
-            // Counted from the transport in memory: the same column lengths the CPU kernel
-            // reads, at the device's bytes per entry, plus two column pointers per term and
-            // tile.
-            stats.nonzeros_touched = crate::relight::nonzeros_touched(self.transport, light);
-            stats.bytes_touched = stats.nonzeros_touched * self.resident.bytes_per_nonzero()
-                + (self.transport.tile_count() * light.len() * 8) as u64;
+            // Counted from the transport in memory: the same strips the CPU kernel reads, at
+            // the device's bytes a strip, plus two words per (block, term).
+            let t = self.transport;
+            stats.nonzeros_touched = crate::relight::nonzeros_touched(t, light);
+            let read = t.strips()?.strips_read(&light.indices, t.coeff_count());
+            stats.bytes_touched =
+                read * self.resident.bytes_per_strip() + (t.block_count() * light.len() * 8) as u64;
         }
         Ok((image, stats))
     }

@@ -2,12 +2,13 @@
 //! [`crate::relight`], with the same inputs and the same results.
 //!
 //! One workgroup of [`WORKGROUP_SIZE`] threads relights one 16 x 16 tile (`shaders/common.wgsl`):
-//! for every kept light term it walks that coefficient's column in the tile, each thread taking
-//! every 256th entry. A column holds each row at most once, so the threads of one column never
+//! for every kept light term it walks that coefficient's strips in the tile's blocks (the CPU
+//! kernel's dense strips of 8 rows, [`crate::store::transport::strips`]), each thread taking
+//! every 256th value. A column holds each row at most once, so the threads of one column never
 //! write the same accumulator, and a barrier between columns orders the rest: no float atomics.
 //! The accumulators sit in workgroup memory (up to 1024 rows per tile, 16 KiB; a tile usually has
 //! one row per pixel and material), in device memory beyond that. Then each thread owns one pixel
-//! and sums its rows. On a real GPU the entries of one column are contiguous, so a warp's loads
+//! and sums its rows. On a real GPU a column's strips are contiguous, so a warp's loads
 //! coalesce; thousands of tiles keep every compute unit busy. The SH pipeline needs no
 //! cooperation: each thread dots its own pixel's SH rows with the SH light.
 //!

@@ -1,4 +1,4 @@
-//! A transport resident on the GPU: its entries, column pointers and SH rows uploaded once (split
+//! A transport resident on the GPU: its strips, their slots and SH rows uploaded once (split
 //! by tiles into chunks where a binding would exceed the device's limit), relit per request by
 //! the wavelet and SH pipelines into a buffer read back, or into a texture for display.
 
@@ -12,6 +12,7 @@ use crate::light::select::SparseLight;
 use crate::output::film::Image;
 use crate::relight::{LightMix, RelightStats, Terms};
 use crate::store::quant::Quantization;
+use crate::store::transport::strips::STRIP_ROWS;
 use crate::store::transport::{Transport, Values, tile_grid};
 
 /// Most workgroups along one dispatch dimension (WebGPU's guaranteed minimum).
@@ -43,7 +44,7 @@ struct Params {
     block_table: u32,
     term_base: u32,
     accumulate: u32,
-    _pad: u32,
+    values_base: u32,
 }
 const _: () = assert!(std::mem::size_of::<Params>() == 64);
 // Fields written together are neighbours.
@@ -56,7 +57,7 @@ fn write_field(gpu: &Gpu, buffer: &wgpu::Buffer, offset: usize, words: &[u32]) {
         .write_buffer(buffer, offset as u64, bytemuck::cast_slice(words));
 }
 
-/// `Params::format`: how entries are packed in the `entries` buffer (see
+/// `Params::format`: how strip values are packed in the `strips` buffer (see
 /// `shaders/relight_wavelet.wgsl`).
 fn format_code(q: Quantization) -> u32 {
     match q {
@@ -66,17 +67,13 @@ fn format_code(q: Quantization) -> u32 {
     }
 }
 
-/// Bytes `count` entries take on the device: two per word in q8, one word in q16, two words in
-/// f32.
-fn device_entry_bytes(q: Quantization, count: u64) -> u64 {
-    match q {
-        Quantization::Q8 => count.div_ceil(2) * 4,
-        Quantization::Q16 => count * 4,
-        Quantization::F32 => count * 8,
-    }
+/// Bytes `count` strips take on the device: their places, four to a word, and their eight
+/// values each.
+fn device_strip_bytes(q: Quantization, count: u64) -> u64 {
+    count.div_ceil(4) * 4 + count * (STRIP_ROWS * q.value_bytes()) as u64
 }
 
-/// Tiles whose entries, column pointers and SH rows share one set of buffers.
+/// Tiles whose strips, slots and SH rows share one set of buffers.
 struct Chunk {
     tiles: std::ops::Range<usize>,
     params: wgpu::Buffer,
@@ -91,8 +88,8 @@ pub struct GpuTransport {
     pub(super) coeffs: usize,
     sh_count: usize,
     rows: usize,
-    entries: u64,
-    entry_bytes: u64,
+    strips: u64,
+    strip_bytes: u64,
     chunks: Vec<Chunk>,
     light: wgpu::Buffer,
     image: wgpu::Buffer,
@@ -124,9 +121,12 @@ impl GpuTransport {
         let shc = t.sh_count();
         let rows = t.row_pixel.len();
         let quant = t.values.quantization();
-        // Per block: C + 1 column pointers, then the C scale codes packed four to a word.
-        let block_words = c + 1 + c.div_ceil(4);
-        let ptr_bytes = block_words as u64 * 4;
+        let strips = t.strips()?;
+        // Per block: two words a coefficient, its first strip and its count and scale code.
+        let ptr_bytes = 2 * c as u64 * 4;
+        let block_strips: Vec<u64> = (0..t.block_count())
+            .map(|b| strips.block_slots(b, c).map(|s| s.count as u64).sum())
+            .collect();
         for (what, bytes) in [
             ("row table", rows as u64 * 16),
             ("image", (w * h) as u64 * 16),
@@ -173,7 +173,7 @@ impl GpuTransport {
             (c.max(shc) * 16) as u64,
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         );
-        // Split the tiles into chunks whose entries, pointers and SH rows each fit one binding.
+        // Split the tiles into chunks whose strips, slots and SH rows each fit one binding.
         let mut chunks = Vec::new();
         let tiles = t.tile_count();
         let mut start = 0;
@@ -182,9 +182,9 @@ impl GpuTransport {
             loop {
                 let next = end + 1;
                 let (b0, b1) = (t.tile_block_start[start], t.tile_block_start[next]);
-                let entries = t.block_entry_start[b1 as usize] - t.block_entry_start[b0 as usize];
+                let count: u64 = block_strips[b0 as usize..b1 as usize].iter().sum();
                 let rows_in = (t.tile_row_start[next] - t.tile_row_start[start]) as u64;
-                let fits = device_entry_bytes(quant, entries) <= limit
+                let fits = device_strip_bytes(quant, count) <= limit
                     && (b1 - b0) as u64 * ptr_bytes <= limit
                     && rows_in * shc as u64 * 4 <= limit;
                 if !fits {
@@ -217,8 +217,8 @@ impl GpuTransport {
             coeffs: c,
             sh_count: shc,
             rows,
-            entries: t.entry_row.len() as u64,
-            entry_bytes: device_entry_bytes(quant, 2) / 2,
+            strips: strips.strip_count() as u64,
+            strip_bytes: device_strip_bytes(quant, 4) / 4,
             chunks,
             light,
             image,
@@ -237,62 +237,37 @@ impl GpuTransport {
         let c = t.coeff_count();
         let blocks =
             t.tile_block_start[tiles.start] as usize..t.tile_block_start[tiles.end] as usize;
-        let (e0, e1) = (
-            t.block_entry_start[blocks.start] as usize,
-            t.block_entry_start[blocks.end] as usize,
-        );
-        let rows_of = &t.entry_row[e0..e1];
-        let entries: Vec<u32> = match &t.values {
-            // Two 16-bit halves per word: row in the low byte, the integer in the high byte.
-            Values::Q8(v) => {
-                let half = |i: usize| rows_of[i] as u32 | ((v[e0 + i] as u8 as u32) << 8);
-                (0..rows_of.len())
-                    .step_by(2)
-                    .map(|i| {
-                        let hi = if i + 1 < rows_of.len() {
-                            half(i + 1)
-                        } else {
-                            0
-                        };
-                        half(i) | hi << 16
-                    })
-                    .collect()
-            }
-            // Row in the low byte, the integer in the high 16 bits.
-            Values::Q16(v) => rows_of
-                .iter()
-                .zip(&v[e0..e1])
-                .map(|(&r, &q)| r as u32 | (q as u16 as u32) << 16)
-                .collect(),
-            Values::F32(v) => rows_of
-                .iter()
-                .zip(&v[e0..e1])
-                .flat_map(|(&r, x)| [r as u32, x.to_bits()])
-                .collect(),
-        };
-        // Per block: column pointers relative to the chunk's first entry, then the scale codes.
-        let mut ptrs = Vec::with_capacity(blocks.len() * (c + 1 + c.div_ceil(4)));
+        // The blocks' strips, coefficient by coefficient: first every strip's place (four to a
+        // word), then from `values_base` on their values, packed as the stored type.
+        let strips = t.strips()?;
+        let mut slots = Vec::with_capacity(blocks.len() * 2 * c);
+        let mut places: Vec<u8> = Vec::new();
+        let mut values: Vec<u8> = Vec::new();
         for b in blocks.clone() {
-            let base = (t.block_entry_start[b] as usize - e0) as u32;
-            ptrs.extend(
-                t.col_ptr[b * (c + 1)..(b + 1) * (c + 1)]
-                    .iter()
-                    .map(|p| p + base),
-            );
-            ptrs.extend(t.col_scale[b * c..(b + 1) * c].chunks(4).map(|codes| {
-                codes
-                    .iter()
-                    .enumerate()
-                    .fold(0u32, |w, (i, &code)| w | (code as u32) << (8 * i))
-            }));
+            for slot in strips.block_slots(b, c) {
+                let run = slot.first as usize..slot.first as usize + slot.count as usize;
+                slots.push(places.len() as u32);
+                slots.push(slot.count as u32 | (slot.code as u32) << 8);
+                places.extend_from_slice(&strips.index[run.clone()]);
+                let values_of = run.start * STRIP_ROWS..run.end * STRIP_ROWS;
+                values.extend_from_slice(match &strips.values {
+                    Values::Q8(v) => bytemuck::cast_slice(&v[values_of]),
+                    Values::Q16(v) => bytemuck::cast_slice(&v[values_of]),
+                    Values::F32(v) => bytemuck::cast_slice(&v[values_of]),
+                });
+            }
         }
+        places.resize(places.len().next_multiple_of(4), 0);
+        let values_base = (places.len() / 4) as u32;
+        places.extend_from_slice(&values);
+        drop(values);
         let (r0, r1) = (
             t.tile_row_start[tiles.start] as usize,
             t.tile_row_start[tiles.end] as usize,
         );
         let shc = t.sh_count();
-        let entry_buf = storage(device, "entries", bytemuck::cast_slice(&entries));
-        let ptr_buf = storage(device, "column pointers", bytemuck::cast_slice(&ptrs));
+        let strip_buf = storage(device, "strips", &places);
+        let slot_buf = storage(device, "slots", bytemuck::cast_slice(&slots));
         let sh_buf = storage(
             device,
             "sh rows",
@@ -316,7 +291,7 @@ impl GpuTransport {
             block_table: t.tile_row_start.len() as u32,
             term_base: 0,
             accumulate: 0,
-            _pad: 0,
+            values_base,
         };
         let params = crate::gpu::buffer_with(
             device,
@@ -346,8 +321,8 @@ impl GpuTransport {
             &[
                 (2, scaled_rows),
                 (3, acc),
-                (5, &entry_buf),
-                (6, &ptr_buf),
+                (5, &strip_buf),
+                (6, &slot_buf),
                 (7, light),
                 (8, &gpu.scales),
             ],
@@ -377,9 +352,9 @@ impl GpuTransport {
         self.chunks.len()
     }
 
-    /// Bytes per stored nonzero on the device.
-    pub fn bytes_per_nonzero(&self) -> u64 {
-        self.entry_bytes
+    /// Bytes per strip of 8 values on the device (its place and values).
+    pub fn bytes_per_strip(&self) -> u64 {
+        self.strip_bytes
     }
 
     fn wavelet_terms(&self, light: &SparseLight) -> Result<Vec<[f32; 4]>> {
@@ -751,8 +726,8 @@ impl GpuTransport {
         ))
     }
 
-    /// Entries on the device, for reporting.
-    pub fn nonzeros(&self) -> u64 {
-        self.entries
+    /// Strips on the device, for reporting.
+    pub fn strip_count(&self) -> u64 {
+        self.strips
     }
 }

@@ -200,6 +200,33 @@ impl Strips {
         &self.slots[start..start + blocks.len()]
     }
 
+    /// The band that holds block `b`.
+    pub fn band_of(&self, b: usize) -> usize {
+        self.band_block_start.partition_point(|&s| s as usize <= b) - 1
+    }
+
+    /// Block `b`'s slots, coefficient by coefficient, for a transport of `c` coefficients.
+    pub fn block_slots(&self, b: usize, c: usize) -> impl Iterator<Item = &Slot> {
+        let blocks = self.band_blocks(self.band_of(b));
+        let start = blocks.start * c + (b - blocks.start);
+        let step = blocks.len();
+        (0..c).map(move |j| &self.slots[start + j * step])
+    }
+
+    /// Strips a product with the light terms `indices` reads, for a transport of `c`
+    /// coefficients.
+    pub fn strips_read(&self, indices: &[u32], c: usize) -> u64 {
+        (0..self.band_count())
+            .map(|band| {
+                indices
+                    .iter()
+                    .flat_map(|&j| self.term_slots(band, j as usize, c))
+                    .map(|s| s.count as u64)
+                    .sum::<u64>()
+            })
+            .sum()
+    }
+
     /// Number of strips.
     pub fn strip_count(&self) -> usize {
         self.index.len()
