@@ -247,6 +247,7 @@ fn strips_hold_every_entry_once_in_light_major_bands() {
                 for (slot, b) in s.term_slots(band, j, c).iter().zip(blocks.clone()) {
                     assert_eq!(slot.first as usize, next, "{q}: strips out of order");
                     assert_eq!(slot.code, t.col_scale[b * c + j]);
+                    assert_eq!(slot.entries as usize, t.block_column(b, j).len());
                     let mut dense = [0.0f32; 256];
                     for e in t.block_column(b, j) {
                         dense[t.entry_row[e] as usize] = t.values.raw(e);
@@ -270,6 +271,11 @@ fn strips_hold_every_entry_once_in_light_major_bands() {
             }
         }
         assert_eq!(next, s.strip_count());
+        let all: Vec<u32> = (0..c as u32).collect();
+        assert_eq!(
+            s.read_by(&all, c),
+            (s.strip_count() as u64, t.entry_row.len() as u64)
+        );
         assert_eq!(s.values.len(), next * STRIP_ROWS);
     }
 }
@@ -302,6 +308,12 @@ fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
             let (best, best_read) = relight_strips(&t, s, &light, StripPath::Best);
             let (portable, read) = relight_strips(&t, s, &light, StripPath::Portable);
             assert_eq!(best_read, read);
+            let (strips, entries) = s.read_by(&light.indices, c);
+            assert_eq!(
+                read,
+                [strips, entries],
+                "{q} K = {k}: what the kernel says it read"
+            );
             for (name, img) in [("best", &best), ("portable", &portable)] {
                 let e = relative_l2(img, &dense, None).unwrap();
                 assert!(e < SAME_SUM, "{q} K = {k}: {name} vs dense {e}");

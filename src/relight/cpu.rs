@@ -14,22 +14,6 @@ use crate::output::film::Image;
 use crate::store::transport::strips::{STRIP_ROWS, Slot};
 use crate::store::transport::{TILE, Transport, tile_grid};
 
-/// Transport values the sparse product reads for `light`: the lengths of its kept columns in
-/// every block.
-pub fn nonzeros_touched(t: &Transport, light: &SparseLight) -> u64 {
-    let c = t.coeff_count();
-    (0..t.block_count())
-        .map(|b| {
-            let ptr = &t.col_ptr[b * (c + 1)..(b + 1) * (c + 1)];
-            light
-                .indices
-                .iter()
-                .map(|&j| (ptr[j as usize + 1] - ptr[j as usize]) as u64)
-                .sum::<u64>()
-        })
-        .sum()
-}
-
 /// The sparse wavelet product (see [`super::strip_kernel`]): the matrix's strips in light-major
 /// bands, every kept term's strips added to the band's rows. Checks that the light fits the
 /// transport (N, index range). The first call makes the transport's strips
@@ -44,11 +28,11 @@ pub fn relight_wavelet(t: &Transport, light: &SparseLight) -> Result<(Image, Rel
     }
     let strips = t.strips()?;
     let start = Instant::now();
-    let (image, read) = relight_strips(t, strips, light, StripPath::Best);
+    let (image, [read, entries]) = relight_strips(t, strips, light, StripPath::Best);
     let kernel_seconds = start.elapsed().as_secs_f64();
     let stats = RelightStats {
         terms: light.len(),
-        nonzeros_touched: nonzeros_touched(t, light),
+        nonzeros_touched: entries,
         bytes_touched: read * (1 + STRIP_ROWS * t.values.value_bytes()) as u64
             + (t.block_count() * light.len() * std::mem::size_of::<Slot>()) as u64,
         kernel_seconds,

@@ -15,7 +15,7 @@ pub mod strip_kernel;
 pub mod vertex;
 
 pub use crate::scene::light_mix::{LightMix, LightSetting};
-pub use cpu::{nonzeros_touched, relight_dense_reference, relight_sh, relight_wavelet};
+pub use cpu::{relight_dense_reference, relight_sh, relight_wavelet};
 pub use prepare::{LightContext, PreparedLight};
 
 use crate::error::{PrtError, Result};

@@ -80,13 +80,13 @@ impl StripValue for f32 {
 const PLANE: usize = BAND_BLOCKS * BLOCK_ROWS;
 
 /// The product of `t`'s matrix, laid out as `strips`, with `light` (checked against the
-/// transport by the caller): the image, and the strips read.
+/// transport by the caller): the image, and the strips and stored entries read.
 pub fn relight_strips(
     t: &Transport,
     strips: &Strips,
     light: &SparseLight,
     path: StripPath,
-) -> (Image, u64) {
+) -> (Image, [u64; 2]) {
     match &strips.values {
         Values::Q8(v) => product(t, strips, light, v, path),
         Values::Q16(v) => product(t, strips, light, v, path),
@@ -100,19 +100,19 @@ fn product<V: StripValue>(
     light: &SparseLight,
     values: &[V],
     path: StripPath,
-) -> (Image, u64) {
+) -> (Image, [u64; 2]) {
     let (w, h) = (t.meta.width as usize, t.meta.height as usize);
     let mut image = Image::new(w, h);
     let values: &[[V; STRIP_ROWS]] = values.as_chunks::<STRIP_ROWS>().0;
     let avx2 = path == StripPath::Best && has_avx2_fma();
-    let touched = image
+    let read = image
         .pixels
         .par_chunks_mut(w * TILE)
         .enumerate()
         .map_init(
             || vec![0.0f32; 3 * PLANE],
             |acc, (y, pixels)| {
-                let mut touched = 0u64;
+                let mut read = [0u64; 2];
                 for band in strips.row_bands(y) {
                     let blocks = strips.band_blocks(band);
                     assert!(
@@ -127,7 +127,7 @@ fn product<V: StripValue>(
                         band,
                     };
                     acc.fill(0.0);
-                    touched += if avx2 {
+                    let [strips, entries] = if avx2 {
                         #[cfg(target_arch = "x86_64")]
                         // SAFETY: AVX2 and FMA were detected above.
                         unsafe {
@@ -138,6 +138,8 @@ fn product<V: StripValue>(
                     } else {
                         job.add_portable(acc)
                     };
+                    read[0] += strips;
+                    read[1] += entries;
                     let y0 = y * TILE * w;
                     for b in blocks.clone() {
                         let rows = t.block_row_start[b] as usize..t.block_row_start[b + 1] as usize;
@@ -152,11 +154,11 @@ fn product<V: StripValue>(
                         }
                     }
                 }
-                touched
+                read
             },
         )
-        .sum::<u64>();
-    (image, touched)
+        .reduce(|| [0, 0], |a, b| [a[0] + b[0], a[1] + b[1]]);
+    (image, read)
 }
 
 fn has_avx2_fma() -> bool {
@@ -181,11 +183,12 @@ struct Band<'a, V> {
 
 impl<V: StripValue> Band<'_, V> {
     /// Walks the band's strips term by term, handing each strip's values, the accumulator row
-    /// it starts at and the scaled light term to `add`; returns the values read.
+    /// it starts at and the scaled light term to `add`; returns the strips and stored entries
+    /// read.
     #[inline(always)]
-    fn walk(&self, mut add: impl FnMut(&[V; STRIP_ROWS], usize, [f32; 3])) -> u64 {
+    fn walk(&self, mut add: impl FnMut(&[V; STRIP_ROWS], usize, [f32; 3])) -> [u64; 2] {
         let c = self.t.coeff_count();
-        let mut strips = 0u64;
+        let (mut strips, mut entries) = (0u64, 0u64);
         for (&j, l) in self.light.indices.iter().zip(&self.light.values) {
             for (i, slot) in self
                 .strips
@@ -199,6 +202,7 @@ impl<V: StripValue> Band<'_, V> {
                 }
                 let s0 = slot.first as usize;
                 strips += n as u64;
+                entries += slot.entries as u64;
                 let sc = scale_of(slot.code);
                 let l = [l[0] * sc, l[1] * sc, l[2] * sc];
                 let base = i * BLOCK_ROWS;
@@ -210,10 +214,10 @@ impl<V: StripValue> Band<'_, V> {
                 }
             }
         }
-        strips
+        [strips, entries]
     }
 
-    fn add_portable(&self, acc: &mut [f32]) -> u64 {
+    fn add_portable(&self, acc: &mut [f32]) -> [u64; 2] {
         let (r, gb) = acc.split_at_mut(PLANE);
         let (g, b) = gb.split_at_mut(PLANE);
         self.walk(|v, row, l| {
@@ -233,7 +237,7 @@ impl<V: StripValue> Band<'_, V> {
     /// The processor has AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn add_avx2(&self, acc: &mut [f32]) -> u64 {
+    unsafe fn add_avx2(&self, acc: &mut [f32]) -> [u64; 2] {
         use std::arch::x86_64::*;
         assert!(acc.len() >= 3 * PLANE);
         let p = acc.as_mut_ptr();

@@ -37,6 +37,8 @@ pub struct Slot {
     pub count: u8,
     /// The scale code of the block's column ([`crate::store::quant::scale_of`]).
     pub code: u8,
+    /// The stored entries its strips hold (their values that are not zero).
+    pub entries: u16,
 }
 
 /// The strips of a transport's Haar matrix (see the module's documentation).
@@ -137,6 +139,7 @@ impl Strips {
                                 first,
                                 count: (row.index.len() as u32 - first) as u8,
                                 code: t.col_scale[b * c + j],
+                                entries: rows.len() as u16,
                             });
                         }
                     }
@@ -213,18 +216,19 @@ impl Strips {
         (0..c).map(move |j| &self.slots[start + j * step])
     }
 
-    /// Strips a product with the light terms `indices` reads, for a transport of `c`
-    /// coefficients.
-    pub fn strips_read(&self, indices: &[u32], c: usize) -> u64 {
-        (0..self.band_count())
-            .map(|band| {
-                indices
-                    .iter()
-                    .flat_map(|&j| self.term_slots(band, j as usize, c))
-                    .map(|s| s.count as u64)
-                    .sum::<u64>()
-            })
-            .sum()
+    /// The strips and the stored entries a product with the light terms `indices` reads, for a
+    /// transport of `c` coefficients.
+    pub fn read_by(&self, indices: &[u32], c: usize) -> (u64, u64) {
+        let mut read = (0u64, 0u64);
+        for band in 0..self.band_count() {
+            for &j in indices {
+                for s in self.term_slots(band, j as usize, c) {
+                    read.0 += s.count as u64;
+                    read.1 += s.entries as u64;
+                }
+            }
+        }
+        read
     }
 
     /// Number of strips.
