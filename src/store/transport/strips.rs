@@ -58,12 +58,12 @@ pub struct Strips {
     pub values: Values,
 }
 
-/// One tile row's strips, made apart from the others' (in parallel), then joined.
-struct RowStrips<V> {
+/// One tile row's layout, found in a first pass: its bands' ends and its slots, their first
+/// strips counted from the row's own first.
+struct RowLayout {
     bands: Vec<u32>,
     slots: Vec<Slot>,
-    index: Vec<u8>,
-    values: Vec<V>,
+    strips: usize,
 }
 
 /// A stored value type: where a transport keeps its values, and how strips keep theirs.
@@ -102,77 +102,117 @@ impl Strips {
         let c = t.coeff_count();
         let (w, h) = (t.meta.width as usize, t.meta.height as usize);
         let (tx, ty) = tile_grid(w, h);
-        let rows: Vec<RowStrips<V>> = (0..ty)
+        let row_blocks = |y: usize| {
+            t.tile_block_start[y * tx] as usize..t.tile_block_start[(y + 1) * tx] as usize
+        };
+        // First pass, in parallel over tile rows: every column's strips counted, and the slots
+        // laid out band by band, coefficient by coefficient.
+        let layouts: Vec<RowLayout> = (0..ty)
             .into_par_iter()
             .map(|y| {
-                let blocks =
-                    t.tile_block_start[y * tx] as usize..t.tile_block_start[(y + 1) * tx] as usize;
-                let entries = t.block_entry_start[blocks.start] as usize
-                    ..t.block_entry_start[blocks.end] as usize;
-                // About one strip in 7 entries; the exact count is known only at the end.
-                let mut row = RowStrips {
+                let blocks = row_blocks(y);
+                let mut counts = vec![0u8; blocks.len() * c];
+                for (i, b) in blocks.clone().enumerate() {
+                    for (j, count) in counts[i * c..(i + 1) * c].iter_mut().enumerate() {
+                        let mut last = None;
+                        for &r in &t.entry_row[t.block_column(b, j)] {
+                            let place = r / STRIP_ROWS as u8;
+                            if last != Some(place) {
+                                last = Some(place);
+                                *count += 1;
+                            }
+                        }
+                    }
+                }
+                let mut row = RowLayout {
                     bands: Vec::new(),
                     slots: Vec::with_capacity(blocks.len() * c),
-                    index: Vec::with_capacity(entries.len() / 6),
-                    values: Vec::with_capacity(entries.len() * 4 / 3),
+                    strips: 0,
                 };
                 for b0 in blocks.clone().step_by(BAND_BLOCKS) {
                     let band = b0..(b0 + BAND_BLOCKS).min(blocks.end);
                     row.bands.push(band.end as u32);
                     for j in 0..c {
                         for b in band.clone() {
-                            let first = row.index.len() as u32;
-                            let column = t.block_column(b, j);
-                            let rows = &t.entry_row[column.clone()];
-                            for (&r, &v) in rows.iter().zip(&values[column]) {
-                                let place = r / STRIP_ROWS as u8;
-                                if row.index.len() as u32 == first
-                                    || row.index.last() != Some(&place)
-                                {
-                                    row.index.push(place);
-                                    row.values.extend([V::default(); STRIP_ROWS]);
-                                }
-                                let at = row.values.len() - STRIP_ROWS + r as usize % STRIP_ROWS;
-                                row.values[at] = v;
-                            }
+                            let count = counts[(b - blocks.start) * c + j];
                             row.slots.push(Slot {
-                                first,
-                                count: (row.index.len() as u32 - first) as u8,
+                                first: row.strips as u32,
+                                count,
                                 code: t.col_scale[b * c + j],
-                                entries: rows.len() as u16,
+                                entries: t.block_column(b, j).len() as u16,
                             });
+                            row.strips += count as usize;
                         }
                     }
                 }
                 row
             })
             .collect();
-        let total: usize = rows.iter().map(|r| r.index.len()).sum();
+        let total: usize = layouts.iter().map(|r| r.strips).sum();
         if u32::try_from(total).is_err() {
             return Err(format!(
                 "{total} strips of 8 rows are more than the kernel counts in 32 bits"
             ));
         }
+        let mut index = vec![0u8; total];
+        let mut strip_values = vec![V::default(); total * STRIP_ROWS];
+        // Second pass: each tile row fills its own part of the strips, reading its blocks in
+        // the order they are stored.
+        let mut parts = Vec::with_capacity(ty);
+        let (mut index_rest, mut values_rest) = (&mut index[..], &mut strip_values[..]);
+        for layout in &layouts {
+            let (i, rest) = index_rest.split_at_mut(layout.strips);
+            let (v, rest_v) = values_rest.split_at_mut(layout.strips * STRIP_ROWS);
+            parts.push((i, v));
+            (index_rest, values_rest) = (rest, rest_v);
+        }
+        parts.into_par_iter().zip(&layouts).enumerate().for_each(
+            |(y, ((index, strip_values), layout))| {
+                let blocks = row_blocks(y);
+                for (band, b0) in blocks.clone().step_by(BAND_BLOCKS).enumerate() {
+                    let nb = (b0 + BAND_BLOCKS).min(blocks.end) - b0;
+                    // The band's slots start after those of the row's earlier bands.
+                    let start = band * BAND_BLOCKS * c;
+                    for i in 0..nb {
+                        for j in 0..c {
+                            let slot = layout.slots[start + j * nb + i];
+                            let column = t.block_column(b0 + i, j);
+                            let mut k = slot.first as usize;
+                            let mut last = None;
+                            for (&r, &v) in t.entry_row[column.clone()].iter().zip(&values[column])
+                            {
+                                let place = r / STRIP_ROWS as u8;
+                                if last != Some(place) {
+                                    if last.is_some() {
+                                        k += 1;
+                                    }
+                                    last = Some(place);
+                                    index[k] = place;
+                                }
+                                strip_values[k * STRIP_ROWS + r as usize % STRIP_ROWS] = v;
+                            }
+                        }
+                    }
+                }
+            },
+        );
         let mut s = Strips {
             band_block_start: vec![0],
             row_band_start: vec![0],
             slots: Vec::with_capacity(t.block_count() * c),
-            index: Vec::with_capacity(total),
-            values: Values::empty(t.values.quantization()),
+            index,
+            values: V::wrap(strip_values),
         };
-        let mut values = Vec::with_capacity(total * STRIP_ROWS);
-        for row in rows {
-            let base = s.index.len() as u32;
-            s.band_block_start.extend_from_slice(&row.bands);
+        let mut base = 0u32;
+        for layout in layouts {
+            s.band_block_start.extend_from_slice(&layout.bands);
             s.row_band_start.push(s.band_block_start.len() as u32 - 1);
-            s.slots.extend(row.slots.iter().map(|slot| Slot {
+            s.slots.extend(layout.slots.iter().map(|slot| Slot {
                 first: slot.first + base,
                 ..*slot
             }));
-            s.index.extend_from_slice(&row.index);
-            values.extend_from_slice(&row.values);
+            base += layout.strips as u32;
         }
-        s.values = V::wrap(values);
         debug_assert_eq!(TILE * TILE, BLOCK_ROWS);
         Ok(s)
     }
