@@ -236,8 +236,20 @@ fn strips_hold_every_entry_once_in_light_major_bands() {
         let s = t.strips().unwrap();
         let c = t.coeff_count();
         assert!(
-            (0..s.row_band_start.len() - 1).any(|y| s.row_bands(y).len() > 1),
-            "{q}: no tile row has two bands"
+            (0..s.group_count()).any(|g| s.group_bands(g).len() > 1),
+            "{q}: no group has two bands"
+        );
+        // Groups are whole tile rows, at least a band's worth of blocks but the last.
+        for g in 0..s.group_count() {
+            let rows = s.group_rows(g);
+            let blocks = t.tile_block_start[rows.end * 15] - t.tile_block_start[rows.start * 15];
+            assert!(blocks as usize >= BAND_BLOCKS || g + 1 == s.group_count());
+        }
+        let narrow = random_transport(16, 200, 2, q, 18, 1.0);
+        let n = narrow.strips().unwrap();
+        assert!(
+            n.group_count() > 1 && n.group_rows(0).len() > 1,
+            "{q}: narrow groups"
         );
         let mut next = 0usize;
         for band in 0..s.band_count() {
@@ -286,8 +298,14 @@ fn strips_hold_every_entry_once_in_light_major_bands() {
 #[test]
 fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
     use wavelet_prt::relight::strip_kernel::{StripPath, relight_strips};
-    for q in [Quantization::Q8, Quantization::Q16, Quantization::F32] {
-        let t = random_transport(230, 20, 2, q, 19, 1e-3);
+    for (q, w, h) in [
+        (Quantization::Q8, 230, 20),
+        (Quantization::Q16, 230, 20),
+        (Quantization::F32, 230, 20),
+        // One tile wide, as a per-vertex bake is: its groups gather several tile rows.
+        (Quantization::Q8, 16, 200),
+    ] {
+        let t = random_transport(w, h, 2, q, 19, 1e-3);
         let c = t.coeff_count();
         let mut rng = Rng::new(8, 0);
         for k in [1, 5, c] {

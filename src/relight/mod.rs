@@ -56,9 +56,9 @@ crate::named!(Method, "method");
 pub struct RelightStats {
     /// Light terms used (K, n², or 6 N²).
     pub terms: usize,
-    /// Transport values read.
+    /// Stored transport entries the product reads (for SH, the values of the rows' SH terms).
     pub nonzeros_touched: u64,
-    /// Transport bytes read (entries, column pointers or SH rows).
+    /// Transport bytes read: the strips and their slots, or the SH rows.
     pub bytes_touched: u64,
     /// Wall time of the kernel alone, seconds.
     pub kernel_seconds: f64,

@@ -105,20 +105,25 @@ fn product<V: StripValue>(
     let mut image = Image::new(w, h);
     let values: &[[V; STRIP_ROWS]] = values.as_chunks::<STRIP_ROWS>().0;
     let avx2 = path == StripPath::Best && has_avx2_fma();
-    let read = image
-        .pixels
-        .par_chunks_mut(w * TILE)
-        .enumerate()
+    // Each group's pixels (whole tile rows) go to one worker.
+    let mut parts = Vec::with_capacity(strips.group_count());
+    let mut rest = &mut image.pixels[..];
+    for g in 0..strips.group_count() {
+        let rows = strips.group_rows(g);
+        let y0 = (rows.start * TILE).min(h) * w;
+        let len = (rows.end * TILE).min(h) * w - y0;
+        let (part, tail) = rest.split_at_mut(len);
+        parts.push((g, y0, part));
+        rest = tail;
+    }
+    let read = parts
+        .into_par_iter()
         .map_init(
             || vec![0.0f32; 3 * PLANE],
-            |acc, (y, pixels)| {
+            |acc, (g, y0, pixels)| {
                 let mut read = [0u64; 2];
-                for band in strips.row_bands(y) {
+                for band in strips.group_bands(g) {
                     let blocks = strips.band_blocks(band);
-                    assert!(
-                        blocks.len() <= BAND_BLOCKS,
-                        "a band of at most {BAND_BLOCKS} blocks"
-                    );
                     let job = Band {
                         t,
                         strips,
@@ -126,7 +131,11 @@ fn product<V: StripValue>(
                         values,
                         band,
                     };
-                    acc.fill(0.0);
+                    // Only the band's own rows: a per-vertex bake's bands are one or two blocks.
+                    let used = (blocks.len() * BLOCK_ROWS).min(PLANE);
+                    for plane in acc.chunks_mut(PLANE) {
+                        plane[..used].fill(0.0);
+                    }
                     let [strips, entries] = if avx2 {
                         #[cfg(target_arch = "x86_64")]
                         // SAFETY: AVX2 and FMA were detected above.
@@ -140,7 +149,6 @@ fn product<V: StripValue>(
                     };
                     read[0] += strips;
                     read[1] += entries;
-                    let y0 = y * TILE * w;
                     for b in blocks.clone() {
                         let rows = t.block_row_start[b] as usize..t.block_row_start[b + 1] as usize;
                         let base = (b - blocks.start) * BLOCK_ROWS;
@@ -239,10 +247,16 @@ impl<V: StripValue> Band<'_, V> {
     #[target_feature(enable = "avx2,fma")]
     unsafe fn add_avx2(&self, acc: &mut [f32]) -> [u64; 2] {
         use std::arch::x86_64::*;
+        // The bounds the pointer arithmetic below relies on: `walk` hands rows of at most
+        // `BAND_BLOCKS` blocks (one per slot of the band), and `acc` holds three planes.
+        assert!(
+            self.strips.band_blocks(self.band).len() <= BAND_BLOCKS,
+            "a band of at most {BAND_BLOCKS} blocks"
+        );
         assert!(acc.len() >= 3 * PLANE);
         let p = acc.as_mut_ptr();
         self.walk(|v, row, l| {
-            // SAFETY: `row` is a block's start inside the band (fewer than BAND_BLOCKS blocks)
+            // SAFETY: `row` is a block's start inside the band (at most BAND_BLOCKS blocks, asserted above)
             // plus a strip's start inside its block (reduced modulo the strips of a block), so
             // the eight lanes lie inside each plane of `acc`; `v` is eight values.
             unsafe {

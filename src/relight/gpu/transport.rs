@@ -403,7 +403,7 @@ impl GpuTransport {
             image,
             RelightStats {
                 terms: terms.len(),
-                // Not counted on the device; see `relight::nonzeros_touched`.
+                // Not counted on the device; `GpuBackend` counts them from the strips' slots.
                 nonzeros_touched: 0,
                 bytes_touched: 0,
                 kernel_seconds: seconds,

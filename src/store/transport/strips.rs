@@ -8,11 +8,13 @@
 //! kernel widens and adds 8 values with one vector instruction each instead of scattering them
 //! one by one.
 //!
-//! The blocks of a tile row are grouped into *bands* of at most [`BAND_BLOCKS`] blocks, and a
-//! band's strips are stored coefficient by coefficient (light-major, the order of Ng et al. 2003):
-//! coefficient j's strips of the band's first block, then of its second, and so on. So a K-term
-//! product reads K contiguous runs per band, and the band's accumulators (3 x 16 x 256 floats,
-//! 48 KiB) stay in the nearest caches while it does.
+//! Whole tile rows are gathered into *groups* of at least [`BAND_BLOCKS`] blocks (one row of a
+//! wide image; sixteen rows of a per-vertex bake, whose image is one tile wide), and a group's
+//! blocks into *bands* of at most [`BAND_BLOCKS`]. A band's strips are stored coefficient by
+//! coefficient (light-major, the order of Ng et al. 2003): coefficient j's strips of the band's
+//! first block, then of its second, and so on. So a K-term product reads K contiguous runs per
+//! band, and the band's accumulators (3 x 16 x 256 floats, 48 KiB) stay in the nearest caches
+//! while it does. A group is one worker's job: its pixels are its own.
 
 use std::ops::Range;
 
@@ -37,17 +39,21 @@ pub struct Slot {
     pub count: u8,
     /// The scale code of the block's column ([`crate::store::quant::scale_of`]).
     pub code: u8,
-    /// The stored entries its strips hold (their values that are not zero).
+    /// The stored entries its strips hold: the column's length in the file.
     pub entries: u16,
 }
 
 /// The strips of a transport's Haar matrix (see the module's documentation).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Strips {
-    /// Band i holds blocks `band_block_start[i] .. band_block_start[i + 1]`, all of one tile row.
+    /// Band i holds blocks `band_block_start[i] .. band_block_start[i + 1]`, all of one group.
     pub band_block_start: Vec<u32>,
-    /// Tile row y holds bands `row_band_start[y] .. row_band_start[y + 1]`.
-    pub row_band_start: Vec<u32>,
+    /// Group g is tile rows `group_row_start[g] .. group_row_start[g + 1]`: whole tile rows, as
+    /// few as hold [`BAND_BLOCKS`] blocks (one row of a wide image; 16 of a per-vertex bake's,
+    /// which are one tile wide), the last group whatever is left.
+    pub group_row_start: Vec<u32>,
+    /// Group g holds bands `group_band_start[g] .. group_band_start[g + 1]`.
+    pub group_band_start: Vec<u32>,
     /// Per band, coefficient and block of the band, in that order: where its strips are, so a
     /// term's slots of one band are side by side.
     pub slots: Vec<Slot>,
@@ -58,8 +64,8 @@ pub struct Strips {
     pub values: Values,
 }
 
-/// One tile row's layout, found in a first pass: its bands' ends and its slots, their first
-/// strips counted from the row's own first.
+/// One group's layout, found in a first pass: its bands' ends and its slots, their first
+/// strips counted from the group's own first.
 struct RowLayout {
     bands: Vec<u32>,
     slots: Vec<Slot>,
@@ -87,8 +93,8 @@ impl Stored for f32 {
 }
 
 impl Strips {
-    /// The strips of `t`'s matrix, in bands of [`BAND_BLOCKS`] blocks (the last of a tile row
-    /// may have fewer). Tile rows are laid out in parallel. An error when the strips would not
+    /// The strips of `t`'s matrix, in bands of [`BAND_BLOCKS`] blocks (the last of a group may
+    /// have fewer). Groups are laid out in parallel. An error when the strips would not
     /// be counted in 32 bits (a matrix of more than 2^32 strips, some 30 GB).
     pub fn of(t: &Transport) -> std::result::Result<Strips, String> {
         match &t.values {
@@ -102,12 +108,23 @@ impl Strips {
         let c = t.coeff_count();
         let (w, h) = (t.meta.width as usize, t.meta.height as usize);
         let (tx, ty) = tile_grid(w, h);
-        let row_blocks = |y: usize| {
-            t.tile_block_start[y * tx] as usize..t.tile_block_start[(y + 1) * tx] as usize
+        // Groups of whole tile rows, each closed once it holds a band's worth of blocks.
+        let mut group_row_start = vec![0u32];
+        for y in 1..=ty {
+            let first = *group_row_start.last().unwrap_or(&0) as usize;
+            let blocks = t.tile_block_start[y * tx] - t.tile_block_start[first * tx];
+            if blocks as usize >= BAND_BLOCKS || y == ty {
+                group_row_start.push(y as u32);
+            }
+        }
+        let groups = group_row_start.len() - 1;
+        let row_blocks = |g: usize| {
+            let rows = group_row_start[g] as usize..group_row_start[g + 1] as usize;
+            t.tile_block_start[rows.start * tx] as usize..t.tile_block_start[rows.end * tx] as usize
         };
-        // First pass, in parallel over tile rows: every column's strips counted, and the slots
+        // First pass, in parallel over groups: every column's strips counted, and the slots
         // laid out band by band, coefficient by coefficient.
-        let layouts: Vec<RowLayout> = (0..ty)
+        let layouts: Vec<RowLayout> = (0..groups)
             .into_par_iter()
             .map(|y| {
                 let blocks = row_blocks(y);
@@ -156,9 +173,9 @@ impl Strips {
         }
         let mut index = vec![0u8; total];
         let mut strip_values = vec![V::default(); total * STRIP_ROWS];
-        // Second pass: each tile row fills its own part of the strips, reading its blocks in
+        // Second pass: each group fills its own part of the strips, reading its blocks in
         // the order they are stored.
-        let mut parts = Vec::with_capacity(ty);
+        let mut parts = Vec::with_capacity(groups);
         let (mut index_rest, mut values_rest) = (&mut index[..], &mut strip_values[..]);
         for layout in &layouts {
             let (i, rest) = index_rest.split_at_mut(layout.strips);
@@ -198,7 +215,8 @@ impl Strips {
         );
         let mut s = Strips {
             band_block_start: vec![0],
-            row_band_start: vec![0],
+            group_row_start,
+            group_band_start: vec![0],
             slots: Vec::with_capacity(t.block_count() * c),
             index,
             values: V::wrap(strip_values),
@@ -206,7 +224,7 @@ impl Strips {
         let mut base = 0u32;
         for layout in layouts {
             s.band_block_start.extend_from_slice(&layout.bands);
-            s.row_band_start.push(s.band_block_start.len() as u32 - 1);
+            s.group_band_start.push(s.band_block_start.len() as u32 - 1);
             s.slots.extend(layout.slots.iter().map(|slot| Slot {
                 first: slot.first + base,
                 ..*slot
@@ -228,10 +246,21 @@ impl Strips {
         self.band_block_start[band] as usize..self.band_block_start[band + 1] as usize
     }
 
-    /// The bands of tile row `y`.
+    /// Number of groups of tile rows.
+    pub fn group_count(&self) -> usize {
+        self.group_row_start.len() - 1
+    }
+
+    /// The tile rows of group `g`.
     #[inline]
-    pub fn row_bands(&self, y: usize) -> Range<usize> {
-        self.row_band_start[y] as usize..self.row_band_start[y + 1] as usize
+    pub fn group_rows(&self, g: usize) -> Range<usize> {
+        self.group_row_start[g] as usize..self.group_row_start[g + 1] as usize
+    }
+
+    /// The bands of group `g`.
+    #[inline]
+    pub fn group_bands(&self, g: usize) -> Range<usize> {
+        self.group_band_start[g] as usize..self.group_band_start[g + 1] as usize
     }
 
     /// The slots of coefficient `j` in band `band` (one per block of the band), for a transport
