@@ -357,19 +357,9 @@ fn tiled_kernel_equals_the_dense_and_sprs_twins() {
         let c = texel_count(n);
         let mut rng = Rng::new(9, 1);
         for k in [1, 7, c] {
-            let mut idx: Vec<u32> = (0..c as u32).collect();
-            for i in (1..idx.len()).rev() {
-                idx.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
-            }
-            idx.truncate(k);
-            idx.sort_unstable();
-            let light = SparseLight {
-                values: idx
-                    .iter()
-                    .map(|_| [rng.next_f32(), rng.next_f32() - 0.5, 2.0 * rng.next_f32()])
-                    .collect(),
-                indices: idx,
-            };
+            let light = common::random_light(&mut rng, c, k, true, |rng| {
+                [rng.next_f32(), rng.next_f32() - 0.5, 2.0 * rng.next_f32()]
+            });
             let (fast, stats) = relight_wavelet(&t, &light).unwrap();
             let dense = relight_dense_reference(&t, &light);
             let e = relative_l2(&fast, &dense, None).unwrap();

@@ -309,18 +309,9 @@ fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
         let c = t.coeff_count();
         let mut rng = Rng::new(8, 0);
         for k in [1, 5, c] {
-            let mut indices: Vec<u32> = (0..c as u32).collect();
-            for i in (1..indices.len()).rev() {
-                indices.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
-            }
-            indices.truncate(k);
-            let light = SparseLight {
-                values: indices
-                    .iter()
-                    .map(|_| [rng.next_f32(), rng.next_f32() - 0.5, 1.0])
-                    .collect(),
-                indices,
-            };
+            let light = common::random_light(&mut rng, c, k, false, |rng| {
+                [rng.next_f32(), rng.next_f32() - 0.5, 1.0]
+            });
             let dense = relight_dense_reference(&t, &light);
             let s = t.strips().unwrap();
             let (best, best_read) = relight_strips(&t, s, &light, StripPath::Best);
@@ -353,18 +344,9 @@ fn gpu_decodes_every_format_like_the_cpu() {
         let g = wavelet_prt::relight::gpu::GpuTransport::upload(&gpu, &t, None).unwrap();
         let mut rng = Rng::new(6, 0);
         for k in [3, 40, c] {
-            let mut indices: Vec<u32> = (0..c as u32).collect();
-            for i in (1..indices.len()).rev() {
-                indices.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
-            }
-            indices.truncate(k);
-            let light = SparseLight {
-                values: indices
-                    .iter()
-                    .map(|_| [rng.next_f32(), 2.0 * rng.next_f32(), 1.0])
-                    .collect(),
-                indices,
-            };
+            let light = common::random_light(&mut rng, c, k, false, |rng| {
+                [rng.next_f32(), 2.0 * rng.next_f32(), 1.0]
+            });
             let (cpu, _) = relight_wavelet(&t, &light).unwrap();
             let (dev, _) = g.relight_wavelet(&gpu, &light).unwrap();
             let norm: f64 = cpu.pixels.iter().flatten().map(|v| (*v as f64).abs()).sum();

@@ -44,6 +44,30 @@ pub fn full_light(
     }
 }
 
+/// `k` of `c` Haar coefficients drawn at random, in a shuffled order (sorted when `ascending`, as
+/// a selection returns them), each with the RGB value `value` draws: a light for holding one
+/// kernel to another.
+pub fn random_light(
+    rng: &mut SampleRng,
+    c: usize,
+    k: usize,
+    ascending: bool,
+    mut value: impl FnMut(&mut SampleRng) -> [f32; 3],
+) -> wavelet_prt::light::select::SparseLight {
+    let mut indices: Vec<u32> = (0..c as u32).collect();
+    for i in (1..indices.len()).rev() {
+        indices.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
+    }
+    indices.truncate(k);
+    if ascending {
+        indices.sort_unstable();
+    }
+    wavelet_prt::light::select::SparseLight {
+        values: indices.iter().map(|_| value(rng)).collect(),
+        indices,
+    }
+}
+
 /// A glossy sphere (GGX roughness 0.5) on a matte ground: the shared sphere on its plane with
 /// its clay made glossy.
 #[allow(dead_code)]
