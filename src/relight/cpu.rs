@@ -1,4 +1,4 @@
-//! The CPU kernels (rayon over tile rows): the sparse wavelet product (its inner loops in
+//! The CPU kernels (rayon over whole tile rows): the sparse wavelet product (its inner loops in
 //! [`super::strip_kernel`]), the SH dot product, and the dense product that is their slow twin in
 //! the tests.
 

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use crate::light::select::SparseLight;
 use crate::output::film::Image;
-use crate::store::quant::{BLOCK_ROWS, scale_of};
+use crate::store::quant::{BLOCK_ROWS, scale_table};
 use crate::store::transport::strips::{BAND_BLOCKS, STRIP_ROWS, STRIPS_PER_BLOCK, Strips};
 use crate::store::transport::{TILE, Transport, Values};
 
@@ -196,6 +196,7 @@ impl<V: StripValue> Band<'_, V> {
     #[inline(always)]
     fn walk(&self, mut add: impl FnMut(&[V; STRIP_ROWS], usize, [f32; 3])) -> [u64; 2] {
         let c = self.t.coeff_count();
+        let scales = scale_table();
         let (mut strips, mut entries) = (0u64, 0u64);
         for (&j, l) in self.light.indices.iter().zip(&self.light.values) {
             for (i, slot) in self
@@ -211,7 +212,7 @@ impl<V: StripValue> Band<'_, V> {
                 let s0 = slot.first as usize;
                 strips += n as u64;
                 entries += slot.entries as u64;
-                let sc = scale_of(slot.code);
+                let sc = scales[slot.code as usize];
                 let l = [l[0] * sc, l[1] * sc, l[2] * sc];
                 let base = i * BLOCK_ROWS;
                 for (v, &k) in self.values[s0..s0 + n]

@@ -99,12 +99,15 @@ pub struct GpuTransport {
 }
 
 fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
-    // Bindings may not be empty: pad to one vec4.
-    let mut data = bytes.to_vec();
-    if data.len() < 16 {
-        data.resize(16, 0);
-    }
-    crate::gpu::buffer_with(device, label, &data, wgpu::BufferUsages::STORAGE)
+    // Bindings may not be empty: pad to one vec4 (copying only what is that small).
+    let mut padded = [0u8; 16];
+    let data = if bytes.len() < padded.len() {
+        padded[..bytes.len()].copy_from_slice(bytes);
+        &padded[..]
+    } else {
+        bytes
+    };
+    crate::gpu::buffer_with(device, label, data, wgpu::BufferUsages::STORAGE)
 }
 
 impl GpuTransport {
@@ -200,10 +203,12 @@ impl GpuTransport {
                     "tile {start} alone does not fit a {limit}-byte binding"
                 )));
             }
+            let (b0, b1) = (t.tile_block_start[start], t.tile_block_start[end]);
             chunks.push(Self::chunk(
                 gpu,
                 t,
                 start..end,
+                block_strips[b0 as usize..b1 as usize].iter().sum::<u64>() as usize,
                 tiles_x,
                 [&tile_rows, &row_buf, &scaled_buf, &acc, &image, &light],
             )?);
@@ -230,6 +235,7 @@ impl GpuTransport {
         gpu: &Gpu,
         t: &Transport,
         tiles: std::ops::Range<usize>,
+        strip_count: usize,
         tiles_x: usize,
         [tile_rows, rows, scaled_rows, acc, image, light]: [&wgpu::Buffer; 6],
     ) -> Result<Chunk> {
@@ -237,36 +243,40 @@ impl GpuTransport {
         let c = t.coeff_count();
         let blocks =
             t.tile_block_start[tiles.start] as usize..t.tile_block_start[tiles.end] as usize;
-        // The blocks' strips, coefficient by coefficient: first every strip's place (four to a
-        // word), then from `values_base` on their values, packed as the stored type.
+        // The blocks' strips (`strip_count` of them), coefficient by coefficient, in one buffer:
+        // first every strip's place (four to a word), then from `values_base` on their values,
+        // packed as the stored type.
         let strips = t.strips()?;
+        let places_len = strip_count.next_multiple_of(4);
+        let values_base = (places_len / 4) as u32;
+        let mut data =
+            vec![0u8; places_len + strip_count * STRIP_ROWS * strips.values.value_bytes()];
+        let (places, values) = data.split_at_mut(places_len);
         let mut slots = Vec::with_capacity(blocks.len() * 2 * c);
-        let mut places: Vec<u8> = Vec::new();
-        let mut values: Vec<u8> = Vec::new();
+        let (mut p, mut v) = (0, 0);
         for b in blocks.clone() {
             for slot in strips.block_slots(b, c) {
                 let run = slot.first as usize..slot.first as usize + slot.count as usize;
-                slots.push(places.len() as u32);
+                slots.push(p as u32);
                 slots.push(slot.count as u32 | (slot.code as u32) << 8);
-                places.extend_from_slice(&strips.index[run.clone()]);
+                places[p..p + run.len()].copy_from_slice(&strips.index[run.clone()]);
+                p += run.len();
                 let values_of = run.start * STRIP_ROWS..run.end * STRIP_ROWS;
-                values.extend_from_slice(match &strips.values {
-                    Values::Q8(v) => bytemuck::cast_slice(&v[values_of]),
-                    Values::Q16(v) => bytemuck::cast_slice(&v[values_of]),
-                    Values::F32(v) => bytemuck::cast_slice(&v[values_of]),
-                });
+                let bytes: &[u8] = match &strips.values {
+                    Values::Q8(x) => bytemuck::cast_slice(&x[values_of]),
+                    Values::Q16(x) => bytemuck::cast_slice(&x[values_of]),
+                    Values::F32(x) => bytemuck::cast_slice(&x[values_of]),
+                };
+                values[v..v + bytes.len()].copy_from_slice(bytes);
+                v += bytes.len();
             }
         }
-        places.resize(places.len().next_multiple_of(4), 0);
-        let values_base = (places.len() / 4) as u32;
-        places.extend_from_slice(&values);
-        drop(values);
         let (r0, r1) = (
             t.tile_row_start[tiles.start] as usize,
             t.tile_row_start[tiles.end] as usize,
         );
         let shc = t.sh_count();
-        let strip_buf = storage(device, "strips", &places);
+        let strip_buf = storage(device, "strips", &data);
         let slot_buf = storage(device, "slots", bytemuck::cast_slice(&slots));
         let sh_buf = storage(
             device,

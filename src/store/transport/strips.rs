@@ -20,7 +20,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use super::{TILE, Transport, Values, tile_grid};
+use super::{Transport, Values, tile_grid};
 use crate::store::quant::BLOCK_ROWS;
 
 /// Rows of one strip.
@@ -66,14 +66,14 @@ pub struct Strips {
 
 /// One group's layout, found in a first pass: its bands' ends and its slots, their first
 /// strips counted from the group's own first.
-struct RowLayout {
+struct GroupLayout {
     bands: Vec<u32>,
     slots: Vec<Slot>,
     strips: usize,
 }
 
 /// A stored value type: where a transport keeps its values, and how strips keep theirs.
-trait Stored: Copy + Default + PartialEq + Send + Sync {
+trait Stored: Copy + Default + Send + Sync {
     fn wrap(v: Vec<Self>) -> Values;
 }
 impl Stored for i8 {
@@ -118,16 +118,16 @@ impl Strips {
             }
         }
         let groups = group_row_start.len() - 1;
-        let row_blocks = |g: usize| {
+        let group_blocks = |g: usize| {
             let rows = group_row_start[g] as usize..group_row_start[g + 1] as usize;
             t.tile_block_start[rows.start * tx] as usize..t.tile_block_start[rows.end * tx] as usize
         };
         // First pass, in parallel over groups: every column's strips counted, and the slots
         // laid out band by band, coefficient by coefficient.
-        let layouts: Vec<RowLayout> = (0..groups)
+        let layouts: Vec<GroupLayout> = (0..groups)
             .into_par_iter()
-            .map(|y| {
-                let blocks = row_blocks(y);
+            .map(|g| {
+                let blocks = group_blocks(g);
                 let mut counts = vec![0u8; blocks.len() * c];
                 for (i, b) in blocks.clone().enumerate() {
                     for (j, count) in counts[i * c..(i + 1) * c].iter_mut().enumerate() {
@@ -141,31 +141,31 @@ impl Strips {
                         }
                     }
                 }
-                let mut row = RowLayout {
+                let mut group = GroupLayout {
                     bands: Vec::new(),
                     slots: Vec::with_capacity(blocks.len() * c),
                     strips: 0,
                 };
                 for b0 in blocks.clone().step_by(BAND_BLOCKS) {
                     let band = b0..(b0 + BAND_BLOCKS).min(blocks.end);
-                    row.bands.push(band.end as u32);
+                    group.bands.push(band.end as u32);
                     for j in 0..c {
                         for b in band.clone() {
                             let count = counts[(b - blocks.start) * c + j];
-                            row.slots.push(Slot {
-                                first: row.strips as u32,
+                            group.slots.push(Slot {
+                                first: group.strips as u32,
                                 count,
                                 code: t.col_scale[b * c + j],
                                 entries: t.block_column(b, j).len() as u16,
                             });
-                            row.strips += count as usize;
+                            group.strips += count as usize;
                         }
                     }
                 }
-                row
+                group
             })
             .collect();
-        let total: usize = layouts.iter().map(|r| r.strips).sum();
+        let total: usize = layouts.iter().map(|l| l.strips).sum();
         if u32::try_from(total).is_err() {
             return Err(format!(
                 "{total} strips of 8 rows are more than the kernel counts in 32 bits"
@@ -184,11 +184,11 @@ impl Strips {
             (index_rest, values_rest) = (rest, rest_v);
         }
         parts.into_par_iter().zip(&layouts).enumerate().for_each(
-            |(y, ((index, strip_values), layout))| {
-                let blocks = row_blocks(y);
+            |(g, ((index, strip_values), layout))| {
+                let blocks = group_blocks(g);
                 for (band, b0) in blocks.clone().step_by(BAND_BLOCKS).enumerate() {
                     let nb = (b0 + BAND_BLOCKS).min(blocks.end) - b0;
-                    // The band's slots start after those of the row's earlier bands.
+                    // The band's slots start after those of the group's earlier bands (all full).
                     let start = band * BAND_BLOCKS * c;
                     for i in 0..nb {
                         for j in 0..c {
@@ -231,7 +231,6 @@ impl Strips {
             }));
             base += layout.strips as u32;
         }
-        debug_assert_eq!(TILE * TILE, BLOCK_ROWS);
         Ok(s)
     }
 
