@@ -149,10 +149,6 @@ fn relight(c: &mut Criterion) {
     });
     drop(csc);
     let total = t.coeff_count();
-    // The strips the kernel reads, made from the stored columns (once per transport).
-    g.bench_function("strips_of_columns", |b| {
-        b.iter(|| wavelet_prt::store::transport::Strips::of(&t).unwrap())
-    });
     for k in [1, 10, 100, 200, 1000, total] {
         let sparse = light
             .wavelet
@@ -165,7 +161,7 @@ fn relight(c: &mut Criterion) {
         });
         // The portable inner loop, the SIMD one's twin, on the same strips.
         if [200, total].contains(&k) {
-            let strips = t.strips().unwrap();
+            let strips = &t.strips;
             g.bench_with_input(BenchmarkId::new("wavelet_portable", k), &sparse, |b, s| {
                 b.iter(|| relight_strips(&t, strips, s, StripPath::Portable))
             });
@@ -186,10 +182,9 @@ fn relight(c: &mut Criterion) {
 fn csc_of(t: &Transport) -> sprs::CsMatI<f32, u32> {
     let mut tri = sprs::TriMatI::<f32, u32>::new((t.row_pixel.len(), t.coeff_count()));
     for b in 0..t.block_count() {
-        let r0 = t.block_row_start[b] as usize;
         for j in 0..t.coeff_count() {
-            for e in t.block_column(b, j) {
-                tri.add_triplet(r0 + t.entry_row[e] as usize, j, t.value(b, j, e));
+            for (row, v) in t.column(b, j) {
+                tri.add_triplet(row, j, v);
             }
         }
     }

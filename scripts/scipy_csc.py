@@ -3,8 +3,8 @@
 wavelet kernel: the rate, in stored coefficients per CPU-second, of the full product and of
 K-term products.
 
-The matrix is read from the file (safetensors; the tensors the format documents in
-`src/store/transport/mod.rs`), every value decoded (integer x column scale x row scale) into a
+The matrix is read from the file (`prt_matrix.py` beside this script: the tensors the format
+documents in `src/store/transport/mod.rs`), every value decoded (integer x column scale x row scale) into a
 scipy CSC matrix of f32 values and int32 row indices. The full product is `A @ L` with an RGB
 light of every coefficient; a K-term product is `A[:, kept] @ L[kept]`, the column selection
 included (it is how a scipy user takes K terms), the kept columns the K of largest mean
@@ -19,45 +19,21 @@ dependency.
 Usage: python3 scripts/scipy_csc.py FILE.prt [K ...]
 """
 
-import json
 import statistics
-import struct
 import sys
 import time
 
 import numpy as np
 import scipy.sparse
-from safetensors.numpy import load_file
+
+import prt_matrix
 
 PASSES = 7
-BLOCK_ROWS = 256
 
 
 def matrix(path):
-    with open(path, "rb") as f:
-        (n,) = struct.unpack("<Q", f.read(8))
-        meta = json.loads(json.loads(f.read(n))["__metadata__"]["meta"])
-    t = load_file(path)
-    version = meta["format_version"]
-    if "entry_row" not in t:
-        sys.exit(f"{path}: format {version} stores no column entries this script reads")
-    n_side = meta["cube_n"]
-    c = 6 * n_side * n_side
-    tile_rows = t["tile_row_start"].astype(np.int64)
-    block_start = []
-    for a, b in zip(tile_rows[:-1], tile_rows[1:]):
-        block_start.extend(range(a, b, BLOCK_ROWS))
-    block_start = np.array(block_start, dtype=np.int64)
-    counts = t["col_count"].astype(np.int64)
-    blocks = counts.shape[0]
-    assert blocks == len(block_start), "block tables do not match the tiles"
-    per_slot = counts.ravel()
-    cols = np.repeat(np.tile(np.arange(c), blocks), per_slot)
-    block_of = np.repeat(np.repeat(np.arange(blocks), c), per_slot)
-    rows = block_start[block_of] + t["entry_row"].astype(np.int64)
-    codes = np.repeat(t["col_scale"].ravel(), per_slot).astype(np.float64)
-    scale = np.power(2.0, (codes - 192.0) / 4.0)
-    values = t["entry_value"].astype(np.float64) * scale * t["row_scale"][rows]
+    meta, t, rows, cols, values = prt_matrix.read(path)
+    c = 6 * meta["cube_n"] ** 2
     shape = (len(t["row_scale"]), c)
     a = scipy.sparse.csc_matrix(
         (values.astype(np.float32), (rows.astype(np.int32), cols.astype(np.int32))), shape=shape

@@ -368,7 +368,7 @@ fn tiled_kernel_equals_the_dense_and_sprs_twins() {
             let e = relative_l2(&fast, &via_sprs, None).unwrap();
             assert!(e < SAME_SUM, "{w}x{h} N={n} K={k}: tiled vs sprs {e}");
             if k == c {
-                assert_eq!(stats.nonzeros_touched as usize, t.entry_row.len());
+                assert_eq!(stats.nonzeros_touched, t.nonzeros());
             }
         }
     }
@@ -380,10 +380,9 @@ fn sprs_product(t: &Transport, light: &SparseLight) -> Image {
     let rows = t.row_pixel.len();
     let mut tri = sprs::TriMat::new((rows, c));
     for b in 0..t.block_count() {
-        let r0 = t.block_row_start[b] as usize;
         for j in 0..c {
-            for e in t.block_column(b, j) {
-                tri.add_triplet(r0 + t.entry_row[e] as usize, j, t.value(b, j, e) as f64);
+            for (row, v) in t.column(b, j) {
+                tri.add_triplet(row, j, v as f64);
             }
         }
     }
@@ -511,10 +510,10 @@ fn thresholded_bake_is_sparser_and_close_to_lossless() {
     )
     .unwrap();
     assert!(
-        sparse.entry_row.len() < exact.entry_row.len(),
+        sparse.nonzeros() < exact.nonzeros(),
         "{} entries thresholded, {} lossless",
-        sparse.entry_row.len(),
-        exact.entry_row.len()
+        sparse.nonzeros(),
+        exact.nonzeros()
     );
     assert_eq!(sparse.meta.identity.quantization, Quantization::Q8);
     let cube = CubeMap::constant(8, [1.0; 3]).unwrap();

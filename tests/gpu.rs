@@ -105,7 +105,7 @@ fn gpu_equals_cpu_when_split_across_bindings() {
         // As small as the largest tile allows, so that a few tiles fill a binding: a strip is
         // its place and 8 values, a block's slots two words a coefficient.
         let value_bytes = t.meta.identity.quantization.value_bytes() as u64;
-        let strips = t.strips().unwrap();
+        let strips = &t.strips;
         let c = t.coeff_count();
         let tile_bytes = |tile: usize| -> u64 {
             t.blocks(tile)

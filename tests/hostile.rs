@@ -100,27 +100,29 @@ fn assert_clean_error(args: &[&str], needles: &[&str]) -> String {
 }
 
 // 1. A checksum-valid edit of the column table panicked (`range end index out of range`) in
-// info, relight, view --screenshot and merge.
+// info, relight, view --screenshot and merge. The strips' counts took the column counts' place.
 #[test]
-fn column_count_edits_with_the_checksum_recomputed_are_errors_not_panics() {
+fn strip_count_edits_with_the_checksum_recomputed_are_errors_not_panics() {
     let dir = temp_dir("hostile-col-count");
     let good = transport_file(&dir);
     let file = StFile::read(&good);
     let bad = dir.join("edited.prt");
-    let counts: Vec<u16> = bytemuck::pod_collect_to_vec(&file.tensors[1].3);
-    assert_eq!(file.tensors[1].0, "col_count");
+    let counts: Vec<u8> = file
+        .tensors
+        .iter()
+        .find(|t| t.0 == "strip_count")
+        .unwrap()
+        .3
+        .clone();
     // Every count raised, lowered or set to the largest value, one at a time.
     let mut edits = 0;
-    for i in 0..counts.len() {
-        for v in [
-            counts[i].wrapping_add(1),
-            counts[i].wrapping_sub(1),
-            u16::MAX,
-        ] {
+    for (i, &count) in counts.iter().enumerate() {
+        for v in [count.wrapping_add(1), count.wrapping_sub(1), u8::MAX] {
+            if v == count {
+                continue;
+            }
             let mut f = file.clone();
-            let mut c = counts.clone();
-            c[i] = v;
-            *f.tensor_mut("col_count") = bytemuck::cast_slice(&c).to_vec();
+            f.tensor_mut("strip_count")[i] = v;
             f.write(&bad, true);
             let e = Transport::load(&bad).unwrap_err().to_string();
             assert!(e.contains("edited.prt"), "count {i} = {v}: {e}");
@@ -129,10 +131,8 @@ fn column_count_edits_with_the_checksum_recomputed_are_errors_not_panics() {
     }
     assert!(edits > 100);
     // The same file through every command that reads it.
-    let mut c = counts.clone();
-    c[0] = c[0].wrapping_add(1);
     let mut f = file.clone();
-    *f.tensor_mut("col_count") = bytemuck::cast_slice(&c).to_vec();
+    f.tensor_mut("strip_count")[0] = counts[0].wrapping_add(1);
     f.write(&bad, true);
     let png = dir.join("out.png");
     for args in [
@@ -141,7 +141,7 @@ fn column_count_edits_with_the_checksum_recomputed_are_errors_not_panics() {
         vec!["view", s(&bad), "--screenshot", s(&png)],
         vec!["merge", s(&bad), "-o", s(&dir.join("merged.prt"))],
     ] {
-        assert_clean_error(&args, &["edited.prt", "column counts"]);
+        assert_clean_error(&args, &["edited.prt", "strip counts"]);
     }
 }
 

@@ -78,9 +78,8 @@ fn decoded(t: &Transport) -> std::collections::HashMap<(usize, usize), f32> {
     let mut out = std::collections::HashMap::new();
     for b in 0..t.block_count() {
         for j in 0..t.coeff_count() {
-            for e in t.block_column(b, j) {
-                let row = t.block_row_start[b] as usize + t.entry_row[e] as usize;
-                out.insert((row, j), t.value(b, j, e));
+            for (row, v) in t.column(b, j) {
+                out.insert((row, j), v);
             }
         }
     }
@@ -139,7 +138,8 @@ fn no_stored_value_is_subnormal() {
         };
         let t = bake(&scene, &s, &|_| {}).unwrap();
         assert!(t.row_scale.iter().all(|s| s.is_normal()));
-        let scales_used: std::collections::HashSet<u8> = t.col_scale.iter().copied().collect();
+        let scales_used: std::collections::HashSet<u8> =
+            t.strips.slots.iter().map(|s| s.code).collect();
         assert!(
             scales_used
                 .iter()
@@ -185,22 +185,75 @@ fn old_format_files_are_refused_with_a_clear_message() {
     );
 }
 
-/// Version 3 and 4 files, written before the local lights and the albedo maps, still load: they
-/// differ only in having neither.
+/// A format 6 file's matrix, decoded here from its columns as that format lays them out (per
+/// (block, coefficient) a count and a scale code, then each entry's row and value), by (row,
+/// coefficient).
+fn columns_of_format_6(f: &StFile) -> std::collections::HashMap<(usize, usize), f32> {
+    let tensor = |name: &str| &f.tensors.iter().find(|t| t.0 == name).unwrap().3;
+    let counts: Vec<u16> = bytemuck::pod_collect_to_vec(tensor("col_count"));
+    let codes = tensor("col_scale");
+    let rows = tensor("entry_row");
+    let row_scale: Vec<f32> = bytemuck::pod_collect_to_vec(tensor("row_scale"));
+    let starts: Vec<u32> = bytemuck::pod_collect_to_vec(tensor("tile_row_start"));
+    let bytes = tensor("entry_value");
+    let value = |e: usize| match f.meta["quantization"].as_str().unwrap() {
+        "q8" => bytes[e] as i8 as f32,
+        "q16" => i16::from_le_bytes([bytes[2 * e], bytes[2 * e + 1]]) as f32,
+        _ => f32::from_le_bytes(bytes[4 * e..4 * e + 4].try_into().unwrap()),
+    };
+    // Blocks of 256 rows inside each tile.
+    let mut block_start = Vec::new();
+    for w in starts.windows(2) {
+        block_start.extend((w[0]..w[1]).step_by(256).map(|r| r as usize));
+    }
+    let c = codes.len() / block_start.len();
+    let mut out = std::collections::HashMap::new();
+    let mut e = 0;
+    for (k, &n) in counts.iter().enumerate() {
+        let scale = wavelet_prt::store::quant::scale_of(codes[k]);
+        for _ in 0..n {
+            let row = block_start[k / c] + rows[e] as usize;
+            out.insert((row, k % c), value(e) * scale * row_scale[row]);
+            e += 1;
+        }
+    }
+    out
+}
+
+/// Files of format 6, which stored columns where version 7 stores strips, load with every value
+/// where those columns put it (a view in q8 and lossless, a per-vertex bake in q16, all written
+/// by the build that wrote version 6); they save as version 7 and load back the same. Versions
+/// 3 to 5 differ from 6 only in having no lights, albedo maps or in-out terms, so the same
+/// files labelled 3 to 5 load the same.
 #[test]
-fn version_3_and_4_files_load_as_ones_without_lights_or_maps() {
-    let dir = temp_dir("storage-v3");
-    let t = random_transport(20, 18, 2, Quantization::Q8, 3, 1.0);
-    let p = dir.join("t.prt");
-    t.save(&p).unwrap();
-    for version in [3, 4] {
-        let mut file = StFile::read(&p);
-        file.meta["format_version"] = version.into();
-        let q = dir.join(format!("v{version}.prt"));
-        std::fs::write(&q, file.to_bytes(true)).unwrap();
-        let back = Transport::load(&q).unwrap();
-        assert_eq!(back, t);
-        assert!(back.meta.lights.is_empty());
+fn format_6_files_load_into_strips_with_every_value_in_place() {
+    let dir = temp_dir("storage-format-6");
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/format6");
+    for name in ["v6_q8.prt", "v6_lossless.prt", "v6_vertex.prt"] {
+        let path = data.join(name);
+        let file = StFile::read(&path);
+        assert_eq!(file.meta["format_version"], 6);
+        let t = Transport::load(&path).unwrap();
+        let want = columns_of_format_6(&file);
+        assert!(want.len() > 1000, "{name}: {} values", want.len());
+        assert_eq!(decoded(&t), want, "{name}");
+        assert_eq!(t.nonzeros(), want.len() as u64);
+        // Saved as version 7, loaded back: the same transport.
+        let p = dir.join(name);
+        t.save(&p).unwrap();
+        assert_eq!(StFile::read(&p).meta["format_version"], 7);
+        assert_eq!(Transport::load(&p).unwrap(), t, "{name}");
+        for version in [3, 4, 5] {
+            let mut old = file.clone();
+            old.meta["format_version"] = version.into();
+            let q = dir.join(format!("v{version}-{name}"));
+            std::fs::write(&q, old.to_bytes(true)).unwrap();
+            assert_eq!(
+                Transport::load(&q).unwrap(),
+                t,
+                "{name} as version {version}"
+            );
+        }
     }
 }
 
@@ -225,15 +278,17 @@ fn kernel_equals_dense_twin_for_every_format() {
     }
 }
 
-/// The strips hold every stored entry once, at its row and with its value, and nothing else;
-/// they lie in light-major order (band, coefficient, block), and a tile row of more than 16
-/// blocks is cut into bands of 16.
+/// The strips hold every entry of the tiles' columns (as [`EncodedTile::encode`] lays them
+/// out) once, at its row and with its value, and nothing else; they lie in light-major order
+/// (band, coefficient, block), and a tile row of more than 16 blocks is cut into bands of 16.
 #[test]
 fn strips_hold_every_entry_once_in_light_major_bands() {
+    use wavelet_prt::store::transport::EncodedTile;
     use wavelet_prt::store::transport::strips::{BAND_BLOCKS, STRIP_ROWS};
     for q in [Quantization::Q8, Quantization::Q16, Quantization::F32] {
+        let (meta, tiles) = common::random_rows(230, 20, 2, q, 17, 1.0);
         let t = random_transport(230, 20, 2, q, 17, 1.0);
-        let s = t.strips().unwrap();
+        let s = &t.strips;
         let c = t.coeff_count();
         assert!(
             (0..s.group_count()).any(|g| s.group_bands(g).len() > 1),
@@ -246,24 +301,38 @@ fn strips_hold_every_entry_once_in_light_major_bands() {
             assert!(blocks as usize >= BAND_BLOCKS || g + 1 == s.group_count());
         }
         let narrow = random_transport(16, 200, 2, q, 18, 1.0);
-        let n = narrow.strips().unwrap();
+        let n = &narrow.strips;
         assert!(
             n.group_count() > 1 && n.group_rows(0).len() > 1,
             "{q}: narrow groups"
         );
+        // Each block's columns as the encoder lays them out: (count, code, dense raw values).
+        let mut columns = Vec::new();
+        for rows in &tiles {
+            let e =
+                EncodedTile::encode(rows, c, meta.identity.sh_order.pow(2) as usize, q).unwrap();
+            let mut at = 0;
+            for (&count, &code) in e.col_count.iter().zip(&e.col_scale) {
+                let mut dense = [0.0f32; 256];
+                for k in at..at + count as usize {
+                    dense[e.entry_row[k] as usize] = e.values.raw(k);
+                }
+                at += count as usize;
+                columns.push((count, code, dense));
+            }
+        }
+        assert_eq!(columns.len(), t.block_count() * c);
         let mut next = 0usize;
+        let mut entries = 0u64;
         for band in 0..s.band_count() {
             let blocks = s.band_blocks(band);
             assert!(!blocks.is_empty() && blocks.len() <= BAND_BLOCKS);
             for j in 0..c {
                 for (slot, b) in s.term_slots(band, j, c).iter().zip(blocks.clone()) {
+                    let (count, code, dense) = &columns[b * c + j];
                     assert_eq!(slot.first as usize, next, "{q}: strips out of order");
-                    assert_eq!(slot.code, t.col_scale[b * c + j]);
-                    assert_eq!(slot.entries as usize, t.block_column(b, j).len());
-                    let mut dense = [0.0f32; 256];
-                    for e in t.block_column(b, j) {
-                        dense[t.entry_row[e] as usize] = t.values.raw(e);
-                    }
+                    assert_eq!(slot.code, *code);
+                    assert_eq!(slot.entries, *count);
                     let mut from_strips = [0.0f32; 256];
                     let mut last = None;
                     for k in next..next + slot.count as usize {
@@ -277,17 +346,16 @@ fn strips_hold_every_entry_once_in_light_major_bands() {
                         from_strips[place * STRIP_ROWS..(place + 1) * STRIP_ROWS]
                             .copy_from_slice(&vals);
                     }
-                    assert_eq!(from_strips, dense, "{q}: block {b}, coefficient {j}");
+                    assert_eq!(&from_strips, dense, "{q}: block {b}, coefficient {j}");
                     next += slot.count as usize;
+                    entries += *count as u64;
                 }
             }
         }
         assert_eq!(next, s.strip_count());
         let all: Vec<u32> = (0..c as u32).collect();
-        assert_eq!(
-            s.read_by(&all, c),
-            (s.strip_count() as u64, t.entry_row.len() as u64)
-        );
+        assert_eq!(s.read_by(&all, c), (s.strip_count() as u64, entries));
+        assert_eq!(t.nonzeros(), entries);
         assert_eq!(s.values.len(), next * STRIP_ROWS);
     }
 }
@@ -313,7 +381,7 @@ fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
                 [rng.next_f32(), rng.next_f32() - 0.5, 1.0]
             });
             let dense = relight_dense_reference(&t, &light);
-            let s = t.strips().unwrap();
+            let s = &t.strips;
             let (best, best_read) = relight_strips(&t, s, &light, StripPath::Best);
             let (portable, read) = relight_strips(&t, s, &light, StripPath::Portable);
             assert_eq!(best_read, read);
@@ -357,9 +425,9 @@ fn gpu_decodes_every_format_like_the_cpu() {
     }
 }
 
-/// `prt info` prints from the header and the small tables: a file whose entries and values were
-/// overwritten (same size) is still described, while loading it fails its checksum; a column
-/// count that disagrees with the entries is an error, found without reading them.
+/// `prt info` prints from the header and the small tables: a file whose strips were overwritten
+/// (same size) is still described, while loading it fails its checksum; a strip count that
+/// disagrees with the strips stored is an error, found without reading them.
 #[test]
 fn info_reads_the_header_and_the_small_tables_only() {
     let dir = temp_dir("storage-info");
@@ -389,7 +457,7 @@ fn info_reads_the_header_and_the_small_tables_only() {
         (out.status.code(), text)
     };
     let mut garbled = bytes.clone();
-    for name in ["entry_row", "entry_value"] {
+    for name in ["strip_place", "strip_value"] {
         for b in &mut garbled[range(name)] {
             *b ^= 0x5a;
         }
@@ -403,14 +471,13 @@ fn info_reads_the_header_and_the_small_tables_only() {
         text.contains(&format!("nonzeros      {}", t.meta.stats.nonzeros)),
         "{text}"
     );
-    // One more entry counted in the first column than stored.
+    // One more strip counted in the first slot than stored.
     let mut counted = bytes.clone();
-    let at = range("col_count").start;
-    let n = u16::from_le_bytes([counted[at], counted[at + 1]]) + 1;
-    counted[at..at + 2].copy_from_slice(&n.to_le_bytes());
+    let at = range("strip_count").start;
+    counted[at] += 1;
     let (code, text) = info(&counted);
     assert_eq!(code, Some(1), "{text}");
-    assert!(text.contains("column counts add up"), "{text}");
+    assert!(text.contains("strip counts add up"), "{text}");
 }
 
 #[test]
@@ -432,4 +499,42 @@ fn a_load_reports_progress_up_to_the_file_size_and_reads_what_was_saved() {
     assert!(seen.iter().all(|&(_, total)| total == size));
     assert!(seen.windows(2).all(|w| w[1].0 >= w[0].0));
     assert_eq!(seen.last().unwrap().0, size);
+}
+
+/// A bake reused from a file of an older format (as the demo reuses its bakes) is written again
+/// in this one, once: later runs read strips without converting columns.
+#[test]
+fn a_reused_bake_of_an_older_format_is_written_again_in_this_one() {
+    use wavelet_prt::store::transport::{FORMAT_VERSION, read_format_version};
+    let dir = temp_dir("storage-reuse-format-6");
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/format6");
+    for name in ["scene.toml", "v6_q8.prt"] {
+        std::fs::copy(data.join(name), dir.join(name)).unwrap();
+    }
+    let path = dir.join("v6_q8.prt");
+    let scene = wavelet_prt::scene::Scene::load(&dir.join("scene.toml")).unwrap();
+    // The settings the file was baked with (`prt bake scene.toml --cube 4 --sh-order 2`).
+    let settings = BakeSettings {
+        cube_n: 4,
+        sh_order: 2,
+        ..BakeSettings::default()
+    };
+    let before = Transport::load(&path).unwrap();
+    let mut baked = false;
+    let (t, reused) =
+        wavelet_prt::bake::load_or_bake(&path, &scene, &settings, &mut || baked = true, &|_| {})
+            .unwrap();
+    assert!(reused && !baked, "the format 6 bake was not reused");
+    assert_eq!(t, before);
+    assert_eq!(read_format_version(&path).unwrap(), FORMAT_VERSION);
+    assert_eq!(Transport::load(&path).unwrap(), before);
+    // Reused again: left as it is.
+    let modified = std::fs::metadata(&path).unwrap().modified().unwrap();
+    let (_, reused) =
+        wavelet_prt::bake::load_or_bake(&path, &scene, &settings, &mut || {}, &|_| {}).unwrap();
+    assert!(reused);
+    assert_eq!(
+        std::fs::metadata(&path).unwrap().modified().unwrap(),
+        modified
+    );
 }

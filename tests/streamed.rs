@@ -71,7 +71,7 @@ fn a_glossy_bake_with_tiles_of_several_blocks_streams_to_the_same_bytes() {
             ..settings()
         };
         let t = streamed_equals_kept(&scene, &s, name);
-        assert_eq!(t.values.quantization(), q);
+        assert_eq!(t.quantization(), q);
     }
 }
 
@@ -191,7 +191,7 @@ fn the_writer_refuses_tiles_that_do_not_fit_and_a_file_with_tiles_missing() {
     let rows = t.tile_rows(0);
     assert!(!rows.is_empty());
     let tile = EncodedTile::encode(&rows, c, shc, Quantization::Q8).unwrap();
-    let mut w = TransportWriter::create(&path, 2, sh_order, Quantization::Q8).unwrap();
+    let mut w = TransportWriter::create(&path, (16, 16), 2, sh_order, Quantization::Q8).unwrap();
     // A tile whose counts miss a coefficient, one of another quantisation, one of another cube.
     let mut bad = tile.clone();
     bad.col_count.pop();
@@ -212,7 +212,7 @@ fn the_writer_refuses_tiles_that_do_not_fit_and_a_file_with_tiles_missing() {
         common::names_in(&dir)
     );
     // The whole image: a file that loads back with the tile's rows and the header's counts.
-    let mut w = TransportWriter::create(&path, 2, sh_order, Quantization::Q8).unwrap();
+    let mut w = TransportWriter::create(&path, (16, 16), 2, sh_order, Quantization::Q8).unwrap();
     w.push(&tile, t.tile_stats[0]).unwrap();
     let meta = w.finish(untiled(&t)).unwrap();
     assert_eq!(meta.stats.rows, t.meta.stats.rows);

@@ -695,13 +695,14 @@ fn ng_band(points: &[CompressionPoint]) -> Option<Series> {
 }
 
 /// The compression curve as a Markdown table: one row per threshold with the kept fraction, the
-/// bytes per pixel and per stored coefficient (every index and pointer table counted), and the
+/// bytes per pixel and per stored coefficient (every place, count and scale table counted), and the
 /// added error under each environment.
 fn compression_table(points: &[CompressionPoint], envs: &[&str]) -> String {
     let mut text = String::from(
         "# Compression curve\n\nEach threshold is a bake of the scene, relit with every stored term \
          and compared with the lossless bake (relative L2 over covered pixels). Bytes count the \
-         sparse Haar matrix: indices, values, scales and entry counts.\n\n\
+         sparse Haar matrix as the file stores it: the strips' places and values, and each \
+         (block, coefficient)'s strip count and scale code.\n\n\
          | threshold | kept | bytes / pixel | bytes / coefficient |",
     );
     for env in envs {

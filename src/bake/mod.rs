@@ -191,7 +191,8 @@ pub fn bake(
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<Transport> {
     let mut kept = KeptTiles::default();
-    let untiled = bake_tiles(scene, settings, progress, &mut |tile, stats| {
+    let mesh = bake_mesh(scene, settings)?;
+    let untiled = bake_tiles(scene, settings, mesh, progress, &mut |tile, stats| {
         kept.push(tile, stats)
     })?;
     kept.into_transport(untiled)
@@ -207,13 +208,15 @@ pub fn bake_to_file(
     path: &std::path::Path,
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<TransportMeta> {
+    let mesh = bake_mesh(scene, settings)?;
     let mut writer = TransportWriter::create(
         path,
+        image_size(scene, mesh.as_ref()),
         settings.cube_n,
         settings.sh_order,
         settings.storage().2,
     )?;
-    let untiled = bake_tiles(scene, settings, progress, &mut |tile, stats| {
+    let untiled = bake_tiles(scene, settings, mesh, progress, &mut |tile, stats| {
         writer.push(&tile, stats)
     })?;
     writer.finish(untiled)
@@ -222,17 +225,12 @@ pub fn bake_to_file(
 /// A tile's statistics: energy dropped by thresholding and quantisation, total energy, rays.
 type TileStats = [f64; 3];
 
-/// The bake, handing each encoded tile and its statistics to `deliver` in tile order.
-fn bake_tiles(
-    scene: &Scene,
-    settings: &BakeSettings,
-    progress: &(dyn Fn(BakeProgress) + Sync),
-    deliver: &mut (dyn FnMut(EncodedTile, TileStats) -> Result<()> + Send),
-) -> Result<Untiled> {
-    let identity = settings.identity(scene)?;
-    let tracer = Tracer::new(scene);
-    let cam = &scene.camera;
-    let mesh = match settings.domain {
+/// The mesh a per-vertex bake's rows belong to, with its in-out BRDF terms; `None` for a view.
+/// The settings are checked against the scene first, so what a scene cannot be baked with is
+/// said before any work.
+fn bake_mesh(scene: &Scene, settings: &BakeSettings) -> Result<Option<VertexMesh>> {
+    settings.validate_for(scene)?;
+    Ok(match settings.domain {
         BakeDomain::Vertices { edge_length } => {
             let mut m = VertexMesh::tessellate(scene, edge_length)?;
             m.factors = crate::scene::brdf_factor::BrdfFactors::for_materials(
@@ -244,12 +242,31 @@ fn bake_tiles(
             Some(m)
         }
         BakeDomain::View => None,
-    };
-    // Vertex v's terms are pixels v · stride + k of an image one tile wide.
-    let (w, h) = match &mesh {
+    })
+}
+
+/// The size of the image the rows belong to: the view's, or for a mesh one tile wide, vertex
+/// v's terms pixels v · stride + k.
+fn image_size(scene: &Scene, mesh: Option<&VertexMesh>) -> (usize, usize) {
+    match mesh {
         Some(m) => (TILE, m.pixel_count().div_ceil(TILE)),
-        None => (cam.width as usize, cam.height as usize),
-    };
+        None => (scene.camera.width as usize, scene.camera.height as usize),
+    }
+}
+
+/// The bake of `mesh` (from [`bake_mesh`]), handing each encoded tile and its statistics to
+/// `deliver` in tile order.
+fn bake_tiles(
+    scene: &Scene,
+    settings: &BakeSettings,
+    mesh: Option<VertexMesh>,
+    progress: &(dyn Fn(BakeProgress) + Sync),
+    deliver: &mut (dyn FnMut(EncodedTile, TileStats) -> Result<()> + Send),
+) -> Result<Untiled> {
+    let identity = settings.identity(scene)?;
+    let tracer = Tracer::new(scene);
+    let cam = &scene.camera;
+    let (w, h) = image_size(scene, mesh.as_ref());
     let n = settings.cube_n;
     let samples = TexelSamples::new(n, settings.texel_samples as usize, settings.seed);
     let basis = TexelShBasis::new(n, settings.sh_order)?;

@@ -332,6 +332,13 @@ pub fn load_or_bake(
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<(Transport, bool)> {
     if let Some(t) = load_if_baked_with(path, scene, settings) {
+        // A file of an older format is written again in this one, so later runs read it
+        // without converting it.
+        if crate::store::transport::read_format_version(path)?
+            < crate::store::transport::FORMAT_VERSION
+        {
+            t.save(path)?;
+        }
         return Ok((t, true));
     }
     starting();

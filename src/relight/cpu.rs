@@ -26,14 +26,14 @@ pub fn relight_wavelet(t: &Transport, light: &SparseLight) -> Result<(Image, Rel
             format!("its coefficients do not fit a transport with 6·N² = {c} coefficients"),
         ));
     }
-    let strips = t.strips()?;
+    let strips = &t.strips;
     let start = Instant::now();
     let (image, [read, entries]) = relight_strips(t, strips, light, StripPath::Best);
     let kernel_seconds = start.elapsed().as_secs_f64();
     let stats = RelightStats {
         terms: light.len(),
         nonzeros_touched: entries,
-        bytes_touched: read * (1 + STRIP_ROWS * t.values.value_bytes()) as u64
+        bytes_touched: read * (1 + STRIP_ROWS * t.strips.values.value_bytes()) as u64
             + (t.block_count() * light.len() * std::mem::size_of::<Slot>()) as u64,
         kernel_seconds,
         light_columns: 0,
@@ -107,8 +107,8 @@ pub fn relight_dense_reference(t: &Transport, light: &SparseLight) -> Image {
         // Column by column, as stored; `j` indexes the stored columns and each dense row.
         #[allow(clippy::needless_range_loop)]
         for j in 0..c {
-            for e in t.block_column(b, j) {
-                dense[t.entry_row[e] as usize][j] = t.value(b, j, e) as f64;
+            for (row, v) in t.column(b, j) {
+                dense[row - r0][j] = v as f64;
             }
         }
         for (r, row) in dense.iter().enumerate() {

@@ -299,6 +299,27 @@ pub fn random_transport(
     seed: u64,
     scale: f32,
 ) -> Transport {
+    let (meta, tiles) = random_rows(w, h, n, quantization, seed, scale);
+    let (tx, ty) = tile_grid(w, h);
+    Transport::assemble(
+        meta,
+        tiles,
+        vec![[0.5; 3]; w * h],
+        vec![1.0; w * h],
+        vec![[0.0; 3]; tx * ty],
+    )
+    .unwrap()
+}
+
+/// The header and the rows, tile by tile, that [`random_transport`] assembles.
+pub fn random_rows(
+    w: usize,
+    h: usize,
+    n: usize,
+    quantization: Quantization,
+    seed: u64,
+    scale: f32,
+) -> (TransportMeta, Vec<Vec<RowData>>) {
     let mut rng = SampleRng::new(seed, 0);
     let c = texel_count(n);
     let (tx, ty) = tile_grid(w, h);
@@ -364,14 +385,7 @@ pub fn random_transport(
         stats: BakeStats::default(),
         lights: Vec::new(),
     };
-    Transport::assemble(
-        meta,
-        tiles,
-        vec![[0.5; 3]; w * h],
-        vec![1.0; w * h],
-        vec![[0.0; 3]; tx * ty],
-    )
-    .unwrap()
+    (meta, tiles)
 }
 
 /// Relights `t` on the CPU under `env` turned by `rotation`: the light context, the prepared

@@ -51,7 +51,7 @@ impl Backend for GpuBackend<'_> {
             // Counted from the transport in memory: the same strips the CPU kernel reads, at
             // the device's bytes a strip, plus two words per (block, term).
             let t = self.transport;
-            let (read, entries) = t.strips()?.read_by(&light.indices, t.coeff_count());
+            let (read, entries) = t.strips.read_by(&light.indices, t.coeff_count());
             stats.nonzeros_touched = entries;
             stats.bytes_touched =
                 read * self.resident.bytes_per_strip() + (t.block_count() * light.len() * 8) as u64;

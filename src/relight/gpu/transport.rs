@@ -123,8 +123,8 @@ impl GpuTransport {
         let c = t.coeff_count();
         let shc = t.sh_count();
         let rows = t.row_pixel.len();
-        let quant = t.values.quantization();
-        let strips = t.strips()?;
+        let quant = t.quantization();
+        let strips = &t.strips;
         // Per block: two words a coefficient, its first strip and its count and scale code.
         let ptr_bytes = 2 * c as u64 * 4;
         let block_strips: Vec<u64> = (0..t.block_count())
@@ -246,7 +246,7 @@ impl GpuTransport {
         // The blocks' strips (`strip_count` of them), coefficient by coefficient, in one buffer:
         // first every strip's place (four to a word), then from `values_base` on their values,
         // packed as the stored type.
-        let strips = t.strips()?;
+        let strips = &t.strips;
         let places_len = strip_count.next_multiple_of(4);
         let values_base = (places_len / 4) as u32;
         let mut data =
@@ -294,7 +294,7 @@ impl GpuTransport {
             tiles_x: tiles_x as u32,
             coeffs: c as u32,
             terms: 0,
-            format: format_code(t.values.quantization()),
+            format: format_code(t.quantization()),
             row_base: r0 as u32,
             shared_rows: u32::MAX,
             block_base: blocks.start as u32,

@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use super::strips::{BlockColumns, Layout, Stored};
 use super::*;
 use crate::error::{PrtError, Result};
 use crate::store::quant::{UNIT_SCALE_CODE, code_for, quantize, scale_of};
@@ -159,6 +160,72 @@ impl EncodedTile {
     }
 }
 
+impl EncodedTile {
+    /// Checks that the tile's tables fit one another, `c` coefficients and the quantisation
+    /// `q`; a message when they do not.
+    pub(super) fn check(&self, c: usize, q: Quantization) -> std::result::Result<(), String> {
+        let rows = self.row_pixel.len();
+        let nnz = self.entry_row.len();
+        let counted: usize = self.col_count.iter().map(|&n| n as usize).sum();
+        if self.values.quantization() != q
+            || self.row_weight.len() != rows
+            || self.row_scale.len() != rows
+            || self.col_count.len() != blocks_of(rows) * c
+            || self.col_scale.len() != blocks_of(rows) * c
+            || self.values.len() != nnz
+            || counted != nnz
+        {
+            return Err("its tables do not fit one another or the quantisation".into());
+        }
+        Ok(())
+    }
+
+    /// Its blocks' columns, each block's in the form [`Strips::of_blocks`] reads.
+    fn block_columns<'a, V: Stored>(&'a self, c: usize, out: &mut Vec<BlockColumns<'a, V>>) {
+        let values = V::slice(&self.values).unwrap_or(&[]);
+        let mut e = 0;
+        for b in 0..self.col_count.len() / c.max(1) {
+            let counts = &self.col_count[b * c..(b + 1) * c];
+            let n: usize = counts.iter().map(|&n| n as usize).sum();
+            out.push(BlockColumns {
+                counts,
+                codes: &self.col_scale[b * c..(b + 1) * c],
+                rows: &self.entry_row[e..e + n],
+                values: &values[e..e + n],
+            });
+            e += n;
+        }
+    }
+}
+
+/// The strips of checked tiles (row-major over a grid `tiles_x` wide) whose blocks
+/// `tile_block_start` gives, in `c` coefficients of quantisation `q`.
+pub(super) fn strips_of_tiles(
+    tiles: &[EncodedTile],
+    tile_block_start: &[u32],
+    tiles_x: usize,
+    c: usize,
+    q: Quantization,
+) -> std::result::Result<Strips, String> {
+    fn of<V: Stored>(
+        tiles: &[EncodedTile],
+        layout: Layout,
+        c: usize,
+    ) -> std::result::Result<Strips, String> {
+        let mut blocks: Vec<BlockColumns<V>> = Vec::new();
+        for t in tiles {
+            t.block_columns(c, &mut blocks);
+        }
+        Strips::of_blocks(layout, &blocks, c)
+    }
+    let layout = Layout::of(tile_block_start, tiles_x);
+    match q {
+        Quantization::Q8 => of::<i8>(tiles, layout, c),
+        Quantization::Q16 => of::<i16>(tiles, layout, c),
+        Quantization::F32 => of::<f32>(tiles, layout, c),
+    }
+}
+
 impl Transport {
     /// Lays out rows given tile by tile (tiles in row-major order of the tile grid, each tile's
     /// rows in the order they should keep) into the blocked column layout, quantised as
@@ -186,9 +253,10 @@ impl Transport {
     }
 
     /// Joins encoded tiles (row-major over the tile grid) into a transport and derives its
-    /// statistics.
+    /// statistics: the per-coefficient magnitudes in the order (tile, block, coefficient, row)
+    /// that [`super::TransportWriter`] sums them in, so both give the same bits.
     pub fn assemble_encoded(
-        meta: TransportMeta,
+        mut meta: TransportMeta,
         tiles: &[EncodedTile],
         albedo: Vec<[f32; 3]>,
         coverage: Vec<f32>,
@@ -197,46 +265,38 @@ impl Transport {
         lights: LightColumns,
     ) -> Result<Transport> {
         let c = 6 * (meta.identity.cube_n as usize).pow(2);
+        let q = meta.identity.quantization;
         let rows: usize = tiles.iter().map(|t| t.row_pixel.len()).sum();
         let nnz: usize = tiles.iter().map(|t| t.entry_row.len()).sum();
-        let blocks: usize = tiles.iter().map(|t| t.col_count.len() / c.max(1)).sum();
         let mut tile_row_start = Vec::with_capacity(tiles.len() + 1);
         let mut row_pixel = Vec::with_capacity(rows);
         let mut row_weight = Vec::with_capacity(rows);
         let mut row_scale = Vec::with_capacity(rows);
         let mut sh = Vec::new();
-        let mut counts = Vec::with_capacity(blocks * c);
-        let mut col_scale = Vec::with_capacity(blocks * c);
-        let mut entry_row = Vec::with_capacity(nnz);
-        let mut values = Values::empty(meta.identity.quantization);
+        let mut magnitude = vec![0.0f64; c];
         tile_row_start.push(0u32);
         for t in tiles {
-            if t.values.quantization() != meta.identity.quantization
-                || t.row_scale.len() != t.row_pixel.len()
-                || t.col_count.len() != blocks_of(t.row_pixel.len()) * c
-                || t.col_scale.len() != t.col_count.len()
-            {
-                return Err(PrtError::invalid(
-                    "transport tile",
-                    "its blocks do not match its rows or the quantisation",
-                ));
-            }
+            t.check(c, q)
+                .map_err(|m| PrtError::invalid("transport tile", m))?;
             row_pixel.extend_from_slice(&t.row_pixel);
             row_weight.extend_from_slice(&t.row_weight);
             row_scale.extend_from_slice(&t.row_scale);
             sh.extend_from_slice(&t.sh);
-            counts.extend_from_slice(&t.col_count);
-            col_scale.extend_from_slice(&t.col_scale);
-            entry_row.extend_from_slice(&t.entry_row);
-            values.extend_from(&t.values, 0..t.values.len());
+            add_magnitudes(&t.slices(), &mut magnitude);
             tile_row_start.push(row_pixel.len() as u32);
         }
         let invalid = |m: String| PrtError::invalid("transport", m);
         let (tile_block_start, block_row_start) =
             block_tables(&tile_row_start, rows).map_err(invalid)?;
-        let (col_ptr, block_entry_start) =
-            column_pointers(&counts, &block_row_start, c, nnz).map_err(invalid)?;
-        let mut t = Transport {
+        let (tx, _) = tile_grid(meta.width as usize, meta.height as usize);
+        if !tiles.len().is_multiple_of(tx.max(1)) {
+            return Err(invalid(
+                "the tiles do not fill the image's tile rows".into(),
+            ));
+        }
+        let strips = strips_of_tiles(tiles, &tile_block_start, tx, c, q).map_err(invalid)?;
+        meta.stats = bake_stats(rows, nnz, c, &tile_stats);
+        let t = Transport {
             meta,
             tile_row_start,
             row_pixel,
@@ -244,82 +304,50 @@ impl Transport {
             row_scale,
             tile_block_start,
             block_row_start,
-            block_entry_start,
-            col_ptr,
-            col_scale,
-            entry_row,
-            values,
+            strips,
             sh,
             albedo,
             coverage,
-            transport_magnitude: vec![0.0; c],
+            transport_magnitude: mean_magnitudes(&magnitude, rows),
             tile_stats,
             domain: Domain::from_mesh(mesh),
             lights,
-            kernel: KernelLayout::default(),
         };
         t.validate().map_err(invalid)?;
-        t.finish();
         Ok(t)
     }
 
-    /// Derives the per-coefficient transport magnitudes and the statistics from the tables, in
-    /// one fixed order (block, coefficient, row), so a bake, a merge of its shards and a
-    /// streamed bake ([`super::TransportWriter`]) give the same bits.
-    pub fn finish(&mut self) {
-        let c = self.coeff_count();
-        let mut magnitude = vec![0.0f64; c];
-        for t in 0..self.tile_count() {
-            let (r0, r1, blocks, e0, e1) = self.tile_ranges(t);
-            add_magnitudes(
-                &TileSlices {
-                    row_weight: &self.row_weight[r0..r1],
-                    row_scale: &self.row_scale[r0..r1],
-                    col_count: &self.col_counts(blocks.clone()),
-                    col_scale: &self.col_scale[blocks.start * c..blocks.end * c],
-                    entry_row: &self.entry_row[e0..e1],
-                    values: &self.values,
-                    first_value: e0,
-                },
-                &mut magnitude,
-            );
-        }
-        let rows = self.row_pixel.len();
-        self.transport_magnitude = mean_magnitudes(&magnitude, rows);
-        self.meta.stats = bake_stats(rows, self.entry_row.len(), c, &self.tile_stats);
-    }
-
-    /// Tile `tile`'s first and end rows, its blocks, and its first and end entries.
-    fn tile_ranges(&self, tile: usize) -> (usize, usize, Range<usize>, usize, usize) {
-        let blocks = self.blocks(tile);
-        (
-            self.tile_row_start[tile] as usize,
-            self.tile_row_start[tile + 1] as usize,
-            blocks.clone(),
-            self.block_entry_start[blocks.start] as usize,
-            self.block_entry_start[blocks.end] as usize,
-        )
-    }
-
-    /// Tile `tile` in the stored layout, copied (for a merge).
+    /// Tile `tile` in the stored layout, read back from the strips (for a merge).
     fn encoded_tile(&self, tile: usize) -> EncodedTile {
         let c = self.coeff_count();
-        let (r0, r1, blocks, e0, e1) = self.tile_ranges(tile);
+        let (r0, r1) = (
+            self.tile_row_start[tile] as usize,
+            self.tile_row_start[tile + 1] as usize,
+        );
         let shc = self.sh_count();
-        let mut values = Values::empty(self.values.quantization());
-        values.extend_from(&self.values, e0..e1);
-        let counts = self.col_counts(blocks.clone());
-        EncodedTile {
+        let blocks = self.blocks(tile);
+        let mut t = EncodedTile {
             row_pixel: self.row_pixel[r0..r1].to_vec(),
             row_weight: self.row_weight[r0..r1].to_vec(),
             row_scale: self.row_scale[r0..r1].to_vec(),
             sh: self.sh[r0 * shc..r1 * shc].to_vec(),
-            col_count: counts,
-            col_scale: self.col_scale[blocks.start * c..blocks.end * c].to_vec(),
-            entry_row: self.entry_row[e0..e1].to_vec(),
-            values,
+            col_count: Vec::with_capacity(blocks.len() * c),
+            col_scale: Vec::with_capacity(blocks.len() * c),
+            entry_row: Vec::new(),
+            values: Values::empty(self.quantization()),
             quantization_energy: 0.0,
+        };
+        for b in blocks {
+            for slot in self.strips.block_slots(b, c) {
+                t.col_count.push(slot.entries);
+                t.col_scale.push(slot.code);
+                for (r, v) in self.strips.column(*slot) {
+                    t.entry_row.push(r);
+                    t.values.push(v);
+                }
+            }
         }
+        t
     }
 
     /// The rows of tile `tile` as [`RowData`] with decoded values (for tests and tools).
@@ -338,12 +366,9 @@ impl Transport {
             })
             .collect();
         for b in self.blocks(tile) {
-            let local = self.block_row_start[b] as usize - r0;
             for j in 0..self.coeff_count() {
-                for e in self.block_column(b, j) {
-                    rows[local + self.entry_row[e] as usize]
-                        .entries
-                        .push((j as u32, self.value(b, j, e)));
+                for (row, v) in self.column(b, j) {
+                    rows[row - r0].entries.push((j as u32, v));
                 }
             }
         }
@@ -378,6 +403,7 @@ impl Transport {
             .ok_or_else(|| PrtError::invalid("merge", "no shard given"))?;
         let mut writer = super::TransportWriter::create(
             path,
+            (first.meta.width as usize, first.meta.height as usize),
             first.meta.identity.cube_n as usize,
             first.meta.identity.sh_order as usize,
             first.meta.identity.quantization,

@@ -1,5 +1,5 @@
-//! The transport file (format version 5, laid out in the [module docs](super)): writing it,
-//! reading and validating all of it, and reading only its header and small tables for
+//! Reading the transport file (format version 7, laid out in the [module docs](super); versions
+//! 3 to 6, which stored columns, into strips): reading and validating all of it, and reading only its header and small tables for
 //! `prt info`. Every size and index is checked before anything is sliced or allocated.
 
 use std::io::Read;
@@ -9,67 +9,13 @@ use safetensors::tensor::Dtype;
 use serde::{Deserialize, Serialize};
 
 use super::reader::TensorReader;
+use super::strips::{BlockColumns, Layout, STRIP_ROWS, Stored};
 use super::*;
 use crate::error::{PrtError, Result};
 use crate::scene::albedo_map::from_table;
-use crate::store::container::{self, Tensor, check_meta_seal};
+use crate::store::container::{self, check_meta_seal};
 
 impl Transport {
-    /// Writes the file atomically: a temporary file beside `path`, then a rename.
-    pub fn save(&self, path: &Path) -> Result<()> {
-        let c = self.coeff_count();
-        let r = self.row_pixel.len();
-        let b = self.block_count();
-        let nnz = self.entry_row.len();
-        let counts = self.col_counts(0..self.block_count());
-        let grown = vec![
-            (
-                "row_pixel",
-                Tensor::new(Dtype::U32, vec![r], &self.row_pixel),
-            ),
-            (
-                "row_weight",
-                Tensor::new(Dtype::F32, vec![r, 3], &self.row_weight),
-            ),
-            (
-                "row_scale",
-                Tensor::new(Dtype::F32, vec![r], &self.row_scale),
-            ),
-            ("col_count", Tensor::new(Dtype::U16, vec![b, c], &counts)),
-            (
-                "col_scale",
-                Tensor::new(Dtype::U8, vec![b, c], &self.col_scale),
-            ),
-            (
-                "entry_row",
-                Tensor::new(Dtype::U8, vec![nnz], &self.entry_row),
-            ),
-            (
-                "sh",
-                Tensor::new(Dtype::F32, vec![r, self.sh_count()], &self.sh),
-            ),
-            match &self.values {
-                Values::Q8(v) => ("entry_value", Tensor::new(Dtype::I8, vec![nnz], v)),
-                Values::Q16(v) => ("entry_value", Tensor::new(Dtype::I16, vec![nnz], v)),
-                Values::F32(v) => ("entry_value", Tensor::new(Dtype::F32, vec![nnz], v)),
-            },
-        ];
-        save_file(
-            path,
-            &self.meta,
-            grown,
-            &FileTables {
-                tile_row_start: &self.tile_row_start,
-                albedo: &self.albedo,
-                coverage: &self.coverage,
-                transport_magnitude: &self.transport_magnitude,
-                tile_stats: &self.tile_stats,
-                mesh: self.domain.mesh(),
-                lights: &self.lights,
-            },
-        )
-    }
-
     /// Reads and fully validates a transport file.
     pub fn load(path: &Path) -> Result<Self> {
         Self::load_with_progress(path, &|_, _| {})
@@ -80,6 +26,7 @@ impl Transport {
     pub fn load_with_progress(path: &Path, progress: &dyn Fn(u64, u64)) -> Result<Self> {
         let Header {
             meta,
+            version,
             checksum: stored,
             tensors,
             data_start,
@@ -120,23 +67,23 @@ impl Transport {
             )),
             None => None,
         };
-        let (count_shape, counts) = reader.read::<u16>("col_count", Dtype::U16)?;
+        // Versions 3 to 6 store columns (`col_count`, `entry_row`, `entry_value`), version 7
+        // strips; `col_scale` is in both.
+        let legacy = version < 7;
+        let col_count = if legacy {
+            Some(reader.read::<u16>("col_count", Dtype::U16)?)
+        } else {
+            None
+        };
         let (scale_shape, col_scale) = reader.read::<u8>("col_scale", Dtype::U8)?;
         let (coverage_shape, coverage) = reader.read::<f32>("coverage", Dtype::F32)?;
-        let (entry_shape, entry_row) = reader.read::<u8>("entry_row", Dtype::U8)?;
-        let (value_shape, values) = match meta.identity.quantization {
-            Quantization::Q8 => {
-                let (s, v) = reader.read("entry_value", Dtype::I8)?;
-                (s, Values::Q8(v))
-            }
-            Quantization::Q16 => {
-                let (s, v) = reader.read("entry_value", Dtype::I16)?;
-                (s, Values::Q16(v))
-            }
-            Quantization::F32 => {
-                let (s, v) = reader.read("entry_value", Dtype::F32)?;
-                (s, Values::F32(v))
-            }
+        let entries = if legacy {
+            Some((
+                reader.read::<u8>("entry_row", Dtype::U8)?,
+                read_values(&mut reader, "entry_value", meta.identity.quantization)?,
+            ))
+        } else {
+            None
         };
         let columns = meta.light_columns();
         let light_tables = if columns > 0 {
@@ -165,6 +112,15 @@ impl Transport {
         let (row_scale_shape, row_scale) = reader.read::<f32>("row_scale", Dtype::F32)?;
         let (weight_shape, row_weight) = reader.read::<[f32; 3]>("row_weight", Dtype::F32)?;
         let (sh_shape, sh) = reader.read::<f32>("sh", Dtype::F32)?;
+        let strip_tables = if legacy {
+            None
+        } else {
+            Some((
+                reader.read::<u8>("strip_count", Dtype::U8)?,
+                reader.read::<u8>("strip_place", Dtype::U8)?,
+                read_values(&mut reader, "strip_value", meta.identity.quantization)?,
+            ))
+        };
         let (start_shape, tile_row_start) = reader.read::<u32>("tile_row_start", Dtype::U32)?;
         let (stats_shape, tile_stats) = reader.read::<[f64; 3]>("tile_stats", Dtype::F64)?;
         let (magnitude_shape, transport_magnitude) =
@@ -197,13 +153,39 @@ impl Transport {
         let blocks = block_row_start.len() - 1;
         expect("row_weight", &weight_shape, &[r, 3])?;
         expect("row_scale", &row_scale_shape, &[r])?;
-        expect("col_count", &count_shape, &[blocks, c])?;
         expect("col_scale", &scale_shape, &[blocks, c])?;
-        let nnz = entry_shape.first().copied().unwrap_or(0);
-        expect("entry_row", &entry_shape, &[nnz])?;
-        let (col_ptr, block_entry_start) =
-            column_pointers(&counts, &block_row_start, c, nnz).map_err(bad)?;
-        expect("entry_value", &value_shape, &[nnz])?;
+        let (tx, _) = tile_grid(w, h);
+        let layout = Layout::of(&tile_block_start, tx);
+        let strips = match (entries, col_count, strip_tables) {
+            (
+                Some(((entry_shape, entry_row), (value_shape, values))),
+                Some((count_shape, counts)),
+                _,
+            ) => {
+                expect("col_count", &count_shape, &[blocks, c])?;
+                let nnz = entry_shape.first().copied().unwrap_or(0);
+                expect("entry_row", &entry_shape, &[nnz])?;
+                expect("entry_value", &value_shape, &[nnz])?;
+                strips_of_columns(
+                    layout,
+                    &block_row_start,
+                    c,
+                    &counts,
+                    &col_scale,
+                    &entry_row,
+                    &values,
+                )
+                .map_err(bad)?
+            }
+            (_, _, Some(((count_shape, counts), (place_shape, place), (value_shape, values)))) => {
+                expect("strip_count", &count_shape, &[blocks, c])?;
+                let strips = place_shape.first().copied().unwrap_or(0);
+                expect("strip_place", &place_shape, &[strips])?;
+                expect("strip_value", &value_shape, &[strips, STRIP_ROWS])?;
+                Strips::from_tables(layout, &counts, &col_scale, place, values).map_err(bad)?
+            }
+            _ => return Err(bad("neither columns nor strips were read".into())),
+        };
         expect(
             "sh",
             &sh_shape,
@@ -285,11 +267,7 @@ impl Transport {
             row_scale,
             tile_block_start,
             block_row_start,
-            block_entry_start,
-            col_ptr,
-            col_scale,
-            entry_row,
-            values,
+            strips,
             sh,
             albedo,
             coverage,
@@ -297,7 +275,6 @@ impl Transport {
             tile_stats,
             domain: Domain::from_mesh(mesh),
             lights,
-            kernel: KernelLayout::default(),
         };
         t.validate().map_err(bad)?;
         Ok(t)
@@ -311,6 +288,12 @@ pub fn read_header_meta(path: &Path) -> Result<TransportMeta> {
     read_header(path).map(|h| h.meta)
 }
 
+/// The format version of the transport file `path`, its header checked as [`read_header_meta`]
+/// checks it.
+pub fn read_format_version(path: &Path) -> Result<u32> {
+    read_header(path).map(|h| h.version)
+}
+
 /// The header and the small tables, for `prt info`: the metadata, checked as
 /// [`read_header_meta`] does, and the tile and column-count tables, checked against each other and
 /// against the entry count the header declares. The entries and values, nearly all of the file,
@@ -318,19 +301,37 @@ pub fn read_header_meta(path: &Path) -> Result<TransportMeta> {
 pub fn read_summary(path: &Path) -> Result<TransportMeta> {
     let Header {
         meta,
+        version,
         tensors,
         data_start,
         file,
         ..
     } = read_header(path)?;
     let mut reader = TensorReader::new(path, &tensors, data_start, file, &|_, _| {})?;
+    let legacy = version < 7;
+    // Read in name order: `col_count` (versions 3 to 6) before `strip_count` before
+    // `tile_row_start`.
+    let col_counts: Option<(_, Vec<u16>)> = if legacy {
+        Some(reader.read("col_count", Dtype::U16)?)
+    } else {
+        None
+    };
+    let strip_counts: Option<(_, Vec<u8>)> = if legacy {
+        None
+    } else {
+        Some(reader.read("strip_count", Dtype::U8)?)
+    };
     let (_, starts): (_, Vec<u32>) = reader.read("tile_row_start", Dtype::U32)?;
-    let (_, counts): (_, Vec<u16>) = reader.read("col_count", Dtype::U16)?;
-    // The two large tensors are only counted; their bytes need the whole file's checksum.
+    // The large tensors are only counted; their bytes need the whole file's checksum.
     let count = |name: &str, bytes_each: u64| -> Result<usize> {
         let (_, shape, start, end) = reader.locate(name)?;
         match shape[..] {
-            [n] if (n as u64).checked_mul(bytes_each) == Some(end - start) => Ok(n),
+            [n, ..]
+                if (shape.iter().product::<usize>() as u64).checked_mul(bytes_each)
+                    == Some(end - start) =>
+            {
+                Ok(n)
+            }
             _ => Err(PrtError::file(
                 path,
                 format!("tensor `{name}` of shape {shape:?} does not fill its bytes"),
@@ -338,7 +339,6 @@ pub fn read_summary(path: &Path) -> Result<TransportMeta> {
         }
     };
     let rows = count("row_pixel", 4)?;
-    let nnz = count("entry_row", 1)?;
     let (tx, ty) = tile_grid(meta.width as usize, meta.height as usize);
     if starts.len() != tx * ty + 1 {
         return Err(PrtError::file(
@@ -348,13 +348,36 @@ pub fn read_summary(path: &Path) -> Result<TransportMeta> {
     }
     let (_, block_rows) = block_tables(&starts, rows).map_err(|m| PrtError::file(path, m))?;
     let c = 6 * meta.identity.cube_n as usize * meta.identity.cube_n as usize;
-    if counts.len() != (block_rows.len() - 1) * c {
-        return Err(PrtError::file(
-            path,
-            "column counts do not match the blocks and coefficients",
-        ));
+    let blocks = block_rows.len() - 1;
+    match (col_counts, strip_counts) {
+        (Some((_, counts)), _) => {
+            let nnz = count("entry_row", 1)?;
+            if counts.len() != blocks * c {
+                return Err(PrtError::file(
+                    path,
+                    "column counts do not match the blocks and coefficients",
+                ));
+            }
+            column_pointers(&counts, &block_rows, c, nnz).map_err(|m| PrtError::file(path, m))?;
+        }
+        (_, Some((_, counts))) => {
+            let strips = count("strip_place", 1)?;
+            let counted: u64 = counts.iter().map(|&n| n as u64).sum();
+            if counts.len() != blocks * c {
+                return Err(PrtError::file(
+                    path,
+                    "strip counts do not match the blocks and coefficients",
+                ));
+            }
+            if counted != strips as u64 {
+                return Err(PrtError::file(
+                    path,
+                    format!("strip counts add up to {counted} strips but the file stores {strips}"),
+                ));
+            }
+        }
+        _ => {}
     }
-    column_pointers(&counts, &block_rows, c, nnz).map_err(|m| PrtError::file(path, m))?;
     Ok(meta)
 }
 
@@ -363,6 +386,7 @@ pub fn read_summary(path: &Path) -> Result<TransportMeta> {
 /// file.
 struct Header {
     meta: TransportMeta,
+    version: u32,
     checksum: String,
     tensors: serde_json::Map<String, serde_json::Value>,
     data_start: u64,
@@ -449,6 +473,7 @@ fn read_header(path: &Path) -> Result<Header> {
         .map_err(|e| PrtError::file(path, format!("metadata `meta`: {e}")))?;
     container::check_known_keys(text, &header).map_err(|m| PrtError::file(path, m))?;
     let known = tensor_names(
+        header.format_version,
         header.meta.per_vertex.is_some(),
         header
             .meta
@@ -496,6 +521,7 @@ fn read_header(path: &Path) -> Result<Header> {
     check_meta(&header.meta).map_err(|m| PrtError::file(path, m))?;
     Ok(Header {
         meta: header.meta,
+        version: header.format_version,
         checksum: header.checksum,
         tensors: obj.clone(),
         data_start: 8 + header_len,
@@ -506,13 +532,13 @@ fn read_header(path: &Path) -> Result<Header> {
 /// The one metadata entry of a file: format, version, checksum and the [`TransportMeta`]
 /// (`meta_checksum` follows them in the text, see [`container::seal_meta`]).
 #[derive(Serialize, Deserialize)]
-struct FileHeader {
-    format: String,
-    format_version: u32,
-    /// Of the tensors (see [`checksum`]).
-    checksum: String,
+pub(super) struct FileHeader {
+    pub format: String,
+    pub format_version: u32,
+    /// Of the tensors (see [`container::checksum`]).
+    pub checksum: String,
     #[serde(flatten)]
-    meta: TransportMeta,
+    pub meta: TransportMeta,
 }
 
 fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
@@ -577,167 +603,21 @@ fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
     Ok(())
 }
 
-/// The tensors of a file that are one table for the whole image (or mesh), whichever way the
-/// tiles' tensors are held.
-pub(super) struct FileTables<'a> {
-    pub tile_row_start: &'a [u32],
-    pub albedo: &'a [[f32; 3]],
-    pub coverage: &'a [f32],
-    pub transport_magnitude: &'a [f32],
-    pub tile_stats: &'a [[f64; 3]],
-    pub mesh: Option<&'a VertexMesh>,
-    pub lights: &'a LightColumns,
-}
-
-/// Writes a transport file atomically from `grown`, the eight tensors that grow tile by tile
-/// (`row_*`, `col_*`, `entry_*` and `sh`, in memory or spilled), and the whole-image `tables`.
-/// [`Transport::save`] and the streamed bake ([`super::TransportWriter`]) both come here, so
-/// the same content gives the same bytes.
-pub(super) fn save_file<'a>(
-    path: &Path,
-    meta: &TransportMeta,
-    mut tensors: Vec<(&'a str, Tensor<'a>)>,
-    tables: &FileTables<'a>,
-) -> Result<()> {
-    let (w, h) = (meta.width as usize, meta.height as usize);
-    let tiles = tables.tile_stats.len();
-    let c = tables.transport_magnitude.len();
-    tensors.extend([
-        (
-            "tile_row_start",
-            Tensor::new(Dtype::U32, vec![tiles + 1], tables.tile_row_start),
-        ),
-        (
-            "albedo",
-            Tensor::new(Dtype::F32, vec![h, w, 3], tables.albedo),
-        ),
-        (
-            "coverage",
-            Tensor::new(Dtype::F32, vec![h, w], tables.coverage),
-        ),
-        (
-            "transport_magnitude",
-            Tensor::new(Dtype::F32, vec![c], tables.transport_magnitude),
-        ),
-        (
-            "tile_stats",
-            Tensor::new(Dtype::F64, vec![tiles, 3], tables.tile_stats),
-        ),
-    ]);
-    // A textured mesh's maps: their table and level-0 texels.
-    let textured = tables.mesh.filter(|m| !m.albedo_maps.is_empty());
-    let (map_table, map_materials, map_texels) = textured
-        .map_or((Vec::new(), Vec::new(), Vec::new()), |m| {
-            crate::scene::albedo_map::to_table(&m.albedo_maps)
-        });
-    let mut tensors: Vec<(&str, Tensor)> = tensors;
-    if let Some(mesh) = textured {
-        tensors.extend([
-            (
-                "albedo_map",
-                Tensor::new(Dtype::U32, vec![map_table.len(), 5], &map_table),
-            ),
-            (
-                "albedo_map_material",
-                Tensor::new(Dtype::U32, vec![map_materials.len(), 2], &map_materials),
-            ),
-            (
-                "albedo_texel",
-                Tensor::new(Dtype::U16, vec![map_texels.len(), 3], &map_texels),
-            ),
-            (
-                "mesh_uv",
-                Tensor::new(Dtype::F32, vec![mesh.vertex_count(), 2], &mesh.uvs),
-            ),
-        ]);
-    }
-    if let Some(f) = tables.mesh.and_then(|m| m.factors.as_ref()) {
-        let shape = vec![f.terms.len(), f.stride - 1, f.map.cells()];
-        tensors.extend([
-            (
-                "brdf_light",
-                Tensor::new(Dtype::F32, shape.clone(), &f.light),
-            ),
-            (
-                "brdf_terms",
-                Tensor::new(Dtype::U32, vec![f.terms.len()], &f.terms),
-            ),
-            ("brdf_view", Tensor::new(Dtype::F32, shape, &f.view)),
-        ]);
-    }
-    if let Some(mesh) = tables.mesh {
-        let (v, t) = (mesh.vertex_count(), mesh.triangles.len());
-        tensors.extend([
-            (
-                "mesh_position",
-                Tensor::new(Dtype::F32, vec![v, 3], &mesh.positions),
-            ),
-            (
-                "mesh_normal",
-                Tensor::new(Dtype::F32, vec![v, 3], &mesh.normals),
-            ),
-            (
-                "mesh_material",
-                Tensor::new(Dtype::U32, vec![v], &mesh.materials),
-            ),
-            (
-                "mesh_triangle",
-                Tensor::new(Dtype::U32, vec![t, 3], &mesh.triangles),
-            ),
-        ]);
-    }
-    let columns = meta.light_columns();
-    if tables.lights.problem(columns).is_some() {
-        return Err(PrtError::file(
-            path,
-            "the light columns to write do not match the header's lights",
-        ));
-    }
-    if columns > 0 {
-        tensors.extend([
-            (
-                "light_scale",
-                Tensor::new(Dtype::F32, vec![columns, h], &tables.lights.scale),
-            ),
-            (
-                "light_value",
-                Tensor::new(Dtype::U16, vec![columns, 3, h, w], &tables.lights.values),
-            ),
-        ]);
-    }
-    tensors.sort_by_key(|(name, _)| *name);
-    if !tensors.iter().map(|(n, _)| *n).eq(tensor_names(
-        tables.mesh.is_some(),
-        tables.mesh.is_some_and(|m| !m.albedo_maps.is_empty()),
-        tables.mesh.is_some_and(|m| m.factors.is_some()),
-        columns > 0,
-    )) {
-        return Err(PrtError::file(
-            path,
-            "the tensors to write are not those of a transport file",
-        ));
-    }
-    // One metadata key, so the header is the same bytes for the same content (the
-    // container keeps its metadata in a hash map, whose order varies between runs).
-    container::save(path, tensors, |checksum| {
-        serde_json::to_string(&FileHeader {
-            format: FORMAT_NAME.to_string(),
-            format_version: FORMAT_VERSION,
-            checksum,
-            meta: meta.clone(),
-        })
-    })
-}
-
 /// Names of the tensors in a file, in the order the checksum covers them: those of every file,
 /// a per-vertex bake's mesh, its albedo maps, and the local lights' columns.
-fn tensor_names(
+pub(super) fn tensor_names(
+    version: u32,
     per_vertex: bool,
     albedo_maps: bool,
     brdf: bool,
     lights: bool,
 ) -> Vec<&'static str> {
     let mut names: Vec<&str> = TENSOR_NAMES.to_vec();
+    if version < 7 {
+        names.extend(["col_count", "entry_row", "entry_value"]);
+    } else {
+        names.extend(["strip_count", "strip_place", "strip_value"]);
+    }
     if per_vertex {
         names.extend(MESH_TENSOR_NAMES);
     }
@@ -767,14 +647,12 @@ const MESH_TENSOR_NAMES: [&str; 4] = [
     "mesh_triangle",
 ];
 
-/// The tensors of every file.
-const TENSOR_NAMES: [&str; 13] = [
+/// The tensors of every file, besides its Haar matrix's (strips from version 7, columns
+/// before).
+const TENSOR_NAMES: [&str; 10] = [
     "albedo",
-    "col_count",
     "col_scale",
     "coverage",
-    "entry_row",
-    "entry_value",
     "row_pixel",
     "row_scale",
     "row_weight",
@@ -783,3 +661,72 @@ const TENSOR_NAMES: [&str; 13] = [
     "tile_stats",
     "transport_magnitude",
 ];
+
+/// Tensor `name` of stored values in quantisation `q`: its shape and values.
+fn read_values(
+    reader: &mut TensorReader,
+    name: &str,
+    q: Quantization,
+) -> Result<(Vec<usize>, Values)> {
+    Ok(match q {
+        Quantization::Q8 => {
+            let (s, v) = reader.read(name, Dtype::I8)?;
+            (s, Values::Q8(v))
+        }
+        Quantization::Q16 => {
+            let (s, v) = reader.read(name, Dtype::I16)?;
+            (s, Values::Q16(v))
+        }
+        Quantization::F32 => {
+            let (s, v) = reader.read(name, Dtype::F32)?;
+            (s, Values::F32(v))
+        }
+    })
+}
+
+/// The strips of a version 3 to 6 file's columns: per (block, coefficient) an entry count and
+/// a scale code, then the entries' rows and values in (block, coefficient) order. Counts are
+/// checked against the blocks' rows and the entries before anything is sliced.
+fn strips_of_columns(
+    layout: Layout,
+    block_row_start: &[u32],
+    c: usize,
+    counts: &[u16],
+    codes: &[u8],
+    rows: &[u8],
+    values: &Values,
+) -> std::result::Result<Strips, String> {
+    fn of<V: Stored>(
+        layout: Layout,
+        starts: &[u64],
+        c: usize,
+        counts: &[u16],
+        codes: &[u8],
+        rows: &[u8],
+        values: &[V],
+    ) -> std::result::Result<Strips, String> {
+        let blocks: Vec<BlockColumns<V>> = starts
+            .windows(2)
+            .enumerate()
+            .map(|(b, e)| {
+                let e = e[0] as usize..e[1] as usize;
+                BlockColumns {
+                    counts: &counts[b * c..(b + 1) * c],
+                    codes: &codes[b * c..(b + 1) * c],
+                    rows: &rows[e.clone()],
+                    values: &values[e],
+                }
+            })
+            .collect();
+        Strips::of_blocks(layout, &blocks, c)
+    }
+    if values.len() != rows.len() || counts.len() != codes.len() {
+        return Err("the columns' tables differ in length".into());
+    }
+    let (_, starts) = column_pointers(counts, block_row_start, c, rows.len())?;
+    match values {
+        Values::Q8(v) => of(layout, &starts, c, counts, codes, rows, v),
+        Values::Q16(v) => of(layout, &starts, c, counts, codes, rows, v),
+        Values::F32(v) => of(layout, &starts, c, counts, codes, rows, v),
+    }
+}

@@ -9,30 +9,36 @@
 //! row per material, so the split stays exact. Rows are grouped by tile.
 //!
 //! A tile's rows are cut into *blocks* of at most [`BLOCK_ROWS`] (256) consecutive rows, so a row
-//! index inside a block is one byte; a tile of one row per pixel is one block. Inside a block the
-//! rows' nonzero coefficients are stored column by column (coefficient-major): the entries of
-//! coefficient j, each a row index and an integer, rows strictly increasing, with the value
-//! `integer · scale(code[block, j]) · row_scale[row]` (see [`crate::store::quant`]). The row scale (the
-//! row's largest magnitude) puts rows of very different brightness, such as a glossy lobe beside a
-//! diffuse row, on one footing before a block's columns share a scale; the kernels apply it once per
-//! row, with the weight. So one worker owns a tile's rows
-//! with no atomics, a column touches each row at most once, and relighting with K terms reads only
-//! K columns of each block.
+//! index inside a block is one byte; a tile of one row per pixel is one block. Inside a block,
+//! coefficient j's *column* holds the rows' nonzero values of that coefficient, each the value
+//! `integer · scale(code[block, j]) · row_scale[row]` (see [`crate::store::quant`]). The row
+//! scale (the row's largest magnitude) puts rows of very different brightness, such as a glossy
+//! lobe beside a diffuse row, on one footing before a block's columns share a scale; the kernels
+//! apply it once per row, with the weight.
 //!
-//! # File (format version 6)
+//! A column is stored as *strips*: aligned runs of 8 rows, kept whole (zeros where a row has no
+//! entry) when they hold at least one entry. Whole tile rows are gathered into *groups* of at
+//! least 16 blocks and a group's blocks into *bands* of at most 16; a band's strips are stored
+//! coefficient by coefficient, and inside a coefficient block by block ([`strips`]). So one
+//! worker owns a group's rows with no atomics, and relighting with K terms reads K contiguous
+//! runs of each band. Groups and bands follow from `tile_row_start` alone; the *slots* (band,
+//! coefficient, block), in that order, each give a strip count and a scale code.
+//!
+//! # File (format version 7)
 //! A safetensors file (readable from Python with `safetensors.numpy.load_file`); its one metadata
 //! entry `meta` is JSON: `format = "wavelet-prt transport"`, `format_version`, `checksum` and the
-//! fields of [`TransportMeta`]. Tensors (T tiles, R rows, B blocks, C = 6 N² coefficients):
+//! fields of [`TransportMeta`]. Tensors (T tiles, R rows, B blocks, C = 6 N² coefficients, S
+//! strips):
 //!
 //! | tensor | dtype, shape | what |
 //! |---|---|---|
 //! | `tile_row_start` | u32 [T+1] | tile t holds rows `tile_row_start[t] .. tile_row_start[t+1]`; its blocks are those rows in runs of 256 |
 //! | `row_pixel`, `row_weight` | u32 [R], f32 [R, 3] | the pixel (y · width + x) and RGB weight of each row |
 //! | `row_scale` | f32 [R] | each row's stored values are relative to this (its largest magnitude) |
-//! | `col_count` | u16 [B, C] | entries of coefficient j in block b; blocks in tile order, entries in (block, j) order |
-//! | `col_scale` | u8 [B, C] | the scale code of (b, j): `scale = 2^((code − 192) / 4)` |
-//! | `entry_row` | u8 [nnz] | the row inside its block |
-//! | `entry_value` | i8, i16 or f32 [nnz] | the integer (`quantization` q8, q16) or the value (f32, scale 1) |
+//! | `strip_count` | u8 [B, C] | the strips of each slot, slots in (group, band, coefficient, block) order; they follow one another |
+//! | `col_scale` | u8 [B, C] | the scale code of each slot, in the same order: `scale = 2^((code − 192) / 4)` |
+//! | `strip_place` | u8 [S] | each strip's place in its block: rows `8 · place .. 8 · place + 8`, increasing within a slot |
+//! | `strip_value` | i8, i16 or f32 [S, 8] | per strip, the integer (`quantization` q8, q16) or the value (f32, scale 1) of each of its rows, 0 where the row has no entry |
 //! | `sh` | f32 [R, n²] | SH transport of each row |
 //! | `albedo`, `coverage` | f32 [H, W, 3], f32 [H, W] | per pixel: albedo seen, fraction of sub-samples that hit |
 //! | `transport_magnitude` | f32 [C] | mean magnitude of each coefficient over the rows (transport weighting) |
@@ -48,7 +54,11 @@
 //! in the metadata); older files have none and are read as before. Version 6 added the in-out
 //! BRDF terms of a glossy per-vertex bake (the `brdf_` tensors and `per_vertex.brdf_terms`,
 //! `brdf_error`, `brdf_stride` and `brdf_map`): vertex v's terms are pixels `v · S + k`; older
-//! files have one pixel a vertex and are read as before.
+//! files have one pixel a vertex and are read as before. Version 7 stores the Haar matrix as
+//! strips; versions 3 to 6 stored it as columns, in (block, coefficient) order, blocks in tile
+//! order: `col_count` (u16 [B, C], each column's entries), `col_scale` (u8 [B, C]), `entry_row`
+//! (u8, each entry's row in its block, increasing within a column) and `entry_value`. They are
+//! read into strips.
 //!
 //! The `checksum` covers the tensors' bytes in name order and `meta_checksum` the metadata's
 //! fields (the JSON of `meta` without `meta_checksum`, as this build writes it), so a flipped bit
@@ -63,11 +73,11 @@ mod file;
 mod lights;
 mod meta;
 mod reader;
+mod save;
 mod stream;
 pub mod strips;
 
 use std::ops::Range;
-use std::sync::OnceLock;
 
 use crate::scene::tessellate::VertexMesh;
 use crate::store::container;
@@ -75,7 +85,7 @@ use crate::store::quant::scale_of;
 pub use crate::store::quant::{BLOCK_ROWS, Quantization};
 
 pub use assemble::{EncodedTile, KeptTiles, RowData, Untiled, shard_of_band};
-pub use file::{read_header_meta, read_summary};
+pub use file::{read_format_version, read_header_meta, read_summary};
 pub use lights::LightColumns;
 pub use meta::{
     BakeDomain, BakeIdentity, BakeStats, BounceVisibility, CameraMeta, IndirectSettings,
@@ -89,7 +99,7 @@ pub const TILE: usize = 16;
 /// Name written in every transport file.
 pub const FORMAT_NAME: &str = container::TRANSPORT.name;
 /// Version of the layout described in this module.
-pub const FORMAT_VERSION: u32 = 6;
+pub const FORMAT_VERSION: u32 = 7;
 /// The oldest version this build reads: version 3 differs only in having no local lights, and
 /// versions 3 and 4 in having no albedo maps, and versions 3 to 5 in having no in-out BRDF
 /// terms.
@@ -150,15 +160,6 @@ impl Values {
             Values::F32(v) => v[i],
         }
     }
-    /// Appends the stored values `range` of `other` (same quantisation).
-    fn extend_from(&mut self, other: &Values, range: Range<usize>) {
-        match (self, other) {
-            (Values::Q8(a), Values::Q8(b)) => a.extend_from_slice(&b[range]),
-            (Values::Q16(a), Values::Q16(b)) => a.extend_from_slice(&b[range]),
-            (Values::F32(a), Values::F32(b)) => a.extend_from_slice(&b[range]),
-            _ => debug_assert!(false, "mixed quantisations"),
-        }
-    }
     /// Appends one quantised value.
     fn push(&mut self, q: f32) {
         match self {
@@ -188,17 +189,8 @@ pub struct Transport {
     pub tile_block_start: Vec<u32>,
     /// Block b holds rows `block_row_start[b] .. block_row_start[b + 1]` (global row indices).
     pub block_row_start: Vec<u32>,
-    /// Block b holds entries `block_entry_start[b] .. block_entry_start[b + 1]`.
-    pub block_entry_start: Vec<u64>,
-    /// `col_ptr[b (C + 1) + j] .. col_ptr[b (C + 1) + j + 1]`: block b's entries of coefficient j,
-    /// relative to the block's first entry.
-    pub col_ptr: Vec<u32>,
-    /// Scale code of every (block, coefficient).
-    pub col_scale: Vec<u8>,
-    /// Row of each entry inside its block.
-    pub entry_row: Vec<u8>,
-    /// Stored value of each entry: the integer, or the float when lossless.
-    pub values: Values,
+    /// The Haar matrix: dense strips of 8 rows in light-major bands of blocks ([`Strips`]).
+    pub strips: Strips,
     /// `[rows, n²]` SH transport of each row.
     pub sh: Vec<f32>,
     /// Per pixel: the mean diffuse albedo its sub-samples hit (0 where none hit).
@@ -215,36 +207,6 @@ pub struct Transport {
     /// The local lights' dense columns (none without local lights; `meta.lights` says which
     /// light each column is).
     pub lights: LightColumns,
-    /// The Haar matrix as the CPU kernel reads it, made from the columns on first use
-    /// ([`Transport::strips`]).
-    pub kernel: KernelLayout,
-}
-
-/// A transport's [`Strips`], made from its columns when first asked for and kept. Derived data:
-/// it takes no part in comparisons, and a clone makes its own. Change no column of a transport
-/// after its strips are made.
-#[derive(Default)]
-pub struct KernelLayout(OnceLock<Strips>);
-
-impl Clone for KernelLayout {
-    fn clone(&self) -> Self {
-        KernelLayout::default()
-    }
-}
-
-impl PartialEq for KernelLayout {
-    fn eq(&self, _: &Self) -> bool {
-        true
-    }
-}
-
-impl std::fmt::Debug for KernelLayout {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let made = self.0.get().map(Strips::strip_count);
-        f.debug_struct("KernelLayout")
-            .field("strips", &made)
-            .finish()
-    }
 }
 
 /// What a transport's rows belong to, and so what can draw it.
@@ -286,16 +248,6 @@ pub fn blocks_of(rows: usize) -> usize {
 }
 
 impl Transport {
-    /// The Haar matrix as the CPU kernel reads it: made from the columns (in parallel) on the
-    /// first call, then kept.
-    pub fn strips(&self) -> crate::error::Result<&Strips> {
-        if let Some(s) = self.kernel.0.get() {
-            return Ok(s);
-        }
-        let made = Strips::of(self).map_err(|m| crate::error::PrtError::invalid("transport", m))?;
-        Ok(self.kernel.0.get_or_init(|| made))
-    }
-
     /// Haar coefficients per row, 6 N².
     pub fn coeff_count(&self) -> usize {
         6 * (self.meta.identity.cube_n as usize).pow(2)
@@ -321,40 +273,38 @@ impl Transport {
     pub fn blocks(&self, t: usize) -> Range<usize> {
         self.tile_block_start[t] as usize..self.tile_block_start[t + 1] as usize
     }
-    /// Entry range of coefficient `j` in block `b`, as absolute entry indices.
-    #[inline]
-    pub fn block_column(&self, b: usize, j: usize) -> Range<usize> {
-        let c = self.coeff_count() + 1;
-        let base = self.block_entry_start[b] as usize;
-        base + self.col_ptr[b * c + j] as usize..base + self.col_ptr[b * c + j + 1] as usize
+    /// The quantisation of the stored values.
+    pub fn quantization(&self) -> Quantization {
+        self.strips.values.quantization()
     }
     /// The scale of coefficient `j` in block `b`.
-    #[inline]
     pub fn scale(&self, b: usize, j: usize) -> f32 {
-        scale_of(self.col_scale[b * self.coeff_count() + j])
+        scale_of(self.strips.slot(b, j, self.coeff_count()).code)
     }
-    /// Stored value of entry `e` of block `b`, coefficient `j`, decoded.
-    #[inline]
-    pub fn value(&self, b: usize, j: usize, e: usize) -> f32 {
-        let row = self.block_row_start[b] as usize + self.entry_row[e] as usize;
-        self.values.raw(e) * self.scale(b, j) * self.row_scale[row]
+    /// The entries of coefficient `j` in block `b`: each row (a global row index) and its
+    /// decoded value, rows increasing.
+    pub fn column(&self, b: usize, j: usize) -> impl Iterator<Item = (usize, f32)> + '_ {
+        let slot = self.strips.slot(b, j, self.coeff_count());
+        let (scale, r0) = (scale_of(slot.code), self.block_row_start[b] as usize);
+        self.strips
+            .column(slot)
+            .map(move |(r, v)| (r0 + r as usize, v * scale * self.row_scale[r0 + r as usize]))
     }
-    /// Bytes of the sparse Haar matrix as stored in the file: entries (row and value), column
-    /// counts and scale codes.
+    /// Stored coefficients (entries) in all.
+    pub fn nonzeros(&self) -> u64 {
+        self.strips.entry_count()
+    }
+    /// Bytes of the sparse Haar matrix as stored in the file: the strips, and per (block,
+    /// coefficient) a strip count and a scale code.
     pub fn haar_bytes(&self) -> usize {
-        self.entry_row.len() * (1 + self.values.value_bytes())
-            + self.block_count() * self.coeff_count() * 3
+        self.strips.bytes()
     }
-    /// The per-column entry counts of `blocks`, as the file stores them, derived from the column
-    /// pointers.
-    fn col_counts(&self, blocks: Range<usize>) -> Vec<u16> {
-        let c = self.coeff_count();
-        let mut counts = Vec::with_capacity(blocks.len() * c);
-        for b in blocks {
-            let ptr = &self.col_ptr[b * (c + 1)..(b + 1) * (c + 1)];
-            counts.extend(ptr.windows(2).map(|w| (w[1] - w[0]) as u16));
-        }
-        counts
+    /// Rows of each block.
+    pub fn block_rows(&self) -> Vec<u32> {
+        self.block_row_start
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .collect()
     }
 
     /// Checks every index and offset, so kernels may index without further checks. Returns a
@@ -373,25 +323,19 @@ impl Transport {
         if tile_blocks != self.tile_block_start || block_rows != self.block_row_start {
             return Err("block tables do not follow from the tiles' rows".into());
         }
-        let blocks = self.block_count();
-        if self.col_ptr.len() != blocks * (c + 1)
-            || self.col_scale.len() != blocks * c
-            || self.block_entry_start.len() != blocks + 1
-        {
-            return Err("block tables have the wrong length".into());
+        let layout = strips::Layout::of(&self.tile_block_start, tx);
+        if self.strips.layout() != layout {
+            return Err("the strips' groups and bands do not follow from the tiles' rows".into());
         }
-        if self.block_entry_start[0] != 0
-            || self.block_entry_start[blocks] != self.entry_row.len() as u64
-            || self.values.len() != self.entry_row.len()
-        {
-            return Err("block_entry_start does not span the entries".into());
-        }
-        if self.values.quantization() != m.identity.quantization {
+        if self.quantization() != m.identity.quantization {
             return Err(format!(
                 "values are {} but the header says {}",
-                self.values.quantization(),
+                self.quantization(),
                 m.identity.quantization
             ));
+        }
+        if let Some(p) = self.strips.problem(&self.block_rows(), c) {
+            return Err(p);
         }
         if self.row_weight.len() != r
             || self.row_scale.len() != r
@@ -411,40 +355,6 @@ impl Transport {
                     return Err(format!("tile {t}: row pixel {p} lies outside the tile"));
                 }
             }
-        }
-        for b in 0..blocks {
-            let rows = (self.block_row_start[b + 1] - self.block_row_start[b]) as usize;
-            let (e0, e1) = (self.block_entry_start[b], self.block_entry_start[b + 1]);
-            let ptr = &self.col_ptr[b * (c + 1)..(b + 1) * (c + 1)];
-            if e1 < e0 || ptr[0] != 0 || ptr[c] as u64 != e1 - e0 {
-                return Err(format!(
-                    "block {b}: column pointers do not span its entries"
-                ));
-            }
-            // Every pointer is checked against the next before either slices anything.
-            if let Some(j) = (0..c).find(|&j| ptr[j + 1] < ptr[j]) {
-                return Err(format!(
-                    "block {b}: column pointers decrease at coefficient {j}"
-                ));
-            }
-            for j in 0..c {
-                let col = &self.entry_row
-                    [(e0 as usize + ptr[j] as usize)..(e0 as usize + ptr[j + 1] as usize)];
-                let mut last: i32 = -1;
-                for &row in col {
-                    if row as usize >= rows || row as i32 <= last {
-                        return Err(format!(
-                            "block {b}, coefficient {j}: row index {row} out of range or not increasing"
-                        ));
-                    }
-                    last = row as i32;
-                }
-            }
-        }
-        if let Values::F32(v) = &self.values
-            && !v.iter().all(|x| x.is_finite())
-        {
-            return Err("tensor `entry_value` holds NaN or infinite values".into());
         }
         if !self.sh.iter().all(|x| x.is_finite()) {
             return Err("tensor `sh` holds NaN or infinite values".into());
@@ -587,6 +497,12 @@ fn column_pointers(
     nnz: usize,
 ) -> std::result::Result<(Vec<u32>, Vec<u64>), String> {
     let blocks = block_row_start.len() - 1;
+    if counts.len() != blocks * c {
+        return Err(format!(
+            "{} column counts for {blocks} blocks of {c} coefficients",
+            counts.len()
+        ));
+    }
     let mut col_ptr = Vec::with_capacity(blocks * (c + 1));
     let mut starts = Vec::with_capacity(blocks + 1);
     starts.push(0u64);

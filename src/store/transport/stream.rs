@@ -1,15 +1,16 @@
-//! Writing a transport file tile by tile, so that a bake holds none of its rows once a tile is
-//! encoded: the tensors that grow with the tiles go to spill files beside the output
-//! ([`container::Spill`]), the per-coefficient magnitudes and the statistics are summed as the
-//! tiles arrive, and [`TransportWriter::finish`] writes the file from the spills. The file is the
-//! one [`Transport::save`] writes for the same tiles, byte for byte.
+//! Writing a transport file tile by tile, so that a bake holds no more of its rows than one
+//! group of tile rows: the tensors that grow with the tiles go to spill files beside the output
+//! ([`container::Spill`]), a tile's rows as it arrives and a group's strips once its last tile
+//! row is in ([`super::strips`]); the per-coefficient magnitudes and the statistics are summed
+//! as the tiles arrive, and [`TransportWriter::finish`] writes the file from the spills. The
+//! file is the one [`Transport::save`] writes for the same tiles, byte for byte.
 
 use std::path::{Path, PathBuf};
 
 use safetensors::tensor::Dtype;
 
-use super::assemble::{add_magnitudes, bake_stats, mean_magnitudes};
-use super::file::{FileTables, save_file};
+use super::assemble::{self, add_magnitudes, bake_stats, mean_magnitudes};
+use super::save::{FileTables, save_file};
 use super::*;
 use crate::error::{PrtError, Result};
 use crate::store::container::{Spill, Tensor};
@@ -20,27 +21,35 @@ pub struct TransportWriter {
     c: usize,
     shc: usize,
     quantization: Quantization,
+    image: (usize, usize),
+    tiles_x: usize,
     tile_row_start: Vec<u32>,
     tile_stats: Vec<[f64; 3]>,
     magnitude: Vec<f64>,
     blocks: usize,
     nonzeros: usize,
+    strips: usize,
+    /// The tiles of the group of tile rows under way, and their blocks.
+    group: Vec<EncodedTile>,
+    group_blocks: usize,
     row_pixel: Spill,
     row_weight: Spill,
     row_scale: Spill,
     sh: Spill,
-    col_count: Spill,
+    strip_count: Spill,
     col_scale: Spill,
-    entry_row: Spill,
-    entry_value: Spill,
+    strip_place: Spill,
+    strip_value: Spill,
 }
 
 impl TransportWriter {
-    /// A writer of the file `path` for tiles of rows over 6 `cube_n`² coefficients with
-    /// `sh_order`² SH values, quantised as `quantization` says. Nothing is at `path` until
-    /// [`TransportWriter::finish`]; the spills are removed when the writer is dropped.
+    /// A writer of the file `path` for an image of `image` (width, height) pixels, whose tiles
+    /// hold rows over 6 `cube_n`² coefficients with `sh_order`² SH values, quantised as
+    /// `quantization` says. Nothing is at `path` until [`TransportWriter::finish`]; the spills
+    /// are removed when the writer is dropped.
     pub fn create(
         path: &Path,
+        image: (usize, usize),
         cube_n: usize,
         sh_order: usize,
         quantization: Quantization,
@@ -53,19 +62,24 @@ impl TransportWriter {
             c,
             shc: sh_order * sh_order,
             quantization,
+            image,
+            tiles_x: tile_grid(image.0, image.1).0,
             tile_row_start: vec![0],
             tile_stats: Vec::new(),
             magnitude: vec![0.0; c],
             blocks: 0,
             nonzeros: 0,
+            strips: 0,
+            group: Vec::new(),
+            group_blocks: 0,
             row_pixel: spill("row_pixel")?,
             row_weight: spill("row_weight")?,
             row_scale: spill("row_scale")?,
             sh: spill("sh")?,
-            col_count: spill("col_count")?,
+            strip_count: spill("strip_count")?,
             col_scale: spill("col_scale")?,
-            entry_row: spill("entry_row")?,
-            entry_value: spill("entry_value")?,
+            strip_place: spill("strip_place")?,
+            strip_value: spill("strip_value")?,
         })
     }
 
@@ -75,29 +89,25 @@ impl TransportWriter {
     }
 
     /// Appends the next tile and its statistics (energy dropped by thresholding and
-    /// quantisation, total energy, shadow rays). Checks that its tables fit one another before anything is
-    /// written, so that a mistake is an error rather than a file that fails to load.
+    /// quantisation, total energy, shadow rays). Checks that its tables fit one another before
+    /// anything is written, so that a mistake is an error rather than a file that fails to load.
     pub fn push(&mut self, tile: &EncodedTile, stats: [f64; 3]) -> Result<()> {
         let rows = tile.row_pixel.len();
-        let blocks = blocks_of(rows);
-        let nnz = tile.entry_row.len();
-        let counted: usize = tile.col_count.iter().map(|&n| n as usize).sum();
-        if tile.values.quantization() != self.quantization
-            || tile.row_weight.len() != rows
-            || tile.row_scale.len() != rows
-            || tile.sh.len() != rows * self.shc
-            || tile.col_count.len() != blocks * self.c
-            || tile.col_scale.len() != blocks * self.c
-            || tile.values.len() != nnz
-            || counted != nnz
-        {
-            return Err(PrtError::file(
-                &self.path,
-                format!(
-                    "tile {}: its tables do not fit one another or the quantisation",
-                    self.tiles_written()
-                ),
-            ));
+        let (tx, ty) = tile_grid(self.image.0, self.image.1);
+        let refuse = |why: String| {
+            PrtError::file(&self.path, format!("tile {}: {why}", self.tiles_written()))
+        };
+        if tile.sh.len() != rows * self.shc {
+            return Err(refuse("its SH table does not fit its rows".into()));
+        }
+        tile.check(self.c, self.quantization).map_err(refuse)?;
+        if self.tiles_written() >= tx * ty {
+            return Err(refuse(format!(
+                "a {} x {} image has only {} tiles",
+                self.image.0,
+                self.image.1,
+                tx * ty
+            )));
         }
         let total_rows = *self.tile_row_start.last().unwrap_or(&0) as usize + rows;
         let total_rows = u32::try_from(total_rows)
@@ -106,19 +116,51 @@ impl TransportWriter {
         self.row_weight.append(&tile.row_weight)?;
         self.row_scale.append(&tile.row_scale)?;
         self.sh.append(&tile.sh)?;
-        self.col_count.append(&tile.col_count)?;
-        self.col_scale.append(&tile.col_scale)?;
-        self.entry_row.append(&tile.entry_row)?;
-        match &tile.values {
-            Values::Q8(v) => self.entry_value.append(v)?,
-            Values::Q16(v) => self.entry_value.append(v)?,
-            Values::F32(v) => self.entry_value.append(v)?,
-        }
         add_magnitudes(&tile.slices(), &mut self.magnitude);
         self.tile_row_start.push(total_rows);
         self.tile_stats.push(stats);
-        self.blocks += blocks;
-        self.nonzeros += nnz;
+        self.blocks += blocks_of(rows);
+        self.group_blocks += blocks_of(rows);
+        self.nonzeros += tile.entry_row.len();
+        self.group.push(tile.clone());
+        // A group closes at the end of a tile row once it holds a band's blocks, and at the
+        // image's end ([`strips::Layout::of`]).
+        let written = self.tiles_written();
+        if written.is_multiple_of(self.tiles_x)
+            && (self.group_blocks >= strips::BAND_BLOCKS || written == tx * ty)
+        {
+            self.write_group()?;
+        }
+        Ok(())
+    }
+
+    /// Lays out the group's strips and appends them to the spills.
+    fn write_group(&mut self) -> Result<()> {
+        let group = std::mem::take(&mut self.group);
+        let mut tile_block_start = vec![0u32];
+        for t in &group {
+            let last = *tile_block_start.last().unwrap_or(&0);
+            tile_block_start.push(last + blocks_of(t.row_pixel.len()) as u32);
+        }
+        let strips = assemble::strips_of_tiles(
+            &group,
+            &tile_block_start,
+            self.tiles_x,
+            self.c,
+            self.quantization,
+        )
+        .map_err(|m| PrtError::file(&self.path, m))?;
+        let (counts, codes) = strips.slot_tables();
+        self.strip_count.append(&counts)?;
+        self.col_scale.append(&codes)?;
+        self.strip_place.append(&strips.index)?;
+        match &strips.values {
+            Values::Q8(v) => self.strip_value.append(v)?,
+            Values::Q16(v) => self.strip_value.append(v)?,
+            Values::F32(v) => self.strip_value.append(v)?,
+        }
+        self.strips += strips.strip_count();
+        self.group_blocks = 0;
         Ok(())
     }
 
@@ -135,6 +177,7 @@ impl TransportWriter {
         let (w, h) = (meta.width as usize, meta.height as usize);
         let (tx, ty) = tile_grid(w, h);
         if self.tiles_written() != tx * ty
+            || (w, h) != self.image
             || albedo.len() != w * h
             || coverage.len() != w * h
             || 6 * (meta.identity.cube_n as usize).pow(2) != self.c
@@ -154,18 +197,18 @@ impl TransportWriter {
         let rows = *self.tile_row_start.last().unwrap_or(&0) as usize;
         meta.stats = bake_stats(rows, self.nonzeros, self.c, &self.tile_stats);
         let magnitude = mean_magnitudes(&self.magnitude, rows);
-        let (c, b, nnz) = (self.c, self.blocks, self.nonzeros);
-        for s in [
+        let (c, b, s) = (self.c, self.blocks, self.strips);
+        for spill in [
             &mut self.row_pixel,
             &mut self.row_weight,
             &mut self.row_scale,
             &mut self.sh,
-            &mut self.col_count,
+            &mut self.strip_count,
             &mut self.col_scale,
-            &mut self.entry_row,
-            &mut self.entry_value,
+            &mut self.strip_place,
+            &mut self.strip_value,
         ] {
-            s.flush()?;
+            spill.flush()?;
         }
         let value_type = match self.quantization {
             Quantization::Q8 => Dtype::I8,
@@ -186,24 +229,24 @@ impl TransportWriter {
                 Tensor::spilled(Dtype::F32, vec![rows], &self.row_scale)?,
             ),
             (
-                "col_count",
-                Tensor::spilled(Dtype::U16, vec![b, c], &self.col_count)?,
+                "sh",
+                Tensor::spilled(Dtype::F32, vec![rows, self.shc], &self.sh)?,
+            ),
+            (
+                "strip_count",
+                Tensor::spilled(Dtype::U8, vec![b, c], &self.strip_count)?,
             ),
             (
                 "col_scale",
                 Tensor::spilled(Dtype::U8, vec![b, c], &self.col_scale)?,
             ),
             (
-                "entry_row",
-                Tensor::spilled(Dtype::U8, vec![nnz], &self.entry_row)?,
+                "strip_place",
+                Tensor::spilled(Dtype::U8, vec![s], &self.strip_place)?,
             ),
             (
-                "sh",
-                Tensor::spilled(Dtype::F32, vec![rows, self.shc], &self.sh)?,
-            ),
-            (
-                "entry_value",
-                Tensor::spilled(value_type, vec![nnz], &self.entry_value)?,
+                "strip_value",
+                Tensor::spilled(value_type, vec![s, strips::STRIP_ROWS], &self.strip_value)?,
             ),
         ];
         save_file(

@@ -20,7 +20,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use super::{Transport, Values, tile_grid};
+use super::Values;
 use crate::store::quant::BLOCK_ROWS;
 
 /// Rows of one strip.
@@ -64,75 +64,181 @@ pub struct Strips {
     pub values: Values,
 }
 
-/// One group's layout, found in a first pass: its bands' ends and its slots, their first
-/// strips counted from the group's own first.
-struct GroupLayout {
-    bands: Vec<u32>,
-    slots: Vec<Slot>,
-    strips: usize,
+/// One block's columns in the stored column layout: per coefficient an entry count and a scale
+/// code, then the entries of coefficient 0, of 1, and so on, each a row inside the block
+/// (strictly increasing within a column) and a stored value. Strips are made from these, and a
+/// tile's columns are read back from strips in this form.
+#[derive(Clone, Copy, Debug)]
+pub struct BlockColumns<'a, V> {
+    /// Entries of each coefficient (C of them).
+    pub counts: &'a [u16],
+    /// Scale code of each coefficient (C of them).
+    pub codes: &'a [u8],
+    /// Row inside the block of each entry.
+    pub rows: &'a [u8],
+    /// Stored value of each entry.
+    pub values: &'a [V],
 }
 
 /// A stored value type: where a transport keeps its values, and how strips keep theirs.
-trait Stored: Copy + Default + Send + Sync {
+pub trait Stored: Copy + Default + PartialEq + Send + Sync {
+    /// These values as a transport keeps them.
     fn wrap(v: Vec<Self>) -> Values;
+    /// The values of `v`, if they are of this type.
+    fn slice(v: &Values) -> Option<&[Self]>;
+    /// True when a stored value is an entry rather than padding (zero, or negative zero).
+    fn is_entry(self) -> bool;
 }
 impl Stored for i8 {
     fn wrap(v: Vec<i8>) -> Values {
         Values::Q8(v)
+    }
+    fn slice(v: &Values) -> Option<&[i8]> {
+        match v {
+            Values::Q8(v) => Some(v),
+            _ => None,
+        }
+    }
+    fn is_entry(self) -> bool {
+        self != 0
     }
 }
 impl Stored for i16 {
     fn wrap(v: Vec<i16>) -> Values {
         Values::Q16(v)
     }
+    fn slice(v: &Values) -> Option<&[i16]> {
+        match v {
+            Values::Q16(v) => Some(v),
+            _ => None,
+        }
+    }
+    fn is_entry(self) -> bool {
+        self != 0
+    }
 }
 impl Stored for f32 {
     fn wrap(v: Vec<f32>) -> Values {
         Values::F32(v)
     }
+    fn slice(v: &Values) -> Option<&[f32]> {
+        match v {
+            Values::F32(v) => Some(v),
+            _ => None,
+        }
+    }
+    fn is_entry(self) -> bool {
+        self != 0.0
+    }
+}
+
+/// Groups, bands and blocks of an image whose tile t holds blocks `tile_block_start[t] ..
+/// tile_block_start[t + 1]`, `tiles_x` tiles to a tile row: they follow from the tiles' row
+/// counts alone, so a file need not store them.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Layout {
+    /// Band i holds blocks `band_block_start[i] .. band_block_start[i + 1]`, all of one group.
+    pub band_block_start: Vec<u32>,
+    /// Group g is tile rows `group_row_start[g] .. group_row_start[g + 1]`.
+    pub group_row_start: Vec<u32>,
+    /// Group g holds bands `group_band_start[g] .. group_band_start[g + 1]`.
+    pub group_band_start: Vec<u32>,
+}
+
+impl Layout {
+    /// The layout of an image of `tile_block_start.len() − 1` tiles, `tiles_x` to a row: groups
+    /// of whole tile rows, each closed once it holds [`BAND_BLOCKS`] blocks (the last group
+    /// whatever is left), and a group's blocks in bands of [`BAND_BLOCKS`], the last smaller.
+    pub fn of(tile_block_start: &[u32], tiles_x: usize) -> Layout {
+        let tiles = tile_block_start.len().saturating_sub(1);
+        let ty = tiles.checked_div(tiles_x).unwrap_or(0);
+        let first_block = |row: usize| tile_block_start[row * tiles_x] as usize;
+        let mut l = Layout {
+            band_block_start: vec![0],
+            group_row_start: vec![0],
+            group_band_start: vec![0],
+        };
+        for y in 1..=ty {
+            let first = *l.group_row_start.last().unwrap_or(&0) as usize;
+            if first_block(y) - first_block(first) >= BAND_BLOCKS || y == ty {
+                l.group_row_start.push(y as u32);
+                let mut b = first_block(first);
+                while b < first_block(y) {
+                    b = (b + BAND_BLOCKS).min(first_block(y));
+                    l.band_block_start.push(b as u32);
+                }
+                l.group_band_start.push(l.band_block_start.len() as u32 - 1);
+            }
+        }
+        l
+    }
+
+    /// The blocks of each band of group `g`.
+    fn group_bands_of(&self, g: usize) -> impl Iterator<Item = Range<usize>> + '_ {
+        let bands = self.group_band_start[g] as usize..self.group_band_start[g + 1] as usize;
+        bands.map(|i| self.band_block_start[i] as usize..self.band_block_start[i + 1] as usize)
+    }
+
+    /// The blocks of group `g`.
+    fn group_blocks(&self, g: usize) -> Range<usize> {
+        let bands = self.group_band_start[g] as usize..self.group_band_start[g + 1] as usize;
+        self.band_block_start[bands.start] as usize..self.band_block_start[bands.end] as usize
+    }
 }
 
 impl Strips {
-    /// The strips of `t`'s matrix, in bands of [`BAND_BLOCKS`] blocks (the last of a group may
-    /// have fewer). Groups are laid out in parallel. An error when the strips would not
-    /// be counted in 32 bits (a matrix of more than 2^32 strips, some 30 GB).
-    pub fn of(t: &Transport) -> std::result::Result<Strips, String> {
-        match &t.values {
-            Values::Q8(v) => Self::of_values(t, v),
-            Values::Q16(v) => Self::of_values(t, v),
-            Values::F32(v) => Self::of_values(t, v),
+    /// The strips of the blocks `blocks` (block b's columns), laid out as `layout` says, in
+    /// `c` coefficients. Groups are laid out in parallel, in two passes straight into the final
+    /// buffers. An error when the strips would not be counted in 32 bits (a matrix of more than
+    /// 2^32 strips, some 30 GB) or a column does not fit its block.
+    pub fn of_blocks<V: Stored>(
+        layout: Layout,
+        blocks: &[BlockColumns<V>],
+        c: usize,
+    ) -> std::result::Result<Strips, String> {
+        let groups = layout.group_row_start.len() - 1;
+        if layout.band_block_start.last().copied().unwrap_or(0) as usize != blocks.len() {
+            return Err("the layout's bands do not cover the blocks".into());
         }
-    }
-
-    fn of_values<V: Stored>(t: &Transport, values: &[V]) -> std::result::Result<Strips, String> {
-        let c = t.coeff_count();
-        let (w, h) = (t.meta.width as usize, t.meta.height as usize);
-        let (tx, ty) = tile_grid(w, h);
-        // Groups of whole tile rows, each closed once it holds a band's worth of blocks.
-        let mut group_row_start = vec![0u32];
-        for y in 1..=ty {
-            let first = *group_row_start.last().unwrap_or(&0) as usize;
-            let blocks = t.tile_block_start[y * tx] - t.tile_block_start[first * tx];
-            if blocks as usize >= BAND_BLOCKS || y == ty {
-                group_row_start.push(y as u32);
+        // Where each block's columns start among its entries.
+        fn column_starts<'b, V>(
+            b: &BlockColumns<'b, V>,
+        ) -> impl Iterator<Item = Range<usize>> + 'b {
+            let mut at = 0usize;
+            b.counts.iter().map(move |&n| {
+                let s = at;
+                at += n as usize;
+                s..at
+            })
+        }
+        for (i, b) in blocks.iter().enumerate() {
+            let total: usize = b.counts.iter().map(|&n| n as usize).sum();
+            if b.counts.len() != c
+                || b.codes.len() != c
+                || b.rows.len() != total
+                || b.values.len() != total
+            {
+                return Err(format!("block {i}: its columns do not fit its entries"));
+            }
+            for (j, col) in column_starts(b).enumerate() {
+                if b.rows[col].windows(2).any(|w| w[1] <= w[0]) {
+                    return Err(format!(
+                        "block {i}, coefficient {j}: rows not strictly increasing"
+                    ));
+                }
             }
         }
-        let groups = group_row_start.len() - 1;
-        let group_blocks = |g: usize| {
-            let rows = group_row_start[g] as usize..group_row_start[g + 1] as usize;
-            t.tile_block_start[rows.start * tx] as usize..t.tile_block_start[rows.end * tx] as usize
-        };
         // First pass, in parallel over groups: every column's strips counted, and the slots
         // laid out band by band, coefficient by coefficient.
-        let layouts: Vec<GroupLayout> = (0..groups)
+        let layouts: Vec<(Vec<Slot>, usize)> = (0..groups)
             .into_par_iter()
             .map(|g| {
-                let blocks = group_blocks(g);
-                let mut counts = vec![0u8; blocks.len() * c];
-                for (i, b) in blocks.clone().enumerate() {
-                    for (j, count) in counts[i * c..(i + 1) * c].iter_mut().enumerate() {
+                let group = layout.group_blocks(g);
+                let mut counts = vec![0u8; group.len() * c];
+                for (i, b) in blocks[group.clone()].iter().enumerate() {
+                    for (col, count) in column_starts(b).zip(&mut counts[i * c..(i + 1) * c]) {
                         let mut last = None;
-                        for &r in &t.entry_row[t.block_column(b, j)] {
+                        for &r in &b.rows[col] {
                             let place = r / STRIP_ROWS as u8;
                             if last != Some(place) {
                                 last = Some(place);
@@ -141,31 +247,26 @@ impl Strips {
                         }
                     }
                 }
-                let mut group = GroupLayout {
-                    bands: Vec::new(),
-                    slots: Vec::with_capacity(blocks.len() * c),
-                    strips: 0,
-                };
-                for b0 in blocks.clone().step_by(BAND_BLOCKS) {
-                    let band = b0..(b0 + BAND_BLOCKS).min(blocks.end);
-                    group.bands.push(band.end as u32);
+                let mut slots = Vec::with_capacity(group.len() * c);
+                let mut strips = 0usize;
+                for band in layout.group_bands_of(g) {
                     for j in 0..c {
                         for b in band.clone() {
-                            let count = counts[(b - blocks.start) * c + j];
-                            group.slots.push(Slot {
-                                first: group.strips as u32,
+                            let count = counts[(b - group.start) * c + j];
+                            slots.push(Slot {
+                                first: strips as u32,
                                 count,
-                                code: t.col_scale[b * c + j],
-                                entries: t.block_column(b, j).len() as u16,
+                                code: blocks[b].codes[j],
+                                entries: blocks[b].counts[j],
                             });
-                            group.strips += count as usize;
+                            strips += count as usize;
                         }
                     }
                 }
-                group
+                (slots, strips)
             })
             .collect();
-        let total: usize = layouts.iter().map(|l| l.strips).sum();
+        let total: usize = layouts.iter().map(|l| l.1).sum();
         if u32::try_from(total).is_err() {
             return Err(format!(
                 "{total} strips of 8 rows are more than the kernel counts in 32 bits"
@@ -173,31 +274,28 @@ impl Strips {
         }
         let mut index = vec![0u8; total];
         let mut strip_values = vec![V::default(); total * STRIP_ROWS];
-        // Second pass: each group fills its own part of the strips, reading its blocks in
-        // the order they are stored.
+        // Second pass: each group fills its own part of the strips.
         let mut parts = Vec::with_capacity(groups);
         let (mut index_rest, mut values_rest) = (&mut index[..], &mut strip_values[..]);
-        for layout in &layouts {
-            let (i, rest) = index_rest.split_at_mut(layout.strips);
-            let (v, rest_v) = values_rest.split_at_mut(layout.strips * STRIP_ROWS);
+        for (_, strips) in &layouts {
+            let (i, rest) = index_rest.split_at_mut(*strips);
+            let (v, rest_v) = values_rest.split_at_mut(strips * STRIP_ROWS);
             parts.push((i, v));
             (index_rest, values_rest) = (rest, rest_v);
         }
         parts.into_par_iter().zip(&layouts).enumerate().for_each(
-            |(g, ((index, strip_values), layout))| {
-                let blocks = group_blocks(g);
-                for (band, b0) in blocks.clone().step_by(BAND_BLOCKS).enumerate() {
-                    let nb = (b0 + BAND_BLOCKS).min(blocks.end) - b0;
-                    // The band's slots start after those of the group's earlier bands (all full).
-                    let start = band * BAND_BLOCKS * c;
-                    for i in 0..nb {
-                        for j in 0..c {
-                            let slot = layout.slots[start + j * nb + i];
-                            let column = t.block_column(b0 + i, j);
+            |(g, ((index, strip_values), (slots, _)))| {
+                let group = layout.group_blocks(g);
+                let mut slot_at = 0;
+                for band in layout.group_bands_of(g) {
+                    let nb = band.len();
+                    for (i, b) in band.clone().enumerate() {
+                        let cols = &blocks[b];
+                        for (j, col) in column_starts(cols).enumerate() {
+                            let slot = slots[slot_at + j * nb + i];
                             let mut k = slot.first as usize;
                             let mut last = None;
-                            for (&r, &v) in t.entry_row[column.clone()].iter().zip(&values[column])
-                            {
+                            for (&r, &v) in cols.rows[col.clone()].iter().zip(&cols.values[col]) {
                                 let place = r / STRIP_ROWS as u8;
                                 if last != Some(place) {
                                     if last.is_some() {
@@ -210,28 +308,70 @@ impl Strips {
                             }
                         }
                     }
+                    slot_at += nb * c;
                 }
+                debug_assert_eq!(slot_at, group.len() * c);
             },
         );
-        let mut s = Strips {
-            band_block_start: vec![0],
-            group_row_start,
-            group_band_start: vec![0],
-            slots: Vec::with_capacity(t.block_count() * c),
-            index,
-            values: V::wrap(strip_values),
-        };
+        let mut slots = Vec::with_capacity(blocks.len() * c);
         let mut base = 0u32;
-        for layout in layouts {
-            s.band_block_start.extend_from_slice(&layout.bands);
-            s.group_band_start.push(s.band_block_start.len() as u32 - 1);
-            s.slots.extend(layout.slots.iter().map(|slot| Slot {
+        for (group, strips) in layouts {
+            slots.extend(group.iter().map(|slot| Slot {
                 first: slot.first + base,
                 ..*slot
             }));
-            base += layout.strips as u32;
+            base += strips as u32;
         }
+        let mut s = Strips {
+            band_block_start: layout.band_block_start,
+            group_row_start: layout.group_row_start,
+            group_band_start: layout.group_band_start,
+            slots,
+            index,
+            values: V::wrap(strip_values),
+        };
+        s.count_entries();
         Ok(s)
+    }
+
+    /// Sets every slot's entries to the number of its strips' values that are entries (not
+    /// zero), in parallel over bands.
+    fn count_entries(&mut self) {
+        fn count<V: Stored>(slots: &mut [Slot], values: &[V]) {
+            slots.par_iter_mut().with_min_len(1024).for_each(|s| {
+                let v = &values[s.first as usize * STRIP_ROWS..][..s.count as usize * STRIP_ROWS];
+                s.entries = v.iter().filter(|x| x.is_entry()).count() as u16;
+            });
+        }
+        match &self.values {
+            Values::Q8(v) => count(&mut self.slots, v),
+            Values::Q16(v) => count(&mut self.slots, v),
+            Values::F32(v) => count(&mut self.slots, v),
+        }
+    }
+
+    /// A slot's entries: (row inside the block, stored value) for each of its strips' values
+    /// that is an entry, rows increasing.
+    pub fn column(&self, slot: Slot) -> impl Iterator<Item = (u8, f32)> + '_ {
+        let strips = slot.first as usize..slot.first as usize + slot.count as usize;
+        strips.flat_map(move |k| {
+            let base = self.index[k] * STRIP_ROWS as u8;
+            (0..STRIP_ROWS).filter_map(move |i| {
+                let v = self.values.raw(k * STRIP_ROWS + i);
+                (v != 0.0).then_some((base + i as u8, v))
+            })
+        })
+    }
+
+    /// The slot of coefficient `j` in block `b`, for a transport of `c` coefficients.
+    pub fn slot(&self, b: usize, j: usize, c: usize) -> Slot {
+        let blocks = self.band_blocks(self.band_of(b));
+        self.slots[blocks.start * c + j * blocks.len() + (b - blocks.start)]
+    }
+
+    /// Stored entries in all.
+    pub fn entry_count(&self) -> u64 {
+        self.slots.iter().map(|s| s.entries as u64).sum()
     }
 
     /// Number of bands.
@@ -297,6 +437,169 @@ impl Strips {
             }
         }
         read
+    }
+
+    /// Per slot, in order, its strip count and its scale code: the two tables a file stores.
+    pub fn slot_tables(&self) -> (Vec<u8>, Vec<u8>) {
+        (
+            self.slots.iter().map(|s| s.count).collect(),
+            self.slots.iter().map(|s| s.code).collect(),
+        )
+    }
+
+    /// The groups, bands and blocks these strips are laid out in.
+    pub fn layout(&self) -> Layout {
+        Layout {
+            band_block_start: self.band_block_start.clone(),
+            group_row_start: self.group_row_start.clone(),
+            group_band_start: self.group_band_start.clone(),
+        }
+    }
+
+    /// Strips from their tables as a file stores them: per slot (band, coefficient, block, as
+    /// `layout` orders them) a strip count and a scale code, per strip its place and
+    /// [`STRIP_ROWS`] values. Every slot's first strip and entries follow from these; nothing
+    /// is checked here but that the tables fit one another ([`Strips::problem`] checks the rest).
+    pub fn from_tables(
+        layout: Layout,
+        counts: &[u8],
+        codes: &[u8],
+        index: Vec<u8>,
+        values: Values,
+    ) -> std::result::Result<Strips, String> {
+        if counts.len() != codes.len() {
+            return Err("strip counts and scale codes differ in number".into());
+        }
+        let mut first = 0u64;
+        let slots: Vec<Slot> = counts
+            .iter()
+            .zip(codes)
+            .map(|(&count, &code)| {
+                let s = Slot {
+                    first: first.min(u32::MAX as u64) as u32,
+                    count,
+                    code,
+                    entries: 0,
+                };
+                first += count as u64;
+                s
+            })
+            .collect();
+        if first != index.len() as u64 || values.len() as u64 != first * STRIP_ROWS as u64 {
+            return Err(format!(
+                "strip counts add up to {first} strips but {} places and {} values are stored",
+                index.len(),
+                values.len()
+            ));
+        }
+        if u32::try_from(first).is_err() {
+            return Err(format!(
+                "{first} strips of 8 rows are more than the kernel counts in 32 bits"
+            ));
+        }
+        let mut s = Strips {
+            band_block_start: layout.band_block_start,
+            group_row_start: layout.group_row_start,
+            group_band_start: layout.group_band_start,
+            slots,
+            index,
+            values,
+        };
+        s.count_entries();
+        Ok(s)
+    }
+
+    /// The first inconsistency of these strips with blocks of `block_rows[b]` rows each in `c`
+    /// coefficients, if any: a slot table of the wrong size, slots that do not tile the strips in
+    /// order, more strips than a block holds, places not increasing or outside the block, a
+    /// value in a row the block does not have, a strip with no entry, an entry count that is not
+    /// the strips', or a value that is not finite. Checked in parallel over bands.
+    pub fn problem(&self, block_rows: &[u32], c: usize) -> Option<String> {
+        let blocks = block_rows.len();
+        if self.band_block_start.last().copied().unwrap_or(0) as usize != blocks
+            || self.slots.len() != blocks * c
+        {
+            return Some(format!(
+                "{} slots for {blocks} blocks of {c} coefficients",
+                self.slots.len()
+            ));
+        }
+        if self.values.len() != self.index.len() * STRIP_ROWS {
+            return Some("strip values do not match the strips".into());
+        }
+        let mut next = 0u64;
+        for (i, s) in self.slots.iter().enumerate() {
+            if s.first as u64 != next {
+                return Some(format!(
+                    "slot {i}: its strips do not follow the slot before"
+                ));
+            }
+            next += s.count as u64;
+        }
+        if next != self.index.len() as u64 {
+            return Some(format!(
+                "slots hold {next} strips but {} are stored",
+                self.index.len()
+            ));
+        }
+        fn check<V: Stored>(
+            s: &Strips,
+            values: &[V],
+            finite: fn(V) -> bool,
+            block_rows: &[u32],
+            c: usize,
+        ) -> Option<String> {
+            (0..s.band_count()).into_par_iter().find_map_first(|band| {
+                let blocks = s.band_blocks(band);
+                for j in 0..c {
+                    for (slot, b) in s.term_slots(band, j, c).iter().zip(blocks.clone()) {
+                        let rows = block_rows[b] as usize;
+                        let at = |m: &str| Some(format!("block {b}, coefficient {j}: {m}"));
+                        if slot.count as usize > rows.div_ceil(STRIP_ROWS) {
+                            return at(&format!("{} strips in {rows} rows", slot.count));
+                        }
+                        let strips = slot.first as usize..slot.first as usize + slot.count as usize;
+                        let mut last: i32 = -1;
+                        let mut entries = 0usize;
+                        for k in strips {
+                            let place = s.index[k] as i32;
+                            if place <= last {
+                                return at("strip places not increasing");
+                            }
+                            last = place;
+                            let v = &values[k * STRIP_ROWS..(k + 1) * STRIP_ROWS];
+                            if !v.iter().all(|&x| finite(x)) {
+                                return at("a value is NaN or infinite");
+                            }
+                            let n = v.iter().filter(|x| x.is_entry()).count();
+                            if n == 0 {
+                                return at(&format!("strip {place} holds no entry"));
+                            }
+                            let past =
+                                (place as usize * STRIP_ROWS + STRIP_ROWS).saturating_sub(rows);
+                            if v[STRIP_ROWS - past.min(STRIP_ROWS)..]
+                                .iter()
+                                .any(|x| x.is_entry())
+                            {
+                                return at(&format!(
+                                    "strip {place} holds a row past the block's {rows}"
+                                ));
+                            }
+                            entries += n;
+                        }
+                        if entries != slot.entries as usize {
+                            return at("its entry count is not its strips'");
+                        }
+                    }
+                }
+                None
+            })
+        }
+        match &self.values {
+            Values::Q8(v) => check(self, v, |_| true, block_rows, c),
+            Values::Q16(v) => check(self, v, |_| true, block_rows, c),
+            Values::F32(v) => check(self, v, f32::is_finite, block_rows, c),
+        }
     }
 
     /// Number of strips.
