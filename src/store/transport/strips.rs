@@ -1,11 +1,12 @@
-//! The Haar matrix in the layout the CPU kernel reads: dense strips of [`STRIP_ROWS`] rows in
-//! light-major bands of blocks.
+//! The Haar matrix as the file stores it and the kernels read it: dense strips of
+//! [`STRIP_ROWS`] rows in light-major bands of blocks, made from columns (a bake's tiles, an
+//! older file's tables) or read as stored, and checked.
 //!
 //! A block's column (coefficient j of up to 256 rows) is cut into aligned strips of 8 rows; a
 //! strip that holds at least one entry is kept whole, its missing rows as zeros. On the demo bake
 //! 88% of the values of kept strips are entries, so a strip (a byte for its place in the block and
-//! 8 values) costs fewer bytes than the entries it holds, each a row byte and a value, and the
-//! kernel widens and adds 8 values with one vector instruction each instead of scattering them
+//! 8 values) costs fewer bytes than the entries it holds would as columns, each a row byte and a
+//! value, and the kernel widens and adds 8 values with one vector instruction each instead of scattering them
 //! one by one.
 //!
 //! Whole tile rows are gathered into *groups* of at least [`BAND_BLOCKS`] blocks (one row of a
