@@ -528,3 +528,22 @@ fn closed_meshes_wound_inward_are_turned_outward_and_bake_as_the_per_pixel_view(
         );
     }
 }
+
+/// Vertices next to one another in the bake's order see nearly the same light, so the 8-row
+/// strips their rows are stored in are mostly entries: with the two sides of the open ground
+/// interleaved at the same points, as the vertices once were, half the strips' values were
+/// zeros.
+#[test]
+fn per_vertex_rows_fill_their_strips() {
+    let scene = scene_from(SPHERE_ON_PLANE, "per-vertex-strip-fill");
+    let t = bake(&scene, &per_vertex(0.2), &|_| {}).unwrap();
+    let values = t.strips.strip_count() * wavelet_prt::store::transport::strips::STRIP_ROWS;
+    let fill = t.nonzeros() as f64 / values as f64;
+    assert!(t.nonzeros() > 100_000, "{} entries", t.nonzeros());
+    assert!(fill > FILL_AT_LEAST, "strips {:.1}% full", 100.0 * fill);
+}
+
+/// The least fraction of strip values that are entries in a per-vertex bake of
+/// [`SPHERE_ON_PLANE`] at edges of 0.2: 93.8% with the vertices ordered by their normals' cell,
+/// 50.0% with the two sides of the ground interleaved.
+const FILL_AT_LEAST: f64 = 0.8;
