@@ -333,11 +333,12 @@ pub fn load_or_bake(
 ) -> Result<(Transport, bool)> {
     if let Some(t) = load_if_baked_with(path, scene, settings) {
         // A file of an older format is written again in this one, so later runs read it
-        // without converting it.
-        if crate::store::transport::read_format_version(path)?
-            < crate::store::transport::FORMAT_VERSION
+        // without converting it; where it cannot be (a folder that is read only), it is read as
+        // it is, as before.
+        if crate::store::transport::read_format_version(path)
+            .is_ok_and(|v| v < crate::store::transport::FORMAT_VERSION)
         {
-            t.save(path)?;
+            t.save(path).ok();
         }
         return Ok((t, true));
     }

@@ -177,6 +177,21 @@ impl EncodedTile {
         {
             return Err("its tables do not fit one another or the quantisation".into());
         }
+        // Every column's rows inside its block and strictly increasing.
+        let mut e = 0;
+        for (k, &n) in self.col_count.iter().enumerate() {
+            let block_rows = (rows - (k / c.max(1)) * BLOCK_ROWS).min(BLOCK_ROWS);
+            let col = &self.entry_row[e..e + n as usize];
+            if col.iter().any(|&r| r as usize >= block_rows) || col.windows(2).any(|w| w[1] <= w[0])
+            {
+                return Err(format!(
+                    "block {}, coefficient {}: rows outside the block or not increasing",
+                    k / c.max(1),
+                    k % c.max(1)
+                ));
+            }
+            e += n as usize;
+        }
         Ok(())
     }
 
@@ -228,7 +243,7 @@ pub(super) fn strips_of_tiles(
 
 impl Transport {
     /// Lays out rows given tile by tile (tiles in row-major order of the tile grid, each tile's
-    /// rows in the order they should keep) into the blocked column layout, quantised as
+    /// rows in the order they should keep) into blocks and strips, quantised as
     /// `meta.identity.quantization` says. Per-pixel and per-coefficient tables are taken as given; the
     /// energy quantisation drops is added to each tile's first statistic. Checks the result, so a
     /// caller's mistake is an error, not a bad file.

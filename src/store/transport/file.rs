@@ -295,9 +295,9 @@ pub fn read_format_version(path: &Path) -> Result<u32> {
 }
 
 /// The header and the small tables, for `prt info`: the metadata, checked as
-/// [`read_header_meta`] does, and the tile and column-count tables, checked against each other and
-/// against the entry count the header declares. The entries and values, nearly all of the file,
-/// are neither read nor checked (their checksum needs them all).
+/// [`read_header_meta`] does, and the tile and strip-count tables (column counts before version
+/// 7), checked against each other and against the strips (entries) the header declares. The
+/// strips, nearly all of the file, are neither read nor checked (their checksum needs them all).
 pub fn read_summary(path: &Path) -> Result<TransportMeta> {
     let Header {
         meta,
@@ -325,11 +325,9 @@ pub fn read_summary(path: &Path) -> Result<TransportMeta> {
     // The large tensors are only counted; their bytes need the whole file's checksum.
     let count = |name: &str, bytes_each: u64| -> Result<usize> {
         let (_, shape, start, end) = reader.locate(name)?;
+        let elements = shape.iter().try_fold(1u64, |n, &d| n.checked_mul(d as u64));
         match shape[..] {
-            [n, ..]
-                if (shape.iter().product::<usize>() as u64).checked_mul(bytes_each)
-                    == Some(end - start) =>
-            {
+            [n, ..] if elements.and_then(|e| e.checked_mul(bytes_each)) == Some(end - start) => {
                 Ok(n)
             }
             _ => Err(PrtError::file(
@@ -723,7 +721,7 @@ fn strips_of_columns(
     if values.len() != rows.len() || counts.len() != codes.len() {
         return Err("the columns' tables differ in length".into());
     }
-    let (_, starts) = column_pointers(counts, block_row_start, c, rows.len())?;
+    let starts = column_pointers(counts, block_row_start, c, rows.len())?;
     match values {
         Values::Q8(v) => of(layout, &starts, c, counts, codes, rows, v),
         Values::Q16(v) => of(layout, &starts, c, counts, codes, rows, v),

@@ -65,7 +65,9 @@
 //! anywhere is caught; files written before `meta_checksum` existed have none and are read as
 //! before. A checksum guards against accidents, not edits: loading checks the header, the sizes
 //! and every count, index and value (NaN or infinite floats included) before it allocates
-//! anything or trusts any offset, and allocates no more than the file's own tensors hold. Writing
+//! anything or trusts any offset, and allocates no more than the file's own tensors hold, but for
+//! the slots (8 bytes each in memory, 2 in the file) and, for a file of versions 3 to 6, the
+//! strips its columns are made into (at most 8 values for each entry). Writing
 //! goes to a temporary file that is renamed into place ([`crate::files`]).
 
 mod assemble;
@@ -100,9 +102,9 @@ pub const TILE: usize = 16;
 pub const FORMAT_NAME: &str = container::TRANSPORT.name;
 /// Version of the layout described in this module.
 pub const FORMAT_VERSION: u32 = 7;
-/// The oldest version this build reads: version 3 differs only in having no local lights, and
-/// versions 3 and 4 in having no albedo maps, and versions 3 to 5 in having no in-out BRDF
-/// terms.
+/// The oldest version this build reads: versions 3 to 6 store the Haar matrix as columns, which
+/// are made into strips as they load; version 3 has no local lights, versions 3 and 4 no albedo
+/// maps, and versions 3 to 5 no in-out BRDF terms.
 pub const OLDEST_VERSION: u32 = 3;
 /// Largest safetensors header accepted (JSON text), checked before it is read.
 const MAX_HEADER_BYTES: u64 = 1 << 24;
@@ -171,8 +173,7 @@ impl Values {
 }
 
 /// A baked view in memory, in the layout of this module. The block tables (`tile_block_start`,
-/// `block_row_start`, `block_entry_start`, `col_ptr`) are derived from `tile_row_start` and the
-/// file's `col_count`.
+/// `block_row_start`) and the strips' groups and bands are derived from `tile_row_start`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Transport {
     /// The header: what was baked, how, and the bake's statistics.
@@ -488,14 +489,15 @@ fn block_tables(
     Ok((tile_blocks, block_rows))
 }
 
-/// Column pointers and block entry starts from the file's per-(block, coefficient) counts;
-/// checks each count against its block's rows and the total against the entries.
+/// Where each block's entries start, from the file's per-(block, coefficient) column counts
+/// (versions 3 to 6); checks each count against its block's rows and the total against the
+/// entries.
 fn column_pointers(
     counts: &[u16],
     block_row_start: &[u32],
     c: usize,
     nnz: usize,
-) -> std::result::Result<(Vec<u32>, Vec<u64>), String> {
+) -> std::result::Result<Vec<u64>, String> {
     let blocks = block_row_start.len() - 1;
     if counts.len() != blocks * c {
         return Err(format!(
@@ -503,24 +505,19 @@ fn column_pointers(
             counts.len()
         ));
     }
-    let mut col_ptr = Vec::with_capacity(blocks * (c + 1));
     let mut starts = Vec::with_capacity(blocks + 1);
     starts.push(0u64);
     let mut total = 0u64;
     for b in 0..blocks {
         let rows = (block_row_start[b + 1] - block_row_start[b]) as u16;
-        let mut p = 0u32;
-        col_ptr.push(0);
         for (j, &n) in counts[b * c..(b + 1) * c].iter().enumerate() {
             if n > rows {
                 return Err(format!(
                     "block {b}, coefficient {j}: {n} entries in a block of {rows} rows"
                 ));
             }
-            p += n as u32;
-            col_ptr.push(p);
+            total += n as u64;
         }
-        total += p as u64;
         starts.push(total);
     }
     if total != nnz as u64 {
@@ -528,5 +525,5 @@ fn column_pointers(
             "column counts add up to {total} entries but the file stores {nnz}"
         ));
     }
-    Ok((col_ptr, starts))
+    Ok(starts)
 }

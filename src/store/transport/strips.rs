@@ -197,7 +197,7 @@ impl Strips {
         blocks: &[BlockColumns<V>],
         c: usize,
     ) -> std::result::Result<Strips, String> {
-        let groups = layout.group_row_start.len() - 1;
+        let groups = layout.group_row_start.len().saturating_sub(1);
         if layout.band_block_start.last().copied().unwrap_or(0) as usize != blocks.len() {
             return Err("the layout's bands do not cover the blocks".into());
         }
@@ -239,7 +239,9 @@ impl Strips {
                 for (i, b) in blocks[group.clone()].iter().enumerate() {
                     for (col, count) in column_starts(b).zip(&mut counts[i * c..(i + 1) * c]) {
                         let mut last = None;
-                        for &r in &b.rows[col] {
+                        // A stored zero (an older file may hold one) is no entry and takes no strip.
+                        let entries = b.rows[col.clone()].iter().zip(&b.values[col]);
+                        for (&r, _) in entries.filter(|(_, v)| v.is_entry()) {
                             let place = r / STRIP_ROWS as u8;
                             if last != Some(place) {
                                 last = Some(place);
@@ -296,7 +298,8 @@ impl Strips {
                             let slot = slots[slot_at + j * nb + i];
                             let mut k = slot.first as usize;
                             let mut last = None;
-                            for (&r, &v) in cols.rows[col.clone()].iter().zip(&cols.values[col]) {
+                            let entries = cols.rows[col.clone()].iter().zip(&cols.values[col]);
+                            for (&r, &v) in entries.filter(|(_, v)| v.is_entry()) {
                                 let place = r / STRIP_ROWS as u8;
                                 if last != Some(place) {
                                     if last.is_some() {
