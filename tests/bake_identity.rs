@@ -59,6 +59,13 @@ fn variants() -> Vec<(&'static str, BakeSettings)> {
             },
         ),
         (
+            "edge texel samples",
+            BakeSettings {
+                edge_texel_samples: 4,
+                ..s.clone()
+            },
+        ),
+        (
             "unshadowed",
             BakeSettings {
                 unshadowed: true,

@@ -21,7 +21,7 @@ mod slot;
 mod tint;
 
 use crate::store::transport::BakeDomain;
-pub use direct::accumulate_direct_rows;
+pub use direct::{accumulate_direct_rows, direct_texels};
 use in_order::in_tile_order;
 pub use lights::LightSampler;
 use pixels::visits;
@@ -222,7 +222,8 @@ fn bake_tiles(
     let cam = &scene.camera;
     let (w, h) = image_size(scene, mesh.as_ref());
     let n = settings.cube_n;
-    let samples = TexelSamples::new(n, settings.texel_samples as usize, settings.seed);
+    let samples = TexelSamples::new(n, settings.texel_samples as usize, settings.seed)
+        .refined(settings.edge_texel_samples as usize);
     let basis = TexelShBasis::new(n, settings.sh_order)?;
     let (tx, ty) = tile_grid(w, h);
     if let Some([_, count]) = settings.shard

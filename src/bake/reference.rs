@@ -19,7 +19,8 @@ use crate::bake::LightSampler;
 use crate::bake::bounce::Bounces;
 use crate::bake::medium_light::MediumLight;
 use crate::bake::{
-    BakeSettings, EdgeMap, path_stream, pixel_subsamples, sample_stride, shading_point,
+    BakeSettings, EdgeMap, direct_texels, path_stream, pixel_subsamples, sample_stride,
+    shading_point,
 };
 use crate::error::Result;
 use crate::math::cubemap::CubeMap;
@@ -27,7 +28,6 @@ use crate::math::sampling::TexelSamples;
 use crate::medium::henyey_greenstein;
 use crate::output::film::Image;
 use crate::scene::Scene;
-use crate::scene::brdf;
 use crate::scene::light_mix::LightMix;
 use crate::scene::trace::Tracer;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -72,7 +72,8 @@ pub fn render_reference_lit(
     let tracer = Tracer::new(scene);
     let cam = &scene.camera;
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let samples = TexelSamples::new(cube.n, settings.texel_samples as usize, settings.seed);
+    let samples = TexelSamples::new(cube.n, settings.texel_samples as usize, settings.seed)
+        .refined(settings.edge_texel_samples as usize);
     let medium = match &scene.medium {
         Some(spec) => Some(spec.build(None)?),
         None => None,
@@ -151,33 +152,25 @@ pub fn render_reference_lit(
                     let albedo = lobes.albedo;
                     let glossy = (lobes.specular != glam::Vec3::ZERO)
                         .then_some((lobes.specular, lobes.alpha));
-                    for (d, w) in samples.dirs.iter().zip(&samples.weights) {
-                        if sp.normal.dot(*d) <= 0.0 {
-                            continue;
-                        }
-                        let mut visible = seen;
-                        if !settings.unshadowed {
-                            if tracer.occluded(sp.origin, *d, f32::INFINITY) {
-                                continue;
+                    // f(ω, view) · cos: albedo / π · cos, plus the specular GGX lobe, over
+                    // each texel as the bake integrates it.
+                    let (specular, alpha) =
+                        glossy.map_or((glam::Vec3::ZERO, None), |(s, a)| (s, Some(a)));
+                    direct_texels(
+                        &tracer,
+                        &samples,
+                        &sp,
+                        settings.unshadowed,
+                        medium,
+                        alpha,
+                        |j, diffuse, ggx| {
+                            let l = cube.texels[j];
+                            for k in 0..3 {
+                                let f = albedo[k] * diffuse + specular[k] * ggx;
+                                sum[k] += f as f64 * inv_spp * l[k] as f64 * seen;
                             }
-                            if let Some(m) = medium {
-                                visible *= m.transmittance(sp.origin, *d, f32::INFINITY) as f64;
-                            }
-                        }
-                        // f(ω, view) · cos: albedo / π · cos, plus the specular GGX lobe.
-                        let diffuse = brdf::diffuse_cosine(sp.normal, *d);
-                        let (specular, ggx) = match glossy {
-                            Some((s, alpha)) => {
-                                (s, brdf::ggx_cosine(sp.normal, sp.view, *d, alpha))
-                            }
-                            None => (glam::Vec3::ZERO, 0.0),
-                        };
-                        let l = cube.lookup(d.as_dvec3());
-                        for k in 0..3 {
-                            let f = albedo[k] * diffuse + specular[k] * ggx;
-                            sum[k] += f as f64 * *w as f64 * inv_spp * l[k] as f64 * visible;
-                        }
-                    }
+                        },
+                    );
                     // Interreflections: every vertex of the bake's paths brings its throughput
                     // times its own direct light, seen through the medium.
                     if settings.bounces > 0 {

@@ -19,6 +19,11 @@ pub struct BakeSettings {
     pub edge_spp: u32,
     /// Shadow-ray directions per texel (rounded up to a square).
     pub texel_samples: u32,
+    /// With one direction a texel, the sub-texels (rounded up to a square) of a texel that
+    /// needs more than its centre: a shadow border, the horizon, a narrow glossy lobe; the
+    /// cosine over any other texel is then exact ([`TexelSamples::refined`]). 0 or 1: every
+    /// texel takes its centre's value.
+    pub edge_texel_samples: u32,
     /// Error allowed per row when dropping small Haar coefficients, relative to the L2 norm of
     /// an unshadowed row (0 keeps all). One absolute budget for every row spends it where the
     /// image is bright: shadowed rows become sparser than lit ones.
@@ -65,6 +70,7 @@ impl Default for BakeSettings {
             spp: 1,
             edge_spp: 4,
             texel_samples: 1,
+            edge_texel_samples: 9,
             threshold: 0.01,
             budget: Budget::L2,
             quantization: Quantization::Q8,
@@ -106,6 +112,7 @@ impl BakeSettings {
             ));
         }
         within("texel samples", self.texel_samples, 1..=256, "")?;
+        within("edge texel samples", self.edge_texel_samples, 0..=256, "")?;
         within("light samples", self.light_samples, 1..=1024, "")?;
         if let Some([i, count]) = self.shard
             && (count == 0 || i >= count)
@@ -212,6 +219,17 @@ impl BakeSettings {
         Ok(())
     }
 
+    /// The edge texel samples as a file records them: a square, or 0 where texels are not
+    /// refined (more than one direction a texel, or at most one sub-texel asked for).
+    pub fn stored_edge_texel_samples(&self) -> u32 {
+        let side = TexelSamples::grid_side(self.edge_texel_samples as usize) as u32;
+        if self.texel_samples > 1 || self.edge_texel_samples <= 1 {
+            0
+        } else {
+            side * side
+        }
+    }
+
     /// What a file baked from `scene` with these settings records about how it was baked
     /// (checked first, see [`BakeSettings::validate_for`]). This is the one place the settings
     /// are put in their stored form: the storage ([`BakeSettings::storage`]) and edge samples
@@ -228,6 +246,7 @@ impl BakeSettings {
             spp: self.spp,
             edge_spp: self.stored_edge_spp(),
             texel_samples: side * side,
+            edge_texel_samples: self.stored_edge_texel_samples(),
             unshadowed: self.unshadowed,
             seed: self.seed,
             threshold,
@@ -271,6 +290,7 @@ impl BakeSettings {
             spp: id.spp,
             edge_spp: id.edge_spp,
             texel_samples: id.texel_samples,
+            edge_texel_samples: id.edge_texel_samples,
             threshold: id.threshold,
             budget: id.budget,
             quantization: if lossless {

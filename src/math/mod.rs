@@ -1,5 +1,5 @@
 //! The mathematics every stage shares: real spherical harmonics (and their table at a cube's
-//! texels), the per-face Haar transform, cube map texels and their solid angles, seeded sampling,
+//! texels), the per-face Haar transform, cube map texels and their solid angles (and the quadrature over a texel), seeded sampling,
 //! the magnitude that ranks an RGB coefficient, and the leading singular triplets of a matrix.
 //! Nothing here knows of scenes or files.
 
@@ -8,6 +8,7 @@ pub mod haar;
 pub mod sampling;
 pub mod sh;
 pub mod svd;
+pub mod texel_quadrature;
 pub mod texel_sh;
 
 /// Magnitude used to rank an RGB coefficient: Rec. 709 luminance weights on absolute values, so

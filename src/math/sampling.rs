@@ -5,6 +5,7 @@
 use glam::Vec3;
 
 use crate::math::cubemap::{face_st_to_dir, texel_count};
+use crate::math::texel_quadrature::TexelQuadrature;
 
 /// SplitMix64 finaliser: a good 64-bit mix, so nearby stream ids give unrelated sequences.
 #[inline]
@@ -85,6 +86,9 @@ pub struct TexelSamples {
     pub dirs: Vec<Vec3>,
     /// Solid-angle weights, texel-major.
     pub weights: Vec<f32>,
+    /// With one sample a texel, the quadrature that integrates the texels that need more than
+    /// their centre (see [`TexelSamples::refined`]); `None` samples every texel at its centre.
+    pub refine: Option<TexelQuadrature>,
 }
 
 impl TexelSamples {
@@ -130,7 +134,20 @@ impl TexelSamples {
             per_texel,
             dirs,
             weights,
+            refine: None,
         }
+    }
+
+    /// These samples, with texels integrated where one centre direction is not enough: with
+    /// one sample a texel and `edge_samples` > 1, a texel on a shadow border traces a grid of
+    /// `edge_samples` sub-texels (rounded up to a square), one the horizon crosses or inside a
+    /// narrow glossy lobe sums its lobe over them, and the cosine over any other texel is exact.
+    /// More samples a texel integrate every texel alike, so this leaves them as they are.
+    pub fn refined(mut self, edge_samples: usize) -> Self {
+        if self.per_texel == 1 && edge_samples > 1 {
+            self.refine = Some(TexelQuadrature::new(self.n, Self::grid_side(edge_samples)));
+        }
+        self
     }
 }
 

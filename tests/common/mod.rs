@@ -366,6 +366,7 @@ pub fn random_rows(
             spp: 1,
             edge_spp: 0,
             texel_samples: 1,
+            edge_texel_samples: 0,
             unshadowed: false,
             seed,
             threshold: 0.0,

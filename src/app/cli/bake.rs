@@ -324,9 +324,14 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
         String::new()
     };
     println!(
-        "sampling      {} spp{edges}, {} samples/texel, seed {}{}",
+        "sampling      {} spp{edges}, {} samples/texel{}, seed {}{}",
         id.spp,
         id.texel_samples,
+        if id.edge_texel_samples > 0 {
+            format!(" ({} sub-texels where needed)", id.edge_texel_samples)
+        } else {
+            String::new()
+        },
         id.seed,
         if id.unshadowed { ", unshadowed" } else { "" }
     );

@@ -197,6 +197,12 @@ pub struct SamplingArgs {
     /// Shadow-ray directions per texel (rounded up to a square).
     #[arg(long, default_value_t = 1)]
     pub texel_samples: u32,
+    /// With one direction a texel, the sub-texels (rounded up to a square) of each texel that
+    /// needs more than its centre: a shadow border (traced, for penumbrae), the horizon or a
+    /// narrow glossy lobe (summed); the cosine over every other texel is exact. 0: every texel
+    /// takes its centre's value.
+    #[arg(long, default_value_t = 9)]
+    pub edge_texel_samples: u32,
     /// Samples per shading point of each quad light or sun disc (rounded up to a square: a
     /// stratified grid over the light, for smooth penumbrae).
     #[arg(long, default_value_t = 64)]
@@ -449,6 +455,7 @@ fn settings_from(
         spp: s.spp,
         edge_spp: s.edge_spp,
         texel_samples: s.texel_samples,
+        edge_texel_samples: s.edge_texel_samples,
         light_samples: s.light_samples,
         threshold,
         lossless,

@@ -122,6 +122,9 @@ pub struct BakeIdentity {
     pub edge_spp: u32,
     /// Shadow-ray directions per texel light (a square).
     pub texel_samples: u32,
+    /// Sub-texels of a texel integrated rather than sampled at its centre (a square; 0: every
+    /// texel took its centre's value, as every file before this setting).
+    pub edge_texel_samples: u32,
     /// Whether visibility was ignored.
     pub unshadowed: bool,
     /// Seed of every random choice.
@@ -228,6 +231,8 @@ pub(super) struct MetaFile {
     #[serde(default, skip_serializing_if = "is_zero")]
     edge_spp: u32,
     texel_samples: u32,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    edge_texel_samples: u32,
     unshadowed: bool,
     seed: u64,
     threshold: f32,
@@ -419,6 +424,7 @@ impl TryFrom<MetaFile> for TransportMeta {
                 spp: f.spp,
                 edge_spp: f.edge_spp,
                 texel_samples: f.texel_samples,
+                edge_texel_samples: f.edge_texel_samples,
                 unshadowed: f.unshadowed,
                 seed: f.seed,
                 threshold: f.threshold,
@@ -471,6 +477,7 @@ impl From<TransportMeta> for MetaFile {
             spp: id.spp,
             edge_spp: id.edge_spp,
             texel_samples: id.texel_samples,
+            edge_texel_samples: id.edge_texel_samples,
             unshadowed: id.unshadowed,
             seed: id.seed,
             threshold: id.threshold,
