@@ -18,6 +18,7 @@ use wavelet_prt::light::select::{SparseLight, Weighting};
 use wavelet_prt::math::cubemap::{CubeMap, texel_count, texel_dirs, texel_index};
 use wavelet_prt::math::sampling::Rng;
 use wavelet_prt::math::sh;
+use wavelet_prt::math::texel_quadrature::TexelQuadrature;
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::{
@@ -40,8 +41,8 @@ const SH_ROTATION_VS_PROJECTION: f64 = 1e-2;
 const THRESHOLD_BUDGET: f64 = 0.05;
 /// A ground pixel under one texel of light against the analytic value (albedo · L cos θ Ω / π
 /// lit, 0 in the shadow), relative to the lit value: the bake and the reference sample the texel
-/// at its centre, as the analytic value does, so only the float rounding of the Haar round trip
-/// remains.
+/// at its centre or integrate it, as the analytic value does, so only the float rounding of the
+/// Haar round trip (and of the first moment's f32) remains.
 const ONE_TEXEL_ROUNDING: f64 = 1e-5;
 /// Relative rise of the image error from one K to the next that still counts as not rising: the
 /// errors are relative L2s of f32 relights, so two equally good lights may differ by rounding.
@@ -140,68 +141,88 @@ fn sphere_clearance(o: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<f64> {
 fn one_texel_light_casts_the_analytic_sphere_shadow() {
     let scene = scene_from(SPHERE_ON_PLANE, "one-texel");
     let n = 8;
-    // One sample at every pixel's centre, where the analytic shadow is evaluated.
-    let centres = BakeSettings {
-        edge_spp: 0,
-        ..lossless(n, 2)
-    };
-    let t = bake(&scene, &centres, &|_| {}).unwrap();
-    let reference_settings = centres;
     // One texel of the +Y face, off-centre, so the shadow falls sideways.
     let j = texel_index(n, 2, 2, 5);
     let d = texel_dirs(n)[j];
-    let omega = wavelet_prt::math::cubemap::solid_angles(n)[j];
+    let texel = TexelQuadrature::new(n, 1);
     let mut cube = CubeMap::constant(n, [0.0; 3]).unwrap();
     cube.texels[j] = [10.0, 10.0, 10.0];
-    let (img, _) = relight_wavelet(&t, &full_light(&cube)).unwrap();
-    let brute = render_reference(&scene, &cube, &reference_settings).unwrap();
-    let cam = &scene.camera;
-    let (center, radius) = (DVec3::new(0.0, 0.6, 0.0), 0.6);
-    let (mut lit, mut shadowed) = (0, 0);
-    for y in 0..cam.height {
-        for x in 0..cam.width {
-            let ray = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
-            let (o, dir) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
-            if dir.y >= 0.0 {
-                continue;
-            }
-            let t_ground = -o.y / dir.y;
-            let p = o + dir * t_ground;
-            // Skip pixels that see the sphere or lie off the ground quad.
-            if sphere_clearance(o, dir, center, radius).is_some_and(|c| c < 0.0)
-                || p.x.abs() > 2.0
-                || p.z.abs() > 2.0
-            {
-                continue;
-            }
-            let clearance = sphere_clearance(p, d, center, radius);
-            // Stay away from the penumbra-free but numerically delicate boundary.
-            if clearance.is_some_and(|c| c.abs() < 1e-3) {
-                continue;
-            }
-            let in_shadow = clearance.is_some_and(|c| c < 0.0);
-            let i = (y * cam.width + x) as usize;
-            let albedo = [0.8, 0.7, 0.6];
-            for (k, a) in albedo.iter().enumerate() {
-                let lit_value = a * 10.0 * d.y * omega / PI;
-                let want = if in_shadow { 0.0 } else { lit_value };
-                // Float rounding of the Haar round trip, relative to the light's contribution.
-                let tol = ONE_TEXEL_ROUNDING * lit_value;
-                let got = img.pixels[i][k] as f64;
-                assert!(
-                    (got - want).abs() <= tol,
-                    "pixel ({x}, {y}) channel {k}: got {got}, want {want} (shadow {in_shadow})"
-                );
-                assert!((brute.pixels[i][k] as f64 - want).abs() <= tol);
-            }
-            if in_shadow {
-                shadowed += 1;
-            } else {
-                lit += 1;
+    // Sampled at its centre the texel is a distant light along d: a hard shadow, and the cosine
+    // at d. Integrated it is an area light: the cosine over the texel (its first moment), and a
+    // penumbra as wide as the texel, which pixels near the border are left out of.
+    for edge_texel_samples in [0, 9] {
+        let integrated = edge_texel_samples > 0;
+        // One sample at every pixel's centre, where the analytic shadow is evaluated.
+        let centres = BakeSettings {
+            edge_spp: 0,
+            edge_texel_samples,
+            ..lossless(n, 2)
+        };
+        let t = bake(&scene, &centres, &|_| {}).unwrap();
+        let (img, _) = relight_wavelet(&t, &full_light(&cube)).unwrap();
+        let brute = render_reference(&scene, &cube, &centres).unwrap();
+        let cosine = match integrated {
+            false => d.y * wavelet_prt::math::cubemap::solid_angles(n)[j],
+            true => texel.moments[j].y as f64,
+        };
+        let penumbra = match integrated {
+            false => 0.0,
+            true => texel.sin_radius[j] as f64,
+        };
+        let cam = &scene.camera;
+        let (center, radius) = (DVec3::new(0.0, 0.6, 0.0), 0.6);
+        let (mut lit, mut shadowed) = (0, 0);
+        for y in 0..cam.height {
+            for x in 0..cam.width {
+                let ray = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+                let (o, dir) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+                if dir.y >= 0.0 {
+                    continue;
+                }
+                let t_ground = -o.y / dir.y;
+                let p = o + dir * t_ground;
+                // Skip pixels that see the sphere or lie off the ground quad.
+                if sphere_clearance(o, dir, center, radius).is_some_and(|c| c < 0.0)
+                    || p.x.abs() > 2.0
+                    || p.z.abs() > 2.0
+                {
+                    continue;
+                }
+                let clearance = sphere_clearance(p, d, center, radius);
+                // Stay away from the numerically delicate boundary, and from the penumbra.
+                let margin = 1e-3 + penumbra * (center - p).length();
+                if clearance.is_some_and(|c| c.abs() < margin) {
+                    continue;
+                }
+                let in_shadow = clearance.is_some_and(|c| c < 0.0);
+                let i = (y * cam.width + x) as usize;
+                let albedo = [0.8, 0.7, 0.6];
+                for (k, a) in albedo.iter().enumerate() {
+                    let lit_value = a * 10.0 * cosine / PI;
+                    let want = if in_shadow { 0.0 } else { lit_value };
+                    // Float rounding of the Haar round trip, relative to the light's
+                    // contribution.
+                    let tol = ONE_TEXEL_ROUNDING * lit_value;
+                    let got = img.pixels[i][k] as f64;
+                    assert!(
+                        (got - want).abs() <= tol,
+                        "integrated {integrated}: pixel ({x}, {y}) channel {k}: got {got}, \
+                         want {want} (shadow {in_shadow})"
+                    );
+                    assert!((brute.pixels[i][k] as f64 - want).abs() <= tol);
+                }
+                if in_shadow {
+                    shadowed += 1;
+                } else {
+                    lit += 1;
+                }
             }
         }
+        assert!(
+            lit > 50 && shadowed > 5,
+            "integrated {integrated}: lit {lit}, shadowed {shadowed}"
+        );
     }
-    assert!(lit > 50 && shadowed > 5, "lit {lit}, shadowed {shadowed}");
 }
 
 #[test]

@@ -24,8 +24,9 @@ use wavelet_prt::store::transport::Transport;
 const REFERENCE_MATCH: f64 = 1e-4;
 /// Relative L2 a bake with 8-bit values and no thresholding adds: at most half a step (1/254 of a
 /// column's largest value after the row scale) per value, and under a sun a pixel sees a few
-/// columns, about 0.4%.
-const Q8_ONLY: f64 = 5e-3;
+/// columns. Measured 0.70% with texels integrated (0.45% with one direction a texel, whose rows
+/// hold fewer partial values at the N = 8 sun's shadow border).
+const Q8_ONLY: f64 = 1e-2;
 /// Bytes per coefficient as the compression table prints them, with two decimals: rounding moves
 /// the value by at most 0.005, and a little more covers the float that was rounded.
 const PRINTED_TWO_DECIMALS: f64 = 0.006;
@@ -358,8 +359,10 @@ fn per_vertex_bench(text: &str, name: &str, edge: f32, env: &EnvMap) -> (f64, f6
     };
     let t = bake(&scene, &settings, &|_| {}).unwrap();
     let cube = env.to_cube(8, EnvRotation::default()).unwrap();
+    // The per-vertex bake takes texel centres, as `prt bench` has its reference do.
     let per_pixel = BakeSettings {
         domain: BakeDomain::View,
+        edge_texel_samples: 0,
         ..settings
     };
     let r = render_reference_with(

@@ -16,6 +16,7 @@ use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::relight_wavelet;
+use wavelet_prt::store::transport::BakeDomain;
 
 /// The integrated texels' relative L2 from the converged texel sum under a small sun, at most:
 /// what remains is the centre visibility of texels away from a border and the 3 x 3 sub-texels
@@ -83,7 +84,7 @@ fn integrated_texels_come_close_to_the_converged_texel_sum() {
 }
 
 #[test]
-fn the_default_integrates_texels_and_more_directions_a_texel_sample_them_all_alike() {
+fn the_default_integrates_texels_of_a_view_and_more_directions_a_texel_sample_them_all_alike() {
     let d = BakeSettings::default();
     assert_eq!((d.texel_samples, d.edge_texel_samples), (1, 9));
     assert_eq!(d.stored_edge_texel_samples(), 9);
@@ -91,6 +92,11 @@ fn the_default_integrates_texels_and_more_directions_a_texel_sample_them_all_ali
     assert_eq!(settings(1, 5).stored_edge_texel_samples(), 9);
     assert_eq!(settings(4, 9).stored_edge_texel_samples(), 0);
     assert_eq!(settings(1, 1).stored_edge_texel_samples(), 0);
+    let per_vertex = BakeSettings {
+        domain: BakeDomain::Vertices { edge_length: 0.2 },
+        ..settings(1, 9)
+    };
+    assert_eq!(per_vertex.stored_edge_texel_samples(), 0);
     // The same image either way once texels take 4 directions.
     let scene = sphere_scene(false);
     let cube = sunny_cube();

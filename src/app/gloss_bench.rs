@@ -249,8 +249,11 @@ pub fn run(
     let bakes_dir = dir.join("bakes");
     std::fs::create_dir_all(&bakes_dir).map_err(|e| PrtError::io(&bakes_dir, e))?;
     let rotation = EnvRotation::default();
+    // Per-vertex bakes take texel centres, and so does the brute force their interpolation is
+    // measured against.
     let base = BakeSettings {
         domain: BakeDomain::View,
+        edge_texel_samples: 0,
         ..opts.bake.clone()
     };
     let cube = env.to_cube(base.cube_n, rotation)?;

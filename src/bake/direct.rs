@@ -180,9 +180,10 @@ fn integrated_texels(
                 .iter()
                 .any(|&k| centres[k as usize].traced().is_some_and(|o| o != open))
         });
+        let horizon = n.dot(c).abs() < q.sin_radius[j];
         if border {
             // Every sub-texel above the surface traces its own ray (the centre's is reused).
-            let (mut diffuse, mut glossy) = (0.0f32, 0.0f32);
+            let (mut diffuse, mut glossy, mut cosine) = (0.0f32, 0.0f32, 0.0f32);
             for (s, (d, w)) in subs.iter().zip(weights).enumerate() {
                 if n.dot(*d) <= 0.0 {
                     continue;
@@ -191,18 +192,24 @@ fn integrated_texels(
                     Some(cs) if cs == s => centre == Centre::Open,
                     _ => shadow.open(*d),
                 };
+                let lambert = brdf::diffuse_cosine(n, *d) * w;
+                cosine += lambert;
                 if seen {
                     let w = w * transmittance(*d);
                     diffuse += brdf::diffuse_cosine(n, *d) * w;
                     glossy += ggx(*d) * w;
                 }
             }
+            // Above the horizon the cosine over the texel is known exactly: the sub-texels
+            // give the share of it that is seen, so an open texel gets the exact value.
+            if !horizon && cosine > 0.0 {
+                diffuse *= n.dot(q.moments[j]).max(0.0) * std::f32::consts::FRAC_1_PI / cosine;
+            }
             if diffuse != 0.0 || glossy != 0.0 {
                 visit(j, diffuse, glossy);
             }
             continue;
         }
-        let horizon = n.dot(c).abs() < q.sin_radius[j];
         // The direction whose visibility and transmittance the texel takes.
         let towards = match centre {
             Centre::Horizon => {

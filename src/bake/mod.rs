@@ -223,7 +223,7 @@ fn bake_tiles(
     let (w, h) = image_size(scene, mesh.as_ref());
     let n = settings.cube_n;
     let samples = TexelSamples::new(n, settings.texel_samples as usize, settings.seed)
-        .refined(settings.edge_texel_samples as usize);
+        .refined(settings.stored_edge_texel_samples() as usize);
     let basis = TexelShBasis::new(n, settings.sh_order)?;
     let (tx, ty) = tile_grid(w, h);
     if let Some([_, count]) = settings.shard

@@ -73,7 +73,7 @@ pub fn render_reference_lit(
     let cam = &scene.camera;
     let (w, h) = (cam.width as usize, cam.height as usize);
     let samples = TexelSamples::new(cube.n, settings.texel_samples as usize, settings.seed)
-        .refined(settings.edge_texel_samples as usize);
+        .refined(settings.stored_edge_texel_samples() as usize);
     let medium = match &scene.medium {
         Some(spec) => Some(spec.build(None)?),
         None => None,

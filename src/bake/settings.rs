@@ -22,7 +22,7 @@ pub struct BakeSettings {
     /// With one direction a texel, the sub-texels (rounded up to a square) of a texel that
     /// needs more than its centre: a shadow border, the horizon, a narrow glossy lobe; the
     /// cosine over any other texel is then exact ([`TexelSamples::refined`]). 0 or 1: every
-    /// texel takes its centre's value.
+    /// texel takes its centre's value, as a per-vertex bake's do.
     pub edge_texel_samples: u32,
     /// Error allowed per row when dropping small Haar coefficients, relative to the L2 norm of
     /// an unshadowed row (0 keeps all). One absolute budget for every row spends it where the
@@ -219,11 +219,13 @@ impl BakeSettings {
         Ok(())
     }
 
-    /// The edge texel samples as a file records them: a square, or 0 where texels are not
-    /// refined (more than one direction a texel, or at most one sub-texel asked for).
+    /// The edge texel samples as a file records them and the bake uses them: a square, or 0
+    /// where texels are not refined (more than one direction a texel, at most one sub-texel
+    /// asked for, or a per-vertex bake, whose glossy terms' rows take texel centres).
     pub fn stored_edge_texel_samples(&self) -> u32 {
         let side = TexelSamples::grid_side(self.edge_texel_samples as usize) as u32;
-        if self.texel_samples > 1 || self.edge_texel_samples <= 1 {
+        let per_vertex = matches!(self.domain, BakeDomain::Vertices { .. });
+        if self.texel_samples > 1 || self.edge_texel_samples <= 1 || per_vertex {
             0
         } else {
             side * side
