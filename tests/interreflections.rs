@@ -4,13 +4,12 @@
 
 mod common;
 
-use common::{SPHERE_ON_PLANE, full_light, scene_from};
+use common::{SPHERE_ON_PLANE, full_light, scene_from, sunny_cube};
 
 use wavelet_prt::bake::bounce::BounceVisibility;
 use wavelet_prt::bake::path_tracer::path_trace;
 use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
@@ -137,27 +136,12 @@ fn white_furnace_inside_a_closed_sphere_sums_the_geometric_series() {
     assert!((furnace_radiance(0.7, 12, light) - limit).abs() < TWELVE_BOUNCE_TAIL * limit);
 }
 
-/// The sphere on the ground, with a glossy sphere when `glossy`.
+/// The sphere on the ground, with a glossy sphere (roughness 0.3) when `glossy`.
 fn sphere_scene(glossy: bool) -> wavelet_prt::scene::Scene {
-    let text = if glossy {
-        SPHERE_ON_PLANE.replace(
-            "[material.clay]\ntype = \"diffuse\"\nalbedo = [0.8, 0.3, 0.2]",
-            "[material.clay]\ntype = \"glossy\"\nalbedo = [0.5, 0.2, 0.1]\n\
-             specular = [0.4, 0.4, 0.4]\nroughness = 0.3",
-        )
-    } else {
-        SPHERE_ON_PLANE.to_string()
-    };
-    assert_eq!(text.contains("glossy"), glossy);
-    scene_from(&text, if glossy { "glossy" } else { "matte" })
-}
-
-/// A sky with a small sun (2° radius), on a cube of face 16.
-fn sunny_cube() -> CubeMap {
-    EnvMap::from_spec("sun:35,60")
-        .unwrap()
-        .to_cube(16, EnvRotation::default())
-        .unwrap()
+    common::sphere_scene(
+        glossy.then_some(0.3),
+        if glossy { "glossy" } else { "matte" },
+    )
 }
 
 #[test]

@@ -7,12 +7,10 @@
 
 mod common;
 
-use common::{SPHERE_ON_PLANE, full_light, scene_from};
+use common::{full_light, sunny_cube};
 
 use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::relight_wavelet;
@@ -31,25 +29,10 @@ const BAKE_VS_REFERENCE: f64 = 1e-4;
 
 /// The sphere on the ground, glossy (GGX roughness 0.2) when `glossy`.
 fn sphere_scene(glossy: bool) -> wavelet_prt::scene::Scene {
-    let text = if glossy {
-        SPHERE_ON_PLANE.replace(
-            "[material.clay]\ntype = \"diffuse\"\nalbedo = [0.8, 0.3, 0.2]",
-            "[material.clay]\ntype = \"glossy\"\nalbedo = [0.5, 0.2, 0.1]\n\
-             specular = [0.4, 0.4, 0.4]\nroughness = 0.2",
-        )
-    } else {
-        SPHERE_ON_PLANE.to_string()
-    };
-    assert_eq!(text.contains("glossy"), glossy);
-    scene_from(&text, if glossy { "glossy" } else { "matte" })
-}
-
-/// A sky with a small sun (2° radius, smaller than a texel), on a cube of face 16.
-fn sunny_cube() -> CubeMap {
-    EnvMap::from_spec("sun:35,60")
-        .unwrap()
-        .to_cube(16, EnvRotation::default())
-        .unwrap()
+    common::sphere_scene(
+        glossy.then_some(0.2),
+        if glossy { "glossy" } else { "matte" },
+    )
 }
 
 fn settings(texel_samples: u32, edge_texel_samples: u32) -> BakeSettings {

@@ -80,6 +80,34 @@ pub fn glossy_sphere() -> String {
     )
 }
 
+/// The shared sphere on its plane, its clay made glossy (albedo (0.5, 0.2, 0.1), specular 0.4)
+/// with GGX `roughness` when one is given, loaded as scene `name`.
+#[allow(dead_code)]
+pub fn sphere_scene(roughness: Option<f32>, name: &str) -> Scene {
+    let clay = "[material.clay]\ntype = \"diffuse\"\nalbedo = [0.8, 0.3, 0.2]";
+    assert!(SPHERE_ON_PLANE.contains(clay));
+    let text = match roughness {
+        Some(r) => SPHERE_ON_PLANE.replace(
+            clay,
+            &format!(
+                "[material.clay]\ntype = \"glossy\"\nalbedo = [0.5, 0.2, 0.1]\n\
+                 specular = [0.4, 0.4, 0.4]\nroughness = {r}"
+            ),
+        ),
+        None => SPHERE_ON_PLANE.to_string(),
+    };
+    scene_from(&text, name)
+}
+
+/// A sky with a small sun (2° radius, smaller than a texel), on a cube of face 16.
+#[allow(dead_code)]
+pub fn sunny_cube() -> wavelet_prt::math::cubemap::CubeMap {
+    wavelet_prt::light::envmap::EnvMap::from_spec("sun:35,60")
+        .unwrap()
+        .to_cube(16, wavelet_prt::light::envmap::EnvRotation::default())
+        .unwrap()
+}
+
 /// Writes `text` as a scene file in its own temp dir and loads it. Every call gets a directory
 /// of its own: tests of one binary run in parallel and may load the same scene at once.
 pub fn scene_from(text: &str, name: &str) -> Scene {
