@@ -1,6 +1,7 @@
 //! The bake's shadow rays, written out for an independent tracer and timed on this one: the rays
-//! a direct-light bake of SCENE traces (from the first hit of each pixel of an every-STRIDE-th
-//! grid, one ray a cube texel at N = 32 towards the texel's centre, on the side the normal faces),
+//! a direct-light bake of SCENE traces towards its texels' centres (from the first hit of each
+//! pixel of an every-STRIDE-th grid, one ray a cube texel at N = 32, on the side the normal
+//! faces; a default bake adds sub-texel rays on shadow borders, which are left out here),
 //! with the scene's triangles, so that `scripts/embree_shadow_rays.py` can trace the same rays
 //! with Embree's one-ray query (`rtcOccluded1`) and compare the rates.
 //!

@@ -23,9 +23,9 @@ use wavelet_prt::store::transport::Transport;
 /// sums, one through the f32 Haar rows and the tiled kernel, so they agree to float rounding.
 const REFERENCE_MATCH: f64 = 1e-4;
 /// Relative L2 a bake with 8-bit values and no thresholding adds: at most half a step (1/254 of a
-/// column's largest value after the row scale) per value, and under a sun a pixel sees a few
-/// columns. Measured 0.70% with texels integrated (0.45% with one direction a texel, whose rows
-/// hold fewer partial values at the N = 8 sun's shadow border).
+/// column's largest value after the row scale) per value, summed over the columns a pixel sees.
+/// Measured 0.70% with texels integrated, 0.45% with one direction a texel; the bound is 1.4x
+/// the larger.
 const Q8_ONLY: f64 = 1e-2;
 /// Bytes per coefficient as the compression table prints them, with two decimals: rounding moves
 /// the value by at most 0.005, and a little more covers the float that was rounded.

@@ -8,9 +8,10 @@
 //! - the clamped cosine over a texel wholly above the surface is exact, `n · ∫ ω dω / π`;
 //! - a texel whose centre's visibility differs from a neighbour's traces its sub-texels, so
 //!   shadows get penumbrae a texel wide (the light's own width at the cube's resolution);
-//! - a texel the horizon crosses, or inside a narrow GGX lobe, sums its lobe over the sub-texels
-//!   (a texel whose centre is below the horizon takes the visibility of the direction its part
-//!   above the horizon points to).
+//! - a texel the horizon crosses, or near the mirror direction of a GGX lobe (within
+//!   2·atan(3α), at most 0.5 rad), sums its lobe over the sub-texels; a texel whose centre is
+//!   below the horizon is taken as open when the centre of any of its neighbours is, and dark
+//!   otherwise (its rays would graze the surface, and it holds little of the cosine).
 //!
 //! Texels elsewhere take the visibility of their centre, so an occluder thinner than a texel
 //! that no centre sees is still missed, as it is with one direction a texel.

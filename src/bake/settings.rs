@@ -112,7 +112,8 @@ impl BakeSettings {
             ));
         }
         within("texel samples", self.texel_samples, 1..=256, "")?;
-        within("edge texel samples", self.edge_texel_samples, 0..=256, "")?;
+        // 64 sub-texels (8 x 8) hold 100 MB of directions and weights at N = 128.
+        within("edge texel samples", self.edge_texel_samples, 0..=64, "")?;
         within("light samples", self.light_samples, 1..=1024, "")?;
         if let Some([i, count]) = self.shard
             && (count == 0 || i >= count)

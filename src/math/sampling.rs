@@ -87,7 +87,8 @@ pub struct TexelSamples {
     /// Solid-angle weights, texel-major.
     pub weights: Vec<f32>,
     /// With one sample a texel, the quadrature that integrates the texels that need more than
-    /// their centre (see [`TexelSamples::refined`]); `None` samples every texel at its centre.
+    /// their centre (see [`TexelSamples::refined`]); `None` takes every texel's samples as
+    /// they are.
     pub refine: Option<TexelQuadrature>,
 }
 

@@ -9,8 +9,9 @@ use glam::{DVec3, Vec3};
 
 use crate::math::cubemap::{dir_to_texel, face_st_to_dir, texel_count};
 
-/// Sub-cells per side of the grid the first moments are summed over (midpoint rule, so their
-/// relative error is below 1e-6 at any N).
+/// Sub-cells per side of the grid the first moments are summed over (midpoint rule: each cell's
+/// centre direction times its exact solid angle, which overstates the length by about δ²/12
+/// for a cell δ wide; measured 1.3e-6 relative at N = 32, 1.8e-5 at N = 8, 8e-5 at N = 1).
 const MOMENT_SIDE: usize = 16;
 
 /// The solid angle of the face region [s0, s1] x [t0, t1] (cube of half-size 1).

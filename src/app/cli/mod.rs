@@ -197,8 +197,8 @@ pub struct SamplingArgs {
     /// Shadow-ray directions per texel (rounded up to a square).
     #[arg(long, default_value_t = 1)]
     pub texel_samples: u32,
-    /// With one direction a texel, the sub-texels (rounded up to a square) of each texel that
-    /// needs more than its centre: a shadow border (traced, for penumbrae), the horizon or a
+    /// With one direction a texel, the sub-texels (rounded up to a square, at most 64) of each
+    /// texel that needs more than its centre: a shadow border (traced, for penumbrae), the horizon or a
     /// narrow glossy lobe (summed); the cosine over every other texel is exact. 0: every texel
     /// takes its centre's value (as in a per-vertex bake, whatever this says).
     #[arg(long, default_value_t = 9)]
