@@ -193,11 +193,11 @@ fn integrated_texels(
                     Some(cs) if cs == s => centre == Centre::Open,
                     _ => shadow.open(*d),
                 };
-                let lambert = brdf::diffuse_cosine(n, *d) * w;
-                cosine += lambert;
+                let lambert = brdf::diffuse_cosine(n, *d);
+                cosine += lambert * w;
                 if seen {
                     let w = w * transmittance(*d);
-                    diffuse += brdf::diffuse_cosine(n, *d) * w;
+                    diffuse += lambert * w;
                     glossy += ggx(*d) * w;
                 }
             }
@@ -214,11 +214,14 @@ fn integrated_texels(
         // The direction whose visibility and transmittance the texel takes.
         let towards = match centre {
             Centre::Horizon => {
-                let above: Vec3 = subs.iter().filter(|d| n.dot(**d) > 0.0).copied().sum();
                 let lit = q.neighbours[j]
                     .iter()
                     .any(|&k| centres[k as usize] == Centre::Open);
-                if above == Vec3::ZERO || !lit {
+                if !lit {
+                    continue;
+                }
+                let above: Vec3 = subs.iter().filter(|d| n.dot(**d) > 0.0).copied().sum();
+                if above == Vec3::ZERO {
                     continue;
                 }
                 above.normalize()
@@ -227,21 +230,15 @@ fn integrated_texels(
             _ => c,
         };
         let in_lobe = lobe.is_some_and(|(_, mirror, cos_cone)| mirror.dot(c) > cos_cone);
-        let summed = |f: &dyn Fn(Vec3) -> f32| -> f32 {
-            subs.iter()
-                .zip(weights)
-                .map(|(d, w)| f(*d) * w)
-                .sum::<f32>()
-        };
         let diffuse = if horizon {
-            summed(&|d| brdf::diffuse_cosine(n, d))
+            summed(subs, weights, |d| brdf::diffuse_cosine(n, d))
         } else {
             n.dot(q.moments[j]).max(0.0) * std::f32::consts::FRAC_1_PI
         };
         let glossy = if lobe.is_none() {
             0.0
         } else if horizon || in_lobe {
-            summed(&ggx)
+            summed(subs, weights, ggx)
         } else {
             ggx(c) * q.solid_angles[j]
         };
@@ -251,6 +248,11 @@ fn integrated_texels(
         }
     }
     shadow.rays
+}
+
+/// Σ f(ω) Ω over a texel's sub-texels.
+fn summed(subs: &[Vec3], weights: &[f32], f: impl Fn(Vec3) -> f32) -> f32 {
+    subs.iter().zip(weights).map(|(d, w)| f(*d) * w).sum()
 }
 
 /// Adds `scale` times each texel's [`direct_texels`] to the rows (texel order): the Lambertian

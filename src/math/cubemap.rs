@@ -89,12 +89,18 @@ fn area_element(s: f64, t: f64) -> f64 {
     (s * t).atan2((s * s + t * t + 1.0).sqrt())
 }
 
-/// Exact solid angle of a texel, from the area element at its four corners. The same for every face.
+/// Exact solid angle of the face region [s0, s1] x [t0, t1], from the area element at its four
+/// corners. The same for every face.
+pub fn patch_solid_angle(s0: f64, t0: f64, s1: f64, t1: f64) -> f64 {
+    area_element(s1, t1) - area_element(s0, t1) - area_element(s1, t0) + area_element(s0, t0)
+}
+
+/// Exact solid angle of a texel. The same for every face.
 pub fn texel_solid_angle(n: usize, row: usize, col: usize) -> f64 {
     let inv = 2.0 / n as f64;
     let (s0, s1) = (col as f64 * inv - 1.0, (col + 1) as f64 * inv - 1.0);
     let (t0, t1) = (row as f64 * inv - 1.0, (row + 1) as f64 * inv - 1.0);
-    area_element(s1, t1) - area_element(s0, t1) - area_element(s1, t0) + area_element(s0, t0)
+    patch_solid_angle(s0, t0, s1, t1)
 }
 
 /// Solid angles of all 6 N² texels in linear order.

@@ -242,10 +242,9 @@ pub fn support_solid_angles(n: usize) -> Vec<f64> {
 /// Solid angle of the b x b texel block whose top-left texel is (row, col).
 fn block_solid_angle(n: usize, row: usize, col: usize, b: usize) -> f64 {
     let inv = 2.0 / n as f64;
-    let e = |s: f64, t: f64| (s * t).atan2((s * s + t * t + 1.0).sqrt());
     let (s0, s1) = (col as f64 * inv - 1.0, (col + b) as f64 * inv - 1.0);
     let (t0, t1) = (row as f64 * inv - 1.0, (row + b) as f64 * inv - 1.0);
-    e(s1, t1) - e(s0, t1) - e(s1, t0) + e(s0, t0)
+    crate::math::cubemap::patch_solid_angle(s0, t0, s1, t1)
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-use crate::math::cubemap::{face_st_to_dir, texel_count};
+use crate::math::cubemap::{face_st_to_dir, patch_solid_angle, texel_count};
 use crate::math::texel_quadrature::TexelQuadrature;
 
 /// SplitMix64 finaliser: a good 64-bit mix, so nearby stream ids give unrelated sequences.
@@ -107,8 +107,6 @@ impl TexelSamples {
         let mut dirs = Vec::with_capacity(count * per_texel);
         let mut weights = Vec::with_capacity(count * per_texel);
         let sub = n * side;
-        // Solid angle of a face region, from the corner area formula.
-        let e = |s: f64, t: f64| (s * t).atan2((s * s + t * t + 1.0).sqrt());
         for j in 0..count {
             let (face, row, col) = (j / (n * n), (j / n) % n, j % n);
             let mut rng = Rng::new(seed ^ 0x7e8e_15a3, j as u64);
@@ -118,7 +116,7 @@ impl TexelSamples {
                     let inv = 2.0 / sub as f64;
                     let (s0, t0) = (c as f64 * inv - 1.0, r as f64 * inv - 1.0);
                     let (s1, t1) = (s0 + inv, t0 + inv);
-                    let w = e(s1, t1) - e(s0, t1) - e(s1, t0) + e(s0, t0);
+                    let w = patch_solid_angle(s0, t0, s1, t1);
                     let (js, jt) = if per_texel == 1 {
                         (0.5, 0.5)
                     } else {
