@@ -11,7 +11,8 @@ use crate::math::cubemap::{dir_to_texel, face_st_to_dir, patch_solid_angle, texe
 
 /// Sub-cells per side of the grid the first moments are summed over (midpoint rule: each cell's
 /// centre direction times its exact solid angle, which overstates the length by about δ²/12
-/// for a cell δ wide; measured 1.3e-6 relative at N = 32, 1.8e-5 at N = 8, 8e-5 at N = 1).
+/// for a cell δ wide; against 256 x 256 cells, the worst texel is off by 1.9e-6 relative at
+/// N = 32, 2.9e-5 at N = 8 and 8.3e-5 at N = 1).
 const MOMENT_SIDE: usize = 16;
 
 /// Per-texel geometry of a cube of face size N and its sub-texel quadrature.
