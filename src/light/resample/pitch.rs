@@ -18,13 +18,25 @@
 //! Measured against the exact splat over the cube, on a 1024 x 512 map (the `light::resample`
 //! test `a_pitch_splatted_at_cell_centres_stays_near_the_exact_splat`): at most 3.6% at N = 8 to
 //! 32 and 5.3% at N = 64 with a 2 x 2-pixel sun, where the recorded weights of a fractional yaw
-//! differ by 1.5% and 4.7%; 4.3e-4 on a smooth map. A map whose cells are larger than the
-//! smallest texels (a small map, or N above 64 for a 1024 x 512 one) records weights for the
+//! differ by 1.5% and 4.7%; 4.3e-4 on a smooth map. On blender_sunrise, whose sun is a few cells
+//! across, it is worse where the sun straddles a border (`cargo bench --bench light` prints it:
+//! at pitch −20°, over 24 yaws, a median of 1.0% and a worst of 26% at N = 32, where the recorded
+//! weights of the same yaws unpitched give 0.47% and 2.1%). A map whose cells are larger than
+//! the smallest texels (a small map, or N above 64 for a 1024 x 512 one) records weights for the
 //! pitch as before, as does any splat that leaves a texel without a cell.
 //!
+//! The work is one texel lookup per sub-cell, made cheap three ways:
+//! - the lookup runs in f32 without branches, four sub-cells an SSE2 instruction
+//!   ([`texels_of`]);
+//! - R_x(pitch) keeps x, so the second half of every row is the mirror of the first, its texels
+//!   looked up in a table ([`mirrors`]);
+//! - a row's sub-cells run through a texel several in turn, and each run scatters its power
+//!   once ([`runs`]).
+//!
 //! On the 2-core machine (`cargo bench --bench light`, blender_sunrise, one run, the README's
-//! table): a pitch drag prepares a light in 6.05 ms at N = 32 and 20.3 ms at N = 64, against 80.3
-//! and 264 ms through weights recorded for each pitch, and 2.72 and 4.70 ms for a yaw drag.
+//! table): a pitch drag prepares a light in 3.40 ms at N = 32 and 11.5 ms at N = 64, against
+//! 2.26 and 6.10 ms for a yaw drag, and 69.4 and 263 ms through weights recorded
+//! for each pitch.
 //!
 //! Pitch 0 keeps the recorded weights, exact to the band of the recorded splat: a light that
 //! leaves pitch 0 steps by the difference above (on a small sun crossing a texel border, a few
@@ -32,13 +44,12 @@
 
 use std::f64::consts::{PI, TAU};
 
-use glam::DVec3;
 use rayon::prelude::*;
 
 use super::{EnvRotation, yaw_shift};
 use crate::error::Result;
 use crate::math::cubemap::{
-    CubeMap, dir_to_texel, solid_angles, splat_limits, splat_radiance, texel_count,
+    CubeMap, solid_angles, splat_limits, splat_radiance, texel_count, texel_index,
 };
 
 /// Whether a `width` x `height` map's cells are small enough, against a cube of face `n`, to be
@@ -74,6 +85,108 @@ fn tail_shares(q: usize, f: f64) -> Vec<f64> {
         .collect()
 }
 
+/// The texels of `count` directions (sin u·sin v, y0 + y1·cos u, z0 − z1·cos u), u given by
+/// `sin_u`, `cos_u`, into `texels`: [`crate::math::cubemap::dir_to_texel`] in f32 and without
+/// branches, so that it runs several directions an instruction. (A direction within f32 rounding
+/// of a texel border may fall on the other side of it than in f64.)
+#[allow(clippy::too_many_arguments)]
+fn texels_of(
+    n: usize,
+    sin_u: &[f32],
+    cos_u: &[f32],
+    sin_v: f32,
+    (y0, y1): (f32, f32),
+    (z0, z1): (f32, f32),
+    texels: &mut [u32],
+) {
+    let half_n = 0.5 * n as f32;
+    let last = (n - 1) as f32;
+    let size = n as f32;
+    // 1.5 · 2^23: sums with anything within 2^22 of 0 lie in [2^23, 2^24), spaced by 1.
+    const ROUND: f32 = (3u32 << 22) as f32;
+    for ((t, &su), &cu) in texels.iter_mut().zip(sin_u).zip(cos_u) {
+        let (x, y, z) = (su * sin_v, y0 + y1 * cu, z0 - z1 * cu);
+        let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
+        // Ties go to the first face in order, as in `dir_to_face_st`; every choice is a select.
+        let on_x = (ax >= ay) & (ax >= az);
+        let on_y = !on_x & (ay >= az);
+        let sign = |v: f32| if v < 0.0 { -1.0f32 } else { 1.0 };
+        let pick = |a: f32, b: f32, c: f32| {
+            if on_x {
+                a
+            } else if on_y {
+                b
+            } else {
+                c
+            }
+        };
+        let major = pick(ax, ay, az);
+        // Faces ±x: s = ∓z, t = −y; ±y: s = x, t = ±z; ±z: s = ±x, t = −y.
+        let s = pick(-z * sign(x), x, x * sign(z));
+        let t_ = pick(-y, z * sign(y), -y);
+        let negative = pick(x, y, z) < 0.0;
+        let face = pick(0.0, 2.0, 4.0) + if negative { 1.0 } else { 0.0 };
+        let inverse = half_n / major;
+        // Whole numbers in f32 (exact below 2^22) without a conversion (Rust's saturating `as`
+        // stops the loop running four directions an instruction): adding 1.5 · 2^23 rounds to
+        // a whole number, which then fills the mantissa's low bits. Half a cell down makes the
+        // rounding a floor, but for a point exactly on a border.
+        let whole = |v: f32| (v + ROUND) - ROUND;
+        let cell = |v: f32| whole((v * inverse + half_n).clamp(0.0, size) - 0.5).min(last);
+        let index = (face * size + cell(t_)) * size + cell(s);
+        *t = (index + ROUND).to_bits() - ROUND.to_bits();
+    }
+}
+
+/// The texel of (−x, y, z) for each texel of (x, y, z): faces ±x trade places, and s turns
+/// into −s on every face (see `dir_to_face_st`), so the column counts from the other side.
+fn mirrors(n: usize) -> Vec<u32> {
+    (0..texel_count(n))
+        .map(|texel| {
+            let (face, row, col) = (texel / (n * n), texel / n % n, texel % n);
+            let face = [1, 0, 2, 3, 4, 5][face];
+            texel_index(n, face, row, n - 1 - col) as u32
+        })
+        .collect()
+}
+
+/// Gives each run of equal `texels` (sub-cells of one sub-row, which run through a texel several
+/// in turn: about eight at N = 32 for a 1024-pixel row) the sum of its `values` and its length,
+/// so that power is scattered once a run. Four sub-cells in one texel are summed as a pair of
+/// pairs, so the running sums wait on one addition per four sub-cells rather than per sub-cell.
+fn runs(texels: &[u32], values: &[[f32; 3]], mut give: impl FnMut(usize, [f64; 3], f64)) {
+    let Some(&first) = texels.first() else {
+        return;
+    };
+    let (mut at, mut sum, mut cells) = (first, [0.0f64; 3], 0.0);
+    let wide = |v: &[f32; 3]| v.map(f64::from);
+    let mut k = 0;
+    while k < texels.len() {
+        if let (Some(t), Some(v)) = (texels.get(k..k + 4), values.get(k..k + 4))
+            && t.iter().all(|&t| t == at)
+        {
+            let (a, b, c, d) = (wide(&v[0]), wide(&v[1]), wide(&v[2]), wide(&v[3]));
+            for i in 0..3 {
+                sum[i] += (a[i] + b[i]) + (c[i] + d[i]);
+            }
+            cells += 4.0;
+            k += 4;
+            continue;
+        }
+        if texels[k] != at {
+            give(at as usize, sum, cells);
+            (at, sum, cells) = (texels[k], [0.0; 3], 0.0);
+        }
+        let v = wide(&values[k]);
+        for i in 0..3 {
+            sum[i] += v[i];
+        }
+        cells += 1.0;
+        k += 1;
+    }
+    give(at as usize, sum, cells);
+}
+
 /// `pixels` (a `width` x `height` lat-long map) turned by `rotation` and splatted at the centres
 /// of the world cells' sub-cells into a cube of face `n`; `None` when a texel received nothing
 /// (the caller then records weights for the pitch).
@@ -86,11 +199,17 @@ pub(super) fn splat(
 ) -> Result<Option<CubeMap>> {
     let (whole, f) = yaw_shift(width, rotation.yaw_deg)?;
     let q = split(width, height, n);
-    let sub_columns: Vec<(f64, f64)> = (0..width * q)
-        .map(|x| (TAU * (x as f64 + 0.5) / (width * q) as f64).sin_cos())
-        .collect();
-    let tail = tail_shares(q, f);
+    // The sub-columns of the first half of a row: the second half mirrors them (below).
+    let columns = width * q;
+    let (sin_u, cos_u): (Vec<f32>, Vec<f32>) = (0..columns.div_ceil(2))
+        .map(|x| {
+            let (s, c) = (TAU * (x as f64 + 0.5) / (width * q) as f64).sin_cos();
+            (s as f32, c as f32)
+        })
+        .unzip();
+    let tail: Vec<f32> = tail_shares(q, f).iter().map(|&t| t as f32).collect();
     let count = texel_count(n);
+    let mirror = mirrors(n);
     let (sin_p, cos_p) = rotation.pitch_deg.to_radians().sin_cos();
     // A few bands a thread, each scattering into a cube of its own.
     let bands = (rayon::current_num_threads() * BANDS_PER_THREAD).clamp(1, height);
@@ -99,8 +218,22 @@ pub(super) fn splat(
         .map(|band| {
             let mut power = vec![[0.0f64; 3]; count];
             let mut received = vec![0.0f64; count];
+            let mut texels = vec![0u32; width * q];
+            let mut turned = vec![[0.0f32; 3]; width * q];
             for y in band * height / bands..(band + 1) * height / bands {
+                // World cell x holds the turned map's cell x + whole, and its last fraction f
+                // the next cell (see the module notes of `super`): each sub-cell's radiance.
                 let row = &pixels[y * width..(y + 1) * width];
+                let mut next = whole;
+                for cell in turned.chunks_exact_mut(q) {
+                    let this = next;
+                    next = if this + 1 == width { 0 } else { this + 1 };
+                    let a = row[this];
+                    let b = if f == 0.0 { a } else { row[next] };
+                    for (v, &t) in cell.iter_mut().zip(&tail) {
+                        *v = std::array::from_fn(|c| a[c] + t * (b[c] - a[c]));
+                    }
+                }
                 for j in 0..q {
                     let v0 = PI * (y * q + j) as f64 / (height * q) as f64;
                     let v1 = PI * (y * q + j + 1) as f64 / (height * q) as f64;
@@ -109,26 +242,27 @@ pub(super) fn splat(
                     // (sin u sin v, c cos v + s cos u sin v, s cos v − c cos u sin v).
                     let omega = TAU / (width * q) as f64 * (v0.cos() - v1.cos());
                     let (sin_v, cos_v) = (0.5 * (v0 + v1)).sin_cos();
-                    let (y0, y1) = (cos_p * cos_v, sin_p * sin_v);
-                    let (z0, z1) = (sin_p * cos_v, cos_p * sin_v);
-                    for x in 0..width {
-                        // World cell x holds the turned map's cell x + whole, and its last
-                        // fraction f the next cell (see the module notes of `super`).
-                        let a = row[(x + whole) % width].map(|v| v as f64 * omega);
-                        let b = match f {
-                            0.0 => [0.0; 3],
-                            _ => row[(x + whole + 1) % width].map(|v| v as f64 * omega),
-                        };
-                        for (i, &t) in tail.iter().enumerate() {
-                            let (sin_u, cos_u) = sub_columns[x * q + i];
-                            let d = DVec3::new(sin_u * sin_v, y0 + y1 * cos_u, z0 - z1 * cos_u);
-                            let texel = dir_to_texel(n, d);
-                            for c in 0..3 {
-                                power[texel][c] += a[c] + t * (b[c] - a[c]);
-                            }
-                            received[texel] += omega;
-                        }
+                    let (first, second) = texels.split_at_mut(sin_u.len());
+                    texels_of(
+                        n,
+                        &sin_u,
+                        &cos_u,
+                        sin_v as f32,
+                        ((cos_p * cos_v) as f32, (sin_p * sin_v) as f32),
+                        ((sin_p * cos_v) as f32, (cos_p * sin_v) as f32),
+                        first,
+                    );
+                    // R_x(pitch) keeps x, so sub-column W·q − 1 − k, at u' = 2π − u, lands where
+                    // sub-column k does with x negated: in the mirror of its texel.
+                    for (t, &m) in second.iter_mut().zip(first.iter().rev()) {
+                        *t = mirror[m as usize];
                     }
+                    runs(&texels, &turned, |texel, sum, cells| {
+                        for c in 0..3 {
+                            power[texel][c] += sum[c] * omega;
+                        }
+                        received[texel] += cells * omega;
+                    });
                 }
             }
             (power, received)
@@ -163,6 +297,95 @@ pub(super) fn splat(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::cubemap::dir_to_texel;
+    use glam::DVec3;
+
+    /// Directions whose face coordinates lie this close to a texel border (in texels) are left
+    /// out: f32 may put them on either side.
+    const BORDER: f64 = 1e-4;
+
+    /// Random rows of directions, as the splat makes them: (sin u sin v, y0 + y1 cos u,
+    /// z0 − z1 cos u) for a pitch and a v.
+    fn rows(count: usize) -> Vec<(f64, f64, Vec<f64>)> {
+        let mut rng = crate::test_support::Rng(0x7e11);
+        (0..count)
+            .map(|_| {
+                let pitch = (rng.unit() - 0.5) * TAU;
+                let v = rng.unit() * PI;
+                let us = (0..64).map(|_| rng.unit() * TAU).collect();
+                (pitch, v, us)
+            })
+            .collect()
+    }
+
+    fn off_borders(n: usize, d: DVec3) -> bool {
+        let (_, s, t) = crate::math::cubemap::dir_to_face_st(d);
+        [s, t].iter().all(|&x| {
+            let c = (x + 1.0) * 0.5 * n as f64;
+            (c - c.round()).abs() > BORDER
+        })
+    }
+
+    #[test]
+    fn texels_are_looked_up_as_in_f64() {
+        for n in [1, 2, 7, 32, 64, 256] {
+            let mut checked = 0;
+            for (pitch, v, us) in rows(200) {
+                let (sin_p, cos_p) = pitch.sin_cos();
+                let (sin_v, cos_v) = v.sin_cos();
+                let (su, cu): (Vec<f32>, Vec<f32>) = us
+                    .iter()
+                    .map(|u: &f64| (u.sin() as f32, u.cos() as f32))
+                    .unzip();
+                let mut got = vec![0u32; us.len()];
+                let (y, z) = (
+                    (cos_p * cos_v, sin_p * sin_v),
+                    (sin_p * cos_v, cos_p * sin_v),
+                );
+                texels_of(
+                    n,
+                    &su,
+                    &cu,
+                    sin_v as f32,
+                    (y.0 as f32, y.1 as f32),
+                    (z.0 as f32, z.1 as f32),
+                    &mut got,
+                );
+                for (k, &u) in us.iter().enumerate() {
+                    let d = DVec3::new(u.sin() * sin_v, y.0 + y.1 * u.cos(), z.0 - z.1 * u.cos());
+                    if off_borders(n, d) {
+                        assert_eq!(got[k] as usize, dir_to_texel(n, d), "N = {n}, {d}");
+                        checked += 1;
+                    }
+                }
+            }
+            assert!(checked > 10_000, "N = {n}: {checked}");
+        }
+    }
+
+    #[test]
+    fn mirrored_directions_land_in_mirrored_texels() {
+        for n in [1, 4, 32] {
+            let mirror = mirrors(n);
+            for (pitch, v, us) in rows(50) {
+                for u in us {
+                    let d = DVec3::new(
+                        u.sin() * v.sin(),
+                        pitch.cos(),
+                        u.cos() * v.cos() - pitch.sin(),
+                    );
+                    if off_borders(n, d) {
+                        let flipped = DVec3::new(-d.x, d.y, d.z);
+                        assert_eq!(
+                            mirror[dir_to_texel(n, d)] as usize,
+                            dir_to_texel(n, flipped),
+                            "N = {n}, {d}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn the_next_cell_fills_the_last_sub_columns_first() {
