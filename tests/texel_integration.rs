@@ -18,8 +18,9 @@ use wavelet_prt::relight::relight_wavelet;
 use wavelet_prt::store::transport::BakeDomain;
 
 /// The integrated texels' relative L2 from the converged texel sum under a small sun, at most:
-/// what remains is the centre visibility of texels away from a border and the 3 x 3 sub-texels
-/// of those on one, and the jitter of the 64 directions (measured: 0.78% matte and glossy).
+/// what remains is the centre visibility of texels away from a border and the sub-texels of
+/// those on one (the third of a 3 x 3 grid towards each side the border crosses), and the
+/// jitter of the 64 directions (measured: 0.78% matte and glossy).
 const INTEGRATED_ERROR: f64 = 0.012;
 /// How many times farther one direction a texel must be (measured: 4.8% and 5.0%, 6.2x and
 /// 6.4x farther).

@@ -109,6 +109,19 @@ impl TexelQuadrature {
         q
     }
 
+    /// Whether sub-texel `s` lies in the half of its texel towards one of the sides `sides`
+    /// (−s, +s, −t, +t, as `neighbours`): strictly past the middle column or row, which an odd
+    /// `side` leaves in neither half.
+    #[inline]
+    pub fn towards(&self, s: usize, sides: [bool; 4]) -> bool {
+        let (row, col) = (2 * (s / self.side), 2 * (s % self.side));
+        let middle = self.side - 1;
+        (sides[0] && col < middle)
+            || (sides[1] && col > middle)
+            || (sides[2] && row < middle)
+            || (sides[3] && row > middle)
+    }
+
     /// The sub-texel directions of texel `j`.
     #[inline]
     pub fn subs(&self, j: usize) -> (&[Vec3], &[f32]) {
@@ -124,6 +137,25 @@ impl TexelQuadrature {
 mod tests {
     use super::*;
     use crate::math::cubemap::solid_angles;
+
+    #[test]
+    fn sub_texels_lie_towards_the_sides_of_their_half() {
+        let q = TexelQuadrature::new(2, 3);
+        let picked = |sides: [bool; 4]| (0..9).filter(|&s| q.towards(s, sides)).collect::<Vec<_>>();
+        // Row-major: column 0 is towards −s, row 2 towards +t; the centre is towards nothing.
+        assert_eq!(picked([true, false, false, false]), [0, 3, 6]);
+        assert_eq!(picked([false, true, false, false]), [2, 5, 8]);
+        assert_eq!(picked([false, false, true, false]), [0, 1, 2]);
+        assert_eq!(picked([false, false, false, true]), [6, 7, 8]);
+        assert_eq!(picked([true, false, true, false]), [0, 1, 2, 3, 6]);
+        assert_eq!(picked([true; 4]), [0, 1, 2, 3, 5, 6, 7, 8]);
+        assert!(picked([false; 4]).is_empty());
+        // An even grid has no middle: every sub-texel is in a half both ways.
+        let q = TexelQuadrature::new(2, 2);
+        let picked = |sides: [bool; 4]| (0..4).filter(|&s| q.towards(s, sides)).collect::<Vec<_>>();
+        assert_eq!(picked([true, false, false, false]), [0, 2]);
+        assert_eq!(picked([false, false, false, true]), [2, 3]);
+    }
 
     #[test]
     fn sub_texels_and_moments_integrate_the_sphere() {
