@@ -73,6 +73,14 @@ fn the_default_integrates_texels_of_a_view_and_only_one_direction_a_texel_takes_
     let d = BakeSettings::default();
     assert_eq!((d.texel_samples, d.edge_texel_samples), (1, 9));
     assert_eq!(d.stored_edge_texel_samples(), 9);
+    // The identity records the border rule with the samples, and only with them.
+    let scene = sphere_scene(false);
+    assert!(d.identity(&scene).unwrap().edge_texels_towards);
+    let centres = BakeSettings {
+        edge_texel_samples: 0,
+        ..d.clone()
+    };
+    assert!(!centres.identity(&scene).unwrap().edge_texels_towards);
     // Rounded up to a square; off with several directions a texel or at most one sub-texel.
     assert_eq!(settings(1, 5).stored_edge_texel_samples(), 9);
     assert_eq!(settings(4, 9).stored_edge_texel_samples(), 0);

@@ -250,6 +250,9 @@ impl BakeSettings {
             edge_spp: self.stored_edge_spp(),
             texel_samples: side * side,
             edge_texel_samples: self.stored_edge_texel_samples(),
+            // The only rule this build bakes by (`bake::direct`); files of the older one, with
+            // every sub-texel of a border traced, are other bakes.
+            edge_texels_towards: self.stored_edge_texel_samples() > 0,
             unshadowed: self.unshadowed,
             seed: self.seed,
             threshold,

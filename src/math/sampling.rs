@@ -140,7 +140,7 @@ impl TexelSamples {
     /// These samples, with texels integrated where one centre direction is not enough: with
     /// one sample a texel and `edge_samples` > 1, a texel on a shadow border traces those of a
     /// grid of `edge_samples` sub-texels (rounded up to a square) that lie towards the border
-    /// (see [`crate::bake::direct`]), one the horizon crosses or inside a
+    /// (see the `bake::direct` module), one the horizon crosses or inside a
     /// narrow glossy lobe sums its lobe over them, and the cosine over any other texel is exact.
     /// More samples a texel integrate every texel alike, so this leaves them as they are.
     pub fn refined(mut self, edge_samples: usize) -> Self {

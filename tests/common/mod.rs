@@ -395,6 +395,7 @@ pub fn random_rows(
             edge_spp: 0,
             texel_samples: 1,
             edge_texel_samples: 0,
+            edge_texels_towards: false,
             unshadowed: false,
             seed,
             threshold: 0.0,

@@ -125,6 +125,9 @@ pub struct BakeIdentity {
     /// Sub-texels of a texel integrated rather than sampled at its centre (a square; 0: every
     /// texel took its centre's value, as every file before this setting).
     pub edge_texel_samples: u32,
+    /// Whether a shadow-border texel traced only its sub-texels towards the border (false:
+    /// every sub-texel, as files before this rule did, or no sub-texels at all).
+    pub edge_texels_towards: bool,
     /// Whether visibility was ignored.
     pub unshadowed: bool,
     /// Seed of every random choice.
@@ -233,6 +236,8 @@ pub(super) struct MetaFile {
     texel_samples: u32,
     #[serde(default, skip_serializing_if = "is_zero")]
     edge_texel_samples: u32,
+    #[serde(default, skip_serializing_if = "is_false")]
+    edge_texels_towards: bool,
     unshadowed: bool,
     seed: u64,
     threshold: f32,
@@ -381,6 +386,10 @@ fn is_zero(v: &u32) -> bool {
     *v == 0
 }
 
+fn is_false(v: &bool) -> bool {
+    !*v
+}
+
 fn is_one(v: &u32) -> bool {
     *v == 1
 }
@@ -425,6 +434,7 @@ impl TryFrom<MetaFile> for TransportMeta {
                 edge_spp: f.edge_spp,
                 texel_samples: f.texel_samples,
                 edge_texel_samples: f.edge_texel_samples,
+                edge_texels_towards: f.edge_texels_towards,
                 unshadowed: f.unshadowed,
                 seed: f.seed,
                 threshold: f.threshold,
@@ -478,6 +488,7 @@ impl From<TransportMeta> for MetaFile {
             edge_spp: id.edge_spp,
             texel_samples: id.texel_samples,
             edge_texel_samples: id.edge_texel_samples,
+            edge_texels_towards: id.edge_texels_towards,
             unshadowed: id.unshadowed,
             seed: id.seed,
             threshold: id.threshold,
@@ -540,6 +551,26 @@ mod tests {
     }
 
     #[test]
+    fn the_border_rule_is_written_when_used_and_absent_in_older_files() {
+        let old: TransportMeta = serde_json::from_str(TEXT).expect("parses");
+        assert!(!old.identity.edge_texels_towards, "absent: every sub-texel");
+        let mut meta = old.clone();
+        meta.identity.edge_texel_samples = 9;
+        meta.identity.edge_texels_towards = true;
+        let text = serde_json::to_string(&meta).expect("writes");
+        assert!(
+            text.contains(r#""edge_texel_samples":9,"edge_texels_towards":true"#),
+            "{text}"
+        );
+        let back: TransportMeta = serde_json::from_str(&text).expect("parses");
+        assert_eq!(back, meta);
+        // A file of the other rule is another bake.
+        let mut other = back.identity.clone();
+        other.edge_texels_towards = false;
+        assert_ne!(back.identity, other);
+    }
+
+    #[test]
     fn a_view_bake_writes_neither_nested_object_nor_zero_edge_samples() {
         let mut meta: TransportMeta = serde_json::from_str(TEXT).expect("parses");
         meta.identity.domain = BakeDomain::View;
@@ -547,7 +578,13 @@ mod tests {
         meta.identity.indirect = None;
         meta.identity.edge_spp = 0;
         let text = serde_json::to_string(&meta).expect("writes");
-        for absent in ["per_vertex", "indirect", "edge_spp", "cache_points"] {
+        for absent in [
+            "per_vertex",
+            "indirect",
+            "edge_spp",
+            "cache_points",
+            "edge_texels_towards",
+        ] {
             assert!(!text.contains(absent), "{absent} written in {text}");
         }
         let back: TransportMeta = serde_json::from_str(&text).expect("parses");
