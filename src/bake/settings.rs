@@ -285,7 +285,9 @@ impl BakeSettings {
 
     /// The settings that bake `meta`'s file again: [`BakeSettings::identity`] of them is the
     /// file's identity (for the scene it was baked from). What a file does not record (the
-    /// interreflections' settings of a file baked before they were recorded) takes the defaults.
+    /// interreflections' settings of a file baked before they were recorded) takes the defaults;
+    /// a file whose border texels traced every sub-texel (no `edge_texels_towards`) is baked
+    /// again by today's rule, so its identity then differs in that field alone.
     pub fn from_meta(meta: &TransportMeta) -> BakeSettings {
         let id = &meta.identity;
         let defaults = BakeSettings::default();

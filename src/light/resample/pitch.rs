@@ -85,7 +85,7 @@ fn tail_shares(q: usize, f: f64) -> Vec<f64> {
         .collect()
 }
 
-/// The texels of `count` directions (sin u·sin v, y0 + y1·cos u, z0 − z1·cos u), u given by
+/// The texels of the directions (sin u·sin v, y0 + y1·cos u, z0 − z1·cos u), u given by
 /// `sin_u`, `cos_u`, into `texels`: [`crate::math::cubemap::dir_to_texel`] in f32 and without
 /// branches, so that it runs several directions an instruction. (A direction within f32 rounding
 /// of a texel border may fall on the other side of it than in f64.)
@@ -135,6 +135,27 @@ fn texels_of(
         let cell = |v: f32| whole((v * inverse + half_n).clamp(0.0, size) - 0.5).min(last);
         let index = (face * size + cell(t_)) * size + cell(s);
         *t = (index + ROUND).to_bits() - ROUND.to_bits();
+    }
+}
+
+/// The texels of a whole sub-row into `texels`: [`texels_of`] for the sub-columns of its first
+/// half (`half`: their sin u and cos u), and the mirrors of those for the second half. R_x(pitch)
+/// keeps x, so sub-column W·q − 1 − k, at u' = 2π − u, lands where sub-column k does with x
+/// negated: in the mirror of its texel (an odd row's middle sub-column, at u = π, is its own).
+fn row_texels(
+    n: usize,
+    half: (&[f32], &[f32]),
+    sin_v: f32,
+    y: (f32, f32),
+    z: (f32, f32),
+    mirror: &[u32],
+    texels: &mut [u32],
+) {
+    let (first, second) = texels.split_at_mut(half.0.len());
+    texels_of(n, half.0, half.1, sin_v, y, z, first);
+    let mirrored = &first[..second.len()];
+    for (t, &m) in second.iter_mut().zip(mirrored.iter().rev()) {
+        *t = mirror[m as usize];
     }
 }
 
@@ -242,21 +263,15 @@ pub(super) fn splat(
                     // (sin u sin v, c cos v + s cos u sin v, s cos v − c cos u sin v).
                     let omega = TAU / (width * q) as f64 * (v0.cos() - v1.cos());
                     let (sin_v, cos_v) = (0.5 * (v0 + v1)).sin_cos();
-                    let (first, second) = texels.split_at_mut(sin_u.len());
-                    texels_of(
+                    row_texels(
                         n,
-                        &sin_u,
-                        &cos_u,
+                        (&sin_u, &cos_u),
                         sin_v as f32,
                         ((cos_p * cos_v) as f32, (sin_p * sin_v) as f32),
                         ((sin_p * cos_v) as f32, (cos_p * sin_v) as f32),
-                        first,
+                        &mirror,
+                        &mut texels,
                     );
-                    // R_x(pitch) keeps x, so sub-column W·q − 1 − k, at u' = 2π − u, lands where
-                    // sub-column k does with x negated: in the mirror of its texel.
-                    for (t, &m) in second.iter_mut().zip(first.iter().rev()) {
-                        *t = mirror[m as usize];
-                    }
                     runs(&texels, &turned, |texel, sum, cells| {
                         for c in 0..3 {
                             power[texel][c] += sum[c] * omega;
@@ -360,6 +375,50 @@ mod tests {
                 }
             }
             assert!(checked > 10_000, "N = {n}: {checked}");
+        }
+    }
+
+    #[test]
+    fn a_row_is_mirrored_about_its_middle_at_odd_and_even_lengths() {
+        for (n, columns) in [(8, 20usize), (8, 21), (32, 1023), (32, 1024), (4, 1)] {
+            let mirror = mirrors(n);
+            let u = |k: usize| TAU * (k as f64 + 0.5) / columns as f64;
+            let (su, cu): (Vec<f32>, Vec<f32>) = (0..columns.div_ceil(2))
+                .map(|k| (u(k).sin() as f32, u(k).cos() as f32))
+                .unzip();
+            for (pitch, v, _) in rows(20) {
+                let (sin_p, cos_p) = pitch.sin_cos();
+                let (sin_v, cos_v) = v.sin_cos();
+                let (y, z) = (
+                    (cos_p * cos_v, sin_p * sin_v),
+                    (sin_p * cos_v, cos_p * sin_v),
+                );
+                let mut got = vec![0u32; columns];
+                let narrow = |p: (f64, f64)| (p.0 as f32, p.1 as f32);
+                row_texels(
+                    n,
+                    (&su, &cu),
+                    sin_v as f32,
+                    narrow(y),
+                    narrow(z),
+                    &mirror,
+                    &mut got,
+                );
+                for (k, &texel) in got.iter().enumerate() {
+                    let d = DVec3::new(
+                        u(k).sin() * sin_v,
+                        y.0 + y.1 * u(k).cos(),
+                        z.0 - z.1 * u(k).cos(),
+                    );
+                    if off_borders(n, d) {
+                        assert_eq!(
+                            texel as usize,
+                            dir_to_texel(n, d),
+                            "N = {n}, {columns}: {k}"
+                        );
+                    }
+                }
+            }
         }
     }
 
