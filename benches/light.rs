@@ -30,7 +30,6 @@ use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::light::resample;
 use wavelet_prt::light::select::WaveletLight;
-use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::math::sh;
 use wavelet_prt::relight::{LightContext, PreparedLight};
 
@@ -60,18 +59,6 @@ fn exact_prepare(ctx: &LightContext, env: &EnvMap, rotation: EnvRotation) -> Pre
     }
 }
 
-/// Relative L2 of `a` against `b` over every channel of every texel.
-fn rel_l2(a: &CubeMap, b: &CubeMap) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for (x, y) in a.texels.iter().zip(&b.texels) {
-        for c in 0..3 {
-            num += (x[c] as f64 - y[c] as f64).powi(2);
-            den += (y[c] as f64).powi(2);
-        }
-    }
-    (num / den).sqrt()
-}
-
 /// The accuracy of the pitched and the yawed fast cubes against the exact splat (see the
 /// module notes).
 fn accuracy(env: &EnvMap) {
@@ -84,10 +71,8 @@ fn accuracy(env: &EnvMap) {
                     yaw_deg: yaw,
                     pitch_deg: pitch,
                 };
-                errors.push(rel_l2(
-                    &env.to_cube(n, r).unwrap(),
-                    &env.to_cube_exact(n, r).unwrap(),
-                ));
+                let exact = env.to_cube_exact(n, r).unwrap();
+                errors.push(env.to_cube(n, r).unwrap().relative_l2(&exact));
             }
         }
         for e in [&mut pitched, &mut yawed] {

@@ -164,6 +164,19 @@ impl CubeMap {
         }
         p
     }
+
+    /// Relative L2 of this cube against `reference`, over every channel of every texel (texels
+    /// unweighted): ‖a − b‖ / ‖b‖.
+    pub fn relative_l2(&self, reference: &CubeMap) -> f64 {
+        let (mut num, mut den) = (0.0, 0.0);
+        for (x, y) in self.texels.iter().zip(&reference.texels) {
+            for c in 0..3 {
+                num += (x[c] as f64 - y[c] as f64).powi(2);
+                den += (y[c] as f64).powi(2);
+            }
+        }
+        (num / den).sqrt()
+    }
 }
 
 /// Splits lat-long cells over cube texels. A cell whose four corners fall in one texel and that
@@ -421,6 +434,19 @@ mod tests {
     /// Sum of up to 6·256² exact f64 texel solid angles against 4π: rounding accumulates over the
     /// terms to ~1e-12 at most.
     const FOUR_PI_SUM: f64 = 1e-10;
+
+    #[test]
+    fn relative_l2_of_a_scaled_cube_is_the_scale_less_one() {
+        let mut a = CubeMap::constant(4, [1.0, 2.0, 0.5]).unwrap();
+        a.texels[7] = [3.0, 0.0, 1.0];
+        let b = CubeMap {
+            n: 4,
+            texels: a.texels.iter().map(|t| t.map(|v| 1.25 * v)).collect(),
+        };
+        assert_eq!(a.relative_l2(&a), 0.0);
+        assert!((b.relative_l2(&a) - 0.25).abs() < 1e-7);
+        assert!((a.relative_l2(&b) - 0.2).abs() < 1e-7);
+    }
 
     #[test]
     fn solid_angles_sum_to_four_pi() {

@@ -200,8 +200,8 @@ pub struct SamplingArgs {
     /// With one direction a texel, the sub-texels (rounded up to a square, at most 64) of each
     /// texel that needs more than its centre: a shadow border (those towards it traced, for
     /// penumbrae), the horizon or a narrow glossy lobe (summed); the cosine over every other
-    /// texel is exact. 0: every texel
-    /// takes its centre's value (as in a per-vertex bake, whatever this says).
+    /// texel is exact. 0: every texel takes its centre's value (as in a per-vertex bake,
+    /// whatever this says).
     #[arg(long, default_value_t = 9)]
     pub edge_texel_samples: u32,
     /// Samples per shading point of each quad light or sun disc (rounded up to a square: a
