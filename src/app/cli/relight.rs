@@ -213,7 +213,20 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     check_image_output(&a.output, &inputs)?;
     crate::relight::raster::sample_offsets(a.samples)?;
     let gpu = open_device(a.device)?;
-    let t = Transport::load(&a.file)?;
+    // The header first (the cube's size, the lights), then the environment, so that the light's
+    // resampling weights are read on a second thread while the transport loads: a fresh process
+    // then prepares its light in about the time of its kernel.
+    let header = crate::store::transport::read_header_meta(&a.file)?;
+    let mix = light_mix(&header.lights, &a.lights)?;
+    let env = optional_env(&a.env, &mix)?;
+    let (t, weights_ms) = std::thread::scope(|s| {
+        let warm = env
+            .as_ref()
+            .map(|env| s.spawn(|| env.warm_cube(header.identity.cube_n as usize)));
+        let t = Transport::load(&a.file);
+        (t, warm.and_then(|h| h.join().ok()))
+    });
+    let t = t?;
     let still = a.view.camera(&t)?;
     if let Some(o) = a.sh_order
         && method != Method::ShLight
@@ -223,8 +236,6 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     if method == Method::Wavelet {
         crate::flags::terms(a.terms, t.meta.identity.cube_n as usize)?;
     }
-    let mix = light_mix(&t.meta.lights, &a.lights)?;
-    let env = optional_env(&a.env, &mix)?;
     let ctx = LightContext::new(&t)?;
     let start = Instant::now();
     let rotation = a.turn.rotation();
@@ -326,7 +337,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         n => format!(", {n} light column(s) added"),
     };
     println!(
-        "{method}: {} terms{}{lit}, {} nonzeros touched ({:.1} MiB), light {:.1} ms, kernel {:.2} ms on the {}{drawn} -> {}",
+        "{method}: {} terms{}{lit}, {} nonzeros touched ({:.1} MiB), light {:.1} ms{}, kernel {:.2} ms on the {}{drawn} -> {}",
         stats.terms,
         match (&env, req) {
             (None, _) => " (environment off)".to_string(),
@@ -338,6 +349,11 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         stats.nonzeros_touched,
         stats.bytes_touched as f64 / 1048576.0,
         light_ms,
+        match weights_ms {
+            Some(Ok(Some(ms))) =>
+                format!(" (its resampling weights read in {ms:.1} ms while the file loaded)"),
+            _ => String::new(),
+        },
         stats.kernel_seconds * 1e3,
         match &gpu {
             Some(g) => format!("GPU ({})", g.adapter),
