@@ -1,0 +1,51 @@
+//! The CPU wavelet kernel's median time on a transport file at K = 100, 200, 1000 and every term,
+//! under an environment map: many products in one process, so two builds can be timed
+//! alternately, process by process, where one criterion run each would drift apart on a shared
+//! machine.
+//!
+//! ```sh
+//! cargo run --release --example kernel_medians -- prt-demo/demo.prt \
+//!     prt-demo/assets/envmaps/blender_sunrise.exr
+//! ```
+//!
+//! Prints one line: the median of 300 products at each K (60 for every term), the terms chosen
+//! by area weighting as `cargo bench --bench kernels` chooses them.
+
+use std::path::Path;
+use std::time::Instant;
+
+use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::light::select::Weighting;
+use wavelet_prt::relight::LightContext;
+use wavelet_prt::relight::strip_kernel::{StripPath, relight_strips};
+use wavelet_prt::store::transport::Transport;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let [file, env] = args.as_slice() else {
+        return Err("usage: kernel_medians FILE.prt ENV.exr".into());
+    };
+    let t = Transport::load(Path::new(file))?;
+    let env = EnvMap::load(Path::new(env))?;
+    let ctx = LightContext::new(&t)?;
+    let light = ctx.prepare(&env, EnvRotation::default())?;
+    let c = t.coeff_count();
+    let mut line = Vec::new();
+    for k in [100, 200, 1000, c] {
+        let terms = light
+            .wavelet
+            .select(k, Weighting::Area, &ctx.support_area, None)?;
+        let runs = if k > 1000 { 60 } else { 300 };
+        let mut ms: Vec<f64> = (0..runs)
+            .map(|_| {
+                let start = Instant::now();
+                std::hint::black_box(relight_strips(&t, &t.strips, &terms, StripPath::Best));
+                start.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        ms.sort_by(f64::total_cmp);
+        line.push(format!("K = {k}: {:.3} ms", ms[ms.len() / 2]));
+    }
+    println!("{}", line.join(", "));
+    Ok(())
+}
