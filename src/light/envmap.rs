@@ -310,9 +310,10 @@ impl EnvMap {
         crate::light::resample::resample_latlong(self.width, self.height, &self.pixels, n, rotation)
     }
 
-    /// Reads (or records) into the process-wide cache the weights that [`EnvMap::to_cube`] at
-    /// face size `n` needs for this map's size whatever the rotation (see
-    /// [`crate::light::resample::warm`]), so that a light prepared later costs only its gather.
+    /// Reads (or records) into the process-wide cache the unturned weights that
+    /// [`EnvMap::to_cube`] at face size `n` gathers through for this map's size (see
+    /// [`crate::light::resample::warm`]): every light that is not pitched, and the SH light of
+    /// any rotation, then costs only its gather.
     /// The milliseconds it took, or `None` when the map is splatted without weights.
     pub fn warm_cube(&self, n: usize) -> Result<Option<f64>> {
         let start = std::time::Instant::now();

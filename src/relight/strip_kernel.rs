@@ -10,7 +10,7 @@
 //! at most two lines and never split a 32-byte vector across two. Held as three planes of the
 //! band's rows, as before, each strip touched three lines 16 KiB apart, and a vector's low
 //! address bits matched the store before it in the next plane's: the demo's K = 200 product ran
-//! 1.5 times slower, and its full product 1.37 times.
+//! 1.40 times slower, and its full product 1.43 times (the README's kernel section).
 //!
 //! The one module that allows `unsafe`: calling a function compiled for AVX2 needs it, and so do
 //! the vector loads. Every block says why it is sound.

@@ -521,9 +521,10 @@ pub fn resample_latlong(
 }
 
 /// Reads (or records) the unturned weights of a `width` x `height` map at face size `n` into the
-/// process-wide cache: every light of that size needs them (a yaw gathers through them, and the
-/// SH light is projected from the unturned cube), so a process that will prepare one can read
-/// them while it does other work. `None` when the map is too large to record weights for.
+/// process-wide cache: every light of that size that is not pitched gathers through them (a yaw
+/// only shifts the map), and the SH light of any rotation is projected from the unturned cube,
+/// so a process that will prepare one can read them while it does other work. A pitched
+/// wavelet light is splatted at sub-cell centres or records weights of its own. `None` when the map is too large to record weights for.
 pub fn warm(width: usize, height: usize, n: usize) -> Result<Option<Arc<LatLongWeights>>> {
     validate_n(n)?;
     if width * height > MAX_RECORDED_PIXELS {
