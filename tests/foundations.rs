@@ -839,10 +839,6 @@ fn worst_relative(a: &CubeMap, b: &CubeMap) -> f64 {
     worst
 }
 
-fn cube_relative_l2(a: &CubeMap, b: &CubeMap) -> f64 {
-    a.relative_l2(b)
-}
-
 #[test]
 fn fast_resampling_of_a_bundled_map_matches_the_exact_splat() {
     let env = EnvMap::load(&asset("blender_sunrise.exr")).unwrap();
@@ -883,7 +879,7 @@ fn fast_resampling_of_a_bundled_map_matches_the_exact_splat() {
     // A pitch as the light takes it, splatted at sub-cell centres: near the exact splat, its
     // power kept.
     let fast = env.to_cube(n, pitched).unwrap();
-    let e = cube_relative_l2(&fast, &env.to_cube_exact(n, pitched).unwrap());
+    let e = fast.relative_l2(&env.to_cube_exact(n, pitched).unwrap());
     assert!(e <= PITCHED_SUN_L2, "{pitched:?}: relative L2 {e:e}");
     let got = fast.power();
     for c in 0..3 {
@@ -898,7 +894,7 @@ fn fast_resampling_of_a_bundled_map_matches_the_exact_splat() {
         let rotation = EnvRotation::yaw(yaw);
         let fast = env.to_cube(n, rotation).unwrap();
         let exact = env.to_cube_exact(n, rotation).unwrap();
-        let e = cube_relative_l2(&fast, &exact);
+        let e = fast.relative_l2(&exact);
         assert!(e <= FAST_RESAMPLE_SUN_L2, "yaw {yaw}: relative L2 {e:e}");
         let got = fast.power();
         for c in 0..3 {

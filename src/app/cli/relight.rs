@@ -226,7 +226,8 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
             .map(|env| s.spawn(|| env.warm_cube(header.identity.cube_n as usize)));
         let t = Transport::load(&a.file);
         let loaded = Instant::now();
-        let weights_ms = warm.and_then(|h| h.join().ok());
+        // A failed warm-up costs nothing: the light then reads or records the weights itself.
+        let weights_ms = warm.and_then(|h| h.join().ok()?.ok()?);
         (t, weights_ms, loaded.elapsed())
     });
     let t = t?;
@@ -353,12 +354,12 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         stats.bytes_touched as f64 / 1048576.0,
         light_ms,
         match weights_ms {
-            Some(Ok(Some(ms))) => format!(
+            Some(ms) => format!(
                 " (its resampling weights ready in {ms:.1} ms, {:.1} ms of it after the file \
                  loaded)",
                 waited.as_secs_f64() * 1e3
             ),
-            _ => String::new(),
+            None => String::new(),
         },
         stats.kernel_seconds * 1e3,
         match &gpu {

@@ -681,11 +681,6 @@ mod tests {
             .fold(0.0, f64::max)
     }
 
-    /// Relative L2 of `a` against `b` over every channel of every texel.
-    fn rel_l2(a: &CubeMap, b: &CubeMap) -> f64 {
-        a.relative_l2(b)
-    }
-
     #[test]
     fn unturned_and_pitched_equal_the_exact_splat() {
         // Cells smaller than texels (256 x 128 at N = 8, 16) and larger (at N = 64); widths with
@@ -747,9 +742,9 @@ mod tests {
                     yaw_deg: yaw,
                     pitch_deg: pitch,
                 };
-                let e = rel_l2(&recorded(w, h, &sun, n, r), &exact(w, h, &sun, n, r));
+                let e = recorded(w, h, &sun, n, r).relative_l2(&exact(w, h, &sun, n, r));
                 assert!(e <= FRACTIONAL_SUN_L2, "sun, N = {n}, {r:?}: {e:e}");
-                let e = rel_l2(&recorded(w, h, &smooth, n, r), &exact(w, h, &smooth, n, r));
+                let e = recorded(w, h, &smooth, n, r).relative_l2(&exact(w, h, &smooth, n, r));
                 assert!(e <= FRACTIONAL_SMOOTH_L2, "smooth, N = {n}, {r:?}: {e:e}");
             }
         }
@@ -782,10 +777,10 @@ mod tests {
                         .expect("every texel receives a sub-cell");
                     assert_eq!(got.texels, fast(w, h, px, n, r).texels, "the light's path");
                     let want = exact(w, h, px, n, r);
-                    let e = rel_l2(&got, &want);
+                    let e = got.relative_l2(&want);
                     assert!(e <= limit, "N = {n}, {r:?}: {e:e}");
                     // The pitch turned the map: far more than the band moves.
-                    let turned = rel_l2(&exact(w, h, px, n, unpitched), &want);
+                    let turned = exact(w, h, px, n, unpitched).relative_l2(&want);
                     assert!(
                         turned > 10.0 * e,
                         "N = {n}, {r:?}: {turned:e} against {e:e}"
@@ -809,7 +804,7 @@ mod tests {
                 };
                 let got = pitch::splat(w, h, &smooth, n, r).unwrap().unwrap();
                 let want = recorded(w, h, &smooth, n, EnvRotation::yaw(yaw));
-                let e = rel_l2(&got, &want);
+                let e = got.relative_l2(&want);
                 assert!(e <= WHOLE_TURN_SMOOTH_L2, "N = {n}, yaw {yaw}: {e:e}");
             }
         }
@@ -904,12 +899,12 @@ mod tests {
                     },
                 ] {
                     let got = fast(w, h, &px, n, r);
-                    let e = rel_l2(&got, &recorded(1024, 512, &wide, n, r));
+                    let e = got.relative_l2(&recorded(1024, 512, &wide, n, r));
                     assert!(
                         e < WIDE_TWIN_L2,
                         "{w} x {h}, N = {n}, {r:?}: {e:e} from the wide twin"
                     );
-                    let x = rel_l2(&recorded(w, h, &px, n, r), &exact(w, h, &px, n, r));
+                    let x = recorded(w, h, &px, n, r).relative_l2(&exact(w, h, &px, n, r));
                     assert!(
                         x < NARROW_FAST_L2,
                         "{w} x {h}, N = {n}, {r:?}: {x:e} from the exact splat"
