@@ -372,26 +372,49 @@ fn strips_hold_every_entry_once_in_light_major_bands() {
 
 /// The SIMD strip loop and the portable one give the same image (to float rounding: one fuses
 /// its multiply-adds) as the dense twin, on every format, bands of 16 blocks and fewer, and
-/// terms in any order.
+/// terms in any order. The dense transports hold slots of all their block's strips, which the
+/// SIMD loop adds panel by panel in chunks of 64 terms, beside slots of some, which it adds
+/// strip by strip; the sparse ones hold only the latter.
 #[test]
 fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
     use wavelet_prt::relight::strip_kernel::{StripPath, relight_strips};
-    for (q, w, h) in [
-        (Quantization::Q8, 230, 20),
-        (Quantization::Q16, 230, 20),
-        (Quantization::F32, 230, 20),
+    use wavelet_prt::store::transport::strips::STRIPS_PER_BLOCK;
+    for (q, w, h, n, density) in [
+        (Quantization::Q8, 230, 20, 2, 0.1),
+        (Quantization::Q16, 230, 20, 2, 0.1),
+        (Quantization::F32, 230, 20, 2, 0.1),
         // One tile wide, as a per-vertex bake is: its groups gather several tile rows.
-        (Quantization::Q8, 16, 200),
+        (Quantization::Q8, 16, 200, 2, 0.1),
+        (Quantization::Q8, 230, 40, 4, 0.9),
+        (Quantization::Q16, 100, 40, 4, 0.9),
+        (Quantization::F32, 100, 40, 4, 0.9),
+        (Quantization::Q8, 16, 200, 4, 0.9),
     ] {
-        let t = random_transport(w, h, 2, q, 19, 1e-3);
+        let t = if density < 0.5 {
+            random_transport(w, h, n, q, 19, 1e-3)
+        } else {
+            common::random_transport_of_density(w, h, n, q, 19, density)
+        };
         let c = t.coeff_count();
+        let s = &t.strips;
+        let whole = s
+            .slots
+            .iter()
+            .filter(|s| s.count as usize == STRIPS_PER_BLOCK)
+            .count();
+        let some = s
+            .slots
+            .iter()
+            .filter(|s| (1..STRIPS_PER_BLOCK).contains(&(s.count as usize)))
+            .count();
+        assert!(some > 0, "{q}: slots of some strips");
+        assert_eq!(whole > 0, density > 0.5, "{q}: slots of all strips");
         let mut rng = Rng::new(8, 0);
-        for k in [1, 5, c] {
+        for k in [1, 5, 70.min(c), c] {
             let light = common::random_light(&mut rng, c, k, false, |rng| {
                 [rng.next_f32(), rng.next_f32() - 0.5, 1.0]
             });
             let dense = relight_dense_reference(&t, &light);
-            let s = &t.strips;
             let (best, best_read) = relight_strips(&t, s, &light, StripPath::Best);
             let (portable, read) = relight_strips(&t, s, &light, StripPath::Portable);
             assert_eq!(best_read, read);

@@ -339,6 +339,28 @@ pub fn random_transport(
     .unwrap()
 }
 
+/// [`random_transport`] with each coefficient of a row an entry with probability `density`
+/// rather than 0.1: near 1, most of a full block's slots hold all of its strips.
+pub fn random_transport_of_density(
+    w: usize,
+    h: usize,
+    n: usize,
+    quantization: Quantization,
+    seed: u64,
+    density: f32,
+) -> Transport {
+    let (meta, tiles) = random_rows_of_density(w, h, n, quantization, seed, 1e-3, density);
+    let (tx, ty) = tile_grid(w, h);
+    Transport::assemble(
+        meta,
+        tiles,
+        vec![[0.5; 3]; w * h],
+        vec![1.0; w * h],
+        vec![[0.0; 3]; tx * ty],
+    )
+    .unwrap()
+}
+
 /// The header and the rows, tile by tile, that [`random_transport`] assembles.
 pub fn random_rows(
     w: usize,
@@ -347,6 +369,18 @@ pub fn random_rows(
     quantization: Quantization,
     seed: u64,
     scale: f32,
+) -> (TransportMeta, Vec<Vec<RowData>>) {
+    random_rows_of_density(w, h, n, quantization, seed, scale, 0.1)
+}
+
+fn random_rows_of_density(
+    w: usize,
+    h: usize,
+    n: usize,
+    quantization: Quantization,
+    seed: u64,
+    scale: f32,
+    density: f32,
 ) -> (TransportMeta, Vec<Vec<RowData>>) {
     let mut rng = SampleRng::new(seed, 0);
     let c = texel_count(n);
@@ -361,7 +395,7 @@ pub fn random_rows(
                 for _ in 0..count {
                     let mut entries = Vec::new();
                     for j in 0..c {
-                        if rng.next_f32() < 0.1 {
+                        if rng.next_f32() < density {
                             entries.push((j as u32, (rng.next_f32() * 2.0 - 1.0) * scale));
                         }
                     }
