@@ -424,6 +424,21 @@ fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
                 [strips, entries],
                 "{q} K = {k}: what the kernel says it read"
             );
+            // The bitmask the kernel walks by names exactly the slots that hold strips.
+            let occupied: usize = (0..s.band_count())
+                .map(|band| {
+                    let slots = light
+                        .indices
+                        .iter()
+                        .flat_map(|&j| s.term_slots(band, j as usize, c));
+                    slots.filter(|slot| slot.count > 0).count()
+                })
+                .sum();
+            assert_eq!(
+                s.occupied_slots(&light.indices, c),
+                occupied as u64,
+                "{q} K = {k}"
+            );
             for (name, img) in [("best", &best), ("portable", &portable)] {
                 let e = relative_l2(img, &dense, None).unwrap();
                 assert!(e < SAME_SUM, "{q} K = {k}: {name} vs dense {e}");

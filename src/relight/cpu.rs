@@ -33,8 +33,11 @@ pub fn relight_wavelet(t: &Transport, light: &SparseLight) -> Result<(Image, Rel
     let stats = RelightStats {
         terms: light.len(),
         nonzeros_touched: entries,
+        // The strips, the slots that hold them, and a band's bitmask of those per term.
         bytes_touched: read * (1 + STRIP_ROWS * t.strips.values.value_bytes()) as u64
-            + (t.block_count() * light.len() * std::mem::size_of::<Slot>()) as u64,
+            + t.strips.occupied_slots(&light.indices, t.coeff_count())
+                * std::mem::size_of::<Slot>() as u64
+            + (t.strips.band_count() * light.len() * std::mem::size_of::<u16>()) as u64,
         kernel_seconds,
         light_columns: 0,
     };
