@@ -71,8 +71,8 @@ fn a_software_adapter_is_used_only_when_asked_for() {
     }
     let cpu = relight(Some("cpu"));
     assert!(cpu.contains("on the CPU"), "{cpu}");
-    // The light's resampling weights are read beside the transport's load.
-    assert!(cpu.contains("resampling weights ready in"), "{cpu}");
+    // The light is prepared beside the transport's load.
+    assert!(cpu.contains("prepared beside the load in"), "{cpu}");
 }
 
 // 5. Mesa's device-select layer printed "error: XDG_RUNTIME_DIR is invalid or not set" up to

@@ -3,8 +3,12 @@
 //! contact sheet and the viewer.
 
 use std::path::Path;
+use std::sync::{Mutex, PoisonError};
 
 use crate::error::{PrtError, Result};
+
+/// One image made ahead of its use, its memory already written ([`Image::make_ahead`]).
+static AHEAD: Mutex<Option<Image>> = Mutex::new(None);
 
 /// A linear RGB image, row-major, y growing downwards.
 #[derive(Clone, Debug, PartialEq)]
@@ -128,13 +132,36 @@ impl ToneMap {
 }
 
 impl Image {
-    /// A black image.
+    /// A black image: the one made ahead for this size, if there is one.
     pub fn new(width: usize, height: usize) -> Self {
+        if let Ok(mut ahead) = AHEAD.try_lock()
+            && let Some(image) = ahead.take_if(|i| i.width == width && i.height == height)
+        {
+            return image;
+        }
         Image {
             width,
             height,
             pixels: vec![[0.0; 3]; width * height],
         }
+    }
+
+    /// Makes a black image of this size, its pages already written, for the process's next
+    /// [`Image::new`] of that size. A fresh allocation is mapped a page at a time as it is first
+    /// written; a caller that knows it will soon need an image (`prt relight`, while the transport
+    /// loads) thus takes those faults off the product that fills it. On a 512² bake they were
+    /// half of a fresh process's first product.
+    pub fn make_ahead(width: usize, height: usize) {
+        // Hidden from the optimiser, which could otherwise drop the writes of zeros over memory
+        // it knows is zeroed.
+        let mut pixels = std::hint::black_box(vec![[0.0f32; 3]; width * height]);
+        pixels.fill([0.0; 3]);
+        let image = Image {
+            width,
+            height,
+            pixels,
+        };
+        *AHEAD.lock().unwrap_or_else(PoisonError::into_inner) = Some(image);
     }
 
     /// 8-bit sRGB bytes, RGB interleaved.
@@ -355,6 +382,25 @@ pub use crate::files::write_atomically;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An image made ahead is the next one of its size, black; other sizes do not take it.
+    #[test]
+    fn an_image_made_ahead_is_taken_by_the_next_of_its_size() {
+        // A size no other test makes.
+        let (w, h) = (7, 1013);
+        Image::make_ahead(w, h);
+        let other = Image::new(w + 1, h);
+        assert_eq!(other.pixels.len(), (w + 1) * h);
+        assert!(AHEAD.lock().unwrap().as_ref().is_some_and(|i| i.width == w));
+        let image = Image::new(w, h);
+        assert_eq!(
+            (image.width, image.height, image.pixels.len()),
+            (w, h, w * h)
+        );
+        assert!(image.pixels.iter().all(|p| *p == [0.0; 3]));
+        assert!(AHEAD.lock().unwrap().is_none(), "taken");
+        assert_eq!(Image::new(w, h), image, "and made anew after");
+    }
 
     #[test]
     fn tone_curves_are_monotone_and_map_zero_to_zero() {

@@ -213,22 +213,43 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     check_image_output(&a.output, &inputs)?;
     crate::relight::raster::sample_offsets(a.samples)?;
     let gpu = open_device(a.device)?;
-    // The header first (the cube's size, the lights), then the environment, so that the light's
-    // resampling weights are read on a second thread while the transport loads: a fresh process
-    // then prepares its light in about the time of its kernel.
+    // The header first (the cube's size, its SH order, the lights), then the environment, so that
+    // the light is prepared on a second thread while the transport loads (its resampling weights
+    // read or recorded, the cube gathered, its Haar and SH coefficients taken): a fresh process
+    // then spends on its light, after the load, little more than the selection of terms.
     let header = crate::store::transport::read_header_meta(&a.file)?;
     let mix = light_mix(&header.lights, &a.lights)?;
     let env = optional_env(&a.env, &mix)?;
-    // The time the load then waits for the weights counts as the light's.
-    let (t, weights_ms, waited) = std::thread::scope(|s| {
-        let warm = env
-            .as_ref()
-            .map(|env| s.spawn(|| env.warm_cube(header.identity.cube_n as usize)));
+    let rotation = a.turn.rotation();
+    let sizes = (
+        header.identity.cube_n as usize,
+        header.identity.sh_order as usize,
+    );
+    // The CPU product's image is made there too, its pages written, when it is no larger than
+    // the file (a header that lies about the size gets no more memory than the file's).
+    let (w, h) = (header.width as usize, header.height as usize);
+    let image_ahead =
+        gpu.is_none() && std::fs::metadata(&a.file).is_ok_and(|m| (w * h * 12) as u64 <= m.len());
+    // The time the load then waits for the light counts as the light's.
+    let (t, ahead, waited) = std::thread::scope(|s| {
+        let ahead = s.spawn(|| {
+            if image_ahead {
+                crate::output::film::Image::make_ahead(w, h);
+            }
+            let start = Instant::now();
+            let ctx = LightContext::with_sizes(sizes.0, sizes.1);
+            let light = match (&ctx, &env) {
+                (Ok(ctx), Some(env)) => Some(ctx.prepare(env, rotation)),
+                _ => None,
+            };
+            (ctx, light, start.elapsed())
+        });
         let t = Transport::load(&a.file);
         let loaded = Instant::now();
-        // A failed warm-up costs nothing: the light then reads or records the weights itself.
-        let weights_ms = warm.and_then(|h| h.join().ok()?.ok()?);
-        (t, weights_ms, loaded.elapsed())
+        let ahead = ahead
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (t, ahead, loaded.elapsed())
     });
     let t = t?;
     let still = a.view.camera(&t)?;
@@ -240,17 +261,29 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     if method == Method::Wavelet {
         crate::flags::terms(a.terms, t.meta.identity.cube_n as usize)?;
     }
-    let ctx = LightContext::new(&t)?;
     let start = Instant::now();
-    let rotation = a.turn.rotation();
+    let (ctx, light, prepared_in) = ahead;
+    // The header read first and the file loaded agree on the sizes but for a file replaced in
+    // between; the light is then prepared again for the file loaded.
+    let (ctx, light) = if sizes
+        == (
+            t.meta.identity.cube_n as usize,
+            t.meta.identity.sh_order as usize,
+        ) {
+        (ctx?, light)
+    } else {
+        let ctx = LightContext::new(&t)?;
+        let light = env.as_ref().map(|env| ctx.prepare(env, rotation));
+        (ctx, light)
+    };
     let req = RelightRequest::new(
         method,
         a.terms,
         weighting,
         a.sh_order.unwrap_or(t.meta.identity.sh_order as usize),
     );
-    let terms = match &env {
-        Some(env) => Terms::of(&t, &ctx, &ctx.prepare(env, rotation)?, &req)?,
+    let terms = match light {
+        Some(light) => Terms::of(&t, &ctx, &light?, &req)?,
         None => Terms::dark(),
     };
     let light_ms = (start.elapsed() + waited).as_secs_f64() * 1e3;
@@ -353,10 +386,10 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         stats.nonzeros_touched,
         stats.bytes_touched as f64 / 1048576.0,
         light_ms,
-        match weights_ms {
-            Some(ms) => format!(
-                " (its resampling weights ready in {ms:.1} ms, {:.1} ms of it after the file \
-                 loaded)",
+        match &env {
+            Some(_) => format!(
+                " (prepared beside the load in {:.1} ms, {:.1} ms of it after the file loaded)",
+                prepared_in.as_secs_f64() * 1e3,
                 waited.as_secs_f64() * 1e3
             ),
             None => String::new(),
