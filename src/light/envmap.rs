@@ -310,17 +310,6 @@ impl EnvMap {
         crate::light::resample::resample_latlong(self.width, self.height, &self.pixels, n, rotation)
     }
 
-    /// Reads (or records) into the process-wide cache the unturned weights that
-    /// [`EnvMap::to_cube`] at face size `n` gathers through for this map's size (see
-    /// [`crate::light::resample::warm`]): every light that is not pitched, and the SH light of
-    /// any rotation, then costs only its gather.
-    /// The milliseconds it took, or `None` when the map is splatted without weights.
-    pub fn warm_cube(&self, n: usize) -> Result<Option<f64>> {
-        let start = std::time::Instant::now();
-        Ok(crate::light::resample::warm(self.width, self.height, n)?
-            .map(|_| start.elapsed().as_secs_f64() * 1e3))
-    }
-
     /// [`EnvMap::to_cube`] by the direct exact splat, cell by cell under the full rotation: the
     /// slow twin, for tests and comparisons.
     pub fn to_cube_exact(&self, n: usize, rotation: EnvRotation) -> Result<CubeMap> {

@@ -53,7 +53,6 @@ pub use cache::{clear_cache, use_disk, weights};
 use record::*;
 
 use std::f64::consts::{PI, TAU};
-use std::sync::Arc;
 
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
@@ -520,19 +519,6 @@ pub fn resample_latlong(
     resample_latlong_recorded(width, height, pixels, n, rotation)
 }
 
-/// Reads (or records) the unturned weights of a `width` x `height` map at face size `n` into the
-/// process-wide cache: every light of that size that is not pitched gathers through them (a yaw
-/// only shifts the map), and the SH light of any rotation is projected from the unturned cube,
-/// so a process that will prepare one can read them while it does other work. A pitched
-/// wavelet light is splatted at sub-cell centres or records weights of its own. `None` when the map is too large to record weights for.
-pub fn warm(width: usize, height: usize, n: usize) -> Result<Option<Arc<LatLongWeights>>> {
-    validate_n(n)?;
-    if width * height > MAX_RECORDED_PIXELS {
-        return Ok(None);
-    }
-    weights(width, height, n, 0.0).map(Some)
-}
-
 /// [`resample_latlong`] by weights recorded for the rotation's pitch, whatever it is: the path of
 /// an unpitched map, and of a pitched one whose cells are larger than the smallest texels.
 pub fn resample_latlong_recorded(
@@ -561,6 +547,7 @@ pub fn resample_latlong_recorded(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::Arc;
 
     /// Fast vs exact splat under the same rotation (or a whole-pixel yaw): the shares are the
     /// exact splat's pieces rounded to f32 (2^-24 relative), texels are f32 too, and sums run in
@@ -608,20 +595,6 @@ mod tests {
     /// The fraction of a pixel a yaw leaves (0.18 degrees of a 1000-pixel row, exactly 0.5):
     /// yaw / 360 and the scaling by the width round in f64, a few ulps.
     const YAW_FRACTION: f64 = 1e-9;
-
-    /// Warming reads the unturned weights into the cache the gather then takes them from, and
-    /// records none for a map splatted directly.
-    #[test]
-    fn warming_caches_the_weights_every_light_of_the_size_gathers_through() {
-        let warmed = warm(36, 18, 4)
-            .unwrap()
-            .expect("a small map records weights");
-        assert_eq!((warmed.width, warmed.height, warmed.n), (36, 18, 4));
-        assert_eq!(warmed.pitch_deg, 0.0);
-        assert!(Arc::ptr_eq(&warmed, &weights(36, 18, 4, 0.0).unwrap()));
-        assert!(warm(8192, 4097, 4).unwrap().is_none());
-        assert!(warm(36, 18, 3).is_err());
-    }
 
     /// A `width` x `height` map: noisy sky, and with `sun` a 2 x 2-pixel source 5000 times
     /// brighter.
