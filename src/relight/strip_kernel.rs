@@ -4,9 +4,9 @@
 //! loop does this strip by strip in plain Rust, and is the twin the tests compare the fast one
 //! with.
 //!
-//! With AVX2 and FMA (detected at run time) the walk over the band's slots sorts them first:
-//! - It skips empty slots by the band's bitmask of occupied ones ([`Strips::occupied`]). On the
-//!   demo bake 94% of (block, coefficient) slots are empty.
+//! Both loops walk a band's slots by its bitmask of the occupied ones ([`Strips::occupied`]),
+//! skipping the empty ones unread: on the demo bake 94% of (block, coefficient) slots are empty.
+//! With AVX2 and FMA (detected at run time) the walk sorts the occupied slots:
 //! - A slot that holds all 32 strips of its block (84% of the strips a K = 200 product reads on
 //!   the demo bake, 75% of all) goes to its block's list. Those are added a panel of 4 strips at
 //!   a time, with the panel's 12 accumulators held in registers across up to 64 terms
@@ -106,13 +106,14 @@ fn accumulator(row: usize, k: usize) -> usize {
 }
 
 /// The product of `t`'s matrix, laid out as `strips`, with `light` (checked against the
-/// transport by the caller): the image, and the strips and stored entries read.
+/// transport by the caller): the image, and the strips, the stored entries and the strips'
+/// places read (the SIMD loop reads no places of a slot that holds its block's every strip).
 pub fn relight_strips(
     t: &Transport,
     strips: &Strips,
     light: &SparseLight,
     path: StripPath,
-) -> (Image, [u64; 2]) {
+) -> (Image, [u64; 3]) {
     match &strips.values {
         Values::Q8(v) => product(t, strips, light, v, path),
         Values::Q16(v) => product(t, strips, light, v, path),
@@ -126,7 +127,7 @@ fn product<V: StripValue>(
     light: &SparseLight,
     values: &[V],
     path: StripPath,
-) -> (Image, [u64; 2]) {
+) -> (Image, [u64; 3]) {
     let (w, h) = (t.meta.width as usize, t.meta.height as usize);
     let mut image = Image::new(w, h);
     let values: &[[V; STRIP_ROWS]] = values.as_chunks::<STRIP_ROWS>().0;
@@ -153,7 +154,7 @@ fn product<V: StripValue>(
                 // The accumulators from the buffer's first cache line on.
                 let line = buffer.as_ptr().align_offset(64).min(LINE_FLOATS);
                 let acc = &mut buffer[line..line + BAND_ACCUMULATORS];
-                let mut read = [0u64; 2];
+                let mut read = [0u64; 3];
                 for band in strips.group_bands(g) {
                     let blocks = strips.band_blocks(band);
                     let job = Band {
@@ -167,7 +168,7 @@ fn product<V: StripValue>(
                     let used = (3 * blocks.len() * BLOCK_ROWS).min(BAND_ACCUMULATORS);
                     let acc = &mut acc[..used];
                     acc.fill(0.0);
-                    let [strips, entries] = if avx2 {
+                    let [strips, entries, places] = if avx2 {
                         #[cfg(target_arch = "x86_64")]
                         // SAFETY: AVX2 and FMA were detected above.
                         unsafe {
@@ -180,6 +181,7 @@ fn product<V: StripValue>(
                     };
                     read[0] += strips;
                     read[1] += entries;
+                    read[2] += places;
                     for b in blocks.clone() {
                         let rows = t.block_row_start[b] as usize..t.block_row_start[b + 1] as usize;
                         let base = (b - blocks.start) * BLOCK_ROWS;
@@ -196,11 +198,12 @@ fn product<V: StripValue>(
                 read
             },
         )
-        .reduce(|| [0, 0], |a, b| [a[0] + b[0], a[1] + b[1]]);
+        .reduce(|| [0; 3], |a, b| std::array::from_fn(|i| a[i] + b[i]));
     (image, read)
 }
 
-fn has_avx2_fma() -> bool {
+/// True when [`StripPath::Best`] runs the SIMD loop: the processor has AVX2 and FMA.
+pub fn has_avx2_fma() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
@@ -269,8 +272,8 @@ impl<V: StripValue> Band<'_, V> {
     }
 
     /// Adds the band's product to `acc`, the accumulators of its rows ([`accumulator`]).
-    fn add_portable(&self, acc: &mut [f32]) -> [u64; 2] {
-        self.walk(
+    fn add_portable(&self, acc: &mut [f32]) -> [u64; 3] {
+        let [strips, entries] = self.walk(
             |_, _, _, _, _| false,
             |v, row, l| {
                 let v = V::widen(v);
@@ -284,7 +287,8 @@ impl<V: StripValue> Band<'_, V> {
                     }
                 }
             },
-        )
+        );
+        [strips, entries, strips]
     }
 
     /// # Safety
@@ -300,7 +304,7 @@ impl<V: StripValue> Band<'_, V> {
         acc: &mut [f32],
         full: &mut [Vec<Full>],
         parts: &mut Vec<Part>,
-    ) -> [u64; 2] {
+    ) -> [u64; 3] {
         use std::arch::x86_64::*;
         // The bounds the pointer arithmetic below relies on: `walk` hands rows of the band's
         // blocks (one per slot of the band), and `acc` holds the accumulators of all of them.
@@ -313,11 +317,16 @@ impl<V: StripValue> Band<'_, V> {
             list.clear();
         }
         parts.clear();
-        let read = self.walk(
+        let [strips, entries] = self.walk(
             |term, i, s0, n, l| {
                 // A block's strip places strictly increase below 32 (checked on load, and so
                 // made by a bake), so a slot of 32 strips holds places 0 to 31 in order.
                 if n == STRIPS_PER_BLOCK && self.values.len() >= s0 + n {
+                    // The panels take strip k of the slot as place k, without reading places.
+                    debug_assert!(
+                        (0..n).all(|k| self.strips.index[s0 + k] as usize == k),
+                        "a whole slot's places are 0 to 31"
+                    );
                     full[i].push(Full { term, first: s0, l });
                 } else {
                     parts.push(Part {
@@ -385,7 +394,8 @@ impl<V: StripValue> Band<'_, V> {
                 unsafe { add_panels(self.values, chunk, block) };
             }
         }
-        read
+        let whole: usize = full[..blocks].iter().map(Vec::len).sum();
+        [strips, entries, strips - (whole * STRIPS_PER_BLOCK) as u64]
     }
 }
 

@@ -225,17 +225,17 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         header.identity.cube_n as usize,
         header.identity.sh_order as usize,
     );
-    // The CPU product's image is made there too, its pages written, when it is no larger than
+    // The CPU product's image is made beside the load too, its pages written, when no larger than
     // the file (a header that lies about the size gets no more memory than the file's).
     let (w, h) = (header.width as usize, header.height as usize);
     let image_ahead =
         gpu.is_none() && std::fs::metadata(&a.file).is_ok_and(|m| (w * h * 12) as u64 <= m.len());
     // The time the load then waits for the light counts as the light's.
     let (t, ahead, waited) = std::thread::scope(|s| {
+        if image_ahead {
+            s.spawn(|| crate::output::film::Image::make_ahead(w, h));
+        }
         let ahead = s.spawn(|| {
-            if image_ahead {
-                crate::output::film::Image::make_ahead(w, h);
-            }
             let start = Instant::now();
             let ctx = LightContext::with_sizes(sizes.0, sizes.1);
             let light = match (&ctx, &env) {
@@ -265,11 +265,12 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let (ctx, light, prepared_in) = ahead;
     // The header read first and the file loaded agree on the sizes but for a file replaced in
     // between; the light is then prepared again for the file loaded.
-    let (ctx, light) = if sizes
+    let beside = sizes
         == (
             t.meta.identity.cube_n as usize,
             t.meta.identity.sh_order as usize,
-        ) {
+        );
+    let (ctx, light) = if beside {
         (ctx?, light)
     } else {
         let ctx = LightContext::new(&t)?;
@@ -387,6 +388,9 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         stats.bytes_touched as f64 / 1048576.0,
         light_ms,
         match &env {
+            Some(_) if !beside => {
+                " (prepared after the load: the file changed after its header was read)".into()
+            }
             Some(_) => format!(
                 " (prepared beside the load in {:.1} ms, {:.1} ms of it after the file loaded)",
                 prepared_in.as_secs_f64() * 1e3,

@@ -60,7 +60,8 @@ pub struct Strips {
     /// Group g holds bands `group_band_start[g] .. group_band_start[g + 1]`.
     pub group_band_start: Vec<u32>,
     /// Per band, coefficient and block of the band, in that order: where its strips are, so a
-    /// term's slots of one band are side by side.
+    /// term's slots of one band are side by side. The bitmask of occupied slots the kernels walk
+    /// by ([`Strips::occupied`]) is made with them: they are not to be changed on their own.
     pub slots: Vec<Slot>,
     /// Per strip: its place in its block (rows `8 s .. 8 s + 8`).
     pub index: Vec<u8>,
@@ -367,7 +368,9 @@ impl Strips {
                         term.iter()
                             .enumerate()
                             .filter(|(_, s)| s.count > 0)
-                            .fold(0u16, |m, (i, _)| m | 1 << (i % 16))
+                            .fold(0u16, |m, (i, _)| {
+                                m | 1u16.checked_shl(i as u32).unwrap_or(0)
+                            })
                     })
                 })
             })
