@@ -163,7 +163,7 @@ fn relight(c: &mut Criterion) {
         if [200, total].contains(&k) {
             let strips = &t.strips;
             // It reads every strip's place, where the SIMD loop skips those of whole slots.
-            let places = |path| relight_strips(&t, strips, &sparse, path).1[2];
+            let places = |path| relight_strips(&t, strips, &sparse, path).1.places;
             let more = places(StripPath::Portable) - places(StripPath::Best);
             g.throughput(Throughput::Bytes(stats.bytes_touched + more));
             g.bench_with_input(BenchmarkId::new("wavelet_portable", k), &sparse, |b, s| {

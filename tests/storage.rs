@@ -377,7 +377,7 @@ fn strips_hold_every_entry_once_in_light_major_bands() {
 /// strip by strip; the sparse ones hold only the latter.
 #[test]
 fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
-    use wavelet_prt::relight::strip_kernel::{StripPath, has_avx2_fma, relight_strips};
+    use wavelet_prt::relight::strip_kernel::{Read, StripPath, has_avx2_fma, relight_strips};
     use wavelet_prt::store::transport::strips::STRIPS_PER_BLOCK;
     if !has_avx2_fma() {
         eprintln!("no AVX2 and FMA: the SIMD loop is not run, only the portable one");
@@ -422,43 +422,36 @@ fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
             let (best, best_read) = relight_strips(&t, s, &light, StripPath::Best);
             let (portable, read) = relight_strips(&t, s, &light, StripPath::Portable);
             let (strips, entries) = s.read_by(&light.indices, c);
+            // The kept terms' slots that hold strips (the bitmask the loops walk by must name
+            // exactly these), and the strips of those that hold all their block's, whose places
+            // the SIMD loop does not read.
+            let (mut occupied, mut whole) = (0u64, 0u64);
+            for band in 0..s.band_count() {
+                for &j in &light.indices {
+                    for slot in s.term_slots(band, j as usize, c) {
+                        occupied += (slot.count > 0) as u64;
+                        if slot.count as usize == STRIPS_PER_BLOCK {
+                            whole += STRIPS_PER_BLOCK as u64;
+                        }
+                    }
+                }
+            }
+            let want = Read {
+                strips,
+                entries,
+                places: strips,
+                slots: occupied,
+            };
             assert_eq!(
-                read,
-                [strips, entries, strips],
+                read, want,
                 "{q} K = {k}: what the portable loop says it read"
             );
-            // The SIMD loop reads no places of a slot of all its block's strips.
-            let whole: u64 = (0..s.band_count())
-                .map(|band| {
-                    let slots = light
-                        .indices
-                        .iter()
-                        .flat_map(|&j| s.term_slots(band, j as usize, c));
-                    let whole = slots.filter(|slot| slot.count as usize == STRIPS_PER_BLOCK);
-                    (whole.count() * STRIPS_PER_BLOCK) as u64
-                })
-                .sum();
             let places = if has_avx2_fma() {
                 strips - whole
             } else {
                 strips
             };
-            assert_eq!(best_read, [strips, entries, places], "{q} K = {k}");
-            // The bitmask the kernel walks by names exactly the slots that hold strips.
-            let occupied: usize = (0..s.band_count())
-                .map(|band| {
-                    let slots = light
-                        .indices
-                        .iter()
-                        .flat_map(|&j| s.term_slots(band, j as usize, c));
-                    slots.filter(|slot| slot.count > 0).count()
-                })
-                .sum();
-            assert_eq!(
-                s.occupied_slots(&light.indices, c),
-                occupied as u64,
-                "{q} K = {k}"
-            );
+            assert_eq!(best_read, Read { places, ..want }, "{q} K = {k}");
             for (name, img) in [("best", &best), ("portable", &portable)] {
                 let e = relative_l2(img, &dense, None).unwrap();
                 assert!(e < SAME_SUM, "{q} K = {k}: {name} vs dense {e}");

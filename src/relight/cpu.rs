@@ -28,17 +28,16 @@ pub fn relight_wavelet(t: &Transport, light: &SparseLight) -> Result<(Image, Rel
     }
     let strips = &t.strips;
     let start = Instant::now();
-    let (image, [read, entries, places]) = relight_strips(t, strips, light, StripPath::Best);
+    let (image, read) = relight_strips(t, strips, light, StripPath::Best);
     let kernel_seconds = start.elapsed().as_secs_f64();
     let stats = RelightStats {
         terms: light.len(),
-        nonzeros_touched: entries,
+        nonzeros_touched: read.entries,
         // The strips' values and the places read, the slots that hold them, and a band's
         // bitmask of those per term.
-        bytes_touched: read * (STRIP_ROWS * t.strips.values.value_bytes()) as u64
-            + places
-            + t.strips.occupied_slots(&light.indices, t.coeff_count())
-                * std::mem::size_of::<Slot>() as u64
+        bytes_touched: read.strips * (STRIP_ROWS * t.strips.values.value_bytes()) as u64
+            + read.places
+            + read.slots * std::mem::size_of::<Slot>() as u64
             + (t.strips.band_count() * light.len() * std::mem::size_of::<u16>()) as u64,
         kernel_seconds,
         light_columns: 0,

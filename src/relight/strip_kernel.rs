@@ -34,6 +34,32 @@ use crate::store::quant::{BLOCK_ROWS, scale_table};
 use crate::store::transport::strips::{BAND_BLOCKS, STRIP_ROWS, STRIPS_PER_BLOCK, Strips};
 use crate::store::transport::{TILE, Transport, Values};
 
+/// What a product read.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Read {
+    /// Strips of 8 values.
+    pub strips: u64,
+    /// Stored entries those strips hold.
+    pub entries: u64,
+    /// Strip places (a byte each): the SIMD loop reads none of a slot that holds its block's
+    /// every strip.
+    pub places: u64,
+    /// Occupied slots, each a (block, coefficient)'s table entry.
+    pub slots: u64,
+}
+
+impl std::ops::Add for Read {
+    type Output = Read;
+    fn add(self, o: Read) -> Read {
+        Read {
+            strips: self.strips + o.strips,
+            entries: self.entries + o.entries,
+            places: self.places + o.places,
+            slots: self.slots + o.slots,
+        }
+    }
+}
+
 /// Which inner loop a product runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StripPath {
@@ -106,14 +132,13 @@ fn accumulator(row: usize, k: usize) -> usize {
 }
 
 /// The product of `t`'s matrix, laid out as `strips`, with `light` (checked against the
-/// transport by the caller): the image, and the strips, the stored entries and the strips'
-/// places read (the SIMD loop reads no places of a slot that holds its block's every strip).
+/// transport by the caller): the image, and what it read.
 pub fn relight_strips(
     t: &Transport,
     strips: &Strips,
     light: &SparseLight,
     path: StripPath,
-) -> (Image, [u64; 3]) {
+) -> (Image, Read) {
     match &strips.values {
         Values::Q8(v) => product(t, strips, light, v, path),
         Values::Q16(v) => product(t, strips, light, v, path),
@@ -127,7 +152,7 @@ fn product<V: StripValue>(
     light: &SparseLight,
     values: &[V],
     path: StripPath,
-) -> (Image, [u64; 3]) {
+) -> (Image, Read) {
     let (w, h) = (t.meta.width as usize, t.meta.height as usize);
     let mut image = Image::new(w, h);
     let values: &[[V; STRIP_ROWS]] = values.as_chunks::<STRIP_ROWS>().0;
@@ -154,7 +179,7 @@ fn product<V: StripValue>(
                 // The accumulators from the buffer's first cache line on.
                 let line = buffer.as_ptr().align_offset(64).min(LINE_FLOATS);
                 let acc = &mut buffer[line..line + BAND_ACCUMULATORS];
-                let mut read = [0u64; 3];
+                let mut read = Read::default();
                 for band in strips.group_bands(g) {
                     let blocks = strips.band_blocks(band);
                     let job = Band {
@@ -168,20 +193,18 @@ fn product<V: StripValue>(
                     let used = (3 * blocks.len() * BLOCK_ROWS).min(BAND_ACCUMULATORS);
                     let acc = &mut acc[..used];
                     acc.fill(0.0);
-                    let [strips, entries, places] = if avx2 {
-                        #[cfg(target_arch = "x86_64")]
-                        // SAFETY: AVX2 and FMA were detected above.
-                        unsafe {
-                            job.add_avx2(acc, full, parts)
-                        }
-                        #[cfg(not(target_arch = "x86_64"))]
-                        unreachable!()
-                    } else {
-                        job.add_portable(acc)
-                    };
-                    read[0] += strips;
-                    read[1] += entries;
-                    read[2] += places;
+                    read = read
+                        + if avx2 {
+                            #[cfg(target_arch = "x86_64")]
+                            // SAFETY: AVX2 and FMA were detected above.
+                            unsafe {
+                                job.add_avx2(acc, full, parts)
+                            }
+                            #[cfg(not(target_arch = "x86_64"))]
+                            unreachable!()
+                        } else {
+                            job.add_portable(acc)
+                        };
                     for b in blocks.clone() {
                         let rows = t.block_row_start[b] as usize..t.block_row_start[b + 1] as usize;
                         let base = (b - blocks.start) * BLOCK_ROWS;
@@ -198,7 +221,7 @@ fn product<V: StripValue>(
                 read
             },
         )
-        .reduce(|| [0; 3], |a, b| std::array::from_fn(|i| a[i] + b[i]));
+        .reduce(Read::default, |a, b| a + b);
     (image, read)
 }
 
@@ -224,19 +247,13 @@ struct Band<'a, V> {
 }
 
 impl<V: StripValue> Band<'_, V> {
-    /// Walks the band's strips term by term, handing each strip's values, the accumulator row
-    /// it starts at and the scaled light term to `add`; a slot that `full` takes (its block
-    /// within the band, its first strip, the scaled term) is left to it. Returns the strips and
-    /// stored entries read.
+    /// Hands each occupied slot of the band to `visit`, term by term (skipping the empty ones by
+    /// the band's bitmask); returns what those slots hold, every strip's place counted.
     #[inline(always)]
-    fn walk(
-        &self,
-        mut full: impl FnMut(usize, usize, usize, usize, [f32; 3]) -> bool,
-        mut add: impl FnMut(&[V; STRIP_ROWS], usize, [f32; 3]),
-    ) -> [u64; 2] {
+    fn walk(&self, mut visit: impl FnMut(Run)) -> Read {
         let c = self.t.coeff_count();
         let scales = scale_table();
-        let (mut strips, mut entries) = (0u64, 0u64);
+        let mut read = Read::default();
         for (term, (&j, l)) in self
             .light
             .indices
@@ -247,48 +264,53 @@ impl<V: StripValue> Band<'_, V> {
             let slots = self.strips.term_slots(self.band, j as usize, c);
             let mut occupied = self.strips.occupied(self.band, j as usize, c);
             while occupied != 0 {
-                let i = occupied.trailing_zeros() as usize;
+                let block = occupied.trailing_zeros() as usize;
                 occupied &= occupied - 1;
-                let slot = slots[i];
-                let n = slot.count as usize;
-                let s0 = slot.first as usize;
-                strips += n as u64;
-                entries += slot.entries as u64;
+                let slot = slots[block];
+                read.slots += 1;
+                read.strips += slot.count as u64;
+                read.entries += slot.entries as u64;
                 let sc = scales[slot.code as usize];
-                let l = [l[0] * sc, l[1] * sc, l[2] * sc];
-                if full(term, i, s0, n, l) {
-                    continue;
-                }
-                let base = i * BLOCK_ROWS;
-                for (v, &k) in self.values[s0..s0 + n]
-                    .iter()
-                    .zip(&self.strips.index[s0..s0 + n])
-                {
-                    add(v, base + (k as usize % STRIPS_PER_BLOCK) * STRIP_ROWS, l);
-                }
+                visit(Run {
+                    term,
+                    block,
+                    first: slot.first as usize,
+                    count: slot.count as usize,
+                    l: [l[0] * sc, l[1] * sc, l[2] * sc],
+                });
             }
         }
-        [strips, entries]
+        read.places = read.strips;
+        read
+    }
+
+    /// A run's strips: each one's values and the band's row it starts at.
+    #[inline(always)]
+    fn strips_of(&self, run: &Run) -> impl Iterator<Item = (&[V; STRIP_ROWS], usize)> {
+        let strips = run.first..run.first + run.count;
+        let base = run.block * BLOCK_ROWS;
+        self.values[strips.clone()]
+            .iter()
+            .zip(&self.strips.index[strips])
+            .map(move |(v, &k)| (v, base + (k as usize % STRIPS_PER_BLOCK) * STRIP_ROWS))
     }
 
     /// Adds the band's product to `acc`, the accumulators of its rows ([`accumulator`]).
-    fn add_portable(&self, acc: &mut [f32]) -> [u64; 3] {
-        let [strips, entries] = self.walk(
-            |_, _, _, _, _| false,
-            |v, row, l| {
+    fn add_portable(&self, acc: &mut [f32]) -> Read {
+        self.walk(|run| {
+            for (v, row) in self.strips_of(&run) {
                 let v = V::widen(v);
                 let at = accumulator(row, 0);
                 let lanes: &mut [f32; 3 * STRIP_ROWS] = (&mut acc[at..at + 3 * STRIP_ROWS])
                     .try_into()
                     .expect("a strip inside the band");
-                for (a, l) in lanes.chunks_exact_mut(STRIP_ROWS).zip(l) {
+                for (a, l) in lanes.chunks_exact_mut(STRIP_ROWS).zip(run.l) {
                     for k in 0..STRIP_ROWS {
                         a[k] += v[k] * l;
                     }
                 }
-            },
-        );
-        [strips, entries, strips]
+            }
+        })
     }
 
     /// # Safety
@@ -302,9 +324,9 @@ impl<V: StripValue> Band<'_, V> {
     unsafe fn add_avx2(
         &self,
         acc: &mut [f32],
-        full: &mut [Vec<Full>],
-        parts: &mut Vec<Part>,
-    ) -> [u64; 3] {
+        full: &mut [Vec<Run>],
+        parts: &mut Vec<Run>,
+    ) -> Read {
         use std::arch::x86_64::*;
         // The bounds the pointer arithmetic below relies on: `walk` hands rows of the band's
         // blocks (one per slot of the band), and `acc` holds the accumulators of all of them.
@@ -317,29 +339,20 @@ impl<V: StripValue> Band<'_, V> {
             list.clear();
         }
         parts.clear();
-        let [strips, entries] = self.walk(
-            |term, i, s0, n, l| {
-                // A block's strip places strictly increase below 32 (checked on load, and so
-                // made by a bake), so a slot of 32 strips holds places 0 to 31 in order.
-                if n == STRIPS_PER_BLOCK && self.values.len() >= s0 + n {
-                    // The panels take strip k of the slot as place k, without reading places.
-                    debug_assert!(
-                        (0..n).all(|k| self.strips.index[s0 + k] as usize == k),
-                        "a whole slot's places are 0 to 31"
-                    );
-                    full[i].push(Full { term, first: s0, l });
-                } else {
-                    parts.push(Part {
-                        first: s0,
-                        count: n,
-                        row: i * BLOCK_ROWS,
-                        l,
-                    });
-                }
-                true
-            },
-            |_, _, _| unreachable!("every slot is taken above"),
-        );
+        let mut read = self.walk(|run| {
+            // A block's strip places strictly increase below 32 (checked on load, and so made
+            // by a bake), so a slot of 32 strips holds places 0 to 31 in order.
+            if run.count == STRIPS_PER_BLOCK && self.values.len() >= run.first + run.count {
+                // The panels take strip k of the slot as place k, without reading places.
+                debug_assert!(
+                    (0..run.count).all(|k| self.strips.index[run.first + k] as usize == k),
+                    "a whole slot's places are 0 to 31"
+                );
+                full[run.block].push(run);
+            } else {
+                parts.push(run);
+            }
+        });
         // The slots of some of the block's strips, in the order they were walked, each fetched
         // a few slots ahead: they are short runs scattered among the whole ones, which the
         // hardware does not foresee.
@@ -354,12 +367,7 @@ impl<V: StripValue> Band<'_, V> {
                     _mm_prefetch::<_MM_HINT_T0>(at.wrapping_add(line));
                 }
             }
-            let strips = part.first..part.first + part.count;
-            for (v, &place) in self.values[strips.clone()]
-                .iter()
-                .zip(&self.strips.index[strips])
-            {
-                let row = part.row + (place as usize % STRIPS_PER_BLOCK) * STRIP_ROWS;
+            for (v, row) in self.strips_of(part) {
                 // SAFETY: `row` is a block's start inside the band plus a strip's start inside
                 // its block (reduced modulo the strips of a block), a multiple of 8 below the
                 // band's rows, so its strip's 24 accumulators lie inside `acc` (asserted above);
@@ -395,31 +403,24 @@ impl<V: StripValue> Band<'_, V> {
             }
         }
         let whole: usize = full[..blocks].iter().map(Vec::len).sum();
-        [strips, entries, strips - (whole * STRIPS_PER_BLOCK) as u64]
+        read.places -= (whole * STRIPS_PER_BLOCK) as u64;
+        read
     }
 }
 
-/// A slot that holds some of its block's strips: its first strip, their count, the band's row its
-/// block starts at, and its scaled light term.
+/// An occupied slot as the walk hands it: its term's place in the light's list, its block within
+/// the band, its first strip and their count, and its scaled light term.
 #[derive(Clone, Copy, Debug)]
-struct Part {
+struct Run {
+    term: usize,
+    block: usize,
     first: usize,
     count: usize,
-    row: usize,
     l: [f32; 3],
 }
 
 /// How many slots ahead the strip loop fetches a slot's values.
 const PART_AHEAD: usize = 4;
-
-/// A slot that holds every strip of its block: its first strip and its scaled light term.
-#[derive(Clone, Copy, Debug)]
-struct Full {
-    /// Its term's place in the light's list.
-    term: usize,
-    first: usize,
-    l: [f32; 3],
-}
 
 /// Strips of a panel: their 3 x 4 accumulators and a strip's values fit the 16 vector registers.
 const PANEL: usize = 4;
@@ -427,7 +428,7 @@ const PANEL: usize = 4;
 /// bytes) stay in the first-level cache while the block's 8 panels read them.
 const PANEL_TERMS: usize = 64;
 
-/// Adds every slot of `list` (all of a block's strips, by [`Full`]) to `block`, the block's
+/// Adds every slot of `list` (each of all its block's strips) to `block`, the block's
 /// accumulators: a panel of [`PANEL`] strips at a time, its accumulators in registers across up
 /// to [`PANEL_TERMS`] terms, so each strip costs one load and three fused multiply-adds rather
 /// than three loads and three stores besides.
@@ -438,7 +439,7 @@ const PANEL_TERMS: usize = 64;
 #[target_feature(enable = "avx2,fma")]
 unsafe fn add_panels<V: StripValue>(
     values: &[[V; STRIP_ROWS]],
-    list: &[Full],
+    list: &[Run],
     block: &mut [f32; 3 * BLOCK_ROWS],
 ) {
     use std::arch::x86_64::*;

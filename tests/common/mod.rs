@@ -327,7 +327,15 @@ pub fn random_transport(
     seed: u64,
     scale: f32,
 ) -> Transport {
-    let (meta, tiles) = random_rows(w, h, n, quantization, seed, scale);
+    assemble_random(w, h, random_rows(w, h, n, quantization, seed, scale))
+}
+
+/// A transport of these random rows: grey albedo, every pixel covered, zero tile statistics.
+fn assemble_random(
+    w: usize,
+    h: usize,
+    (meta, tiles): (TransportMeta, Vec<Vec<RowData>>),
+) -> Transport {
     let (tx, ty) = tile_grid(w, h);
     Transport::assemble(
         meta,
@@ -349,16 +357,8 @@ pub fn random_transport_of_density(
     seed: u64,
     density: f32,
 ) -> Transport {
-    let (meta, tiles) = random_rows_of_density(w, h, n, quantization, seed, 1e-3, density);
-    let (tx, ty) = tile_grid(w, h);
-    Transport::assemble(
-        meta,
-        tiles,
-        vec![[0.5; 3]; w * h],
-        vec![1.0; w * h],
-        vec![[0.0; 3]; tx * ty],
-    )
-    .unwrap()
+    let rows = random_rows_of_density(w, h, n, quantization, seed, 1e-3, density);
+    assemble_random(w, h, rows)
 }
 
 /// The header and the rows, tile by tile, that [`random_transport`] assembles.

@@ -485,19 +485,6 @@ impl Strips {
         read
     }
 
-    /// The slots a product with the light terms `indices` reads, for a transport of `c`
-    /// coefficients: those that hold strips (the others it skips by [`Strips::occupied`]).
-    pub fn occupied_slots(&self, indices: &[u32], c: usize) -> u64 {
-        (0..self.band_count())
-            .map(|band| {
-                indices
-                    .iter()
-                    .map(|&j| self.occupied(band, j as usize, c).count_ones() as u64)
-                    .sum::<u64>()
-            })
-            .sum()
-    }
-
     /// Per slot, in order, its strip count and its scale code: the two tables a file stores.
     pub fn slot_tables(&self) -> (Vec<u8>, Vec<u8>) {
         (
