@@ -3,7 +3,8 @@
 //! pixel of an every-STRIDE-th grid, one ray a cube texel at N = 32, on the side the normal
 //! faces; a default bake adds sub-texel rays on shadow borders, which are left out here),
 //! with the scene's triangles, so that `scripts/embree_shadow_rays.py` can trace the same rays
-//! with Embree's one-ray query (`rtcOccluded1`) and compare the rates.
+//! with Embree's one-ray query (`rtcOccluded1`) and compare the rates. They are timed as the bake
+//! traces them: each shading point's rays through one `Tracer::rays_from`.
 //!
 //! ```sh
 //! cargo run --release --example shadow_rays -- assets/scenes/demo.toml DIR [STRIDE]
@@ -82,10 +83,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut seconds = Vec::new();
     for _ in 0..PASSES {
         let start = Instant::now();
+        // As the bake traces them: the rays of one shading point together.
+        let mut from: Option<(glam::Vec3, _)> = None;
         for (r, o) in rays.iter().zip(&mut occluded) {
             let origin = glam::Vec3::new(r[0], r[1], r[2]);
             let d = glam::Vec3::new(r[3], r[4], r[5]);
-            *o = tracer.occluded(origin, d, r[6]) as u8;
+            let rays_from = match &mut from {
+                Some((at, q)) if *at == origin => q,
+                _ => &mut from.insert((origin, tracer.rays_from(origin))).1,
+            };
+            *o = rays_from.occluded(d, r[6]) as u8;
         }
         seconds.push(start.elapsed().as_secs_f64());
     }

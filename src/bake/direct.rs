@@ -28,7 +28,7 @@ use crate::math::sampling::TexelSamples;
 use crate::math::texel_quadrature::TexelQuadrature;
 use crate::medium::Medium;
 use crate::scene::brdf;
-use crate::scene::trace::Tracer;
+use crate::scene::trace::{RaysFrom, Tracer};
 
 /// A GGX lobe's texels are summed over their sub-texels where its distribution is above this
 /// fraction of its peak: D(h)/D(0) ≈ (α²/(α² + tan²θ_h))², so out to tan θ_h = 3α, twice that
@@ -64,8 +64,7 @@ impl Centre {
 
 /// A shading point's shadow rays, counted.
 struct ShadowRays<'a> {
-    tracer: &'a Tracer,
-    origin: Vec3,
+    from: RaysFrom<'a>,
     unshadowed: bool,
     rays: u64,
 }
@@ -77,7 +76,7 @@ impl ShadowRays<'_> {
             return true;
         }
         self.rays += 1;
-        !self.tracer.occluded(self.origin, d, f32::INFINITY)
+        !self.from.occluded(d, f32::INFINITY)
     }
 }
 
@@ -99,6 +98,7 @@ pub fn direct_texels(
     }
     let m = samples.per_texel;
     let mut rays = 0u64;
+    let mut shadow = tracer.rays_from(sp.origin);
     for j in 0..samples.dirs.len() / m {
         let dirs = &samples.dirs[j * m..(j + 1) * m];
         let weights = &samples.weights[j * m..(j + 1) * m];
@@ -110,7 +110,7 @@ pub fn direct_texels(
             let mut w = *w;
             if !unshadowed {
                 rays += 1;
-                if tracer.occluded(sp.origin, *d, f32::INFINITY) {
+                if shadow.occluded(*d, f32::INFINITY) {
                     continue;
                 }
                 if let Some(m) = medium {
@@ -141,8 +141,7 @@ fn integrated_texels(
 ) -> u64 {
     let n = sp.normal;
     let mut shadow = ShadowRays {
-        tracer,
-        origin: sp.origin,
+        from: tracer.rays_from(sp.origin),
         unshadowed,
         rays: 0,
     };

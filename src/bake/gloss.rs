@@ -32,6 +32,7 @@ pub fn accumulate_term_rows(
     let (t, b) = local_frame(sp.normal);
     let mut rays = 0u64;
     let mut acc = vec![0.0f32; k_b];
+    let mut shadow = tracer.rays_from(sp.origin);
     for (j, out) in diffuse.iter_mut().enumerate() {
         let dirs = &samples.dirs[j * m..(j + 1) * m];
         let weights = &samples.weights[j * m..(j + 1) * m];
@@ -42,7 +43,7 @@ pub fn accumulate_term_rows(
             }
             if !unshadowed {
                 rays += 1;
-                if tracer.occluded(sp.origin, *d, f32::INFINITY) {
+                if shadow.occluded(*d, f32::INFINITY) {
                     continue;
                 }
             }

@@ -101,13 +101,14 @@ impl Corner {
         };
         if let Some(cube) = shadows {
             let sp = shading_point(tracer, &hit, ray.dir);
+            let mut rays = tracer.rays_from(sp.origin);
             for (i, d) in cube.dirs.iter().enumerate() {
                 if sp.normal.dot(*d) <= 0.0 {
                     continue;
                 }
                 let bit = 1u64 << (i % 64);
                 corner.front[i / 64] |= bit;
-                if !tracer.occluded(sp.origin, *d, f32::INFINITY) {
+                if !rays.occluded(*d, f32::INFINITY) {
                     corner.open[i / 64] |= bit;
                 }
             }

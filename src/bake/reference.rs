@@ -115,8 +115,9 @@ pub fn render_reference_lit(
                         seen = m.transmittance(ray.origin, ray.dir, t_hit) as f64;
                         m.march_camera(ray.origin, ray.dir, t_hit, &mut march);
                         for s in &march {
+                            let mut shadow = tracer.rays_from(s.pos);
                             for (d, w) in samples.dirs.iter().zip(&samples.weights) {
-                                if tracer.occluded(s.pos, *d, f32::INFINITY) {
+                                if shadow.occluded(*d, f32::INFINITY) {
                                     continue;
                                 }
                                 let tau = m.optical_depth(s.pos, *d, f32::INFINITY);

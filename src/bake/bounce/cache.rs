@@ -234,10 +234,11 @@ impl VisibilityCache {
                 let transmittance = light.map_or(Vec::new(), |l| l.surface_transmittance(c.origin));
                 let mut bits = vec![0u64; cache.words];
                 let mut rays = 0;
+                let mut shadow = tracer.rays_from(c.origin);
                 for (s, d) in samples.dirs.iter().enumerate() {
                     if c.normal.dot(*d) > 0.0 {
                         rays += 1;
-                        if !tracer.occluded(c.origin, *d, f32::INFINITY) {
+                        if !shadow.occluded(*d, f32::INFINITY) {
                             bits[s / 64] |= 1 << (s % 64);
                         }
                     }

@@ -295,6 +295,7 @@ impl<'a> Bounces<'a> {
                 }
             }
             vis => {
+                let mut shadow = self.tracer.rays_from(at.origin);
                 for (s, d) in dirs.iter().enumerate() {
                     let cos = at.normal.dot(*d);
                     if cos <= 0.0 {
@@ -302,7 +303,7 @@ impl<'a> Bounces<'a> {
                     }
                     if matches!(vis, Visibility::Trace) {
                         rays += 1;
-                        if self.tracer.occluded(at.origin, *d, f32::INFINITY) {
+                        if shadow.occluded(*d, f32::INFINITY) {
                             continue;
                         }
                     }

@@ -1,11 +1,13 @@
 //! Ray queries against a loaded [`Scene`]: closest hit for camera rays and any-hit occlusion
 //! for the visibility rays of the bake.
 //!
-//! Triangles go into an eight-wide compressed BVH (obvhs' CWBVH, built with spatial pre-splits
-//! so that large triangles such as a ground quad do not bloat the nodes); spheres get a BVH of
-//! their own over their bounding boxes. Both are traversed with SIMD node tests. The tracer is
-//! immutable after construction, so one instance is shared by all threads, and every query is
-//! deterministic.
+//! For closest hits, triangles go into an eight-wide compressed BVH (obvhs' CWBVH, built with
+//! spatial pre-splits so that large triangles such as a ground quad do not bloat the nodes);
+//! spheres get a BVH of their own over their bounding boxes. Occlusion, the bake's bulk, goes
+//! through a four-wide BVH with plain boxes and leaves of four triangles (`wide`), and rays from
+//! one point ([`Tracer::rays_from`]) share its stack and try the last ray's occluder first. All
+//! are traversed with SIMD tests. The tracer is immutable after construction, so one instance is
+//! shared by all threads, and every query is deterministic.
 
 use std::time::Duration;
 
@@ -19,6 +21,8 @@ use obvhs::triangle::Triangle as BvhTriangle;
 
 use crate::scene::{Scene, Sphere};
 
+mod wide;
+
 /// Self-intersection offset as a fraction of the scene's extent. Hit points computed in f32 are
 /// off by a few ulps of the coordinates (about 1e-7 relative); 1e-5 clears that a hundredfold
 /// while staying far below any feature worth resolving.
@@ -28,6 +32,11 @@ pub const SPAWN_OFFSET_RELATIVE: f32 = 1e-5;
 /// edge shared by two triangles rounding can put the ray just outside both. Accepting a hair
 /// outside closes those cracks; the overlap it creates is harmless for visibility.
 const BARYCENTRIC_SLACK: f32 = 1e-6;
+
+/// How far the occlusion BVH's boxes reach past their triangles, as a fraction of the scene's
+/// extent: ten f32 ulps of its coordinates, which covers the slab test's rounding and the
+/// barycentric slack (a millionth of a triangle's edge).
+const OCCLUSION_PAD_RELATIVE: f32 = 1e-6;
 
 /// A ray's intersection with a surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -175,6 +184,41 @@ fn traverse_any(bvh: &CwBvh, ray: &BvhRay, mut test: impl FnMut(usize) -> bool) 
     hit
 }
 
+/// Occlusion queries from one origin; see [`Tracer::rays_from`].
+pub struct RaysFrom<'a> {
+    tracer: &'a Tracer,
+    origin: Vec3,
+    scratch: wide::Scratch,
+}
+
+impl RaysFrom<'_> {
+    /// Whether anything lies along `origin + t * dir` for t in (0, `t_max`), as
+    /// [`Tracer::occluded`].
+    pub fn occluded(&mut self, dir: Vec3, t_max: f32) -> bool {
+        let tracer = self.tracer;
+        if let (Some(wide), true) = (&tracer.occlusion, tracer.spheres.is_empty()) {
+            // The common case, without the BVH ray the spheres' traversal needs; the same
+            // refusals as `Tracer::bvh_ray`.
+            let ok = self.origin.is_finite() && dir.is_finite() && dir != Vec3::ZERO && t_max > 0.0;
+            return ok && wide.occluded(self.origin.into(), dir.into(), t_max, &mut self.scratch);
+        }
+        let Some(ray) = Tracer::bvh_ray(self.origin, dir, t_max) else {
+            return false;
+        };
+        let (o, d) = (ray.origin, ray.direction);
+        // Spheres first: there are few of them and they tend to be big occluders.
+        traverse_any(&tracer.sphere_bvh, &ray, |slot| {
+            let s = &tracer.spheres[slot];
+            intersect_sphere(s.center.into(), s.radius, o, d, t_max).is_some()
+        }) || match &tracer.occlusion {
+            Some(wide) => wide.occluded(o, d, t_max, &mut self.scratch),
+            None => traverse_any(&tracer.triangle_bvh, &ray, |slot| {
+                intersect_triangle(&tracer.packed[slot], o, d, t_max).is_some()
+            }),
+        }
+    }
+}
+
 /// Ray-tracing acceleration structure over a scene. Build once with [`Tracer::new`], then
 /// query from any number of threads (it is `Send + Sync`).
 pub struct Tracer {
@@ -188,6 +232,8 @@ pub struct Tracer {
     sphere_bvh: CwBvh,
     /// Spheres in BVH slot order.
     spheres: Vec<Sphere>,
+    /// The triangles' occlusion BVH, where it could be built (see [`wide::WideBvh::build`]).
+    occlusion: Option<wide::WideBvh>,
     spawn_offset: f32,
 }
 
@@ -264,6 +310,8 @@ impl Tracer {
             .max_element()
             .max((hi - lo).max_element());
         let spawn_offset = SPAWN_OFFSET_RELATIVE * extent.max(f32::MIN_POSITIVE);
+        let corners: Vec<[Vec3; 3]> = scene.triangles.iter().map(|t| t.vertices).collect();
+        let occlusion = wide::WideBvh::build(&corners, OCCLUSION_PAD_RELATIVE * extent);
 
         Tracer {
             triangle_bvh,
@@ -272,6 +320,7 @@ impl Tracer {
             shading,
             sphere_bvh,
             spheres,
+            occlusion,
             spawn_offset,
         }
     }
@@ -347,19 +396,21 @@ impl Tracer {
     }
 
     /// Whether anything lies along `origin + t * dir` for t in (0, `t_max`). Stops at the first
-    /// hit found, in no particular order, so it is cheaper than [`Tracer::closest_hit`].
+    /// hit found, in no particular order, so it is cheaper than [`Tracer::closest_hit`]. Rays
+    /// that share an origin are cheaper through [`Tracer::rays_from`].
     pub fn occluded(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
-        let Some(ray) = Self::bvh_ray(origin, dir, t_max) else {
-            return false;
-        };
-        let (o, d) = (ray.origin, ray.direction);
-        // Spheres first: there are few of them and they tend to be big occluders.
-        traverse_any(&self.sphere_bvh, &ray, |slot| {
-            let s = &self.spheres[slot];
-            intersect_sphere(s.center.into(), s.radius, o, d, t_max).is_some()
-        }) || traverse_any(&self.triangle_bvh, &ray, |slot| {
-            intersect_triangle(&self.packed[slot], o, d, t_max).is_some()
-        })
+        self.rays_from(origin).occluded(dir, t_max)
+    }
+
+    /// Occlusion queries from one point, such as a shading point's shadow rays: they share a
+    /// traversal stack and try the last ray's occluder first. Each answers as
+    /// [`Tracer::occluded`] does.
+    pub fn rays_from(&self, origin: Vec3) -> RaysFrom<'_> {
+        RaysFrom {
+            tracer: self,
+            origin,
+            scratch: wide::Scratch::default(),
+        }
     }
 
     /// Distance by which to move a ray origin off a surface to avoid hitting that same surface
@@ -732,6 +783,86 @@ material = \"clay\"
         // The test only means something if both outcomes are common.
         assert!(hits > RAYS / 10 && hits < RAYS * 9 / 10, "{hits} hits");
         assert_eq!(hits, occluded);
+    }
+
+    /// The occlusion BVH and the stack and occluder that rays from one point share, against
+    /// the compressed BVH's any-hit traversal (its slow twin) and brute force, on the demo's
+    /// teapot scene from shading points of a camera grid.
+    #[test]
+    fn rays_from_a_point_agree_with_the_compressed_bvh_and_brute_force() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/demo.toml");
+        let scene = Scene::load(&path).unwrap();
+        assert!(
+            scene.spheres.is_empty(),
+            "the fast path is for triangles only"
+        );
+        let tracer = Tracer::new(&scene);
+        assert!(tracer.occlusion.is_some());
+        let twin = Tracer {
+            occlusion: None,
+            ..Tracer::new(&scene)
+        };
+        let mut rng = Rng(0xfeed_5eed);
+        let axes = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
+        let dirs: Vec<Vec3> = (0..1500)
+            .map(|i| if i < 6 { axes[i] } else { rng.unit_vector() })
+            .collect();
+        let cam = &scene.camera;
+        let (mut rays, mut blocked) = (0usize, 0usize);
+        for y in 0..6 {
+            for x in 0..6 {
+                let ray = cam.ray(
+                    (x as f32 + 0.5) * cam.width as f32 / 6.0,
+                    (y as f32 + 0.5) * cam.height as f32 / 6.0,
+                );
+                let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
+                    continue;
+                };
+                let origin = hit.point + hit.geometric_normal * tracer.spawn_offset();
+                let mut from = tracer.rays_from(origin);
+                let forward: Vec<bool> = dirs
+                    .iter()
+                    .map(|d| from.occluded(*d, f32::INFINITY))
+                    .collect();
+                let mut from = tracer.rays_from(origin);
+                let backward: Vec<bool> = dirs
+                    .iter()
+                    .rev()
+                    .map(|d| from.occluded(*d, f32::INFINITY))
+                    .collect();
+                for (i, d) in dirs.iter().enumerate() {
+                    let expected = twin.occluded(origin, *d, f32::INFINITY);
+                    assert_eq!(forward[i], expected, "from {origin} along {d}");
+                    assert_eq!(
+                        backward[dirs.len() - 1 - i],
+                        expected,
+                        "reversed, along {d}"
+                    );
+                    // Rays that end early, through the same scratch.
+                    let t_max = rng.range_f32(0.0, 2.0);
+                    assert_eq!(
+                        from.occluded(*d, t_max),
+                        twin.occluded(origin, *d, t_max),
+                        "from {origin} along {d} to t = {t_max}"
+                    );
+                    if i % 16 == 0 {
+                        let brute = brute_force_t(&scene, origin, *d, f32::INFINITY);
+                        assert_eq!(
+                            expected,
+                            brute.is_some(),
+                            "brute force from {origin} along {d}"
+                        );
+                    }
+                    rays += 1;
+                    blocked += usize::from(expected);
+                }
+            }
+        }
+        assert!(rays > 40_000, "{rays} rays");
+        assert!(
+            blocked > rays / 20 && blocked < rays * 19 / 20,
+            "{blocked} of {rays} occluded"
+        );
     }
 
     #[test]

@@ -1,0 +1,305 @@
+//! The triangles' occlusion BVH: four children a node with their boxes stored uncompressed,
+//! component by component, so that one ray tests all four in a few SIMD instructions, and leaves
+//! of four triangles stored the same way, tested against the ray together.
+//!
+//! It is built from obvhs' binary BVH (SAH-quality PLOC with spatial pre-splits) by pulling the
+//! largest of a node's inner descendants up until it has four children. The compressed eight-wide
+//! BVH next to it ([`super::Tracer`]'s closest-hit structure) is made for GPU memory traffic; on
+//! the CPU, decoding its quantised boxes costs more than reading plain ones.
+
+use std::time::Duration;
+
+use glam::{Vec3, Vec3A, Vec4};
+use obvhs::BvhBuildParams;
+use obvhs::bvh2::builder::build_bvh2_from_tris;
+use obvhs::triangle::Triangle as BvhTriangle;
+
+use super::BARYCENTRIC_SLACK;
+
+/// A child slot's tag for a leaf: the rest holds its first triangle group and group count.
+const LEAF: u32 = 1 << 31;
+/// Bits of a leaf's group count (minus one).
+const COUNT_BITS: u32 = 3;
+/// Most triangles the binary BVH puts in a leaf: one group of four (eight timed the same).
+const MAX_LEAF_TRIANGLES: u32 = 4;
+/// A child slot that holds nothing (its box is empty, so no ray reaches it).
+const EMPTY: u32 = LEAF - 1;
+/// Traversal stack size. A pop pushes at most four, so depth D needs at most 3 D + 1 entries.
+const STACK: usize = 128;
+/// Deepest tree the stack can hold; a deeper one is not used (see [`WideBvh::build`]).
+const MAX_DEPTH: usize = (STACK - 1) / 3;
+/// Smallest magnitude of a direction component whose reciprocal is taken. Smaller ones (and
+/// zeros) take this with their sign, so that no slab test multiplies zero by infinity.
+const MIN_COMPONENT: f32 = 1e-18;
+
+/// Four children's boxes, each coordinate in a lane of its own.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct Node {
+    /// The low corners, then the high ones. An empty slot's box runs from +inf to -inf.
+    bounds: [[Vec4; 3]; 2],
+    child: [u32; 4],
+}
+
+impl Node {
+    const EMPTY: Node = Node {
+        bounds: [[Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]],
+        child: [EMPTY; 4],
+    };
+}
+
+/// Four triangles as Möller–Trumbore wants them (a corner and two edges), lane by lane. Lanes
+/// without a triangle hold NaN, which fails every comparison.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+struct Triangles4 {
+    v0: [Vec4; 3],
+    e1: [Vec4; 3],
+    e2: [Vec4; 3],
+}
+
+impl Triangles4 {
+    fn new(corners: &[[Vec3; 3]]) -> Triangles4 {
+        let mut group = Triangles4 {
+            v0: [Vec4::NAN; 3],
+            e1: [Vec4::NAN; 3],
+            e2: [Vec4::NAN; 3],
+        };
+        for (lane, [a, b, c]) in corners.iter().enumerate().take(4) {
+            let (e1, e2) = (*b - *a, *c - *a);
+            for axis in 0..3 {
+                group.v0[axis][lane] = a[axis];
+                group.e1[axis][lane] = e1[axis];
+                group.e2[axis][lane] = e2[axis];
+            }
+        }
+        group
+    }
+
+    /// Whether the ray hits any of the four with t in (0, t_max); the scalar test of
+    /// [`super::intersect_triangle`], four lanes at a time.
+    #[inline(always)]
+    fn any_hit(&self, o: [Vec4; 3], d: [Vec4; 3], t_max: Vec4) -> bool {
+        let [e1x, e1y, e1z] = self.e1;
+        let [e2x, e2y, e2z] = self.e2;
+        let [dx, dy, dz] = d;
+        let px = dy * e2z - dz * e2y;
+        let py = dz * e2x - dx * e2z;
+        let pz = dx * e2y - dy * e2x;
+        let det = e1x * px + e1y * py + e1z * pz;
+        let inv_det = Vec4::ONE / det;
+        let sx = o[0] - self.v0[0];
+        let sy = o[1] - self.v0[1];
+        let sz = o[2] - self.v0[2];
+        let u = (sx * px + sy * py + sz * pz) * inv_det;
+        let qx = sy * e1z - sz * e1y;
+        let qy = sz * e1x - sx * e1z;
+        let qz = sx * e1y - sy * e1x;
+        let v = (dx * qx + dy * qy + dz * qz) * inv_det;
+        let t = (e2x * qx + e2y * qy + e2z * qz) * inv_det;
+        // A zero determinant makes u infinite or NaN, which the range test refuses.
+        let lo = Vec4::splat(-BARYCENTRIC_SLACK);
+        let hi = Vec4::splat(1.0 + BARYCENTRIC_SLACK);
+        let hit = u.cmpge(lo)
+            & u.cmple(hi)
+            & v.cmpge(lo)
+            & (u + v).cmple(hi)
+            & t.cmpgt(Vec4::ZERO)
+            & t.cmplt(t_max);
+        hit.any()
+    }
+}
+
+/// No occluder remembered.
+const NO_OCCLUDER: u32 = u32::MAX;
+
+/// What a run of queries reuses: the traversal stack, and the triangle group that answered the
+/// last occluded ray, which a neighbouring ray from the same point is likely to hit too.
+#[derive(Clone, Debug)]
+pub(super) struct Scratch {
+    stack: [u32; STACK],
+    last_occluder: u32,
+}
+
+impl Default for Scratch {
+    fn default() -> Self {
+        Scratch {
+            stack: [0; STACK],
+            last_occluder: NO_OCCLUDER,
+        }
+    }
+}
+
+/// The four-wide occlusion BVH over a scene's triangles.
+#[derive(Debug, Default)]
+pub(super) struct WideBvh {
+    nodes: Vec<Node>,
+    groups: Vec<Triangles4>,
+}
+
+impl WideBvh {
+    /// Builds the BVH over triangles given by their corners, or `None` where the tree comes out
+    /// deeper than the traversal stack holds (the caller then keeps its other BVH for these
+    /// rays). `pad` widens every box on each side, to cover the rounding of the slab test and
+    /// the triangle test's barycentric slack.
+    pub(super) fn build(triangles: &[[Vec3; 3]], pad: f32) -> Option<WideBvh> {
+        if triangles.is_empty() {
+            return Some(WideBvh::default());
+        }
+        let bvh_tris: Vec<BvhTriangle> = triangles
+            .iter()
+            .map(|t| {
+                let [v0, v1, v2] = t.map(Vec3A::from);
+                BvhTriangle { v0, v1, v2 }
+            })
+            .collect();
+        let params = BvhBuildParams {
+            max_prims_per_leaf: MAX_LEAF_TRIANGLES,
+            ..BvhBuildParams::slow_build()
+        };
+        let bvh2 = build_bvh2_from_tris(&bvh_tris, params, &mut Duration::default());
+        let pad = Vec3::splat(pad.max(0.0));
+
+        let mut wide = WideBvh {
+            nodes: vec![Node::EMPTY],
+            groups: Vec::new(),
+        };
+        // (binary node whose subtree fills it, wide node, depth)
+        let mut work = vec![(0usize, 0usize, 1usize)];
+        while let Some((root, slot, depth)) = work.pop() {
+            if depth > MAX_DEPTH {
+                return None;
+            }
+            let mut kids = Vec::with_capacity(4);
+            let node = bvh2.nodes.get(root)?;
+            if node.prim_count > 0 {
+                kids.push(root);
+            } else {
+                let first = node.first_index as usize;
+                kids.extend([first, first + 1]);
+            }
+            // Open the largest inner child until there are four.
+            while kids.len() < 4 {
+                let widest = kids
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, k)| bvh2.nodes.get(**k).is_some_and(|n| n.prim_count == 0))
+                    .max_by(|a, b| {
+                        let area = |k: usize| bvh2.nodes[k].aabb.half_area();
+                        area(*a.1).total_cmp(&area(*b.1))
+                    })
+                    .map(|(i, _)| i);
+                let Some(i) = widest else { break };
+                let first = bvh2.nodes[kids[i]].first_index as usize;
+                kids[i] = first;
+                kids.push(first + 1);
+            }
+            for (lane, &k) in kids.iter().enumerate() {
+                let child = bvh2.nodes.get(k)?;
+                let (lo, hi) = (
+                    Vec3::from(child.aabb.min) - pad,
+                    Vec3::from(child.aabb.max) + pad,
+                );
+                let code = if child.prim_count > 0 {
+                    let first = child.first_index as usize;
+                    let ids = bvh2
+                        .primitive_indices
+                        .get(first..first + child.prim_count as usize)?;
+                    let start = wide.groups.len();
+                    for chunk in ids.chunks(4) {
+                        let corners: Vec<[Vec3; 3]> = chunk
+                            .iter()
+                            .map(|&i| triangles.get(i as usize).copied())
+                            .collect::<Option<_>>()?;
+                        wide.groups.push(Triangles4::new(&corners));
+                    }
+                    let count = (wide.groups.len() - start) as u32;
+                    if count == 0
+                        || count > 1 << COUNT_BITS
+                        || start >= (EMPTY >> COUNT_BITS) as usize
+                    {
+                        return None;
+                    }
+                    LEAF | (start as u32) << COUNT_BITS | (count - 1)
+                } else {
+                    let index = wide.nodes.len();
+                    if index >= EMPTY as usize {
+                        return None;
+                    }
+                    wide.nodes.push(Node::EMPTY);
+                    work.push((k, index, depth + 1));
+                    index as u32
+                };
+                let n = &mut wide.nodes[slot];
+                for axis in 0..3 {
+                    n.bounds[0][axis][lane] = lo[axis];
+                    n.bounds[1][axis][lane] = hi[axis];
+                }
+                n.child[lane] = code;
+            }
+        }
+        Some(wide)
+    }
+
+    /// Whether a triangle lies along `o + t d` for t in (0, `t_max`). `d` must be finite and
+    /// non-zero, `o` finite. The scratch's last occluder is tried first and updated; the answer
+    /// does not depend on it.
+    pub(super) fn occluded(&self, o: Vec3A, d: Vec3A, t_max: f32, scratch: &mut Scratch) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let d_safe = d.to_array().map(|c| {
+            if c.abs() < MIN_COMPONENT {
+                MIN_COMPONENT.copysign(c)
+            } else {
+                c
+            }
+        });
+        let inv = d_safe.map(|c| Vec4::splat(1.0 / c));
+        // The slab a ray enters each axis by: the low side where it moves up the axis.
+        let near = d_safe.map(|c| (c < 0.0) as usize);
+        let far = d_safe.map(|c| (c >= 0.0) as usize);
+        let os = o.to_array().map(Vec4::splat);
+        let ds = d.to_array().map(Vec4::splat);
+        let t_max4 = Vec4::splat(t_max);
+        if let Some(group) = self.groups.get(scratch.last_occluder as usize) {
+            if group.any_hit(os, ds, t_max4) {
+                return true;
+            }
+            scratch.last_occluder = NO_OCCLUDER;
+        }
+        let stack = &mut scratch.stack;
+        stack[0] = 0;
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let n = &self.nodes[stack[top] as usize];
+            let b = &n.bounds;
+            let enter = ((b[near[0]][0] - os[0]) * inv[0])
+                .max((b[near[1]][1] - os[1]) * inv[1])
+                .max(((b[near[2]][2] - os[2]) * inv[2]).max(Vec4::ZERO));
+            let leave = ((b[far[0]][0] - os[0]) * inv[0])
+                .min((b[far[1]][1] - os[1]) * inv[1])
+                .min(((b[far[2]][2] - os[2]) * inv[2]).min(t_max4));
+            let mut hits = enter.cmple(leave).bitmask();
+            while hits != 0 {
+                let lane = hits.trailing_zeros() as usize;
+                hits &= hits - 1;
+                let code = n.child[lane];
+                if code & LEAF == 0 {
+                    stack[top] = code;
+                    top += 1;
+                    continue;
+                }
+                let first = ((code & !LEAF) >> COUNT_BITS) as usize;
+                let count = (code & ((1 << COUNT_BITS) - 1)) as usize + 1;
+                let groups = &self.groups[first..first + count];
+                if let Some(i) = groups.iter().position(|g| g.any_hit(os, ds, t_max4)) {
+                    scratch.last_occluder = (first + i) as u32;
+                    return true;
+                }
+            }
+        }
+        false
+    }
+}
