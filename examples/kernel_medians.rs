@@ -10,7 +10,8 @@
 //!
 //! Prints one line: the time of the process's first product (K = 200), then the median of 300
 //! products at each K (60 for every term), the terms chosen by area weighting as `cargo bench
-//! --bench kernels` chooses them.
+//! --bench kernels` chooses them, then the median of 40 products at K = 100, 200 and 1000 each
+//! after 256 MiB read, so that no cache holds the strips (`cold`).
 
 use std::path::Path;
 use std::time::Instant;
@@ -20,6 +21,11 @@ use wavelet_prt::light::select::Weighting;
 use wavelet_prt::relight::LightContext;
 use wavelet_prt::relight::strip_kernel::{StripPath, relight_strips};
 use wavelet_prt::store::transport::Transport;
+
+/// Bytes read between cold products, several times any last-level cache.
+const EVICT_BYTES: usize = 256 << 20;
+/// Cold products timed at each K.
+const COLD_RUNS: usize = 40;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -56,6 +62,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect();
         ms.sort_by(f64::total_cmp);
         line.push(format!("K = {k}: {:.3} ms", ms[ms.len() / 2]));
+    }
+    // The same products with the caches emptied first: a new light reads strips that the last
+    // one left in no cache, where the repeated products above find a K-term product's few MiB
+    // in the last-level cache.
+    let sweep: Vec<u64> = (0..EVICT_BYTES as u64 / 8).collect();
+    for k in [100, 200, 1000] {
+        let terms = light
+            .wavelet
+            .select(k, Weighting::Area, &ctx.support_area, None)?;
+        let mut ms: Vec<f64> = (0..COLD_RUNS)
+            .map(|_| {
+                std::hint::black_box(sweep.iter().fold(0u64, |a, &v| a ^ v));
+                let start = Instant::now();
+                std::hint::black_box(relight_strips(&t, &t.strips, &terms, StripPath::Best));
+                start.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        ms.sort_by(f64::total_cmp);
+        line.push(format!("cold K = {k}: {:.3} ms", ms[ms.len() / 2]));
     }
     println!("{}", line.join(", "));
     Ok(())
