@@ -35,9 +35,10 @@ pub const SPAWN_OFFSET_RELATIVE: f32 = 1e-5;
 const BARYCENTRIC_SLACK: f32 = 1e-6;
 
 /// How far the four-wide BVH's boxes reach past their triangles, as a fraction of the scene's
-/// extent: ten f32 ulps of its coordinates, which covers the slab test's rounding and the
-/// barycentric slack (a millionth of a triangle's edge).
-const BOX_PAD_RELATIVE: f32 = 1e-6;
+/// extent. The barycentric slack lets a hit lie up to twice the slack times an edge past its
+/// triangle's box on an axis (a corner at u = -slack, v = 1 + 2 slack); twice that again covers
+/// the slab test's rounding, about thirty f32 ulps of the scene's coordinates.
+const BOX_PAD_RELATIVE: f32 = 4.0 * BARYCENTRIC_SLACK;
 
 /// A ray's intersection with a surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -607,6 +608,54 @@ mod tests {
         assert_close("|normal|", hit.normal.length(), 1.0, N_TOL);
     }
 
+    /// Rays that graze the ground quad's edges and corners within the barycentric slack, with
+    /// directions from unit length down to 1e-18: the boxes' padding and the slab test's guard
+    /// against tiny components must keep every hit the triangle test makes.
+    #[test]
+    fn rays_at_the_edges_answer_as_brute_force_at_any_direction_length() {
+        let scene = canonical();
+        let tracer = Tracer::new(&scene);
+        assert!(tracer.wide.is_some());
+        let mut hits = 0;
+        for (x, z) in [
+            (2.0f32, 0.7f32),
+            (-2.0, -1.3),
+            (0.4, 2.0),
+            (-0.9, -2.0),
+            (2.0, 2.0),
+            (-2.0, 2.0),
+        ] {
+            for k in -6..=6 {
+                // Past (or short of) the edge by k millionths of the ground's side.
+                let step = k as f32 * 1e-6 * 4.0;
+                let at = Vec3::new(x + x.signum() * step, 1.0, z + z.signum() * step * 0.5);
+                for scale in [1.0f32, 1e-6, 1e-12, 2e-18] {
+                    let dir = Vec3::new(0.0, -scale, 0.0);
+                    let want = brute_force_t(&scene, at, dir, f32::INFINITY).is_some();
+                    assert_eq!(
+                        tracer.occluded(at, dir, f32::INFINITY),
+                        want,
+                        "from {at} along {dir}"
+                    );
+                    let mut from = tracer.rays_from(at);
+                    assert_eq!(
+                        from.occluded(dir, f32::INFINITY),
+                        want,
+                        "rays_from {at} along {dir}"
+                    );
+                    assert_eq!(
+                        tracer.closest_hit(at, dir, f32::INFINITY).is_some(),
+                        want,
+                        "closest from {at} along {dir}"
+                    );
+                    hits += usize::from(want);
+                }
+            }
+        }
+        // Both sides of every edge are tried.
+        assert!(hits > 40 && hits < 6 * 13 * 4 - 40, "{hits} hits");
+    }
+
     #[test]
     fn ground_under_sphere_is_occluded() {
         let scene = canonical();
@@ -889,6 +938,8 @@ material = \"clay\"
                                 w.geometric_normal,
                                 1e-3,
                             );
+                            assert_vec_close("shading normal", g.normal, w.normal, 1e-3);
+                            assert!((g.uv - w.uv).abs().max_element() < 1e-3, "uv along {d}");
                             assert_eq!(g.material, w.material, "material along {d}");
                         }
                     }

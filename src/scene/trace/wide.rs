@@ -30,9 +30,11 @@ const EMPTY: u32 = LEAF - 1;
 const STACK: usize = 128;
 /// Deepest tree the stack can hold; a deeper one is not used (see [`WideBvh::build`]).
 const MAX_DEPTH: usize = (STACK - 1) / 3;
-/// Smallest magnitude of a direction component whose reciprocal is taken. Smaller ones (and
-/// zeros) take this with their sign, so that no slab test multiplies zero by infinity.
-const MIN_COMPONENT: f32 = 1e-18;
+/// Smallest magnitude of a direction component whose reciprocal is taken, as a fraction of its
+/// largest component. Smaller ones (and zeros) take this with their sign, so that no slab test
+/// multiplies zero by infinity; the ray then drifts by 2^-60 of its length along that axis, far
+/// inside the boxes' padding.
+const MIN_COMPONENT_RELATIVE: f32 = 1.0 / (1u64 << 60) as f32;
 
 /// Four children's boxes, each coordinate in a lane of its own.
 #[derive(Clone, Copy, Debug)]
@@ -149,9 +151,13 @@ struct Ray4 {
 impl Ray4 {
     #[inline(always)]
     fn new(o: Vec3A, d: Vec3A) -> Ray4 {
+        // Relative to the direction's largest component, so the test does not depend on its
+        // length; the reciprocals stay finite (their products may overflow to a signed
+        // infinity, which the slab test takes as it should).
+        let floor = (d.abs().max_element() * MIN_COMPONENT_RELATIVE).max(f32::MIN_POSITIVE);
         let d_safe = d.to_array().map(|c| {
-            if c.abs() < MIN_COMPONENT {
-                MIN_COMPONENT.copysign(c)
+            if c.abs() < floor {
+                floor.copysign(c)
             } else {
                 c
             }
