@@ -48,39 +48,37 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "first K = 200: {:.3} ms",
         start.elapsed().as_secs_f64() * 1e3
     ));
+    // The median of `runs` products of K terms, each after `before`.
+    let median_ms =
+        |k: usize, runs: usize, before: &dyn Fn()| -> Result<f64, Box<dyn std::error::Error>> {
+            let terms = light
+                .wavelet
+                .select(k, Weighting::Area, &ctx.support_area, None)?;
+            let mut ms: Vec<f64> = (0..runs)
+                .map(|_| {
+                    before();
+                    let start = Instant::now();
+                    std::hint::black_box(relight_strips(&t, &t.strips, &terms, StripPath::Best));
+                    start.elapsed().as_secs_f64() * 1e3
+                })
+                .collect();
+            ms.sort_by(f64::total_cmp);
+            Ok(ms[ms.len() / 2])
+        };
     for k in [100, 200, 1000, c] {
-        let terms = light
-            .wavelet
-            .select(k, Weighting::Area, &ctx.support_area, None)?;
         let runs = if k > 1000 { 60 } else { 300 };
-        let mut ms: Vec<f64> = (0..runs)
-            .map(|_| {
-                let start = Instant::now();
-                std::hint::black_box(relight_strips(&t, &t.strips, &terms, StripPath::Best));
-                start.elapsed().as_secs_f64() * 1e3
-            })
-            .collect();
-        ms.sort_by(f64::total_cmp);
-        line.push(format!("K = {k}: {:.3} ms", ms[ms.len() / 2]));
+        line.push(format!("K = {k}: {:.3} ms", median_ms(k, runs, &|| ())?));
     }
     // The same products with the caches emptied first: a new light reads strips that the last
     // one left in no cache, where the repeated products above find a K-term product's few MiB
     // in the last-level cache.
     let sweep: Vec<u64> = (0..EVICT_BYTES as u64 / 8).collect();
+    let empty_caches = || {
+        std::hint::black_box(sweep.iter().fold(0u64, |a, &v| a ^ v));
+    };
     for k in [100, 200, 1000] {
-        let terms = light
-            .wavelet
-            .select(k, Weighting::Area, &ctx.support_area, None)?;
-        let mut ms: Vec<f64> = (0..COLD_RUNS)
-            .map(|_| {
-                std::hint::black_box(sweep.iter().fold(0u64, |a, &v| a ^ v));
-                let start = Instant::now();
-                std::hint::black_box(relight_strips(&t, &t.strips, &terms, StripPath::Best));
-                start.elapsed().as_secs_f64() * 1e3
-            })
-            .collect();
-        ms.sort_by(f64::total_cmp);
-        line.push(format!("cold K = {k}: {:.3} ms", ms[ms.len() / 2]));
+        let cold = median_ms(k, COLD_RUNS, &empty_caches)?;
+        line.push(format!("cold K = {k}: {cold:.3} ms"));
     }
     println!("{}", line.join(", "));
     Ok(())
