@@ -216,7 +216,11 @@ pub fn run_paper(
     let text = report(&table, &sweeps)
         .replace("@SIZE@", &size.to_string())
         .replace("@CUBE@", &largest_cube.to_string())
-        .replace("@EDGE@", &BakeSettings::default().edge_spp.to_string());
+        .replace("@EDGE@", &BakeSettings::default().edge_spp.to_string())
+        .replace(
+            "@THRESHOLD@",
+            &BakeSettings::default().threshold.to_string(),
+        );
     crate::files::write_bytes_atomically(&markdown, text.as_bytes())?;
     Ok(PaperReport { markdown, picture })
 }
@@ -263,7 +267,7 @@ fn report(table: &[TableRow], sweeps: &[(&str, Vec<BenchPoint>)]) -> String {
     let mut s = String::from(
         "# Ng, Ramamoorthi & Hanrahan 2003, side by side\n\n\
          Produced by `prt demo --paper` (see the README). Every bake is at @SIZE@² with the default \
-         settings (1 spp, @EDGE@ at edge pixels, threshold 0.01 of the unshadowed row's norm, 8-bit \
+         settings (1 spp, @EDGE@ at edge pixels, threshold @THRESHOLD@ of the unshadowed row's norm, 8-bit \
          values). Errors are \
          relative to relighting with every stored term, over the covered pixels, as the paper's \
          are relative to the full product.\n\n\

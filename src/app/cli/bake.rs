@@ -19,21 +19,21 @@ pub struct BakeArgs {
     #[command(flatten)]
     pub sampling: SamplingArgs,
     /// SH order of the SH transport (n² coefficients, 1 to 10).
-    #[arg(long, default_value_t = 6)]
+    #[arg(long, default_value_t = BakeSettings::default().sh_order)]
     pub sh_order: usize,
     /// L2 error allowed per transport row when dropping small Haar coefficients, relative to an
     /// unshadowed row's norm.
-    #[arg(long, default_value_t = 0.01, conflicts_with = "lossless")]
+    #[arg(long, default_value_t = BakeSettings::default().threshold, conflicts_with = "lossless")]
     pub threshold: f32,
     /// Keep every coefficient in 32-bit floats.
     #[arg(long)]
     pub lossless: bool,
     /// How the threshold weighs coefficients: l2 (the row's L2 error), area (support solid
     /// angle), sun (the error at any one texel) or absolute (drop |v| < threshold · norm).
-    #[arg(long, default_value = "l2", conflicts_with = "lossless")]
+    #[arg(long, default_value_t = BakeSettings::default().budget, conflicts_with = "lossless")]
     pub budget: crate::store::budget::Budget,
     /// Stored values: q8 (8-bit integers against per-column scales) or q16.
-    #[arg(long, default_value = "q8", conflicts_with = "lossless")]
+    #[arg(long, default_value_t = BakeSettings::default().quantization, conflicts_with = "lossless")]
     pub quantization: crate::store::quant::Quantization,
     /// Bake only shard I of COUNT (bands of tile rows), e.g. 0/4; join them with `prt merge`.
     #[arg(long, value_name = "I/COUNT")]
@@ -47,12 +47,12 @@ pub struct BakeArgs {
     /// diffuse term and K_b − 1 terms of its GGX lobe factorised as Σ g_k(view) h_k(light),
     /// each a row per vertex, the g_k weighed per pixel by the direction to the camera. 1 keeps
     /// the diffuse base alone. See `prt brdf` for the factor error of each K_b.
-    #[arg(long, default_value_t = 1, requires = "per_vertex")]
+    #[arg(long, default_value_t = BakeSettings::default().brdf_terms, requires = "per_vertex")]
     pub brdf_terms: u32,
     /// Per-vertex bakes: give each glossy material the fewest terms, up to --brdf-terms, whose
     /// factor error (relative L2 of its lobe) is at most this; 0 gives every glossy material
     /// --brdf-terms.
-    #[arg(long, default_value_t = 0.0, requires = "per_vertex")]
+    #[arg(long, default_value_t = BakeSettings::default().brdf_error, requires = "per_vertex")]
     pub brdf_error: f32,
     /// Longest triangle edge of a per-vertex bake, in scene units: longer edges of quads,
     /// spheres and meshes are split. Default: the scene's `edge_length`, else 1/160 of the

@@ -184,51 +184,51 @@ impl FramingArgs {
 #[derive(Args, Debug, Clone)]
 pub struct SamplingArgs {
     /// Cube face size N of the texel lights (power of two).
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = BakeSettings::default().cube_n)]
     pub cube: usize,
     /// Sub-pixel samples per pixel.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = BakeSettings::default().spp)]
     pub spp: u32,
     /// Sub-pixel samples of the pixels whose corners see different things (silhouettes,
     /// material edges, creases, sharp shadow borders): antialiasing where it shows, `--spp`
     /// elsewhere. 0 (or no more than --spp): off.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = BakeSettings::default().edge_spp)]
     pub edge_spp: u32,
     /// Shadow-ray directions per texel (rounded up to a square).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = BakeSettings::default().texel_samples)]
     pub texel_samples: u32,
     /// With one direction a texel, the sub-texels (rounded up to a square, at most 64) of each
     /// texel that needs more than its centre: a shadow border (those towards it traced, for
     /// penumbrae), the horizon or a narrow glossy lobe (summed); the cosine over every other
     /// texel is exact. 0: every texel takes its centre's value (as in a per-vertex bake,
     /// whatever this says).
-    #[arg(long, default_value_t = 9)]
+    #[arg(long, default_value_t = BakeSettings::default().edge_texel_samples)]
     pub edge_texel_samples: u32,
     /// Samples per shading point of each quad light or sun disc (rounded up to a square: a
     /// stratified grid over the light, for smooth penumbrae).
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = BakeSettings::default().light_samples)]
     pub light_samples: u32,
     /// Ignore visibility (no shadows).
     #[arg(long)]
     pub unshadowed: bool,
     /// Seed of every random choice.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = BakeSettings::default().seed)]
     pub seed: u64,
     /// Interreflection bounces added to the direct light: paths from each camera hit, every
     /// vertex they reach adding its own direct row to the pixel's (next-event estimation into
     /// every texel; see --bounce-visibility). Through a [medium], paths also start at
     /// collisions along the camera ray, and a collision counts as a bounce.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = BakeSettings::default().bounces)]
     pub bounces: u32,
     /// Paths per camera sub-sample for --bounces.
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = BakeSettings::default().paths)]
     pub paths: u32,
     /// Visibility at the bounces' path vertices: cache (bits at surface points a few pixels
     /// apart) or exact (6 N² shadow rays at every vertex).
     #[arg(long, default_value = "cache", value_parser = BounceVisibility::from_str)]
     pub bounce_visibility: BounceVisibility,
     /// Width of a surface cache cell, in pixel footprints at the view's median depth.
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, default_value_t = BakeSettings::default().cache_spacing)]
     pub cache_spacing: f32,
 }
 
