@@ -575,11 +575,12 @@ fn a_reused_bake_of_an_older_format_is_written_again_in_this_one() {
     let path = dir.join("v6_q8.prt");
     let scene = wavelet_prt::scene::Scene::load(&dir.join("scene.toml")).unwrap();
     // The settings the file was baked with (`prt bake scene.toml --cube 4 --sh-order 2`, before
-    // texels were integrated: `--edge-texel-samples 0` now).
+    // texels were integrated, `--edge-texel-samples 0` now, and at the threshold of its day).
     let settings = BakeSettings {
         cube_n: 4,
         sh_order: 2,
         edge_texel_samples: 0,
+        threshold: 0.01,
         ..BakeSettings::default()
     };
     let before = Transport::load(&path).unwrap();
