@@ -858,3 +858,80 @@ material = "clay"
     let off = EdgeMap::new(&scene, &tracer, &one_sample);
     assert_eq!(off.count(), 0);
 }
+
+/// A tile lays its rows out kind by kind: every pixel's first lobe, then the glossy lobes, then
+/// each pixel's three interreflection rows together, red, green, blue. Rows that keep the same
+/// coefficients then share strips: laid out pixel by pixel, each strip mixed dense direct rows
+/// with sparse bounce rows, and about a third of its values were entries.
+#[test]
+fn a_tile_lays_its_rows_out_kind_by_kind_so_bounce_rows_fill_their_strips() {
+    let glossy = SPHERE_ON_PLANE.replace(
+        "[material.clay]\ntype = \"diffuse\"\nalbedo = [0.8, 0.3, 0.2]",
+        "[material.clay]\ntype = \"glossy\"\nalbedo = [0.6, 0.3, 0.2]\nspecular = [0.3, 0.3, \
+         0.3]\nroughness = 0.3",
+    );
+    assert_ne!(glossy, SPHERE_ON_PLANE);
+    let scene = scene_from(&glossy, "row-kinds");
+    let settings = BakeSettings {
+        cube_n: 8,
+        sh_order: 2,
+        edge_spp: 0,
+        bounces: 1,
+        paths: 16,
+        ..BakeSettings::default()
+    };
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    let channel = |r: usize| {
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+            .iter()
+            .position(|w| *w == t.row_weight[r])
+    };
+    let mut glossy_pixels = 0;
+    for tile in t.tile_row_start.windows(2) {
+        let rows = tile[0] as usize..tile[1] as usize;
+        let first_channel = rows
+            .clone()
+            .find(|&r| channel(r).is_some())
+            .unwrap_or(rows.end);
+        // Lobes first: each pixel's first lobe in pixel order, then the second lobes.
+        let lobes: Vec<u32> = (rows.start..first_channel)
+            .map(|r| t.row_pixel[r])
+            .collect();
+        let firsts = lobes.iter().take_while({
+            let mut last = None;
+            move |&&p| {
+                let ok = last.is_none_or(|l| p > l);
+                last = Some(p);
+                ok
+            }
+        });
+        let first_count = firsts.count();
+        let (first, second) = lobes.split_at(first_count);
+        assert!(
+            second.windows(2).all(|w| w[0] < w[1]),
+            "second lobes out of order"
+        );
+        assert!(second.iter().all(|p| first.contains(p)));
+        glossy_pixels += second.len();
+        // Then the channels, three rows a pixel, red, green and blue, pixels in order.
+        let channels: Vec<usize> = (first_channel..rows.end).collect();
+        assert_eq!(channels.len() % 3, 0);
+        for (k, triple) in channels.chunks(3).enumerate() {
+            let p = t.row_pixel[triple[0]];
+            for (c, &r) in triple.iter().enumerate() {
+                assert_eq!((channel(r), t.row_pixel[r]), (Some(c), p));
+            }
+            if k > 0 {
+                assert!(p > t.row_pixel[triple[0] - 3]);
+            }
+            assert!(
+                first.contains(&p),
+                "pixel {p}: bounce rows without a lobe row"
+            );
+        }
+    }
+    assert!(glossy_pixels > 20, "{glossy_pixels} glossy pixels");
+    // Most stored strip values are entries (0.3 laid out pixel by pixel).
+    let fill = t.nonzeros() as f64 / (8 * t.strips.strip_count()) as f64;
+    assert!(fill > 0.5, "strips {fill:.2} full");
+}

@@ -510,6 +510,8 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
         lights: Vec::new(),
     };
     let mut order: Vec<(f32, u32)> = Vec::with_capacity(c);
+    // The tile's rows, each with its kind ([`RowKind`]), laid out kind by kind at the end.
+    let mut rows: Vec<(RowKind, RowData)> = Vec::new();
     let mut scratch = Vec::new();
     // One sub-sample's rows of a textured material, before its colour weighs them.
     let mut scratch_rows = [vec![0.0f32; c], vec![0.0f32; c]];
@@ -648,26 +650,32 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
             if !light_columns.is_empty() {
                 out.lights.push((pixel, light_columns));
             }
-            let lobes = dense.into_iter().flat_map(|slot| {
-                let white_surface = crate::scene::Material::Diffuse { albedo: Vec3::ONE };
-                let material = match white {
-                    true => &white_surface,
-                    false => &scene.materials[slot.material as usize],
-                };
-                slot.finish(material)
-            });
+            let lobes = dense
+                .into_iter()
+                .flat_map(|slot| {
+                    let white_surface = crate::scene::Material::Diffuse { albedo: Vec3::ONE };
+                    let material = match white {
+                        true => &white_surface,
+                        false => &scene.materials[slot.material as usize],
+                    };
+                    slot.finish(material)
+                })
+                .enumerate()
+                .map(|(i, (weight, row))| (RowKind::Lobe(i), weight, row));
             let channels = indirect.into_iter().flat_map(|rows| {
-                rows.into_iter()
-                    .enumerate()
-                    .map(|(k, row)| (std::array::from_fn(|i| (i == k) as u8 as f32), row))
+                rows.into_iter().enumerate().map(|(k, row)| {
+                    let weight = std::array::from_fn(|i| (i == k) as u8 as f32);
+                    (RowKind::Channels, weight, row)
+                })
             });
-            // Every row with its pixel and the scale of its thresholding budget.
+            // Every row with its kind, its pixel and the scale of its thresholding budget.
             let lobes = lobes
                 .chain(channels)
-                .map(|(weight, row)| (pixel, weight, row, reference_energy));
+                .map(|(kind, weight, row)| (kind, pixel, weight, row, reference_energy));
             let scattered = medium.zip(medium_rows).and_then(|(m, rows)| {
                 let p = pixel as usize;
                 Some((
+                    RowKind::Medium,
                     pixel,
                     m.albedo.to_array(),
                     rows.row(p)?,
@@ -682,10 +690,18 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     .map_or([0.0; 3], |(s, _)| s.to_array());
                 let first = m as usize * per;
                 rows.into_iter().enumerate().map(move |(i, row)| {
-                    (pixel + i as u32 + 1, specular, row, term_budgets[first + i])
+                    let budget = term_budgets[first + i];
+                    (
+                        RowKind::Term(i),
+                        pixel + i as u32 + 1,
+                        specular,
+                        row,
+                        budget,
+                    )
                 })
             });
-            for (pixel, weight, mut row, budget_scale) in lobes.chain(scattered).chain(terms) {
+            for (kind, pixel, weight, mut row, budget_scale) in lobes.chain(scattered).chain(terms)
+            {
                 let mut sh = vec![0.0f32; shc];
                 basis.project_row(&row, &mut sh);
                 haar::forward_face_all(&mut row, n, &mut scratch);
@@ -693,16 +709,42 @@ fn bake_tile(ctx: &TileContext, tile_x: usize, tile_y: usize) -> TileOutput {
                     thresholder.sparsify(&row, budget_scale, &mut order);
                 out.dropped_energy += dropped;
                 out.total_energy += total;
-                out.rows.push(RowData {
-                    pixel,
-                    weight,
-                    entries,
-                    sh,
-                });
+                rows.push((
+                    kind,
+                    RowData {
+                        pixel,
+                        weight,
+                        entries,
+                        sh,
+                    },
+                ));
             }
         }
     }
+    // Stable: inside a kind, rows keep their pixels' order (and a pixel's channels theirs).
+    rows.sort_by_key(|(kind, _)| *kind);
+    out.rows = rows.into_iter().map(|(_, row)| row).collect();
     out
+}
+
+/// What a row of a tile holds, in the order a tile lays its rows out. A block's column is cut into
+/// strips of 8 rows, kept whole when one of them has an entry, so rows that keep the same
+/// coefficients belong side by side: the first lobe of every pixel, then the second, and so on;
+/// then each pixel's three interreflection rows together (their paths are the same, and so are
+/// the coefficients they keep); then the medium's rows; then a per-vertex bake's BRDF terms,
+/// term by term. Laid out pixel by pixel, the sparse interreflection rows shared strips with the
+/// dense direct rows: on a 128² one-bounce demo bake 29% of strip values were entries, and 76%
+/// this way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum RowKind {
+    /// The i-th lobe row of a pixel (a material's diffuse lobe, then its GGX lobe, per material).
+    Lobe(usize),
+    /// A pixel's interreflection rows, one per colour channel.
+    Channels,
+    /// A pixel's single-scattering row through the medium.
+    Medium,
+    /// A vertex's i-th in-out BRDF term.
+    Term(usize),
 }
 
 /// The row of an unshadowed surface facing +Y with unit albedo, in texel order: the row the
