@@ -6,7 +6,10 @@
 //! one transport vector over the 6 N² Haar coefficients together with the pixel it lights and an RGB
 //! weight: a pixel's radiance is `Σ_rows weight ⊙ (row · L)`. A diffuse pixel that sees one material
 //! has one row whose weight is the albedo; a pixel whose sub-samples see several materials has one
-//! row per material, so the split stays exact. Rows are grouped by tile.
+//! row per material, so the split stays exact. Rows are grouped by tile; inside a tile they may
+//! come in any order, and a bake lays them out kind by kind (every pixel's first lobe, then its
+//! glossy lobes, then each pixel's interreflection rows together, ...), so that the rows of a
+//! strip (below) keep the same coefficients.
 //!
 //! A tile's rows are cut into *blocks* of at most [`BLOCK_ROWS`] (256) consecutive rows, so a row
 //! index inside a block is one byte; a tile of one row per pixel is one block. Inside a block,
