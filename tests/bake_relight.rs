@@ -897,15 +897,11 @@ fn a_tile_lays_its_rows_out_kind_by_kind_so_bounce_rows_fill_their_strips() {
         let lobes: Vec<u32> = (rows.start..first_channel)
             .map(|r| t.row_pixel[r])
             .collect();
-        let firsts = lobes.iter().take_while({
-            let mut last = None;
-            move |&&p| {
-                let ok = last.is_none_or(|l| p > l);
-                last = Some(p);
-                ok
-            }
-        });
-        let first_count = firsts.count();
+        // The first lobes run in increasing pixel order; the second lobes start where it falls.
+        let first_count = lobes
+            .windows(2)
+            .position(|w| w[1] <= w[0])
+            .map_or(lobes.len(), |i| i + 1);
         let (first, second) = lobes.split_at(first_count);
         assert!(
             second.windows(2).all(|w| w[0] < w[1]),

@@ -72,12 +72,8 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
     crate::files::check_output_folder(&a.out)?;
     let scene = a.framing.load(&a.scene)?;
     let env = load_env(&a.env)?;
-    let base = settings_from(
-        &a.sampling,
-        BakeSettings::default().sh_order,
-        BakeSettings::default().threshold,
-        false,
-    );
+    let defaults = BakeSettings::default();
+    let base = settings_from(&a.sampling, defaults.sh_order, defaults.threshold, false);
     BakeSettings {
         bounces: a.max_bounces,
         ..base.clone()

@@ -225,7 +225,11 @@ pub struct SamplingArgs {
     pub paths: u32,
     /// Visibility at the bounces' path vertices: cache (bits at surface points a few pixels
     /// apart) or exact (6 N² shadow rays at every vertex).
-    #[arg(long, default_value = "cache", value_parser = BounceVisibility::from_str)]
+    #[arg(
+        long,
+        default_value_t = BakeSettings::default().bounce_visibility,
+        value_parser = BounceVisibility::from_str
+    )]
     pub bounce_visibility: BounceVisibility,
     /// Width of a surface cache cell, in pixel footprints at the view's median depth.
     #[arg(long, default_value_t = BakeSettings::default().cache_spacing)]
