@@ -222,7 +222,7 @@ fn columns_of_format_6(f: &StFile) -> std::collections::HashMap<(usize, usize), 
 
 /// Files of format 6, which stored columns where version 7 stores strips, load with every value
 /// where those columns put it (a view in q8 and lossless, a per-vertex bake in q16, all written
-/// by the build that wrote version 6); they save as version 7 and load back the same. Versions
+/// by the build that wrote version 6); they save in this version and load back the same. Versions
 /// 3 to 5 differ from 6 only in having no lights, albedo maps or in-out terms, so the same
 /// files labelled 3 to 5 load the same.
 #[test]
@@ -238,10 +238,11 @@ fn format_6_files_load_into_strips_with_every_value_in_place() {
         assert!(want.len() > 1000, "{name}: {} values", want.len());
         assert_eq!(decoded(&t), want, "{name}");
         assert_eq!(t.nonzeros(), want.len() as u64);
-        // Saved as version 7, loaded back: the same transport.
+        // Saved in this version, loaded back: the same transport.
         let p = dir.join(name);
         t.save(&p).unwrap();
-        assert_eq!(StFile::read(&p).meta["format_version"], 7);
+        let version = wavelet_prt::store::transport::FORMAT_VERSION;
+        assert_eq!(StFile::read(&p).meta["format_version"], version);
         assert_eq!(Transport::load(&p).unwrap(), t, "{name}");
         for version in [3, 4, 5] {
             let mut old = file.clone();
@@ -291,10 +292,13 @@ fn kernel_equals_dense_twin_for_every_format() {
 /// The strips hold every entry of the tiles' columns (as [`EncodedTile::encode`] lays them
 /// out) once, at its row and with its value, and nothing else; they lie in light-major order
 /// (band, coefficient, block), and a tile row of more than 16 blocks is cut into bands of 16.
+/// A slot holds the strips that hold entries, or, when those are at least half its block's,
+/// every strip of its block (empty ones as zeros), and only then.
 #[test]
 fn strips_hold_every_entry_once_in_light_major_bands() {
     use wavelet_prt::store::transport::EncodedTile;
     use wavelet_prt::store::transport::strips::{BAND_BLOCKS, STRIP_ROWS};
+    let (mut whole_slots, mut padded_slots) = (0, 0);
     for q in [Quantization::Q8, Quantization::Q16, Quantization::F32] {
         let (meta, tiles) = common::random_rows(230, 20, 2, q, 17, 1.0);
         let t = random_transport(230, 20, 2, q, 17, 1.0);
@@ -345,6 +349,7 @@ fn strips_hold_every_entry_once_in_light_major_bands() {
                     assert_eq!(slot.entries, *count);
                     let mut from_strips = [0.0f32; 256];
                     let mut last = None;
+                    let mut empty = 0;
                     for k in next..next + slot.count as usize {
                         let place = s.index[k] as usize;
                         assert!(last < Some(place), "{q}: strip places not increasing");
@@ -352,11 +357,25 @@ fn strips_hold_every_entry_once_in_light_major_bands() {
                         let vals: Vec<f32> = (0..STRIP_ROWS)
                             .map(|i| s.values.raw(k * STRIP_ROWS + i))
                             .collect();
-                        assert!(vals.iter().any(|v| *v != 0.0), "{q}: an empty strip");
+                        empty += vals.iter().all(|v| *v == 0.0) as usize;
                         from_strips[place * STRIP_ROWS..(place + 1) * STRIP_ROWS]
                             .copy_from_slice(&vals);
                     }
                     assert_eq!(&from_strips, dense, "{q}: block {b}, coefficient {j}");
+                    // The strips that hold entries, or every strip of the block when those
+                    // are at least half of them.
+                    let rows = (t.block_row_start[b + 1] - t.block_row_start[b]) as usize;
+                    let block_strips = rows.div_ceil(STRIP_ROWS);
+                    let held = dense
+                        .chunks(STRIP_ROWS)
+                        .filter(|s| s.iter().any(|v| *v != 0.0))
+                        .count();
+                    let whole = held > 0 && 2 * held >= block_strips;
+                    let want = if whole { block_strips } else { held };
+                    assert_eq!(slot.count as usize, want, "{q}: block {b}, coefficient {j}");
+                    assert_eq!(empty, want - held, "{q}: empty strips");
+                    whole_slots += whole as usize;
+                    padded_slots += (empty > 0) as usize;
                     next += slot.count as usize;
                     entries += *count as u64;
                 }
@@ -368,17 +387,21 @@ fn strips_hold_every_entry_once_in_light_major_bands() {
         assert_eq!(t.nonzeros(), entries);
         assert_eq!(s.values.len(), next * STRIP_ROWS);
     }
+    assert!(
+        whole_slots > padded_slots && padded_slots > 0,
+        "slots whole as made, and made whole"
+    );
 }
 
 /// The SIMD strip loop and the portable one give the same image (to float rounding: one fuses
 /// its multiply-adds) as the dense twin, on every format, bands of 16 blocks and fewer, and
-/// terms in any order. The dense transports hold slots of all their block's strips, which the
-/// SIMD loop adds panel by panel in chunks of 64 terms, beside slots of some, which it adds
-/// strip by strip; the sparse ones hold only the latter.
+/// terms in any order. Every transport holds slots of all their block's strips (made whole when
+/// at least half full), which the SIMD loop adds panel by panel in chunks of 64 terms, blocks
+/// of fewer than 32 strips among them, beside slots of some, which it adds strip by strip.
 #[test]
 fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
     use wavelet_prt::relight::strip_kernel::{Read, StripPath, has_avx2_fma, relight_strips};
-    use wavelet_prt::store::transport::strips::STRIPS_PER_BLOCK;
+    use wavelet_prt::store::transport::strips::{STRIP_ROWS, STRIPS_PER_BLOCK, Slot};
     if !has_avx2_fma() {
         eprintln!("no AVX2 and FMA: the SIMD loop is not run, only the portable one");
     }
@@ -392,6 +415,9 @@ fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
         (Quantization::Q16, 100, 40, 4, 0.9),
         (Quantization::F32, 100, 40, 4, 0.9),
         (Quantization::Q8, 16, 200, 4, 0.9),
+        // Tiles of 48, 32 and 6 pixels: blocks of 6, 4 and 1 strips, whose whole slots end in
+        // a panel of 2 strips, none and 1 (230 x 20 has blocks of 3 strips).
+        (Quantization::Q16, 19, 18, 4, 0.9),
     ] {
         let t = if density < 0.5 {
             random_transport(w, h, n, q, 19, 1e-3)
@@ -400,18 +426,30 @@ fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
         };
         let c = t.coeff_count();
         let s = &t.strips;
-        let whole = s
-            .slots
-            .iter()
-            .filter(|s| s.count as usize == STRIPS_PER_BLOCK)
+        // Each block's strips, and whether a slot holds all of them.
+        let block_strips = |b: usize| {
+            ((t.block_row_start[b + 1] - t.block_row_start[b]) as usize).div_ceil(STRIP_ROWS)
+        };
+        let slot_blocks = || {
+            (0..s.band_count()).flat_map(|band| {
+                let blocks = s.band_blocks(band);
+                (0..c).flat_map(move |j| s.term_slots(band, j, c).iter().zip(blocks.clone()))
+            })
+        };
+        let is_whole =
+            |slot: &Slot, b: usize| slot.count > 0 && slot.count as usize == block_strips(b);
+        let whole = slot_blocks().filter(|&(s, b)| is_whole(s, b)).count();
+        let some = slot_blocks()
+            .filter(|&(s, b)| s.count > 0 && !is_whole(s, b))
             .count();
-        let some = s
-            .slots
-            .iter()
-            .filter(|s| (1..STRIPS_PER_BLOCK).contains(&(s.count as usize)))
+        let short = slot_blocks()
+            .filter(|&(s, b)| is_whole(s, b) && block_strips(b) < STRIPS_PER_BLOCK)
             .count();
-        assert!(some > 0, "{q}: slots of some strips");
-        assert_eq!(whole > 0, density > 0.5, "{q}: slots of all strips");
+        assert!(
+            whole > 0 && short > 0,
+            "{q}: slots of all strips, of short blocks too"
+        );
+        assert_eq!(some > 0, density < 0.5, "{q}: slots of some strips");
         let mut rng = Rng::new(8, 0);
         // 64 and 70: one chunk of terms exactly, and past it.
         for k in [1, 5, 64.min(c), 70.min(c), c] {
@@ -428,10 +466,11 @@ fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
             let (mut occupied, mut whole) = (0u64, 0u64);
             for band in 0..s.band_count() {
                 for &j in &light.indices {
-                    for slot in s.term_slots(band, j as usize, c) {
+                    let slots = s.term_slots(band, j as usize, c);
+                    for (slot, b) in slots.iter().zip(s.band_blocks(band)) {
                         occupied += (slot.count > 0) as u64;
-                        if slot.count as usize == STRIPS_PER_BLOCK {
-                            whole += STRIPS_PER_BLOCK as u64;
+                        if is_whole(slot, b) {
+                            whole += slot.count as u64;
                         }
                     }
                 }
@@ -601,4 +640,56 @@ fn a_reused_bake_of_an_older_format_is_written_again_in_this_one() {
         std::fs::metadata(&path).unwrap().modified().unwrap(),
         modified
     );
+    // Version 7 kept only the strips that hold entries: its file, reused, is written again with
+    // the slots at least half full stored whole, every value in place.
+    let v7 = dir.join("v7_q8.prt");
+    let mut sparse = before.clone();
+    sparse.strips = strips_with_entries_only(&before.strips);
+    assert!(sparse.strips.strip_count() < before.strips.strip_count());
+    sparse.save(&v7).unwrap();
+    let mut file = StFile::read(&v7);
+    file.meta["format_version"] = 7.into();
+    file.write(&v7, true);
+    assert_eq!(decoded(&Transport::load(&v7).unwrap()), decoded(&before));
+    let (t, reused) =
+        wavelet_prt::bake::load_or_bake(&v7, &scene, &settings, &mut || {}, &|_| {}).unwrap();
+    assert!(reused);
+    assert_eq!(t, before);
+    assert_eq!(read_format_version(&v7).unwrap(), FORMAT_VERSION);
+    assert_eq!(Transport::load(&v7).unwrap(), before);
+}
+
+/// The same strips without the empty ones, as version 7 stored them.
+fn strips_with_entries_only(
+    s: &wavelet_prt::store::transport::Strips,
+) -> wavelet_prt::store::transport::Strips {
+    use wavelet_prt::store::transport::{Values, strips::STRIP_ROWS};
+    let Values::Q8(values) = &s.values else {
+        panic!("a q8 bake")
+    };
+    let (mut counts, mut index, mut kept) = (Vec::new(), Vec::new(), Vec::new());
+    for slot in &s.slots {
+        let strips = slot.first as usize..slot.first as usize + slot.count as usize;
+        let held: Vec<usize> = strips
+            .filter(|&k| {
+                values[k * STRIP_ROWS..][..STRIP_ROWS]
+                    .iter()
+                    .any(|&v| v != 0)
+            })
+            .collect();
+        counts.push(held.len() as u8);
+        for k in held {
+            index.push(s.index[k]);
+            kept.extend_from_slice(&values[k * STRIP_ROWS..][..STRIP_ROWS]);
+        }
+    }
+    let codes = s.slots.iter().map(|slot| slot.code).collect::<Vec<_>>();
+    wavelet_prt::store::transport::Strips::from_tables(
+        s.layout(),
+        &counts,
+        &codes,
+        index,
+        Values::Q8(kept),
+    )
+    .unwrap()
 }

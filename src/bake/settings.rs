@@ -361,13 +361,16 @@ pub fn load_or_bake(
     starting: &mut dyn FnMut(),
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<(Transport, bool)> {
-    if let Some(t) = load_if_baked_with(path, scene, settings) {
+    if let Some(mut t) = load_if_baked_with(path, scene, settings) {
         // A file of an older format is written again in this one, so later runs read it
         // without converting it; where it cannot be (a folder that is read only), it is read as
-        // it is, as before.
-        if crate::store::transport::read_format_version(path)
-            .is_ok_and(|v| v < crate::store::transport::FORMAT_VERSION)
-        {
+        // it is, as before. Version 7's strips are made again, with the slots this version
+        // stores whole (versions 3 to 6 are made into strips as they load).
+        let version = crate::store::transport::read_format_version(path).ok();
+        if version.is_some_and(|v| v < crate::store::transport::FORMAT_VERSION) {
+            if version == Some(7) {
+                t.remake_strips()?;
+            }
             t.save(path).ok();
         }
         return Ok((t, true));

@@ -170,57 +170,64 @@ fn product<V: StripValue>(
     }
     let read = parts
         .into_par_iter()
-        .map_init(
-            || {
-                let buffer = vec![0.0f32; BAND_ACCUMULATORS + LINE_FLOATS];
-                (buffer, vec![Vec::new(); BAND_BLOCKS], Vec::new())
-            },
-            |(buffer, full, parts), (g, y0, pixels)| {
-                // The accumulators from the buffer's first cache line on.
-                let line = buffer.as_ptr().align_offset(64).min(LINE_FLOATS);
-                let acc = &mut buffer[line..line + BAND_ACCUMULATORS];
-                let mut read = Read::default();
-                for band in strips.group_bands(g) {
-                    let blocks = strips.band_blocks(band);
-                    let job = Band {
-                        t,
-                        strips,
-                        light,
-                        values,
-                        band,
-                    };
-                    // Only the band's own rows: a per-vertex bake's bands are one or two blocks.
-                    let used = (3 * blocks.len() * BLOCK_ROWS).min(BAND_ACCUMULATORS);
-                    let acc = &mut acc[..used];
-                    acc.fill(0.0);
-                    read = read
-                        + if avx2 {
-                            #[cfg(target_arch = "x86_64")]
-                            // SAFETY: AVX2 and FMA were detected above.
-                            unsafe {
-                                job.add_avx2(acc, full, parts)
-                            }
-                            #[cfg(not(target_arch = "x86_64"))]
-                            unreachable!()
-                        } else {
-                            job.add_portable(acc)
+        .map(|(g, y0, pixels)| {
+            SCRATCH.with_borrow_mut(
+                |Scratch {
+                     buffer,
+                     full,
+                     parts,
+                 }| {
+                    // The accumulators from the buffer's first cache line on.
+                    let line = buffer.as_ptr().align_offset(64).min(LINE_FLOATS);
+                    let acc = &mut buffer[line..line + BAND_ACCUMULATORS];
+                    let mut read = Read::default();
+                    for band in strips.group_bands(g) {
+                        let blocks = strips.band_blocks(band);
+                        let job = Band {
+                            t,
+                            strips,
+                            light,
+                            values,
+                            band,
                         };
-                    for b in blocks.clone() {
-                        let rows = t.block_row_start[b] as usize..t.block_row_start[b + 1] as usize;
-                        let base = (b - blocks.start) * BLOCK_ROWS;
-                        for (i, r) in rows.enumerate() {
-                            let s = t.row_scale[r];
-                            let wgt = t.row_weight[r];
-                            let px = &mut pixels[t.row_pixel[r] as usize - y0];
-                            for k in 0..3 {
-                                px[k] += wgt[k] * (acc[accumulator(base + i, k)] * s);
+                        // Only the band's own rows: a per-vertex bake's bands are one or two blocks.
+                        let used = (3 * blocks.len() * BLOCK_ROWS).min(BAND_ACCUMULATORS);
+                        let acc = &mut acc[..used];
+                        acc.fill(0.0);
+                        read = read
+                            + if avx2 {
+                                #[cfg(target_arch = "x86_64")]
+                                // SAFETY: AVX2 and FMA were detected above.
+                                unsafe {
+                                    job.add_avx2(acc, full, parts)
+                                }
+                                #[cfg(not(target_arch = "x86_64"))]
+                                unreachable!()
+                            } else {
+                                job.add_portable(acc)
+                            };
+                        for b in blocks.clone() {
+                            let rows =
+                                t.block_row_start[b] as usize..t.block_row_start[b + 1] as usize;
+                            let base = (b - blocks.start) * BLOCK_ROWS;
+                            let each = t.row_scale[rows.clone()]
+                                .iter()
+                                .zip(&t.row_weight[rows.clone()])
+                                .zip(&t.row_pixel[rows]);
+                            for (i, ((&s, wgt), &p)) in each.enumerate() {
+                                let px = &mut pixels[p as usize - y0];
+                                let at = accumulator(base + i, 0);
+                                let a = &acc[at..at + 2 * STRIP_ROWS + 1];
+                                for k in 0..3 {
+                                    px[k] += wgt[k] * (a[k * STRIP_ROWS] * s);
+                                }
                             }
                         }
                     }
-                }
-                read
-            },
-        )
+                    read
+                },
+            )
+        })
         .reduce(Read::default, |a, b| a + b);
     (image, read)
 }
@@ -272,10 +279,10 @@ impl<V: StripValue> Band<'_, V> {
                 read.entries += slot.entries as u64;
                 let sc = scales[slot.code as usize];
                 visit(Run {
-                    term,
-                    block,
-                    first: slot.first as usize,
-                    count: slot.count as usize,
+                    term: term as u32,
+                    block: block as u16,
+                    first: slot.first,
+                    count: slot.count as u16,
                     l: [l[0] * sc, l[1] * sc, l[2] * sc],
                 });
             }
@@ -287,8 +294,8 @@ impl<V: StripValue> Band<'_, V> {
     /// A run's strips: each one's values and the band's row it starts at.
     #[inline(always)]
     fn strips_of(&self, run: &Run) -> impl Iterator<Item = (&[V; STRIP_ROWS], usize)> {
-        let strips = run.first..run.first + run.count;
-        let base = run.block * BLOCK_ROWS;
+        let strips = run.first()..run.first() + run.count();
+        let base = run.block() * BLOCK_ROWS;
         self.values[strips.clone()]
             .iter()
             .zip(&self.strips.index[strips])
@@ -330,7 +337,14 @@ impl<V: StripValue> Band<'_, V> {
         use std::arch::x86_64::*;
         // The bounds the pointer arithmetic below relies on: `walk` hands rows of the band's
         // blocks (one per slot of the band), and `acc` holds the accumulators of all of them.
-        let blocks = self.strips.band_blocks(self.band).len();
+        let band_blocks = self.strips.band_blocks(self.band);
+        let blocks = band_blocks.len();
+        // Each block's strips: 32 but in a tile's last block, which may hold fewer rows.
+        let mut block_strips = [0usize; BAND_BLOCKS];
+        for (s, b) in block_strips.iter_mut().zip(band_blocks) {
+            let rows = self.t.block_row_start[b + 1] - self.t.block_row_start[b];
+            *s = (rows as usize).div_ceil(STRIP_ROWS).min(STRIPS_PER_BLOCK);
+        }
         assert!(
             acc.len() >= 3 * blocks * BLOCK_ROWS && full.len() >= blocks,
             "accumulators and lists for the whole band"
@@ -339,16 +353,21 @@ impl<V: StripValue> Band<'_, V> {
             list.clear();
         }
         parts.clear();
+        let mut whole = 0;
         let mut read = self.walk(|run| {
-            // A block's strip places strictly increase below 32 (checked on load, and so made
-            // by a bake), so a slot of 32 strips holds places 0 to 31 in order.
-            if run.count == STRIPS_PER_BLOCK && self.values.len() >= run.first + run.count {
+            // A block's strip places strictly increase below its strips (checked on load, and so
+            // made by a bake), so a slot that holds as many strips as its block holds places 0,
+            // 1, 2 and so on in order.
+            if run.count() == block_strips[run.block()]
+                && self.values.len() >= run.first() + run.count()
+            {
                 // The panels take strip k of the slot as place k, without reading places.
                 debug_assert!(
-                    (0..run.count).all(|k| self.strips.index[run.first + k] as usize == k),
-                    "a whole slot's places are 0 to 31"
+                    (0..run.count()).all(|k| self.strips.index[run.first() + k] as usize == k),
+                    "a whole slot's places are 0, 1, 2 and so on"
                 );
-                full[run.block].push(run);
+                whole += run.count();
+                full[run.block()].push(run);
             } else {
                 parts.push(run);
             }
@@ -360,8 +379,8 @@ impl<V: StripValue> Band<'_, V> {
         let v0 = self.values.as_ptr();
         for (k, part) in parts.iter().enumerate() {
             if let Some(next) = parts.get(k + PART_AHEAD) {
-                let at = v0.wrapping_add(next.first).cast::<i8>();
-                let bytes = next.count * size_of::<[V; STRIP_ROWS]>();
+                let at = v0.wrapping_add(next.first()).cast::<i8>();
+                let bytes = next.count() * size_of::<[V; STRIP_ROWS]>();
                 for line in (0..bytes).step_by(64) {
                     // A prefetch never faults.
                     _mm_prefetch::<_MM_HINT_T0>(at.wrapping_add(line));
@@ -390,33 +409,67 @@ impl<V: StripValue> Band<'_, V> {
         let mut next = [0usize; BAND_BLOCKS];
         for end in (PANEL_TERMS..self.light.indices.len() + PANEL_TERMS).step_by(PANEL_TERMS) {
             for (i, (list, next)) in full[..blocks].iter().zip(&mut next).enumerate() {
-                let chunk = &list[*next..];
-                let chunk = &chunk[..chunk.partition_point(|f| f.term < end)];
-                *next += chunk.len();
+                // The list is in term order: its chunk runs on from where the last one ended.
+                let start = *next;
+                while list.get(*next).is_some_and(|f| (f.term as usize) < end) {
+                    *next += 1;
+                }
+                let chunk = &list[start..*next];
                 let at = accumulator(i * BLOCK_ROWS, 0);
                 let block: &mut [f32; 3 * BLOCK_ROWS] = (&mut acc[at..at + 3 * BLOCK_ROWS])
                     .try_into()
                     .expect("a block inside the band");
                 // SAFETY: AVX2 and FMA, this function's contract; every slot in the list holds
-                // `STRIPS_PER_BLOCK` strips from its first, checked where it was pushed.
-                unsafe { add_panels(self.values, chunk, block) };
+                // the block's strips from its first, at most 32, checked where it was pushed.
+                unsafe { add_panels(self.values, chunk, block_strips[i], block) };
             }
         }
-        let whole: usize = full[..blocks].iter().map(Vec::len).sum();
-        read.places -= (whole * STRIPS_PER_BLOCK) as u64;
+        read.places -= whole as u64;
         read
     }
 }
 
 /// An occupied slot as the walk hands it: its term's place in the light's list, its block within
-/// the band, its first strip and their count, and its scaled light term.
-#[derive(Clone, Copy, Debug)]
+/// the band, its first strip and their count, and its scaled light term. Held in 24 bytes: a
+/// K = 200 product on the demo bake walks some 60,000 of them.
+#[derive(Clone, Copy, Debug, Default)]
 struct Run {
-    term: usize,
-    block: usize,
-    first: usize,
-    count: usize,
+    term: u32,
+    first: u32,
+    block: u16,
+    count: u16,
     l: [f32; 3],
+}
+
+impl Run {
+    #[inline(always)]
+    fn first(&self) -> usize {
+        self.first as usize
+    }
+    #[inline(always)]
+    fn count(&self) -> usize {
+        self.count as usize
+    }
+    #[inline(always)]
+    fn block(&self) -> usize {
+        self.block as usize
+    }
+}
+
+/// What a worker reuses from one product to the next: a band's accumulators (with a cache
+/// line's slack to align them), the whole slots of each block of a band, and the other slots.
+struct Scratch {
+    buffer: Vec<f32>,
+    full: Vec<Vec<Run>>,
+    parts: Vec<Run>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch {
+        buffer: vec![0.0; BAND_ACCUMULATORS + LINE_FLOATS],
+        full: vec![Vec::new(); BAND_BLOCKS],
+        parts: Vec::new(),
+    });
 }
 
 /// How many slots ahead the strip loop fetches a slot's values.
@@ -428,52 +481,85 @@ const PANEL: usize = 4;
 /// bytes) stay in the first-level cache while the block's 8 panels read them.
 const PANEL_TERMS: usize = 64;
 
-/// Adds every slot of `list` (each of all its block's strips) to `block`, the block's
-/// accumulators: a panel of [`PANEL`] strips at a time, its accumulators in registers across up
-/// to [`PANEL_TERMS`] terms, so each strip costs one load and three fused multiply-adds rather
-/// than three loads and three stores besides.
+/// Adds every slot of `list` (each of all `strips` strips of its block) to `block`, the
+/// block's accumulators: a panel of [`PANEL`] strips at a time (fewer in the last panel of a
+/// block whose strips are not a multiple of it), its accumulators in registers across up to
+/// [`PANEL_TERMS`] terms, so each strip costs one load and three fused multiply-adds rather than
+/// three loads and three stores besides.
 ///
 /// # Safety
-/// The processor has AVX2 and FMA, and every slot's strips `first .. first + 32` are in `values`.
+/// The processor has AVX2 and FMA, `strips` is at most 32, and every slot's strips `first ..
+/// first + strips` are in `values`.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn add_panels<V: StripValue>(
     values: &[[V; STRIP_ROWS]],
     list: &[Run],
+    strips: usize,
     block: &mut [f32; 3 * BLOCK_ROWS],
+) {
+    let out = block.as_mut_ptr();
+    for chunk in list.chunks(PANEL_TERMS) {
+        let mut at = 0;
+        // SAFETY (each call): the contract, and panels of strips `at .. at + N` inside the
+        // slots' `strips` and the block's 32.
+        while at + PANEL <= strips {
+            unsafe { add_panel::<V, PANEL>(values, chunk, at, out) };
+            at += PANEL;
+        }
+        match strips - at {
+            1 => unsafe { add_panel::<V, 1>(values, chunk, at, out) },
+            2 => unsafe { add_panel::<V, 2>(values, chunk, at, out) },
+            3 => unsafe { add_panel::<V, 3>(values, chunk, at, out) },
+            _ => {}
+        }
+    }
+}
+
+/// Adds strips `at .. at + N` of every slot of `chunk` to their accumulators in `out` (a block's
+/// `3 * BLOCK_ROWS`), held in registers meanwhile.
+///
+/// # Safety
+/// The processor has AVX2 and FMA; every slot's strips `first + at .. first + at + N` are in
+/// `values`, and `at + N` is at most 32.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn add_panel<V: StripValue, const N: usize>(
+    values: &[[V; STRIP_ROWS]],
+    chunk: &[Run],
+    at: usize,
+    out: *mut f32,
 ) {
     use std::arch::x86_64::*;
     let v0 = values.as_ptr();
-    let out = block.as_mut_ptr();
-    for chunk in list.chunks(PANEL_TERMS) {
-        for panel in 0..STRIPS_PER_BLOCK / PANEL {
-            let mut a = [[_mm256_setzero_ps(); 3]; PANEL];
-            for f in chunk {
-                let l = f.l.map(|x| _mm256_set1_ps(x));
-                // SAFETY: strips `first .. first + 32` are in `values` (the contract), and the
-                // panel's lie among them.
-                let v = unsafe { v0.add(f.first + panel * PANEL) };
-                // The same panel of the next block's slot of this term follows the slot in
-                // memory (a band stores a term's slots side by side): fetched ahead, as the
-                // hardware cannot guess 64 interleaved runs. A prefetch never faults.
-                _mm_prefetch::<_MM_HINT_T0>(v.wrapping_add(STRIPS_PER_BLOCK).cast::<i8>());
-                for (i, a) in a.iter_mut().enumerate() {
-                    // SAFETY: as above; eight values a strip.
-                    let x = unsafe { V::widen_avx2(v.add(i).cast::<V>()) };
-                    for k in 0..3 {
-                        a[k] = _mm256_fmadd_ps(x, l[k], a[k]);
-                    }
+    // SAFETY: the caller runs with AVX2 (the contract).
+    let mut a = [[unsafe { _mm256_setzero_ps() }; 3]; N];
+    for f in chunk {
+        // SAFETY: the contract.
+        let l = f.l.map(|x| unsafe { _mm256_set1_ps(x) });
+        // SAFETY: strips `first + at .. first + at + N` are in `values` (the contract).
+        let v = unsafe { v0.add(f.first() + at) };
+        // The same panel of the next block's slot of this term follows the slot in memory (a
+        // band stores a term's slots side by side): fetched ahead, as the hardware cannot guess
+        // 64 interleaved runs. A prefetch never faults.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(v.wrapping_add(f.count()).cast::<i8>()) };
+        for (i, a) in a.iter_mut().enumerate() {
+            // SAFETY: as above; eight values a strip, and AVX2 and FMA.
+            unsafe {
+                let x = V::widen_avx2(v.add(i).cast::<V>());
+                for k in 0..3 {
+                    a[k] = _mm256_fmadd_ps(x, l[k], a[k]);
                 }
             }
-            for (i, a) in a.iter().enumerate() {
-                for (k, a) in a.iter().enumerate() {
-                    // SAFETY: strip `panel * PANEL + i` of the block, channel `k`: inside the
-                    // block's `3 * BLOCK_ROWS` accumulators.
-                    unsafe {
-                        let at = out.add(accumulator((panel * PANEL + i) * STRIP_ROWS, k));
-                        _mm256_storeu_ps(at, _mm256_add_ps(_mm256_loadu_ps(at), *a));
-                    }
-                }
+        }
+    }
+    for (i, a) in a.iter().enumerate() {
+        for (k, a) in a.iter().enumerate() {
+            // SAFETY: strip `at + i` (below 32) of the block, channel `k`: inside the block's
+            // `3 * BLOCK_ROWS` accumulators; AVX2.
+            unsafe {
+                let p = out.add(accumulator((at + i) * STRIP_ROWS, k));
+                _mm256_storeu_ps(p, _mm256_add_ps(_mm256_loadu_ps(p), *a));
             }
         }
     }

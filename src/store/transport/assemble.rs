@@ -207,6 +207,11 @@ impl EncodedTile {
                 codes: &self.col_scale[b * c..(b + 1) * c],
                 rows: &self.entry_row[e..e + n],
                 values: &values[e..e + n],
+                block_rows: self
+                    .row_pixel
+                    .len()
+                    .saturating_sub(b * BLOCK_ROWS)
+                    .min(BLOCK_ROWS),
             });
             e += n;
         }
@@ -330,6 +335,21 @@ impl Transport {
         };
         t.validate().map_err(invalid)?;
         Ok(t)
+    }
+
+    /// Makes the strips again from the tiles' columns, as this build lays them out: a file of
+    /// version 7 stored a slot whole only when all its strips held entries, where this build
+    /// stores it whole from half full ([`super::strips::stored_whole`]), which a product adds
+    /// faster. The values and what they mean are unchanged.
+    pub fn remake_strips(&mut self) -> Result<()> {
+        let tiles: Vec<EncodedTile> = (0..self.tile_row_start.len().saturating_sub(1))
+            .map(|t| self.encoded_tile(t))
+            .collect();
+        let (tx, _) = tile_grid(self.meta.width as usize, self.meta.height as usize);
+        let (c, q) = (self.coeff_count(), self.quantization());
+        self.strips = strips_of_tiles(&tiles, &self.tile_block_start, tx, c, q)
+            .map_err(|m| PrtError::invalid("transport", m))?;
+        Ok(())
     }
 
     /// Tile `tile` in the stored layout, read back from the strips (for a merge).

@@ -694,9 +694,11 @@ fn strips_of_columns(
     rows: &[u8],
     values: &Values,
 ) -> std::result::Result<Strips, String> {
+    #[allow(clippy::too_many_arguments)]
     fn of<V: Stored>(
         layout: Layout,
         starts: &[u64],
+        block_row_start: &[u32],
         c: usize,
         counts: &[u16],
         codes: &[u8],
@@ -705,14 +707,16 @@ fn strips_of_columns(
     ) -> std::result::Result<Strips, String> {
         let blocks: Vec<BlockColumns<V>> = starts
             .windows(2)
+            .zip(block_row_start.windows(2))
             .enumerate()
-            .map(|(b, e)| {
+            .map(|(b, (e, r))| {
                 let e = e[0] as usize..e[1] as usize;
                 BlockColumns {
                     counts: &counts[b * c..(b + 1) * c],
                     codes: &codes[b * c..(b + 1) * c],
                     rows: &rows[e.clone()],
                     values: &values[e],
+                    block_rows: r[1].saturating_sub(r[0]) as usize,
                 }
             })
             .collect();
@@ -723,8 +727,8 @@ fn strips_of_columns(
     }
     let starts = column_pointers(counts, block_row_start, c, rows.len())?;
     match values {
-        Values::Q8(v) => of(layout, &starts, c, counts, codes, rows, v),
-        Values::Q16(v) => of(layout, &starts, c, counts, codes, rows, v),
-        Values::F32(v) => of(layout, &starts, c, counts, codes, rows, v),
+        Values::Q8(v) => of(layout, &starts, block_row_start, c, counts, codes, rows, v),
+        Values::Q16(v) => of(layout, &starts, block_row_start, c, counts, codes, rows, v),
+        Values::F32(v) => of(layout, &starts, block_row_start, c, counts, codes, rows, v),
     }
 }

@@ -20,14 +20,15 @@
 //! apply it once per row, with the weight.
 //!
 //! A column is stored as *strips*: aligned runs of 8 rows, kept whole (zeros where a row has no
-//! entry) when they hold at least one entry. Whole tile rows are gathered into *groups* of at
+//! entry) when they hold at least one entry, and every strip of its block when at least half of
+//! them do ([`strips::stored_whole`]). Whole tile rows are gathered into *groups* of at
 //! least 16 blocks and a group's blocks into *bands* of at most 16; a band's strips are stored
 //! coefficient by coefficient, and inside a coefficient block by block ([`strips`]). So one
 //! worker owns a group's rows with no atomics, and relighting with K terms reads K contiguous
 //! runs of each band. Groups and bands follow from `tile_row_start` alone; the *slots* (band,
 //! coefficient, block), in that order, each give a strip count and a scale code.
 //!
-//! # File (format version 7)
+//! # File (format version 8)
 //! A safetensors file (readable from Python with `safetensors.numpy.load_file`); its one metadata
 //! entry `meta` is JSON: `format = "wavelet-prt transport"`, `format_version`, `checksum` and the
 //! fields of [`TransportMeta`]. Tensors (T tiles, R rows, B blocks, C = 6 N² coefficients, S
@@ -58,7 +59,10 @@
 //! BRDF terms of a glossy per-vertex bake (the `brdf_` tensors and `per_vertex.brdf_terms`,
 //! `brdf_error`, `brdf_stride` and `brdf_map`): vertex v's terms are pixels `v · S + k`; older
 //! files have one pixel a vertex and are read as before. Version 7 stores the Haar matrix as
-//! strips; versions 3 to 6 stored it as columns, in (block, coefficient) order, blocks in tile
+//! strips; version 8 stores a slot whole when at least half its block's strips hold entries, its
+//! other strips as zeros (version 7 kept only the strips that hold an entry, and still loads:
+//! a reused bake of it is written again in this version, its strips made anew); versions 3 to 6
+//! stored it as columns, in (block, coefficient) order, blocks in tile
 //! order: `col_count` (u16 [B, C], each column's entries), `col_scale` (u8 [B, C]), `entry_row`
 //! (u8, each entry's row in its block, increasing within a column) and `entry_value`. They are
 //! read into strips.
@@ -104,7 +108,7 @@ pub const TILE: usize = 16;
 /// Name written in every transport file.
 pub const FORMAT_NAME: &str = container::TRANSPORT.name;
 /// Version of the layout described in this module.
-pub const FORMAT_VERSION: u32 = 7;
+pub const FORMAT_VERSION: u32 = 8;
 /// The oldest version this build reads: versions 3 to 6 store the Haar matrix as columns, which
 /// are made into strips as they load; version 3 has no local lights, versions 3 and 4 no albedo
 /// maps, and versions 3 to 5 no in-out BRDF terms.

