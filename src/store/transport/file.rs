@@ -1,5 +1,6 @@
-//! Reading the transport file (format version 7, laid out in the [module docs](super); versions
-//! 3 to 6, which stored columns, into strips): reading and validating all of it, and reading only its header and small tables for
+//! Reading the transport file (format version 8, laid out in the [module docs](super); versions
+//! 3 to 6, which stored columns, into strips; version 7, whose slots are whole only when full, as
+//! stored): reading and validating all of it, and reading only its header and small tables for
 //! `prt info`. Every size and index is checked before anything is sliced or allocated.
 
 use std::io::Read;
@@ -67,7 +68,7 @@ impl Transport {
             )),
             None => None,
         };
-        // Versions 3 to 6 store columns (`col_count`, `entry_row`, `entry_value`), version 7
+        // Versions 3 to 6 store columns (`col_count`, `entry_row`, `entry_value`), versions 7 and 8
         // strips; `col_scale` is in both.
         let legacy = version < 7;
         let col_count = if legacy {
