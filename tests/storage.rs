@@ -405,6 +405,8 @@ fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
     if !has_avx2_fma() {
         eprintln!("no AVX2 and FMA: the SIMD loop is not run, only the portable one");
     }
+    // The strips of the last panel of each whole slot, 0 for a panel of 4.
+    let mut tails = std::collections::BTreeSet::new();
     for (q, w, h, n, density) in [
         (Quantization::Q8, 230, 20, 2, 0.1),
         (Quantization::Q16, 230, 20, 2, 0.1),
@@ -415,8 +417,7 @@ fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
         (Quantization::Q16, 100, 40, 4, 0.9),
         (Quantization::F32, 100, 40, 4, 0.9),
         (Quantization::Q8, 16, 200, 4, 0.9),
-        // Tiles of 48, 32 and 6 pixels: blocks of 6, 4 and 1 strips, whose whole slots end in
-        // a panel of 2 strips, none and 1 (230 x 20 has blocks of 3 strips).
+        // Small tiles, whose blocks of few rows end their whole slots in panels of 1 to 3.
         (Quantization::Q16, 19, 18, 4, 0.9),
     ] {
         let t = if density < 0.5 {
@@ -448,6 +449,11 @@ fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
         assert!(
             whole > 0 && short > 0,
             "{q}: slots of all strips, of short blocks too"
+        );
+        tails.extend(
+            slot_blocks()
+                .filter(|&(s, b)| is_whole(s, b))
+                .map(|(_, b)| block_strips(b) % 4),
         );
         assert_eq!(some > 0, density < 0.5, "{q}: slots of some strips");
         let mut rng = Rng::new(8, 0);
@@ -497,6 +503,11 @@ fn simd_and_portable_strip_loops_agree_with_the_dense_twin() {
             }
         }
     }
+    assert_eq!(
+        tails,
+        (0..4).collect(),
+        "whole slots ending in panels of 4, 1, 2 and 3 strips"
+    );
 }
 
 /// GPU and CPU agree (1e-4) on every format, on values from 1e-7 to 1e-5: in the old format

@@ -364,12 +364,13 @@ pub fn load_or_bake(
     if let Some(mut t) = load_if_baked_with(path, scene, settings) {
         // A file of an older format is written again in this one, so later runs read it
         // without converting it; where it cannot be (a folder that is read only), it is read as
-        // it is, as before. Version 7's strips are made again, with the slots this version
-        // stores whole (versions 3 to 6 are made into strips as they load).
+        // it is, as before. Version 7's slots are made whole where this version stores them so
+        // (versions 3 to 6 are made into strips as they load); should that fail, the strips
+        // stay as they were read, which every product reads as well.
         let version = crate::store::transport::read_format_version(path).ok();
         if version.is_some_and(|v| v < crate::store::transport::FORMAT_VERSION) {
             if version == Some(7) {
-                t.remake_strips()?;
+                t.make_slots_whole().ok();
             }
             t.save(path).ok();
         }

@@ -323,9 +323,8 @@ impl<V: StripValue> Band<'_, V> {
     /// # Safety
     /// The processor has AVX2 and FMA.
     ///
-    /// A slot that holds all its block's strips (84% of those a K = 200 product reads on the
-    /// demo bake) goes to its block's list in `full` and is added panel by panel
-    /// ([`add_panels`]); the others strip by strip into `acc`.
+    /// A slot that holds all its block's strips goes to its block's list in `full` and is added
+    /// panel by panel ([`add_panels`]); the others strip by strip into `acc`.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     unsafe fn add_avx2(

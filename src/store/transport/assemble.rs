@@ -337,17 +337,18 @@ impl Transport {
         Ok(t)
     }
 
-    /// Makes the strips again from the tiles' columns, as this build lays them out: a file of
-    /// version 7 stored a slot whole only when all its strips held entries, where this build
-    /// stores it whole from half full ([`super::strips::stored_whole`]), which a product adds
-    /// faster. The values and what they mean are unchanged.
-    pub fn remake_strips(&mut self) -> Result<()> {
-        let tiles: Vec<EncodedTile> = (0..self.tile_row_start.len().saturating_sub(1))
-            .map(|t| self.encoded_tile(t))
+    /// Stores whole every slot that this build stores whole from half full
+    /// ([`super::strips::stored_whole`]), which a product adds faster: a file of version 7 kept
+    /// only the strips that hold entries. The values and what they mean are unchanged.
+    pub fn make_slots_whole(&mut self) -> Result<()> {
+        let rows: Vec<u32> = self
+            .block_row_start
+            .windows(2)
+            .map(|w| w[1] - w[0])
             .collect();
-        let (tx, _) = tile_grid(self.meta.width as usize, self.meta.height as usize);
-        let (c, q) = (self.coeff_count(), self.quantization());
-        self.strips = strips_of_tiles(&tiles, &self.tile_block_start, tx, c, q)
+        self.strips = self
+            .strips
+            .with_slots_made_whole(&rows, self.coeff_count())
             .map_err(|m| PrtError::invalid("transport", m))?;
         Ok(())
     }

@@ -248,10 +248,9 @@ impl Strips {
                         "block {i}, coefficient {j}: rows not strictly increasing"
                     ));
                 }
-                if b.rows[col]
-                    .last()
-                    .is_some_and(|&r| r as usize >= b.block_rows)
-                {
+                // A stored zero (an older file may hold one) is no entry and may lie anywhere.
+                let mut entries = b.rows[col.clone()].iter().zip(&b.values[col]);
+                if entries.any(|(&r, v)| v.is_entry() && r as usize >= b.block_rows) {
                     return Err(format!(
                         "block {i}, coefficient {j}: a row past the block's {}",
                         b.block_rows
@@ -523,6 +522,65 @@ impl Strips {
             }
         }
         read
+    }
+
+    /// These strips with every slot that [`stored_whole`] makes whole holding all its block's
+    /// strips, zeros where none was (blocks of `block_rows[b]` rows, `c` coefficients): what a
+    /// file of version 7, which kept only the strips that hold entries, holds in this version.
+    /// In one pass over the slots, with no more memory than the strips twice.
+    pub fn with_slots_made_whole(
+        &self,
+        block_rows: &[u32],
+        c: usize,
+    ) -> std::result::Result<Strips, String> {
+        fn pad<V: Stored>(
+            s: &Strips,
+            values: &[V],
+            block_rows: &[u32],
+            c: usize,
+        ) -> std::result::Result<Strips, String> {
+            let (mut counts, mut codes) = (Vec::with_capacity(s.slots.len()), Vec::new());
+            let (mut index, mut padded) = (Vec::new(), Vec::new());
+            for band in 0..s.band_count() {
+                for j in 0..c {
+                    let blocks = s.band_blocks(band);
+                    for (slot, b) in s.term_slots(band, j, c).iter().zip(blocks) {
+                        let strips = slot.first as usize..slot.first as usize + slot.count as usize;
+                        let rows = block_rows.get(b).copied().unwrap_or(0) as usize;
+                        let block_strips = rows.div_ceil(STRIP_ROWS).min(STRIPS_PER_BLOCK);
+                        let held = &s.index[strips.clone()];
+                        let own = &values[strips.start * STRIP_ROWS..strips.end * STRIP_ROWS];
+                        if stored_whole(held.len(), block_strips)
+                            && held.len() < block_strips
+                            && held.iter().all(|&p| (p as usize) < block_strips)
+                        {
+                            let at = padded.len();
+                            index.extend(0..block_strips as u8);
+                            padded.resize(at + block_strips * STRIP_ROWS, V::default());
+                            for (&p, v) in held.iter().zip(own.chunks_exact(STRIP_ROWS)) {
+                                let to = at + p as usize * STRIP_ROWS;
+                                padded[to..to + STRIP_ROWS].copy_from_slice(v);
+                            }
+                            counts.push(block_strips as u8);
+                        } else {
+                            index.extend_from_slice(held);
+                            padded.extend_from_slice(own);
+                            counts.push(slot.count);
+                        }
+                        codes.push(slot.code);
+                    }
+                }
+            }
+            Strips::from_tables(s.layout(), &counts, &codes, index, V::wrap(padded))
+        }
+        if let Some(m) = self.problem(block_rows, c) {
+            return Err(m);
+        }
+        match &self.values {
+            Values::Q8(v) => pad(self, v, block_rows, c),
+            Values::Q16(v) => pad(self, v, block_rows, c),
+            Values::F32(v) => pad(self, v, block_rows, c),
+        }
     }
 
     /// Per slot, in order, its strip count and its scale code: the two tables a file stores.
