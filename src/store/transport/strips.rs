@@ -69,7 +69,7 @@ pub struct Strips {
     /// zero where the row has no entry.
     pub values: Values,
     /// Per band and coefficient, a bit for each block of the band whose slot holds strips
-    /// (bit i for the band's block i): on the demo bake 94% of slots are empty, and a product
+    /// (bit i for the band's block i): on the demo bake 66% of slots are empty, and a product
     /// skips them without reading them. It follows from `slots`, and is made with them.
     occupied: Vec<u16>,
 }
