@@ -31,7 +31,7 @@ use rayon::prelude::*;
 use crate::light::select::SparseLight;
 use crate::output::film::Image;
 use crate::store::quant::{BLOCK_ROWS, scale_table};
-use crate::store::transport::strips::{BAND_BLOCKS, STRIP_ROWS, STRIPS_PER_BLOCK, Strips};
+use crate::store::transport::strips::{self, BAND_BLOCKS, STRIP_ROWS, STRIPS_PER_BLOCK, Strips};
 use crate::store::transport::{TILE, Transport, Values};
 
 /// What a product read.
@@ -341,8 +341,9 @@ impl<V: StripValue> Band<'_, V> {
         // Each block's strips: 32 but in a tile's last block, which may hold fewer rows.
         let mut block_strips = [0usize; BAND_BLOCKS];
         for (s, b) in block_strips.iter_mut().zip(band_blocks) {
-            let rows = self.t.block_row_start[b + 1] - self.t.block_row_start[b];
-            *s = (rows as usize).div_ceil(STRIP_ROWS).min(STRIPS_PER_BLOCK);
+            *s = strips::block_strips(
+                (self.t.block_row_start[b + 1] - self.t.block_row_start[b]) as usize,
+            );
         }
         assert!(
             acc.len() >= 3 * blocks * BLOCK_ROWS && full.len() >= blocks,

@@ -341,14 +341,9 @@ impl Transport {
     /// ([`super::strips::stored_whole`]), which a product adds faster: a file of version 7 kept
     /// only the strips that hold entries. The values and what they mean are unchanged.
     pub fn make_slots_whole(&mut self) -> Result<()> {
-        let rows: Vec<u32> = self
-            .block_row_start
-            .windows(2)
-            .map(|w| w[1] - w[0])
-            .collect();
         self.strips = self
             .strips
-            .with_slots_made_whole(&rows, self.coeff_count())
+            .with_slots_made_whole(&self.block_rows(), self.coeff_count())
             .map_err(|m| PrtError::invalid("transport", m))?;
         Ok(())
     }
