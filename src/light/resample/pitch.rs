@@ -28,15 +28,18 @@
 //! The work is one texel lookup per sub-cell, made cheap three ways:
 //! - the lookup runs in f32 without branches, four sub-cells an SSE2 instruction
 //!   ([`texels_of`]);
-//! - R_x(pitch) keeps x, so the second half of every row is the mirror of the first, its texels
-//!   looked up in a table ([`mirrors`]);
+//! - R_x(pitch) keeps x, so the second half of every row is the mirror of the first: its texels
+//!   are looked up in a table and its runs are the first half's, mirrored ([`mirrors`],
+//!   [`row_runs`]);
 //! - a row's sub-cells run through a texel several in turn, and each run scatters its power
-//!   once ([`runs`]).
+//!   once, its sum the difference of the row's running sums at its two ends, whatever its
+//!   length ([`runs`], [`RowSums`]).
 //!
 //! On the 2-core machine (`cargo bench --bench light`, blender_sunrise, one run, the README's
-//! table): a pitch drag prepares a light in 3.40 ms at N = 32 and 11.5 ms at N = 64, against
-//! 2.26 and 6.10 ms for a yaw drag, and 69.4 and 263 ms through weights recorded
-//! for each pitch.
+//! table), with the map's unturned SH light kept from one step of a drag to the next as the
+//! viewer keeps it: a pitch drag prepares a light in 2.09 ms at N = 32 and 6.85 ms at N = 64,
+//! against 2.53 and 4.34 ms for a yaw drag, and 89.4 and 291 ms through weights recorded for
+//! each pitch.
 //!
 //! Pitch 0 keeps the recorded weights, exact to the band of the recorded splat: a light that
 //! leaves pitch 0 steps by the difference above (on a small sun crossing a texel border, a few
@@ -135,31 +138,42 @@ fn texels_of(
         // a whole number, which then fills the mantissa's low bits. Half a cell down makes the
         // rounding a floor, but for a point exactly on a border.
         let whole = |v: f32| (v + ROUND) - ROUND;
-        let cell = |v: f32| whole((v * inverse + half_n).clamp(0.0, size) - 0.5).min(last);
+        // A select, not `f32::min`, whose NaN rule costs a compare and a blend (no value here
+        // is NaN).
+        let cell = |v: f32| {
+            let c = whole((v * inverse + half_n).clamp(0.0, size) - 0.5);
+            if c > last { last } else { c }
+        };
         let index = (face * size + cell(t_)) * size + cell(s);
         *t = (index + ROUND).to_bits() - ROUND.to_bits();
     }
 }
 
-/// The texels of a whole sub-row into `texels`: [`texels_of`] for the sub-columns of its first
-/// half (`half`: their sin u and cos u), and the mirrors of those for the second half. R_x(pitch)
-/// keeps x, so sub-column W·q − 1 − k, at u' = 2π − u, lands where sub-column k does with x
-/// negated: in the mirror of its texel (an odd row's middle sub-column, at u = π, is its own).
-fn row_texels(
-    n: usize,
-    half: (&[f32], &[f32]),
-    sin_v: f32,
-    y: (f32, f32),
-    z: (f32, f32),
+/// Calls `give(texel, start, end, mirrored)` for the runs of a whole sub-row of `columns`
+/// sub-columns, from `texels`, those of its first half: each run of the first half in turn, and
+/// after it its mirror in the second half (`mirrored`), so that each run of either half starts
+/// where the last of that half ended, and the mirrors end where the last one started. R_x(pitch) keeps x, so sub-column columns − 1 − k, at
+/// u' = 2π − u, lands where sub-column k does with x negated: in the mirror of its texel (an odd
+/// row's middle sub-column, at u = π, is its own).
+fn row_runs(
+    texels: &[u32],
+    columns: usize,
     mirror: &[u32],
-    texels: &mut [u32],
+    mut give: impl FnMut(usize, usize, usize, bool),
 ) {
-    let (first, second) = texels.split_at_mut(half.0.len());
-    texels_of(n, half.0, half.1, sin_v, y, z, first);
-    let mirrored = &first[..second.len()];
-    for (t, &m) in second.iter_mut().zip(mirrored.iter().rev()) {
-        *t = mirror[m as usize];
-    }
+    let mirrored = columns - texels.len();
+    runs(texels, |start, end, texel| {
+        give(texel as usize, start, end, false);
+        let end = end.min(mirrored);
+        if start < end {
+            give(
+                mirror[texel as usize] as usize,
+                columns - end,
+                columns - start,
+                true,
+            );
+        }
+    });
 }
 
 /// The texel of (−x, y, z) for each texel of (x, y, z): faces ±x trade places, and s turns
@@ -174,41 +188,91 @@ fn mirrors(n: usize) -> Vec<u32> {
         .collect()
 }
 
-/// Gives each run of equal `texels` (sub-cells of one sub-row, which run through a texel several
-/// in turn: about eight at N = 32 for a 1024-pixel row) the sum of its `values` and its length,
-/// so that power is scattered once a run. Four sub-cells in one texel are summed as a pair of
-/// pairs, so the running sums wait on one addition per four sub-cells rather than per sub-cell.
-fn runs(texels: &[u32], values: &[[f32; 3]], mut give: impl FnMut(usize, [f64; 3], f64)) {
-    let Some(&first) = texels.first() else {
-        return;
-    };
-    let (mut at, mut sum, mut cells) = (first, [0.0f64; 3], 0.0);
-    let wide = |v: &[f32; 3]| v.map(f64::from);
-    let mut k = 0;
-    while k < texels.len() {
-        if let (Some(t), Some(v)) = (texels.get(k..k + 4), values.get(k..k + 4))
-            && t.iter().all(|&t| t == at)
+/// Calls `give(start, end, texel)` for each run of equal `texels`: the sub-cells of a sub-row run
+/// through a texel several in turn (about eight at N = 32 for a 1024-pixel row), and each run
+/// scatters its power once. Eight equal texels are skipped at a time.
+fn runs(texels: &[u32], mut give: impl FnMut(usize, usize, u32)) {
+    let mut start = 0;
+    while let Some(&at) = texels.get(start) {
+        let mut end = start + 1;
+        while let Some(next) = texels.get(end..end + 8)
+            && next.iter().all(|&t| t == at)
         {
-            let (a, b, c, d) = (wide(&v[0]), wide(&v[1]), wide(&v[2]), wide(&v[3]));
-            for i in 0..3 {
-                sum[i] += (a[i] + b[i]) + (c[i] + d[i]);
-            }
-            cells += 4.0;
-            k += 4;
-            continue;
+            end += 8;
         }
-        if texels[k] != at {
-            give(at as usize, sum, cells);
-            (at, sum, cells) = (texels[k], [0.0; 3], 0.0);
+        while texels.get(end) == Some(&at) {
+            end += 1;
         }
-        let v = wide(&values[k]);
-        for i in 0..3 {
-            sum[i] += v[i];
-        }
-        cells += 1.0;
-        k += 1;
+        give(start, end, at);
+        start = end;
     }
-    give(at as usize, sum, cells);
+}
+
+/// The yawed map's values along one row of the world grid, summed from the row's start to any
+/// sub-cell, so that a run of sub-cells takes its sum in two lookups whatever its length.
+///
+/// World cell x shows v_x, the map cell the yaw's shift puts there, and its last fraction f the
+/// next, v_{x+1} (see the module notes of `super`). Its sub-cell i holds v_x + tail_i ·
+/// (v_{x+1} − v_x) (see [`tail_shares`]), so its first i sub-cells sum to i · v_x + (tail_0 + … +
+/// tail_{i−1}) · (v_{x+1} − v_x) and a whole cell to q · v_x + q · f · (v_{x+1} − v_x). Summed
+/// over the cells before x, with R_x = v_0 + … + v_{x−1}, that is q · (R_x + f · (v_x − v_0)).
+struct RowSums {
+    q: usize,
+    f: f64,
+    /// tail_0 + … + tail_{i−1} for i = 0..=q.
+    tail_before: Vec<f64>,
+    /// Per world cell x, R_x and v_x, and one more for the row's end (v_W = v_0).
+    cells: Vec<([f64; 3], [f64; 3])>,
+}
+
+impl RowSums {
+    fn new(width: usize, q: usize, f: f64) -> Self {
+        let mut tail_before = vec![0.0];
+        for t in tail_shares(q, f) {
+            tail_before.push(tail_before.last().copied().unwrap_or(0.0) + t);
+        }
+        RowSums {
+            q,
+            f,
+            tail_before,
+            cells: vec![([0.0; 3], [0.0; 3]); width + 1],
+        }
+    }
+
+    /// Takes `row` (a map row) under the yaw's shift: world cell x shows map cell x + `whole`.
+    fn fill(&mut self, row: &[[f32; 3]], whole: usize) {
+        let (after, before) = row.split_at(whole);
+        let mut sum = [0.0f64; 3];
+        for (cell, v) in self.cells.iter_mut().zip(before.iter().chain(after)) {
+            let v = v.map(f64::from);
+            *cell = (sum, v);
+            for c in 0..3 {
+                sum[c] += v[c];
+            }
+        }
+        let first = self.cells[0].1;
+        if let Some(end) = self.cells.last_mut() {
+            *end = (sum, first);
+        }
+    }
+
+    /// The sum of the row's first `k` sub-cells.
+    fn upto(&self, k: usize) -> [f64; 3] {
+        let (x, i) = (k / self.q, k % self.q);
+        let ((r, v), v0) = (self.cells[x], self.cells[0].1);
+        let q = self.q as f64;
+        let before: [f64; 3] = std::array::from_fn(|c| q * (r[c] + self.f * (v[c] - v0[c])));
+        if i == 0 {
+            return before;
+        }
+        let (next, t) = (self.cells[x + 1].1, self.tail_before[i]);
+        std::array::from_fn(|c| before[c] + i as f64 * v[c] + t * (next[c] - v[c]))
+    }
+
+    /// [`RowSums::upto`] `k`, or `known`'s sum when it is at `k`.
+    fn upto_or(&self, known: (usize, [f64; 3]), k: usize) -> [f64; 3] {
+        if known.0 == k { known.1 } else { self.upto(k) }
+    }
 }
 
 /// `pixels` (a `width` x `height` lat-long map) turned by `rotation` and splatted at the centres
@@ -223,7 +287,8 @@ pub(super) fn splat(
 ) -> Result<Option<CubeMap>> {
     let (whole, f) = yaw_shift(width, rotation.yaw_deg)?;
     let q = split(width, height, n);
-    // The sub-columns of the first half of a row: the second half mirrors them (below).
+    // The sub-columns of the first half of a row: the second half mirrors them (see
+    // [`row_runs`]).
     let columns = width * q;
     let (sin_u, cos_u): (Vec<f32>, Vec<f32>) = (0..columns.div_ceil(2))
         .map(|x| {
@@ -231,7 +296,6 @@ pub(super) fn splat(
             (s as f32, c as f32)
         })
         .unzip();
-    let tail: Vec<f32> = tail_shares(q, f).iter().map(|&t| t as f32).collect();
     let count = texel_count(n);
     let mirror = mirrors(n);
     let (sin_p, cos_p) = rotation.pitch_deg.to_radians().sin_cos();
@@ -242,22 +306,10 @@ pub(super) fn splat(
         .map(|band| {
             let mut power = vec![[0.0f64; 3]; count];
             let mut received = vec![0.0f64; count];
-            let mut texels = vec![0u32; columns];
-            let mut turned = vec![[0.0f32; 3]; columns];
+            let mut texels = vec![0u32; sin_u.len()];
+            let mut sums = RowSums::new(width, q, f);
             for y in band * height / bands..(band + 1) * height / bands {
-                // World cell x holds the turned map's cell x + whole, and its last fraction f
-                // the next cell (see the module notes of `super`): each sub-cell's radiance.
-                let row = &pixels[y * width..(y + 1) * width];
-                let mut next = whole;
-                for cell in turned.chunks_exact_mut(q) {
-                    let this = next;
-                    next = if this + 1 == width { 0 } else { this + 1 };
-                    let a = row[this];
-                    let b = if f == 0.0 { a } else { row[next] };
-                    for (v, &t) in cell.iter_mut().zip(&tail) {
-                        *v = std::array::from_fn(|c| a[c] + t * (b[c] - a[c]));
-                    }
-                }
+                sums.fill(&pixels[y * width..(y + 1) * width], whole);
                 for j in 0..q {
                     let v0 = PI * (y * q + j) as f64 / (height * q) as f64;
                     let v1 = PI * (y * q + j + 1) as f64 / (height * q) as f64;
@@ -266,20 +318,35 @@ pub(super) fn splat(
                     // (sin u sin v, c cos v + s cos u sin v, s cos v − c cos u sin v).
                     let omega = TAU / columns as f64 * (v0.cos() - v1.cos());
                     let (sin_v, cos_v) = (0.5 * (v0 + v1)).sin_cos();
-                    row_texels(
+                    texels_of(
                         n,
-                        (&sin_u, &cos_u),
+                        &sin_u,
+                        &cos_u,
                         sin_v as f32,
                         ((cos_p * cos_v) as f32, (sin_p * sin_v) as f32),
                         ((sin_p * cos_v) as f32, (cos_p * sin_v) as f32),
-                        &mirror,
                         &mut texels,
                     );
-                    runs(&texels, &turned, |texel, sum, cells| {
+                    // The sums at the last boundary of each half, taken once for the two runs
+                    // that meet there.
+                    let mut forward = (0, [0.0; 3]);
+                    let mut backward = (columns, sums.upto(columns));
+                    row_runs(&texels, columns, &mirror, |texel, start, end, mirrored| {
+                        let (from, to) = if mirrored {
+                            let to = sums.upto_or(backward, end);
+                            let from = sums.upto(start);
+                            backward = (start, from);
+                            (from, to)
+                        } else {
+                            let from = sums.upto_or(forward, start);
+                            let to = sums.upto(end);
+                            forward = (end, to);
+                            (from, to)
+                        };
                         for c in 0..3 {
-                            power[texel][c] += sum[c] * omega;
+                            power[texel][c] += (to[c] - from[c]) * omega;
                         }
-                        received[texel] += cells * omega;
+                        received[texel] += (end - start) as f64 * omega;
                     });
                 }
             }
@@ -396,29 +463,37 @@ mod tests {
                     (cos_p * cos_v, sin_p * sin_v),
                     (sin_p * cos_v, cos_p * sin_v),
                 );
-                let mut got = vec![0u32; columns];
+                let mut half = vec![0u32; su.len()];
                 let narrow = |p: (f64, f64)| (p.0 as f32, p.1 as f32);
-                row_texels(
-                    n,
-                    (&su, &cu),
-                    sin_v as f32,
-                    narrow(y),
-                    narrow(z),
-                    &mirror,
-                    &mut got,
-                );
+                texels_of(n, &su, &cu, sin_v as f32, narrow(y), narrow(z), &mut half);
+                // Every sub-column in one run, and only one.
+                let mut got = vec![None; columns];
+                // Each half's runs follow one another: the first half's from 0 up, the
+                // mirrors from the row's end down.
+                let (mut forward, mut backward) = (0, columns);
+                row_runs(&half, columns, &mirror, |texel, start, end, mirrored| {
+                    assert!(start < end && end <= columns, "{start}..{end} of {columns}");
+                    if mirrored {
+                        assert_eq!(end, backward, "N = {n}, {columns}: a mirror at {start}");
+                        backward = start;
+                    } else {
+                        assert_eq!(start, forward, "N = {n}, {columns}: a run at {start}");
+                        forward = end;
+                    }
+                    for g in &mut got[start..end] {
+                        assert_eq!(*g, None, "N = {n}, {columns}: {start}..{end} twice");
+                        *g = Some(texel);
+                    }
+                });
                 for (k, &texel) in got.iter().enumerate() {
+                    let texel = texel.expect("every sub-column in a run");
                     let d = DVec3::new(
                         u(k).sin() * sin_v,
                         y.0 + y.1 * u(k).cos(),
                         z.0 - z.1 * u(k).cos(),
                     );
                     if off_borders(n, d) {
-                        assert_eq!(
-                            texel as usize,
-                            dir_to_texel(n, d),
-                            "N = {n}, {columns}: {k}"
-                        );
+                        assert_eq!(texel, dir_to_texel(n, d), "N = {n}, {columns}: {k}");
                     }
                 }
             }
@@ -444,6 +519,52 @@ mod tests {
                             "N = {n}, {d}"
                         );
                     }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_run_of_sub_cells_sums_as_its_sub_cells_one_by_one() {
+        let mut rng = crate::test_support::Rng(0x5e3);
+        let width = 37;
+        let row: Vec<[f32; 3]> = (0..width)
+            .map(|_| std::array::from_fn(|_| (rng.unit() * 10.0) as f32))
+            .collect();
+        for q in 1..=MAX_SPLIT {
+            for (whole, f) in [(0, 0.0), (5, 0.3), (36, 0.75), (17, 0.999)] {
+                let mut sums = RowSums::new(width, q, f);
+                sums.fill(&row, whole);
+                // The slow twin: every sub-cell's value, as the yaw's shift gives it.
+                let tail = tail_shares(q, f);
+                let values: Vec<[f64; 3]> = (0..width * q)
+                    .map(|k| {
+                        let (x, i) = (k / q, k % q);
+                        let a = row[(x + whole) % width].map(f64::from);
+                        let b = row[(x + whole + 1) % width].map(f64::from);
+                        std::array::from_fn(|c| a[c] + tail[i] * (b[c] - a[c]))
+                    })
+                    .collect();
+                for _ in 0..200 {
+                    let start = (rng.unit() * (width * q) as f64) as usize;
+                    let end = start + (rng.unit() * (width * q + 1 - start) as f64) as usize;
+                    let (from, to) = (sums.upto(start), sums.upto(end));
+                    let got: [f64; 3] = std::array::from_fn(|c| to[c] - from[c]);
+                    for c in 0..3 {
+                        let want: f64 = values[start..end].iter().map(|v| v[c]).sum();
+                        assert!(
+                            (got[c] - want).abs() <= 1e-12 * (1.0 + want.abs()),
+                            "q = {q}, shift {whole} + {f}, {start}..{end}: {} against {want}",
+                            got[c]
+                        );
+                    }
+                }
+                // The whole row is the map row's sum, q sub-cells a cell.
+                let total = sums.upto(width * q);
+                assert_eq!(sums.upto(0), [0.0; 3]);
+                for c in 0..3 {
+                    let want = q as f64 * row.iter().map(|v| v[c] as f64).sum::<f64>();
+                    assert!((total[c] - want).abs() <= 1e-12 * want, "{total:?}");
                 }
             }
         }
