@@ -8,11 +8,12 @@
 //!   off (weights recorded);
 //! - `fresh_prepare`: a fresh process's first call with the disk on: the unturned weights read
 //!   from the file an earlier process wrote (`resample::use_disk`);
-//! - `yaw_drag`: cached weights, a new yaw every iteration;
+//! - `yaw_drag`: cached weights, a new yaw every iteration, the map's unturned SH light kept
+//!   from one iteration to the next as the viewer keeps it (`LightContext::prepare_turned`);
 //! - `map_switch`: cached weights, alternating between two bundled maps of the same size, each at
 //!   a new yaw;
 //! - `pitch_drag`: a new pitch every iteration, splatted at sub-cell centres
-//!   (`resample::pitch`);
+//!   (`resample::pitch`), the unturned SH light kept as in `yaw_drag`;
 //! - `pitched_yaw_drag`: a new yaw every iteration at a pitch of 30°, the same path;
 //! - `pitch_drag_recorded`: a new pitch every iteration through weights recorded for it, as every
 //!   pitch was prepared before (the cube by `resample_latlong_recorded`, then as `prepare`);
@@ -126,11 +127,12 @@ fn prepare(c: &mut Criterion) {
                 ctx.prepare(black_box(&sunrise), rotation).unwrap()
             })
         });
+        let unturned_sh = ctx.prepare_sh(&sunrise).unwrap();
         let mut yaw = YAW;
         g.bench_with_input(BenchmarkId::new("yaw_drag", n), &n, |b, _| {
             b.iter(|| {
                 yaw += 1.37;
-                ctx.prepare(black_box(&sunrise), EnvRotation::yaw(yaw))
+                ctx.prepare_turned(black_box(&sunrise), &unturned_sh, EnvRotation::yaw(yaw))
                     .unwrap()
             })
         });
@@ -151,7 +153,8 @@ fn prepare(c: &mut Criterion) {
                     yaw_deg: YAW,
                     pitch_deg: pitch,
                 };
-                ctx.prepare(black_box(&sunrise), rotation).unwrap()
+                ctx.prepare_turned(black_box(&sunrise), &unturned_sh, rotation)
+                    .unwrap()
             })
         });
         let mut yaw = YAW;
@@ -162,10 +165,10 @@ fn prepare(c: &mut Criterion) {
                     yaw_deg: yaw,
                     pitch_deg: 30.0,
                 };
-                ctx.prepare(black_box(&sunrise), rotation).unwrap()
+                ctx.prepare_turned(black_box(&sunrise), &unturned_sh, rotation)
+                    .unwrap()
             })
         });
-        let unturned_sh = ctx.prepare_sh(&sunrise).unwrap();
         let mut pitch = 0.0;
         g.bench_with_input(BenchmarkId::new("pitch_drag_recorded", n), &n, |b, &n| {
             b.iter(|| {

@@ -5,6 +5,7 @@ mod common;
 use wavelet_prt::app::viewer::{
     Engine, EnvEntry, EnvSource, LightState, ViewState, env_entries, screenshot,
 };
+use wavelet_prt::light::envmap::EnvRotation;
 use wavelet_prt::relight::Method;
 
 /// Relative L2 of 40 of the 384 wavelet terms against every term, over the per-vertex bake's
@@ -466,6 +467,35 @@ fn loading_reports_progress_up_to_the_file_size() {
     assert!(seen.windows(2).all(|w| w[0].0 < w[1].0), "{seen:?}");
     assert_eq!(*seen.last().unwrap(), (size, size));
     assert!(engine.transport.coeff_count() > 0);
+}
+
+#[test]
+fn a_drag_gives_the_light_that_a_fresh_prepare_gives() {
+    // The engine keeps a map's unturned SH light for the next turn of the same map; a turn, a
+    // switch to the sun and back must each give what preparing afresh gives.
+    let mut e = engine();
+    assert!(e.envs.len() > 1, "the test needs a bundled map");
+    let mut s = sun_state(&mut e);
+    for (env, yaw, pitch) in [
+        (1, 0.0, 0.0),
+        (1, 33.5, 0.0),
+        (1, 33.5, -20.0),
+        (0, 10.0, 5.0),
+        (1, 120.0, 45.0),
+        (0, 0.0, 0.0),
+        (0, -40.0, 30.0),
+    ] {
+        s.light.env = env;
+        s.light.rotation = EnvRotation {
+            yaw_deg: yaw,
+            pitch_deg: pitch,
+        };
+        e.render(&s).unwrap();
+        let shown = e.current_light().unwrap();
+        let fresh = e.ctx.prepare(&shown.map, s.light.rotation).unwrap();
+        assert_eq!(shown.light.sh, fresh.sh, "{env}: {yaw}, {pitch}");
+        assert_eq!(shown.light.wavelet.coeffs, fresh.wavelet.coeffs);
+    }
 }
 
 #[test]

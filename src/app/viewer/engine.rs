@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use super::*;
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvMap, EnvSpec};
+use crate::light::envmap::{EnvMap, EnvRotation, EnvSpec};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::relight::background::{composite, environment_behind};
@@ -29,6 +29,9 @@ struct Lit {
     full: Image,
 }
 
+/// A map and its SH light, unturned.
+type UnturnedSh = (Arc<EnvMap>, Arc<Vec<[f64; 3]>>);
+
 /// A loaded transport, its environments and the caches behind [`Engine::render`].
 pub struct Engine {
     /// The transport file.
@@ -40,6 +43,8 @@ pub struct Engine {
     /// The environment list.
     pub envs: Vec<EnvEntry>,
     maps: HashMap<PathBuf, Arc<EnvMap>>,
+    /// The last map's SH light, unturned: a drag turns it rather than projecting the map again.
+    unturned_sh: Option<UnturnedSh>,
     light: Option<Lit>,
     last: Option<(RelightKey, Vec<LinearPane>)>,
     /// The environment's part of the last relit panes, keyed with the local lights at their
@@ -87,6 +92,7 @@ impl Engine {
             ctx: Arc::new(ctx),
             envs,
             maps: HashMap::new(),
+            unturned_sh: None,
             light: None,
             last: None,
             environment: None,
@@ -238,7 +244,7 @@ impl Engine {
             }
         };
         let rotation = key.rotation;
-        let light = Arc::new(self.ctx.prepare(&map, rotation)?);
+        let light = Arc::new(self.prepare_light(&map, rotation)?);
         let behind = Arc::new(match self.base_camera {
             Some(_) => Image::new(0, 0),
             None => environment_behind(
@@ -267,6 +273,26 @@ impl Engine {
         self.last = None;
         self.environment = None;
         Ok((light_seconds, full_start.elapsed().as_secs_f64()))
+    }
+
+    /// [`LightContext::prepare`] of `map` under `rotation`, with the map's unturned SH light kept
+    /// from the last call on the same map (a drag's), where `prepare` projects it every time.
+    fn prepare_light(&mut self, map: &Arc<EnvMap>, rotation: EnvRotation) -> Result<PreparedLight> {
+        if rotation == EnvRotation::default() {
+            // Unturned, the light's SH is the map's.
+            let light = self.ctx.prepare(map, rotation)?;
+            self.unturned_sh = Some((map.clone(), Arc::new(light.sh.clone())));
+            return Ok(light);
+        }
+        let unturned = match &self.unturned_sh {
+            Some((kept, sh)) if Arc::ptr_eq(kept, map) => sh.clone(),
+            _ => {
+                let sh = Arc::new(self.ctx.prepare_sh(map)?);
+                self.unturned_sh = Some((map.clone(), sh.clone()));
+                sh
+            }
+        };
+        self.ctx.prepare_turned(map, &unturned, rotation)
     }
 
     /// The light of the last render or exposure.
