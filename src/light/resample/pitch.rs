@@ -37,8 +37,8 @@
 //!
 //! On the 2-core machine (`cargo bench --bench light`, blender_sunrise, one run, the README's
 //! table), with the map's unturned SH light kept from one step of a drag to the next as the
-//! viewer keeps it: a pitch drag prepares a light in 2.09 ms at N = 32 and 6.85 ms at N = 64,
-//! against 2.53 and 4.34 ms for a yaw drag, and 89.4 and 291 ms through weights recorded for
+//! viewer keeps it: a pitch drag prepares a light in 1.42 ms at N = 32 and 5.42 ms at N = 64,
+//! against 1.97 and 2.84 ms for a yaw drag, and 73.1 and 273 ms through weights recorded for
 //! each pitch.
 //!
 //! Pitch 0 keeps the recorded weights, exact to the band of the recorded splat: a light that
