@@ -29,8 +29,8 @@ struct Lit {
     full: Image,
 }
 
-/// A map and its SH light, unturned.
-type UnturnedSh = (Arc<EnvMap>, Arc<Vec<[f64; 3]>>);
+/// A map and its SH light, unturned, under the light context it was projected with.
+type UnturnedSh = (Arc<EnvMap>, Arc<LightContext>, Arc<Vec<[f64; 3]>>);
 
 /// A loaded transport, its environments and the caches behind [`Engine::render`].
 pub struct Engine {
@@ -276,19 +276,22 @@ impl Engine {
     }
 
     /// [`LightContext::prepare`] of `map` under `rotation`, with the map's unturned SH light kept
-    /// from the last call on the same map (a drag's), where `prepare` projects it every time.
+    /// from the last call on the same map and context (a drag's), where `prepare` projects it
+    /// every time.
     fn prepare_light(&mut self, map: &Arc<EnvMap>, rotation: EnvRotation) -> Result<PreparedLight> {
         if rotation == EnvRotation::default() {
             // Unturned, the light's SH is the map's.
             let light = self.ctx.prepare(map, rotation)?;
-            self.unturned_sh = Some((map.clone(), Arc::new(light.sh.clone())));
+            self.unturned_sh = Some((map.clone(), self.ctx.clone(), Arc::new(light.sh.clone())));
             return Ok(light);
         }
         let unturned = match &self.unturned_sh {
-            Some((kept, sh)) if Arc::ptr_eq(kept, map) => sh.clone(),
+            Some((kept, ctx, sh)) if Arc::ptr_eq(kept, map) && Arc::ptr_eq(ctx, &self.ctx) => {
+                sh.clone()
+            }
             _ => {
                 let sh = Arc::new(self.ctx.prepare_sh(map)?);
-                self.unturned_sh = Some((map.clone(), sh.clone()));
+                self.unturned_sh = Some((map.clone(), self.ctx.clone(), sh.clone()));
                 sh
             }
         };

@@ -152,9 +152,10 @@ fn texels_of(
 /// Calls `give(texel, start, end, mirrored)` for the runs of a whole sub-row of `columns`
 /// sub-columns, from `texels`, those of its first half: each run of the first half in turn, and
 /// after it its mirror in the second half (`mirrored`), so that each run of either half starts
-/// where the last of that half ended, and the mirrors end where the last one started. R_x(pitch) keeps x, so sub-column columns − 1 − k, at
-/// u' = 2π − u, lands where sub-column k does with x negated: in the mirror of its texel (an odd
-/// row's middle sub-column, at u = π, is its own).
+/// where the last of that half ended, and the mirrors end where the last one started.
+/// R_x(pitch) keeps x, so sub-column columns − 1 − k, at u' = 2π − u, lands where sub-column k
+/// does with x negated: in the mirror of its texel (an odd row's middle sub-column, at u = π, is
+/// its own).
 fn row_runs(
     texels: &[u32],
     columns: usize,
