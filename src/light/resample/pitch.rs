@@ -25,12 +25,15 @@
 //! the smallest texels (a small map, or N above 64 for a 1024 x 512 one) records weights for the
 //! pitch as before, as does any splat that leaves a texel without a cell.
 //!
-//! The work is one texel lookup per sub-cell, made cheap three ways:
+//! The work is one texel lookup per sub-cell, made cheap four ways:
 //! - the lookup runs in f32 without branches, four sub-cells an SSE2 instruction
 //!   ([`texels_of`]);
 //! - R_x(pitch) keeps x, so the second half of every row is the mirror of the first: its texels
 //!   are looked up in a table and its runs are the first half's, mirrored ([`mirrors`],
 //!   [`row_runs`]);
+//! - R_x(pitch) commutes with R_x(π), which takes (u, v) to (π − u, π − v), so a southern row's
+//!   texels are its northern twin's, reversed and looked up in another table ([`half_turns`],
+//!   [`turn_half`]): a quarter of the sub-cells are looked up;
 //! - a row's sub-cells run through a texel several in turn, and each run scatters its power
 //!   once, its sum the difference of the row's running sums at its two ends, whatever its
 //!   length ([`runs`], [`RowSums`]).
@@ -46,13 +49,16 @@
 //! percent of that texel).
 
 use std::f64::consts::{PI, TAU};
+use std::sync::{Arc, Mutex};
 
+use glam::DVec3;
 use rayon::prelude::*;
 
 use super::{EnvRotation, yaw_shift};
 use crate::error::Result;
 use crate::math::cubemap::{
-    CubeMap, solid_angles, splat_limits, splat_radiance, texel_count, texel_index,
+    CubeMap, dir_to_texel, solid_angles, splat_limits, splat_radiance, texel_count, texel_dirs,
+    texel_index,
 };
 
 /// Whether a `width` x `height` map's cells are small enough, against a cube of face `n`, to be
@@ -220,60 +226,163 @@ fn runs(texels: &[u32], mut give: impl FnMut(usize, usize, u32)) {
 struct RowSums {
     q: usize,
     f: f64,
-    /// tail_0 + … + tail_{i−1} for i = 0..=q.
-    tail_before: Vec<f64>,
+    /// (i − t_i, t_i) for i = 0..q, with t_i = tail_0 + … + tail_{i−1}: sub-cell i of cell x
+    /// starts at q · (R_x + f · (v_x − v_0)) + (i − t_i) · v_x + t_i · v_{x+1}.
+    shares: Vec<(f64, f64)>,
     /// Per world cell x, R_x and v_x, and one more for the row's end (v_W = v_0).
     cells: Vec<([f64; 3], [f64; 3])>,
 }
 
 impl RowSums {
     fn new(width: usize, q: usize, f: f64) -> Self {
-        let mut tail_before = vec![0.0];
-        for t in tail_shares(q, f) {
-            tail_before.push(tail_before.last().copied().unwrap_or(0.0) + t);
+        let mut shares = vec![(0.0, 0.0)];
+        for (i, t) in tail_shares(q, f).into_iter().enumerate().take(q - 1) {
+            let before = shares[i].1 + t;
+            shares.push(((i + 1) as f64 - before, before));
         }
         RowSums {
             q,
             f,
-            tail_before,
+            shares,
             cells: vec![([0.0; 3], [0.0; 3]); width + 1],
         }
     }
 
     /// Takes `row` (a map row) under the yaw's shift: world cell x shows map cell x + `whole`.
     fn fill(&mut self, row: &[[f32; 3]], whole: usize) {
+        let width = self.cells.len() - 1;
         let (after, before) = row.split_at(whole);
-        let mut sum = [0.0f64; 3];
-        for (cell, v) in self.cells.iter_mut().zip(before.iter().chain(after)) {
-            let v = v.map(f64::from);
-            *cell = (sum, v);
-            for c in 0..3 {
-                sum[c] += v[c];
+        let (head, tail) = self.cells[..width].split_at_mut(before.len());
+        for (cells, values) in [(head, before), (tail, after)] {
+            for (cell, v) in cells.iter_mut().zip(values) {
+                cell.1 = v.map(f64::from);
             }
         }
-        let first = self.cells[0].1;
-        if let Some(end) = self.cells.last_mut() {
-            *end = (sum, first);
+        // Two cells a step, so that the running sum waits on one addition per two cells.
+        let mut sum = [0.0f64; 3];
+        let mut pairs = self.cells[..width].chunks_exact_mut(2);
+        for pair in &mut pairs {
+            let (a, b) = (pair[0].1, pair[1].1);
+            pair[0].0 = sum;
+            pair[1].0 = std::array::from_fn(|c| sum[c] + a[c]);
+            sum = std::array::from_fn(|c| sum[c] + (a[c] + b[c]));
         }
+        if let [last] = pairs.into_remainder() {
+            last.0 = sum;
+            sum = std::array::from_fn(|c| sum[c] + last.1[c]);
+        }
+        self.cells[width] = (sum, self.cells[0].1);
     }
 
     /// The sum of the row's first `k` sub-cells.
+    #[inline(always)]
     fn upto(&self, k: usize) -> [f64; 3] {
-        let (x, i) = (k / self.q, k % self.q);
+        // q is one of a few small numbers, the same all along a splat.
+        let (x, i) = match self.q {
+            1 => (k, 0),
+            2 => (k >> 1, k & 1),
+            4 => (k >> 2, k & 3),
+            q => (k / q, k % q),
+        };
         let ((r, v), v0) = (self.cells[x], self.cells[0].1);
         let q = self.q as f64;
         let before: [f64; 3] = std::array::from_fn(|c| q * (r[c] + self.f * (v[c] - v0[c])));
         if i == 0 {
             return before;
         }
-        let (next, t) = (self.cells[x + 1].1, self.tail_before[i]);
-        std::array::from_fn(|c| before[c] + i as f64 * v[c] + t * (next[c] - v[c]))
+        let ((a, t), next) = (self.shares[i], self.cells[x + 1].1);
+        std::array::from_fn(|c| before[c] + a * v[c] + t * next[c])
     }
 
     /// [`RowSums::upto`] `k`, or `known`'s sum when it is at `k`.
+    #[inline(always)]
     fn upto_or(&self, known: (usize, [f64; 3]), k: usize) -> [f64; 3] {
         if known.0 == k { known.1 } else { self.upto(k) }
     }
+}
+
+/// The texel of R_x(π)·(x, y, z) = (x, −y, −z) for each texel of (x, y, z), from the texels'
+/// centres (far from any border, so exact).
+fn half_turns(n: usize) -> Vec<u32> {
+    texel_dirs(n)
+        .iter()
+        .map(|d| dir_to_texel(n, DVec3::new(d.x, -d.y, -d.z)) as u32)
+        .collect()
+}
+
+/// The tables of a cube size that every splat at that size reads: each texel's mirror
+/// ([`mirrors`]), half turn ([`half_turns`]) and solid angle.
+struct Tables {
+    n: usize,
+    mirror: Vec<u32>,
+    half_turn: Vec<u32>,
+    omega: Vec<f64>,
+}
+
+/// The tables of face size `n`, made on the first splat at that size (a drag asks for one size
+/// at every step): the last few sizes asked for are kept.
+fn tables(n: usize) -> Arc<Tables> {
+    static KEPT: Mutex<Vec<Arc<Tables>>> = Mutex::new(Vec::new());
+    const SIZES: usize = 4;
+    let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(t) = kept.iter().find(|t| t.n == n) {
+        return t.clone();
+    }
+    let made = Arc::new(Tables {
+        n,
+        mirror: mirrors(n),
+        half_turn: half_turns(n),
+        omega: solid_angles(n),
+    });
+    kept.insert(0, made.clone());
+    kept.truncate(SIZES);
+    made
+}
+
+/// Turns the texels of the first half of a sub-row at v, `north`, into those of the sub-row at
+/// π − v, `south`, when the row has an even number of sub-columns. The direction of
+/// (π − u, π − v) is R_x(π) times that of (u, v), and R_x(π) commutes with R_x(pitch), so
+/// sub-column k of the south row lands in the half turn of the texel of sub-column
+/// columns / 2 − 1 − k of the north row (its u is π − u_k).
+fn turn_half(north: &[u32], half_turn: &[u32], south: &mut [u32]) {
+    for (s, &t) in south.iter_mut().zip(north.iter().rev()) {
+        *s = half_turn[t as usize];
+    }
+}
+
+/// Splats a sub-row whose sub-cells each cover `omega` and whose first half lands in `texels`:
+/// each run of sub-cells through one texel adds its power, from the row's running `sums`, and
+/// its solid angle to that texel of `cube` (power in RGB, then the solid angle received, so that
+/// a run touches one cache line).
+fn splat_sub_row(
+    texels: &[u32],
+    columns: usize,
+    mirror: &[u32],
+    sums: &RowSums,
+    omega: f64,
+    cube: &mut [[f64; 4]],
+) {
+    // The sums at the last boundary of each half, taken once for the two runs that meet there.
+    let mut forward = (0, [0.0; 3]);
+    let mut backward = (columns, sums.upto(columns));
+    row_runs(texels, columns, mirror, |texel, start, end, mirrored| {
+        let (from, to) = if mirrored {
+            let to = sums.upto_or(backward, end);
+            let from = sums.upto(start);
+            backward = (start, from);
+            (from, to)
+        } else {
+            let from = sums.upto_or(forward, start);
+            let to = sums.upto(end);
+            forward = (end, to);
+            (from, to)
+        };
+        let texel = &mut cube[texel];
+        for c in 0..3 {
+            texel[c] += (to[c] - from[c]) * omega;
+        }
+        texel[3] += (end - start) as f64 * omega;
+    });
 }
 
 /// `pixels` (a `width` x `height` lat-long map) turned by `rotation` and splatted at the centres
@@ -286,11 +395,26 @@ pub(super) fn splat(
     n: usize,
     rotation: EnvRotation,
 ) -> Result<Option<CubeMap>> {
+    splat_rows(width, height, pixels, n, rotation, true)
+}
+
+/// [`splat`], the texels of each southern sub-row looked up from its northern twin's (see
+/// [`turn_half`]) when `paired` and the row's sub-columns are even in number, else each looked
+/// up itself (the slow twin the tests compare with).
+pub(super) fn splat_rows(
+    width: usize,
+    height: usize,
+    pixels: &[[f32; 3]],
+    n: usize,
+    rotation: EnvRotation,
+    paired: bool,
+) -> Result<Option<CubeMap>> {
     let (whole, f) = yaw_shift(width, rotation.yaw_deg)?;
     let q = split(width, height, n);
     // The sub-columns of the first half of a row: the second half mirrors them (see
     // [`row_runs`]).
     let columns = width * q;
+    let paired = paired && columns.is_multiple_of(2);
     let (sin_u, cos_u): (Vec<f32>, Vec<f32>) = (0..columns.div_ceil(2))
         .map(|x| {
             let (s, c) = (TAU * (x as f64 + 0.5) / columns as f64).sin_cos();
@@ -298,27 +422,39 @@ pub(super) fn splat(
         })
         .unzip();
     let count = texel_count(n);
-    let mirror = mirrors(n);
+    let tables = tables(n);
     let (sin_p, cos_p) = rotation.pitch_deg.to_radians().sin_cos();
+    // Paired, a unit of work is a northern map row and its southern twin.
+    let units = if paired { height.div_ceil(2) } else { height };
     // A few bands a thread, each scattering into a cube of its own.
-    let bands = (rayon::current_num_threads() * BANDS_PER_THREAD).clamp(1, height);
-    let (power, received) = (0..bands)
+    let bands = (rayon::current_num_threads() * BANDS_PER_THREAD).clamp(1, units);
+    let cube = (0..bands)
         .into_par_iter()
         .map(|band| {
-            let mut power = vec![[0.0f64; 3]; count];
-            let mut received = vec![0.0f64; count];
+            let mut cube = vec![[0.0f64; 4]; count];
             let mut texels = vec![0u32; sin_u.len()];
+            let mut turned = vec![0u32; sin_u.len()];
             let mut sums = RowSums::new(width, q, f);
-            for y in band * height / bands..(band + 1) * height / bands {
+            let mut south_sums = RowSums::new(width, q, f);
+            // The solid angle of a sub-cell of sub-row `j` of map row `y`.
+            let omega = |y: usize, j: usize| {
+                let v0 = PI * (y * q + j) as f64 / (height * q) as f64;
+                let v1 = PI * (y * q + j + 1) as f64 / (height * q) as f64;
+                TAU / columns as f64 * (v0.cos() - v1.cos())
+            };
+            for y in band * units / bands..(band + 1) * units / bands {
+                let south = height - 1 - y;
+                let twin = paired && south != y;
                 sums.fill(&pixels[y * width..(y + 1) * width], whole);
+                if twin {
+                    south_sums.fill(&pixels[south * width..(south + 1) * width], whole);
+                }
                 for j in 0..q {
-                    let v0 = PI * (y * q + j) as f64 / (height * q) as f64;
-                    let v1 = PI * (y * q + j + 1) as f64 / (height * q) as f64;
-                    // The sub-cell's exact solid angle, and its centre's direction turned by
-                    // R_x(pitch): (sin u sin v, cos v, −cos u sin v) goes to
-                    // (sin u sin v, c cos v + s cos u sin v, s cos v − c cos u sin v).
-                    let omega = TAU / columns as f64 * (v0.cos() - v1.cos());
-                    let (sin_v, cos_v) = (0.5 * (v0 + v1)).sin_cos();
+                    // The sub-row's centre's direction turned by R_x(pitch): (sin u sin v,
+                    // cos v, −cos u sin v) goes to (sin u sin v, c cos v + s cos u sin v,
+                    // s cos v − c cos u sin v).
+                    let v = PI * ((y * q + j) as f64 + 0.5) / (height * q) as f64;
+                    let (sin_v, cos_v) = v.sin_cos();
                     texels_of(
                         n,
                         &sin_u,
@@ -328,63 +464,43 @@ pub(super) fn splat(
                         ((sin_p * cos_v) as f32, (cos_p * sin_v) as f32),
                         &mut texels,
                     );
-                    // The sums at the last boundary of each half, taken once for the two runs
-                    // that meet there.
-                    let mut forward = (0, [0.0; 3]);
-                    let mut backward = (columns, sums.upto(columns));
-                    row_runs(&texels, columns, &mirror, |texel, start, end, mirrored| {
-                        let (from, to) = if mirrored {
-                            let to = sums.upto_or(backward, end);
-                            let from = sums.upto(start);
-                            backward = (start, from);
-                            (from, to)
-                        } else {
-                            let from = sums.upto_or(forward, start);
-                            let to = sums.upto(end);
-                            forward = (end, to);
-                            (from, to)
-                        };
-                        for c in 0..3 {
-                            power[texel][c] += (to[c] - from[c]) * omega;
-                        }
-                        received[texel] += (end - start) as f64 * omega;
-                    });
-                }
-            }
-            (power, received)
-        })
-        .reduce(
-            || (vec![[0.0f64; 3]; count], vec![0.0f64; count]),
-            |(mut pa, mut ra), (pb, rb)| {
-                for (a, b) in pa.iter_mut().zip(&pb) {
-                    for c in 0..3 {
-                        a[c] += b[c];
+                    let mut sub_row = |texels: &[u32], sums: &RowSums, omega: f64| {
+                        splat_sub_row(texels, columns, &tables.mirror, sums, omega, &mut cube);
+                    };
+                    sub_row(&texels, &sums, omega(y, j));
+                    if twin {
+                        turn_half(&texels, &tables.half_turn, &mut turned);
+                        sub_row(&turned, &south_sums, omega(south, q - 1 - j));
                     }
                 }
-                for (a, b) in ra.iter_mut().zip(&rb) {
-                    *a += b;
+            }
+            cube
+        })
+        .reduce_with(|mut a, b| {
+            for (a, b) in a.iter_mut().zip(&b) {
+                for c in 0..4 {
+                    a[c] += b[c];
                 }
-                (pa, ra)
-            },
-        );
-    if received.contains(&0.0) {
+            }
+            a
+        })
+        .unwrap_or_default();
+    if cube.len() != count || cube.iter().any(|t| t[3] == 0.0) {
         return Ok(None);
     }
     // The map's exact power: each row's turned means keep its sum.
-    let want: [f64; 3] = std::array::from_fn(|c| power.iter().map(|p| p[c]).sum());
+    let want: [f64; 3] = std::array::from_fn(|c| cube.iter().map(|p| p[c]).sum());
     Ok(Some(splat_radiance(
         n,
-        power.iter().copied().zip(received.iter().copied()),
+        cube.iter().map(|t| ([t[0], t[1], t[2]], t[3])),
         want,
-        &solid_angles(n),
+        &tables.omega,
     )))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::cubemap::dir_to_texel;
-    use glam::DVec3;
 
     /// Directions whose face coordinates lie this close to a texel border (in texels) are left
     /// out: f32 may put them on either side.
@@ -522,6 +638,70 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn half_turned_directions_land_in_half_turned_texels() {
+        for n in [1, 4, 32, 64] {
+            let half_turn = half_turns(n);
+            for (pitch, v, us) in rows(50) {
+                for u in us {
+                    let d = DVec3::new(
+                        u.sin() * v.sin(),
+                        pitch.cos(),
+                        u.cos() * v.cos() - pitch.sin(),
+                    );
+                    if off_borders(n, d) {
+                        let turned = DVec3::new(d.x, -d.y, -d.z);
+                        assert_eq!(
+                            half_turn[dir_to_texel(n, d)] as usize,
+                            dir_to_texel(n, turned),
+                            "N = {n}, {d}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_southern_sub_row_is_its_northern_twin_half_turned() {
+        for (n, columns) in [(8, 20usize), (32, 1024), (64, 2048)] {
+            let half_turn = half_turns(n);
+            let u = |k: usize| TAU * (k as f64 + 0.5) / columns as f64;
+            let (su, cu): (Vec<f32>, Vec<f32>) = (0..columns / 2)
+                .map(|k| (u(k).sin() as f32, u(k).cos() as f32))
+                .unzip();
+            let mut checked = 0;
+            for (pitch, v, _) in rows(20) {
+                let (sin_p, cos_p) = pitch.sin_cos();
+                let look_up = |v: f64| {
+                    let (sin_v, cos_v) = v.sin_cos();
+                    let mut texels = vec![0u32; su.len()];
+                    let y = ((cos_p * cos_v) as f32, (sin_p * sin_v) as f32);
+                    let z = ((sin_p * cos_v) as f32, (cos_p * sin_v) as f32);
+                    texels_of(n, &su, &cu, sin_v as f32, y, z, &mut texels);
+                    texels
+                };
+                let mut turned = vec![0u32; su.len()];
+                turn_half(&look_up(v), &half_turn, &mut turned);
+                let south = PI - v;
+                for (k, (&got, &direct)) in turned.iter().zip(&look_up(south)).enumerate() {
+                    let (sin_v, cos_v) = south.sin_cos();
+                    let d = DVec3::new(
+                        u(k).sin() * sin_v,
+                        cos_p * cos_v + sin_p * sin_v * u(k).cos(),
+                        sin_p * cos_v - cos_p * sin_v * u(k).cos(),
+                    );
+                    if off_borders(n, d) {
+                        assert_eq!(got, direct, "N = {n}, {columns}: {k}");
+                        assert_eq!(got as usize, dir_to_texel(n, d), "N = {n}: {k}");
+                        checked += 1;
+                    }
+                }
+            }
+            assert!(checked > 100, "N = {n}: {checked}");
         }
     }
 
