@@ -40,8 +40,8 @@
 //!
 //! On the 2-core machine (`cargo bench --bench light`, blender_sunrise, one run, the README's
 //! table), with the map's unturned SH light kept from one step of a drag to the next as the
-//! viewer keeps it: a pitch drag prepares a light in 1.42 ms at N = 32 and 5.42 ms at N = 64,
-//! against 1.97 and 2.84 ms for a yaw drag, and 73.1 and 273 ms through weights recorded for
+//! viewer keeps it: a pitch drag prepares a light in 1.48 ms at N = 32 and 4.70 ms at N = 64,
+//! against 1.70 and 2.93 ms for a yaw drag, and 74.6 and 275 ms through weights recorded for
 //! each pitch.
 //!
 //! Pitch 0 keeps the recorded weights, exact to the band of the recorded splat: a light that
