@@ -340,6 +340,23 @@ fn paper_run_writes_every_table_and_the_picture_row() {
         .collect();
     // W(200) and SH(200) exist; SH(2,000) and SH(20,000) do not fit 384 texels.
     assert_eq!(comparison[0].matches('—').count(), 4, "{}", comparison[0]);
+    // The relight rates, W(100) and W(200) each a time and a rate, from their own relights.
+    assert!(text.contains("median of 15 relights"), "{text}");
+    let rates: Vec<f64> = comparison[1]
+        .split('|')
+        .skip(3)
+        .filter_map(|c| c.trim().parse().ok())
+        .collect();
+    assert_eq!(rates.len(), 4, "{}", comparison[1]);
+    for pair in rates.chunks(2) {
+        let (ms, hz) = (pair[0], pair[1]);
+        // Both printed to one decimal.
+        assert!(
+            hz > 0.0 && (ms - 1000.0 / hz).abs() <= 0.051,
+            "{}",
+            comparison[1]
+        );
+    }
     // Every bake is kept for the viewer and the bench.
     assert!(dir.join("diffuse_8.prt").is_file() && dir.join("glossy_teapot_4.prt").is_file());
 }
