@@ -31,7 +31,7 @@ const PAPER_TERMS: [usize; 8] = [50, 100, 200, 500, 1000, 2000, 5000, 20000];
 /// The wavelet terms whose relight rate the paper reports.
 const RATE_TERMS: [usize; 2] = [100, 200];
 /// Relights per reported rate, their median reported: on a shared machine the sweep's three
-/// disagreed by up to 2x between runs.
+/// disagreed by up to 2.3x between runs.
 const RATE_RUNS: usize = 15;
 /// SH orders through the light swept at 6x64²: 100, 196, 400, 1,024, 2,025, 4,096, 10,000 and
 /// 20,164 terms.
