@@ -618,9 +618,9 @@ mod tests {
     }
 
     #[test]
-    fn mirrored_directions_land_in_mirrored_texels() {
-        for n in [1, 4, 32] {
-            let mirror = mirrors(n);
+    fn mirrored_and_half_turned_directions_land_in_mirrored_and_half_turned_texels() {
+        for n in [1, 4, 32, 64] {
+            let (mirror, half_turn) = (mirrors(n), half_turns(n));
             for (pitch, v, us) in rows(50) {
                 for u in us {
                     let d = DVec3::new(
@@ -629,33 +629,16 @@ mod tests {
                         u.cos() * v.cos() - pitch.sin(),
                     );
                     if off_borders(n, d) {
+                        let texel = dir_to_texel(n, d);
                         let flipped = DVec3::new(-d.x, d.y, d.z);
+                        let turned = DVec3::new(d.x, -d.y, -d.z);
                         assert_eq!(
-                            mirror[dir_to_texel(n, d)] as usize,
+                            mirror[texel] as usize,
                             dir_to_texel(n, flipped),
                             "N = {n}, {d}"
                         );
-                    }
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn half_turned_directions_land_in_half_turned_texels() {
-        for n in [1, 4, 32, 64] {
-            let half_turn = half_turns(n);
-            for (pitch, v, us) in rows(50) {
-                for u in us {
-                    let d = DVec3::new(
-                        u.sin() * v.sin(),
-                        pitch.cos(),
-                        u.cos() * v.cos() - pitch.sin(),
-                    );
-                    if off_borders(n, d) {
-                        let turned = DVec3::new(d.x, -d.y, -d.z);
                         assert_eq!(
-                            half_turn[dir_to_texel(n, d)] as usize,
+                            half_turn[texel] as usize,
                             dir_to_texel(n, turned),
                             "N = {n}, {d}"
                         );
