@@ -133,13 +133,15 @@ impl BenchPoint {
     }
 }
 
-/// Runs a relight once per timing run and keeps the median kernel time.
-fn timed(
+/// Runs a relight `runs` times (at least once) and keeps the last image and statistics and the
+/// median kernel time (ms).
+pub(crate) fn timed_runs(
+    runs: usize,
     mut run: impl FnMut() -> Result<(Image, RelightStats)>,
 ) -> Result<(Image, RelightStats, f64)> {
-    let mut times = Vec::with_capacity(TIMING_RUNS);
+    let mut times = Vec::with_capacity(runs);
     let mut last = None;
-    for _ in 0..TIMING_RUNS {
+    for _ in 0..runs.max(1) {
         let (img, stats) = run()?;
         times.push(stats.kernel_seconds * 1e3);
         last = Some((img, stats));
@@ -241,10 +243,10 @@ pub fn run(
         let mut measure =
             |req: RelightRequest, terms: Terms, light_rel_l2: Option<f64>| -> Result<()> {
                 let cpu = Cpu(t);
-                let (img, stats, cpu_ms) = timed(|| cpu.relight_terms(&terms))?;
+                let (img, stats, cpu_ms) = timed_runs(TIMING_RUNS, || cpu.relight_terms(&terms))?;
                 img.check_finite("relit image")?;
                 let gpu_ms = match extras.gpu {
-                    Some(gpu) => Some(timed(|| gpu.relight_terms(&terms))?.2),
+                    Some(gpu) => Some(timed_runs(TIMING_RUNS, || gpu.relight_terms(&terms))?.2),
                     None => None,
                 };
                 points.push(BenchPoint {

@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::app::bench::{BenchExtras, BenchOptions, BenchPoint, run as bench_run};
+use crate::app::bench::{BenchExtras, BenchOptions, BenchPoint, run as bench_run, timed_runs};
 use crate::app::demo::write_assets;
 use crate::bake::{BakeProgress, BakeSettings, bake_to_file};
 use crate::error::{PrtError, Result};
@@ -289,11 +289,8 @@ fn kernel_rates(t: &Transport, envs: &[(String, EnvMap)]) -> Result<Vec<(String,
                 k,
                 weighting: Weighting::Transport,
             };
-            let mut ms = (0..RATE_RUNS)
-                .map(|_| Ok(relight(t, &ctx, &light, &request)?.1.kernel_seconds * 1e3))
-                .collect::<Result<Vec<f64>>>()?;
-            ms.sort_by(f64::total_cmp);
-            rates.push((name.clone(), k, ms[RATE_RUNS / 2]));
+            let (_, _, ms) = timed_runs(RATE_RUNS, || relight(t, &ctx, &light, &request))?;
+            rates.push((name.clone(), k, ms));
         }
     }
     Ok(rates)
