@@ -21,7 +21,7 @@ use wavelet_prt::bake::{BakeSettings, bake, load_if_baked_with};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::light::select::{WaveletLight, Weighting};
 use wavelet_prt::math::haar;
-use wavelet_prt::relight::strip_kernel::{StripPath, relight_strips};
+use wavelet_prt::relight::strip_kernel::{StripPath, panels_in_cache, relight_strips};
 use wavelet_prt::relight::{LightContext, light_sh_order, relight_sh, relight_wavelet};
 use wavelet_prt::scene::Scene;
 use wavelet_prt::store::transport::Transport;
@@ -115,6 +115,15 @@ fn relight(c: &mut Criterion) {
                     .map(|c| c.iter().fold(0u64, |a, &x| a.wrapping_add(x)))
                     .reduce(|| 0, u64::wrapping_add)
             })
+        });
+    }
+    // The product's arithmetic ceiling: its panels alone, on strips that stay in the first-level
+    // cache, on one thread (reported in strips a second).
+    const ROUNDS: u64 = 64;
+    if panels_in_cache(1).is_some() {
+        g.throughput(Throughput::Elements(ROUNDS * 64 * 32));
+        g.bench_function("panels_in_l1_1thread", |b| {
+            b.iter(|| panels_in_cache(ROUNDS as usize))
         });
     }
     // The peer: the same matrix as a plain sprs CSC matrix (f32 values, u32 row indices, 8 bytes
