@@ -18,15 +18,15 @@
 //! - The other slots are added strip by strip into the accumulators in memory, each slot's values
 //!   and places fetched a few slots ahead, since they are short runs scattered among the whole
 //!   ones (which the panels have just read).
+//! - The rows' sums go to their pixels a strip at a time ([`add_rows_avx2`]): scaled, turned
+//!   from three channels into the rows' RGB, weighted and added to 8 pixels at once where the
+//!   strip's rows light 8 pixels in a row, with the portable arithmetic, so the same bits.
 //!
 //! Walking a whole band before adding anything, as this loop did before, wrote its lists of
 //! slots (some 780 KiB a band in the full product) out of the nearest caches and read them back;
 //! a chunk's lists stay in the first. With the next line fetched as well, the products ran 1.15
 //! times faster in full, 1.17 at K = 1000 and 1.06 at K = 200 (demo bake, alternated, medians
 //! of four processes each).
-//! - The rows' sums go to their pixels a strip at a time ([`add_rows_avx2`]): scaled, turned
-//!   from three channels into the rows' RGB, weighted and added to 8 pixels at once where the
-//!   strip's rows light 8 pixels in a row, with the portable arithmetic, so the same bits.
 //!
 //! The accumulators of a strip's 8 rows lie together, red, green and blue lanes side by side (96
 //! bytes), in a buffer aligned to a cache line, so a strip's three read-modify-writes touch
@@ -658,8 +658,8 @@ const PANEL_TERMS: usize = 64;
 /// Adds every slot of `list` (each of all `strips` strips of its block) to `block`, the
 /// block's accumulators: a panel of [`PANEL`] strips at a time (fewer in the last panel of a
 /// block whose strips are not a multiple of it), its accumulators in registers across up to
-/// [`PANEL_TERMS`] terms, so each strip costs one load and three fused multiply-adds rather than
-/// three loads and three stores besides.
+/// [`PANEL_TERMS`] terms, so each strip costs one load, one conversion and three fused
+/// multiply-adds rather than three loads and three stores besides.
 ///
 /// # Safety
 /// The processor has AVX2 and FMA, `strips` is at most 32, and every slot's strips `first ..
