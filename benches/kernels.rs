@@ -21,7 +21,7 @@ use wavelet_prt::bake::{BakeSettings, bake, load_if_baked_with};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::light::select::{WaveletLight, Weighting};
 use wavelet_prt::math::haar;
-use wavelet_prt::relight::strip_kernel::{StripPath, panels_in_cache, relight_strips};
+use wavelet_prt::relight::strip_kernel::{CachedPanels, StripPath, relight_strips};
 use wavelet_prt::relight::{LightContext, light_sh_order, relight_sh, relight_wavelet};
 use wavelet_prt::scene::Scene;
 use wavelet_prt::store::transport::Transport;
@@ -119,12 +119,10 @@ fn relight(c: &mut Criterion) {
     }
     // The product's arithmetic ceiling: its panels alone, on strips that stay in the first-level
     // cache, on one thread (reported in strips a second).
-    const ROUNDS: u64 = 64;
-    if panels_in_cache(1).is_some() {
-        g.throughput(Throughput::Elements(ROUNDS * 64 * 32));
-        g.bench_function("panels_in_l1_1thread", |b| {
-            b.iter(|| panels_in_cache(ROUNDS as usize))
-        });
+    const ROUNDS: usize = 64;
+    if let Some(mut panels) = CachedPanels::new() {
+        g.throughput(Throughput::Elements((ROUNDS * CachedPanels::STRIPS) as u64));
+        g.bench_function("panels_in_l1_1thread", |b| b.iter(|| panels.add(ROUNDS)));
     }
     // The peer: the same matrix as a plain sprs CSC matrix (f32 values, u32 row indices, 8 bytes
     // a coefficient), multiplied by the whole light on one thread.

@@ -743,38 +743,63 @@ unsafe fn add_panel<V: StripValue, const N: usize>(
     }
 }
 
-/// Slots of [`panels_in_cache`]: with 32 strips of 8 bytes each, 16 KiB.
+/// Slots of [`CachedPanels`]: with 32 strips of 8 bytes each, 16 KiB.
 const CACHED_SLOTS: usize = 64;
 
 /// The panels' arithmetic alone, the ceiling of the product on this processor however its
 /// strips are read: [`add_panels`] over 64 whole slots of 32 int8 strips that stay in the
-/// first-level cache, `rounds` times on one thread (64 x 32 x `rounds` strips). Returns the sum
-/// of the accumulators, or `None` without AVX2 and FMA.
-pub fn panels_in_cache(rounds: usize) -> Option<f64> {
-    #[cfg(target_arch = "x86_64")]
-    if has_avx2_fma() {
-        let values: Vec<[i8; STRIP_ROWS]> = (0..CACHED_SLOTS * STRIPS_PER_BLOCK)
-            .map(|s| std::array::from_fn(|r| ((s * 7 + r * 3) % 255) as i8))
-            .collect();
-        let runs: Vec<Run> = (0..CACHED_SLOTS)
-            .map(|slot| Run {
-                first: (slot * STRIPS_PER_BLOCK) as u32,
-                block: 0,
-                count: STRIPS_PER_BLOCK as u16,
-                l: [1.0, 0.5, 0.25].map(|l| l / (slot + 1) as f32),
-            })
-            .collect();
-        let mut block = [0.0f32; 3 * BLOCK_ROWS];
-        for _ in 0..rounds {
-            let runs = std::hint::black_box(&runs[..]);
-            // SAFETY: AVX2 and FMA were detected above; every slot holds 32 strips inside
-            // `values`.
-            unsafe { add_panels(&values, runs, STRIPS_PER_BLOCK, &mut block) };
+/// first-level cache, made once so that a round times the panels and nothing else.
+pub struct CachedPanels {
+    values: Vec<[i8; STRIP_ROWS]>,
+    runs: Vec<Run>,
+    block: Vec<f32>,
+}
+
+impl CachedPanels {
+    /// Strips a round adds.
+    pub const STRIPS: usize = CACHED_SLOTS * STRIPS_PER_BLOCK;
+
+    /// The slots, or `None` without AVX2 and FMA.
+    pub fn new() -> Option<Self> {
+        if !has_avx2_fma() {
+            return None;
         }
-        return Some(block.iter().map(|&a| a as f64).sum());
+        Some(CachedPanels {
+            values: (0..Self::STRIPS)
+                .map(|s| std::array::from_fn(|r| ((s * 7 + r * 3) % 255) as i8))
+                .collect(),
+            runs: (0..CACHED_SLOTS)
+                .map(|slot| Run {
+                    first: (slot * STRIPS_PER_BLOCK) as u32,
+                    block: 0,
+                    count: STRIPS_PER_BLOCK as u16,
+                    l: [1.0, 0.5, 0.25].map(|l| l / (slot + 1) as f32),
+                })
+                .collect(),
+            block: vec![0.0; 3 * BLOCK_ROWS],
+        })
     }
-    let _ = rounds;
-    None
+
+    /// Adds every slot `rounds` times ([`Self::STRIPS`] strips a round, on this thread) to
+    /// accumulators that start at zero, and returns their sum.
+    pub fn add(&mut self, rounds: usize) -> f64 {
+        self.block.fill(0.0);
+        #[cfg(target_arch = "x86_64")]
+        {
+            let block: &mut [f32; 3 * BLOCK_ROWS] = (&mut self.block[..])
+                .try_into()
+                .expect("a block's accumulators");
+            for _ in 0..rounds {
+                let runs = std::hint::black_box(&self.runs[..]);
+                // SAFETY: AVX2 and FMA were detected where `self` was made; every slot holds 32
+                // strips inside `values`.
+                unsafe { add_panels(&self.values, runs, STRIPS_PER_BLOCK, block) };
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = rounds;
+        self.block.iter().map(|&a| a as f64).sum()
+    }
 }
 
 #[cfg(test)]
@@ -782,18 +807,17 @@ mod tests {
     use super::*;
     use crate::math::sampling::Rng;
 
-    /// The SIMD rows' sums give the portable loop's pixels to the bit, on blocks of 256 rows and
-    /// of fewer than a strip's multiple, strips whose rows light 8 pixels in a row (the last
-    /// ending on the group's last pixel), strips with a gap, rows that share a pixel, and
-    /// pixels out of order.
     /// The arithmetic probe adds what it says: each strip's values times its slot's light, every
     /// round.
     #[test]
     fn the_panels_in_cache_add_every_strip_of_every_round() {
-        let Some(sum) = panels_in_cache(3) else {
+        let Some(mut panels) = CachedPanels::new() else {
             eprintln!("no AVX2: the probe does not run");
             return;
         };
+        // Twice, to check that each call starts from zero.
+        panels.add(1);
+        let sum = panels.add(3);
         let mut want = 0.0f64;
         for slot in 0..CACHED_SLOTS {
             let light: f64 = [1.0f64, 0.5, 0.25].iter().sum::<f64>() / (slot + 1) as f64;
@@ -810,6 +834,10 @@ mod tests {
         );
     }
 
+    /// The SIMD rows' sums give the portable loop's pixels to the bit, on blocks of 256 rows and
+    /// of fewer than a strip's multiple, strips whose rows light 8 pixels in a row (the last
+    /// ending on the group's last pixel), strips with a gap, rows that share a pixel, and
+    /// pixels out of order.
     #[test]
     fn the_simd_rows_sums_are_the_portable_ones_to_the_bit() {
         if !has_avx2_fma() {
