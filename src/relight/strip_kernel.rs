@@ -22,11 +22,9 @@
 //!   from three channels into the rows' RGB, weighted and added to 8 pixels at once where the
 //!   strip's rows light 8 pixels in a row, with the portable arithmetic, so the same bits.
 //!
-//! Walking a whole band before adding anything, as this loop did before, wrote its lists of
-//! slots (some 780 KiB a band in the full product) out of the nearest caches and read them back;
-//! a chunk's lists stay in the first. With the next line fetched as well, the products ran 1.15
-//! times faster in full, 1.17 at K = 1000 and 1.06 at K = 200 (demo bake, alternated, medians
-//! of four processes each).
+//! A whole band walked first wrote its lists (780 KiB a band in full) out of the nearest caches;
+//! a chunk's stay in the first. With the next line fetched too, the full product ran 1.15 times
+//! faster, K = 1000 1.17 and K = 200 1.06 (demo bake, alternated, four processes each).
 //!
 //! The accumulators of a strip's 8 rows lie together, red, green and blue lanes side by side (96
 //! bytes), in a buffer aligned to a cache line, so a strip's three read-modify-writes touch
@@ -752,7 +750,7 @@ const CACHED_SLOTS: usize = 64;
 pub struct CachedPanels {
     values: Vec<[i8; STRIP_ROWS]>,
     runs: Vec<Run>,
-    block: Vec<f32>,
+    block: Box<[f32; 3 * BLOCK_ROWS]>,
 }
 
 impl CachedPanels {
@@ -776,7 +774,7 @@ impl CachedPanels {
                     l: [1.0, 0.5, 0.25].map(|l| l / (slot + 1) as f32),
                 })
                 .collect(),
-            block: vec![0.0; 3 * BLOCK_ROWS],
+            block: Box::new([0.0; 3 * BLOCK_ROWS]),
         })
     }
 
@@ -785,18 +783,12 @@ impl CachedPanels {
     pub fn add(&mut self, rounds: usize) -> f64 {
         self.block.fill(0.0);
         #[cfg(target_arch = "x86_64")]
-        {
-            let block: &mut [f32; 3 * BLOCK_ROWS] = (&mut self.block[..])
-                .try_into()
-                .expect("a block's accumulators");
-            for _ in 0..rounds {
-                let runs = std::hint::black_box(&self.runs[..]);
-                // SAFETY: AVX2 and FMA were detected where `self` was made; every slot holds 32
-                // strips inside `values`.
-                unsafe { add_panels(&self.values, runs, STRIPS_PER_BLOCK, block) };
-            }
+        for _ in 0..rounds {
+            let runs = std::hint::black_box(&self.runs[..]);
+            // SAFETY: AVX2 and FMA were detected where `self` was made; every slot holds 32
+            // strips inside `values`.
+            unsafe { add_panels(&self.values, runs, STRIPS_PER_BLOCK, &mut self.block) };
         }
-        #[cfg(not(target_arch = "x86_64"))]
         let _ = rounds;
         self.block.iter().map(|&a| a as f64).sum()
     }
