@@ -72,7 +72,7 @@ fn transport() -> Transport {
     let cache = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/bench-cache");
     std::fs::create_dir_all(&cache).unwrap();
     let path = cache.join(format!("demo{size}.prt"));
-    let root = write_assets(&cache).unwrap();
+    let root = write_assets(&cache, &mut |l| eprintln!("{l}")).unwrap();
     let text = std::fs::read_to_string(root.join("scenes/demo.toml")).unwrap();
     let text = text
         .replace("width = 256", &format!("width = {size}"))

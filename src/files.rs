@@ -79,6 +79,18 @@ pub fn read_regular(path: &Path, max_bytes: u64, what: &str) -> Result<Vec<u8>> 
             format!("grew past the {max_bytes} bytes allowed for the {what} while it was read"),
         ));
     }
+    // A file whose content is not its size (`/proc`'s and `/sys`'s give 0) escapes the limit's
+    // check: it is no regular input.
+    if bytes.len() as u64 != len {
+        return Err(PrtError::file(
+            path,
+            format!(
+                "held {} bytes where its size said {len}: the {what} must be a regular file \
+                 that nothing writes while it is read",
+                bytes.len()
+            ),
+        ));
+    }
     Ok(bytes)
 }
 
@@ -216,6 +228,49 @@ pub fn memory_headroom() -> Option<u64> {
         (Some(a), Some(l)) => Some(a.min(l)),
         (a, l) => a.or(l),
     }
+}
+
+/// Refuses an allocation of `bytes` that this process cannot have (see [`memory_headroom`]),
+/// before any work: `what` names the thing in the message ("a 16384 x 16384 reference image"),
+/// `field` the flag or file field that sets its size. Where the headroom cannot be known, only
+/// sizes past the address space are refused.
+pub fn check_memory(field: &str, what: &str, bytes: u64) -> Result<()> {
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    let refuse = |have: String| {
+        Err(PrtError::invalid(
+            field,
+            format!(
+                "{what} needs about {:.1} GiB, and this process can have {have}: make it smaller",
+                gib(bytes)
+            ),
+        ))
+    };
+    if bytes > isize::MAX as u64 {
+        return refuse("far less".into());
+    }
+    match memory_headroom() {
+        Some(have) if bytes > have => refuse(format!("{:.1} GiB", gib(have))),
+        _ => Ok(()),
+    }
+}
+
+/// A vector of `n` copies of `value`, its memory checked with [`check_memory`] and reserved
+/// fallibly: an error naming `field`, never an abort.
+pub fn try_filled<T: Clone>(field: &str, what: &str, n: usize, value: T) -> Result<Vec<T>> {
+    let bytes = (n as u64).saturating_mul(std::mem::size_of::<T>() as u64);
+    check_memory(field, what, bytes)?;
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| {
+        PrtError::invalid(
+            field,
+            format!(
+                "{what} needs about {:.1} GiB, which this process cannot have: make it smaller",
+                bytes as f64 / (1u64 << 30) as f64
+            ),
+        )
+    })?;
+    v.resize(n, value);
+    Ok(v)
 }
 
 /// Whether `a` and `b` name one existing file.
@@ -458,6 +513,59 @@ pub fn remove_stale_partials(path: &Path) {
     }
 }
 
+/// The inputs of this process's command that no output may replace, by device and inode.
+static GUARDED_INPUTS: std::sync::Mutex<Vec<(PathBuf, (u64, u64))>> =
+    std::sync::Mutex::new(Vec::new());
+
+/// A file's device and inode, when it exists.
+fn file_id(path: &Path) -> Option<(u64, u64)> {
+    let meta = std::fs::metadata(path).ok()?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        Some((meta.dev(), meta.ino()))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = meta;
+        let canonical = std::fs::canonicalize(path).ok()?;
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        std::hash::Hash::hash(&canonical, &mut h);
+        Some((0, std::hash::Hasher::finish(&h)))
+    }
+}
+
+/// Marks `inputs` as files no output of this process may replace: a command that writes many
+/// files into a folder (a study's report, its plots) calls it with what it read, and
+/// [`write_atomically`] then refuses an output that is one of them, however it is named.
+pub fn guard_inputs<P: AsRef<Path>>(inputs: &[P]) {
+    let mut guarded = GUARDED_INPUTS.lock().unwrap_or_else(|e| e.into_inner());
+    for p in inputs {
+        if let Some(id) = file_id(p.as_ref()) {
+            guarded.push((p.as_ref().to_path_buf(), id));
+        }
+    }
+}
+
+/// An error when writing `output` would replace a guarded input ([`guard_inputs`]).
+fn check_not_guarded(output: &Path) -> Result<()> {
+    let Some(id) = file_id(output) else {
+        return Ok(());
+    };
+    let guarded = GUARDED_INPUTS.lock().unwrap_or_else(|e| e.into_inner());
+    match guarded.iter().find(|(_, g)| *g == id) {
+        Some((input, _)) => Err(PrtError::file(
+            output,
+            format!(
+                "this is also an input ({}): writing it would replace the input; choose \
+                 another output folder",
+                input.display()
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Runs `write` on a temporary file created beside `path` (see the module docs and
 /// [`create_partial`]), then renames it into place, so an interrupted write never leaves a half
 /// file under the final name. `write` gets the open file, and names `path` in its errors; the
@@ -466,6 +574,7 @@ pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(std::fs::File) -> Result<()>,
 ) -> Result<()> {
+    check_not_guarded(path)?;
     remove_stale_partials(path);
     let (tmp, file) = create_partial(path, None)?;
     finish_partial(path, &tmp, write(file))
@@ -475,6 +584,7 @@ pub fn write_atomically(
 fn finish_partial(path: &Path, tmp: &Path, written: Result<()>) -> Result<()> {
     let done = written
         .map_err(|e| e.renaming(tmp, path))
+        .and_then(|()| check_not_guarded(path))
         .and_then(|()| std::fs::rename(tmp, path).map_err(|e| PrtError::io(path, e)));
     if done.is_err() {
         let _ = std::fs::remove_file(tmp);

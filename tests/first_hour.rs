@@ -7,11 +7,7 @@ mod common;
 use std::path::Path;
 use std::process::Command;
 
-use common::{SPHERE_ON_PLANE, temp_dir};
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::{SPHERE_ON_PLANE, s, temp_dir};
 
 /// Runs `prt` as on a machine without a login session (no `XDG_RUNTIME_DIR`) and without the
 /// variable cargo sets for the programs it runs; returns (exit code, stdout + stderr).

@@ -26,6 +26,7 @@ fn framed(width: u32) -> Framing {
         camera: None,
         width: Some(width),
         height: None,
+        ..Framing::default()
     }
 }
 

@@ -7,7 +7,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{SPHERE_ON_PLANE, StFile, fog_scene, prt, random_transport, temp_dir};
+use common::{SPHERE_ON_PLANE, StFile, fog_scene, prt, random_transport, s, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::relight::{LightContext, RelightRequest, relight};
@@ -22,10 +22,6 @@ const BRIGHT_SCALED_REL: f32 = 1e-4;
 /// ...plus this absolute slack, a millionth of the map's 1e30, for pixels whose signed Haar terms
 /// cancel to far below their own size, where rounding at the scale of the terms is all there is.
 const BRIGHT_SCALED_ABS: f32 = 1e24;
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 /// A small valid transport file in `dir`.
 fn transport_file(dir: &Path) -> PathBuf {

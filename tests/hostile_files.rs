@@ -10,34 +10,23 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use common::{SPHERE_ON_PLANE, StFile, fog_scene, names_in, prt, random_transport, temp_dir};
+use common::{
+    SPHERE_ON_PLANE, StFile, assert_clean_error, fog_scene, names_in, prt, random_transport, s,
+    small_transfer, temp_dir,
+};
 use wavelet_prt::light::envmap::EnvMap;
 use wavelet_prt::store::transport::{Quantization, Transport};
-use wavelet_prt::volume::{TransferSettings, VolumeTransfer, bake_volume};
+use wavelet_prt::volume::{VolumeTransfer, bake_volume};
 
 /// A narrow or flat map's power against its cube's (relative): resampling restores the map's
 /// power exactly, so only the f32 texels and f64 sums remain, rounding far below this.
 const CUBE_POWER_REL: f64 = 1e-5;
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 /// A regression input from `tests/data/hostile`.
 fn found(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data/hostile")
         .join(name)
-}
-
-/// Asserts a command failed cleanly (exit code 1, not a panic or an abort) with every needle in
-/// its message.
-fn assert_clean_error(code: i32, text: &str, needles: &[&str]) {
-    assert_eq!(code, 1, "exit code {code}: {text}");
-    assert!(!text.contains("panicked"), "{text}");
-    for n in needles {
-        assert!(text.contains(n), "`{n}` not in: {text}");
-    }
 }
 
 /// Runs `prt` under an address-space limit of 4 GiB (`ulimit -v`), as a small machine or a
@@ -479,16 +468,7 @@ fn metadata_cannot_switch_off_its_own_checks() {
     // The volume file holds to the same rules.
     let scene = dir.join("fog.toml");
     std::fs::write(&scene, fog_scene(0.3, 12, 10)).unwrap();
-    let settings = TransferSettings {
-        sh_order: 2,
-        directions: 32,
-        scatter: wavelet_prt::volume::ScatterSettings {
-            orders: 2,
-            angular: 2,
-            light: 2,
-            directions: 16,
-        },
-    };
+    let settings = small_transfer(32);
     let scene = wavelet_prt::scene::Scene::load(&scene).unwrap();
     let vpath = dir.join("fog.prtv");
     bake_volume(&scene, Some(8), &settings, &|_, _| {})

@@ -39,10 +39,10 @@ use wavelet_prt::volume::{
     bake_volume, render_volume,
 };
 
-/// Inputs each test tries (times `PRT_MUTATIONS`): 88,000 in all, about 45 s of
+/// Inputs each test tries (times `PRT_MUTATIONS`): 95,500 in all, about 45 s of
 /// `cargo test --release` on two cores. `PRT_MUTATIONS=10` (820,000) took 8 minutes and found
 /// nothing more.
-const COUNTS: [(&str, usize); 10] = [
+const COUNTS: [(&str, usize); 13] = [
     ("prt", 16000),
     ("shards", 4000),
     ("prtv", 12000),
@@ -50,6 +50,9 @@ const COUNTS: [(&str, usize); 10] = [
     ("obj", 8000),
     ("gltf", 3000),
     ("glb", 3000),
+    ("gltf-uri", 1500),
+    ("lights", 3000),
+    ("per-vertex", 3000),
     ("npy", 8000),
     ("exr", 10000),
     ("hdr", 10000),
@@ -486,10 +489,34 @@ fn exercise_transport(
         },
         RelightRequest::Full,
     ] {
-        if let Ok((image, _)) = relight(t, ctx, light, &req)
-            && let Some(p) = image.first_non_finite()
+        if let Ok((image, _)) = relight(t, ctx, light, &req) {
+            if let Some(p) = image.first_non_finite() {
+                return Err(format!("{:?} relight wrote {p:?}", req.method()));
+            }
+            draw_per_vertex(t, &image)?;
+        }
+    }
+    Ok(())
+}
+
+/// Draws a per-vertex transport relit to `relit` from its own camera and from one it never
+/// saw, with each way of evaluating its gloss, and checks the pictures.
+fn draw_per_vertex(t: &Transport, relit: &wavelet_prt::output::film::Image) -> Result<(), String> {
+    use wavelet_prt::relight::vertex::{GlossEval, bake_camera, draw_relit, orbit};
+    if t.domain.mesh().is_none() {
+        return Ok(());
+    }
+    let Ok(camera) = bake_camera(t) else {
+        return Ok(());
+    };
+    for (camera, eval) in [
+        (camera.clone(), GlossEval::PerPixel),
+        (orbit(&camera, 50.0, 20.0), GlossEval::PerVertex),
+    ] {
+        if let Ok(drawn) = draw_relit(t, relit, &camera, None, 1, eval)
+            && let Some(p) = drawn.image.first_non_finite()
         {
-            return Err(format!("{:?} relight wrote {p:?}", req.method()));
+            return Err(format!("a per-vertex draw ({eval}) wrote {p:?}"));
         }
     }
     Ok(())
@@ -1285,6 +1312,7 @@ fn gltf_framing() -> wavelet_prt::scene::Framing {
         camera: None,
         width: Some(24),
         height: Some(16),
+        ..Default::default()
     }
 }
 
@@ -1381,6 +1409,210 @@ fn mutated_glbs_are_errors_or_bake() {
             };
             exercise_scene(&scene, &env)?;
             Ok(false)
+        });
+    }
+    h.finish();
+}
+
+/// The tests' glTF scene in `dir/model/`, with a copy of its buffer and image one folder up
+/// (`dir/`), where a URI that leaves the model's folder would find them.
+fn model_beside_copies(dir: &Path) -> (PathBuf, String) {
+    let folder = dir.join("model");
+    std::fs::create_dir_all(&folder).unwrap();
+    let path = common::gltf::test_scene(4, false).write_gltf(&folder, "s");
+    for f in ["s data.bin", "s_image0.png"] {
+        std::fs::copy(folder.join(f), dir.join(f)).unwrap();
+    }
+    let _ = std::fs::remove_file(folder.join("up.bin"));
+    std::os::unix::fs::symlink(dir.join("s data.bin"), folder.join("up.bin")).unwrap();
+    std::fs::create_dir_all(folder.join("sub")).unwrap();
+    std::fs::copy(folder.join("s data.bin"), folder.join("sub/b.bin")).unwrap();
+    (path.clone(), std::fs::read_to_string(&path).unwrap())
+}
+
+/// URIs a buffer or an image of the glTF mutations may take: the right ones, ones inside the
+/// folder by other spellings, and ones that leave it by `..`, escapes, a link or an absolute
+/// path.
+const GLTF_URIS: &[&str] = &[
+    "s%20data.bin",
+    "s data.bin",
+    "./s%20data.bin",
+    "sub/b.bin",
+    "sub/../s%20data.bin",
+    "s_image0.png",
+    "../s%20data.bin",
+    "..%2Fs%20data.bin",
+    "%2e%2e/s_image0.png",
+    "sub/../../s%20data.bin",
+    "up.bin",
+    "/etc/passwd",
+    "../../../../../../../../proc/self/environ",
+    "file:///etc/passwd",
+    "missing.bin",
+    "%00",
+    "%zz",
+    "sub",
+    "",
+];
+
+#[test]
+fn mutated_gltf_uris_stay_in_the_model_folder() {
+    let dir = temp_dir("mutations-gltf-uri");
+    let env = sky();
+    let (path, text) = model_beside_copies(&dir);
+    let folder = std::fs::canonicalize(dir.join("model")).unwrap();
+    let doc: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let mut h = Harness::new("gltf-uri", 0x5eed_000b);
+    for i in 0..count("gltf-uri") {
+        let mut rng = Rng::new(h.seed, i as u64);
+        let mut d = doc.clone();
+        let mut what = Vec::new();
+        // The buffer's URI, the image's, or both; now and then mutated further as text.
+        let which = pick(&mut rng, 3);
+        for (k, at) in [("buffers", 0usize), ("images", 1)] {
+            if which == at || which == 2 {
+                let uri = *choose(&mut rng, GLTF_URIS);
+                d[k][0]["uri"] = serde_json::json!(uri);
+                what.push(format!("{k}[0].uri = {uri:?}"));
+            }
+        }
+        let mut bytes = serde_json::to_vec_pretty(&d).unwrap();
+        if pick(&mut rng, 4) == 0 {
+            let (b, w) = mutate_text(&mut rng, &String::from_utf8(bytes).unwrap(), GLTF_STRINGS);
+            bytes = b;
+            what.push(w);
+        }
+        std::fs::write(&path, &bytes).unwrap();
+        h.check(i, &what.join(", "), &path, || {
+            let Ok(scene) = Scene::load_with(&path, &gltf_framing()) else {
+                return Ok(true);
+            };
+            // Whatever loaded read nothing outside the model's folder.
+            for f in &scene.input_files {
+                let f = std::fs::canonicalize(f).map_err(|e| format!("{}: {e}", f.display()))?;
+                if !f.starts_with(&folder) {
+                    return Err(format!("read {} outside the model's folder", f.display()));
+                }
+            }
+            exercise_scene(&scene, &env)?;
+            Ok(false)
+        });
+    }
+    h.finish();
+}
+
+/// The light tables the light mutations start from, beside the viewer's quad and spot
+/// ([`common::VIEWER_LIGHTS`]): a point and a directional light with a disc.
+const MORE_LIGHTS: &str = r#"
+[[light]]
+name = "bulb"
+type = "point"
+position = [-1.0, 1.0, 1.0]
+intensity = 3.0
+
+[[light]]
+name = "sun"
+type = "directional"
+direction = [0.3, -1.0, 0.2]
+angle_deg = 0.5
+intensity = 1.5
+"#;
+
+const LIGHT_STRINGS: &[&str] = &[
+    "\"\"",
+    "\"x\"",
+    "\"quad\"",
+    "\"spot\"",
+    "\"point\"",
+    "\"directional\"",
+    "\"sphere\"",
+    "\"panel\"",
+    "\"sun\"",
+    "\"\\u0000\"",
+];
+
+#[test]
+fn mutated_light_tables_are_errors_or_bake() {
+    let dir = temp_dir("mutations-lights");
+    let env = sky();
+    let base = SPHERE_ON_PLANE
+        .replace("width = 37", "width = 16")
+        .replace("height = 21", "height = 10");
+    let text = format!("{base}\n{}{MORE_LIGHTS}", common::VIEWER_LIGHTS);
+    assert!(Scene::from_toml_str(&text, &dir.join("lit.toml")).is_ok());
+    let mut h = Harness::new("lights", 0x5eed_000c);
+    let path = dir.join("mutated.toml");
+    for i in 0..count("lights") {
+        let mut rng = Rng::new(h.seed, i as u64);
+        // Mutations within the light tables, so that the camera and shapes stay valid.
+        let at = text.find("[[light]]").unwrap_or(0);
+        let (tail, what) = mutate_text(&mut rng, &text[at..], LIGHT_STRINGS);
+        let mut bytes = text.as_bytes()[..at].to_vec();
+        bytes.extend_from_slice(&tail);
+        std::fs::write(&path, &bytes).unwrap();
+        h.check(i, &what, &path, || {
+            let Ok(scene) = Scene::load(&path) else {
+                return Ok(true);
+            };
+            exercise_lit_scene(&scene, &env)?;
+            Ok(false)
+        });
+    }
+    h.finish();
+}
+
+/// A tiny bake of a lit scene, relit with its lights at their defaults, and once with each
+/// switched off.
+fn exercise_lit_scene(scene: &Scene, env: &EnvMap) -> Result<(), String> {
+    use wavelet_prt::relight::{Backend, Cpu, LightMix, LightSetting};
+    let settings = BakeSettings {
+        cube_n: 2,
+        sh_order: 1,
+        light_samples: 2,
+        ..BakeSettings::default()
+    };
+    let Ok(t) = bake(scene, &settings, &|_| {}) else {
+        return Ok(());
+    };
+    t.validate()
+        .map_err(|e| format!("baked an invalid transport: {e}"))?;
+    let ctx = LightContext::new(&t).map_err(|e| e.to_string())?;
+    let light = ctx
+        .prepare(env, EnvRotation::default())
+        .map_err(|e| e.to_string())?;
+    let mut settings = LightSetting::defaults(&scene.lights);
+    for k in 0..=settings.len() {
+        if k > 0 {
+            settings[k - 1].on = false;
+        }
+        let mix = LightMix::new(&scene.lights, &settings).map_err(|e| e.to_string())?;
+        let req = RelightRequest::Wavelet {
+            k: 8.min(t.coeff_count()),
+            weighting: Weighting::Area,
+        };
+        if let Ok((image, _)) = Backend::relight_with(&Cpu(&t), &ctx, &light, &req, &mix)
+            && let Some(p) = image.first_non_finite()
+        {
+            return Err(format!("a lit relight wrote {p:?}"));
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn mutated_per_vertex_tensors_are_errors_or_draw() {
+    let env = sky();
+    let source = StFile::read(&common::per_vertex_transport_path());
+    let dir = temp_dir("mutations-per-vertex");
+    let mut h = Harness::new("per-vertex", 0x5eed_000d);
+    let mut lights = HashMap::new();
+    let path = dir.join("mutated.prt");
+    for i in 0..count("per-vertex") {
+        let mut rng = Rng::new(h.seed, i as u64);
+        let (bytes, what) = mutate_safetensors(&mut rng, &source);
+        std::fs::write(&path, &bytes).unwrap();
+        h.check(i, &what, &path, || {
+            check_transport(&path, &env, &mut lights)
         });
     }
     h.finish();

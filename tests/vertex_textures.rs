@@ -72,6 +72,7 @@ fn checker_scene(name: &str, side: u32, nearest: bool) -> Scene {
             camera: None,
             width: Some(96),
             height: None,
+            ..Framing::default()
         },
     )
     .unwrap()

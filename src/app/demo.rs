@@ -115,17 +115,32 @@ pub struct DemoReport {
     pub truck: crate::app::truck::TruckReport,
 }
 
-/// Writes the bundled assets under `dir/assets` (leaving files that already match).
-pub fn write_assets(dir: &Path) -> Result<PathBuf> {
+/// Writes the bundled assets under `dir/assets`, and returns that folder. A file that is there
+/// already is never replaced: one that matches is left as it is, and one that differs (a
+/// user's edit) is kept and named through `log`, as what the run reads in place of the bundled
+/// copy.
+pub fn write_assets(dir: &Path, log: &mut dyn FnMut(&str)) -> Result<PathBuf> {
     let root = dir.join("assets");
+    let mut kept = Vec::new();
     for a in ASSETS {
         let p = root.join(a.path);
-        if std::fs::read(&p).is_ok_and(|b| b == a.bytes) {
+        if std::fs::symlink_metadata(&p).is_ok() {
+            if !std::fs::read(&p).is_ok_and(|b| b == a.bytes) {
+                kept.push(a.path);
+            }
             continue;
         }
         let parent = p.parent().unwrap_or(&root);
         std::fs::create_dir_all(parent).map_err(|e| PrtError::io(parent, e))?;
         crate::files::write_bytes_atomically(&p, a.bytes)?;
+    }
+    if !kept.is_empty() {
+        log(&format!(
+            "warning: {} differ from the bundled copies and are kept as they are (the run reads \
+             them): {}; remove them to get the bundled ones back",
+            root.display(),
+            kept.join(", ")
+        ));
     }
     Ok(root)
 }
@@ -137,7 +152,7 @@ pub fn run_demo(
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<DemoReport> {
     std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
-    let assets = write_assets(dir)?;
+    let assets = write_assets(dir, log)?;
     let scene = Scene::load(&assets.join("scenes/demo.toml"))?;
     let settings = demo_settings();
     let transport_path = dir.join("demo.prt");

@@ -174,7 +174,7 @@ pub fn run(
     log: &mut dyn FnMut(&str),
 ) -> Result<LightsReport> {
     std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
-    let assets = crate::app::demo::write_assets(dir)?;
+    let assets = crate::app::demo::write_assets(dir, log)?;
     let base = base_scene(&assets, opts.side)?;
     let settings = BakeSettings {
         cube_n: 8,

@@ -120,7 +120,7 @@ pub fn run_paper(
         ));
     }
     std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
-    let assets = write_assets(dir)?;
+    let assets = write_assets(dir, log)?;
     let scenes = [
         ("diffuse", paper_scene(&assets, "demo", size, true)?),
         (

@@ -288,7 +288,9 @@ pub fn backdrop(
     map: &EnvMap,
     key: &LightKey,
 ) -> crate::Result<Image> {
-    let open = vec![0.0; camera.width as usize * camera.height as usize];
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let what = format!("a {w} x {h} backdrop");
+    let open = crate::files::try_filled("camera.width/height", &what, w * h, 0.0f32)?;
     crate::relight::background::environment_behind_camera(camera, &open, map, key.rotation)
 }
 

@@ -33,6 +33,22 @@ pub const MAX_TABLE_BYTES: u64 = 2 << 30;
 /// Texels swept at once while the table is filled.
 const CHUNK: usize = 256;
 
+/// Bytes [`MediumLight::build`] takes at its peak for `voxels` voxels, `texels` texels and a
+/// visibility lattice of `nodes` nodes: V per node and texel (4 bytes as f32, 1 as a byte, 1 in
+/// the cells' table), and with the table, T (a byte per voxel and texel), the chunk of rows swept
+/// before they are copied in (a byte per voxel and texel of the chunk), the sweeper's three
+/// layouts of σ and indices (24 bytes a voxel) and one transmittance grid per thread (4 bytes a
+/// voxel). Counted from the buffers, not measured.
+fn peak_bytes(voxels: u64, texels: u64, nodes: u64, table: bool) -> u64 {
+    let visibility = nodes.saturating_mul(texels).saturating_mul(6);
+    if !table {
+        return visibility;
+    }
+    let threads = rayon::current_num_threads() as u64;
+    let per_voxel = texels + texels.min(CHUNK as u64) + 24 + 4 * threads;
+    visibility.saturating_add(voxels.saturating_mul(per_voxel))
+}
+
 /// Where in a medium a texel is seen past the surfaces, at the visibility lattice's nodes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Seen {
@@ -199,6 +215,23 @@ impl MediumLight {
             .find(|&s| Lattice::new(grid.dims, s).count() * texels <= MAX_VISIBILITY_RAYS)
             .unwrap_or(usize::MAX);
         let visible = Lattice::new(grid.dims, stride);
+        // Every table's memory, checked before any work.
+        let field = "--cube/medium.resolution";
+        let with_table = match table {
+            true => ", with the transmittance table for --bounces,",
+            false => "",
+        };
+        let what = format!(
+            "what the medium's {} voxels see of the {texels} texels at N = {n}{with_table}",
+            voxels.count()
+        );
+        let peak = peak_bytes(
+            voxels.count() as u64,
+            texels as u64,
+            visible.count() as u64,
+            table,
+        );
+        crate::files::check_memory(field, &what, peak)?;
         let centres: Vec<Vec3> = texel_dirs(n).iter().map(|d| d.as_vec3()).collect();
         let cell = grid.cell();
         let first = grid.min + cell * 0.5;
@@ -213,7 +246,7 @@ impl MediumLight {
         };
         // The surfaces' visibility, texel by texel.
         let nodes = visible.count();
-        let mut visible_by_texel = vec![0.0f32; texels * nodes];
+        let mut visible_by_texel = crate::files::try_filled(field, &what, texels * nodes, 0.0f32)?;
         visible_by_texel
             .par_chunks_mut(nodes)
             .zip(&centres)
@@ -250,7 +283,7 @@ impl MediumLight {
                 })
             })
             .collect();
-        let mut visible_by_node = vec![0u8; nodes * texels];
+        let mut visible_by_node = crate::files::try_filled(field, &what, nodes * texels, 0u8)?;
         visible_by_node
             .par_chunks_mut(texels)
             .enumerate()
@@ -262,7 +295,7 @@ impl MediumLight {
         let mut transmittance = Vec::new();
         if table {
             let count = voxels.count();
-            transmittance = vec![0u8; count * texels];
+            transmittance = crate::files::try_filled(field, &what, count * texels, 0u8)?;
             let sweeper = Sweeper::new(medium);
             let [nx, ny, _] = grid.dims;
             for t0 in (0..texels).step_by(CHUNK) {

@@ -429,6 +429,7 @@ fn bake_tiles(
             vertices: m.vertex_count() as u32,
             triangles: m.triangles.len() as u32,
             image: [cam.width, cam.height],
+            materials: scene.materials.len() as u32,
             albedo_maps: m.albedo_maps.len() as u32,
             brdf_stride: m.stride() as u32,
             brdf_map: m.factors.as_ref().map_or(0, |f| f.map.res as u32),

@@ -24,6 +24,7 @@
 //! of the bake's tables: no sweep, no lattice, no transmittance table.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, PoisonError};
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -37,10 +38,10 @@ use crate::math::sampling::Rng;
 use crate::medium::henyey_greenstein;
 use crate::medium::tracking::{Tracker, sample_hg};
 use crate::output::film::Image;
-use crate::scene::Scene;
 use crate::scene::light::{Emitter, emitters};
 use crate::scene::light_mix::LightMix;
 use crate::scene::trace::Tracer;
+use crate::scene::{Material, Scene};
 
 use super::lights::power_heuristic;
 use super::reference::light_weights;
@@ -83,7 +84,8 @@ impl PathTraced {
 /// Path traces `scene` under `cube` with `samples` paths per pixel (rounded up to a multiple of
 /// the pixel's camera sub-samples, which it cycles through), up to `settings.bounces` bounces
 /// after the camera hit. Uses the bake's camera sub-samples, seed and `unshadowed`; calls
-/// `progress(rows done, rows)`.
+/// `progress(rows done, rows)`. A material whose lobe gives a value that is not finite is an
+/// error that names it and a pixel where a path met it.
 pub fn path_trace(
     scene: &Scene,
     cube: &CubeMap,
@@ -139,6 +141,8 @@ pub fn path_trace_lit(
     let mut coverage = vec![0.0f32; w * h];
     let mut std_error = vec![[0.0f32; 3]; w * h];
     let rows_done = AtomicUsize::new(0);
+    // The first pixel (in reading order) whose paths met a material gone non-finite, and it.
+    let blamed: Mutex<Option<(usize, usize, u32)>> = Mutex::new(None);
     image
         .pixels
         .par_chunks_mut(w)
@@ -181,14 +185,23 @@ pub fn path_trace_lit(
                         lights: &lit,
                         tracker: tracker.as_ref(),
                     };
-                    let l = radiance(
+                    let l = match radiance(
                         scene,
                         &tracer,
                         &lighting,
                         settings,
                         (first, throughput),
                         &mut rng,
-                    );
+                    ) {
+                        Ok(l) => l,
+                        Err(material) => {
+                            let mut b = blamed.lock().unwrap_or_else(PoisonError::into_inner);
+                            if b.as_ref().is_none_or(|&(bx, by, _)| (y, x) < (by, bx)) {
+                                *b = Some((x, y, material));
+                            }
+                            continue;
+                        }
+                    };
                     for k in 0..3 {
                         sum[k] += l[k] as f64;
                         sum_sq[k] += (l[k] as f64).powi(2);
@@ -205,12 +218,38 @@ pub fn path_trace_lit(
             }
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1, h);
         });
+    if let Some((x, y, m)) = blamed.into_inner().unwrap_or_else(PoisonError::into_inner) {
+        return Err(non_finite_material(scene, x, y, m));
+    }
     Ok(PathTraced {
         image,
         coverage,
         std_error,
         samples,
     })
+}
+
+/// The error of a material whose lobe gave a NaN or infinite value on a path through pixel
+/// (x, y): it names the material, since neither the environment nor the lights are to blame.
+fn non_finite_material(scene: &Scene, x: usize, y: usize, m: u32) -> PrtError {
+    let name = scene
+        .material_names
+        .get(m as usize)
+        .map_or("?", String::as_str);
+    let lobe = match scene.materials.get(m as usize) {
+        Some(Material::Glossy { roughness, .. }) => {
+            format!("its glossy lobe, roughness {roughness}")
+        }
+        _ => "its lobe".to_string(),
+    };
+    PrtError::invalid(
+        format!("material `{name}`"),
+        format!(
+            "pixel (x = {x}, y = {y}) of the path-traced image is NaN: {lobe}, evaluated or \
+             sampled where a path met it, is not finite in 32-bit floats (the material is to \
+             blame, not the environment or the lights)"
+        ),
+    )
 }
 
 /// What lights a path: the environment's cube and its sampler, and the local lights that are
@@ -224,7 +263,8 @@ struct Lighting<'a> {
 }
 
 /// Radiance leaving the first vertex (a camera hit, or a collision along the camera ray with
-/// its albedo as the throughput) towards the camera, by one path.
+/// its albedo as the throughput) towards the camera, by one path; or the index of a material
+/// whose lobe gave a value that is not finite at a vertex of the path.
 fn radiance(
     scene: &Scene,
     tracer: &Tracer,
@@ -232,7 +272,7 @@ fn radiance(
     settings: &BakeSettings,
     (first, mut throughput): (Vertex, Vec3),
     rng: &mut Rng,
-) -> Vec3 {
+) -> std::result::Result<Vec3, u32> {
     let Lighting {
         cube,
         sampler,
@@ -253,6 +293,15 @@ fn radiance(
             Vertex::Surface(sp) => {
                 let lobes = sp.lobes(scene);
                 let (n, v) = (sp.normal, sp.view);
+                // The lobe's value and density towards `d`, or the material to blame.
+                let lobe = |d: Vec3| {
+                    let (f, p) = (lobes.eval_cosine(n, v, d), lobes.pdf(n, v, d));
+                    if f.is_finite() && p.is_finite() {
+                        Ok((f, p))
+                    } else {
+                        Err(sp.material)
+                    }
+                };
                 if let Some(sampler) = sampler {
                     let u = [rng.next_f64(), rng.next_f64(), rng.next_f64()];
                     let (d, p_light) = sampler.sample(u);
@@ -260,8 +309,8 @@ fn radiance(
                         && n.dot(d) > 0.0
                         && (settings.unshadowed || !tracer.occluded(sp.origin, d, f32::INFINITY))
                     {
-                        let f = lobes.eval_cosine(n, v, d);
-                        let w = power_heuristic(p_light, lobes.pdf(n, v, d));
+                        let (f, p_brdf) = lobe(d)?;
+                        let w = power_heuristic(p_light, p_brdf);
                         let tr = through(sp.origin, d, rng);
                         total += throughput * f * env(d) * (tr * w / p_light);
                     }
@@ -277,9 +326,9 @@ fn radiance(
                     {
                         continue;
                     }
-                    let f = lobes.eval_cosine(n, v, ls.dir);
+                    let (f, p_brdf) = lobe(ls.dir)?;
                     let w = if ls.pdf > 0.0 {
-                        power_heuristic(ls.pdf, lobes.pdf(n, v, ls.dir))
+                        power_heuristic(ls.pdf, p_brdf)
                     } else {
                         1.0
                     };
@@ -289,6 +338,9 @@ fn radiance(
                 let Some(s) = lobes.sample(n, v, u) else {
                     break;
                 };
+                if !(s.weight.is_finite() && s.pdf.is_finite()) {
+                    return Err(sp.material);
+                }
                 (sp.origin, s.dir, s.weight, s.pdf)
             }
             Vertex::Medium { pos, dir } => {
@@ -349,5 +401,5 @@ fn radiance(
             _ => break,
         };
     }
-    total
+    Ok(total)
 }

@@ -20,6 +20,48 @@ use crate::error::{PrtError, Result};
 /// Most voxels a grid may hold (a 512³ grid), checked before allocating.
 pub const MAX_VOXELS: usize = 512 * 512 * 512;
 
+/// Most optical depth the densest voxel may have across its shortest edge
+/// (`extinction · density · edge`). Such a voxel passes e^-100 ≈ 4e-44 of the light, below the
+/// smallest normal f32 (1.2e-38): as opaque as the marches' arithmetic can hold, so more
+/// extinction would only move where light scatters within the first hundredth of a voxel, which
+/// the grid does not resolve. It also bounds delta and ratio tracking
+/// ([`tracking::Tracker`]), which take `extinction · densest · length` tentative steps along a
+/// ray: at most 100 a voxel crossed, ~89,000 across a 512³ grid's diagonal (an extinction of
+/// 1e8 in a 24-voxel fog would take 1e8 a unit, each step below f32's resolution of the distance).
+pub const MAX_VOXEL_DEPTH: f32 = 100.0;
+
+/// Voxels along each axis of a box of `extent` with `resolution` voxels along its longest side:
+/// the others in proportion (cubic voxels), at least 1.
+pub fn grid_dims(extent: Vec3, resolution: usize) -> [usize; 3] {
+    let longest = extent.max_element();
+    extent
+        .to_array()
+        .map(|e| ((e / longest * resolution as f32).round() as usize).max(1))
+}
+
+/// The shortest voxel edge of a box of `extent` with `resolution` voxels along its longest side
+/// ([`grid_dims`]).
+pub fn voxel_edge(extent: Vec3, resolution: usize) -> f32 {
+    let dims = grid_dims(extent, resolution);
+    (extent / Vec3::new(dims[0] as f32, dims[1] as f32, dims[2] as f32)).min_element()
+}
+
+/// What is wrong with `extinction` when a voxel of density `densest` whose shortest edge is
+/// `edge` is deeper than [`MAX_VOXEL_DEPTH`] across it; `None` when it is not.
+pub fn voxel_depth_problem(extinction: f32, densest: f32, edge: f32) -> Option<String> {
+    let per_extinction = densest as f64 * edge as f64;
+    let depth = extinction as f64 * per_extinction;
+    (depth > MAX_VOXEL_DEPTH as f64).then(|| {
+        format!(
+            "{extinction} gives a voxel of density {densest} an optical depth of {depth:.3e} \
+             across its shortest edge ({edge:.3e} units), above {MAX_VOXEL_DEPTH}: nothing \
+             crosses such a voxel, and tracking a path through it takes ever more steps; use \
+             at most {:.4e} on this grid (or a finer grid)",
+            MAX_VOXEL_DEPTH as f64 / per_extinction
+        )
+    })
+}
+
 /// Densities at voxel centres over the box `[min, max]`, x fastest: index `(z·ny + y)·nx + x`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DensityGrid {
@@ -67,6 +109,11 @@ impl DensityGrid {
     /// Number of voxels, `nx · ny · nz`.
     pub fn voxel_count(&self) -> usize {
         self.dims.iter().product()
+    }
+
+    /// The largest density (0 for an empty grid).
+    pub fn densest(&self) -> f32 {
+        self.data.iter().copied().fold(0.0, f32::max)
     }
 
     #[inline]
@@ -260,6 +307,10 @@ impl Medium {
                 "medium.extinction",
                 format!("must be finite and >= 0, got {}", self.extinction),
             ));
+        }
+        let edge = self.grid.cell().min_element();
+        if let Some(problem) = voxel_depth_problem(self.extinction, self.grid.densest(), edge) {
+            return Err(PrtError::invalid("medium.extinction", problem));
         }
         check_albedo("medium.albedo", self.albedo)?;
         check_g("medium.g", self.g)
@@ -664,6 +715,21 @@ mod tests {
             1.0 - t
         );
         assert!((t - (-1.0f32).exp()).abs() < SLAB_TRANSMITTANCE, "T {t}");
+    }
+
+    #[test]
+    fn a_voxel_deeper_than_the_limit_is_refused_with_the_largest_extinction_it_takes() {
+        assert!(voxel_depth_problem(MAX_VOXEL_DEPTH, 1.0, 1.0).is_none());
+        assert!(voxel_depth_problem(1e30, 0.0, 1.0).is_none());
+        // The fog of the tests: 24 voxels over 1.6 units.
+        let e = voxel_depth_problem(1e8, 1.0, 1.6 / 24.0).unwrap();
+        assert!(e.contains("above 100") && e.contains("1.5000e3"), "{e}");
+        // Products past f32's range are still refused.
+        assert!(voxel_depth_problem(f32::MAX, f32::MAX, 1e9).is_some());
+        // A procedural grid's voxels: 24 x 18 x 24 over the fog's box.
+        let extent = Vec3::new(1.6, 1.2, 1.6);
+        assert_eq!(grid_dims(extent, 24), [24, 18, 24]);
+        assert!((voxel_edge(extent, 24) - 1.6 / 24.0).abs() < 1e-6);
     }
 
     #[test]

@@ -6,12 +6,27 @@
 //! needs no ray marching and leaves no step bias (Woodcock et al. 1965; pbrt-v4's volumetric path
 //! integrator uses the same scheme). Shadow rays take ratio tracking (Novák et al. 2014): an
 //! unbiased product of `1 − sigma_t / sigma_max` over tentative collisions. New directions at a
-//! collision are drawn from the Henyey–Greenstein lobe ([`sample_hg`]).
+//! collision are drawn from the Henyey–Greenstein lobe ([`sample_hg`]). A segment takes at most
+//! [`MAX_TRACKING_STEPS`] tentative collisions; the rest of a longer one is marched.
+
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
 
 use crate::math::sampling::Rng;
 use crate::medium::{Medium, ray_box};
+
+/// Most tentative collisions one tracked segment takes before the rest of it is marched. Under
+/// [`crate::medium::MAX_VOXEL_DEPTH`] a segment expects at most 100 a voxel it crosses, ~89,000
+/// across a 512³ grid's diagonal (Poisson, standard deviation ~300), so a medium a scene file
+/// accepts reaches this only with voxels far longer than their shortest edge. There, and for a
+/// step that stalls below f32's resolution of the distance, the rest of the segment is marched
+/// ([`Tracker::marched`] counts them): delta tracking forgets the null collisions behind it, so
+/// the rest of a free path is a new one's from where it stands, exact but for the march's
+/// quadrature.
+pub const MAX_TRACKING_STEPS: u32 = 1 << 18;
+/// Most steps of that march (half a voxel each, longer across a box far longer than its voxels).
+const MAX_MARCH_STEPS: f32 = 65536.0;
 
 /// A direction from the Henyey–Greenstein lobe of asymmetry `g` around `d` (the direction of
 /// travel before the collision; `g > 0` keeps going forward), from two uniform numbers. Its
@@ -37,11 +52,21 @@ pub struct Tracker<'a> {
     lo: Vec3,
     hi: Vec3,
     majorant: f32,
+    /// Tentative collisions a segment takes before its rest is marched.
+    max_steps: u32,
+    /// Segments whose rest was marched.
+    marched: AtomicU64,
 }
 
 impl<'a> Tracker<'a> {
     /// The trackers of `medium`.
     pub fn new(medium: &'a Medium) -> Tracker<'a> {
+        Self::with_max_steps(medium, MAX_TRACKING_STEPS)
+    }
+
+    /// The trackers of `medium`, marching the rest of a segment after `max_steps` tentative
+    /// collisions.
+    fn with_max_steps(medium: &'a Medium, max_steps: u32) -> Tracker<'a> {
         let (lo, hi) = medium.grid.support();
         let max_density = medium.grid.data.iter().fold(0.0f32, |a, &b| a.max(b));
         Tracker {
@@ -49,12 +74,62 @@ impl<'a> Tracker<'a> {
             lo,
             hi,
             majorant: medium.extinction * max_density,
+            max_steps,
+            marched: AtomicU64::new(0),
         }
     }
 
     /// The medium tracked.
     pub fn medium(&self) -> &'a Medium {
         self.medium
+    }
+
+    /// Segments so far that reached [`MAX_TRACKING_STEPS`] and were marched to their end.
+    pub fn marched(&self) -> u64 {
+        self.marched.load(Ordering::Relaxed)
+    }
+
+    /// The march of `o + s d` for `s` in `[t, t1]`: its steps and their length, `None` when
+    /// the span is empty.
+    fn march_steps(&self, t: f32, t1: f32) -> Option<(usize, f32)> {
+        let span = t1 - t;
+        if !(span.is_finite() && span > 0.0) {
+            return None;
+        }
+        let steps = (span / self.medium.camera_step())
+            .ceil()
+            .clamp(1.0, MAX_MARCH_STEPS);
+        Some((steps as usize, span / steps))
+    }
+
+    /// The rest of a free path from `t`, marched: the distance where the optical depth from
+    /// `t` reaches `−ln(1 − u)` (midpoint rule, linear within a step), `None` past `t1`.
+    fn march_collision(&self, o: Vec3, d: Vec3, t: f32, t1: f32, u: f32) -> Option<f32> {
+        self.marched.fetch_add(1, Ordering::Relaxed);
+        let target = -(1.0 - u).ln();
+        let (steps, dt) = self.march_steps(t, t1)?;
+        let mut depth = 0.0f32;
+        for i in 0..steps {
+            let s = t + i as f32 * dt;
+            let step = self.medium.sigma_t(o + d * (s + 0.5 * dt)) * dt;
+            if step > 0.0 && depth + step >= target {
+                return Some(s + (target - depth) / step * dt);
+            }
+            depth += step;
+        }
+        None
+    }
+
+    /// The transmittance of `o + s d` for `s` in `[t, t1]`, marched.
+    fn march_transmittance(&self, o: Vec3, d: Vec3, t: f32, t1: f32) -> f32 {
+        self.marched.fetch_add(1, Ordering::Relaxed);
+        let Some((steps, dt)) = self.march_steps(t, t1) else {
+            return 1.0;
+        };
+        let depth: f32 = (0..steps)
+            .map(|i| self.medium.sigma_t(o + d * (t + (i as f32 + 0.5) * dt)))
+            .sum();
+        (-depth * dt).exp()
     }
 
     /// Delta tracking from `o` along `d` (unit) up to distance `t_max`: the distance to the first
@@ -66,7 +141,7 @@ impl<'a> Tracker<'a> {
         let (t0, t1) = ray_box(o, d, self.lo, self.hi)?;
         let t1 = t1.min(t_max);
         let mut t = t0;
-        loop {
+        for _ in 0..self.max_steps {
             t -= (1.0 - rng.next_f32()).ln() / self.majorant;
             if t >= t1 {
                 return None;
@@ -75,6 +150,7 @@ impl<'a> Tracker<'a> {
                 return Some(t);
             }
         }
+        self.march_collision(o, d, t, t1, rng.next_f32())
     }
 
     /// Ratio tracking from `o` along `d` (unit) up to distance `t_max` or out of the medium: an
@@ -89,7 +165,7 @@ impl<'a> Tracker<'a> {
         let t1 = t1.min(t_max);
         let mut t = t0;
         let mut tr = 1.0f32;
-        loop {
+        for _ in 0..self.max_steps {
             t -= (1.0 - rng.next_f32()).ln() / self.majorant;
             if t >= t1 {
                 return tr;
@@ -106,6 +182,7 @@ impl<'a> Tracker<'a> {
                 tr = 1.0;
             }
         }
+        tr * self.march_transmittance(o, d, t, t1)
     }
 }
 
@@ -121,6 +198,10 @@ pub(crate) mod tests {
     /// Standard errors an estimate may stray: a true failure (a wrong free-path law, a lobe
     /// turned the wrong way) is off by tens of them.
     const SIGMAS: f64 = 4.5;
+    /// A transmittance whose segments end in the march against the fine quadrature: half-voxel
+    /// midpoint steps of the smooth sphere miss its depth by a few thousandths, T by less; a
+    /// march that stopped paths or let them through would be off by tenths.
+    const MARCHED_REST: f64 = 0.01;
 
     /// A medium over [-1, 1]³ of density `f` on a grid of `dims`, g = 0.3.
     pub(crate) fn medium(
@@ -238,18 +319,72 @@ pub(crate) mod tests {
         }
     }
 
-    #[test]
-    fn a_heterogeneous_medium_is_tracked_without_bias() {
-        // A soft sphere whose density varies 0..1: ratio and delta tracking against the fine
-        // quadrature of the same trilinear density.
+    /// A soft sphere whose density varies 0..1 on a 12³ grid, at `extinction`, and a ray through
+    /// it: its origin and direction.
+    fn soft_sphere(extinction: f32) -> (Medium, Vec3, Vec3) {
         let src = DensitySource::Ellipsoid {
             center: Vec3::ZERO,
             radii: Vec3::splat(0.9),
             falloff: 0.5,
         };
-        let m = medium([12; 3], |p| src.density(p), 2.0, 0.5);
+        let m = medium([12; 3], |p| src.density(p), extinction, 0.5);
         let o = Vec3::new(-0.3, -3.0, 0.2);
-        let d = Vec3::new(0.1, 1.0, -0.05).normalize();
+        (m, o, Vec3::new(0.1, 1.0, -0.05).normalize())
+    }
+
+    #[test]
+    fn a_segment_past_its_step_limit_is_marched_to_the_same_transmittance() {
+        let (m, o, d) = soft_sphere(2.0);
+        let want = (-fine_depth(&m, o, d)).exp();
+        let sigma = (want * (1.0 - want) / DRAWS as f64).sqrt();
+        // About 4 tentative collisions across: most segments go on past the first 2.
+        let tracker = Tracker::with_max_steps(&m, 2);
+        let mut rng = Rng::new(7, 0);
+        let escape = (0..DRAWS)
+            .filter(|_| tracker.collide(o, d, f32::INFINITY, &mut rng).is_none())
+            .count() as f64
+            / DRAWS as f64;
+        let ratio = (0..DRAWS)
+            .map(|_| tracker.transmittance(o, d, f32::INFINITY, &mut rng) as f64)
+            .sum::<f64>()
+            / DRAWS as f64;
+        let marched = tracker.marched();
+        assert!(marched > DRAWS as u64 / 2, "{marched}");
+        let tol = SIGMAS * sigma + MARCHED_REST;
+        assert!((escape - want).abs() < tol, "{escape} vs {want}");
+        assert!((ratio - want).abs() < tol, "{ratio} vs {want}");
+        // At the depth limit a segment is nowhere near the step limit.
+        let (dense, _, _) = soft_sphere(crate::medium::MAX_VOXEL_DEPTH * 6.0);
+        let tracker = Tracker::new(&dense);
+        for _ in 0..1000 {
+            tracker.collide(o, d, f32::INFINITY, &mut rng);
+            tracker.transmittance(o, d, f32::INFINITY, &mut rng);
+        }
+        assert_eq!(tracker.marched(), 0);
+    }
+
+    #[test]
+    fn a_huge_extinction_ends_every_segment() {
+        // Far past MAX_VOXEL_DEPTH (no scene file takes it): steps of 1e-8 stall below the
+        // resolution of distances near 3, and a ray that misses the ball sees only null
+        // collisions, so every segment reaches the limit and is marched.
+        let m = medium([8; 3], |p| (p.length() < 0.5) as u8 as f32, 1e8, 0.5);
+        let tracker = Tracker::new(&m);
+        let mut rng = Rng::new(11, 0);
+        let o = Vec3::new(-3.0, 0.9, 0.9);
+        for _ in 0..2 {
+            let tr = tracker.transmittance(o, Vec3::X, f32::INFINITY, &mut rng);
+            assert_eq!(tr, 1.0);
+            assert_eq!(tracker.collide(o, Vec3::X, f32::INFINITY, &mut rng), None);
+        }
+        assert_eq!(tracker.marched(), 4);
+    }
+
+    #[test]
+    fn a_heterogeneous_medium_is_tracked_without_bias() {
+        // A soft sphere whose density varies 0..1: ratio and delta tracking against the fine
+        // quadrature of the same trilinear density.
+        let (m, o, d) = soft_sphere(2.0);
         let want = (-fine_depth(&m, o, d)).exp();
         assert!(want > 0.05 && want < 0.8, "{want}");
         let sigma = (want * (1.0 - want) / DRAWS as f64).sqrt();

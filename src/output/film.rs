@@ -180,15 +180,17 @@ impl Image {
     }
 
     /// An error when a pixel is NaN or infinite: `what` names the image ("the relit image").
-    /// Inputs are finite, so such a pixel means an overflow of 32-bit floats on the way.
+    /// Inputs are finite, so such a pixel means a value on the way that 32-bit floats do not
+    /// hold; the message lists what can cause one, the materials among them.
     pub fn check_finite(&self, what: &str) -> Result<()> {
         match self.first_non_finite() {
             None => Ok(()),
             Some((x, y, v)) => Err(PrtError::invalid(
                 what,
                 format!(
-                    "pixel (x = {x}, y = {y}) is {v}: the light or the transport overflows \
-                     32-bit floats (an environment far too bright, or a damaged file)"
+                    "pixel (x = {x}, y = {y}) is {v}: a value on the way is not finite in 32-bit \
+                     floats (a material whose lobe is not finite there, an environment or a \
+                     light far too bright, or a damaged file)"
                 ),
             )),
         }

@@ -671,7 +671,7 @@ pub fn rasterize_glossy(
             colours,
             texturing,
             gloss,
-        );
+        )?;
         match &mut sum {
             None => sum = Some(r),
             Some(s) => {
@@ -699,7 +699,21 @@ pub fn rasterize_glossy(
     Ok(r)
 }
 
-/// Draws a checked mesh at `view`'s sample of every pixel.
+/// Pixels of a drawing from which its buffers are checked against the memory this process can
+/// have (reading /proc for every small frame would weigh on its time).
+const CHECKED_PIXELS: usize = 1 << 20;
+
+/// `n` copies of `value` for a buffer of a drawing (`what`): from [`CHECKED_PIXELS`] on, an
+/// error rather than an abort when this process cannot have them.
+fn filled<T: Clone>(what: &str, n: usize, value: T) -> Result<Vec<T>> {
+    if n < CHECKED_PIXELS {
+        return Ok(vec![value; n]);
+    }
+    crate::files::try_filled("camera.width/height", what, n, value)
+}
+
+/// Draws a checked mesh at `view`'s sample of every pixel; an error when this process cannot
+/// have the image's memory.
 fn draw(
     view: &View,
     positions: &[Vec3],
@@ -707,7 +721,7 @@ fn draw(
     colours: &[[f32; 3]],
     texturing: Option<&Texturing>,
     gloss: Option<&Gloss>,
-) -> Raster {
+) -> Result<Raster> {
     let (w, h) = (view.width, view.height);
     let setups: Vec<Setup> = triangles
         .par_iter()
@@ -722,8 +736,13 @@ fn draw(
         }
     }
     let film_x: Vec<f64> = (0..w).map(|x| view.film_x(x)).collect();
-    let mut image = Image::new(w, h);
-    let mut coverage = vec![0.0f32; w * h];
+    let what = format!("a {w} x {h} drawing");
+    let mut image = Image {
+        width: w,
+        height: h,
+        pixels: filled(&what, w * h, [0.0f32; 3])?,
+    };
+    let mut coverage = filled(&what, w * h, 0.0f32)?;
     image
         .pixels
         .par_chunks_mut(w * BAND_ROWS)
@@ -745,7 +764,7 @@ fn draw(
                 cov,
             );
         });
-    Raster { image, coverage }
+    Ok(Raster { image, coverage })
 }
 
 #[cfg(test)]

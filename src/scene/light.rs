@@ -7,7 +7,8 @@
 //!   facing it receives irradiance `I / r²`;
 //! - a directional light's intensity is the irradiance it gives a surface facing it, W/m²; with
 //!   `angle_deg` (the disc's angular diameter) that irradiance is spread over a disc of uniform
-//!   radiance `E / (π sin² α)`, α the half-angle, which softens its shadows;
+//!   radiance `E / (π sin² α)`, α the half-angle, which softens its shadows (a disc narrower
+//!   than [`MIN_DISC_ANGLE`] is a delta light of the same irradiance);
 //! - a quad light's intensity is its radiance, W/(m² sr), uniform over its face and emitted on
 //!   the side its corners' winding faces (right-handed: `(c1 − c0) × (c2 − c0)`), as a one-sided
 //!   area light. A quad light emits but is not geometry: it casts no shadow and the camera does
@@ -20,6 +21,11 @@
 //! sample ([`Emitter::sample`]) and what a path tracer's rays can hit ([`Emitter::hit`]).
 
 use glam::Vec3;
+
+/// Angular diameter, radians (about 0.0057°), below which a directional light is a delta light
+/// of the same irradiance. A narrower disc's penumbra is under 1e-4 of the occluder's distance
+/// wide, and f32 directions place its edge no better than to about a part in a thousand.
+pub const MIN_DISC_ANGLE: f32 = 1e-4;
 
 /// Most light columns a scene may have (lights times their positions): a column is a dense
 /// image, so 4096 of them at 256² already take 1.5 GiB.
@@ -63,7 +69,8 @@ pub enum LightShape {
     Directional {
         /// Unit direction the light travels in (from the source to the scene).
         direction: Vec3,
-        /// Angular diameter of the source's disc, radians; 0 is a delta light.
+        /// Angular diameter of the source's disc, radians; 0 (or anything below
+        /// [`MIN_DISC_ANGLE`]) is a delta light.
         angle: f32,
     },
     /// A one-sided planar quad of uniform radiance.
@@ -88,7 +95,7 @@ impl LightShape {
     pub fn is_sized(&self) -> bool {
         match self {
             LightShape::Point | LightShape::Spot { .. } => false,
-            LightShape::Directional { angle, .. } => *angle > 0.0,
+            LightShape::Directional { angle, .. } => *angle >= MIN_DISC_ANGLE,
             LightShape::Quad { .. } => true,
         }
     }
@@ -260,18 +267,7 @@ impl Light {
                 cos_outer: cone.cos(),
                 cos_inner: (cone - falloff).cos(),
             },
-            LightShape::Directional { direction, angle } => {
-                let half = 0.5 * angle;
-                Emitter::Directional {
-                    to_light: -direction,
-                    cos_half: half.cos(),
-                    radiance: if half > 0.0 {
-                        1.0 / (std::f32::consts::PI * half.sin().powi(2))
-                    } else {
-                        1.0
-                    },
-                }
-            }
+            LightShape::Directional { direction, angle } => Emitter::directional(-direction, angle),
             LightShape::Quad { corners } => Emitter::quad(corners.map(|c| c + at)),
         }
     }
@@ -300,9 +296,12 @@ pub enum Emitter {
     Directional {
         /// Unit direction towards the source.
         to_light: Vec3,
-        /// Cosine of the disc's half-angle (1 for a delta light).
-        cos_half: f32,
-        /// Radiance of the disc (the irradiance at normal incidence of a delta light).
+        /// Sine of the disc's half-angle α (0 for a delta light).
+        sin_half: f32,
+        /// Solid angle of the disc, `2π (1 − cos α)` (0 for a delta light).
+        solid_angle: f32,
+        /// Radiance of the disc, `1 / (π sin² α)` (the irradiance at normal incidence, 1, of a
+        /// delta light).
         radiance: f32,
     },
     /// A one-sided quad of unit radiance, as two triangles (`c0 c1 c2`, `c0 c2 c3`).
@@ -362,12 +361,35 @@ impl Emitter {
         }
     }
 
+    /// A distant light towards unit `to_light` giving unit irradiance at normal incidence,
+    /// spread over a disc of angular diameter `angle` (radians): a delta light below
+    /// [`MIN_DISC_ANGLE`]. The disc's sizes are taken in f64 and its solid angle as
+    /// `4π sin²(α/2)`, never as `1 − cos α`, which f32 rounds to 0 for discs under 0.03°.
+    pub fn directional(to_light: Vec3, angle: f32) -> Emitter {
+        if angle.is_nan() || angle < MIN_DISC_ANGLE {
+            return Emitter::Directional {
+                to_light,
+                sin_half: 0.0,
+                solid_angle: 0.0,
+                radiance: 1.0,
+            };
+        }
+        let half = 0.5 * angle as f64;
+        let sin_half = half.sin();
+        Emitter::Directional {
+            to_light,
+            sin_half: sin_half as f32,
+            solid_angle: (4.0 * std::f64::consts::PI * (0.5 * half).sin().powi(2)) as f32,
+            radiance: (1.0 / (std::f64::consts::PI * sin_half * sin_half)) as f32,
+        }
+    }
+
     /// Whether the light is a delta (a point, a spot or a sun without a disc): one sample
     /// integrates it exactly.
     pub fn is_delta(&self) -> bool {
         match self {
             Emitter::Point { .. } | Emitter::Spot { .. } => true,
-            Emitter::Directional { cos_half, .. } => *cos_half >= 1.0,
+            Emitter::Directional { solid_angle, .. } => *solid_angle <= 0.0,
             Emitter::Quad { .. } => false,
         }
     }
@@ -413,10 +435,11 @@ impl Emitter {
             }
             Emitter::Directional {
                 to_light,
-                cos_half,
+                solid_angle,
                 radiance,
+                ..
             } => {
-                if cos_half >= 1.0 {
+                if solid_angle <= 0.0 {
                     return Some(LightSample {
                         dir: to_light,
                         dist: f32::INFINITY,
@@ -424,19 +447,19 @@ impl Emitter {
                         pdf: 0.0,
                     });
                 }
-                // Uniform over the cone of the disc.
-                let cos = 1.0 - u[0] * (1.0 - cos_half);
-                let sin = (1.0 - cos * cos).max(0.0).sqrt();
+                // Uniform over the cone of the disc: `w = 1 − cos θ` uniform in
+                // [0, 1 − cos α], the sine taken from `w` so that a tiny disc keeps its size.
+                let w = u[0].clamp(0.0, 1.0) * (solid_angle / std::f32::consts::TAU);
+                let (cos, sin) = (1.0 - w, (w * (2.0 - w)).max(0.0).sqrt());
                 let phi = std::f32::consts::TAU * u[1];
                 let (t, b) = to_light.any_orthonormal_pair();
                 let dir =
                     (t * (sin * phi.cos()) + b * (sin * phi.sin()) + to_light * cos).normalize();
-                let pdf = 1.0 / (std::f32::consts::TAU * (1.0 - cos_half));
                 Some(LightSample {
                     dir,
                     dist: f32::INFINITY,
-                    weight: radiance / pdf,
-                    pdf,
+                    weight: radiance * solid_angle,
+                    pdf: 1.0 / solid_angle,
                 })
             }
             Emitter::Quad {
@@ -493,15 +516,16 @@ impl Emitter {
             Emitter::Point { .. } | Emitter::Spot { .. } => None,
             Emitter::Directional {
                 to_light,
-                cos_half,
+                sin_half,
+                solid_angle,
                 radiance,
-            } => (cos_half < 1.0 && dir.dot(to_light) >= cos_half).then(|| {
-                (
-                    f32::INFINITY,
-                    radiance,
-                    1.0 / (std::f32::consts::TAU * (1.0 - cos_half)),
-                )
-            }),
+            } => {
+                // Inside the disc (α <= 45°): in front, and sin θ = |dir × to_light| <= sin α,
+                // which f32 resolves for tiny discs where cos θ >= cos α does not.
+                let inside = dir.dot(to_light) > 0.0
+                    && dir.cross(to_light).length_squared() <= sin_half * sin_half;
+                (solid_angle > 0.0 && inside).then(|| (f32::INFINITY, radiance, 1.0 / solid_angle))
+            }
             Emitter::Quad {
                 origin,
                 edges,
@@ -682,5 +706,41 @@ mod tests {
             .sum::<f32>()
             / samples.len() as f32;
         assert!((e_n - 1.0).abs() < 1e-3, "{e_n}");
+    }
+
+    #[test]
+    fn a_sun_disc_of_any_size_keeps_its_irradiance_and_is_hit_where_it_is_sampled() {
+        let to_light = Vec3::new(0.3, 0.9, -0.2).normalize();
+        let (t, _) = to_light.any_orthonormal_pair();
+        let samples: Vec<[f32; 2]> = stratified(64, || 0.5).collect();
+        for deg in [0.001f32, 0.005, 0.006, 0.01, 0.03, 0.1, 1.0, 10.0, 90.0] {
+            let e = Emitter::directional(to_light, deg.to_radians());
+            assert_eq!(e.is_delta(), deg.to_radians() < MIN_DISC_ANGLE, "{deg}°");
+            // Irradiance on a plane facing the disc: L π sin² α = 1 (the midpoint rule is
+            // exact in 1 − cos θ, which the cosine is linear in).
+            let mut e_n = 0.0f64;
+            for &u in &samples {
+                let s = e.sample(Vec3::ZERO, u).unwrap();
+                assert!(s.weight.is_finite() && s.pdf.is_finite(), "{deg}°: {s:?}");
+                e_n += (s.weight * s.dir.dot(to_light)) as f64 / samples.len() as f64;
+                if !e.is_delta() {
+                    let (dist, radiance, pdf) = e
+                        .hit(Vec3::ZERO, s.dir)
+                        .unwrap_or_else(|| panic!("{deg}°: a sampled direction misses"));
+                    assert_eq!(dist, f32::INFINITY);
+                    assert_eq!(pdf, s.pdf, "{deg}°");
+                    assert!(
+                        (radiance / pdf - s.weight).abs() <= 1e-5 * s.weight,
+                        "{deg}°"
+                    );
+                }
+            }
+            assert!((e_n - 1.0).abs() < 1e-4, "{deg}°: irradiance {e_n}");
+            let Emitter::Directional { sin_half, .. } = e else {
+                unreachable!()
+            };
+            let outside = (to_light + t * (2.0 * sin_half)).normalize();
+            assert!(e.hit(Vec3::ZERO, outside).is_none(), "{deg}°");
+        }
     }
 }

@@ -89,13 +89,13 @@ impl Camera {
             }
         }
         let view = self.target - self.eye;
-        let scale = 1.0
-            + self
-                .eye
-                .abs()
-                .max_element()
-                .max(self.target.abs().max_element());
-        let has_direction = view.length() > 1e-6 * scale;
+        // Relative to the coordinates, so that a camera framing a tiny scene keeps its direction.
+        let scale = self
+            .eye
+            .abs()
+            .max_element()
+            .max(self.target.abs().max_element());
+        let has_direction = view.length() > 1e-6 * scale && view.normalize_or_zero() != Vec3::ZERO;
         if !has_direction {
             return Some((
                 "target",
@@ -390,7 +390,9 @@ impl Scene {
             ));
         }
         let text = crate::files::read_regular_text(path, crate::files::MAX_SCENE_BYTES, "scene")?;
-        let mut scene = Scene::from_toml_str(&text, path)?;
+        let mut scene = Loader::new(&text, path)?
+            .reading_outside_folders(framing.read_outside_folder)
+            .load()?;
         let (w, h) = (scene.camera.width, scene.camera.height);
         let size = (framing.width.unwrap_or(w), framing.height.unwrap_or(h));
         if size != (w, h) {
@@ -529,10 +531,7 @@ impl MediumSpec {
                         format!("{r} voxels is outside 1 to 512"),
                     ));
                 }
-                let longest = extent.max_element();
-                let dims = extent
-                    .to_array()
-                    .map(|e| ((e / longest * r as f32).round() as usize).max(1));
+                let dims = crate::medium::grid_dims(extent, r);
                 match source {
                     MediumSource::Procedural(src) => {
                         DensityGrid::from_fn(dims, self.min, self.max, |p| src.density(p))

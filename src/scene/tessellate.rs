@@ -258,7 +258,9 @@ impl VertexMesh {
             return Some(format!("material {m} of {materials}"));
         }
         if let Some(i) = (0..v).find(|&i| {
-            !self.positions[i].is_finite() || (self.normals[i].length() - 1.0).abs() > 1e-3
+            !self.positions[i].is_finite()
+                || !self.normals[i].is_finite()
+                || (self.normals[i].length() - 1.0).abs() > 1e-3
         }) {
             return Some(format!(
                 "vertex {i} is at {} with normal {}",

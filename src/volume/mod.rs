@@ -78,6 +78,22 @@ impl TransferSettings {
     }
 }
 
+/// Bytes a voxel takes at the peak of [`bake_volume`]: its density (4), the transfer (4 n²), a
+/// sweeper's three layouts (24) and a batch of eight transmittance grids (32); with higher orders,
+/// the stored fields, the current one and the next (4 a² l² each, a² and l² the field's and the
+/// light's SH terms), and a batch of eight gathered sources and their results (64 l²). Counted
+/// from the buffers, not measured.
+fn bake_bytes_per_voxel(settings: &TransferSettings) -> u64 {
+    let base = 4 + 4 * settings.sh_order.pow(2) as u64 + 24 + 32;
+    let s = &settings.scatter;
+    let passes = s.orders.saturating_sub(1) as u64;
+    if passes == 0 {
+        return base;
+    }
+    let l2 = s.light.pow(2) as u64;
+    base + 4 * s.angular.pow(2) as u64 * l2 * (passes + 2) + 64 * l2
+}
+
 /// Bakes the SH self-transfer of `scene`'s medium at its resolution (or `resolution` voxels along
 /// the longest side), with the scene's camera as the default view.
 pub fn bake_volume(
@@ -94,6 +110,13 @@ pub fn bake_volume(
     })?;
     let medium = spec.build(resolution)?;
     settings.validate()?;
+    let voxels = medium.grid.voxel_count() as u64;
+    let per_voxel = bake_bytes_per_voxel(settings);
+    crate::files::check_memory(
+        "--grid/medium.resolution",
+        &format!("the volume bake of {voxels} voxels ({per_voxel} bytes a voxel)"),
+        voxels.saturating_mul(per_voxel),
+    )?;
     // Progress over both parts, in directions swept.
     let first = settings.directions;
     let total = first + settings.scatter.sweeps();
@@ -156,7 +179,8 @@ pub fn bake_transfer(
     let sweeper = Sweeper::new(medium);
     let dirs = fibonacci_directions(settings.directions);
     let weight = 4.0 * std::f64::consts::PI / dirs.len() as f64;
-    let mut acc = vec![0.0f32; voxels * n2];
+    let what = format!("the transfer of {voxels} voxels at SH order {order}");
+    let mut acc = crate::files::try_filled("--grid/medium.resolution", &what, voxels * n2, 0.0f32)?;
     let mut done = 0;
     project_transmittance(
         &sweeper,

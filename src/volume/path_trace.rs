@@ -36,6 +36,9 @@ use crate::scene::Camera;
 pub const MAX_SAMPLES: u32 = 1 << 20;
 /// Scattering order after which a path's weight goes to Russian roulette.
 const ROULETTE_ORDER: u32 = 8;
+/// Bytes a pixel of a reference takes: its radiance and standard error (12 bytes each) and its
+/// coverage (4).
+pub const TRACE_BYTES_PER_PIXEL: u64 = 28;
 
 /// Settings of a volumetric reference.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -143,9 +146,17 @@ pub fn path_trace_volume(
     }
     let max_order = settings.max_order.unwrap_or(u32::MAX);
     let (w, h) = (camera.width as usize, camera.height as usize);
-    let mut image = Image::new(w, h);
-    let mut std_error = vec![[0.0f32; 3]; w * h];
-    let mut coverage = vec![0.0f32; w * h];
+    let field = "camera.width/height";
+    let what = format!("a {w} x {h} volume reference ({TRACE_BYTES_PER_PIXEL} bytes a pixel)");
+    let pixels = w as u64 * h as u64;
+    crate::files::check_memory(field, &what, pixels * TRACE_BYTES_PER_PIXEL)?;
+    let mut image = Image {
+        width: w,
+        height: h,
+        pixels: crate::files::try_filled(field, &what, w * h, [0.0f32; 3])?,
+    };
+    let mut std_error = crate::files::try_filled(field, &what, w * h, [0.0f32; 3])?;
+    let mut coverage = crate::files::try_filled(field, &what, w * h, 0.0f32)?;
     let Some(sampler) = CubeSampler::new(cube) else {
         // A black map lights nothing.
         return Ok(PathTraced {

@@ -575,6 +575,36 @@ impl StFile {
     }
 }
 
+/// A path as the `&str` a command line takes.
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Asserts a command failed cleanly (exit code 1, not a panic or an abort) with every needle in
+/// its message.
+pub fn assert_clean_error(code: i32, text: &str, needles: &[&str]) {
+    assert_eq!(code, 1, "exit code {code}: {text}");
+    assert!(!text.contains("panicked"), "{text}");
+    for n in needles {
+        assert!(text.contains(n), "`{n}` not in: {text}");
+    }
+}
+
+/// Volume transfer at low resolution, `directions` directions and SH order 2, with two
+/// scattering orders: enough to write and read every field of a volume file.
+pub fn small_transfer(directions: usize) -> wavelet_prt::volume::TransferSettings {
+    wavelet_prt::volume::TransferSettings {
+        sh_order: 2,
+        directions,
+        scatter: wavelet_prt::volume::ScatterSettings {
+            orders: 2,
+            angular: 2,
+            light: 2,
+            directions: 16,
+        },
+    }
+}
+
 /// Runs the `prt` binary with `args`; returns (exit code, stdout + stderr).
 pub fn prt(args: &[&str]) -> (i32, String) {
     run(std::process::Command::new(env!("CARGO_BIN_EXE_prt")).args(args))

@@ -215,6 +215,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
     print_info(&a.output, &meta);
+    warn_if_no_pixel_sees_the_scene(&meta);
     println!(
         "bake time     {seconds:.1} s, written ({:.2} M shadow rays/s)",
         meta.stats.shadow_rays as f64 / seconds.max(1e-9) / 1e6
@@ -253,7 +254,24 @@ pub(super) fn merge_cmd(shards: Vec<PathBuf>, output: PathBuf) -> Result<()> {
     let meta = Transport::merge_to_file(&loaded, &names, &output)?;
     progress.finish_and_clear();
     print_info(&output, &meta);
+    warn_if_no_pixel_sees_the_scene(&meta);
     Ok(())
+}
+
+/// Warns on stderr when a whole view's bake holds no rows: no pixel of the camera sees the
+/// scene, so every relight shows the environment alone. (One shard's band may see nothing.)
+fn warn_if_no_pixel_sees_the_scene(m: &crate::store::transport::TransportMeta) {
+    if m.stats.rows == 0
+        && matches!(m.identity.domain, BakeDomain::View)
+        && m.identity.shard.is_none()
+    {
+        eprintln!(
+            "warning: no pixel of the camera sees the scene: the bake holds no rows, so a relight \
+             shows the environment alone; aim the camera (eye {:?}, target {:?}, fov_y_deg {}) \
+             at the scene",
+            m.camera.eye, m.camera.target, m.camera.fov_y_deg
+        );
+    }
 }
 
 fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta) {
@@ -562,9 +580,14 @@ fn describe_light(l: &crate::scene::Light, samples: u32) -> String {
         LightShape::Directional { direction, angle } => format!(
             "directional towards {}{}, {} W/m²",
             v(*direction),
-            if *angle > 0.0 {
+            if l.shape.is_sized() {
                 format!(
                     ", a disc {:.2}° wide ({samples} samples)",
+                    angle.to_degrees()
+                )
+            } else if *angle > 0.0 {
+                format!(
+                    ", a disc {:.4}° wide, drawn as a delta at its irradiance",
                     angle.to_degrees()
                 )
             } else {

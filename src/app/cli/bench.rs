@@ -53,6 +53,7 @@ const TEXTURED_REFERENCE_SPP: u32 = 16;
 pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
     crate::files::check_output_folder(&a.out)?;
     let t = Transport::load(&a.file)?;
+    crate::files::guard_inputs(&[&a.file]);
     let mut opts = crate::app::bench::BenchOptions::defaults_for(&t);
     if let Some(k) = a.terms {
         opts.terms = k;
@@ -128,8 +129,10 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
             camera: None,
             width: Some(width),
             height: Some(height),
+            ..Default::default()
         };
         let scene = Scene::load_with(&path, &framing)?;
+        crate::files::guard_inputs(&scene.input_files);
         if scene.hash_hex() != t.meta.identity.scene_hash {
             return Err(PrtError::invalid(
                 "scene",

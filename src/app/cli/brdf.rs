@@ -182,6 +182,7 @@ const DEFAULT_AZIMUTHS: [f32; 3] = [60.0, 180.0, 300.0];
 pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
     crate::files::check_output_folder(&a.out)?;
     let scene = crate::scene::Scene::load(&a.scene)?;
+    crate::files::guard_inputs(&scene.input_files);
     crate::app::gloss_bench::glossy_materials(&scene)?;
     let mut cameras = match a.eyes.is_empty() {
         true => crate::app::gloss_bench::turned_cameras(&scene, &DEFAULT_AZIMUTHS),

@@ -157,18 +157,39 @@ pub struct FramingArgs {
     /// camera's aspect ratio).
     #[arg(long)]
     pub height: Option<u32>,
+    /// Let glTF files read buffers and images outside their own folder (by default a URI that
+    /// resolves outside it, through `..` or a link, is refused).
+    #[arg(long)]
+    pub read_outside_folder: bool,
 }
 
 impl FramingArgs {
-    /// Loads the scene at `path` framed as asked, warning once of what its glTF files hold
-    /// that is not used.
+    /// Loads the scene at `path` framed as asked, saying which files besides it were read and
+    /// warning once of what its glTF files hold that is not used. Every file read is guarded:
+    /// no output of the command may replace it.
     pub(super) fn load(&self, path: &Path) -> Result<Scene> {
         let framing = crate::scene::Framing {
             camera: self.camera.clone(),
             width: self.width,
             height: self.height,
+            read_outside_folder: self.read_outside_folder,
         };
         let scene = Scene::load_with(path, &framing)?;
+        crate::files::guard_inputs(&scene.input_files);
+        let mut read: Vec<&Path> = Vec::new();
+        for f in scene.input_files.iter().skip(1) {
+            if !read.contains(&f.as_path()) {
+                read.push(f);
+            }
+        }
+        if !read.is_empty() {
+            let list: Vec<String> = read.iter().map(|f| f.display().to_string()).collect();
+            eprintln!(
+                "note: {}: read {}",
+                path.display(),
+                crate::files::printable(&list.join(", "))
+            );
+        }
         if !scene.ignored.is_empty() {
             eprintln!(
                 "note: {}: not used: {}",
@@ -307,8 +328,22 @@ fn run(command: Command) -> Result<()> {
 /// encoder and are read as 0 without a word; the bundled maps hold at most 0.0037%.
 const NEGATIVE_NOTE_SHARE: f64 = 1e-3;
 
+/// The environment of an `--env` spec: a map file or the procedural sun. `none` is refused:
+/// the commands that can relight without an environment handle it before they get here. The
+/// file is guarded, so that no output of the command replaces it.
 fn load_env(spec: &str) -> Result<EnvMap> {
+    if spec == "none" {
+        return Err(PrtError::invalid(
+            "--env",
+            "none: this command needs an environment, a map file or sun:ELEVATION,AZIMUTH \
+             (`--env none`, the local lights alone, is for `prt relight` and `prt view` of a \
+             bake with lights)",
+        ));
+    }
     let env = EnvMap::from_spec(spec)?;
+    if let Ok(EnvSpec::File(p)) = EnvSpec::parse(spec) {
+        crate::files::guard_inputs(&[p]);
+    }
     // Radiance cannot be negative; a map whose negative samples matter is said once per map,
     // however often a command loads it.
     static NOTED: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());

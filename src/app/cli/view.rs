@@ -111,9 +111,12 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
     }
     let (entries, light) = env_entries(&a.env);
     let transport = Transport::load(&a.file)?;
+    let compare = a.compare || a.split.is_some();
+    let panes = (1 + u64::from(compare)) * (1 + u64::from(a.error_map));
+    check_screenshot_memory(&transport, panes)?;
     let mut engine = Engine::from_transport(&a.file, transport, entries)?;
     let mut state = engine.initial_state(light);
-    state.relight.compare = a.compare || a.split.is_some();
+    state.relight.compare = compare;
     state.display.error_map = a.error_map;
     if let Some(f) = a.split {
         state.display.layout = crate::app::viewer::Layout::Split;
@@ -184,10 +187,41 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
     Ok(())
 }
 
+/// Bytes a pixel of a screenshot takes at its peak, besides its panes: the backdrop (the
+/// environment behind, 12, and the open coverage it is drawn for, 4) and one drawing in progress
+/// (a 4-sample drawing's running sum and the sample drawn, colour and coverage, 16 each).
+/// Counted from the buffers, not measured.
+const SCREENSHOT_BYTES_PER_PIXEL: u64 = 48;
+/// Bytes a pixel of each pane takes: its drawn image and the same over the backdrop (12 each),
+/// its 8-bit RGB and its share of the captioned sheet (3 each).
+const PANE_BYTES_PER_PIXEL: u64 = 30;
+
+/// Refuses a screenshot of `t` with `panes` panes (at the size of the view, or of a per-vertex
+/// bake's camera) larger than the memory this process can have, before any work.
+fn check_screenshot_memory(t: &Transport, panes: u64) -> Result<()> {
+    let (w, h) = crate::app::viewer::view_size(t);
+    let per_pixel = SCREENSHOT_BYTES_PER_PIXEL + panes * PANE_BYTES_PER_PIXEL;
+    crate::files::check_memory(
+        "--screenshot",
+        &format!(
+            "a {w} x {h} screenshot of {panes} pane(s) ({per_pixel} bytes a pixel; a per-vertex \
+             bake is drawn at any size by `prt relight --width --height`)"
+        ),
+        w as u64 * h as u64 * per_pixel,
+    )
+}
+
 /// `prt view FILE.prtv --screenshot OUT.png`: the volume window's first frame.
 fn volume_screenshot_cmd(a: &ViewArgs, out: &std::path::Path) -> Result<()> {
     use crate::app::viewer::{VolumeEngine, VolumeState, env_entries, volume_screenshot};
     let vt = crate::volume::VolumeTransfer::load(&a.file)?;
+    let (w, h) = (vt.meta.width, vt.meta.height);
+    let per_pixel = super::volume::VOLUME_BYTES_PER_PIXEL;
+    crate::files::check_memory(
+        "--screenshot",
+        &format!("a {w} x {h} screenshot of the volume ({per_pixel} bytes a pixel)"),
+        w as u64 * h as u64 * per_pixel,
+    )?;
     let (entries, light) = env_entries(&a.env);
     let mut state = VolumeState {
         light,

@@ -63,7 +63,29 @@ impl VolumeCameraArgs {
             (w, h) => Some((w.unwrap_or(width), h.unwrap_or(height))),
         }
     }
+
+    /// Refuses a `camera`-sized `what` ("volume reference") larger than the memory this process
+    /// can have, before any work, naming the flags when they set the size.
+    fn check_memory(&self, what: &str, camera: &crate::scene::Camera) -> Result<()> {
+        let field = match (self.width, self.height) {
+            (None, None) => "camera.width/height",
+            _ => "--width/--height",
+        };
+        let (w, h) = (camera.width, camera.height);
+        crate::files::check_memory(
+            field,
+            &format!("a {w} x {h} {what} ({VOLUME_BYTES_PER_PIXEL} bytes a pixel)"),
+            w as u64 * h as u64 * VOLUME_BYTES_PER_PIXEL,
+        )
+    }
 }
+
+/// Bytes a pixel of a volume image takes at the peak of `prt volume render`, `reference` and
+/// `prt view FILE.prtv --screenshot`: the reference's radiance, standard error and coverage
+/// ([`crate::volume::path_trace::TRACE_BYTES_PER_PIXEL`], 28), or the march's image and a GPU's
+/// readback (12 + 16), then the automatic exposure's luminances or the PNG's bytes (4 at most).
+/// Counted from the buffers, not measured.
+pub(super) const VOLUME_BYTES_PER_PIXEL: u64 = 32;
 
 /// Arguments of `prt volume render`.
 #[derive(Args, Debug)]
@@ -186,6 +208,7 @@ pub struct VolumeOrdersArgs {
 pub(super) fn volume_orders_cmd(a: VolumeOrdersArgs) -> Result<()> {
     use crate::app::volume_orders::{OrdersStudy, run_orders_study};
     crate::files::check_output_folder(&a.out)?;
+    crate::files::guard_inputs(&[&a.scene]);
     crate::math::cubemap::validate_n(a.cube)?;
     let envs = a
         .env
@@ -294,6 +317,7 @@ pub(super) fn volume_render_cmd(a: VolumeRenderArgs) -> Result<()> {
     let vt = VolumeTransfer::load(&a.file)?;
     let c = &a.view_camera;
     let camera = vt.camera(c.eye, c.target, c.size(vt.meta.width, vt.meta.height))?;
+    c.check_memory("volume image", &camera)?;
     let order = a.sh_order.unwrap_or(vt.meta.sh_order);
     let file_look = MediumLook::of(&vt);
     let look = MediumLook {
@@ -358,6 +382,7 @@ pub(super) fn volume_reference_cmd(a: VolumeReferenceArgs) -> Result<()> {
         }
         let vt = VolumeTransfer::load(&a.file)?;
         let camera = vt.camera(c.eye, c.target, c.size(vt.meta.width, vt.meta.height))?;
+        c.check_memory("volume reference", &camera)?;
         (vt.medium(), camera)
     } else {
         let scene = Scene::load(&a.file)?;
@@ -372,6 +397,7 @@ pub(super) fn volume_reference_cmd(a: VolumeReferenceArgs) -> Result<()> {
             (camera.width, camera.height) = (w, h);
         }
         camera.validate()?;
+        c.check_memory("volume reference", &camera)?;
         (spec.build(a.grid)?, camera)
     };
     if let Some(albedo) = a.albedo {

@@ -1,6 +1,7 @@
 //! The scene file's `[[light]]` tables: their schema, and the checks that turn them into
 //! [`Light`]s, each problem naming the file, the line and the field (`light[1].cone_deg`).
 
+use super::numbers::{numbers, some_numbers, some_point_list, some_points};
 use super::{Loader, finite3, position3};
 use crate::error::Result;
 use crate::scene::light::{
@@ -51,14 +52,19 @@ impl LightKind {
 pub(super) struct LightFile {
     name: String,
     r#type: LightKind,
+    #[serde(default, deserialize_with = "some_numbers")]
     color: Option<[f32; 3]>,
     intensity: f32,
+    #[serde(default, deserialize_with = "some_numbers")]
     position: Option<[f32; 3]>,
+    #[serde(default, deserialize_with = "some_point_list")]
     positions: Option<Vec<[f32; 3]>>,
+    #[serde(default, deserialize_with = "some_numbers")]
     direction: Option<[f32; 3]>,
     cone_deg: Option<f32>,
     falloff_deg: Option<f32>,
     angle_deg: Option<f32>,
+    #[serde(default, deserialize_with = "some_points")]
     corners: Option<[[f32; 3]; 4]>,
     grid: Option<GridFile>,
 }
@@ -67,8 +73,11 @@ pub(super) struct LightFile {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct GridFile {
+    #[serde(deserialize_with = "numbers")]
     from: [f32; 3],
+    #[serde(deserialize_with = "numbers")]
     to: [f32; 3],
+    #[serde(deserialize_with = "numbers")]
     counts: [u32; 3],
 }
 

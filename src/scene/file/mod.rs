@@ -8,6 +8,10 @@ use super::*;
 use glam::Mat4;
 
 mod lights;
+mod numbers;
+
+pub use numbers::MAX_COORDINATE;
+use numbers::{finite3, numbers, points, position3, some_numbers, some_points};
 
 // ---------------------------------------------------------------------------------------------
 // Scene file schema. Shapes and materials are flat structs with a `type` key rather than serde
@@ -41,12 +45,16 @@ enum MediumKind {
 #[serde(deny_unknown_fields)]
 struct MediumFile {
     r#type: MediumKind,
+    #[serde(deserialize_with = "points")]
     bounds: [[f32; 3]; 2],
     resolution: Option<usize>,
     extinction: f32,
+    #[serde(default, deserialize_with = "some_numbers")]
     albedo: Option<[f32; 3]>,
     g: Option<f32>,
+    #[serde(default, deserialize_with = "some_numbers")]
     center: Option<[f32; 3]>,
+    #[serde(default, deserialize_with = "some_numbers")]
     radii: Option<[f32; 3]>,
     falloff: Option<f32>,
     seed: Option<u64>,
@@ -59,8 +67,11 @@ struct MediumFile {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CameraFile {
+    #[serde(deserialize_with = "numbers")]
     eye: [f32; 3],
+    #[serde(deserialize_with = "numbers")]
     target: [f32; 3],
+    #[serde(deserialize_with = "numbers")]
     up: [f32; 3],
     fov_y_deg: f32,
     width: u32,
@@ -78,7 +89,9 @@ enum MaterialKind {
 #[serde(deny_unknown_fields)]
 struct MaterialFile {
     r#type: MaterialKind,
+    #[serde(default, deserialize_with = "some_numbers")]
     albedo: Option<[f32; 3]>,
+    #[serde(default, deserialize_with = "some_numbers")]
     specular: Option<[f32; 3]>,
     roughness: Option<f32>,
 }
@@ -97,12 +110,15 @@ enum ShapeKind {
 struct ShapeFile {
     r#type: ShapeKind,
     material: Option<String>,
+    #[serde(default, deserialize_with = "some_points")]
     corners: Option<[[f32; 3]; 4]>,
+    #[serde(default, deserialize_with = "some_numbers")]
     center: Option<[f32; 3]>,
     radius: Option<f32>,
     path: Option<String>,
     scale: Option<f32>,
     rotate_y_deg: Option<f32>,
+    #[serde(default, deserialize_with = "some_numbers")]
     translate: Option<[f32; 3]>,
     smooth_normals: Option<bool>,
 }
@@ -161,32 +177,6 @@ fn kind_name(k: &MaterialKind) -> &'static str {
     }
 }
 
-fn finite3(map: &SourceMap, field: &str, v: [f32; 3]) -> Result<Vec3> {
-    let v = Vec3::from_array(v);
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(map.error(field, format!("must be finite, got {v}")))
-    }
-}
-
-/// Largest coordinate of a point in a scene (camera, shapes, medium), in scene units. The BVH
-/// builder and the ray tests multiply and sum extents, which overflow f32 near 1e19; at 1e9 an
-/// f32 still resolves 64 units, far beyond any scene that makes sense.
-pub const MAX_COORDINATE: f32 = 1e9;
-
-/// [`finite3`] for a position or size: finite and within ±[`MAX_COORDINATE`].
-fn position3(map: &SourceMap, field: &str, v: [f32; 3]) -> Result<Vec3> {
-    let v = finite3(map, field, v)?;
-    if v.abs().max_element() > MAX_COORDINATE {
-        return Err(map.error(
-            field,
-            format!("{v} lies beyond ±{MAX_COORDINATE:e} scene units"),
-        ));
-    }
-    Ok(v)
-}
-
 pub(super) struct Loader<'a> {
     text: &'a str,
     map: SourceMap,
@@ -196,6 +186,10 @@ pub(super) struct Loader<'a> {
     obj_cache: HashMap<PathBuf, (Vec<u8>, ObjData)>,
     /// Files read besides the scene text (meshes, a grid), in load order.
     inputs: Vec<PathBuf>,
+    /// The scene's glTF files, each read once, held together to one file's limits.
+    gltf_files: super::gltf::GltfFiles,
+    /// The first material and texture of each glTF file placed, by its canonical path.
+    gltf_offsets: HashMap<PathBuf, (u32, u32)>,
 }
 
 impl<'a> Loader<'a> {
@@ -212,7 +206,16 @@ impl<'a> Loader<'a> {
             hasher: Fnv1a::new(),
             obj_cache: HashMap::new(),
             inputs: Vec::new(),
+            gltf_files: super::gltf::GltfFiles::new(false),
+            gltf_offsets: HashMap::new(),
         })
+    }
+
+    /// Lets the scene's glTF files read outside their own folders
+    /// ([`crate::scene::Framing::read_outside_folder`]).
+    pub(super) fn reading_outside_folders(mut self, allowed: bool) -> Self {
+        self.gltf_files = super::gltf::GltfFiles::new(allowed);
+        self
     }
 
     pub(super) fn load(mut self) -> Result<Scene> {
@@ -287,8 +290,16 @@ impl<'a> Loader<'a> {
                 ShapeKind::Gltf => {
                     require("path", shape.path.is_some())?;
                     let data = self.gltf(i, shape)?;
-                    let first_material = materials.len() as u32;
-                    let first_texture = textures.len() as u32;
+                    let (first_material, first_texture) = if data.first_placement {
+                        let first = (materials.len() as u32, textures.len() as u32);
+                        self.gltf_offsets.insert(data.key.clone(), first);
+                        first
+                    } else {
+                        self.gltf_offsets
+                            .get(&data.key)
+                            .copied()
+                            .unwrap_or_default()
+                    };
                     for m in data.materials {
                         materials.push(m.material);
                         material_maps.push(m.maps.map(|mut maps| {
@@ -444,7 +455,7 @@ impl<'a> Loader<'a> {
         let path = self
             .base_dir
             .join(shape.path.as_deref().unwrap_or_default());
-        let data = super::gltf::read(&path, placement)?;
+        let data = self.gltf_files.place(&path, placement)?;
         self.hasher.write(&data.hash.to_le_bytes());
         self.inputs.extend(data.files.iter().cloned());
         Ok(data)
@@ -684,6 +695,14 @@ impl<'a> Loader<'a> {
                 MediumSource::Grid(grid)
             }
         };
+        let (densest, edge) = match &source {
+            MediumSource::Grid(g) => (g.densest(), g.cell().min_element()),
+            // Procedural densities are at most 1.
+            MediumSource::Procedural(_) => (1.0, crate::medium::voxel_edge(max - min, resolution)),
+        };
+        if let Some(problem) = crate::medium::voxel_depth_problem(m.extinction, densest, edge) {
+            return Err(self.map.error(&field("extinction"), problem));
+        }
         Ok(MediumSpec {
             source,
             min,

@@ -9,7 +9,7 @@ use crate::error::{PrtError, Result};
 impl Reader<'_> {
     /// The bytes of a buffer view (checked in [`Reader::load_buffers`]).
     pub(super) fn view_bytes(&self, view: &gltf::buffer::View) -> &[u8] {
-        &self.buffers[view.buffer().index()][view.offset()..view.offset() + view.length()]
+        &self.st.buffers[view.buffer().index()][view.offset()..view.offset() + view.length()]
     }
 
     /// An accessor's elements as floats, `N` components each, converting normalised integers.

@@ -20,6 +20,9 @@ pub struct Framing {
     pub width: Option<u32>,
     /// Image height in pixels (default: the width over the camera's aspect ratio, or 256).
     pub height: Option<u32>,
+    /// Whether a glTF file may read buffers and images outside its own folder. Off by default:
+    /// a model from elsewhere must not read the files of whoever bakes it into the bake.
+    pub read_outside_folder: bool,
 }
 
 /// Default image width of a glTF scene, pixels.
@@ -53,7 +56,7 @@ impl Framing {
 /// (or, when the file has none, one that frames the geometry from the front, +Z, and a little
 /// above).
 pub(in crate::scene) fn scene(path: &Path, framing: &Framing) -> Result<Scene> {
-    let data = read(path, Mat4::IDENTITY)?;
+    let data = read(path, Mat4::IDENTITY, framing.read_outside_folder)?;
     let mut hasher = crate::scene::hash::Fnv1a::new();
     hasher.write(&data.hash.to_le_bytes());
     let mut scene = Scene {
@@ -145,7 +148,7 @@ fn pick_camera(
         None => {
             let (lo, hi) = scene.bounds();
             let centre = (lo + hi) * 0.5;
-            let radius = ((hi - lo).length() * 0.5).max(1e-3);
+            let radius = frame_radius(lo, hi);
             let fov_y_deg = 40.0f32;
             let (width, height) = framing.size(None);
             // Far enough that the bounding sphere fits the narrower of the two fields of view.
@@ -171,5 +174,41 @@ fn pick_camera(
                 chosen.map_or("framing the scene", |c| c.name.as_str())
             ),
         )),
+    }
+}
+
+/// The radius of the sphere that frames the bounds `lo`..`hi`: the scene's own size, however
+/// small, but at least a few f32 steps (1e-6 relative) of where it lies, below which the camera
+/// would have no view direction ([`Camera::validate`]); 1 for a scene of no size at the origin
+/// (a point, or nothing) or one whose size squares below f32's normal range.
+fn frame_radius(lo: Vec3, hi: Vec3) -> f32 {
+    /// Below this the view's squared lengths are no longer normal f32 numbers.
+    const SMALLEST: f32 = 1e-15;
+    let centre = (lo + hi) * 0.5;
+    let radius = ((hi - lo).length() * 0.5).max(centre.abs().max_element() * 1e-6);
+    if radius.is_finite() && radius >= SMALLEST {
+        radius
+    } else {
+        1.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_frame_is_the_size_of_the_scene_however_small() {
+        for scale in [1.0f32, 1e-3, 1e-6, 1e-9] {
+            let r = frame_radius(Vec3::splat(-scale), Vec3::splat(scale));
+            let want = 3f32.sqrt() * scale;
+            assert!((r - want).abs() <= 1e-6 * want, "scale {scale}: radius {r}");
+        }
+        // No size at the origin: unit radius, never zero.
+        assert_eq!(frame_radius(Vec3::ZERO, Vec3::ZERO), 1.0);
+        // Elsewhere, at least a few f32 steps of its place.
+        assert_eq!(frame_radius(Vec3::ONE, Vec3::ONE), 1.0e-6);
+        let at = Vec3::new(1000.0, 0.0, 0.0);
+        assert_eq!(frame_radius(at, at), 1000.0 * 1e-6);
     }
 }

@@ -12,7 +12,7 @@ use crate::scene::texture::{Encoding, Filter, Texture, Wrap};
 impl Reader<'_> {
     /// This engine's index of glTF material `index` (`None`: the default material).
     pub(super) fn material(&mut self, index: Option<usize>) -> Result<u32> {
-        if let Some(&m) = self.material_index.get(&index) {
+        if let Some(&m) = self.st.material_index.get(&index) {
             return Ok(m);
         }
         let (name, base, metallic, roughness, base_tex, mr_tex) = match index {
@@ -76,7 +76,7 @@ impl Reader<'_> {
             maps: textured.then_some(maps),
         });
         let m = (self.out.materials.len() - 1) as u32;
-        self.material_index.insert(index, m);
+        self.st.material_index.insert(index, m);
         Ok(m)
     }
 
@@ -124,7 +124,7 @@ impl Reader<'_> {
             t.sampler().index(),
             encoding == Encoding::Srgb,
         );
-        if let Some(&i) = self.texture_index.get(&key) {
+        if let Some(&i) = self.st.texture_index.get(&key) {
             return Ok(Some(i));
         }
         let image = t.source();
@@ -132,7 +132,7 @@ impl Reader<'_> {
         // The image's bytes: a range of a shared buffer, or a URI's.
         let (bytes, range) = match image.source() {
             gltf::image::Source::View { view, .. } => (
-                self.buffers[view.buffer().index()].clone(),
+                self.st.buffers[view.buffer().index()].clone(),
                 view.offset()..view.offset() + view.length(),
             ),
             gltf::image::Source::Uri { uri, .. } => {
@@ -163,9 +163,9 @@ impl Reader<'_> {
             .into_dimensions()
             .map_err(|e| decode_error(e.to_string()))?;
         let texels = w as u64 * h as u64;
-        if texels > self.texels_left {
+        if texels > self.limits.texels_left {
             return Err(decode_error(format!(
-                "{w} x {h} texels take the file's textures past {MAX_TEXELS} texels"
+                "{w} x {h} texels take the scene's textures past {MAX_TEXELS} texels"
             )));
         }
         let mut reader = open()?;
@@ -178,7 +178,7 @@ impl Reader<'_> {
             .decode()
             .map_err(|e| decode_error(e.to_string()))?
             .into_rgb8();
-        self.texels_left -= texels;
+        self.limits.texels_left -= texels;
         let (w, h) = decoded.dimensions();
         let texels = decoded
             .into_raw()
@@ -200,7 +200,7 @@ impl Reader<'_> {
         };
         self.out.textures.push(texture);
         let i = (self.out.textures.len() - 1) as u32;
-        self.texture_index.insert(key, i);
+        self.st.texture_index.insert(key, i);
         Ok(Some(i))
     }
 }

@@ -28,20 +28,20 @@ impl Reader<'_> {
                 return Err(self.error(format!("{field}.attributes"), "has no POSITION"));
             };
             // Every instance of a primitive is read again: its vertices and corners count
-            // against one budget for the whole file, before anything is read.
+            // against one budget for the whole scene, before anything is read.
             let work =
                 pos.count() as u64 + prim.indices().map_or(pos.count(), |a| a.count()) as u64;
-            if work > self.corners_left {
+            if work > self.limits.corners_left {
                 return Err(self.error(
                     &field,
                     format!(
-                        "the file's primitives, every instance counted, hold more than {} \
-                         vertices and corners",
+                        "the scene's glTF primitives, every instance counted, hold more than \
+                         {} vertices and corners",
                         3 * MAX_TRIANGLES
                     ),
                 ));
             }
-            self.corners_left -= work;
+            self.limits.corners_left -= work;
             let positions: Vec<[f32; 3]> = self.read_floats(
                 &pos,
                 &format!("{field}.attributes.POSITION"),
@@ -94,6 +94,26 @@ impl Reader<'_> {
                     format!("the file places more than {MAX_TRIANGLES} triangles"),
                 ));
             }
+            // The triangle list's memory, before it grows: a model instanced many times must
+            // be refused, not abort. It grows by doubling, so twice what it will hold is asked.
+            let size = std::mem::size_of::<Triangle>() as u64;
+            crate::files::check_memory(
+                &field,
+                "the scene's glTF triangles",
+                2 * (first + corner_lists.len()) as u64 * size,
+            )?;
+            self.out
+                .triangles
+                .try_reserve(corner_lists.len())
+                .map_err(|_| {
+                    self.error(
+                        &field,
+                        format!(
+                            "{} triangles do not fit in this process's memory",
+                            first + corner_lists.len()
+                        ),
+                    )
+                })?;
             let world_pos: Vec<Vec3> = positions
                 .iter()
                 .map(|p| world.transform_point3(Vec3::from(*p)))
@@ -135,12 +155,16 @@ impl Reader<'_> {
                     }),
                     None => [Vec2::ZERO; 3],
                 };
-                self.out.triangles.push(Triangle {
+                let triangle = Triangle {
                     vertices,
                     normals,
                     uvs,
                     material,
-                });
+                };
+                if self.is_duplicate(&triangle) {
+                    continue;
+                }
+                self.out.triangles.push(triangle);
             }
             let end = self.out.triangles.len();
             if end > first {
@@ -159,6 +183,49 @@ impl Reader<'_> {
             }
         }
         Ok(())
+    }
+}
+
+impl Reader<'_> {
+    /// Whether `t` repeats, bit for bit, a triangle this placement has already made. Stacked
+    /// copies change no ray's hit but multiply every trace's work, so each is made once (and
+    /// counted, for the note of what the file holds).
+    fn is_duplicate(&mut self, t: &Triangle) -> bool {
+        let mut h = crate::scene::hash::Fnv1a::new();
+        for v in t.vertices.iter().chain(&t.normals) {
+            for x in v.to_array() {
+                h.write(&x.to_bits().to_le_bytes());
+            }
+        }
+        for uv in &t.uvs {
+            for x in uv.to_array() {
+                h.write(&x.to_bits().to_le_bytes());
+            }
+        }
+        h.write(&t.material.to_le_bytes());
+        let next = self.out.triangles.len();
+        let same = |i: usize, t: &Triangle, all: &[Triangle]| {
+            let o = &all[i];
+            let bits = |v: &[Vec3; 3]| v.map(|p| p.to_array().map(f32::to_bits));
+            let uv_bits = |v: &[Vec2; 3]| v.map(|p| p.to_array().map(f32::to_bits));
+            bits(&o.vertices) == bits(&t.vertices)
+                && bits(&o.normals) == bits(&t.normals)
+                && uv_bits(&o.uvs) == uv_bits(&t.uvs)
+                && o.material == t.material
+        };
+        match self.seen_triangles.entry(h.0) {
+            std::collections::hash_map::Entry::Occupied(e) => {
+                if same(*e.get(), t, &self.out.triangles) {
+                    self.duplicates += 1;
+                    return true;
+                }
+                false
+            }
+            std::collections::hash_map::Entry::Vacant(e) => {
+                e.insert(next);
+                false
+            }
+        }
     }
 }
 

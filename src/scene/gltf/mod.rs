@@ -68,114 +68,172 @@ pub(super) struct GltfData {
     pub(super) lights: Vec<Light>,
     /// What the file has that is not used, one line each.
     pub(super) ignored: BTreeSet<String>,
-    /// Every file read: the glTF, then its external buffers and images.
+    /// Every file read: the glTF, then its external buffers and images (on the first placement
+    /// only).
     pub(super) files: Vec<PathBuf>,
     /// FNV-1a over the bytes of every file read, in order: the scene's content hash takes it.
     pub(super) hash: u64,
+    /// The file's canonical path, which names it however a scene spells it.
+    pub(super) key: PathBuf,
+    /// Whether this is the file's first placement in the scene: later ones bring no materials
+    /// or textures, and their triangles name the first placement's materials.
+    pub(super) first_placement: bool,
 }
 
 /// Largest number of texels the textures of one file may decode to (768 MiB of RGB).
 pub const MAX_TEXELS: u64 = 1 << 28;
 
-/// Reads the glTF file at `path`, placing its default scene (or its first, or every root
-/// node when it names none) with `placement`.
-pub(super) fn read(path: &Path, placement: Mat4) -> Result<GltfData> {
-    let bytes = crate::files::read_regular(path, MAX_GLTF_BYTES, "glTF file")?;
-    let mut hasher = crate::scene::hash::Fnv1a::new();
-    hasher.write_chunk(&bytes);
-    // A GLB header whose length is below the header's own 12 bytes underflows in the crate.
-    if bytes.starts_with(b"glTF")
-        && bytes
-            .get(8..12)
-            .is_none_or(|l| u32::from_le_bytes([l[0], l[1], l[2], l[3]]) < 12)
-    {
-        return Err(PrtError::file(
-            path,
-            "not a usable glTF 2.0 file: the GLB header's length is shorter than the header",
-        ));
+/// The glTF files of one scene: each read, parsed and decoded once however many shapes name
+/// it, and all of them held together to the limits of one file, so that neither many files nor
+/// one file named many times can multiply the work or the memory.
+pub(in crate::scene) struct GltfFiles {
+    /// Bytes the scene's glTF files and their resources may still take, all together.
+    bytes_left: u64,
+    /// Texels the scene's textures may still decode to.
+    texels_left: u64,
+    /// Triangle corners the scene's primitives may still make, counting every instance and the
+    /// triangles without area, so that instancing cannot multiply the work without end.
+    corners_left: u64,
+    /// Whether a URI may name a file outside its glTF file's folder.
+    outside_folder: bool,
+    /// Every file read, by canonical path: a resource shared by several files is read once.
+    bytes: HashMap<PathBuf, std::sync::Arc<[u8]>>,
+    /// Every glTF file parsed, by canonical path.
+    parsed: HashMap<PathBuf, GltfFile>,
+}
+
+impl GltfFiles {
+    /// No file read yet; URIs may leave their file's folder only when `outside_folder` is set.
+    pub(in crate::scene) fn new(outside_folder: bool) -> GltfFiles {
+        GltfFiles {
+            bytes_left: MAX_GLTF_BYTES,
+            texels_left: MAX_TEXELS,
+            corners_left: 3 * MAX_TRIANGLES as u64,
+            outside_folder,
+            bytes: HashMap::new(),
+            parsed: HashMap::new(),
+        }
     }
-    let gltf = parse(&bytes)
-        .map_err(|e| PrtError::file(path, format!("not a usable glTF 2.0 file: {e}")))?;
-    let mut reader = Reader {
-        path,
-        base: path.parent().map(Path::to_path_buf).unwrap_or_default(),
-        doc: &gltf.document,
-        buffers: Vec::new(),
-        out: GltfData {
-            triangles: Vec::new(),
-            surfaces: Vec::new(),
-            materials: Vec::new(),
-            textures: Vec::new(),
-            cameras: Vec::new(),
-            lights: Vec::new(),
-            ignored: BTreeSet::new(),
-            files: vec![path.to_path_buf()],
-            hash: 0,
-        },
-        material_index: HashMap::new(),
-        texture_index: HashMap::new(),
-        files_read: HashMap::new(),
-        bytes_left: MAX_GLTF_BYTES.saturating_sub(bytes.len() as u64),
-        texels_left: MAX_TEXELS,
-        corners_left: 3 * MAX_TRIANGLES as u64,
-        hasher,
-        light_names: Default::default(),
-    };
-    drop(bytes);
-    for ext in gltf.document.extensions_required() {
-        if ext != "KHR_lights_punctual" {
-            return Err(reader.error(
-                "extensionsRequired",
-                format!("needs the extension {ext}, which is not supported"),
+
+    /// The glTF file at `path` placed with `placement`: its default scene (or its first, or
+    /// every root node when it names none). The file is read and parsed on its first placement;
+    /// later ones reuse its buffers, materials and textures, and return no materials or textures
+    /// of their own (their triangles' material indices are the first placement's).
+    pub(in crate::scene) fn place(&mut self, path: &Path, placement: Mat4) -> Result<GltfData> {
+        let key = std::fs::canonicalize(path).map_err(|e| PrtError::io(path, e))?;
+        let first = !self.parsed.contains_key(&key);
+        let mut file = match self.parsed.remove(&key) {
+            Some(file) => file,
+            None => self.open(path, &key)?,
+        };
+        let placed = file.place(path, placement, self);
+        self.parsed.insert(key.clone(), file);
+        let mut data = placed?;
+        data.key = key;
+        data.first_placement = first;
+        Ok(data)
+    }
+
+    /// Reads, parses and checks the glTF file at `path` (canonically `key`) and its buffers.
+    fn open(&mut self, path: &Path, key: &Path) -> Result<GltfFile> {
+        let limit = self.bytes_left;
+        let bytes = crate::files::read_regular(path, limit, "glTF file")?;
+        self.bytes_left -= bytes.len() as u64;
+        let mut hasher = crate::scene::hash::Fnv1a::new();
+        hasher.write_chunk(&bytes);
+        // A GLB header whose length is below the header's own 12 bytes underflows in the crate.
+        if bytes.starts_with(b"glTF")
+            && bytes
+                .get(8..12)
+                .is_none_or(|l| u32::from_le_bytes([l[0], l[1], l[2], l[3]]) < 12)
+        {
+            return Err(PrtError::file(
+                path,
+                "not a usable glTF 2.0 file: the GLB header's length is shorter than the header",
             ));
         }
+        let gltf = parse(&bytes)
+            .map_err(|e| PrtError::file(path, format!("not a usable glTF 2.0 file: {e}")))?;
+        drop(bytes);
+        let mut file = GltfFile {
+            doc: gltf.document,
+            st: FileState {
+                base: key.parent().map(Path::to_path_buf).unwrap_or_default(),
+                buffers: Vec::new(),
+                files_read: HashMap::new(),
+                hasher,
+                material_index: HashMap::new(),
+                texture_index: HashMap::new(),
+                ignored: BTreeSet::new(),
+                files: vec![path.to_path_buf()],
+            },
+        };
+        let mut reader = Reader::new(path, &file.doc, &mut file.st, self);
+        reader.check_extensions()?;
+        let blob: Option<std::sync::Arc<[u8]>> = gltf.blob.as_deref().map(std::sync::Arc::from);
+        reader.load_buffers(blob)?;
+        let ignored = std::mem::take(&mut reader.out.ignored);
+        let files = std::mem::take(&mut reader.out.files);
+        file.st.ignored.extend(ignored);
+        file.st.files.extend(files);
+        Ok(file)
     }
-    let json = gltf.document.as_json();
-    for (what, present) in [
-        (
-            "animation (nodes keep their rest pose)",
-            !json.animations.is_empty(),
-        ),
-        (
-            "skins (meshes keep their bind pose)",
-            !json.skins.is_empty(),
-        ),
-        (
-            "vertex colours (COLOR_0)",
-            json.meshes.iter().flat_map(|m| &m.primitives).any(|p| {
-                p.attributes.keys().any(|k| {
-                    matches!(
-                        k,
-                        gltf::json::validation::Checked::Valid(gltf::Semantic::Colors(_))
-                    )
-                })
-            }),
-        ),
-        (
-            "morph targets",
-            json.meshes
-                .iter()
-                .flat_map(|m| &m.primitives)
-                .any(|p| p.targets.is_some()),
-        ),
-    ] {
-        if present {
-            reader.out.ignored.insert(what.to_string());
+}
+
+/// A glTF file parsed, with its buffers read and what its placements have made so far.
+struct GltfFile {
+    doc: gltf::Document,
+    st: FileState,
+}
+
+/// What a glTF file's placements share and add to.
+struct FileState {
+    /// The file's folder, canonical: its URIs may name files in it and below.
+    base: PathBuf,
+    /// Each buffer's bytes, at least its declared length (the GLB chunk and files read once,
+    /// shared by every buffer that names them).
+    buffers: Vec<std::sync::Arc<[u8]>>,
+    /// This file's resources already read, by canonical path.
+    files_read: HashMap<PathBuf, std::sync::Arc<[u8]>>,
+    /// The content hash of everything read.
+    hasher: crate::scene::hash::Fnv1a,
+    /// This engine's material of each glTF material (`None`: the default material).
+    material_index: HashMap<Option<usize>, u32>,
+    /// This engine's texture of each (glTF image, sampler, encoding).
+    texture_index: HashMap<(usize, Option<usize>, bool), u32>,
+    /// What the file has that is not used, found on reading it.
+    ignored: BTreeSet<String>,
+    /// The files read for the first placement: the glTF, then its external resources.
+    files: Vec<PathBuf>,
+}
+
+impl GltfFile {
+    fn place(&mut self, path: &Path, placement: Mat4, files: &mut GltfFiles) -> Result<GltfData> {
+        let mut reader = Reader::new(path, &self.doc, &mut self.st, files);
+        reader.walk(placement)?;
+        if reader.out.triangles.is_empty() {
+            return Err(reader.error("meshes", "the scene has no triangles with non-zero area"));
         }
-    }
-    for ext in gltf.document.extensions_used() {
-        if ext != "KHR_lights_punctual" {
-            reader.out.ignored.insert(format!("the extension {ext}"));
+        if reader.duplicates > 0 {
+            reader.out.ignored.insert(format!(
+                "{} triangles that repeat another exactly (each is made once)",
+                reader.duplicates
+            ));
         }
+        let mut out = reader.out;
+        out.hash = self.st.hasher.0;
+        out.ignored.extend(self.st.ignored.iter().cloned());
+        let mut files = std::mem::take(&mut self.st.files);
+        files.append(&mut out.files);
+        out.files = files;
+        Ok(out)
     }
-    let blob: Option<std::sync::Arc<[u8]>> = gltf.blob.as_deref().map(std::sync::Arc::from);
-    reader.load_buffers(blob)?;
-    reader.walk(placement)?;
-    if reader.out.triangles.is_empty() {
-        return Err(reader.error("meshes", "the scene has no triangles with non-zero area"));
-    }
-    reader.out.hash = reader.hasher.0;
-    Ok(reader.out)
+}
+
+/// Reads the glTF file at `path` alone, placing its default scene with `placement`
+/// (see [`GltfFiles::place`]).
+pub(super) fn read(path: &Path, placement: Mat4, outside_folder: bool) -> Result<GltfData> {
+    GltfFiles::new(outside_folder).place(path, placement)
 }
 
 /// Parses and validates a glTF document. The `gltf` crate's validation itself looks up each
@@ -225,29 +283,102 @@ fn parse(bytes: &[u8]) -> std::result::Result<gltf::Gltf, String> {
 
 struct Reader<'a> {
     path: &'a Path,
-    base: PathBuf,
     doc: &'a gltf::Document,
-    /// Each buffer's bytes, at least its declared length (the GLB chunk and files read once,
-    /// shared by every buffer that names them).
-    buffers: Vec<std::sync::Arc<[u8]>>,
-    /// Files already read, by path.
-    files_read: HashMap<PathBuf, std::sync::Arc<[u8]>>,
-    /// Bytes the file's resources may still take, all together.
-    bytes_left: u64,
-    /// Texels its textures may still decode to.
-    texels_left: u64,
-    /// Triangle corners its primitives may still make, counting every instance and the
-    /// triangles without area, so that instancing cannot multiply the work without end.
-    corners_left: u64,
-    /// The content hash of everything read.
-    hasher: crate::scene::hash::Fnv1a,
+    /// What the file's placements share.
+    st: &'a mut FileState,
+    /// The scene's limits and its files.
+    limits: &'a mut GltfFiles,
     /// Names the lights have taken.
     light_names: std::collections::HashSet<String>,
+    /// Each triangle made, by a hash of its bits: the index of the first with that hash.
+    seen_triangles: HashMap<u64, usize>,
+    /// Triangles left out for repeating another exactly.
+    duplicates: usize,
     out: GltfData,
-    /// This engine's material of each glTF material (`None`: the default material).
-    material_index: HashMap<Option<usize>, u32>,
-    /// This engine's texture of each (glTF image, sampler, encoding).
-    texture_index: HashMap<(usize, Option<usize>, bool), u32>,
+}
+
+impl<'a> Reader<'a> {
+    fn new(
+        path: &'a Path,
+        doc: &'a gltf::Document,
+        st: &'a mut FileState,
+        limits: &'a mut GltfFiles,
+    ) -> Self {
+        Reader {
+            path,
+            doc,
+            st,
+            limits,
+            light_names: Default::default(),
+            seen_triangles: HashMap::new(),
+            duplicates: 0,
+            out: GltfData {
+                triangles: Vec::new(),
+                surfaces: Vec::new(),
+                materials: Vec::new(),
+                textures: Vec::new(),
+                cameras: Vec::new(),
+                lights: Vec::new(),
+                ignored: BTreeSet::new(),
+                files: Vec::new(),
+                hash: 0,
+                key: PathBuf::new(),
+                first_placement: true,
+            },
+        }
+    }
+
+    /// Refuses a file that requires an extension this engine lacks, and notes what it has
+    /// that is not used.
+    fn check_extensions(&mut self) -> Result<()> {
+        for ext in self.doc.extensions_required() {
+            if ext != "KHR_lights_punctual" {
+                return Err(self.error(
+                    "extensionsRequired",
+                    format!("needs the extension {ext}, which is not supported"),
+                ));
+            }
+        }
+        let json = self.doc.as_json();
+        for (what, present) in [
+            (
+                "animation (nodes keep their rest pose)",
+                !json.animations.is_empty(),
+            ),
+            (
+                "skins (meshes keep their bind pose)",
+                !json.skins.is_empty(),
+            ),
+            (
+                "vertex colours (COLOR_0)",
+                json.meshes.iter().flat_map(|m| &m.primitives).any(|p| {
+                    p.attributes.keys().any(|k| {
+                        matches!(
+                            k,
+                            gltf::json::validation::Checked::Valid(gltf::Semantic::Colors(_))
+                        )
+                    })
+                }),
+            ),
+            (
+                "morph targets",
+                json.meshes
+                    .iter()
+                    .flat_map(|m| &m.primitives)
+                    .any(|p| p.targets.is_some()),
+            ),
+        ] {
+            if present {
+                self.out.ignored.insert(what.to_string());
+            }
+        }
+        for ext in self.doc.extensions_used() {
+            if ext != "KHR_lights_punctual" {
+                self.out.ignored.insert(format!("the extension {ext}"));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Reader<'_> {
@@ -260,8 +391,10 @@ impl Reader<'_> {
         }
     }
 
-    /// The bytes a URI names: a base64 `data:` URI, or a file relative to the glTF's folder
-    /// (read once however many buffers and images name it).
+    /// The bytes a URI names: a base64 `data:` URI, or a file in the glTF's folder or below
+    /// (read once however many buffers, images and files name it). The path is decoded, then
+    /// resolved with its links and `..`; one that lands outside the folder is refused unless
+    /// the scene was loaded with [`Framing::read_outside_folder`].
     pub(super) fn uri_bytes(&mut self, uri: &str, field: &str) -> Result<std::sync::Arc<[u8]>> {
         if let Some(rest) = uri.strip_prefix("data:") {
             let Some((_, data)) = rest.split_once(";base64,") else {
@@ -272,22 +405,56 @@ impl Reader<'_> {
             return Ok(bytes.into());
         }
         let relative = percent_decode(uri)
-            .ok_or_else(|| self.error(field, format!("`{uri}` is not a valid URI")))?;
+            .filter(|r| !r.contains('\0'))
+            .ok_or_else(|| self.error(field, format!("`{}` is not a valid URI", printable(uri))))?;
         if relative.contains("://") || Path::new(&relative).is_absolute() {
             return Err(self.error(
                 field,
-                format!("`{uri}`: only data URIs and paths relative to the file are read"),
+                format!(
+                    "`{}`: only data URIs and paths relative to the file are read",
+                    printable(uri)
+                ),
             ));
         }
-        let path = self.base.join(&relative);
-        if let Some(bytes) = self.files_read.get(&path) {
+        let named = self.st.base.join(&relative);
+        let path = std::fs::canonicalize(&named).map_err(|e| {
+            self.error(
+                field,
+                format!("`{}` names {}: {e}", printable(uri), named.display()),
+            )
+        })?;
+        if !self.limits.outside_folder && !path.starts_with(&self.st.base) {
+            return Err(self.error(
+                field,
+                format!(
+                    "`{}` resolves to {}, outside the folder of the glTF file ({}): a glTF \
+                     file reads only files in its own folder and below, links followed; pass \
+                     --read-outside-folder to read it anyway",
+                    printable(uri),
+                    path.display(),
+                    self.st.base.display()
+                ),
+            ));
+        }
+        if let Some(bytes) = self.st.files_read.get(&path) {
             return Ok(bytes.clone());
         }
-        let bytes = crate::files::read_regular(&path, self.bytes_left, "glTF file's resources")?;
-        self.bytes_left -= bytes.len() as u64;
-        self.hasher.write_chunk(&bytes);
-        let bytes: std::sync::Arc<[u8]> = bytes.into();
-        self.files_read.insert(path.clone(), bytes.clone());
+        let bytes = match self.limits.bytes.get(&path) {
+            Some(bytes) => bytes.clone(),
+            None => {
+                let bytes = crate::files::read_regular(
+                    &path,
+                    self.limits.bytes_left,
+                    "scene's glTF files and their resources",
+                )?;
+                self.limits.bytes_left -= bytes.len() as u64;
+                let bytes: std::sync::Arc<[u8]> = bytes.into();
+                self.limits.bytes.insert(path.clone(), bytes.clone());
+                bytes
+            }
+        };
+        self.st.hasher.write_chunk(&bytes);
+        self.st.files_read.insert(path.clone(), bytes.clone());
         self.out.files.push(path);
         Ok(bytes)
     }
@@ -312,11 +479,11 @@ impl Reader<'_> {
                     ),
                 ));
             }
-            self.buffers.push(data);
+            self.st.buffers.push(data);
         }
         for view in self.doc.views() {
             let end = view.offset().checked_add(view.length());
-            let held = self.buffers[view.buffer().index()].len();
+            let held = self.st.buffers[view.buffer().index()].len();
             if end.is_none_or(|e| e > held) {
                 return Err(self.error(
                     format!("bufferViews[{}]", view.index()),

@@ -173,6 +173,9 @@ pub struct PerVertexMeta {
     /// Width and height of the scene camera's image: the size a still is drawn at unless asked
     /// otherwise.
     pub image: [u32; 2],
+    /// Materials of the scene, which `mesh_material` and `albedo_map_material` index (0 in
+    /// files written before it was recorded: their indices are checked against the tables).
+    pub materials: u32,
     /// Albedo maps of the mesh's textured materials (format version 5; 0 before).
     pub albedo_maps: u32,
     /// Pixels a vertex takes in the relit image, its in-out BRDF terms (format version 6; 1
@@ -371,6 +374,8 @@ struct PerVertexFile {
     triangles: u32,
     image: [u32; 2],
     #[serde(default, skip_serializing_if = "is_zero")]
+    materials: u32,
+    #[serde(default, skip_serializing_if = "is_zero")]
     albedo_maps: u32,
     #[serde(default = "one", skip_serializing_if = "is_one")]
     brdf_terms: u32,
@@ -462,6 +467,7 @@ impl TryFrom<MetaFile> for TransportMeta {
                 vertices: p.vertices,
                 triangles: p.triangles,
                 image: p.image,
+                materials: p.materials,
                 albedo_maps: p.albedo_maps,
                 brdf_stride: p.brdf_stride,
                 brdf_map: p.brdf_map,
@@ -508,6 +514,7 @@ impl From<TransportMeta> for MetaFile {
                     vertices: p.vertices,
                     triangles: p.triangles,
                     image: p.image,
+                    materials: p.materials,
                     albedo_maps: p.albedo_maps,
                     brdf_terms: id.brdf_terms,
                     brdf_error: id.brdf_error,
@@ -548,6 +555,18 @@ mod tests {
         );
         assert_eq!(meta.identity.shard, Some([1, 2]));
         assert_eq!(meta.per_vertex.as_ref().map(|p| p.vertices), Some(40));
+    }
+
+    #[test]
+    fn the_material_count_is_written_and_absent_in_older_files() {
+        let old: TransportMeta = serde_json::from_str(TEXT).expect("parses");
+        assert_eq!(old.per_vertex.as_ref().map(|p| p.materials), Some(0));
+        let mut meta = old;
+        meta.per_vertex.as_mut().expect("per vertex").materials = 2;
+        let text = serde_json::to_string(&meta).expect("writes");
+        assert!(text.contains(r#""image":[64,48],"materials":2"#), "{text}");
+        let back: TransportMeta = serde_json::from_str(&text).expect("parses");
+        assert_eq!(back, meta);
     }
 
     #[test]

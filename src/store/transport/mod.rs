@@ -65,7 +65,10 @@
 //! stored it as columns, in (block, coefficient) order, blocks in tile
 //! order: `col_count` (u16 [B, C], each column's entries), `col_scale` (u8 [B, C]), `entry_row`
 //! (u8, each entry's row in its block, increasing within a column) and `entry_value`. They are
-//! read into strips.
+//! read into strips. The metadata's `per_vertex.materials` (the scene's material count, which
+//! `mesh_material` and `albedo_map_material` index) is absent from files written before it; their
+//! indices are checked against the BRDF terms where there are some, and a map's materials against
+//! the vertices'.
 //!
 //! The `checksum` covers the tensors' bytes in name order and `meta_checksum` the metadata's
 //! fields (the JSON of `meta` without `meta_checksum`, as this build writes it), so a flipped bit
@@ -451,7 +454,8 @@ impl Transport {
         if pv.image.iter().any(|&s| s == 0 || s > 16384) {
             return Err(format!("image size {:?}", pv.image));
         }
-        if let Some(p) = mesh.problem(u32::MAX as usize) {
+        let materials = mesh_values_problem(pv, mesh)?;
+        if let Some(p) = mesh.problem(materials.unwrap_or(u32::MAX as usize)) {
             return Err(format!("mesh: {p}"));
         }
         if mesh.albedo_maps.len() != pv.albedo_maps as usize {
@@ -468,6 +472,88 @@ impl Transport {
         }
         Ok(())
     }
+}
+
+/// Checks a per-vertex mesh's stored values, each error naming its tensor: finite positions,
+/// texture coordinates and BRDF factors, finite unit normals, and material indices below the
+/// material count (the header's, else the BRDF terms'), a map's materials also used by a
+/// vertex. Returns the material count when the file gives one.
+fn mesh_values_problem(
+    pv: &PerVertexMeta,
+    mesh: &VertexMesh,
+) -> std::result::Result<Option<usize>, String> {
+    if let Some(i) = mesh.positions.iter().position(|p| !p.is_finite()) {
+        return Err(format!(
+            "tensor `mesh_position`: vertex {i} is at {}",
+            mesh.positions[i]
+        ));
+    }
+    let unit = |n: &glam::Vec3| n.is_finite() && (n.length() - 1.0).abs() <= 1e-3;
+    if let Some(i) = mesh.normals.iter().position(|n| !unit(n)) {
+        return Err(format!(
+            "tensor `mesh_normal`: vertex {i} has normal {}, not a finite unit vector",
+            mesh.normals[i]
+        ));
+    }
+    if let Some(i) = mesh.uvs.iter().position(|t| !t.is_finite()) {
+        return Err(format!(
+            "tensor `mesh_uv`: vertex {i} has texture coordinate {}",
+            mesh.uvs[i]
+        ));
+    }
+    let factors = mesh.factors.as_deref();
+    if let Some(f) = factors {
+        for (name, what, table) in [
+            ("brdf_view", "view", &f.view),
+            ("brdf_light", "light", &f.light),
+        ] {
+            if let Some(i) = table.iter().position(|v| !v.is_finite()) {
+                return Err(format!(
+                    "tensor `{name}`: {what} factor {i} is {}",
+                    table[i]
+                ));
+            }
+        }
+    }
+    let count = match (pv.materials as usize, factors) {
+        (0, f) => f.map(|f| f.terms.len()),
+        (n, Some(f)) if f.terms.len() != n => {
+            return Err(format!(
+                "tensor `brdf_terms`: terms of {} materials, but the bake has {n} materials",
+                f.terms.len()
+            ));
+        }
+        (n, _) => Some(n),
+    };
+    if let Some(n) = count
+        && let Some(i) = mesh.materials.iter().position(|&m| m as usize >= n)
+    {
+        return Err(format!(
+            "tensor `mesh_material`: vertex {i} has material {}, but the bake has {n} materials",
+            mesh.materials[i]
+        ));
+    }
+    if !mesh.albedo_maps.is_empty() {
+        let used: std::collections::HashSet<u32> = mesh.materials.iter().copied().collect();
+        let maps = mesh.albedo_maps.iter().flat_map(|a| &a.materials);
+        for &m in maps {
+            match count {
+                Some(n) if m as usize >= n => {
+                    return Err(format!(
+                        "tensor `albedo_map_material`: a map of material {m}, but the bake has \
+                         {n} materials"
+                    ));
+                }
+                _ if !used.contains(&m) => {
+                    return Err(format!(
+                        "tensor `albedo_map_material`: a map of material {m}, which no vertex has"
+                    ));
+                }
+                _ => {}
+            }
+        }
+    }
+    Ok(count)
 }
 
 /// The blocks of every tile and the rows of every block, from the tiles' row starts; checks that
