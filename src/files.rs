@@ -566,6 +566,14 @@ fn check_not_guarded(output: &Path) -> Result<()> {
     }
 }
 
+/// Checks, before any work, that none of the files `names` a command will write into `dir` is
+/// a guarded input ([`guard_inputs`]): the check a single output gets from [`check_output`].
+pub fn check_folder_outputs(dir: &Path, names: &[&str]) -> Result<()> {
+    names
+        .iter()
+        .try_for_each(|name| check_not_guarded(&dir.join(name)))
+}
+
 /// Runs `write` on a temporary file created beside `path` (see the module docs and
 /// [`create_partial`]), then renames it into place, so an interrupted write never leaves a half
 /// file under the final name. `write` gets the open file, and names `path` in its errors; the

@@ -301,6 +301,8 @@ fn study_commands_never_write_over_their_inputs() {
     ]);
     assert_clean_error(code, &text, &["bounces.md", "also an input"]);
     assert_eq!(std::fs::read_to_string(&scene).unwrap(), SPHERE_ON_PLANE);
+    // Refused before any work, as a single output is.
+    assert!(!dir.join("bounces_sheet.png").exists());
 }
 
 #[test]

@@ -99,6 +99,10 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
             .collect();
         envs.push((name, load_env(spec)?));
     }
+    crate::files::check_folder_outputs(
+        &a.out,
+        &["bench.csv", "summary.md", "compression.csv", "compression.png", "compression.md"],
+    )?;
     let points_bar = bar(0, "points");
     let gpu = open_device(a.device)?;
     let device = match &gpu {

@@ -72,6 +72,7 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
     crate::files::check_output_folder(&a.out)?;
     let scene = a.framing.load(&a.scene)?;
     let env = load_env(&a.env)?;
+    crate::files::check_folder_outputs(&a.out, &["bounces.md", "bounces_sheet.png"])?;
     let defaults = BakeSettings::default();
     let base = settings_from(&a.sampling, defaults.sh_order, defaults.threshold, false);
     BakeSettings {

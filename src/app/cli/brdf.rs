@@ -211,6 +211,7 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
     };
     opts.validate()?;
     let env = super::load_env(&a.env)?;
+    crate::files::check_folder_outputs(&a.out, &["gloss.md", "gloss.csv", "gloss_error.png"])?;
     let name = std::path::Path::new(&a.env)
         .file_stem()
         .and_then(|s| s.to_str())

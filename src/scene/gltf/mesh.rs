@@ -99,9 +99,13 @@ impl Reader<'_> {
             let size = std::mem::size_of::<Triangle>() as u64;
             crate::files::check_memory(
                 &field,
-                "the scene's glTF triangles",
+                "placing the scene's glTF triangles",
                 2 * (first + corner_lists.len()) as u64 * size,
-            )?;
+            )
+            .map_err(|e| match e {
+                crate::error::PrtError::Invalid { message, .. } => self.error(&field, message),
+                e => e,
+            })?;
             self.out
                 .triangles
                 .try_reserve(corner_lists.len())
