@@ -101,7 +101,13 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
     }
     crate::files::check_folder_outputs(
         &a.out,
-        &["bench.csv", "summary.md", "compression.csv", "compression.png", "compression.md"],
+        &[
+            "bench.csv",
+            "summary.md",
+            "compression.csv",
+            "compression.png",
+            "compression.md",
+        ],
     )?;
     let points_bar = bar(0, "points");
     let gpu = open_device(a.device)?;
