@@ -9,8 +9,8 @@ use std::path::PathBuf;
 use wavelet_prt::store::transport::BakeDomain;
 
 use wavelet_prt::app::bench::{
-    BenchExtras, BenchOptions, compression_sweep, csv, run, summary, terms_to_reach,
-    write_compression, write_report,
+    BenchExtras, BenchOptions, SUMMARY_TARGETS, compression_sweep, csv, error_plot, run, summary,
+    terms_to_reach, write_compression, write_report,
 };
 use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
@@ -196,6 +196,37 @@ fn sweep_is_monotone_exact_at_all_terms_and_well_reported() {
             "{text}"
         );
     }
+    // Every ratio in words, never a bare bound such as `> 0.4x`.
+    for row in text.lines().filter(|l| l.starts_with("| SH")) {
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        for cell in &cells[2..cells.len() - 1] {
+            assert!(
+                *cell == "—" || (cell.contains("terms") && !cell.starts_with('>')),
+                "{row}"
+            );
+        }
+    }
+    // The error plot: each curve's error against the reference where it was measured, every
+    // stored term's, and a labelled level at each of the summary's errors.
+    let (series, figure) = error_plot(&points, "sun");
+    assert_eq!(figure.looks.len(), series.len());
+    let against = series
+        .iter()
+        .find(|s| s.label == "wavelet-none vs reference")
+        .unwrap();
+    assert_eq!(against.points.len(), opts.terms.len());
+    assert!(
+        series
+            .iter()
+            .any(|s| s.label == "every stored term vs reference")
+    );
+    assert_eq!(figure.levels.len(), SUMMARY_TARGETS.len());
+    assert!(
+        figure
+            .levels
+            .iter()
+            .all(|l| l.lines[0].starts_with("terms for "))
+    );
 
     let dir = out_dir();
     let written = write_report(&dir, &points).unwrap();

@@ -275,7 +275,7 @@ fn comparing_with_a_black_reference_is_an_error() {
     let black = found("compare_black_reference.exr");
     let (code, text) = prt(&["compare", s(&black), s(&black)]);
     assert_eq!(code, 0, "{text}");
-    assert!(text.contains("rel_l2 0.000000"), "{text}");
+    assert!(text.contains("rel_l2 0.0000%"), "{text}");
 }
 
 // 8. `prt info` printed the stored scene path raw: escape codes in it changed the terminal's

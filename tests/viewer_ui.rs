@@ -167,6 +167,146 @@ fn with_every_section_open_and_the_gpu_drawing_the_panel_fits_the_default_window
     }
 }
 
+/// Two lights that make four with the panel and the moving spot of `common::VIEWER_LIGHTS` in the
+/// viewer's test scene (`common::VIEWER_SCENE`): a warm lamp low over the floor, whose light
+/// outshines the sun's around it, and a dim fill.
+const MORE_LIGHTS: &str = r#"
+[[light]]
+name = "lamp"
+type = "point"
+position = [-1.0, 0.4, -0.6]
+intensity = 6.0
+color = [1.0, 0.62, 0.32]
+
+[[light]]
+name = "fill"
+type = "point"
+position = [1.2, 1.2, 1.5]
+intensity = 1.0
+color = [0.6, 0.7, 1.0]
+"#;
+
+/// Path of the viewer's test scene with four lights baked as `common::lit_viewer_transport_path` bakes its scene
+/// (once per test process).
+fn four_light_transport_path() -> std::path::PathBuf {
+    static PATH: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+    PATH.get_or_init(|| {
+        let dir = common::temp_dir("viewer-four-lights");
+        let scene_path = dir.join("scene.toml");
+        let scene = format!(
+            "{}\n{MORE_LIGHTS}\n{}",
+            common::VIEWER_SCENE,
+            common::VIEWER_LIGHTS
+        );
+        std::fs::write(&scene_path, scene).unwrap();
+        let scene = wavelet_prt::scene::Scene::load(&scene_path).unwrap();
+        assert_eq!(scene.lights.len(), 4);
+        let settings = wavelet_prt::bake::BakeSettings {
+            cube_n: common::VIEWER_N,
+            sh_order: common::VIEWER_SH_ORDER,
+            threshold: 0.0,
+            light_samples: 16,
+            ..wavelet_prt::bake::BakeSettings::default()
+        };
+        let t = wavelet_prt::bake::bake(&scene, &settings, &|_| {}).unwrap();
+        let out = dir.join("four.prt");
+        t.save(&out).unwrap();
+        out
+    })
+    .clone()
+}
+
+#[test]
+fn with_four_lights_the_panel_fits_the_default_window() {
+    if common::gpu_or_skip("with_four_lights_the_panel_fits_the_default_window").is_none() {
+        return;
+    }
+    // The window's default inner size, on the view the file opens on: its environment, one
+    // light a row, the moving spot's place a row more.
+    let app = ViewerApp::new(&four_light_transport_path(), &[]);
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1280.0, 800.0))
+        .wgpu()
+        .build_ui_state(|ui, app: &mut ViewerApp| app.show(ui), app);
+    settle(&mut h);
+    assert!(h.state().error.is_none(), "{:?}", h.state().error);
+    assert_eq!(h.state().state.lights.lights.len(), 4);
+    if let Some(out) = std::env::var_os("VIEWER_UI_FOUR_LIGHTS_PNG") {
+        h.render().expect("render").save(out).unwrap();
+    }
+    let bottom = |h: &Harness<'static, ViewerApp>, label: &str| {
+        h.query_all_by_label_contains(label)
+            .map(|n| n.rect().max.y)
+            .fold(0.0f32, f32::max)
+    };
+    // Every light's switch, the error and the timings, and the rows between.
+    for label in [
+        "lamp",
+        "fill",
+        "panel",
+        "spot position",
+        "Save PNG",
+        "L2 vs full",
+        "light prepared",
+        "frames/s",
+    ] {
+        let last = bottom(&h, label);
+        if matches!(label, "light prepared" | "frames/s") && last == 0.0 {
+            // Shown only after a new light, and once the window has drawn a few frames.
+            continue;
+        }
+        assert!(last > 0.0, "`{label}` is shown");
+        assert!(
+            last <= 800.0,
+            "`{label}` ends at y = {last}, below the window"
+        );
+    }
+    // The heat maps come with their colour bar.
+    h.state_mut().state.display.error_map = true;
+    settle(&mut h);
+    h.query_by_label("% of mean")
+        .expect("the colour bar's title");
+    let last = bottom(&h, "L2 vs full");
+    assert!(
+        last > 0.0 && last <= 800.0,
+        "with the heat maps: y = {last}"
+    );
+}
+
+/// The first exposure of a view is chosen for what it shows, the lights' light with the
+/// environment's: the ground under the low warm lamp, several times brighter than the sun
+/// leaves it, stays below white but for at most 1% of the scene's pixels (chosen for the
+/// environment alone, most of the lamp's pool clipped).
+#[test]
+fn the_first_exposure_leaves_a_lamp_lit_ground_unclipped() {
+    use wavelet_prt::app::viewer::{Engine, env_entries};
+    let path = four_light_transport_path();
+    let (envs, light) = env_entries(&["sun:30,45".to_string()]);
+    let mut engine = Engine::open(&path, envs).unwrap();
+    let mut state = engine.initial_state(light);
+    assert!(state.lights.environment && state.lights.lights.iter().all(|l| l.on));
+    // The full image: the reference the exposure is chosen on.
+    state.relight.method = Method::Full;
+    let r = engine.render(&state).unwrap();
+    let coverage = &engine.transport.coverage;
+    // Whole pixels only: a pixel the scene covers in part shows the sky behind it.
+    let covered: Vec<usize> = (0..coverage.len())
+        .filter(|&i| coverage[i] >= 1.0)
+        .collect();
+    assert!(covered.len() > 500, "{} covered pixels", covered.len());
+    let rgb = &r.panes[0].rgb;
+    let clipped = covered
+        .iter()
+        .filter(|&&i| rgb[3 * i..3 * i + 3].contains(&255))
+        .count();
+    let lit = coverage.iter().filter(|&&c| c > 0.0).count();
+    assert!(
+        clipped * 100 <= lit,
+        "{clipped} of {lit} pixels clip at exposure {}",
+        state.display.exposure
+    );
+}
+
 #[test]
 fn more_terms_from_the_keyboard_lower_the_error() {
     if common::gpu_or_skip("more_terms_from_the_keyboard_lower_the_error").is_none() {

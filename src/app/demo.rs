@@ -35,6 +35,16 @@ macro_rules! asset {
     };
 }
 
+/// A bundled environment map as an asset: its bytes are the ones `--env NAME` reads.
+macro_rules! bundled_map {
+    ($name:literal) => {
+        Asset {
+            path: concat!("envmaps/", $name, ".exr"),
+            bytes: crate::light::envmap::bundled_bytes($name),
+        }
+    };
+}
+
 /// Everything the demo needs, embedded so it runs from any directory.
 pub const ASSETS: &[Asset] = &[
     asset!("scenes/demo.toml"),
@@ -48,27 +58,25 @@ pub const ASSETS: &[Asset] = &[
     asset!("meshes/bunny.obj"),
     asset!("meshes/teapot.obj"),
     asset!("meshes/suzanne.obj"),
-    asset!("envmaps/blender_sunrise.exr"),
-    asset!("envmaps/blender_city.exr"),
-    asset!("envmaps/blender_interior.exr"),
-    asset!("envmaps/blender_night.exr"),
-    asset!("envmaps/blender_studio.exr"),
-    asset!("envmaps/pmndrs_city_overcast.exr"),
+    bundled_map!("blender_sunrise"),
+    bundled_map!("blender_city"),
+    bundled_map!("blender_interior"),
+    bundled_map!("blender_night"),
+    bundled_map!("blender_studio"),
+    bundled_map!("pmndrs_city_overcast"),
 ];
 
 /// SH orders the demo shows.
-pub const DEMO_SH_ORDERS: [usize; 3] = [2, 4, 8];
+pub const DEMO_SH_ORDERS: [usize; 3] = [2, 4, 6];
 /// Kept wavelet terms the demo shows.
 pub const DEMO_TERMS: [usize; 4] = [10, 50, 200, 1000];
 /// Weighting of the demo's wavelet selection.
 pub const DEMO_WEIGHTING: Weighting = Weighting::Transport;
 
-/// The demo's bake settings: the CLI defaults with SH up to order 8.
+/// The demo's bake settings: the CLI defaults, whose SH order is the highest of
+/// [`DEMO_SH_ORDERS`].
 pub fn demo_settings() -> BakeSettings {
-    BakeSettings {
-        sh_order: 8,
-        ..BakeSettings::default()
-    }
+    BakeSettings::default()
 }
 
 /// One relit image of the demo.
@@ -153,6 +161,11 @@ pub fn run_demo(
 ) -> Result<DemoReport> {
     std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
     let assets = write_assets(dir, log)?;
+    log(&format!(
+        "bundled environment maps in {} (any --env also takes them by name: {})",
+        assets.join("envmaps").display(),
+        crate::light::envmap::bundled_names()
+    ));
     let scene = Scene::load(&assets.join("scenes/demo.toml"))?;
     let settings = demo_settings();
     let transport_path = dir.join("demo.prt");

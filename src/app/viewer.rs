@@ -24,9 +24,7 @@ mod worker;
 
 pub use app::ViewerApp;
 pub use display::{DisplayPath, GpuTiming, MeshDisplay};
-pub use engine::{
-    ERROR_MAP_GAIN, Engine, OnLight, error_heat_map, save_view, screenshot, view_size,
-};
+pub use engine::{Engine, OnLight, save_view, screenshot, view_size};
 pub use gpu_view::GpuView;
 pub use lights::{LightControl, LightsState, lights_controls, outline_quads};
 pub use state::{
@@ -214,6 +212,15 @@ pub fn env_entries(cli: &[String]) -> (Vec<EnvEntry>, LightState) {
             });
         }
     }
+    if entries.is_empty() {
+        // No folder of maps beside the binary: the maps built into it, by name.
+        for m in crate::light::envmap::BUNDLED_MAPS {
+            entries.push(EnvEntry {
+                name: m.name.to_string(),
+                source: EnvSource::File(PathBuf::from(m.name)),
+            });
+        }
+    }
     let mut sun = (15.0, 45.0);
     let mut first_cli = None;
     let mut sun_given = false;
@@ -342,6 +349,8 @@ pub struct Rendered {
     pub light_seconds: f64,
     /// Time spent relighting the `full` image the errors are measured against (0 when cached).
     pub full_seconds: f64,
+    /// The scale the error heat maps among the panes share; `None` without heat maps.
+    pub heat: Option<crate::output::sheet::HeatScale>,
 }
 
 impl Rendered {
@@ -424,16 +433,31 @@ impl Rendered {
         }
     }
 
-    /// [`Rendered::composite`] under a dark strip that names each image.
+    /// [`Rendered::composite`], with the heat maps' colour bar at its right when it has heat
+    /// maps, under a dark strip that names each image: each caption wrapped (and smaller where
+    /// need be) to fit its image, the strip as tall as the tallest.
     pub fn captioned(&self, gap: usize) -> (usize, usize, Vec<u8>) {
-        let (w, h, rgb) = self.composite(gap);
-        let strip = crate::output::text::CAPTION_HEIGHT;
+        use crate::output::sheet::{BAR_GAP, caption_strip_height, lay_out_caption};
+        let (plain, h, rgb) = self.composite(gap);
+        let (w, rgb) = match self.heat {
+            Some(scale) => crate::output::sheet::with_color_bar(&rgb, plain, h, scale),
+            None => (plain, rgb),
+        };
+        let (mut xs, mut captions) = (Vec::new(), Vec::new());
+        for (i, caption) in self.captions().iter().enumerate() {
+            xs.push(i * (self.width + gap) + 4);
+            let fit = self.width.saturating_sub(8);
+            captions.push(lay_out_caption(&[caption.as_str()], fit, 2));
+        }
+        if self.heat.is_some() {
+            xs.push(plain + BAR_GAP);
+            captions.push(lay_out_caption(&["% of mean"], w - plain - BAR_GAP, 2));
+        }
+        let strip = caption_strip_height(&captions);
         let mut out = vec![24u8; w * (h + strip) * 3];
         out[w * strip * 3..].copy_from_slice(&rgb);
-        for (i, caption) in self.captions().iter().enumerate() {
-            let x = i * (self.width + gap) + 4;
-            let text = crate::output::text::fit_text(caption, self.width.saturating_sub(8));
-            crate::output::text::draw_text(&mut out, w, x, 4, &text, [235, 235, 235]);
+        for (x, caption) in xs.into_iter().zip(&captions) {
+            caption.draw(&mut out, w, x, 4, [235, 235, 235]);
         }
         (w, h + strip, out)
     }

@@ -179,14 +179,19 @@ pub fn bake_to_file(
 /// A tile's statistics: energy dropped by thresholding and quantisation, total energy, rays.
 type TileStats = [f64; 3];
 
-/// The mesh a per-vertex bake's rows belong to, with its in-out BRDF terms; `None` for a view.
-/// The settings are checked against the scene first, so what a scene cannot be baked with is
-/// said before any work.
-fn bake_mesh(scene: &Scene, settings: &BakeSettings) -> Result<Option<VertexMesh>> {
+/// The mesh a per-vertex bake's rows belong to (refined at shadow edges where the settings say
+/// so, [`BakeSettings::refines_shadows`]), with its in-out BRDF terms; `None` for a view. The
+/// settings are checked against the scene first, so what a scene cannot be baked with is said
+/// before any work.
+pub fn bake_mesh(scene: &Scene, settings: &BakeSettings) -> Result<Option<VertexMesh>> {
     settings.validate_for(scene)?;
     Ok(match settings.domain {
         BakeDomain::Vertices { edge_length } => {
-            let mut m = VertexMesh::tessellate(scene, edge_length)?;
+            let mut m = if settings.refines_shadows() {
+                VertexMesh::tessellate_refined(scene, edge_length)?
+            } else {
+                VertexMesh::tessellate(scene, edge_length)?
+            };
             m.factors = crate::scene::brdf_factor::BrdfFactors::for_materials(
                 &scene.materials,
                 settings.brdf_terms as usize,

@@ -84,15 +84,137 @@ impl EnvSpec {
         }
     }
 
-    /// The map: the file loaded, or the sun and sky rendered.
+    /// The map: the file loaded (a bare name that is no file, such as `blender_sunrise`, names
+    /// a bundled map; see [`bundled_map`]), or the sun and sky rendered.
     pub fn load(&self) -> Result<EnvMap> {
         match self {
-            EnvSpec::File(path) => EnvMap::load(path),
+            EnvSpec::File(path) => match bundled_map(path) {
+                Some(map) => map.load(),
+                None => EnvMap::load(path).map_err(|e| match std::fs::symlink_metadata(path) {
+                    Err(m) if m.kind() == std::io::ErrorKind::NotFound => PrtError::file(
+                        path,
+                        format!(
+                            "no such file, nor a map bundled in the binary, which any --env \
+                             takes by name: {} (`prt env --list`)",
+                            bundled_names()
+                        ),
+                    ),
+                    _ => e,
+                }),
+            },
             EnvSpec::Sun(sun) => {
                 Ok(SunSky::new(sun.elevation, sun.azimuth, sun.radius, 3.0)
                     .to_latlong(1024, 512, 4))
             }
         }
+    }
+}
+
+/// An environment map bundled into the binary: every `--env` takes it by name, from any folder.
+#[derive(Clone, Copy, Debug)]
+pub struct BundledMap {
+    /// Its name, the file's stem, such as `blender_sunrise`.
+    pub name: &'static str,
+    /// The OpenEXR file.
+    pub bytes: &'static [u8],
+}
+
+macro_rules! bundled {
+    ($name:literal) => {
+        BundledMap {
+            name: $name,
+            bytes: include_bytes!(concat!("../../assets/envmaps/", $name, ".exr")),
+        }
+    };
+}
+
+/// The maps bundled into the binary (`assets/envmaps`), which the demo also writes out.
+pub const BUNDLED_MAPS: &[BundledMap] = &[
+    bundled!("blender_sunrise"),
+    bundled!("blender_city"),
+    bundled!("blender_interior"),
+    bundled!("blender_night"),
+    bundled!("blender_studio"),
+    bundled!("pmndrs_city_overcast"),
+];
+
+/// The bytes of the bundled map `name`, for tables built at compile time; a name that is not
+/// bundled stops the build there (and panics at run time).
+pub const fn bundled_bytes(name: &str) -> &'static [u8] {
+    let mut i = 0;
+    while i < BUNDLED_MAPS.len() {
+        if same_bytes(BUNDLED_MAPS[i].name.as_bytes(), name.as_bytes()) {
+            return BUNDLED_MAPS[i].bytes;
+        }
+        i += 1;
+    }
+    panic!("not the name of a bundled environment map");
+}
+
+/// Byte-wise equality in a `const fn`.
+const fn same_bytes(a: &[u8], b: &[u8]) -> bool {
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+
+/// The names of the bundled maps, comma-separated.
+pub fn bundled_names() -> String {
+    let names: Vec<&str> = BUNDLED_MAPS.iter().map(|m| m.name).collect();
+    names.join(", ")
+}
+
+/// The bundled map a file spec names when no file of that name exists: a bare name, with or
+/// without `.exr` (`blender_sunrise`, `blender_sunrise.exr`). An existing file, or a path with a
+/// folder in it, is always the file.
+pub fn bundled_map(path: &Path) -> Option<&'static BundledMap> {
+    if path.components().count() != 1 || std::fs::symlink_metadata(path).is_ok() {
+        return None;
+    }
+    let name = path.to_str()?;
+    let stem = name.strip_suffix(".exr").unwrap_or(name);
+    BUNDLED_MAPS.iter().find(|m| m.name == stem)
+}
+
+impl BundledMap {
+    /// The map, read from the bytes in the binary; its source names it as bundled.
+    pub fn load(&self) -> Result<EnvMap> {
+        use exr::prelude::{ReadChannels as _, ReadLayers as _};
+        let source = format!("{} (bundled)", self.name);
+        let image = exr::prelude::read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .rgba_channels(
+                |size, _| {
+                    (
+                        size.width(),
+                        vec![[0.0f32; 3]; size.width() * size.height()],
+                    )
+                },
+                |pixels: &mut (usize, Vec<[f32; 3]>),
+                 at: exr::prelude::Vec2<usize>,
+                 (r, g, b, _a): (f32, f32, f32, f32)| {
+                    let width = pixels.0;
+                    if let Some(p) = pixels.1.get_mut(at.y() * width + at.x()) {
+                        *p = [r, g, b];
+                    }
+                },
+            )
+            .first_valid_layer()
+            .all_attributes()
+            .from_buffered(std::io::Cursor::new(self.bytes))
+            .map_err(|e| PrtError::file(&source, format!("OpenEXR: {e}")))?;
+        let size = image.layer_data.size;
+        let (_, pixels) = image.layer_data.channel_data.pixels;
+        EnvMap::from_pixels(size.width(), size.height(), pixels, &source)
     }
 }
 
@@ -532,6 +654,35 @@ mod tests {
             e.contains("`sun:10,0,0`") && e.contains("radius in [0.05, 45]"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn bundled_maps_load_by_name_as_their_files_do() {
+        let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/envmaps/blender_sunrise.exr");
+        let from_file = EnvMap::load(&file).unwrap();
+        for spec in ["blender_sunrise", "blender_sunrise.exr"] {
+            let map = bundled_map(Path::new(spec)).unwrap();
+            assert_eq!(map.name, "blender_sunrise");
+            assert_eq!(map.bytes, bundled_bytes("blender_sunrise"));
+            let bundled = EnvSpec::parse(spec).unwrap().load().unwrap();
+            assert_eq!(
+                (bundled.width, bundled.height),
+                (from_file.width, from_file.height)
+            );
+            assert!(bundled.pixels == from_file.pixels, "{spec}");
+            assert!(bundled.source.contains("bundled"), "{}", bundled.source);
+        }
+        // A path with a folder, or a name no map has, is a file.
+        assert!(bundled_map(Path::new("somewhere/blender_sunrise.exr")).is_none());
+        assert!(bundled_map(Path::new("blender_sundown")).is_none());
+        let e = EnvMap::from_spec("blender_sundown")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("blender_sundown") && e.contains(&bundled_names()),
+            "{e}"
+        );
+        assert_eq!(BUNDLED_MAPS.len(), 6);
     }
 
     #[test]

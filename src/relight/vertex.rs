@@ -1,8 +1,9 @@
 //! A per-vertex bake seen from any camera: the relit image of such a bake holds one colour per
 //! vertex (vertex `v` is pixel `v`; with in-out BRDF terms, `v · stride` and its terms after it),
 //! which [`crate::relight::raster`] draws with Gouraud shading and a depth test, the glossy
-//! terms weighed per pixel by the direction to the eye, over the environment behind. The orbit camera turns the bake's own camera
-//! about its target.
+//! terms weighed per pixel by the direction to the eye, over the environment behind. The orbit
+//! camera turns the bake's own camera about its target; every camera a user moves is made upright
+//! by [`moved_camera`].
 
 use glam::{Quat, Vec3};
 
@@ -48,6 +49,41 @@ pub fn bake_camera(t: &Transport) -> Result<Camera> {
     Ok(camera)
 }
 
+/// The world's up axis (+Y, see [`crate::conventions`]): the up of a moved camera unless another
+/// is asked for.
+pub const WORLD_UP: Vec3 = Vec3::Y;
+
+/// Below this sine of the angle between the view and the up asked for, a moved camera takes
+/// another axis as its up: the film's roll would hang on rounding.
+const ALONG_UP_SIN: f32 = 1e-3;
+
+/// The camera `base` moved to look from `eye` at `target`, upright: its up is `up` (default
+/// [`WORLD_UP`]), or when the view runs along that, the axis least aligned with it (−Z for +Y,
+/// the top of the image towards −Z). The field of view and the image size stay `base`'s; `base`'s
+/// own up, which may be tilted, is not kept. Every camera a user moves is made here: `--eye`,
+/// `--target` and `--up` of `prt relight`, `prt reference`, `prt bench` and `prt gloss`, the
+/// viewer's orbit ([`orbit`], [`Orbit::camera`]).
+pub fn moved_camera(base: &Camera, eye: Vec3, target: Vec3, up: Option<Vec3>) -> Camera {
+    Camera {
+        eye,
+        target,
+        up: upright(target - eye, up.unwrap_or(WORLD_UP)),
+        ..base.clone()
+    }
+}
+
+/// The up of a camera looking along `view` with `up` asked for, as [`moved_camera`] picks it.
+pub fn upright(view: Vec3, up: Vec3) -> Vec3 {
+    let up = up.normalize_or(WORLD_UP);
+    if view.normalize_or_zero().cross(up).length() > ALONG_UP_SIN {
+        return up;
+    }
+    [Vec3::NEG_Z, Vec3::X, Vec3::Y]
+        .into_iter()
+        .min_by(|a, b| a.dot(up).abs().total_cmp(&b.dot(up).abs()))
+        .unwrap_or(Vec3::NEG_Z)
+}
+
 /// The highest elevation of an orbiting eye above (or below) its target, degrees: short of the
 /// pole, where the up axis would be undefined.
 pub const MAX_ELEVATION_DEG: f32 = 85.0;
@@ -63,7 +99,7 @@ pub fn elevation_deg(camera: &Camera) -> f32 {
 
 /// `camera` turned about its target: the eye swings `azimuth_deg` about the up axis (+Y) and
 /// rises `elevation_deg` (kept within [`MAX_ELEVATION_DEG`] of the horizon), at the same
-/// distance.
+/// distance, upright ([`moved_camera`]).
 pub fn orbit(camera: &Camera, azimuth_deg: f32, elevation_deg: f32) -> Camera {
     let offset = camera.eye - camera.target;
     let distance = offset.length();
@@ -73,11 +109,7 @@ pub fn orbit(camera: &Camera, azimuth_deg: f32, elevation_deg: f32) -> Camera {
         .to_radians();
     let heading = Quat::from_rotation_y(azimuth_deg.to_radians()) * flat.normalize_or(Vec3::Z);
     let dir = heading * elevation.cos() + Vec3::Y * elevation.sin();
-    Camera {
-        eye: camera.target + dir * distance,
-        up: Vec3::Y,
-        ..camera.clone()
-    }
+    moved_camera(camera, camera.target + dir * distance, camera.target, None)
 }
 
 /// Where an orbiting camera is, relative to the bake's camera: turned `azimuth_deg` about the
@@ -135,10 +167,8 @@ impl Orbit {
     /// The camera this orbit makes of `base`.
     pub fn camera(&self, base: &Camera) -> Camera {
         let turned = orbit(base, self.azimuth_deg, self.elevation_deg);
-        Camera {
-            eye: turned.target + (turned.eye - turned.target) * self.distance,
-            ..turned
-        }
+        let eye = turned.target + (turned.eye - turned.target) * self.distance;
+        moved_camera(&turned, eye, turned.target, None)
     }
 }
 
@@ -371,6 +401,45 @@ mod tests {
         assert!((up.eye.length() - 5.0).abs() < TURNED_EYE);
         assert!((up.eye.y / 5.0 - 85f32.to_radians().sin()).abs() < TURNED_EYE);
         assert!(up.validate().is_ok());
+    }
+
+    #[test]
+    fn a_moved_camera_keeps_the_world_up_whatever_the_base_camera_rolled() {
+        let tilted = Camera {
+            eye: Vec3::new(0.0, 1.5, 4.0),
+            target: Vec3::new(0.0, 0.5, 0.0),
+            up: Vec3::new(0.0, 0.935, -0.355),
+            fov_y_deg: 40.0,
+            width: 8,
+            height: 6,
+        };
+        let level = Camera {
+            up: Vec3::Y,
+            ..tilted.clone()
+        };
+        let (eye, target) = (Vec3::new(5.0, 2.2, 0.0), Vec3::new(0.0, 0.5, 0.0));
+        let a = moved_camera(&tilted, eye, target, None);
+        let b = moved_camera(&level, eye, target, None);
+        assert_eq!(a, b);
+        assert_eq!(a.up, WORLD_UP);
+        assert_eq!((a.fov_y_deg, a.width, a.height), (40.0, 8, 6));
+        // The film's up is the world's up made orthogonal to the view: no roll.
+        let (forward, right, film_up) = a.frame();
+        assert!(right.y.abs() < 1e-6, "{right}");
+        assert!(film_up.y > 0.0 && film_up.dot(forward).abs() < 1e-6);
+        // An up asked for is kept.
+        let asked = moved_camera(&tilted, eye, target, Some(Vec3::X * 2.0));
+        assert_eq!(asked.up, Vec3::X);
+        // Looking straight down the up axis, the top of the image goes to -Z.
+        let down = moved_camera(&tilted, Vec3::new(0.0, 3.0, 0.0), Vec3::ZERO, None);
+        assert_eq!(down.up, Vec3::NEG_Z);
+        assert!(down.validate().is_ok());
+        let along_x = moved_camera(&tilted, Vec3::X, Vec3::ZERO, Some(Vec3::X));
+        assert!(along_x.validate().is_ok(), "{}", along_x.up);
+        // The orbit makes its cameras the same way.
+        let o = orbit(&tilted, 30.0, 10.0);
+        assert_eq!(o, moved_camera(&tilted, o.eye, o.target, None));
+        assert_eq!(Orbit::default().camera(&tilted).up, WORLD_UP);
     }
 
     #[test]

@@ -581,6 +581,7 @@ mod hash;
 pub mod light;
 pub mod light_mix;
 mod obj;
+mod refine;
 pub mod tessellate;
 pub mod texture;
 pub mod trace;

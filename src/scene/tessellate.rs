@@ -10,6 +10,9 @@
 //! A textured material's vertices carry their texture coordinates (midpoints take the mean of
 //! their edge's ends), and the mesh carries each such material's [`AlbedoMap`]: the bake stores
 //! those vertices' irradiance, and the raster multiplies it by the map per pixel.
+//!
+//! [`VertexMesh::tessellate_refined`] (`scene::refine`) spends the same number of vertices
+//! unevenly, more of them where shadows fall.
 
 use std::collections::HashMap;
 
@@ -99,88 +102,11 @@ impl VertexMesh {
     /// Welds, refines and orders the surfaces of `scene` so that no edge is longer than
     /// `edge_length` (scene units).
     pub fn tessellate(scene: &Scene, edge_length: f32) -> Result<VertexMesh> {
-        if !(edge_length.is_finite() && edge_length > 0.0) {
-            return Err(PrtError::invalid(
-                "edge length",
-                format!("{edge_length}; it must be a finite length > 0"),
-            ));
-        }
-        // About how many vertices the length asks for (a triangle's edges end between half the
-        // length and the length): refused before any work when far past the limit.
-        let area: f64 = scene
-            .triangles
-            .iter()
-            .map(|t| t.area() as f64)
-            .chain(
-                scene
-                    .spheres
-                    .iter()
-                    .map(|s| 4.0 * std::f64::consts::PI * (s.radius as f64).powi(2)),
-            )
-            .sum();
-        let estimate = area / (0.433 * (edge_length as f64 / 2.0).powi(2)) / 2.0;
-        if estimate > 4.0 * MAX_VERTICES as f64 {
-            return Err(PrtError::invalid(
-                "edge length",
-                format!(
-                    "{edge_length} is too fine for surfaces of area {area:.3e}: about {estimate:.1e} \
-                     vertices, past the limit of {MAX_VERTICES}"
-                ),
-            ));
-        }
-        let mut mesh = VertexMesh::default();
-        // The albedo map of every textured material; their vertices keep texture coordinates.
-        let maps: Vec<Option<AlbedoMap>> = (0..scene.materials.len() as u32)
-            .map(|m| AlbedoMap::of_material(scene, m))
-            .collect();
+        check_edge_length(scene, edge_length)?;
+        let maps = albedo_maps(scene);
         let textured: Vec<bool> = maps.iter().map(Option::is_some).collect();
-        for range in &scene.surfaces {
-            let tris = &scene.triangles[range.clone()];
-            let open = has_boundary(tris);
-            // A closed mesh whose normals point inside would be baked for its dark inner side.
-            let turned: Vec<Triangle>;
-            let tris = if !open && normals_point_inside(tris) {
-                turned = tris.iter().map(Triangle::turned).collect();
-                &turned[..]
-            } else {
-                tris
-            };
-            let first = mesh.positions.len();
-            let corners = mesh.weld(tris, &textured);
-            let mut refine = Refiner::new(&mut mesh, edge_length, None);
-            let tris = refine.run(corners)?;
-            mesh.add_shape(first, tris, open);
-        }
-        for s in &scene.spheres {
-            let first = mesh.positions.len();
-            let corners = mesh.icosahedron(s.center, s.radius, s.material);
-            let mut refine = Refiner::new(&mut mesh, edge_length, Some((s.center, s.radius)));
-            let tris = refine.run(corners)?;
-            mesh.add_shape(first, tris, false);
-        }
-        if mesh.positions.is_empty() {
-            return Err(PrtError::invalid(
-                "per-vertex bake",
-                "the scene has no surfaces to put vertices on",
-            ));
-        }
-        let mut used = vec![false; scene.materials.len()];
-        for &m in &mesh.materials {
-            used[m as usize] = true;
-        }
-        // One map for materials whose maps are the same (such as two that share a texture).
-        for map in maps
-            .into_iter()
-            .enumerate()
-            .filter(|(m, _)| used[*m])
-            .filter_map(|(_, map)| map)
-        {
-            match mesh.albedo_maps.iter_mut().find(|a| a.same_image(&map)) {
-                Some(same) => same.materials.extend(map.materials),
-                None => mesh.albedo_maps.push(map),
-            }
-        }
-        Ok(mesh.morton_ordered())
+        let pieces = pieces(scene, edge_length, &textured)?;
+        assemble(pieces, maps)
     }
 
     /// The index into [`VertexMesh::albedo_maps`] of each material's map (by material index, up
@@ -316,29 +242,33 @@ impl VertexMesh {
             .collect()
     }
 
-    /// Appends a refined shape's triangles, and for an open shape a twin of each of its
-    /// vertices (from `first` on) with the normal reversed and of each triangle wound the other
-    /// way.
-    fn add_shape(&mut self, first: usize, tris: Vec<[u32; 3]>, open: bool) {
+    /// Appends a shape's vertices and triangles (indices into its own vertices), and for an
+    /// open shape a twin of each of its vertices with the normal reversed and of each triangle
+    /// wound the other way.
+    fn add_shape(&mut self, shape: VertexMesh, open: bool) {
+        let first = self.positions.len() as u32;
+        let count = shape.vertex_count() as u32;
+        self.positions.extend(&shape.positions);
+        self.normals.extend(&shape.normals);
+        self.materials.extend(&shape.materials);
+        self.uvs.extend(&shape.uvs);
+        let front = shape.triangles.iter().map(|t| t.map(|i| first + i));
+        self.triangles.extend(front);
         if open {
-            let end = self.positions.len();
-            let offset = (end - first) as u32;
-            for i in first..end {
+            for i in 0..count as usize {
                 self.push(
-                    self.positions[i],
-                    -self.normals[i],
-                    self.materials[i],
-                    self.uvs[i],
+                    shape.positions[i],
+                    -shape.normals[i],
+                    shape.materials[i],
+                    shape.uvs[i],
                 );
             }
-            let back: Vec<[u32; 3]> = tris
+            let back = first + count;
+            let back = shape
+                .triangles
                 .iter()
-                .map(|&[a, b, c]| [a + offset, c + offset, b + offset])
-                .collect();
-            self.triangles.extend(tris);
+                .map(|&[a, b, c]| [a + back, c + back, b + back]);
             self.triangles.extend(back);
-        } else {
-            self.triangles.extend(tris);
         }
     }
 
@@ -405,6 +335,142 @@ impl VertexMesh {
     }
 }
 
+/// One shape of the scene tessellated on its own, before the twin of an open one: its vertices
+/// and triangles (indices into its own vertices), whether it is open, and the sphere it lies on.
+pub(super) struct Piece {
+    pub(super) mesh: VertexMesh,
+    pub(super) open: bool,
+    pub(super) sphere: Option<(Vec3, f32)>,
+}
+
+impl Piece {
+    /// Vertices the piece takes in the whole mesh: its own, and as many twins if it is open.
+    pub(super) fn vertices(&self) -> usize {
+        self.mesh.vertex_count() * (1 + self.open as usize)
+    }
+}
+
+/// Refuses an edge length that is not a positive length, or that would split `scene` into far
+/// more than [`MAX_VERTICES`] vertices, before any work.
+pub(super) fn check_edge_length(scene: &Scene, edge_length: f32) -> Result<()> {
+    if !(edge_length.is_finite() && edge_length > 0.0) {
+        return Err(PrtError::invalid(
+            "edge length",
+            format!("{edge_length}; it must be a finite length > 0"),
+        ));
+    }
+    // About how many vertices the length asks for (a triangle's edges end between half the
+    // length and the length).
+    let area: f64 = scene
+        .triangles
+        .iter()
+        .map(|t| t.area() as f64)
+        .chain(
+            scene
+                .spheres
+                .iter()
+                .map(|s| 4.0 * std::f64::consts::PI * (s.radius as f64).powi(2)),
+        )
+        .sum();
+    let estimate = area / (0.433 * (edge_length as f64 / 2.0).powi(2)) / 2.0;
+    if estimate > 4.0 * MAX_VERTICES as f64 {
+        return Err(PrtError::invalid(
+            "edge length",
+            format!(
+                "{edge_length} is too fine for surfaces of area {area:.3e}: about {estimate:.1e} \
+                 vertices, past the limit of {MAX_VERTICES}"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The albedo map of every material of `scene` (`None` for an untextured one).
+pub(super) fn albedo_maps(scene: &Scene) -> Vec<Option<AlbedoMap>> {
+    (0..scene.materials.len() as u32)
+        .map(|m| AlbedoMap::of_material(scene, m))
+        .collect()
+}
+
+/// Every quad, mesh and sphere of `scene` welded and split until no edge is longer than
+/// `edge_length`, one [`Piece`] each in the scene's order; the vertices of textured materials
+/// (`textured[material]`) keep their texture coordinates.
+pub(super) fn pieces(scene: &Scene, edge_length: f32, textured: &[bool]) -> Result<Vec<Piece>> {
+    let mut pieces = Vec::new();
+    // Vertices of the pieces so far, twins included.
+    let mut before = 0;
+    for range in &scene.surfaces {
+        let tris = &scene.triangles[range.clone()];
+        let open = has_boundary(tris);
+        // A closed mesh whose normals point inside would be baked for its dark inner side.
+        let turned: Vec<Triangle>;
+        let tris = if !open && normals_point_inside(tris) {
+            turned = tris.iter().map(Triangle::turned).collect();
+            &turned[..]
+        } else {
+            tris
+        };
+        let mut mesh = VertexMesh::default();
+        let corners = mesh.weld(tris, textured);
+        let tris = Refiner::new(&mut mesh, edge_length, None, before).run(corners)?;
+        mesh.triangles = tris;
+        let piece = Piece {
+            mesh,
+            open,
+            sphere: None,
+        };
+        before += piece.vertices();
+        pieces.push(piece);
+    }
+    for s in &scene.spheres {
+        let mut mesh = VertexMesh::default();
+        let corners = mesh.icosahedron(s.center, s.radius, s.material);
+        let sphere = Some((s.center, s.radius));
+        let tris = Refiner::new(&mut mesh, edge_length, sphere, before).run(corners)?;
+        mesh.triangles = tris;
+        let piece = Piece {
+            mesh,
+            open: false,
+            sphere,
+        };
+        before += piece.vertices();
+        pieces.push(piece);
+    }
+    Ok(pieces)
+}
+
+/// The pieces in one mesh, each open one followed by its twin, with the albedo maps of the
+/// materials its vertices use, in Morton order.
+pub(super) fn assemble(pieces: Vec<Piece>, maps: Vec<Option<AlbedoMap>>) -> Result<VertexMesh> {
+    let mut mesh = VertexMesh::default();
+    for piece in pieces {
+        mesh.add_shape(piece.mesh, piece.open);
+    }
+    if mesh.positions.is_empty() {
+        return Err(PrtError::invalid(
+            "per-vertex bake",
+            "the scene has no surfaces to put vertices on",
+        ));
+    }
+    let mut used = vec![false; maps.len()];
+    for &m in &mesh.materials {
+        used[m as usize] = true;
+    }
+    // One map for materials whose maps are the same (such as two that share a texture).
+    for map in maps
+        .into_iter()
+        .enumerate()
+        .filter(|(m, _)| used[*m])
+        .filter_map(|(_, map)| map)
+    {
+        match mesh.albedo_maps.iter_mut().find(|a| a.same_image(&map)) {
+            Some(same) => same.materials.extend(map.materials),
+            None => mesh.albedo_maps.push(map),
+        }
+    }
+    Ok(mesh.morton_ordered())
+}
+
 /// The closed surfaces of `scene` whose shading normals point into the volume they enclose (faces
 /// wound inward, as exporters sometimes write them), by name: a per-vertex bake turns them
 /// outward, since it bakes the side the normals face and the inner side of a closed mesh sees
@@ -443,7 +509,7 @@ fn normals_point_inside(tris: &[Triangle]) -> bool {
 }
 
 /// A vector's bit pattern, with −0 as +0, as a hash key.
-fn bits(v: Vec3) -> [u32; 3] {
+pub(super) fn bits(v: Vec3) -> [u32; 3] {
     (v + Vec3::ZERO).to_array().map(f32::to_bits)
 }
 
@@ -461,35 +527,48 @@ fn has_boundary(tris: &[Triangle]) -> bool {
 
 /// Splits every edge longer than the target at its midpoint, once per edge (shared by the
 /// triangles on both sides, so the mesh stays watertight), until no edge is longer.
-struct Refiner<'a> {
+pub(super) struct Refiner<'a> {
     mesh: &'a mut VertexMesh,
     edge: f32,
     /// A sphere's centre and radius: midpoints go onto it, with its exact normal.
     sphere: Option<(Vec3, f32)>,
     midpoints: HashMap<(u32, u32), u32>,
+    /// Vertices of the whole tessellation before this mesh's, for its limit.
+    before: usize,
 }
 
 impl<'a> Refiner<'a> {
-    fn new(mesh: &'a mut VertexMesh, edge: f32, sphere: Option<(Vec3, f32)>) -> Self {
+    pub(super) fn new(
+        mesh: &'a mut VertexMesh,
+        edge: f32,
+        sphere: Option<(Vec3, f32)>,
+        before: usize,
+    ) -> Self {
         Refiner {
             mesh,
             edge,
             sphere,
             midpoints: HashMap::new(),
+            before,
         }
     }
 
     /// The midpoint vertex of edge (a, b) if the edge is too long.
     fn split(&mut self, a: u32, b: u32) -> Option<u32> {
-        let (a, b) = (a.min(b), a.max(b));
         let m = &self.mesh;
         let (pa, pb) = (m.positions[a as usize], m.positions[b as usize]);
-        if pa.distance(pb) <= self.edge {
-            return None;
-        }
+        (pa.distance(pb) > self.edge).then(|| self.midpoint(a, b))
+    }
+
+    /// The midpoint vertex of edge (a, b), made once: on the sphere, or halfway with the ends'
+    /// mean normal and texture coordinate; the material of its lower-indexed end.
+    pub(super) fn midpoint(&mut self, a: u32, b: u32) -> u32 {
+        let (a, b) = (a.min(b), a.max(b));
         if let Some(&i) = self.midpoints.get(&(a, b)) {
-            return Some(i);
+            return i;
         }
+        let m = &self.mesh;
+        let (pa, pb) = (m.positions[a as usize], m.positions[b as usize]);
         let mid = (pa + pb) * 0.5;
         let (na, nb) = (m.normals[a as usize], m.normals[b as usize]);
         let (p, n) = match self.sphere {
@@ -503,7 +582,7 @@ impl<'a> Refiner<'a> {
         let uv = (m.uvs[a as usize] + m.uvs[b as usize]) * 0.5;
         let i = self.mesh.push(p, n, material, uv);
         self.midpoints.insert((a, b), i);
-        Some(i)
+        i
     }
 
     fn run(&mut self, mut tris: Vec<[u32; 3]>) -> Result<Vec<[u32; 3]>> {
@@ -512,30 +591,11 @@ impl<'a> Refiner<'a> {
             let mut changed = false;
             for t in tris {
                 let mids = [0, 1, 2].map(|k| self.split(t[k], t[(k + 1) % 3]));
-                let split = mids.iter().filter(|m| m.is_some()).count();
-                changed |= split > 0;
-                // Turned so that the split edges come first: edge k runs from corner k to k + 1.
-                let turn = match split {
-                    1 => mids.iter().position(Option::is_some).unwrap_or(0),
-                    2 => mids
-                        .iter()
-                        .position(Option::is_none)
-                        .map_or(0, |k| (k + 1) % 3),
-                    _ => 0,
-                };
-                let [a, b, c] = [0, 1, 2].map(|k| t[(k + turn) % 3]);
-                let [mab, mbc, mca] = [0, 1, 2].map(|k| mids[(k + turn) % 3].unwrap_or(u32::MAX));
-                match split {
-                    0 => next.push(t),
-                    1 => next.extend([[a, mab, c], [mab, b, c]]),
-                    2 => next.extend([[mab, b, mbc], [a, mab, mbc], [a, mbc, c]]),
-                    _ => {
-                        next.extend([[a, mab, mca], [mab, b, mbc], [mca, mbc, c], [mab, mbc, mca]])
-                    }
-                }
+                changed |= mids.iter().any(Option::is_some);
+                subdivide(t, mids, None, &mut next);
             }
             tris = next;
-            if self.mesh.positions.len() > MAX_VERTICES {
+            if self.before + self.mesh.positions.len() > MAX_VERTICES {
                 return Err(PrtError::invalid(
                     "edge length",
                     format!(
@@ -549,6 +609,37 @@ impl<'a> Refiner<'a> {
             }
         }
         Ok(tris)
+    }
+}
+
+/// Appends to `next` the triangles that replace `t` once the edges with a midpoint in `mids`
+/// are split (edge k runs from corner k to k + 1): two for one edge, four alike for three. For
+/// two, the new edges meet at the midpoint of edge `first` where it is one of them (it is split
+/// from the opposite corner first), else at the second's in winding order.
+pub(super) fn subdivide(
+    t: [u32; 3],
+    mids: [Option<u32>; 3],
+    first: Option<usize>,
+    next: &mut Vec<[u32; 3]>,
+) {
+    let split = mids.iter().filter(|m| m.is_some()).count();
+    // Turned so that the split edges come first.
+    let turn = match split {
+        1 => mids.iter().position(Option::is_some).unwrap_or(0),
+        2 => mids
+            .iter()
+            .position(Option::is_none)
+            .map_or(0, |k| (k + 1) % 3),
+        _ => 0,
+    };
+    let [a, b, c] = [0, 1, 2].map(|k| t[(k + turn) % 3]);
+    let [mab, mbc, mca] = [0, 1, 2].map(|k| mids[(k + turn) % 3].unwrap_or(u32::MAX));
+    match split {
+        0 => next.push(t),
+        1 => next.extend([[a, mab, c], [mab, b, c]]),
+        2 if first == Some(turn) => next.extend([[a, mab, c], [mab, b, mbc], [mab, mbc, c]]),
+        2 => next.extend([[mab, b, mbc], [a, mab, mbc], [a, mbc, c]]),
+        _ => next.extend([[a, mab, mca], [mab, b, mbc], [mca, mbc, c], [mab, mbc, mca]]),
     }
 }
 

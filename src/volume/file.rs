@@ -417,15 +417,23 @@ impl VolumeTransfer {
     ) -> Result<crate::scene::Camera> {
         let c = &self.meta.camera;
         let (width, height) = size.unwrap_or((self.meta.width, self.meta.height));
+        let moved = eye.is_some() || target.is_some();
         let (eye, target) = (
             eye.unwrap_or(Vec3::from(c.eye)),
             target.unwrap_or(Vec3::from(c.target)),
         );
-        // Looking along the baked up vector (straight down, say), take the other horizontal.
-        let mut up = Vec3::from(c.up);
-        if (target - eye).normalize_or_zero().cross(up).length() < 1e-3 {
-            up = Vec3::Z;
-        }
+        // A moved camera keeps the world's up, as every moved camera does; the baked one its own
+        // (looking along it, straight down say, the other horizontal).
+        let up = if moved {
+            crate::relight::vertex::upright(target - eye, crate::relight::vertex::WORLD_UP)
+        } else {
+            let up = Vec3::from(c.up);
+            if (target - eye).normalize_or_zero().cross(up).length() < 1e-3 {
+                Vec3::Z
+            } else {
+                up
+            }
+        };
         let cam = crate::scene::Camera {
             eye,
             target,

@@ -148,7 +148,7 @@ material = "m"
 }
 
 /// A red ball on a grey floor under a slanted camera, small enough to bake in a moment.
-const VIEWER_SCENE: &str = r#"
+pub const VIEWER_SCENE: &str = r#"
 [camera]
 eye = [0.5, 2.0, 3.5]
 target = [0.0, 0.4, 0.0]
@@ -443,6 +443,7 @@ fn random_rows_of_density(
             light_samples: 0,
             brdf_terms: 1,
             brdf_error: 0.0,
+            refine_shadows: false,
         },
         cache_points: 0,
         per_vertex: None,

@@ -59,6 +59,11 @@ pub struct BakeArgs {
     /// diagonal of its bounds.
     #[arg(long, requires = "per_vertex")]
     pub edge_length: Option<f32>,
+    /// Per-vertex bakes: spend the vertices where shadows fall (as many as the uniform
+    /// tessellation at --edge-length makes, more across shadow borders and fewer where the light
+    /// is even); false splits every edge alike.
+    #[arg(long, default_value_t = BakeSettings::default().refine_shadows, action = clap::ArgAction::Set, requires = "per_vertex")]
+    pub refine_shadows: bool,
 }
 
 /// Parses `I/COUNT`.
@@ -79,6 +84,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
     settings.validate()?;
     crate::files::check_output(&a.output, &["prt"], "a transport file", &[])?;
     let scene = a.framing.load(&a.scene)?;
+    warn_of_doubled_shadows(&scene);
     let mesh = if a.per_vertex {
         let edge = a
             .edge_length
@@ -86,12 +92,29 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         settings.domain = BakeDomain::Vertices { edge_length: edge };
         settings.brdf_terms = a.brdf_terms;
         settings.brdf_error = a.brdf_error;
+        settings.refine_shadows = a.refine_shadows;
         settings.validate()?;
         let glossy: Vec<&str> = scene
             .materials
             .iter()
             .zip(&scene.material_names)
             .filter(|(m, _)| m.glossy_lobe().is_some())
+            .map(|(_, n)| n.as_str())
+            .collect();
+        // Those whose highlight the diffuse base drops, and the rough ones whose lobe it drops
+        // with much of their light.
+        let shiny: Vec<&str> = scene
+            .materials
+            .iter()
+            .zip(&scene.material_names)
+            .filter(|(m, _)| drops_visible_gloss(m))
+            .map(|(_, n)| n.as_str())
+            .collect();
+        let darkened: Vec<&str> = scene
+            .materials
+            .iter()
+            .zip(&scene.material_names)
+            .filter(|(m, _)| drops_rough_light(m))
             .map(|(_, n)| n.as_str())
             .collect();
         if !glossy.is_empty() && a.brdf_terms > 1 {
@@ -121,13 +144,24 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
                      environment's light takes the in-out terms"
                 );
             }
-        } else if !glossy.is_empty() {
-            eprintln!(
-                "warning: per vertex, the glossy material(s) {} keep only their diffuse base: a \
-                 glossy lobe depends on the direction to the camera, which moves (--brdf-terms 4 \
-                 keeps it in in-out terms)",
-                glossy.join(", ")
-            );
+        } else {
+            if !shiny.is_empty() {
+                eprintln!(
+                    "warning: per vertex, the glossy material(s) {} keep only their diffuse base: \
+                     a glossy lobe depends on the direction to the camera, which moves \
+                     (--brdf-terms 4 keeps it in in-out terms)",
+                    shiny.join(", ")
+                );
+            }
+            if !darkened.is_empty() {
+                eprintln!(
+                    "warning: per vertex, the rough material(s) {} keep only their diffuse base, \
+                     without the specular reflectance of their lobe (more than {} of the light): \
+                     they come out darker (--brdf-terms 2 keeps it)",
+                    darkened.join(", "),
+                    ROUGH_SPECULAR_NOTED
+                );
+            }
         }
         for name in crate::scene::tessellate::inward_surfaces(&scene) {
             eprintln!(
@@ -166,9 +200,25 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
     let at = match (&mesh, settings.domain) {
         (Some(m), BakeDomain::Vertices { edge_length: edge }) => format!(
-            "per vertex: {} vertices, {} triangles, edges up to {edge:.4}{}; spp does not apply",
+            "per vertex: {}{} vertices, {} triangles, {}edges up to {edge:.4}{}{}; spp does not \
+             apply",
+            if settings.refines_shadows() {
+                "at most "
+            } else {
+                ""
+            },
             m.vertex_count(),
             m.triangles.len(),
+            if settings.refines_shadows() {
+                "as many as "
+            } else {
+                ""
+            },
+            if settings.refines_shadows() {
+                " make, spent where shadows fall"
+            } else {
+                ""
+            },
             match m.albedo_maps.len() {
                 0 => String::new(),
                 n => format!(
@@ -232,6 +282,104 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
     Ok(())
 }
 
+/// Perceptual roughness from which a GGX lobe is as broad as it gets: it hardly depends on the
+/// direction to the camera, and a per-vertex bake that drops it loses no highlight.
+const FULL_ROUGHNESS: f32 = 0.99;
+
+/// Largest specular reflectance (any channel) of a rough lobe that a per-vertex bake's diffuse
+/// base drops without a word: a dielectric's 0.04 darkens a surface by a few percent.
+const ROUGH_SPECULAR_NOTED: f32 = 0.1;
+
+/// Whether a per-vertex bake's diffuse base drops a highlight of `m` that shows: a specular
+/// lobe narrower than [`FULL_ROUGHNESS`].
+fn drops_visible_gloss(m: &crate::scene::Material) -> bool {
+    match *m {
+        crate::scene::Material::Glossy {
+            specular,
+            roughness,
+            ..
+        } => specular.max_element() > 0.0 && roughness < FULL_ROUGHNESS,
+        crate::scene::Material::Diffuse { .. } => false,
+    }
+}
+
+/// Whether a per-vertex bake's diffuse base drops a rough lobe of `m` that holds more than
+/// [`ROUGH_SPECULAR_NOTED`] of the light (a rough metal would come out black).
+fn drops_rough_light(m: &crate::scene::Material) -> bool {
+    match *m {
+        crate::scene::Material::Glossy {
+            specular,
+            roughness,
+            ..
+        } => specular.max_element() > ROUGH_SPECULAR_NOTED && roughness >= FULL_ROUGHNESS,
+        crate::scene::Material::Diffuse { .. } => false,
+    }
+}
+
+/// Most spacing of a moving light's neighbouring positions, as a share of its height above the
+/// surface below them, before its shadows double: a relight between two positions blends the
+/// shadows cast from both, whose edges lie apart by about the spacing times the occluder's
+/// height over the light's, which shows as two shadows once the spacing is half the height.
+const SHADOW_DOUBLING_SPACING: f32 = 0.5;
+
+/// Warns of each moving light whose neighbouring positions lie more than
+/// [`SHADOW_DOUBLING_SPACING`] times its height above the nearest surface below them apart
+/// (the lower of the two positions' heights; a position above nothing is not judged).
+fn warn_of_doubled_shadows(scene: &Scene) {
+    let moving: Vec<&crate::scene::Light> = scene
+        .lights
+        .iter()
+        .filter(|l| l.positions.len() > 1)
+        .collect();
+    if moving.is_empty() {
+        return;
+    }
+    let tracer = crate::scene::trace::Tracer::new(scene);
+    let height = |p: glam::Vec3| {
+        tracer
+            .closest_hit(p, glam::Vec3::NEG_Y, f32::INFINITY)
+            .map(|h| h.t)
+    };
+    for light in moving {
+        let n = light.positions.len();
+        let grid = match light.grid.iter().product::<usize>() == n {
+            true => light.grid,
+            false => [n, 1, 1],
+        };
+        let heights: Vec<Option<f32>> = light.positions.iter().map(|&p| height(p)).collect();
+        // The neighbours along each axis of the grid (x varying fastest), the worst pair kept as
+        // (spacing, height).
+        let strides = [1, grid[0], grid[0] * grid[1]];
+        let mut worst: Option<(f32, f32)> = None;
+        for i in 0..n {
+            for (&stride, &count) in strides.iter().zip(&grid) {
+                let j = i + stride;
+                if (i / stride) % count + 1 >= count || j >= n {
+                    continue;
+                }
+                let (Some(a), Some(b)) = (heights[i], heights[j]) else {
+                    continue;
+                };
+                let (spacing, h) = (light.positions[i].distance(light.positions[j]), a.min(b));
+                let worse = worst.is_none_or(|(s, wh)| spacing * wh > s * h);
+                if spacing > SHADOW_DOUBLING_SPACING * h && worse {
+                    worst = Some((spacing, h));
+                }
+            }
+        }
+        if let Some((spacing, h)) = worst {
+            eprintln!(
+                "warning: light `{}` moves in steps of up to {spacing:.3} at {h:.3} above the \
+                 surface below it: a relight between two positions blends the shadows of both, \
+                 which show double once the step passes {SHADOW_DOUBLING_SPACING} times the \
+                 height; bake its positions at most {:.3} apart",
+                crate::files::printable(&light.name),
+                SHADOW_DOUBLING_SPACING * h
+            );
+        }
+    }
+}
+
 pub(super) fn merge_cmd(shards: Vec<PathBuf>, output: PathBuf) -> Result<()> {
     let inputs: Vec<&std::path::Path> = shards.iter().map(PathBuf::as_path).collect();
     crate::files::check_output(&output, &["prt"], "a transport file", &inputs)?;
@@ -291,9 +439,16 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
         (&m.per_vertex, id.domain)
     {
         println!(
-            "vertices      {} vertices, {} triangles, edges up to {} (a row per vertex, any camera; \
-             the file's camera is the scene's)",
-            pv.vertices, pv.triangles, edge_length
+            "vertices      {} vertices, {} triangles, {}edges up to {} (a row per vertex, any \
+             camera; the file's camera is the scene's)",
+            pv.vertices,
+            pv.triangles,
+            if id.refine_shadows {
+                "refined at shadow borders from as many as "
+            } else {
+                ""
+            },
+            edge_length
         );
         if pv.brdf_stride > 1 {
             println!(
@@ -316,16 +471,33 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
             );
         }
     }
+    // A per-vertex bake's rows are stored as an image of vertices: its size says nothing a user
+    // asks for, and the camera's image size is the still's.
+    let v = |p: [f32; 3]| format!("({:.3}, {:.3}, {:.3})", p[0], p[1], p[2]);
+    let [width, height] = m
+        .per_vertex
+        .as_ref()
+        .map_or([m.width, m.height], |pv| pv.image);
     println!(
-        "image         {} x {} ({} tiles of {}²)",
-        m.width,
-        m.height,
-        {
-            let (tx, ty) = crate::store::transport::tile_grid(m.width as usize, m.height as usize);
-            tx * ty
-        },
-        m.tile
+        "camera        eye {}, target {}, up {}, fov_y_deg {}, {width} x {height}",
+        v(m.camera.eye),
+        v(m.camera.target),
+        v(m.camera.up),
+        m.camera.fov_y_deg
     );
+    if m.per_vertex.is_none() {
+        println!(
+            "image         {} x {} ({} tiles of {}²)",
+            m.width,
+            m.height,
+            {
+                let (tx, ty) =
+                    crate::store::transport::tile_grid(m.width as usize, m.height as usize);
+                tx * ty
+            },
+            m.tile
+        );
+    }
     println!(
         "cube          N = {} ({} coefficients per row)",
         id.cube_n,
@@ -377,11 +549,15 @@ fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta
         s.nonzeros,
         100.0 * s.nonzeros as f64 / s.dense_entries.max(1) as f64
     );
+    let (count, unit) = match &m.per_vertex {
+        Some(pv) => (pv.vertices as usize, "vertex"),
+        None => (m.width as usize * m.height as usize, "pixel"),
+    };
     println!(
-        "size          {:.2} MiB file, {:.2}% of the dense f32 matrix, {:.1} bytes/pixel",
+        "size          {:.2} MiB file, {:.2}% of the dense f32 matrix, {:.1} bytes/{unit}",
         bytes as f64 / 1048576.0,
         100.0 * bytes as f64 / dense_bytes.max(1.0),
-        bytes as f64 / (m.width as usize * m.height as usize).max(1) as f64
+        bytes as f64 / count.max(1) as f64
     );
     println!(
         "dropped       {:.3}% of transport energy (relative L2 {:.3}%)",

@@ -38,11 +38,12 @@ pub struct BenchArgs {
     /// the error sparsification adds is measured.
     #[arg(long, value_delimiter = ',')]
     pub compression: Option<Vec<f32>>,
-    /// Scene file for --reference and --compression (default: the one the file was baked from).
+    /// Scene file for --reference and --compression (default: the one the file was baked from,
+    /// from the working folder or beside the file).
     #[arg(long)]
     pub scene: Option<PathBuf>,
     /// The camera a per-vertex bake is drawn from and its reference rendered from (`--eye`,
-    /// `--target`, `--width`, `--height`; default: the scene's).
+    /// `--target`, `--up`, `--width`, `--height`; default: the scene's).
     #[command(flatten)]
     pub view: super::relight::StillArgs,
 }
@@ -124,10 +125,7 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         ..BakeSettings::from_meta(&t.meta)
     };
     let scene = if a.reference || a.compression.is_some() {
-        let path = a
-            .scene
-            .clone()
-            .unwrap_or_else(|| PathBuf::from(&t.meta.scene_path));
+        let path = bake_scene_path(&a.file, &t.meta.scene_path, a.scene.as_deref())?;
         // The bake's image size, which a glTF scene takes from its command line (a per-vertex
         // bake's is its scene camera's, not its vertex image's).
         let [width, height] = t
@@ -147,7 +145,8 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
             return Err(PrtError::invalid(
                 "scene",
                 format!(
-                    "{} is not the scene {} was baked from (content hash differs)",
+                    "{} is not the scene {} was baked from (content hash differs): give that \
+                     scene with --scene",
                     path.display(),
                     a.file.display()
                 ),

@@ -151,13 +151,17 @@ pub struct GlossArgs {
     /// Tessellations, as multiples of the scene's default edge length, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "1,2")]
     pub edge_factors: Vec<f32>,
-    /// A camera position X,Y,Z; give the flag once per camera (`--eye=-3,2,1` when it starts
-    /// with a minus). Default: the scene's camera turned 60°, 180° and 300° about its target.
-    #[arg(long = "eye", value_parser = super::volume::parse_vec3, allow_negative_numbers = true)]
+    /// A camera position X,Y,Z; give the flag once per camera. Default: the scene's camera
+    /// turned 60°, 180° and 300° about its target. Every camera stays upright (see --up).
+    #[arg(long = "eye", value_parser = super::volume::parse_vec3, allow_hyphen_values = true)]
     pub eyes: Vec<glam::Vec3>,
     /// The point the cameras look at, X,Y,Z (default: the scene's target).
-    #[arg(long, value_parser = super::volume::parse_vec3, allow_negative_numbers = true)]
+    #[arg(long, value_parser = super::volume::parse_vec3, allow_hyphen_values = true)]
     pub target: Option<glam::Vec3>,
+    /// The cameras' up direction X,Y,Z (default: the world's +Y; looking straight along it,
+    /// -Z).
+    #[arg(long, value_parser = super::parse_up, allow_hyphen_values = true)]
+    pub up: Option<glam::Vec3>,
     /// Paths a pixel of the path tracer.
     #[arg(long, default_value_t = 1024)]
     pub paths: u32,
@@ -196,7 +200,8 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
             .collect(),
     };
     for c in &mut cameras {
-        c.target = a.target.unwrap_or(c.target);
+        let target = a.target.unwrap_or(c.target);
+        *c = crate::relight::vertex::moved_camera(c, c.eye, target, a.up);
     }
     let opts = crate::app::gloss_bench::GlossBenchOptions {
         brdf_terms: a.brdf_terms,

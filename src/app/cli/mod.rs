@@ -25,6 +25,7 @@ mod bench;
 mod bounces;
 mod brdf;
 mod relight;
+mod relight_flags;
 mod view;
 mod volume;
 
@@ -39,6 +40,7 @@ pub use brdf::{BrdfArgs, GlossArgs};
 use brdf::{brdf_cmd, gloss_cmd};
 pub use relight::{EnvArgs, ReferenceArgs, RelightArgs};
 use relight::{compare_cmd, env_cmd, reference_cmd, relight_cmd};
+pub use relight_flags::{DEFAULT_TERMS, LocalLightArgs};
 pub use view::ViewArgs;
 use view::view_cmd;
 pub use volume::{
@@ -328,9 +330,9 @@ fn run(command: Command) -> Result<()> {
 /// encoder and are read as 0 without a word; the bundled maps hold at most 0.0037%.
 const NEGATIVE_NOTE_SHARE: f64 = 1e-3;
 
-/// The environment of an `--env` spec: a map file or the procedural sun. `none` is refused:
-/// the commands that can relight without an environment handle it before they get here. The
-/// file is guarded, so that no output of the command replaces it.
+/// The environment of an `--env` spec: a map file, a bundled map by name or the procedural sun.
+/// `none` is refused: the commands that can relight without an environment handle it before
+/// they get here. A file is guarded, so that no output of the command replaces it.
 fn load_env(spec: &str) -> Result<EnvMap> {
     if spec == "none" {
         return Err(PrtError::invalid(
@@ -341,9 +343,7 @@ fn load_env(spec: &str) -> Result<EnvMap> {
         ));
     }
     let env = EnvMap::from_spec(spec)?;
-    if let Ok(EnvSpec::File(p)) = EnvSpec::parse(spec) {
-        crate::files::guard_inputs(&[p]);
-    }
+    crate::files::guard_inputs(&env_files(&[spec.to_string()]));
     // Radiance cannot be negative; a map whose negative samples matter is said once per map,
     // however often a command loads it.
     static NOTED: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
@@ -363,15 +363,56 @@ fn load_env(spec: &str) -> Result<EnvMap> {
     Ok(env)
 }
 
-/// The files among environment specs (not the procedural `sun:` ones), for the output checks.
+/// The files among environment specs (not the procedural `sun:` ones, nor the maps bundled in
+/// the binary), for the output checks.
 fn env_files(specs: &[String]) -> Vec<PathBuf> {
     specs
         .iter()
         .filter_map(|s| match EnvSpec::parse(s) {
-            Ok(EnvSpec::File(p)) => Some(p),
+            Ok(EnvSpec::File(p)) if crate::light::envmap::bundled_map(&p).is_none() => Some(p),
             _ => None,
         })
         .collect()
+}
+
+/// The scene a transport file was baked from: `given` (`--scene`) when there is one, else the
+/// path the bake recorded, from the working folder or, failing that, beside the transport file
+/// (as recorded, then by its file name).
+fn bake_scene_path(file: &Path, recorded: &str, given: Option<&Path>) -> Result<PathBuf> {
+    if let Some(p) = given {
+        return Ok(p.to_path_buf());
+    }
+    let recorded = PathBuf::from(recorded);
+    let folder = file.parent().unwrap_or(Path::new(""));
+    let mut candidates = vec![recorded.clone()];
+    if recorded.is_relative() {
+        candidates.push(folder.join(&recorded));
+    }
+    if let Some(name) = recorded.file_name() {
+        candidates.push(folder.join(name));
+    }
+    candidates.into_iter().find(|p| p.is_file()).ok_or_else(|| {
+        PrtError::invalid(
+            "scene",
+            format!(
+                "{} was baked from {}, which is neither in the working folder nor beside the \
+                 file: give the scene with --scene",
+                file.display(),
+                recorded.display()
+            ),
+        )
+    })
+}
+
+/// An up direction X,Y,Z: three finite numbers, not all zero.
+fn parse_up(s: &str) -> std::result::Result<glam::Vec3, String> {
+    let up = volume::parse_vec3(s)?;
+    match up.length() > 0.0 {
+        true => Ok(up),
+        false => Err(format!(
+            "`{s}`: an up direction must not be the zero vector"
+        )),
+    }
 }
 
 /// Image outputs: `.exr` (linear) or `.png` (tone-mapped), none of `inputs`.

@@ -2,7 +2,7 @@
 //! brute-force reference, and their comparison.
 
 use super::*;
-use crate::relight::{Backend, LightMix, LightSetting, Terms};
+use crate::relight::{Backend, LightMix, Terms};
 use crate::store::transport::Domain;
 
 /// Arguments of `prt relight`.
@@ -10,16 +10,13 @@ use crate::store::transport::Domain;
 pub struct RelightArgs {
     /// Transport file.
     pub file: PathBuf,
-    /// Environment: an .exr/.hdr lat-long map, sun:ELEV,AZIM[,RADIUS], or none (the local
-    /// lights alone).
+    /// Environment: an .exr/.hdr lat-long map, a bundled map by name (`prt env --list`),
+    /// sun:ELEV,AZIM[,RADIUS], or none (the local lights alone).
     #[arg(long)]
     pub env: String,
-    /// A local light, relit as given (repeatable): NAME=SCALE (its scene file's colour and
-    /// intensity times SCALE; 0 turns it off), NAME=R,G,B (that colour at its intensity), or
-    /// NAME@POS (a moving light at POS along its baked positions, between two blending them),
-    /// as NAME@POS=… with either. Lights not named shine as the scene file says.
-    #[arg(long = "light", value_name = "NAME=VALUE")]
-    pub lights: Vec<String>,
+    /// The local lights (`--light`).
+    #[command(flatten)]
+    pub lights: LocalLightArgs,
     /// Output image (.exr linear, .png tone-mapped).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -27,7 +24,7 @@ pub struct RelightArgs {
     #[arg(long, default_value = "wavelet", value_parser = Method::from_str)]
     pub method: Method,
     /// Kept wavelet terms K.
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = DEFAULT_TERMS)]
     pub terms: usize,
     /// Wavelet term selection: none, area or transport.
     #[arg(long, default_value = "transport", value_parser = Weighting::from_str)]
@@ -67,12 +64,17 @@ pub struct RelightArgs {
 /// Where a per-vertex bake is seen from (a per-pixel bake's view is fixed).
 #[derive(Args, Debug, Clone, Copy, Default)]
 pub struct StillArgs {
-    /// Per-vertex bakes: camera position X,Y,Z (default: the scene's camera).
-    #[arg(long, value_parser = super::volume::parse_vec3, allow_negative_numbers = true)]
+    /// Per-vertex bakes: camera position X,Y,Z (default: the scene's camera). A moved camera
+    /// stays upright: its up is --up, not the scene camera's.
+    #[arg(long, value_parser = super::volume::parse_vec3, allow_hyphen_values = true)]
     pub eye: Option<glam::Vec3>,
     /// Per-vertex bakes: the point the camera looks at, X,Y,Z (default: the scene's target).
-    #[arg(long, value_parser = super::volume::parse_vec3, allow_negative_numbers = true)]
+    #[arg(long, value_parser = super::volume::parse_vec3, allow_hyphen_values = true)]
     pub target: Option<glam::Vec3>,
+    /// Per-vertex bakes: the up direction X,Y,Z of a camera moved by --eye or --target
+    /// (default: the world's +Y; looking straight along it, -Z).
+    #[arg(long, value_parser = super::parse_up, allow_hyphen_values = true)]
+    pub up: Option<glam::Vec3>,
     /// Per-vertex bakes: image width (default: the scene's).
     #[arg(long)]
     pub width: Option<u32>,
@@ -85,10 +87,8 @@ impl StillArgs {
     /// The camera of a still of `t`: the bake's camera with what was given replaced; an error
     /// for a per-pixel bake given any of it.
     pub fn camera(&self, t: &Transport) -> Result<Option<crate::scene::Camera>> {
-        let given = self.eye.is_some()
-            || self.target.is_some()
-            || self.width.is_some()
-            || self.height.is_some();
+        let moved = self.eye.is_some() || self.target.is_some() || self.up.is_some();
+        let given = moved || self.width.is_some() || self.height.is_some();
         if t.domain == Domain::View {
             if given {
                 crate::relight::vertex::mesh_of(t)?;
@@ -96,8 +96,10 @@ impl StillArgs {
             return Ok(None);
         }
         let mut c = crate::relight::vertex::bake_camera(t)?;
-        c.eye = self.eye.unwrap_or(c.eye);
-        c.target = self.target.unwrap_or(c.target);
+        if moved {
+            let (eye, target) = (self.eye.unwrap_or(c.eye), self.target.unwrap_or(c.target));
+            c = crate::relight::vertex::moved_camera(&c, eye, target, self.up);
+        }
         c.width = self.width.unwrap_or(c.width);
         c.height = self.height.unwrap_or(c.height);
         c.validate()?;
@@ -138,19 +140,24 @@ pub struct ReferenceArgs {
     #[command(flatten)]
     pub framing: FramingArgs,
     /// Camera position X,Y,Z (default: the scene's camera): the reference of a per-vertex bake
-    /// drawn with `prt relight --eye`.
-    #[arg(long, value_parser = super::volume::parse_vec3, allow_negative_numbers = true)]
+    /// drawn with `prt relight --eye`. A moved camera stays upright: its up is --up, not the
+    /// scene camera's.
+    #[arg(long, value_parser = super::volume::parse_vec3, allow_hyphen_values = true)]
     pub eye: Option<glam::Vec3>,
     /// The point the camera looks at, X,Y,Z (default: the scene's target).
-    #[arg(long, value_parser = super::volume::parse_vec3, allow_negative_numbers = true)]
+    #[arg(long, value_parser = super::volume::parse_vec3, allow_hyphen_values = true)]
     pub target: Option<glam::Vec3>,
-    /// Environment: an .exr/.hdr lat-long map, sun:ELEV,AZIM[,RADIUS], or none (the local
-    /// lights alone).
+    /// The up direction X,Y,Z of a camera moved by --eye or --target (default: the world's +Y;
+    /// looking straight along it, -Z).
+    #[arg(long, value_parser = super::parse_up, allow_hyphen_values = true)]
+    pub up: Option<glam::Vec3>,
+    /// Environment: an .exr/.hdr lat-long map, a bundled map by name (`prt env --list`),
+    /// sun:ELEV,AZIM[,RADIUS], or none (the local lights alone).
     #[arg(long)]
     pub env: String,
-    /// A local light, as `prt relight --light` takes it (repeatable).
-    #[arg(long = "light", value_name = "NAME=VALUE")]
-    pub lights: Vec<String>,
+    /// The local lights (`--light`), as `prt relight` takes them.
+    #[command(flatten)]
+    pub lights: LocalLightArgs,
     /// Output image (.exr linear, .png tone-mapped).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -192,8 +199,13 @@ crate::named!(Estimator, "estimator");
 /// Arguments of `prt env`.
 #[derive(Args, Debug)]
 pub struct EnvArgs {
-    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
-    pub env: String,
+    /// Environment: an .exr/.hdr lat-long map, a bundled map by name (see --list), or
+    /// sun:ELEV,AZIM[,RADIUS].
+    #[arg(required_unless_present = "list")]
+    pub env: Option<String>,
+    /// List the maps bundled into the binary, which every --env takes by name.
+    #[arg(long)]
+    pub list: bool,
     /// Cube face size for the Haar statistics.
     #[arg(long, default_value_t = 32)]
     pub cube: usize,
@@ -218,7 +230,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     // read or recorded, the cube gathered, its Haar and SH coefficients taken): a fresh process
     // then spends on its light, after the load, little more than the selection of terms.
     let header = crate::store::transport::read_header_meta(&a.file)?;
-    let mix = light_mix(&header.lights, &a.lights)?;
+    let mix = a.lights.mix(&header.lights)?;
     let env = optional_env(&a.env, &mix)?;
     let rotation = a.turn.rotation();
     let sizes = (
@@ -258,8 +270,22 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     {
         crate::flags::sh_order(o, t.meta.identity.sh_order as usize)?;
     }
+    // The default K on a cube too small to hold it keeps every term; a K asked for is checked.
+    let total = crate::math::cubemap::texel_count(t.meta.identity.cube_n as usize);
+    let k = if a.terms == DEFAULT_TERMS && a.terms > total {
+        if method == Method::Wavelet {
+            eprintln!(
+                "note: the default K = {DEFAULT_TERMS} is more than the {total} terms of N = {}: \
+                 every term is kept",
+                t.meta.identity.cube_n
+            );
+        }
+        total
+    } else {
+        a.terms
+    };
     if method == Method::Wavelet {
-        crate::flags::terms(a.terms, t.meta.identity.cube_n as usize)?;
+        crate::flags::terms(k, t.meta.identity.cube_n as usize)?;
     }
     let start = Instant::now();
     let (ctx, light, prepared_in) = ahead;
@@ -279,7 +305,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     };
     let req = RelightRequest::new(
         method,
-        a.terms,
+        k,
         weighting,
         a.sh_order.unwrap_or(t.meta.identity.sh_order as usize),
     );
@@ -374,30 +400,35 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         0 => String::new(),
         n => format!(", {n} light column(s) added"),
     };
+    // With the environment off there are no light terms: only the lights' columns are added.
+    let summary = match &env {
+        None => "environment off (no light terms)".to_string(),
+        Some(_) => format!(
+            "{method}: {} terms{}, {} nonzeros touched ({:.1} MiB), light {light_ms:.1} ms{}",
+            stats.terms,
+            match req {
+                RelightRequest::Wavelet { weighting, .. } => format!(" ({weighting} weighting)"),
+                RelightRequest::ShLight { order } => format!(
+                    " (the light through SH order {order}, relit with every stored Haar term)"
+                ),
+                _ => String::new(),
+            },
+            stats.nonzeros_touched,
+            stats.bytes_touched as f64 / 1048576.0,
+            match beside {
+                false => {
+                    " (prepared after the load: the file changed after its header was read)".into()
+                }
+                true => format!(
+                    " (prepared beside the load in {:.1} ms, {:.1} ms of it after the file loaded)",
+                    prepared_in.as_secs_f64() * 1e3,
+                    waited.as_secs_f64() * 1e3
+                ),
+            },
+        ),
+    };
     println!(
-        "{method}: {} terms{}{lit}, {} nonzeros touched ({:.1} MiB), light {:.1} ms{}, kernel {:.2} ms on the {}{drawn} -> {}",
-        stats.terms,
-        match (&env, req) {
-            (None, _) => " (environment off)".to_string(),
-            (_, RelightRequest::Wavelet { weighting, .. }) => format!(" ({weighting} weighting)"),
-            (_, RelightRequest::ShLight { order }) =>
-                format!(" (the light through SH order {order}, relit with every stored Haar term)"),
-            _ => String::new(),
-        },
-        stats.nonzeros_touched,
-        stats.bytes_touched as f64 / 1048576.0,
-        light_ms,
-        match &env {
-            Some(_) if !beside => {
-                " (prepared after the load: the file changed after its header was read)".into()
-            }
-            Some(_) => format!(
-                " (prepared beside the load in {:.1} ms, {:.1} ms of it after the file loaded)",
-                prepared_in.as_secs_f64() * 1e3,
-                waited.as_secs_f64() * 1e3
-            ),
-            None => String::new(),
-        },
+        "{summary}{lit}, kernel {:.2} ms on the {}{drawn} -> {}",
         stats.kernel_seconds * 1e3,
         match &gpu {
             Some(g) => format!("GPU ({})", g.adapter),
@@ -416,12 +447,15 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     let mut inputs = env_files(std::slice::from_ref(&a.env));
     check_image_output(&a.output, &inputs)?;
     let mut scene = a.framing.load(&a.scene)?;
-    scene.camera.eye = a.eye.unwrap_or(scene.camera.eye);
-    scene.camera.target = a.target.unwrap_or(scene.camera.target);
+    if a.eye.is_some() || a.target.is_some() || a.up.is_some() {
+        let c = &scene.camera;
+        let (eye, target) = (a.eye.unwrap_or(c.eye), a.target.unwrap_or(c.target));
+        scene.camera = crate::relight::vertex::moved_camera(c, eye, target, a.up);
+    }
     scene.camera.validate()?;
     inputs.extend(scene.input_files.iter().cloned());
     check_image_output(&a.output, &inputs)?;
-    let mix = light_mix(&scene.lights, &a.lights)?;
+    let mix = a.lights.mix(&scene.lights)?;
     let env = optional_env(&a.env, &mix)?;
     let rotation = a.turn.rotation();
     let cube = match &env {
@@ -500,7 +534,22 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
 }
 
 pub(super) fn env_cmd(a: EnvArgs) -> Result<()> {
-    let env = load_env(&a.env)?;
+    let spec = match (&a.env, a.list) {
+        (_, true) => {
+            for m in crate::light::envmap::BUNDLED_MAPS {
+                println!("{}", m.name);
+            }
+            return Ok(());
+        }
+        (Some(spec), false) => spec,
+        (None, false) => {
+            return Err(PrtError::invalid(
+                "env",
+                "give an environment, or --list for the bundled maps",
+            ));
+        }
+    };
+    let env = load_env(spec)?;
     let power = env.power();
     let sh = env.project_sh(a.sh, EnvRotation::default())?;
     let cube = env.to_cube(a.cube, EnvRotation::default())?;
@@ -586,19 +635,14 @@ pub(super) fn compare_cmd(image: PathBuf, reference: PathBuf, mask: Option<PathB
         e => e,
     })?;
     println!(
-        "rel_l2 {:.6}  rmse {:.6}  psnr {:.2} dB  rel_h1 {:.6}  dssim {:.6}",
-        e.rel_l2, e.rmse, e.psnr_db, e.rel_h1, e.dssim
+        "rel_l2 {:.4}%  rmse {:.6}  psnr {:.2} dB  rel_h1 {:.4}%  dssim {:.6}",
+        100.0 * e.rel_l2,
+        e.rmse,
+        e.psnr_db,
+        100.0 * e.rel_h1,
+        e.dssim
     );
     Ok(())
-}
-
-/// The weights of `lights` after the `--light` arguments `args`.
-fn light_mix(lights: &[crate::scene::Light], args: &[String]) -> Result<LightMix> {
-    let mut settings = LightSetting::defaults(lights);
-    for arg in args {
-        crate::scene::light_mix::apply_light_arg(lights, &mut settings, arg)?;
-    }
-    LightMix::new(lights, &settings)
 }
 
 /// The environment of `--env`, or `None` for `none`, which needs a local light that is on.

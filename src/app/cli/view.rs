@@ -14,24 +14,25 @@ pub struct ViewArgs {
     /// Render one frame to this PNG without opening a window, then exit.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
-    /// wavelet, sh, full or sh-light (with --screenshot).
+    /// wavelet, sh, full or sh-light (with --screenshot; default as `prt relight`).
     #[arg(long, value_parser = Method::from_str)]
     pub method: Option<Method>,
-    /// Kept wavelet terms K (with --screenshot).
+    /// Kept wavelet terms K (with --screenshot; default as `prt relight`, at most the file's
+    /// 6·N²).
     #[arg(long)]
     pub terms: Option<usize>,
-    /// none, area or transport (with --screenshot).
+    /// none, area or transport (with --screenshot; default as `prt relight`).
     #[arg(long, value_parser = Weighting::from_str)]
     pub weighting: Option<Weighting>,
-    /// SH order (with --screenshot).
+    /// SH order (with --screenshot; default the baked order, as `prt relight`).
     #[arg(long)]
     pub sh_order: Option<usize>,
-    /// Environment yaw, degrees (with --screenshot).
-    #[arg(long, allow_negative_numbers = true)]
-    pub yaw: Option<f64>,
-    /// Environment pitch, degrees (with --screenshot).
-    #[arg(long, allow_negative_numbers = true)]
-    pub pitch: Option<f64>,
+    /// The local lights, as `prt relight` takes them (with --screenshot).
+    #[command(flatten)]
+    pub lights: LocalLightArgs,
+    /// How the environment is turned (with --screenshot).
+    #[command(flatten)]
+    pub turn: TurnArgs,
     /// Exposure in stops (with --screenshot; default automatic).
     #[arg(long, allow_negative_numbers = true)]
     pub exposure: Option<f32>,
@@ -55,10 +56,16 @@ pub struct ViewArgs {
 }
 
 pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
-    use crate::app::viewer::{Engine, env_entries, screenshot};
+    use crate::app::viewer::{Engine, LightState, env_entries, screenshot};
     let Some(out) = a.screenshot.clone() else {
         if a.method.is_some()
             || a.terms.is_some()
+            || a.weighting.is_some()
+            || a.sh_order.is_some()
+            || !a.lights.is_empty()
+            || a.turn.yaw != 0.0
+            || a.turn.pitch != 0.0
+            || a.exposure.is_some()
             || a.compare
             || a.error_map
             || a.split.is_some()
@@ -67,8 +74,9 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
         {
             return Err(PrtError::invalid(
                 "viewer",
-                "--method, --terms, --orbit, ... apply to --screenshot only (in the window, drag \
-                 the image of a per-vertex bake to orbit)",
+                "--method, --terms, --light, --yaw, --orbit, ... apply to --screenshot only (in \
+                 the window, set them in the panel; drag the image of a per-vertex bake to \
+                 orbit)",
             ));
         }
         if !a.file.exists() {
@@ -88,7 +96,7 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
         "a tone-mapped PNG (`prt relight -o IMG.exr` writes linear radiance)",
         &inputs,
     )?;
-    check_light_flags(a.yaw.unwrap_or(0.0), a.pitch.unwrap_or(0.0), a.exposure)?;
+    check_light_flags(a.turn.yaw, a.turn.pitch, a.exposure)?;
     if let Some(f) = a.split {
         crate::flags::fraction("split", f)?;
     }
@@ -96,6 +104,7 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
         if a.method.is_some()
             || a.terms.is_some()
             || a.weighting.is_some()
+            || !a.lights.is_empty()
             || a.compare
             || a.error_map
             || a.split.is_some()
@@ -103,8 +112,9 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
         {
             return Err(PrtError::invalid(
                 "viewer",
-                "--method, --terms, --weighting, --compare, --split, --error-map and --orbit apply to \
-                 transport files; for a volume's views and cameras use `prt volume render`",
+                "--method, --terms, --weighting, --light, --compare, --split, --error-map and \
+                 --orbit apply to transport files; for a volume's views and cameras use `prt \
+                 volume render`",
             ));
         }
         return volume_screenshot_cmd(&a, &out);
@@ -115,7 +125,13 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
     let panes = (1 + u64::from(compare)) * (1 + u64::from(a.error_map));
     check_screenshot_memory(&transport, panes)?;
     let mut engine = Engine::from_transport(&a.file, transport, entries)?;
-    let mut state = engine.initial_state(light);
+    // The lights are checked before the first view is made; the turn is the first view's.
+    let light_settings = a.lights.settings(&engine.transport.meta.lights)?;
+    let mut state = engine.initial_state(LightState {
+        rotation: a.turn.rotation(),
+        ..light
+    });
+    state.set_lights(&engine.transport.meta.lights, &light_settings)?;
     state.relight.compare = compare;
     state.display.error_map = a.error_map;
     if let Some(f) = a.split {
@@ -154,12 +170,6 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
         }
         state.relight.sh_order = o;
     }
-    if let Some(y) = a.yaw {
-        state.light.rotation.yaw_deg = y;
-    }
-    if let Some(p) = a.pitch {
-        state.light.rotation.pitch_deg = p;
-    }
     if let Some(o) = a.orbit {
         crate::relight::vertex::mesh_of(&engine.transport)?;
         state.orbit = o;
@@ -175,12 +185,12 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
     for p in &r.panes {
         let l = &p.linear;
         println!(
-            "{}: {} terms, {:.2} M nonzeros touched, relight {:.2} ms, relative L2 vs full {:.4}",
+            "{}: {} terms, {:.2} M nonzeros touched, relight {:.2} ms, relative L2 vs full {}",
             l.title,
             l.terms,
             l.nonzeros_touched as f64 * 1e-6,
             l.relight_seconds * 1e3,
-            l.rel_l2
+            l.rel_l2_percent()
         );
     }
     println!("wrote {}", out.display());
@@ -227,12 +237,7 @@ fn volume_screenshot_cmd(a: &ViewArgs, out: &std::path::Path) -> Result<()> {
         light,
         ..VolumeState::initial(&vt)
     };
-    if let Some(y) = a.yaw {
-        state.light.rotation.yaw_deg = y;
-    }
-    if let Some(p) = a.pitch {
-        state.light.rotation.pitch_deg = p;
-    }
+    state.light.rotation = a.turn.rotation();
     if let Some(o) = a.sh_order {
         crate::flags::sh_order(o, vt.meta.sh_order)?;
         state.sh_order = o;

@@ -41,10 +41,10 @@ pub struct VolumeBakeArgs {
 #[derive(Args, Debug)]
 pub struct VolumeCameraArgs {
     /// Camera position X,Y,Z (default: the scene's camera).
-    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true)]
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub eye: Option<glam::Vec3>,
     /// Point the camera looks at, X,Y,Z (default: the scene's target).
-    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true)]
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub target: Option<glam::Vec3>,
     /// Image width (default: the scene's).
     #[arg(long)]
@@ -392,8 +392,13 @@ pub(super) fn volume_reference_cmd(a: VolumeReferenceArgs) -> Result<()> {
             .as_ref()
             .ok_or_else(|| PrtError::file(&a.file, "the scene has no [medium] to trace"))?;
         let mut camera = scene.camera.clone();
-        camera.eye = c.eye.unwrap_or(camera.eye);
-        camera.target = c.target.unwrap_or(camera.target);
+        if c.eye.is_some() || c.target.is_some() {
+            let (eye, target) = (
+                c.eye.unwrap_or(camera.eye),
+                c.target.unwrap_or(camera.target),
+            );
+            camera = crate::relight::vertex::moved_camera(&camera, eye, target, None);
+        }
         if let Some((w, h)) = c.size(camera.width, camera.height) {
             (camera.width, camera.height) = (w, h);
         }

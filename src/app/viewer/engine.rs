@@ -13,6 +13,7 @@ use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvMap, EnvRotation, EnvSpec};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
+use crate::output::sheet::{ErrorImage, HeatScale};
 use crate::relight::background::{composite, environment_behind};
 use crate::relight::gpu::{Gpu, GpuBackend, GpuTransport};
 use crate::relight::vertex::{self, bake_camera};
@@ -195,8 +196,9 @@ impl Engine {
         view_size(&self.transport)
     }
 
-    /// A state that suits this file: the given environment, SH at the baked order, K = 1% of
-    /// 6 N² (at least 16), exposure from the `full` image.
+    /// A state that suits this file: the given environment, SH at the baked order, K as
+    /// `prt relight` takes it ([`crate::app::cli::DEFAULT_TERMS`], at most 6 N²), exposure from
+    /// the `full` image.
     pub fn initial_state(&mut self, light: LightState) -> ViewState {
         let limits = self.limits();
         let mut s = ViewState {
@@ -205,7 +207,7 @@ impl Engine {
             ..ViewState::default()
         };
         s.relight.sh_order = limits.sh_order;
-        s.relight.terms = (limits.coeffs / 100).max(16).min(limits.coeffs);
+        s.relight.terms = s.relight.terms.min(limits.coeffs);
         s.clamp(limits);
         if let Ok(e) = self.auto_exposure(&s) {
             s.display.exposure = e;
@@ -307,12 +309,22 @@ impl Engine {
         self.prepare_with(state, &mut |_| {})
     }
 
-    /// The exposure [`ToneMap::auto`] picks for the `full` image under `state`'s light.
+    /// The exposure [`ToneMap::auto`] picks for what `state` shows: the `full` image under its
+    /// light with its local lights added (the lights alone when the environment is off).
     pub fn auto_exposure(&mut self, state: &ViewState) -> Result<f32> {
         let mut s = state.clone();
         s.clamp(self.limits());
+        s.lights.clamp(&self.transport.meta.lights);
         self.prepare(&s)?;
-        let full = &self.light.as_ref().expect("prepared").full;
+        let mut shown = self.light.as_ref().expect("prepared").full.clone();
+        if !s.lights.environment_shown() {
+            shown.pixels.fill([0.0; 3]);
+        }
+        let mix = s.lights.mix(&self.transport.meta.lights)?;
+        self.transport
+            .lights
+            .add_to(&mix.weights, &mut shown.pixels);
+        let full = &shown;
         // A per-vertex bake is exposed for what its camera sees, not for every vertex (the
         // unlit undersides of two-sided surfaces among them).
         Ok(match self.camera(&s) {
@@ -439,19 +451,17 @@ impl Engine {
         }
         let tone = state.tone_map();
         let mut panes: Vec<Pane> = Vec::new();
-        let mut maps: Vec<Pane> = Vec::new();
+        let mut errors: Vec<(LinearPane, ErrorImage)> = Vec::new();
         // One pane: its numbers, the relit image the error map compares with `full`, and the
         // image shown (over the environment behind the scene; the errors were taken before).
         let mut show = |linear: &LinearPane, relit: &Image, image: Image, full: &Image| {
             if state.display.error_map {
-                maps.push(Pane {
-                    rgb: error_heat_map(relit, full, ERROR_MAP_GAIN),
-                    linear: LinearPane {
-                        title: format!("error of {} x{ERROR_MAP_GAIN}", linear.title),
-                        image: image.clone(),
-                        ..linear.clone()
-                    },
-                });
+                let pane = LinearPane {
+                    title: format!("error of {}", linear.title),
+                    image: image.clone(),
+                    ..linear.clone()
+                };
+                errors.push((pane, ErrorImage::of(relit, full)));
             }
             let linear = LinearPane {
                 image,
@@ -484,7 +494,17 @@ impl Engine {
                 }
             }
         }
-        panes.extend(maps);
+        // One scale for every heat map, so that equal colours are equal errors.
+        let heat = (!errors.is_empty())
+            .then(|| HeatScale::of(&errors.iter().map(|(_, e)| e).collect::<Vec<_>>()));
+        if let Some(scale) = heat {
+            for (linear, error) in errors {
+                panes.push(Pane {
+                    rgb: error.heat_map(scale),
+                    linear,
+                });
+            }
+        }
         // A per-vertex bake's images are its camera's size, which the draw size sets.
         let (width, height) = match self.camera(&state) {
             Some(c) => (c.width as usize, c.height as usize),
@@ -498,6 +518,7 @@ impl Engine {
             notes,
             light_seconds,
             full_seconds,
+            heat,
         })
     }
 }
@@ -560,6 +581,14 @@ impl Engine {
     }
 }
 
+impl LinearPane {
+    /// Its relative L2 error against `full` in percent, two decimals (`53.29%`), as every
+    /// relative error is shown.
+    pub fn rel_l2_percent(&self) -> String {
+        format!("{:.2}%", 100.0 * self.rel_l2)
+    }
+}
+
 /// Width and height of the images a viewer shows of `t`: the bake's, or for a per-vertex bake
 /// its camera's.
 pub fn view_size(t: &Transport) -> (usize, usize) {
@@ -581,32 +610,6 @@ pub fn save_view(engine: &mut Engine, state: &ViewState, stem: &Path) -> Result<
         .linear
         .image
         .save(&stem.with_extension("exr"), ToneMap::default())
-}
-
-/// How much the error heat map magnifies: a difference of 1/10 of the image's mean luminance
-/// shows at full heat.
-pub const ERROR_MAP_GAIN: f32 = 10.0;
-
-/// |image − full| in luminance, over the mean luminance of `full`, times `gain`, as a black →
-/// red → yellow → white heat map (RGB8).
-pub fn error_heat_map(image: &Image, full: &Image, gain: f32) -> Vec<u8> {
-    let lum = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-    let lit: Vec<f32> = full.pixels.iter().map(lum).filter(|l| *l > 0.0).collect();
-    let mean = if lit.is_empty() {
-        1.0
-    } else {
-        lit.iter().sum::<f32>() / lit.len() as f32
-    };
-    image
-        .pixels
-        .iter()
-        .zip(&full.pixels)
-        .flat_map(|(a, b)| {
-            let e = ((lum(a) - lum(b)).abs() / mean * gain).clamp(0.0, 1.0);
-            let ramp = |lo: f32| ((3.0 * e - lo).clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
-            [ramp(0.0), ramp(1.0), ramp(2.0)]
-        })
-        .collect()
 }
 
 /// Renders `state` as the window would show it and writes it as a PNG, each image under a

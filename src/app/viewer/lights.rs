@@ -180,41 +180,56 @@ pub fn outline_quads(
     }
 }
 
-/// The Lights panel: the environment's switch, then for every light its switch, solo, colour,
-/// intensity in stops and, for a light that moves, its place along the path.
+/// Rows of the lights list shown before it scrolls.
+const LIST_ROWS: f32 = 6.0;
+/// Width of the lights' sliders, points: a light's switch, solo, colour and intensity share one
+/// row of the panel.
+const LIGHT_SLIDER_WIDTH: f32 = 64.0;
+
+/// The Lights panel: the heading with the environment's switch, then one row per light (its
+/// switch, solo, colour and intensity in stops) and, for a light that moves, a row per axis of
+/// its path; past [`LIST_ROWS`] rows the list scrolls, so the rows below stay in the window.
 pub fn lights_controls(ui: &mut egui::Ui, lights: &[Light], state: &mut LightsState) {
-    ui.heading("Lights");
-    ui.checkbox(&mut state.environment, "Environment");
-    for (i, (light, c)) in lights.iter().zip(state.lights.iter_mut()).enumerate() {
-        ui.horizontal(|ui| {
-            ui.checkbox(&mut c.on, &light.name)
-                .on_hover_text(format!("a {} light", light.shape.kind()));
-            let solo = state.solo == Some(i);
-            if ui
-                .selectable_label(solo, "solo")
-                .on_hover_text("this light alone")
-                .clicked()
-            {
-                state.solo = if solo { None } else { Some(i) };
-            }
-            ui.color_edit_button_rgb(&mut c.color);
-        });
-        ui.add(
-            egui::Slider::new(&mut c.stops, -STOPS..=STOPS).text(format!("{} stops", light.name)),
+    ui.horizontal(|ui| {
+        ui.heading("Lights").on_hover_text(
+            "Every method relights the environment; the lights are added exactly in each, and \
+             the errors shown are the environment's.",
         );
-        let moving = light.grid.iter().filter(|&&n| n > 1).count();
-        for (a, (at, &n)) in c.at.iter_mut().zip(&light.grid).enumerate() {
-            if n > 1 {
-                let label = match moving {
-                    1 => format!("{} position", light.name),
-                    _ => format!("{} {}", light.name, ["x", "y", "z"][a]),
-                };
-                ui.add(egui::Slider::new(at, 0.0..=(n - 1) as f32).text(label));
+        ui.checkbox(&mut state.environment, "Environment");
+    });
+    let row = ui.spacing().interact_size.y + ui.spacing().item_spacing.y;
+    egui::ScrollArea::vertical()
+        .id_salt("lights")
+        .max_height(LIST_ROWS * row)
+        .show(ui, |ui| {
+            ui.spacing_mut().slider_width = LIGHT_SLIDER_WIDTH;
+            for (i, (light, c)) in lights.iter().zip(state.lights.iter_mut()).enumerate() {
+                ui.horizontal_wrapped(|ui| {
+                    ui.checkbox(&mut c.on, &light.name)
+                        .on_hover_text(format!("a {} light", light.shape.kind()));
+                    let solo = state.solo == Some(i);
+                    if ui
+                        .selectable_label(solo, "solo")
+                        .on_hover_text("this light alone")
+                        .clicked()
+                    {
+                        state.solo = if solo { None } else { Some(i) };
+                    }
+                    ui.color_edit_button_rgb(&mut c.color);
+                    // Named by its hover text, which tells what it sets.
+                    ui.add(egui::Slider::new(&mut c.stops, -STOPS..=STOPS))
+                        .on_hover_text(format!("{} stops", light.name));
+                });
+                let moving = light.grid.iter().filter(|&&n| n > 1).count();
+                for (a, (at, &n)) in c.at.iter_mut().zip(&light.grid).enumerate() {
+                    if n > 1 {
+                        let label = match moving {
+                            1 => format!("{} position", light.name),
+                            _ => format!("{} {}", light.name, ["x", "y", "z"][a]),
+                        };
+                        ui.add(egui::Slider::new(at, 0.0..=(n - 1) as f32).text(label));
+                    }
+                }
             }
-        }
-    }
-    ui.label(
-        "Every method relights the environment; the lights are added exactly in each, and the \
-         errors shown are the environment's.",
-    );
+        });
 }

@@ -6,12 +6,16 @@
 
 use std::path::PathBuf;
 
+use super::lights::STOPS;
 use super::{EnvEntry, EnvSource, LightsState};
+use crate::app::cli::DEFAULT_TERMS;
+use crate::error::{PrtError, Result};
 use crate::light::envmap::{EnvRotation, EnvSpec, SunSpec};
 use crate::light::select::Weighting;
 use crate::output::film::{ToneCurve, ToneMap};
 use crate::relight::vertex::Orbit;
-use crate::relight::{Method, RelightRequest};
+use crate::relight::{LightSetting, Method, RelightRequest};
+use crate::scene::Light;
 
 /// The light of a view: an entry of the environment list, where the procedural sun stands (used
 /// when that entry is the sun, and kept while another is shown), and the environment's turn.
@@ -112,7 +116,7 @@ impl LightKey {
 pub struct RelightState {
     /// The method shown (when not comparing).
     pub method: Method,
-    /// Kept wavelet terms K (1 to 6 N²).
+    /// Kept wavelet terms K (1 to 6 N²); at first [`DEFAULT_TERMS`], as `prt relight`.
     pub terms: usize,
     /// How the K terms are chosen.
     pub weighting: Weighting,
@@ -126,7 +130,7 @@ impl Default for RelightState {
     fn default() -> Self {
         RelightState {
             method: Method::Wavelet,
-            terms: 64,
+            terms: DEFAULT_TERMS,
             weighting: Weighting::Transport,
             sh_order: 4,
             compare: false,
@@ -357,6 +361,43 @@ impl ViewState {
     /// The panes this state shows: the requests and their titles.
     pub fn requests(&self, limits: Limits) -> Vec<(String, RelightRequest)> {
         self.relight.requests(limits)
+    }
+
+    /// Sets the local lights of `lights` as `settings` say (one per light, as `--light`
+    /// arguments leave them): each light's switch, colour and place, and its intensity in stops
+    /// from its scene file's, within the stops the window's slider spans either way.
+    pub fn set_lights(&mut self, lights: &[Light], settings: &[LightSetting]) -> Result<()> {
+        if settings.len() != lights.len() {
+            return Err(PrtError::invalid(
+                "lights",
+                format!("{} settings for {} lights", settings.len(), lights.len()),
+            ));
+        }
+        let mut state = LightsState::of(lights);
+        state.environment = self.lights.environment;
+        for ((control, light), s) in state.lights.iter_mut().zip(lights).zip(settings) {
+            control.on = s.on;
+            control.color = s.color.to_array();
+            control.at = s.at;
+            if s.on && light.intensity > 0.0 {
+                let scale = s.intensity / light.intensity;
+                let stops = scale.log2();
+                if !(-STOPS..=STOPS).contains(&stops) {
+                    let most = STOPS.exp2();
+                    return Err(PrtError::invalid(
+                        "--light",
+                        format!(
+                            "`{}` at {scale} times its scene file's intensity; the viewer takes \
+                             1/{most} to {most} times it",
+                            light.name
+                        ),
+                    ));
+                }
+                control.stops = stops;
+            }
+        }
+        self.lights = state;
+        Ok(())
     }
 
     /// What its relit values are cached under.

@@ -87,7 +87,9 @@ pub enum BakeDomain {
     /// The vertices of the scene tessellated to this longest edge (scene units), each vertex
     /// "pixel" `v` of an image [`super::TILE`] wide (see [`PerVertexMeta`]).
     Vertices {
-        /// The longest edge the tessellation allowed.
+        /// The longest edge the tessellation allowed; refined at shadow edges
+        /// ([`BakeIdentity::refine_shadows`]), the length whose uniform tessellation sets its
+        /// vertex count.
         edge_length: f32,
     },
 }
@@ -159,6 +161,9 @@ pub struct BakeIdentity {
     /// The factor error a glossy material's K_b is chosen for (0: every glossy material takes
     /// `brdf_terms`; always 0 for a view).
     pub brdf_error: f32,
+    /// Whether a per-vertex bake's tessellation was refined at shadow edges within the uniform
+    /// one's vertex count (false: uniform, as in every file before it; always false for a view).
+    pub refine_shadows: bool,
 }
 
 /// How many vertices and triangles a per-vertex bake's mesh has, and the image it is drawn at:
@@ -385,6 +390,8 @@ struct PerVertexFile {
     brdf_stride: u32,
     #[serde(default, skip_serializing_if = "is_zero")]
     brdf_map: u32,
+    #[serde(default, skip_serializing_if = "is_false")]
+    refine_shadows: bool,
 }
 
 fn is_zero(v: &u32) -> bool {
@@ -461,6 +468,7 @@ impl TryFrom<MetaFile> for TransportMeta {
                 light_samples: f.light_samples,
                 brdf_terms: f.per_vertex.as_ref().map_or(1, |p| p.brdf_terms),
                 brdf_error: f.per_vertex.as_ref().map_or(0.0, |p| p.brdf_error),
+                refine_shadows: f.per_vertex.as_ref().is_some_and(|p| p.refine_shadows),
             },
             cache_points: f.indirect.as_ref().map_or(0, |i| i.cache_points),
             per_vertex: f.per_vertex.map(|p| PerVertexMeta {
@@ -520,6 +528,7 @@ impl From<TransportMeta> for MetaFile {
                     brdf_error: id.brdf_error,
                     brdf_stride: p.brdf_stride,
                     brdf_map: p.brdf_map,
+                    refine_shadows: id.refine_shadows,
                 }),
                 _ => None,
             },

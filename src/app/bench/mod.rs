@@ -1,8 +1,9 @@
 //! Sparsity versus error: the curve of Ng et al. 2003. For every environment, the error of wavelet
 //! relighting (each weighting) against the kept-term count K and of SH against its coefficient
-//! count n², all against `full` (every stored term), with the relight time and the transport bytes
-//! touched per point; then a CSV, log-log plots and a markdown summary of the terms each method
-//! needs to reach a given error.
+//! count n², all against `full` (every stored term), with the relight time (after an untimed
+//! warm-up) and the transport bytes touched per point; then a CSV, log-log plots (the error plot
+//! with a line at each summary error, labelled with the terms each curve needs) and a markdown
+//! summary of the terms each method needs to reach a given error.
 
 use crate::store::transport::Domain;
 use std::fmt::Write as _;
@@ -14,16 +15,19 @@ use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::light::select::Weighting;
 use crate::output::film::Image;
 use crate::output::metrics::{ErrorReport, compare, relative_l2};
-use crate::output::plot::{self, PlotSpec, Series};
+use crate::output::plot::{self, Corner, Figure, Level, Look, Marker, PALETTE, PlotSpec, Series};
 use crate::relight::{
     Backend, Cpu, LightContext, Method, RelightRequest, RelightStats, Terms, relight,
 };
 use crate::scene::Scene;
 use crate::store::transport::Transport;
 
+mod compression;
+pub use compression::{CompressionPoint, compression_sweep, write_compression};
+
 /// Error levels the summary reports the needed terms for.
 pub const SUMMARY_TARGETS: [f64; 3] = [0.10, 0.05, 0.01];
-/// Relights per point; the median time is reported.
+/// Timed relights per point, after one untimed; the median time is reported.
 const TIMING_RUNS: usize = 3;
 
 /// What to sweep.
@@ -115,7 +119,7 @@ pub struct BenchPoint {
     pub light_rel_l2: Option<f64>,
     /// Relative L2 against the brute-force reference, when one was rendered.
     pub reference_rel_l2: Option<f64>,
-    /// Median CPU kernel time, milliseconds.
+    /// Median CPU kernel time after a warm-up relight, milliseconds.
     pub cpu_ms: f64,
     /// Median GPU time (terms upload, kernels, readback), milliseconds, when a GPU was used.
     pub gpu_ms: Option<f64>,
@@ -149,6 +153,16 @@ pub(crate) fn timed_runs(
     times.sort_by(f64::total_cmp);
     let (img, stats) = last.ok_or_else(|| PrtError::invalid("bench", "no timing run"))?;
     Ok((img, stats, times[times.len() / 2]))
+}
+
+/// [`timed_runs`] after one untimed call, so that a cold first call (caches, buffers made on
+/// first use) is not timed.
+pub(crate) fn warm_runs(
+    runs: usize,
+    mut run: impl FnMut() -> Result<(Image, RelightStats)>,
+) -> Result<(Image, RelightStats, f64)> {
+    run()?;
+    timed_runs(runs, run)
 }
 
 /// Optional extras of a sweep: the GPU kernels, and brute-force references (one per
@@ -243,10 +257,10 @@ pub fn run(
         let mut measure =
             |req: RelightRequest, terms: Terms, light_rel_l2: Option<f64>| -> Result<()> {
                 let cpu = Cpu(t);
-                let (img, stats, cpu_ms) = timed_runs(TIMING_RUNS, || cpu.relight_terms(&terms))?;
+                let (img, stats, cpu_ms) = warm_runs(TIMING_RUNS, || cpu.relight_terms(&terms))?;
                 img.check_finite("relit image")?;
                 let gpu_ms = match extras.gpu {
-                    Some(gpu) => Some(timed_runs(TIMING_RUNS, || gpu.relight_terms(&terms))?.2),
+                    Some(gpu) => Some(warm_runs(TIMING_RUNS, || gpu.relight_terms(&terms))?.2),
                     None => None,
                 };
                 points.push(BenchPoint {
@@ -367,6 +381,48 @@ pub fn terms_to_reach_by(curve: &[&BenchPoint], target: f64, metric: Metric) -> 
     Some((k0.ln() + f * (k1.ln() - k0.ln())).exp())
 }
 
+/// The relative L2 error of a point.
+const REL_L2: Metric = |p| p.error.rel_l2;
+
+/// What a curve needs to reach an error: its name, the terms (`None`: never reached) and the
+/// most terms it was measured at.
+pub type Reach<'a> = (&'a str, Option<f64>, f64);
+
+/// The [`Reach`] of a curve for `target` by `metric`.
+fn reach<'a>(name: &'a str, curve: &[&BenchPoint], target: f64, metric: Metric) -> Reach<'a> {
+    let most = curve.iter().map(|p| p.terms).max().unwrap_or(0) as f64;
+    (name, terms_to_reach_by(curve, target, metric), most)
+}
+
+/// How the terms SH (or SH through the light) needs for an error compare with a wavelet
+/// curve's, in words: how many times as many it needs ("at least" where it never reached the
+/// error: a lower bound), or that it wins where it needs fewer. Where the measured terms cannot
+/// tell, it says only which curve did not reach the error.
+pub fn ratio_words(sh: Reach, wavelet: Reach) -> String {
+    let ((s, sk, s_most), (w, wk, w_most)) = (sh, wavelet);
+    let times = |r: f64| match r < 10.0 {
+        true => format!("{r:.1}×"),
+        false => format!("{r:.0}×"),
+    };
+    match (sk, wk) {
+        (Some(a), Some(b)) if (a / b - 1.0).abs() < 0.05 => {
+            format!("{s} and {w} need as many terms")
+        }
+        (Some(a), Some(b)) if a > b => format!("{s} needs {} as many terms as {w}", times(a / b)),
+        (Some(a), Some(b)) => format!("{s} wins: {w} needs {} as many terms", times(b / a)),
+        (None, Some(b)) if s_most >= b => {
+            let at_least = times(s_most / b);
+            format!("{s} needs at least {at_least} as many terms as {w}")
+        }
+        (None, Some(_)) => format!("{s} does not reach it in {s_most:.0} terms"),
+        (Some(a), None) if a <= w_most => {
+            format!("{s} wins: {w} does not reach it in {w_most:.0} terms")
+        }
+        (Some(_), None) => format!("{w} does not reach it in {w_most:.0} terms"),
+        (None, None) => "—".into(),
+    }
+}
+
 /// Curves present in `points` for one environment, in a stable order.
 fn curves<'a>(points: &'a [BenchPoint], env: &str) -> Vec<(String, Vec<&'a BenchPoint>)> {
     let mut out: Vec<(String, Vec<&BenchPoint>)> = Vec::new();
@@ -399,11 +455,12 @@ pub fn summary(points: &[BenchPoint]) -> String {
     let mut s = String::from("# Sparsity versus error\n\n");
     s.push_str(
         "Relative L2 error against relighting with every stored term; terms needed are \
-         interpolated in log-log between measured points (— when never reached). A ratio \
-         `> r` is a lower bound: SH did not reach the error with every baked order. `sh-light` \
-         is SH through the light (the light projected to n² terms and relit with the full \
-         transport), at orders past the baked one; its ratios are given in relative L2 and in \
-         the gradient (H1) error.\n\n",
+         interpolated in log-log between measured points (— when never reached). A ratio row \
+         says how many times a wavelet curve's terms SH needs (\"at least\" where SH did not \
+         reach the error with every baked order: a lower bound), or that SH wins where it needs \
+         fewer. `sh-light` is SH through the light (the light projected to n² terms and relit \
+         with the full transport), at orders past the baked one; its ratios are given in \
+         relative L2 and in the gradient (H1) error.\n\n",
     );
     let fmt = |v: Option<f64>| v.map(|k| format!("{k:.0}")).unwrap_or_else(|| "—".into());
     for env in environments(points) {
@@ -447,12 +504,9 @@ pub fn summary(points: &[BenchPoint]) -> String {
             for (name, pts) in cs.iter().filter(|(n, _)| n.starts_with("wavelet")) {
                 let _ = write!(s, "| SH / {name} ratio |");
                 for t in SUMMARY_TARGETS {
-                    let r = match (terms_to_reach(sh, t), terms_to_reach(pts, t)) {
-                        (Some(a), Some(b)) => format!("{:.1}x", a / b),
-                        (None, Some(b)) => format!("> {:.1}x", sh_max / b),
-                        _ => "—".into(),
-                    };
-                    let _ = write!(s, " {r} |");
+                    let words =
+                        ratio_words(reach("SH", sh, t, REL_L2), reach(name, pts, t, REL_L2));
+                    let _ = write!(s, " {words} |");
                 }
                 s.push('\n');
             }
@@ -473,12 +527,8 @@ pub fn summary(points: &[BenchPoint]) -> String {
                 for (name, pts) in cs.iter().filter(|(n, _)| n.starts_with("wavelet")) {
                     let _ = write!(s, "| SH-light / {name} ratio, {metric} |");
                     for t in SUMMARY_TARGETS {
-                        let r = match (terms_to_reach_by(sl, t, f), terms_to_reach_by(pts, t, f)) {
-                            (Some(a), Some(b)) => format!("{:.1}x", a / b),
-                            (None, Some(b)) => format!("> {:.1}x", most / b),
-                            _ => "—".into(),
-                        };
-                        let _ = write!(s, " {r} |");
+                        let (a, b) = (reach("SH-light", sl, t, f), reach(name, pts, t, f));
+                        let _ = write!(s, " {} |", ratio_words(a, b));
                     }
                     s.push('\n');
                 }
@@ -489,8 +539,123 @@ pub fn summary(points: &[BenchPoint]) -> String {
     s
 }
 
-/// Writes `bench.csv`, `summary.md` and per environment `error_<env>.png` (error against terms)
-/// and `time_<env>.png` (relight time against terms). Returns the paths written.
+/// A curve's colour and look: every curve its own colour and marker. Baked SH, which SH through
+/// the light matches at low orders, is dashed and narrower, and drawn after it.
+fn look_of(name: &str) -> ([u8; 3], Look) {
+    let look = Look::new;
+    match name {
+        "wavelet-none" => (PALETTE[0], look(2, None, Marker::Circle, 3, true)),
+        "wavelet-area" => (PALETTE[2], look(2, None, Marker::Triangle, 4, true)),
+        "wavelet-transport" => (PALETTE[4], look(2, None, Marker::Diamond, 4, true)),
+        "sh" => (PALETTE[1], look(2, Some((6, 3)), Marker::Square, 3, true)),
+        "sh-light" => (PALETTE[3], look(4, None, Marker::Circle, 6, false)),
+        _ => (PALETTE[6], look(2, Some((2, 2)), Marker::Cross, 4, true)),
+    }
+}
+
+/// The curves as series of `value` against terms, each in its look, baked SH last.
+fn curve_series(cs: &[(String, Vec<&BenchPoint>)], value: Metric) -> (Vec<Series>, Vec<Look>) {
+    let mut order: Vec<&(String, Vec<&BenchPoint>)> = cs.iter().collect();
+    order.sort_by_key(|(name, _)| name == "sh");
+    order
+        .into_iter()
+        .map(|(name, pts)| {
+            let (color, look) = look_of(name);
+            let points = pts.iter().map(|p| (p.terms as f64, value(p))).collect();
+            let series = Series::new(name.clone(), points, color, look.dash.is_some());
+            (series, look)
+        })
+        .unzip()
+}
+
+/// The error plot of `env`: every curve in its own look; each curve's error against the
+/// brute-force reference where it was measured (its colour, hollow markers, dotted) and that of
+/// every stored term; a level at each [`SUMMARY_TARGETS`] error.
+pub fn error_plot(points: &[BenchPoint], env: &str) -> (Vec<Series>, Figure) {
+    let cs = curves(points, env);
+    let (mut series, mut looks) = curve_series(&cs, REL_L2);
+    for (name, pts) in &cs {
+        let measured: Vec<(f64, f64)> = pts
+            .iter()
+            .filter_map(|p| Some((p.terms as f64, p.reference_rel_l2?)))
+            .collect();
+        if !measured.is_empty() {
+            let (color, look) = look_of(name);
+            let label = format!("{name} vs reference");
+            series.push(Series::new(label, measured, color, true));
+            looks.push(Look::new(
+                1,
+                Some((2, 3)),
+                look.marker,
+                look.size + 1,
+                false,
+            ));
+        }
+    }
+    let full = points
+        .iter()
+        .find(|p| p.env == env && p.method == Method::Full);
+    if let Some(p) = full
+        && let Some(r) = p.reference_rel_l2
+    {
+        let label = "every stored term vs reference".to_string();
+        series.push(Series::new(
+            label,
+            vec![(p.terms as f64, r)],
+            [40, 40, 40],
+            false,
+        ));
+        looks.push(Look::new(0, None, Marker::Cross, 5, true));
+    }
+    let levels = SUMMARY_TARGETS.iter().map(|&t| level(&cs, t)).collect();
+    let legend = Corner::LowerLeft;
+    let figure = Figure {
+        looks,
+        levels,
+        legend,
+    };
+    (series, figure)
+}
+
+/// The level at error `target`: the terms each curve needs, as the summary's table has them
+/// (`> n` where a curve never gets there in its n terms), a tick where each crosses it, and in
+/// words how SH and SH through the light compare with the wavelet curve needing the fewest.
+fn level(cs: &[(String, Vec<&BenchPoint>)], target: f64) -> Level {
+    let (mut wavelets, mut others, mut marks) = (Vec::new(), Vec::new(), Vec::new());
+    for (name, pts) in cs {
+        let (_, k, most) = reach(name, pts, target, REL_L2);
+        let needs = k.map_or_else(|| format!("> {most:.0}"), |k| format!("{k:.0}"));
+        match name.strip_prefix("wavelet-") {
+            Some(w) => wavelets.push(format!("{w} {needs}")),
+            None => others.push(format!("{name} {needs}")),
+        }
+        marks.extend(k.map(|k| (k, look_of(name).0)));
+    }
+    if !wavelets.is_empty() {
+        others.insert(0, format!("wavelet {}", wavelets.join(", ")));
+    }
+    let mut lines = vec![format!(
+        "terms for {:.0}%: {}",
+        100.0 * target,
+        others.join("; ")
+    )];
+    let best = cs
+        .iter()
+        .filter(|(n, _)| n.starts_with("wavelet"))
+        .map(|(n, pts)| reach(n, pts, target, REL_L2))
+        .filter(|r| r.1.is_some())
+        .min_by(|a, b| a.1.unwrap_or(0.0).total_cmp(&b.1.unwrap_or(0.0)));
+    for (curve, name) in [("sh", "SH"), ("sh-light", "SH-light")] {
+        if let (Some(w), Some((_, pts))) = (best, cs.iter().find(|(n, _)| n == curve)) {
+            lines.push(ratio_words(reach(name, pts, target, REL_L2), w));
+        }
+    }
+    let y = target;
+    Level { y, lines, marks }
+}
+
+/// Writes `bench.csv`, `summary.md` and per environment `error_<env>.png` (error against terms,
+/// [`error_plot`]) and `time_<env>.png` (relight time against terms). Returns the paths written.
 pub fn write_report(dir: &Path, points: &[BenchPoint]) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
     let mut written = Vec::new();
@@ -501,18 +666,6 @@ pub fn write_report(dir: &Path, points: &[BenchPoint]) -> Result<Vec<PathBuf>> {
     written.push(text(dir.join("bench.csv"), csv(points))?);
     written.push(text(dir.join("summary.md"), summary(points))?);
     for env in environments(points) {
-        let cs = curves(points, &env);
-        let series = |value: &dyn Fn(&BenchPoint) -> f64| -> Vec<Series> {
-            cs.iter()
-                .enumerate()
-                .map(|(i, (name, pts))| Series {
-                    label: name.clone(),
-                    points: pts.iter().map(|p| (p.terms as f64, value(p))).collect(),
-                    color: plot::PALETTE[i % plot::PALETTE.len()],
-                    dashed: name.starts_with("sh"),
-                })
-                .collect()
-        };
         let spec = |title: String, y: &str| PlotSpec {
             title,
             x_label: "terms".into(),
@@ -522,227 +675,235 @@ pub fn write_report(dir: &Path, points: &[BenchPoint]) -> Result<Vec<PathBuf>> {
             width: 800,
             height: 560,
         };
-        let p = dir.join(format!("error_{env}.png"));
-        plot::write(
-            &p,
-            &spec(
-                format!("{env}: relative L2 error vs terms"),
-                "relative L2 error",
-            ),
-            &series(&|p| p.error.rel_l2),
-        )?;
-        written.push(p);
-        let p = dir.join(format!("time_{env}.png"));
-        plot::write(
-            &p,
-            &spec(format!("{env}: CPU relight time vs terms"), "ms"),
-            &series(&|p| p.cpu_ms),
-        )?;
-        written.push(p);
+        let path = dir.join(format!("error_{env}.png"));
+        let (series, figure) = error_plot(points, &env);
+        let title = format!("{env}: relative L2 error vs terms");
+        plot::write_figure(&path, &spec(title, "relative L2 error"), &series, &figure)?;
+        written.push(path);
+        let path = dir.join(format!("time_{env}.png"));
+        let (series, looks) = curve_series(&curves(points, &env), |p| p.cpu_ms);
+        let figure = Figure {
+            looks,
+            levels: Vec::new(),
+            legend: Corner::UpperLeft,
+        };
+        let title = format!("{env}: CPU relight time vs terms (median of {TIMING_RUNS}, warm)");
+        plot::write_figure(&path, &spec(title, "ms"), &series, &figure)?;
+        written.push(path);
     }
     Ok(written)
 }
 
-/// One point of the compression curve: a bake at one threshold, relit with every stored term
-/// under one environment, against the lossless bake.
-#[derive(Clone, Debug)]
-pub struct CompressionPoint {
-    /// The bake's threshold ([`BakeSettings::threshold`]): the L2 error allowed per row, relative
-    /// to an unshadowed row's norm.
-    pub threshold: f32,
-    /// Name of the environment the bakes were relit under.
-    pub env: String,
-    /// Stored nonzeros over the dense entry count.
-    pub kept_fraction: f64,
-    /// Bytes of the sparse Haar matrix (entries, scales and entry counts) per pixel.
-    pub bytes_per_pixel: f64,
-    /// Stored coefficients per pixel.
-    pub coefficients_per_pixel: f64,
-    /// Relative L2 the sparsification adds to the relit image.
-    pub rel_l2: f64,
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-/// Bakes `scene` losslessly and at every threshold (other settings from `base`, SH order 1 to
-/// save time), relights each with every stored term under every environment and measures the
-/// error thresholding adds. `log` receives a line per bake, `progress` each bake's progress.
-pub fn compression_sweep(
-    scene: &Scene,
-    base: &BakeSettings,
-    thresholds: &[f32],
-    envs: &[(String, EnvMap)],
-    log: &mut dyn FnMut(&str),
-    progress: &(dyn Fn(crate::bake::BakeProgress) + Sync),
-) -> Result<Vec<CompressionPoint>> {
-    if thresholds.is_empty() {
-        return Err(PrtError::invalid("threshold list", "it is empty"));
-    }
-    let settings = |lossless: bool, threshold: f32| BakeSettings {
-        sh_order: 1,
-        lossless,
-        threshold,
-        ..base.clone()
-    };
-    for &th in thresholds {
-        settings(false, th).validate()?;
-    }
-    log("baking the lossless reference");
-    let exact = bake(scene, &settings(true, 0.0), progress)?;
-    let ctx = LightContext::new(&exact)?;
-    let all = |t: &Transport, light: &crate::relight::PreparedLight| -> Result<Image> {
-        Ok(relight(t, &ctx, light, &RelightRequest::Full)?.0)
-    };
-    let lights: Vec<_> = envs
-        .iter()
-        .map(|(_, env)| ctx.prepare(env, EnvRotation::default()))
-        .collect::<Result<_>>()?;
-    let references: Vec<Image> = lights
-        .iter()
-        .map(|l| all(&exact, l))
-        .collect::<Result<_>>()?;
-    let mut points = Vec::new();
-    for &th in thresholds {
-        log(&format!("baking at threshold {th}"));
-        let t = bake(scene, &settings(false, th), progress)?;
-        let kept_fraction = t.meta.stats.nonzeros as f64 / t.meta.stats.dense_entries.max(1) as f64;
-        let bytes_per_pixel = t.haar_bytes() as f64 / t.pixel_count() as f64;
-        for (((name, _), light), reference) in envs.iter().zip(&lights).zip(&references) {
-            points.push(CompressionPoint {
-                threshold: th,
-                env: name.clone(),
-                kept_fraction,
-                bytes_per_pixel,
-                coefficients_per_pixel: t.meta.stats.nonzeros as f64 / t.pixel_count() as f64,
-                rel_l2: relative_l2(&all(&t, light)?, reference, Some(&exact.coverage))?,
-            });
-        }
-    }
-    Ok(points)
-}
+    /// Interpolated terms against their exact value on a curve whose error is exactly c / K:
+    /// logarithms and exponentials of f64, a few ulps.
+    const INTERPOLATED: f64 = 1e-9;
 
-/// Writes `compression.csv`, `compression.png` (added error against kept fraction, one curve per
-/// environment, Ng et al.'s kept fraction beside them) and `compression.md` (the same as a table
-/// with bytes per pixel and per coefficient). Returns the paths written.
-pub fn write_compression(dir: &Path, points: &[CompressionPoint]) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
-    let mut text = String::from("threshold,environment,kept_fraction,bytes_per_pixel,rel_l2\n");
-    for p in points {
-        let _ = writeln!(
-            text,
-            "{},{},{:.6e},{:.2},{:.6e}",
-            p.threshold, p.env, p.kept_fraction, p.bytes_per_pixel, p.rel_l2
+    /// Points of one curve: (terms, relative L2, error against the reference).
+    fn curve(
+        env: &str,
+        method: Method,
+        weighting: Option<Weighting>,
+        pts: &[(usize, f64, Option<f64>)],
+    ) -> Vec<BenchPoint> {
+        pts.iter()
+            .map(|&(terms, rel_l2, reference_rel_l2)| BenchPoint {
+                env: env.into(),
+                method,
+                weighting,
+                terms,
+                error: ErrorReport {
+                    rel_l2,
+                    rmse: 0.0,
+                    psnr_db: 0.0,
+                    rel_h1: rel_l2,
+                    dssim: 0.0,
+                },
+                light_rel_l2: None,
+                reference_rel_l2,
+                cpu_ms: 1.0,
+                gpu_ms: None,
+                bytes_touched: 0,
+            })
+            .collect()
+    }
+
+    /// A sweep of one environment: wavelets at error c / K (c = 2: 5% at K = 40), SH above 10%
+    /// to its 16 terms, SH through the light at 5% with 9 terms, every term; with `reference`,
+    /// each point's error against it 1% above.
+    fn sweep(env: &str, c: f64, reference: bool) -> Vec<BenchPoint> {
+        let r = |e: f64| reference.then_some(e + 0.01);
+        let wavelet = [10usize, 100, 1000].map(|k| (k, c / k as f64, r(c / k as f64)));
+        let mut points = curve(env, Method::Wavelet, Some(Weighting::Unweighted), &wavelet);
+        let sh = [(1, 0.5), (4, 0.3), (9, 0.2), (16, 0.15)].map(|(k, e)| (k, e, r(e)));
+        points.extend(curve(env, Method::Sh, None, &sh));
+        points.extend(curve(env, Method::Full, None, &[(1000, 0.0, r(0.0))]));
+        let light = [(4, 0.1), (9, 0.05), (16, 0.03)].map(|(k, e)| (k, e, r(e)));
+        points.extend(curve(env, Method::ShLight, None, &light));
+        points
+    }
+
+    #[test]
+    fn the_terms_for_an_error_are_interpolated_in_log_log() {
+        let points = sweep("sun", 2.0, false);
+        let w: Vec<&BenchPoint> = points
+            .iter()
+            .filter(|p| p.method == Method::Wavelet)
+            .collect();
+        // 2 / K = 5% at K = 40, between the measured 10 and 100.
+        let k = terms_to_reach(&w, 0.05).unwrap();
+        assert!((k - 40.0).abs() < INTERPOLATED * 40.0, "{k}");
+        // Already below at the first point: its terms; below every point: never.
+        assert_eq!(terms_to_reach(&w, 0.5), Some(10.0));
+        assert_eq!(terms_to_reach(&w, 1e-4), None);
+    }
+
+    #[test]
+    fn ratios_say_who_needs_more_terms() {
+        let w = ("wavelet-none", Some(40.0), 1000.0);
+        assert_eq!(
+            ratio_words(("SH", Some(160.0), 400.0), w),
+            "SH needs 4.0× as many terms as wavelet-none"
         );
-    }
-    let csv_path = dir.join("compression.csv");
-    crate::files::write_bytes_atomically(&csv_path, text.as_bytes())?;
-    let mut envs: Vec<&str> = Vec::new();
-    for p in points {
-        if !envs.contains(&p.env.as_str()) {
-            envs.push(&p.env);
-        }
-    }
-    let series: Vec<Series> = envs
-        .iter()
-        .enumerate()
-        .map(|(i, env)| Series {
-            label: env.to_string(),
-            points: points
-                .iter()
-                .filter(|p| p.env == *env)
-                .map(|p| (100.0 * p.kept_fraction, p.rel_l2))
-                .collect(),
-            color: plot::PALETTE[i % plot::PALETTE.len()],
-            dashed: false,
-        })
-        .collect();
-    let mut series = series;
-    if let Some(band) = ng_band(points) {
-        series.push(band);
-    }
-    let png = dir.join("compression.png");
-    plot::write(
-        &png,
-        &PlotSpec {
-            title: "Error added by sparsification vs stored fraction".into(),
-            x_label: "stored nonzeros (% of dense)".into(),
-            y_label: "relative L2 error".into(),
-            log_x: true,
-            log_y: true,
-            width: 800,
-            height: 560,
-        },
-        &series,
-    )?;
-    let md = dir.join("compression.md");
-    let table = compression_table(points, &envs);
-    crate::files::write_bytes_atomically(&md, table.as_bytes())?;
-    Ok(vec![csv_path, png, md])
-}
-
-/// The fraction of Haar coefficients Ng et al. 2003 (Table 1) kept at a 6x32x32 cube, in percent:
-/// the outline of a band across the measured error range, drawn beside the curves. `None` when
-/// there are no points.
-fn ng_band(points: &[CompressionPoint]) -> Option<Series> {
-    let errors = points.iter().map(|p| p.rel_l2).filter(|e| *e > 0.0);
-    let lo = errors.clone().fold(f64::INFINITY, f64::min);
-    let hi = errors.fold(0.0, f64::max);
-    if !(lo.is_finite() && hi > 0.0) {
-        return None;
-    }
-    Some(Series {
-        label: "Ng et al. 2003, 6x32x32: 10-12% kept".into(),
-        points: vec![(10.0, lo), (10.0, hi), (12.0, hi), (12.0, lo), (10.0, lo)],
-        color: [120, 120, 120],
-        dashed: true,
-    })
-}
-
-/// The compression curve as a Markdown table: one row per threshold with the kept fraction, the
-/// bytes per pixel and per stored coefficient (every place, count and scale table counted), and the
-/// added error under each environment.
-fn compression_table(points: &[CompressionPoint], envs: &[&str]) -> String {
-    let mut text = String::from(
-        "# Compression curve\n\nEach threshold is a bake of the scene, relit with every stored term \
-         and compared with the lossless bake (relative L2 over covered pixels). Bytes count the \
-         sparse Haar matrix as the file stores it: the strips' places and values, and each \
-         (block, coefficient)'s strip count and scale code.\n\n\
-         | threshold | kept | bytes / pixel | bytes / coefficient |",
-    );
-    for env in envs {
-        let _ = write!(text, " {env} |");
-    }
-    text.push_str("\n|---:|---:|---:|---:|");
-    text.push_str(&"---:|".repeat(envs.len()));
-    text.push('\n');
-    let mut thresholds: Vec<f32> = Vec::new();
-    for p in points {
-        if !thresholds.contains(&p.threshold) {
-            thresholds.push(p.threshold);
-        }
-    }
-    for th in thresholds {
-        let row: Vec<&CompressionPoint> = points.iter().filter(|p| p.threshold == th).collect();
-        let Some(first) = row.first() else { continue };
-        let per_coefficient = first.bytes_per_pixel / first.coefficients_per_pixel.max(1e-30);
-        let _ = write!(
-            text,
-            "| {th} | {:.1}% | {:.0} | {per_coefficient:.2} |",
-            100.0 * first.kept_fraction,
-            first.bytes_per_pixel
+        // Not reached in 400 terms: a lower bound.
+        assert_eq!(
+            ratio_words(("SH", None, 400.0), w),
+            "SH needs at least 10× as many terms as wavelet-none"
         );
-        for env in envs {
-            match row.iter().find(|p| p.env == *env) {
-                Some(p) => {
-                    let _ = write!(text, " {:.2}% |", 100.0 * p.rel_l2);
-                }
-                None => text.push_str(" — |"),
+        // Not reached in 16 terms where wavelets need 40: no bound under 1 that reads as a win.
+        assert_eq!(
+            ratio_words(("SH", None, 16.0), w),
+            "SH does not reach it in 16 terms"
+        );
+        assert_eq!(
+            ratio_words(("SH", Some(8.0), 16.0), w),
+            "SH wins: wavelet-none needs 5.0× as many terms"
+        );
+        assert_eq!(
+            ratio_words(("SH", Some(41.0), 64.0), w),
+            "SH and wavelet-none need as many terms"
+        );
+        assert_eq!(
+            ratio_words(("SH", Some(8.0), 16.0), ("wavelet-none", None, 10.0)),
+            "SH wins: wavelet-none does not reach it in 10 terms"
+        );
+        assert_eq!(ratio_words(("SH", None, 16.0), ("w", None, 10.0)), "—");
+    }
+
+    #[test]
+    fn the_summary_words_its_ratios() {
+        // sun: wavelets need 40 terms for 5%, SH never gets there in 16 (once printed `> 0.4x`);
+        // sky: wavelets need 10, so SH needs at least 1.6 times as many.
+        let points = [sweep("sun", 2.0, false), sweep("sky", 0.2, false)].concat();
+        let text = summary(&points);
+        let rows: Vec<&str> = text
+            .lines()
+            .filter(|l| l.starts_with("| SH / wavelet-none ratio |"))
+            .collect();
+        assert_eq!(rows.len(), 2, "{text}");
+        assert!(
+            !rows[0].contains("0.4") && !rows[0].contains("wins"),
+            "{}",
+            rows[0]
+        );
+        assert!(
+            rows[0].contains("| SH does not reach it in 16 terms |"),
+            "{}",
+            rows[0]
+        );
+        let at_least = "| SH needs at least 1.6× as many terms as wavelet-none |";
+        assert!(rows[1].contains(at_least), "{}", rows[1]);
+        // SH through the light reaches 5% with 9 terms: it wins.
+        let light = text
+            .lines()
+            .find(|l| l.starts_with("| SH-light / wavelet-none ratio, L2 |"))
+            .expect(&text);
+        let wins = "| SH-light wins: wavelet-none needs 4.4× as many terms |";
+        assert!(light.contains(wins), "{light}");
+        assert!(!text.contains("> 0."), "{text}");
+    }
+
+    #[test]
+    fn the_error_plot_draws_every_curve_apart_and_the_reference_where_measured() {
+        let labels = |points: &[BenchPoint]| -> Vec<String> {
+            let (series, figure) = error_plot(points, "sun");
+            assert_eq!(figure.looks.len(), series.len());
+            series.into_iter().map(|s| s.label).collect()
+        };
+        // Baked SH after SH through the light, which it matches at low orders.
+        assert_eq!(
+            labels(&sweep("sun", 2.0, false)),
+            ["wavelet-none", "sh-light", "sh"]
+        );
+        let (series, figure) = error_plot(&sweep("sun", 2.0, true), "sun");
+        let names: Vec<&str> = series.iter().map(|s| s.label.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "wavelet-none",
+                "sh-light",
+                "sh",
+                "wavelet-none vs reference",
+                "sh vs reference",
+                "sh-light vs reference",
+                "every stored term vs reference"
+            ]
+        );
+        assert_eq!(series[3].points[0], (10.0, 2.0 / 10.0 + 0.01));
+        assert_eq!(series[3].points.len(), 3);
+        assert_eq!(series[6].points, [(1000.0, 0.01)]);
+        // Baked SH narrower than SH through the light; every curve its colour and marker.
+        assert!(figure.looks[2].width < figure.looks[1].width);
+        let all = [
+            "wavelet-none",
+            "wavelet-area",
+            "wavelet-transport",
+            "sh",
+            "sh-light",
+        ]
+        .map(look_of);
+        for (i, (color, look)) in all.iter().enumerate() {
+            for (other, other_look) in &all[i + 1..] {
+                assert_ne!(color, other);
+                let same = look.marker == other_look.marker && look.filled == other_look.filled;
+                assert!(!same, "{look:?} and {other_look:?}");
             }
         }
-        text.push('\n');
+        // A level at each of the summary's errors, with the terms its table has.
+        let ys: Vec<f64> = figure.levels.iter().map(|l| l.y).collect();
+        assert_eq!(ys, SUMMARY_TARGETS);
+        let five = &figure.levels[1];
+        assert_eq!(
+            five.lines,
+            [
+                "terms for 5%: wavelet none 40; sh > 16; sh-light 9",
+                "SH does not reach it in 16 terms",
+                "SH-light wins: wavelet-none needs 4.4× as many terms"
+            ]
+        );
+        // Ticks where the wavelets and SH through the light cross it; SH never does.
+        assert_eq!(five.marks.len(), 2);
+        assert!((five.marks[0].0 - 40.0).abs() < INTERPOLATED * 40.0);
+        assert_eq!(five.marks[1].1, look_of("sh-light").0);
     }
-    text.push_str(
-        "\nNg et al. 2003 (Table 1) kept 10-12% of the coefficients at 6x32x32 and 3.1-3.8% at \
-         6x64x64, at 2 bytes a coefficient (an 8-bit value and an 8-bit row index in blocks of \
-         256 rows).\n",
-    );
-    text
+
+    #[test]
+    fn a_cold_first_call_is_not_timed() {
+        let mut calls = 0;
+        let (_, _, ms) = warm_runs(2, || {
+            calls += 1;
+            let kernel_seconds = if calls == 1 { 8.0 } else { 0.25 };
+            let stats = RelightStats {
+                kernel_seconds,
+                ..Default::default()
+            };
+            Ok((Image::new(1, 1), stats))
+        })
+        .unwrap();
+        assert_eq!(calls, 3);
+        assert_eq!(ms, 250.0);
+    }
 }

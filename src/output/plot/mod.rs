@@ -4,16 +4,22 @@
 //!
 //! Either axis may be logarithmic. A log axis spans whole decades, labels powers of ten and draws
 //! light lines at 2..9 times each; a linear axis ticks at about five round values. A legend sits in
-//! the upper-right corner inside the frame.
+//! a corner inside the frame (the upper right unless a [`Figure`] says otherwise), a row per drawn
+//! series with its line and marker. A [`Figure`] also gives each series its own [`Look`] (width,
+//! dashes, marker) and draws horizontal [`Level`]s, each labelled beside its line.
 
 use std::path::Path;
 
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::error::{PrtError, Result};
 use crate::output::film::write_png;
-use crate::output::text::FONT;
+use crate::output::text::{FONT, width as text_width};
+
+mod marks;
+use marks::*;
 
 /// One curve.
 pub struct Series {
@@ -25,6 +31,18 @@ pub struct Series {
     pub color: [u8; 3],
     /// Draw a dashed line instead of a solid one.
     pub dashed: bool,
+}
+
+impl Series {
+    /// A series from its label, points, colour and whether its line is dashed.
+    pub fn new(label: String, points: Vec<(f64, f64)>, color: [u8; 3], dashed: bool) -> Series {
+        Series {
+            label,
+            points,
+            color,
+            dashed,
+        }
+    }
 }
 
 /// Axes and size.
@@ -43,6 +61,98 @@ pub struct PlotSpec {
     pub width: usize,
     /// Height of the image, pixels (160 to 8192).
     pub height: usize,
+}
+
+/// The mark drawn at each point of a series.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Marker {
+    /// A disc.
+    #[default]
+    Circle,
+    /// A triangle, point up.
+    Triangle,
+    /// A square.
+    Square,
+    /// A square standing on a corner.
+    Diamond,
+    /// An X.
+    Cross,
+}
+
+/// How a series is drawn, besides its colour.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Look {
+    /// Line width, pixels; 0 draws the markers alone.
+    pub width: u32,
+    /// Dash and gap lengths along the line, pixels; `None` for a solid line.
+    pub dash: Option<(u32, u32)>,
+    /// The mark at each point.
+    pub marker: Marker,
+    /// Marker radius, pixels.
+    pub size: u32,
+    /// A filled marker, or its outline around white.
+    pub filled: bool,
+}
+
+impl Look {
+    /// A look from its line width, dashes, marker, the marker's radius and whether it is filled.
+    pub const fn new(
+        width: u32,
+        dash: Option<(u32, u32)>,
+        marker: Marker,
+        size: u32,
+        filled: bool,
+    ) -> Look {
+        Look {
+            width,
+            dash,
+            marker,
+            size,
+            filled,
+        }
+    }
+
+    /// The look a series gets unless a [`Figure`] gives it one: a 2-pixel line, dashed when the
+    /// series says so, and filled circles.
+    pub fn of(series: &Series) -> Look {
+        Look::new(2, series.dashed.then_some((6, 4)), Marker::Circle, 3, true)
+    }
+}
+
+/// A corner of the plotting area.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Corner {
+    /// Top left.
+    UpperLeft,
+    /// Top right.
+    #[default]
+    UpperRight,
+    /// Bottom left.
+    LowerLeft,
+    /// Bottom right.
+    LowerRight,
+}
+
+/// A horizontal line across the plot, labelled beside it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Level {
+    /// Where the line is, in data units (the y axis always reaches it).
+    pub y: f64,
+    /// The label's lines, each wrapped to fit, in a box above the line at the right.
+    pub lines: Vec<String>,
+    /// Ticks on the line: the x where a series crosses it, and that series' colour.
+    pub marks: Vec<(f64, [u8; 3])>,
+}
+
+/// What a plot draws besides its series' points.
+#[derive(Clone, Debug, Default)]
+pub struct Figure {
+    /// One look per series, in order; a series past the end takes [`Look::of`].
+    pub looks: Vec<Look>,
+    /// Horizontal lines, each with its label.
+    pub levels: Vec<Level>,
+    /// The corner the legend sits in.
+    pub legend: Corner,
 }
 
 /// A palette of 8 distinguishable colours for series.
@@ -66,6 +176,29 @@ const MIN_SIZE: usize = 160;
 const MAX_SIZE: usize = 8192;
 /// Drawn at this multiple of the output size, then averaged down.
 const SUPERSAMPLE: usize = 2;
+/// Colour of the levels' lines.
+const LEVEL: RGBColor = RGBColor(120, 120, 120);
+/// Size of the tick labels, the legend and the levels' labels, points at the output size.
+const LABEL_PT: u32 = 12;
+/// Legend and level-label layout, pixels at the output size: inner padding, height of a row,
+/// length of a legend row's line sample and the gap after it, distance from the frame.
+const PAD: i32 = 5;
+const ROW: i32 = 16;
+const SWATCH: i32 = 28;
+const GAP: i32 = 6;
+const INSET: i32 = 8;
+/// Stroke of an X marker, a hollow marker's ring and a level's ticks, pixels.
+const MARKER_STROKE: i32 = 2;
+/// Half the length of a level's tick, pixels.
+const TICK: i32 = 6;
+/// A level's label box is at most this fraction of the plotting area wide.
+const LABEL_SHARE: f64 = 0.7;
+
+/// The drawing area of the whole image.
+type Root<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+/// What a drawing step returns.
+type Drawn = std::result::Result<(), Box<dyn std::error::Error>>;
+
 /// A tick label for the power of ten `10^e`: plain digits near 1, `1e<e>` beyond.
 fn decade_label(e: i32) -> String {
     match e {
@@ -207,12 +340,20 @@ impl Axis {
     }
 }
 
-/// Renders to RGB8 bytes (width*height*3), white background.
+/// Renders to RGB8 bytes (width*height*3), white background, every series in the look
+/// [`Look::of`] gives it and the legend in the upper-right corner: [`render_figure`] with the
+/// default [`Figure`].
 ///
 /// Points with a non-finite coordinate, or a non-positive one on a log axis, are skipped; a
 /// series left with no points is neither drawn nor listed in the legend. If no series has a point
 /// left, this is an error naming the plot.
 pub fn render(spec: &PlotSpec, series: &[Series]) -> Result<Vec<u8>> {
+    render_figure(spec, series, &Figure::default())
+}
+
+/// [`render`] with each series in its look from `figure`, its levels (the y axis reaches each)
+/// and its legend's corner. Series are drawn in order, so a later one lies over an earlier one.
+pub fn render_figure(spec: &PlotSpec, series: &[Series], figure: &Figure) -> Result<Vec<u8>> {
     let (w, h) = (spec.width, spec.height);
     let named = |message: String| PrtError::invalid(format!("plot \"{}\"", spec.title), message);
     if !(MIN_SIZE..=MAX_SIZE).contains(&w) || !(MIN_SIZE..=MAX_SIZE).contains(&h) {
@@ -247,23 +388,50 @@ pub fn render(spec: &PlotSpec, series: &[Series]) -> Result<Vec<u8>> {
             })
     };
     let ((x0, x1), (y0, y1)) = (range(|p| p.0), range(|p| p.1));
+    let (y0, y1) = figure
+        .levels
+        .iter()
+        .filter_map(|l| plotted(spec.log_y, l.y))
+        .fold((y0, y1), |(a, b), v| (a.min(v), b.max(v)));
     let (xa, ya) = (Axis::new(spec.log_x, x0, x1), Axis::new(spec.log_y, y0, y1));
     crate::output::text::register()?;
     let s = SUPERSAMPLE;
     let mut big = vec![255u8; w * s * h * s * 3];
-    draw(spec, series, &points, &xa, &ya, &mut big).map_err(|e| named(e.to_string()))?;
+    let looks: Vec<Look> = series
+        .iter()
+        .enumerate()
+        .map(|(i, ser)| {
+            figure
+                .looks
+                .get(i)
+                .copied()
+                .unwrap_or_else(|| Look::of(ser))
+        })
+        .collect();
+    let layers = Layers {
+        series,
+        points: &points,
+        looks: &looks,
+        figure,
+    };
+    draw(spec, &layers, &xa, &ya, &mut big).map_err(|e| named(e.to_string()))?;
     Ok(average_down(&big, w, h, s))
 }
 
+/// What [`draw`] puts inside the frame: the series, their plotted points and looks, the figure's
+/// levels and legend.
+/// A level's tick where a series crosses it: the pixel and the series' colour.
+type Tick = ((i32, i32), RGBColor);
+
+struct Layers<'a> {
+    series: &'a [Series],
+    points: &'a [Vec<(f64, f64)>],
+    looks: &'a [Look],
+    figure: &'a Figure,
+}
+
 /// Draws the plot at [`SUPERSAMPLE`] times its size into `buffer`.
-fn draw(
-    spec: &PlotSpec,
-    series: &[Series],
-    points: &[Vec<(f64, f64)>],
-    xa: &Axis,
-    ya: &Axis,
-    buffer: &mut [u8],
-) -> std::result::Result<(), Box<dyn std::error::Error>> {
+fn draw(spec: &PlotSpec, layers: &Layers, xa: &Axis, ya: &Axis, buffer: &mut [u8]) -> Drawn {
     let s = SUPERSAMPLE as u32;
     let size = (
         (spec.width * SUPERSAMPLE) as u32,
@@ -285,7 +453,7 @@ fn draw(
         .x_desc(spec.x_label.as_str())
         .y_desc(spec.y_label.as_str())
         .axis_desc_style(text(13))
-        .label_style(text(12))
+        .label_style(text(LABEL_PT))
         .axis_style(FRAME.stroke_width(s))
         .x_labels(0)
         .y_labels(0)
@@ -313,7 +481,8 @@ fn draw(
     }
     let area = chart.plotting_area();
     let (px0, py1) = area.map_coordinate(&(xr.start, yr.start));
-    let label = text(12);
+    let (px1, py0) = area.map_coordinate(&(xr.end, yr.end));
+    let label = text(LABEL_PT);
     for &t in &x_ticks {
         let (px, _) = area.map_coordinate(&(t, yr.start));
         let style = label.pos(Pos::new(HPos::Center, VPos::Top));
@@ -324,36 +493,59 @@ fn draw(
         let style = label.pos(Pos::new(HPos::Right, VPos::Center));
         root.draw_text(&ya.label(t), &style, (px0 - 6 * s as i32, py))?;
     }
-    for (ser, pts) in series.iter().zip(points) {
+    // The levels' lines and ticks under the series, their labels over them.
+    let mut levels: Vec<(i32, Vec<Tick>, &Level)> = Vec::new();
+    for level in &layers.figure.levels {
+        let Some(y) = plotted(spec.log_y, level.y) else {
+            continue;
+        };
+        let py = area.map_coordinate(&(xr.start, y)).1;
+        let ticks: Vec<_> = level
+            .marks
+            .iter()
+            .filter_map(|&(x, c)| {
+                Some((area.map_coordinate(&(plotted(spec.log_x, x)?, y)), rgb(c)))
+            })
+            .filter(|((px, _), _)| (px0..=px1).contains(px))
+            .collect();
+        levels.push((py, ticks, level));
+    }
+    levels.sort_by_key(|(py, ..)| *py);
+    let level_look = Look::new(1, Some((5, 4)), Marker::Circle, 0, true);
+    let tick = |c: RGBColor| c.stroke_width(MARKER_STROKE as u32 * s);
+    let si = s as i32;
+    for (py, ticks, _) in &levels {
+        draw_line(&root, &[(px0, *py), (px1, *py)], &level_look, LEVEL)?;
+        for &((px, py), c) in ticks {
+            let ends = vec![(px, py - TICK * si), (px, py + TICK * si)];
+            root.draw(&PathElement::new(ends, tick(c)))?;
+        }
+    }
+    let mut legend = Vec::new();
+    for ((ser, pts), look) in layers.series.iter().zip(layers.points).zip(layers.looks) {
         if pts.is_empty() {
             continue;
         }
-        let [r, g, b] = ser.color;
-        let color = RGBColor(r, g, b);
-        let line = color.stroke_width(2 * s);
-        let drawn = if ser.dashed {
-            chart.draw_series(DashedLineSeries::new(
-                pts.iter().copied(),
-                6 * s,
-                4 * s,
-                line,
-            ))?
-        } else {
-            chart.draw_series(LineSeries::new(pts.iter().copied(), line))?
-        };
-        drawn
-            .label(ser.label.as_str())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18 * s as i32, y)], line));
-        chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3 * s, color.filled())))?;
+        let color = rgb(ser.color);
+        let px: Vec<(i32, i32)> = pts.iter().map(|p| area.map_coordinate(p)).collect();
+        draw_line(&root, &px, look, color)?;
+        for &c in &px {
+            draw_marker(&root, c, look, color)?;
+        }
+        legend.push((ser.label.as_str(), *look, color));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .label_font(text(12))
-        .legend_area_size(26 * s)
-        .background_style(WHITE.mix(0.9))
-        .border_style(LEGEND_BORDER)
-        .draw()?;
+    let widest = ((px1 - px0) as f64 * LABEL_SHARE / s as f64) as usize;
+    let mut below = py0;
+    for (py, _, level) in &levels {
+        let lines: Vec<String> = level
+            .lines
+            .iter()
+            .flat_map(|l| wrap(l, LABEL_PT as usize, widest))
+            .collect();
+        below = draw_label(&root, &lines, (px1 - INSET * si, *py), below, &label)?;
+    }
+    let frame = [px0, py0, px1, py1];
+    draw_legend(&root, frame, &legend, layers.figure.legend, &label)?;
     root.present()?;
     Ok(())
 }
@@ -381,7 +573,17 @@ fn average_down(big: &[u8], w: usize, h: usize, factor: usize) -> Vec<u8> {
 
 /// Renders and writes a PNG atomically.
 pub fn write(path: &Path, spec: &PlotSpec, series: &[Series]) -> Result<()> {
-    let rgb = render(spec, series)?;
+    write_figure(path, spec, series, &Figure::default())
+}
+
+/// [`render_figure`] and writes a PNG atomically.
+pub fn write_figure(
+    path: &Path,
+    spec: &PlotSpec,
+    series: &[Series],
+    figure: &Figure,
+) -> Result<()> {
+    let rgb = render_figure(spec, series, figure)?;
     write_png(path, spec.width, spec.height, &rgb)
 }
 
@@ -552,5 +754,100 @@ mod tests {
         let img = image::open(&path).unwrap();
         assert_eq!((img.width(), img.height()), (640, 420));
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn dashes_run_on_across_corners() {
+        let d = dashes(&[(0.0, 0.0), (20.0, 0.0)], 6.0, 4.0);
+        assert_eq!(
+            d,
+            [vec![(0.0, 0.0), (6.0, 0.0)], vec![(10.0, 0.0), (16.0, 0.0)]]
+        );
+        // A dash begun before a corner goes round it.
+        let d = dashes(&[(0.0, 0.0), (3.0, 0.0), (3.0, 3.0)], 6.0, 4.0);
+        assert_eq!(d, [vec![(0.0, 0.0), (3.0, 0.0), (3.0, 3.0)]]);
+        assert!(dashes(&[(1.0, 1.0), (1.0, 1.0)], 6.0, 4.0).is_empty());
+    }
+
+    #[test]
+    fn labels_wrap_at_spaces_to_fit() {
+        let text = "terms for 5%: wavelet none 40, area 52; sh > 16; sh-light 310";
+        let max = text_width("terms for 5%: wavelet none 40,", 12);
+        let lines = wrap(text, 12, max);
+        assert!(lines.len() > 1, "{lines:?}");
+        assert!(lines.iter().all(|l| text_width(l, 12) <= max), "{lines:?}");
+        assert_eq!(lines.join(" "), text);
+        assert_eq!(wrap("short", 12, 1000), ["short"]);
+    }
+
+    /// Two series on the same points, as baked SH and SH through the light are at low orders.
+    fn coincident() -> Vec<Series> {
+        let pts: Vec<(f64, f64)> = [1.0, 4.0, 9.0, 16.0, 25.0]
+            .iter()
+            .map(|&k: &f64| (k, 0.5 / k.sqrt()))
+            .collect();
+        vec![
+            series("sh-light", PALETTE[3], false, pts.clone()),
+            series("sh", PALETTE[1], true, pts),
+        ]
+    }
+
+    #[test]
+    fn a_series_drawn_over_another_leaves_both_visible() {
+        let s = coincident();
+        let figure = Figure {
+            looks: vec![
+                Look::new(4, None, Marker::Circle, 6, false),
+                Look::new(2, Some((6, 3)), Marker::Square, 3, true),
+            ],
+            ..Figure::default()
+        };
+        let rgb = render_figure(&spec(true), &s, &figure).unwrap();
+        for si in &s {
+            let n = count(&rgb, si.color);
+            assert!(n > 150, "series {} barely visible: {n} pixels", si.label);
+        }
+        // Every marker draws, a cross with no line included.
+        for marker in [Marker::Triangle, Marker::Diamond, Marker::Cross] {
+            let figure = Figure {
+                looks: vec![Look::new(0, None, marker, 5, true)],
+                ..Figure::default()
+            };
+            let rgb = render_figure(&spec(true), &s[..1], &figure).unwrap();
+            assert!(count(&rgb, s[0].color) > 20, "{marker:?}");
+        }
+    }
+
+    #[test]
+    fn levels_draw_their_ticks_and_labels() {
+        let spec = spec(true);
+        let s = two_curves();
+        let with = |lines: Vec<String>| {
+            let marks = vec![(40.0, PALETTE[5]), (100.0, PALETTE[5])];
+            let figure = Figure {
+                levels: vec![Level {
+                    y: 0.05,
+                    lines,
+                    marks,
+                }],
+                legend: Corner::LowerLeft,
+                ..Figure::default()
+            };
+            render_figure(&spec, &s, &figure).unwrap()
+        };
+        let plain = render(&spec, &s).unwrap();
+        let bare = with(Vec::new());
+        let labelled = with(vec!["terms for 5%: haar 40; sh 100".into()]);
+        // The ticks in their colour, which no series has.
+        assert_eq!(count(&plain, PALETTE[5]), 0);
+        assert!(count(&bare, PALETTE[5]) > 10);
+        // The label's text: dark grey pixels the same level without a label lacks.
+        let ink = |rgb: &[u8]| {
+            rgb.chunks_exact(3)
+                .filter(|p| p[0] == p[1] && p[1] == p[2] && p[0] < 160)
+                .count()
+        };
+        let (more, fewer) = (ink(&labelled), ink(&bare));
+        assert!(more > fewer + 100, "{more} vs {fewer}");
     }
 }

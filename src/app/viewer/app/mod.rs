@@ -17,8 +17,16 @@ use super::{
     sh_order_for_terms,
 };
 use crate::light::select::Weighting;
+use crate::output::sheet::heat_color;
 use crate::relight::Method;
 use crate::relight::gpu::Gpu;
+
+mod images;
+
+/// Width of the error heat maps' colour bar with its labels, points.
+const BAR_POINTS: f32 = 64.0;
+/// Width of the ramp in that bar, points.
+const RAMP_POINTS: f32 = 12.0;
 
 /// The window's GPU: the device, the transport's display path once uploaded, one view per pane.
 struct WindowGpu {
@@ -55,6 +63,8 @@ pub struct ViewerApp {
     /// The last CPU result, and its textures.
     rendered: Option<Rendered>,
     textures: Vec<egui::TextureHandle>,
+    /// The heat ramp of the error maps' colour bar, made on first use.
+    heat_ramp: Option<egui::TextureHandle>,
     light: Option<LightShown>,
     gpu: Option<WindowGpu>,
     gpu_error: Option<String>,
@@ -82,6 +92,7 @@ impl ViewerApp {
             sent: None,
             rendered: None,
             textures: Vec::new(),
+            heat_ramp: None,
             light: None,
             gpu: None,
             gpu_error: None,
@@ -532,18 +543,20 @@ impl ViewerApp {
                 ));
                 let mark = if stale { " (previous settings)" } else { "" };
                 ui.label(format!(
-                    "CPU {:.2} ms (kernel {:.2}), rel. L2 vs full {:.4}{mark}",
+                    "CPU {:.2} ms (kernel {:.2}), rel. L2 vs full {}{mark}",
                     l.relight_seconds * 1e3,
                     l.kernel_seconds * 1e3,
-                    l.rel_l2
+                    l.rel_l2_percent()
                 ));
             }
             if r.light_seconds > 0.0 {
+                // One line in the panel's width.
                 ui.label(format!(
-                    "light prepared in {:.1} ms (full image for the errors {:.1} ms)",
+                    "light prepared in {:.1} ms, full image in {:.1} ms",
                     r.light_seconds * 1e3,
                     r.full_seconds * 1e3
-                ));
+                ))
+                .on_hover_text("the full image is the reference of the errors");
             }
         }
         for (i, t) in self.gpu_timings().iter().enumerate() {
@@ -617,133 +630,6 @@ impl ViewerApp {
             _ => self.textures.iter().map(|t| t.id()).collect(),
         };
         ids.into_iter().zip(titles).collect()
-    }
-
-    fn images(&mut self, ui: &mut egui::Ui) {
-        if let Some(e) = &self.load_error {
-            ui.centered_and_justified(|ui| {
-                ui.colored_label(
-                    egui::Color32::RED,
-                    format!("Could not open the transport file:\n{e}"),
-                );
-            });
-            return;
-        }
-        let Some(loaded) = &self.loaded else {
-            ui.centered_and_justified(|ui| ui.spinner());
-            return;
-        };
-        let shown = self.shown();
-        if shown.is_empty() {
-            ui.spinner();
-            return;
-        }
-        // Groups drawn as one image: pairs under the split layout, else single panes.
-        let per = if self.state.split_pairs() { 2 } else { 1 };
-        let groups: Vec<&[(egui::TextureId, String)]> = shown.chunks(per).collect();
-        let n = groups.len() as f32;
-        let avail = ui.available_size();
-        let (w, h) = (loaded.size.0 as f32, loaded.size.1 as f32);
-        let base = loaded.camera.clone();
-        // The camera the images are seen through, for drawing the quad lights over them.
-        let view_camera = (!loaded.transport.meta.lights.is_empty())
-            .then(|| {
-                loaded.camera(&self.state).or_else(|| {
-                    let c = &loaded.transport.meta.camera;
-                    Some(crate::scene::Camera {
-                        eye: glam::Vec3::from(c.eye),
-                        target: glam::Vec3::from(c.target),
-                        up: glam::Vec3::from(c.up),
-                        fov_y_deg: c.fov_y_deg,
-                        width: loaded.transport.meta.width,
-                        height: loaded.transport.meta.height,
-                    })
-                })
-            })
-            .flatten();
-        let (gap, title_h) = (8.0, 20.0);
-        let scale = (((avail.x - gap * (n - 1.0)) / n) / w)
-            .min((avail.y - title_h) / h)
-            .max(0.01);
-        let size = egui::vec2(w * scale, h * scale);
-        // A per-vertex bake is drawn at the pane's size in pixels.
-        if base.is_some() {
-            let ppp = ui.ctx().pixels_per_point();
-            let side = |points: f32| ((points * ppp).round() as u32).clamp(1, MAX_DRAW_SIDE);
-            self.state.draw_size = Some((side(size.x), side(size.y)));
-        }
-        let uv = self.viewport.uv();
-        let split = self.state.display.split;
-        let mut viewport = self.viewport;
-        let mut orbit = self.state.orbit;
-        ui.horizontal_top(|ui| {
-            for group in &groups {
-                ui.vertical(|ui| {
-                    let title = match group {
-                        [(_, a), (_, b)] => format!("{a}  |  {b}"),
-                        _ => group[0].1.clone(),
-                    };
-                    ui.label(title);
-                    let (rect, response) = ui.allocate_exact_size(size, egui::Sense::drag());
-                    let painter = ui.painter_at(rect);
-                    let white = egui::Color32::WHITE;
-                    match group {
-                        [(a, _), (b, _)] => {
-                            let x = rect.min.x + split * rect.width();
-                            let u = uv.min.x + split * uv.width();
-                            let (left, right) = (
-                                egui::Rect::from_min_max(rect.min, egui::pos2(x, rect.max.y)),
-                                egui::Rect::from_min_max(egui::pos2(x, rect.min.y), rect.max),
-                            );
-                            let uv_left = egui::Rect::from_min_max(uv.min, egui::pos2(u, uv.max.y));
-                            let uv_right =
-                                egui::Rect::from_min_max(egui::pos2(u, uv.min.y), uv.max);
-                            painter.image(*a, left, uv_left, white);
-                            painter.image(*b, right, uv_right, white);
-                            painter.vline(x, rect.y_range(), egui::Stroke::new(1.0, white));
-                        }
-                        _ => {
-                            painter.image(group[0].0, rect, uv, white);
-                        }
-                    }
-                    if let Some(camera) = &view_camera {
-                        super::outline_quads(
-                            &painter,
-                            rect,
-                            uv,
-                            camera,
-                            &loaded.transport.meta.lights,
-                            &self.state.lights,
-                        );
-                    }
-                    // A per-vertex bake's camera orbits; a fixed view zooms and pans.
-                    let scroll = response
-                        .hover_pos()
-                        .map(|pos| (pos, ui.input(|i| i.smooth_scroll_delta.y)))
-                        .filter(|(_, s)| *s != 0.0);
-                    match &base {
-                        Some(base) => {
-                            camera::interact(&mut orbit, base, &response, scroll.map(|s| s.1));
-                        }
-                        None => {
-                            if response.dragged() {
-                                viewport.pan(response.drag_delta(), rect.size());
-                            }
-                            if response.double_clicked() {
-                                viewport = Viewport::default();
-                            }
-                            if let Some((pos, scroll)) = scroll {
-                                let at = (pos - rect.min) / rect.size();
-                                viewport.zoom_at((scroll * 0.004).exp(), at);
-                            }
-                        }
-                    }
-                });
-                ui.add_space(gap);
-            }
-        });
-        self.viewport = viewport;
-        self.state.orbit = orbit;
     }
 
     /// The whole window, drawn into `ui` (also what the UI tests drive).
