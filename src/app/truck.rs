@@ -58,9 +58,15 @@ pub fn run_truck(
     let (t, reused_bake, bake_seconds) =
         load_or_bake_logged(&transport_path, &scene, settings, &what, log, progress)?;
     let ctx = LightContext::new(&t)?;
+    let top = format!("SH order {}", settings.sh_order);
     let requests = [
         (RelightRequest::Sh { order: 4 }, "SH order 4"),
-        (RelightRequest::Sh { order: 8 }, "SH order 8"),
+        (
+            RelightRequest::Sh {
+                order: settings.sh_order,
+            },
+            top.as_str(),
+        ),
         (RelightRequest::Wavelet { k: 50, weighting }, "K = 50"),
         (RelightRequest::Wavelet { k: 200, weighting }, "K = 200"),
         (RelightRequest::Full, "full"),

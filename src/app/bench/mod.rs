@@ -634,22 +634,13 @@ fn level(cs: &[(String, Vec<&BenchPoint>)], target: f64) -> Level {
     if !wavelets.is_empty() {
         others.insert(0, format!("wavelet {}", wavelets.join(", ")));
     }
-    let mut lines = vec![format!(
+    // One line a level: the terms each curve needs. The ratios are the summary's; on the plot
+    // they would hide the curves.
+    let lines = vec![format!(
         "terms for {:.0}%: {}",
         100.0 * target,
         others.join("; ")
     )];
-    let best = cs
-        .iter()
-        .filter(|(n, _)| n.starts_with("wavelet"))
-        .map(|(n, pts)| reach(n, pts, target, REL_L2))
-        .filter(|r| r.1.is_some())
-        .min_by(|a, b| a.1.unwrap_or(0.0).total_cmp(&b.1.unwrap_or(0.0)));
-    for (curve, name) in [("sh", "SH"), ("sh-light", "SH-light")] {
-        if let (Some(w), Some((_, pts))) = (best, cs.iter().find(|(n, _)| n == curve)) {
-            lines.push(ratio_words(reach(name, pts, target, REL_L2), w));
-        }
-    }
     let y = target;
     Level { y, lines, marks }
 }
@@ -878,11 +869,7 @@ mod tests {
         let five = &figure.levels[1];
         assert_eq!(
             five.lines,
-            [
-                "terms for 5%: wavelet none 40; sh > 16; sh-light 9",
-                "SH does not reach it in 16 terms",
-                "SH-light wins: wavelet-none needs 4.4× as many terms"
-            ]
+            ["terms for 5%: wavelet none 40; sh > 16; sh-light 9"]
         );
         // Ticks where the wavelets and SH through the light cross it; SH never does.
         assert_eq!(five.marks.len(), 2);
