@@ -47,6 +47,9 @@ pub enum PrtError {
     /// The GPU back-end is unavailable or failed.
     #[error("GPU: {0}")]
     Gpu(String),
+    /// The work was stopped by its cancel token (`bake::Cancel`) before it finished.
+    #[error("cancelled")]
+    Cancelled,
 }
 
 /// Result with [`PrtError`].

@@ -16,8 +16,10 @@
 //! ```
 //!
 //! Every numeric convention (axes, lat-long, cube faces, SH, Haar) is fixed in [`conventions`].
+//! The front door, [`api`], loads, bakes, opens, relights and measures in a few calls.
 #![warn(missing_docs)]
 
+pub mod api;
 pub mod app;
 pub mod bake;
 pub mod conventions;
@@ -37,4 +39,5 @@ pub mod store;
 pub(crate) mod test_support;
 pub mod volume;
 
+pub use api::{Cancel, Environment, Relighter};
 pub use error::{PrtError, Result};

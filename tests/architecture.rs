@@ -6,9 +6,10 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-/// The stages in import order: a module may use its own stage and those before it. `app` may
-/// use everything; nothing else may use `app`.
-const STAGES: [&[&str]; 12] = [
+/// The stages in import order: a module may use its own stage and those before it. `api` may
+/// use every engine stage and only `app` may use it; `app` may use everything; nothing else may
+/// use `app`.
+const STAGES: [&[&str]; 13] = [
     &["error", "files", "conventions", "names"],
     &["math"],
     &["flags"],
@@ -20,6 +21,7 @@ const STAGES: [&[&str]; 12] = [
     &["store"],
     &["bake"],
     &["relight", "volume"],
+    &["api"],
     &["app"],
 ];
 

@@ -1,11 +1,43 @@
 //! Tiles baked in parallel and handed on in tile order, so that a bake can write each one out as
 //! soon as the tiles before it are written, holding only those under way.
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
 use crate::error::{PrtError, Result};
+
+/// A token that stops a bake between tiles. Its clones share one flag, so a progress callback
+/// or another thread can cancel a bake under way, which then returns [`PrtError::Cancelled`]
+/// and writes nothing.
+#[derive(Clone, Debug, Default)]
+pub struct Cancel(Arc<AtomicBool>);
+
+impl Cancel {
+    /// A token not cancelled.
+    pub fn new() -> Cancel {
+        Cancel::default()
+    }
+
+    /// Cancels the bakes that hold this token or a clone of it.
+    pub fn cancel(&self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether [`Cancel::cancel`] was called on this token or a clone of it.
+    pub fn is_cancelled(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
+
+    /// [`PrtError::Cancelled`] once cancelled.
+    pub fn check(&self) -> Result<()> {
+        match self.is_cancelled() {
+            true => Err(PrtError::Cancelled),
+            false => Ok(()),
+        }
+    }
+}
 
 /// Runs `work` on tiles `0..count` over the thread pool, each thread taking the next tile not
 /// yet taken, and hands the results to `deliver` in tile order: a result that arrives before

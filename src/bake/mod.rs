@@ -4,7 +4,7 @@
 //! [`crate::store::transport`]. Parallel over pixel tiles with rayon, taken in order; each tile is
 //! finished and compressed before the next is taken and handed on in tile order, either kept
 //! ([`bake`]) or written out at once ([`bake_to_file`]), so a bake to a file holds only the tiles
-//! under way, whatever the size of its output.
+//! under way, whatever the size of its output. A [`Cancel`] token stops either between tiles.
 
 pub mod bounce;
 mod direct;
@@ -22,6 +22,7 @@ mod tint;
 
 use crate::store::transport::BakeDomain;
 pub use direct::{accumulate_direct_rows, direct_texels};
+pub use in_order::Cancel;
 use in_order::in_tile_order;
 pub use lights::LightSampler;
 use pixels::visits;
@@ -144,11 +145,21 @@ pub fn bake(
     settings: &BakeSettings,
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<Transport> {
+    bake_with(scene, settings, progress, &Cancel::new())
+}
+
+/// [`bake`], stopped between tiles with [`PrtError::Cancelled`] once `cancel` is cancelled.
+pub fn bake_with(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &(dyn Fn(BakeProgress) + Sync),
+    cancel: &Cancel,
+) -> Result<Transport> {
+    cancel.check()?;
     let mut kept = KeptTiles::default();
     let mesh = bake_mesh(scene, settings)?;
-    let untiled = bake_tiles(scene, settings, mesh, progress, &mut |tile, stats| {
-        kept.push(tile, stats)
-    })?;
+    let mut keep = |tile: EncodedTile, stats: TileStats| kept.push(tile, stats);
+    let untiled = bake_tiles(scene, settings, mesh, progress, cancel, &mut keep)?;
     kept.into_transport(untiled)
 }
 
@@ -162,6 +173,19 @@ pub fn bake_to_file(
     path: &std::path::Path,
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<TransportMeta> {
+    bake_to_file_with(scene, settings, path, progress, &Cancel::new())
+}
+
+/// [`bake_to_file`], stopped between tiles with [`PrtError::Cancelled`] once `cancel` is
+/// cancelled: nothing is then written at `path` and the spills are removed.
+pub fn bake_to_file_with(
+    scene: &Scene,
+    settings: &BakeSettings,
+    path: &std::path::Path,
+    progress: &(dyn Fn(BakeProgress) + Sync),
+    cancel: &Cancel,
+) -> Result<TransportMeta> {
+    cancel.check()?;
     let mesh = bake_mesh(scene, settings)?;
     let mut writer = TransportWriter::create(
         path,
@@ -170,9 +194,8 @@ pub fn bake_to_file(
         settings.sh_order,
         settings.storage().2,
     )?;
-    let untiled = bake_tiles(scene, settings, mesh, progress, &mut |tile, stats| {
-        writer.push(&tile, stats)
-    })?;
+    let mut write = |tile: EncodedTile, stats: TileStats| writer.push(&tile, stats);
+    let untiled = bake_tiles(scene, settings, mesh, progress, cancel, &mut write)?;
     writer.finish(untiled)
 }
 
@@ -214,12 +237,13 @@ fn image_size(scene: &Scene, mesh: Option<&VertexMesh>) -> (usize, usize) {
 }
 
 /// The bake of `mesh` (from [`bake_mesh`]), handing each encoded tile and its statistics to
-/// `deliver` in tile order.
+/// `deliver` in tile order; `cancel` is checked before the tiles and before each tile.
 fn bake_tiles(
     scene: &Scene,
     settings: &BakeSettings,
     mesh: Option<VertexMesh>,
     progress: &(dyn Fn(BakeProgress) + Sync),
+    cancel: &Cancel,
     deliver: &mut (dyn FnMut(EncodedTile, TileStats) -> Result<()> + Send),
 ) -> Result<Untiled> {
     let identity = settings.identity(scene)?;
@@ -352,9 +376,11 @@ fn bake_tiles(
     let columns = light_sampler.columns();
     let mut light_columns = LightColumns::zeros(columns, w, h);
     let mut band = vec![0.0f32; columns * 3 * TILE * w];
+    cancel.check()?;
     in_tile_order(
         tx * ty,
         |t| {
+            cancel.check()?;
             if !mine(t) {
                 return Ok((t, None));
             }

@@ -6,9 +6,22 @@ use crate::flags::within;
 use crate::store::transport::{BakeDomain, BakeIdentity, IndirectSettings};
 
 /// Settings of a bake; the defaults are the command line's.
-#[derive(Clone, Debug, PartialEq)]
+///
+/// They read from and write to TOML or JSON (serde): a key left out takes its default, an
+/// unknown key is an error, and ranges are checked when baking ([`BakeSettings::validate`]).
+/// The keys are the fields, each the `prt bake` flag of that name with `_` for `-`
+/// (`sh_order` is `--sh-order`), and the values are written as the flags take them
+/// (`"l2"`, `"q8"`, `"cache"`), except:
+///
+/// - `cube_n` is `--cube` (`cube` is also accepted);
+/// - `shard` is `[I, COUNT]` for `--shard I/COUNT`;
+/// - `domain` is `"view"`, or `{"vertices": {"edge_length": E}}` for `--per-vertex
+///   --edge-length E` (in TOML, `[domain.vertices]` with `edge_length = E`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct BakeSettings {
     /// Cube face size N of the texel lights.
+    #[serde(alias = "cube")]
     pub cube_n: usize,
     /// SH order of the SH transport (n² coefficients). The default, 6, is also the highest order
     /// the demo shows beside the wavelets.

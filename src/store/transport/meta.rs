@@ -79,8 +79,11 @@ pub struct IndirectSettings {
     pub cache_spacing: f32,
 }
 
-/// What a bake's rows belong to.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// What a bake's rows belong to. In a settings file: `"view"`, or per vertex
+/// `{"vertices": {"edge_length": 0.05}}` (JSON; in TOML `[domain.vertices]` and its
+/// `edge_length`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum BakeDomain {
     /// The pixels of the scene camera's view.
     View,
