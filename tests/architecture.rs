@@ -198,6 +198,27 @@ fn every_module_belongs_to_a_stage() {
 }
 
 #[test]
+fn every_module_file_is_named_in_the_architecture() {
+    // A module is named where its last part stands in backticks (`envmap`, `resample/`), so
+    // that the map of the stages lists every room of the house.
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("ARCHITECTURE.md"))
+            .unwrap();
+    let named =
+        |name: &str| text.contains(&format!("`{name}`")) || text.contains(&format!("`{name}/`"));
+    let h = house();
+    let unnamed: Vec<&String> = h
+        .lengths
+        .keys()
+        .filter(|m| m.rsplit("::").next().is_some_and(|last| !named(last)))
+        .collect();
+    assert!(
+        unnamed.is_empty(),
+        "modules ARCHITECTURE.md does not name: {unnamed:?}"
+    );
+}
+
+#[test]
 fn no_stage_imports_a_later_one() {
     let h = house();
     let mut wrong = Vec::new();

@@ -299,7 +299,7 @@ fn kernel_rates(t: &Transport, envs: &[(String, EnvMap)]) -> Result<Vec<(String,
 fn report(table: &[TableRow], sweeps: &[Sweep]) -> String {
     let mut s = String::from(
         "# Ng, Ramamoorthi & Hanrahan 2003, side by side\n\n\
-         Produced by `prt demo --paper` (see the README). Every bake is at @SIZE@² with the default \
+         Produced by `prt demo --paper` (see docs/guide/bench.md). Every bake is at @SIZE@² with the default \
          settings (1 spp, @EDGE@ at edge pixels, threshold @THRESHOLD@ of the unshadowed row's norm, 8-bit \
          values). Errors are \
          relative to relighting with every stored term, over the covered pixels, as the paper's \

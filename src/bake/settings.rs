@@ -42,7 +42,7 @@ pub struct BakeSettings {
     /// an unshadowed row (0 keeps all). One absolute budget for every row spends it where the
     /// image is bright: shadowed rows become sparser than lit ones. The default, 0.005, brings
     /// the demo's bake relit with every term to 1.2% of the path tracer under a low sun; at 0.01
-    /// the rows' dropped terms added up on the open ground to 1.7% (see the README).
+    /// the rows' dropped terms added up on the open ground to 1.7% (see docs/guide/baking.md).
     pub threshold: f32,
     /// How the thresholding budget weighs coefficients.
     pub budget: Budget,

@@ -105,7 +105,7 @@ pub fn bake_volume(
     let spec = scene.medium.as_ref().ok_or_else(|| {
         PrtError::file(
             &scene.source_path,
-            "the scene has no [medium] to bake (see the README's volume section)",
+            "the scene has no [medium] to bake (see docs/guide/media.md)",
         )
     })?;
     let medium = spec.build(resolution)?;
