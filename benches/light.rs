@@ -1,6 +1,6 @@
 //! Criterion benchmarks of light preparation (environment -> cube map -> Haar, and the SH light)
 //! on blender_sunrise at N = 32 and 64, SH order 8 (the demo bake's), before and after the cached
-//! resampling of [`wavelet_prt::light::resample`]:
+//! resampling of [`wavelet_prt::env::resample`]:
 //!
 //! - `exact_prepare`: what `LightContext::prepare` did before, the direct splat for the unturned
 //!   cube (SH) and for the turned one (wavelets);
@@ -28,9 +28,9 @@ use std::path::Path;
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::light::resample;
-use wavelet_prt::light::select::WaveletLight;
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::resample;
+use wavelet_prt::env::select::WaveletLight;
 use wavelet_prt::math::sh;
 use wavelet_prt::relight::{LightContext, PreparedLight};
 

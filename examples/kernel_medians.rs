@@ -16,8 +16,8 @@
 use std::path::Path;
 use std::time::Instant;
 
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::light::select::Weighting;
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::select::Weighting;
 use wavelet_prt::relight::LightContext;
 use wavelet_prt::relight::strip_kernel::{StripPath, relight_strips};
 use wavelet_prt::store::transport::Transport;

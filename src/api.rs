@@ -57,8 +57,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 pub use crate::bake::{BakeProgress, BakeSettings, Cancel};
-pub use crate::light::envmap::{EnvMap, EnvRotation};
-pub use crate::light::select::Weighting;
+pub use crate::env::envmap::{EnvMap, EnvRotation};
+pub use crate::env::select::Weighting;
 pub use crate::output::film::Image;
 pub use crate::output::metrics::ErrorReport;
 pub use crate::relight::background::Background;
@@ -66,8 +66,8 @@ pub use crate::relight::{LightMix, LightSetting, RelightRequest};
 pub use crate::scene::{Camera, Framing, Scene};
 pub use crate::store::transport::{BakeDomain, Transport, TransportMeta};
 
+use crate::env::envmap::check_env_size;
 use crate::error::{PrtError, Result};
-use crate::light::envmap::check_env_size;
 use crate::relight::background::{composite, environment_behind};
 use crate::relight::raster::DRAW_SAMPLES;
 use crate::relight::vertex::{self, GlossEval};
@@ -169,7 +169,7 @@ impl Environment {
     }
 
     /// A lat-long map of `width` x `height` pixels, rows from the zenith down, linear RGB
-    /// radiance. Checked as a file is (sizes from 1 to [`crate::light::envmap::MAX_ENV_SIDE`],
+    /// radiance. Checked as a file is (sizes from 1 to [`crate::env::envmap::MAX_ENV_SIDE`],
     /// finite values, some light), with `width · height` pixels, none of them negative.
     pub fn from_array(width: usize, height: usize, pixels: Vec<[f32; 3]>) -> Result<Environment> {
         check_env_size(Path::new(ARRAY), width, height)?;

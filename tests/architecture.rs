@@ -17,7 +17,7 @@ const STAGES: [&[&str]; 13] = [
     &["gpu"],
     &["medium"],
     &["scene"],
-    &["light"],
+    &["env"],
     &["store"],
     &["bake"],
     &["relight", "volume"],
@@ -44,7 +44,7 @@ fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
-/// `src/light/envmap.rs` -> `light::envmap`, `src/store/mod.rs` -> `store`.
+/// `src/env/envmap.rs` -> `env::envmap`, `src/store/mod.rs` -> `store`.
 fn module_of(src: &Path, file: &Path) -> String {
     let rel = file.strip_prefix(src).unwrap().with_extension("");
     let parts: Vec<String> = rel

@@ -13,8 +13,8 @@ use common::{
 use glam::DVec3;
 use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation, SunSky};
-use wavelet_prt::light::select::{SparseLight, Weighting};
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation, SunSky};
+use wavelet_prt::env::select::{SparseLight, Weighting};
 use wavelet_prt::math::cubemap::{CubeMap, texel_count, texel_dirs, texel_index};
 use wavelet_prt::math::sampling::Rng;
 use wavelet_prt::math::sh;

@@ -14,8 +14,8 @@ use wavelet_prt::app::bench::{
 };
 use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation, SunSky};
-use wavelet_prt::light::select::Weighting;
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation, SunSky};
+use wavelet_prt::env::select::Weighting;
 use wavelet_prt::relight::Method;
 use wavelet_prt::store::transport::Transport;
 

@@ -13,8 +13,8 @@ use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DVec3};
 use wavelet_prt::PrtError;
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation, SunSky};
-use wavelet_prt::light::select::select_top_k;
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation, SunSky};
+use wavelet_prt::env::select::select_top_k;
 use wavelet_prt::math::cubemap::{self, CubeMap};
 use wavelet_prt::math::haar::{self, Band};
 use wavelet_prt::math::sh;
@@ -858,7 +858,7 @@ fn fast_resampling_of_a_bundled_map_matches_the_exact_splat() {
         ),
         (
             pitched,
-            wavelet_prt::light::resample::resample_latlong_recorded(
+            wavelet_prt::env::resample::resample_latlong_recorded(
                 env.width,
                 env.height,
                 &env.pixels,

@@ -11,7 +11,7 @@ use glam::{Vec2, Vec3};
 use serde_json::json;
 use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::relight_wavelet;

@@ -10,8 +10,8 @@ mod common;
 
 use common::{GPU_MATCH, SPHERE_ON_PLANE, assets, scene_from};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::light::select::Weighting;
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::select::Weighting;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::gpu::{Gpu, GpuTransport};
 use wavelet_prt::relight::{LightContext, light_sh_order, relight_sh, relight_wavelet};
@@ -137,7 +137,7 @@ fn bad_lights_are_errors_on_the_gpu_too() {
     };
     let t = &bakes()[1];
     let g = GpuTransport::upload(&gpu, t, None).unwrap();
-    let bad = wavelet_prt::light::select::SparseLight {
+    let bad = wavelet_prt::env::select::SparseLight {
         indices: vec![t.coeff_count() as u32],
         values: vec![[1.0; 3]],
     };

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use common::{SPHERE_ON_PLANE, StFile, fog_scene, prt, random_transport, s, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::relight::{LightContext, RelightRequest, relight};
 use wavelet_prt::scene::Scene;
 use wavelet_prt::store::transport::{Quantization, Transport};

@@ -14,7 +14,7 @@ use common::{
     SPHERE_ON_PLANE, StFile, assert_clean_error, fog_scene, names_in, prt, random_transport, s,
     small_transfer, temp_dir,
 };
-use wavelet_prt::light::envmap::EnvMap;
+use wavelet_prt::env::envmap::EnvMap;
 use wavelet_prt::store::transport::{Quantization, Transport};
 use wavelet_prt::volume::{VolumeTransfer, bake_volume};
 
@@ -113,7 +113,7 @@ fn maps_a_few_pixels_wide_or_one_row_tall_resample_at_once() {
         for n in [32, 64] {
             let m = map.clone();
             let cube = within(&format!("{} at N = {n}", m.source), 30, move || {
-                m.to_cube(n, wavelet_prt::light::envmap::EnvRotation::default())
+                m.to_cube(n, wavelet_prt::env::envmap::EnvRotation::default())
                     .unwrap()
             });
             // The cube keeps the map's power.

@@ -10,7 +10,7 @@ use common::gltf::{GltfBuilder, test_scene};
 use common::{StFile, plane_from_above, prt, relit, s, temp_dir};
 use serde_json::json;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::relight::RelightRequest;
 use wavelet_prt::scene::trace::Tracer;
 use wavelet_prt::scene::{Framing, Scene};

@@ -350,10 +350,10 @@ color = [1.0, 0.7, 0.4]
 }
 
 fn env_terms(t: &Transport) -> Terms {
-    let env = wavelet_prt::light::envmap::EnvMap::from_spec("sun:35,60").unwrap();
+    let env = wavelet_prt::env::envmap::EnvMap::from_spec("sun:35,60").unwrap();
     let ctx = wavelet_prt::relight::LightContext::new(t).unwrap();
     let light = ctx
-        .prepare(&env, wavelet_prt::light::envmap::EnvRotation::default())
+        .prepare(&env, wavelet_prt::env::envmap::EnvRotation::default())
         .unwrap();
     Terms::of(
         t,
@@ -361,7 +361,7 @@ fn env_terms(t: &Transport) -> Terms {
         &light,
         &wavelet_prt::relight::RelightRequest::Wavelet {
             k: 60,
-            weighting: wavelet_prt::light::select::Weighting::Transport,
+            weighting: wavelet_prt::env::select::Weighting::Transport,
         },
     )
     .unwrap()

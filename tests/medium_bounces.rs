@@ -8,7 +8,7 @@ use common::scene_from;
 use wavelet_prt::bake::path_tracer::path_trace;
 use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::RelightRequest;

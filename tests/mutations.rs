@@ -28,8 +28,8 @@ use std::path::{Path, PathBuf};
 
 use common::{SPHERE_ON_PLANE, StFile, fog_scene, random_transport, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation, SunSky};
-use wavelet_prt::light::select::Weighting;
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation, SunSky};
+use wavelet_prt::env::select::Weighting;
 use wavelet_prt::math::sampling::Rng;
 use wavelet_prt::relight::{LightContext, PreparedLight, RelightRequest, relight};
 use wavelet_prt::scene::Scene;

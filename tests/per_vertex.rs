@@ -6,8 +6,8 @@ mod common;
 
 use common::{GPU_MATCH, SPHERE_ON_PLANE, StFile, assets, prt, relit, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::light::select::Weighting;
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::select::Weighting;
 use wavelet_prt::math::cubemap::{solid_angles, texel_dirs};
 use wavelet_prt::relight::{LightContext, RelightRequest, relight};
 use wavelet_prt::scene::trace::Tracer;

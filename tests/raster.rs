@@ -9,8 +9,8 @@ mod common;
 
 use common::{Rng, gpu_or_skip};
 use glam::Vec3;
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::gpu::map_and_read;
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::relight::background::{composite, environment_behind_camera};
 use wavelet_prt::relight::gpu::{Gpu, GpuMesh, GpuRaster, upload_colours};
 use wavelet_prt::relight::raster::{Raster, rasterize, rasterize_multisampled};

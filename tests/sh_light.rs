@@ -6,7 +6,7 @@ mod common;
 
 use common::{SAME_SUM, SPHERE_ON_PLANE, scene_from};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::{CubeMap, solid_angles, texel_count, texel_dirs};
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
@@ -159,8 +159,8 @@ fn through_the_light_agrees_with_the_baked_sh_path() {
     let (baked, _) = relight_sh(&t, &sh.coeffs[..1]).unwrap();
     assert!(relative_l2(&through, &baked, mask).unwrap() < SAME_SUM);
     // And with every term the light is itself: full relighting, up to the order's error.
-    let all = wavelet_prt::light::select::WaveletLight::from_cube(&cube).unwrap();
-    let full = wavelet_prt::light::select::SparseLight {
+    let all = wavelet_prt::env::select::WaveletLight::from_cube(&cube).unwrap();
+    let full = wavelet_prt::env::select::SparseLight {
         indices: (0..texel_count(n) as u32).collect(),
         values: all.coeffs,
     };

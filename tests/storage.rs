@@ -7,7 +7,7 @@ mod common;
 
 use common::{GPU_MATCH, SAME_SUM, StFile, random_transport, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::select::SparseLight;
+use wavelet_prt::env::select::SparseLight;
 use wavelet_prt::math::sampling::Rng;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::{relight_dense_reference, relight_wavelet};

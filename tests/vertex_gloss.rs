@@ -10,7 +10,7 @@ use common::{
 };
 use glam::Vec3;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::{solid_angles, texel_dirs};
 use wavelet_prt::relight::RelightRequest;
 use wavelet_prt::relight::raster::{Gloss, rasterize_glossy};

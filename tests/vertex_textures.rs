@@ -12,7 +12,7 @@ use common::{StFile, assets, gpu_or_skip, temp_dir};
 use glam::Vec3;
 use wavelet_prt::bake::reference::render_reference_with;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::raster::{

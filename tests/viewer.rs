@@ -5,7 +5,7 @@ mod common;
 use wavelet_prt::app::viewer::{
     Engine, EnvEntry, EnvSource, LightState, ViewState, env_entries, screenshot,
 };
-use wavelet_prt::light::envmap::EnvRotation;
+use wavelet_prt::env::envmap::EnvRotation;
 use wavelet_prt::relight::Method;
 
 /// Relative L2 of 40 of the 384 wavelet terms against every term, over the per-vertex bake's
@@ -575,7 +575,7 @@ fn per_vertex_engine() -> (Engine, ViewState) {
 
 #[test]
 fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
-    use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+    use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
     use wavelet_prt::relight::background::environment_behind_camera;
     use wavelet_prt::relight::raster::rasterize_multisampled;
     use wavelet_prt::relight::vertex::{Orbit, bake_camera, vertex_colours};

@@ -8,7 +8,7 @@ use common::{GPU_MATCH, scene_from, temp_dir};
 use glam::Vec3;
 use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::light::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::{CubeMap, texel_dirs};
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;

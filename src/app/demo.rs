@@ -8,9 +8,9 @@
 use std::path::{Path, PathBuf};
 
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::env::envmap::{EnvMap, EnvRotation};
+use crate::env::select::Weighting;
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvMap, EnvRotation};
-use crate::light::select::Weighting;
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{Cell, downsample, write_sheet};
@@ -40,7 +40,7 @@ macro_rules! bundled_map {
     ($name:literal) => {
         Asset {
             path: concat!("envmaps/", $name, ".exr"),
-            bytes: crate::light::envmap::bundled_bytes($name),
+            bytes: crate::env::envmap::bundled_bytes($name),
         }
     };
 }
@@ -164,7 +164,7 @@ pub fn run_demo(
     log(&format!(
         "bundled environment maps in {} (any --env also takes them by name: {})",
         assets.join("envmaps").display(),
-        crate::light::envmap::bundled_names()
+        crate::env::envmap::bundled_names()
     ));
     let scene = Scene::load(&assets.join("scenes/demo.toml"))?;
     let settings = demo_settings();

@@ -6,8 +6,8 @@
 use std::path::{Path, PathBuf};
 
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::env::envmap::{EnvRotation, EnvSpec};
 use crate::error::Result;
-use crate::light::envmap::{EnvRotation, EnvSpec};
 use crate::output::film::{Image, ToneMap};
 use crate::output::sheet::{Cell, downsample, write_sheet};
 use crate::relight::background::{composite, environment_behind};
@@ -41,7 +41,7 @@ pub fn run_dusk(
     dir: &Path,
     assets: &Path,
     settings: &BakeSettings,
-    weighting: crate::light::select::Weighting,
+    weighting: crate::env::select::Weighting,
     log: &mut dyn FnMut(&str),
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<DuskReport> {

@@ -9,8 +9,8 @@ use std::time::Instant;
 
 use crate::bake::path_tracer::path_trace_lit;
 use crate::bake::{BakeSettings, bake};
+use crate::env::envmap::{EnvRotation, EnvSpec};
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvRotation, EnvSpec};
 use crate::math::cubemap::{CubeMap, texel_count};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;

@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake};
+use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{cells_at, write_sheet};
@@ -125,7 +125,7 @@ pub fn run_orbit(
     let k_req = RelightRequest::Wavelet {
         k: ORBIT_TERMS,
         // The demo's weighting.
-        weighting: crate::light::select::Weighting::Transport,
+        weighting: crate::env::select::Weighting::Transport,
     };
     // The per-pixel bake from the scene's camera, every term, to compare with.
     let pixel_ctx = LightContext::new(per_pixel)?;

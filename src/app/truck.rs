@@ -6,9 +6,9 @@
 use std::path::{Path, PathBuf};
 
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::env::envmap::{EnvMap, EnvRotation};
+use crate::env::select::Weighting;
 use crate::error::Result;
-use crate::light::envmap::{EnvMap, EnvRotation};
-use crate::light::select::Weighting;
 use crate::output::film::ToneMap;
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{Cell, write_sheet};

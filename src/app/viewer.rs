@@ -37,7 +37,7 @@ pub use volume_app::{VolumeApp, VolumeEngine, VolumeFrame, VolumeState, volume_s
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::light::envmap::{EnvMap, SunSpec};
+use crate::env::envmap::{EnvMap, SunSpec};
 use crate::output::film::{Image, ToneCurve};
 use crate::relight::gpu::Gpu;
 use crate::relight::{PreparedLight, RelightRequest};
@@ -214,7 +214,7 @@ pub fn env_entries(cli: &[String]) -> (Vec<EnvEntry>, LightState) {
     }
     if entries.is_empty() {
         // No folder of maps beside the binary: the maps built into it, by name.
-        for m in crate::light::envmap::BUNDLED_MAPS {
+        for m in crate::env::envmap::BUNDLED_MAPS {
             entries.push(EnvEntry {
                 name: m.name.to_string(),
                 source: EnvSource::File(PathBuf::from(m.name)),

@@ -8,8 +8,8 @@ use std::time::Instant;
 
 use glam::Vec3;
 
+use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::math::cubemap::CubeMap;
 use crate::output::film::Image;
 use crate::output::metrics::relative_l2;

@@ -31,8 +31,8 @@ use rayon::prelude::*;
 
 use crate::bake::bounce::Vertex;
 use crate::bake::{BakeSettings, EdgeMap, pixel_subsamples, shading_point};
+use crate::env::importance::CubeSampler;
 use crate::error::{PrtError, Result};
-use crate::light::importance::CubeSampler;
 use crate::math::cubemap::CubeMap;
 use crate::math::sampling::Rng;
 use crate::medium::henyey_greenstein;

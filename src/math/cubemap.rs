@@ -313,7 +313,7 @@ pub(crate) fn check_latlong(width: usize, height: usize, len: usize) -> Result<(
 
 /// The two sizes that steer the splat of a map with `height` rows into a cube of face size `n`:
 /// (`texel_min`, `finest`) of [`Splatter`]. Shared with the recorded splat of
-/// [`crate::light::resample`], so both cut cells alike.
+/// [`crate::env::resample`], so both cut cells alike.
 pub(crate) fn splat_limits(n: usize, width: usize, height: usize) -> (f64, f64) {
     // A face-corner texel spans about a third of the angle of a face-centre one (2/N).
     let texel_min = 2.0 / (3.0 * n as f64);
@@ -339,8 +339,8 @@ pub(crate) fn splat_limits(n: usize, width: usize, height: usize) -> (f64, f64) 
 /// A constant map gives a constant cube and the total power is kept to rounding error.
 ///
 /// This is the direct splat, cell by cell, with trigonometry at every cut: the slow twin of
-/// [`crate::light::resample`], which records the same split once per (map size, N, pitch) and reuses
-/// it. [`crate::light::envmap::EnvMap::to_cube`] takes the fast path; this one stays as its reference
+/// [`crate::env::resample`], which records the same split once per (map size, N, pitch) and reuses
+/// it. [`crate::env::envmap::EnvMap::to_cube`] takes the fast path; this one stays as its reference
 /// and for rotations that are not a yaw followed by a pitch.
 pub fn resample_latlong_exact(
     width: usize,

@@ -4,8 +4,8 @@
 
 use glam::Vec3;
 
+use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::Image;
 use crate::scene::Camera;
 use crate::store::transport::TransportMeta;

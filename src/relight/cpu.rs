@@ -8,8 +8,8 @@ use rayon::prelude::*;
 
 use super::RelightStats;
 use super::strip_kernel::{StripPath, relight_strips};
+use crate::env::select::SparseLight;
 use crate::error::{PrtError, Result};
-use crate::light::select::SparseLight;
 use crate::output::film::Image;
 use crate::store::transport::strips::{STRIP_ROWS, Slot};
 use crate::store::transport::{TILE, Transport, tile_grid};

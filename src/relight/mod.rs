@@ -18,8 +18,8 @@ pub use crate::scene::light_mix::{LightMix, LightSetting};
 pub use cpu::{relight_dense_reference, relight_sh, relight_wavelet};
 pub use prepare::{LightContext, PreparedLight};
 
+use crate::env::select::{SparseLight, WaveletLight, Weighting};
 use crate::error::{PrtError, Result};
-use crate::light::select::{SparseLight, WaveletLight, Weighting};
 use crate::output::film::Image;
 use crate::store::transport::Transport;
 

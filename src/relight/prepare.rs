@@ -2,9 +2,9 @@
 //! its Haar coefficients (ready for any K and weighting) and its SH projection (ready for any
 //! order up to the file's), computed once per light and reused by every request.
 
+use crate::env::envmap::{EnvMap, EnvRotation};
+use crate::env::select::WaveletLight;
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvMap, EnvRotation};
-use crate::light::select::WaveletLight;
 use crate::math::haar::support_solid_angles;
 use crate::math::sh;
 use crate::math::texel_sh::TexelShBasis;

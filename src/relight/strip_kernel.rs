@@ -40,7 +40,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use crate::light::select::SparseLight;
+use crate::env::select::SparseLight;
 use crate::output::film::Image;
 use crate::store::quant::{BLOCK_ROWS, scale_table};
 use crate::store::transport::strips::{self, BAND_BLOCKS, STRIP_ROWS, STRIPS_PER_BLOCK, Strips};

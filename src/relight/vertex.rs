@@ -7,8 +7,8 @@
 
 use glam::{Quat, Vec3};
 
+use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvMap, EnvRotation};
 use crate::output::film::Image;
 use crate::relight::background::{composite, environment_behind_camera};
 use std::borrow::Cow;

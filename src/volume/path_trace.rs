@@ -23,8 +23,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::bake::path_tracer::PathTraced;
+use crate::env::importance::CubeSampler;
 use crate::error::{PrtError, Result};
-use crate::light::importance::CubeSampler;
 use crate::math::cubemap::CubeMap;
 use crate::math::sampling::{Rng, power_heuristic};
 use crate::medium::tracking::{Tracker, sample_hg};

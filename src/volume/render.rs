@@ -89,7 +89,7 @@ impl PhaseLight {
             .into_par_iter()
             .flat_map_iter(|k| {
                 let (u, v) = ((k % w) as f64 + 0.5, (k / w) as f64 + 0.5);
-                let d = crate::light::envmap::latlong_dir(u / w as f64, v / h as f64).as_vec3();
+                let d = crate::env::envmap::latlong_dir(u / w as f64, v / h as f64).as_vec3();
                 let mut out = vec![[0.0f32; 3]; n2];
                 for (wt, td) in weighted.iter().zip(&dirs_f) {
                     let p = henyey_greenstein(g, td.dot(d));

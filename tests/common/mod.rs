@@ -36,9 +36,9 @@ pub const GPU_MATCH: f64 = 1e-4;
 /// Every Haar term of a cube map's light: relighting with it is the full product.
 pub fn full_light(
     cube: &wavelet_prt::math::cubemap::CubeMap,
-) -> wavelet_prt::light::select::SparseLight {
-    let w = wavelet_prt::light::select::WaveletLight::from_cube(cube).unwrap();
-    wavelet_prt::light::select::SparseLight {
+) -> wavelet_prt::env::select::SparseLight {
+    let w = wavelet_prt::env::select::WaveletLight::from_cube(cube).unwrap();
+    wavelet_prt::env::select::SparseLight {
         indices: (0..w.coeffs.len() as u32).collect(),
         values: w.coeffs,
     }
@@ -53,7 +53,7 @@ pub fn random_light(
     k: usize,
     ascending: bool,
     mut value: impl FnMut(&mut SampleRng) -> [f32; 3],
-) -> wavelet_prt::light::select::SparseLight {
+) -> wavelet_prt::env::select::SparseLight {
     let mut indices: Vec<u32> = (0..c as u32).collect();
     for i in (1..indices.len()).rev() {
         indices.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
@@ -62,7 +62,7 @@ pub fn random_light(
     if ascending {
         indices.sort_unstable();
     }
-    wavelet_prt::light::select::SparseLight {
+    wavelet_prt::env::select::SparseLight {
         values: indices.iter().map(|_| value(rng)).collect(),
         indices,
     }
@@ -102,9 +102,9 @@ pub fn sphere_scene(roughness: Option<f32>, name: &str) -> Scene {
 /// A sky with a small sun (2° radius, smaller than a texel), on a cube of face 16.
 #[allow(dead_code)]
 pub fn sunny_cube() -> wavelet_prt::math::cubemap::CubeMap {
-    wavelet_prt::light::envmap::EnvMap::from_spec("sun:35,60")
+    wavelet_prt::env::envmap::EnvMap::from_spec("sun:35,60")
         .unwrap()
-        .to_cube(16, wavelet_prt::light::envmap::EnvRotation::default())
+        .to_cube(16, wavelet_prt::env::envmap::EnvRotation::default())
         .unwrap()
 }
 
@@ -457,8 +457,8 @@ fn random_rows_of_density(
 /// light and the request, for a test that relights a transport once.
 pub fn relit(
     t: &Transport,
-    env: &wavelet_prt::light::envmap::EnvMap,
-    rotation: wavelet_prt::light::envmap::EnvRotation,
+    env: &wavelet_prt::env::envmap::EnvMap,
+    rotation: wavelet_prt::env::envmap::EnvRotation,
     req: wavelet_prt::relight::RelightRequest,
 ) -> wavelet_prt::output::film::Image {
     let ctx = wavelet_prt::relight::LightContext::new(t).unwrap();

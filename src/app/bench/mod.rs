@@ -10,9 +10,9 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use crate::bake::{BakeSettings, bake};
+use crate::env::envmap::{EnvMap, EnvRotation};
+use crate::env::select::Weighting;
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvMap, EnvRotation};
-use crate::light::select::Weighting;
 use crate::output::film::Image;
 use crate::output::metrics::{ErrorReport, compare, relative_l2};
 use crate::output::plot::{self, Corner, Figure, Level, Look, Marker, PALETTE, PlotSpec, Series};

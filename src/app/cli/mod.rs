@@ -10,9 +10,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::bake::bounce::BounceVisibility;
 use crate::bake::{BakeProgress, BakeSettings, bake, worst_case_bytes};
+use crate::env::envmap::{EnvMap, EnvRotation, EnvSpec};
+use crate::env::select::{WaveletLight, Weighting};
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvMap, EnvRotation, EnvSpec};
-use crate::light::select::{WaveletLight, Weighting};
 use crate::output::film::{ToneCurve, ToneMap};
 use crate::relight::background::Background;
 use crate::relight::{LightContext, Method, RelightRequest, relight};
@@ -369,7 +369,7 @@ fn env_files(specs: &[String]) -> Vec<PathBuf> {
     specs
         .iter()
         .filter_map(|s| match EnvSpec::parse(s) {
-            Ok(EnvSpec::File(p)) if crate::light::envmap::bundled_map(&p).is_none() => Some(p),
+            Ok(EnvSpec::File(p)) if crate::env::envmap::bundled_map(&p).is_none() => Some(p),
             _ => None,
         })
         .collect()

@@ -536,7 +536,7 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
 pub(super) fn env_cmd(a: EnvArgs) -> Result<()> {
     let spec = match (&a.env, a.list) {
         (_, true) => {
-            for m in crate::light::envmap::BUNDLED_MAPS {
+            for m in crate::env::envmap::BUNDLED_MAPS {
                 println!("{}", m.name);
             }
             return Ok(());

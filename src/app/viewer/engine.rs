@@ -9,8 +9,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::*;
+use crate::env::envmap::{EnvMap, EnvRotation, EnvSpec};
 use crate::error::{PrtError, Result};
-use crate::light::envmap::{EnvMap, EnvRotation, EnvSpec};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{ErrorImage, HeatScale};

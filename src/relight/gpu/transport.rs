@@ -6,9 +6,9 @@ use std::mem::offset_of;
 use std::time::Instant;
 
 use super::{Gpu, TO_TEXTURE_WORKGROUP};
+use crate::env::select::SparseLight;
 use crate::error::{PrtError, Result};
 use crate::gpu::wait_and_read;
-use crate::light::select::SparseLight;
 use crate::output::film::Image;
 use crate::relight::{LightMix, RelightStats, Terms};
 use crate::store::quant::Quantization;

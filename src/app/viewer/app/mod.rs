@@ -16,7 +16,7 @@ use super::{
     DisplayPath, GpuTiming, GpuView, Layout, LightShown, MAX_DRAW_SIDE, Rendered, ViewState,
     sh_order_for_terms,
 };
-use crate::light::select::Weighting;
+use crate::env::select::Weighting;
 use crate::output::sheet::heat_color;
 use crate::relight::Method;
 use crate::relight::gpu::Gpu;

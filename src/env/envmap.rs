@@ -426,10 +426,10 @@ impl EnvMap {
     }
 
     /// The cube map of texel-average radiance at face size `n`, environment turned by `rotation`.
-    /// Takes the fast path of [`crate::light::resample`]: the split of cells over texels is cached per
+    /// Takes the fast path of [`crate::env::resample`]: the split of cells over texels is cached per
     /// (map size, N, pitch) and the yaw shifts the map, so turning and switching maps is cheap.
     pub fn to_cube(&self, n: usize, rotation: EnvRotation) -> Result<CubeMap> {
-        crate::light::resample::resample_latlong(self.width, self.height, &self.pixels, n, rotation)
+        crate::env::resample::resample_latlong(self.width, self.height, &self.pixels, n, rotation)
     }
 
     /// [`EnvMap::to_cube`] by the direct exact splat, cell by cell under the full rotation: the

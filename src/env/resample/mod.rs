@@ -57,8 +57,8 @@ use std::f64::consts::{PI, TAU};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
+use crate::env::latlong::{EnvRotation, pixel_solid_angle};
 use crate::error::{PrtError, Result};
-use crate::light::latlong::{EnvRotation, pixel_solid_angle};
 use crate::math::cubemap::{
     CubeMap, Cut, check_latlong, dir_to_face_st, dir_to_texel, resample_latlong_exact,
     solid_angles, splat_limits, splat_radiance, texel_count, texel_dirs, texel_index, validate_n,
@@ -841,7 +841,7 @@ mod tests {
     fn total_power_is_kept() {
         let (w, h) = (128, 64);
         let px = test_map(w, h, true);
-        let env = crate::light::envmap::EnvMap::from_pixels(w, h, px.clone(), "test").unwrap();
+        let env = crate::env::envmap::EnvMap::from_pixels(w, h, px.clone(), "test").unwrap();
         let want = env.power();
         for n in [2, 16, 64] {
             for (yaw, pitch) in [(0.0, 0.0), (37.3, 0.0), (37.3, -20.0)] {

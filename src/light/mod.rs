@@ -1,8 +1,0 @@
-//! The lighting: environment maps (files and procedural suns), their resampling onto the cube
-//! map, and the Haar light with its K-term selection and SH projection.
-
-pub mod envmap;
-pub mod importance;
-pub mod latlong;
-pub mod resample;
-pub mod select;
