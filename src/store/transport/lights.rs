@@ -4,10 +4,10 @@
 //! Unlike the environment's rows, these are dense: a lamp lights most of what it can see. They
 //! are stored as 16-bit unsigned integers against a scale per (column, image row), the row's
 //! largest value: `value = q · scale / 65535`, an absolute error of at most 2⁻¹⁷ of the row's
-//! brightest value. They replaced 16-bit floats (2⁻¹² of every value), which were less accurate
-//! on the point light test (`tests/local_lights.rs`) and slower to add up (criterion,
-//! `light_columns_256x256`): an integer widens to f32 in the instruction that multiplies it,
-//! where a half needs a conversion the compiler does not vectorise. They hold no subnormals: a row whose largest value is below
+//! brightest value, closer on the point light test (`tests/local_lights.rs`) than 16-bit floats'
+//! 2⁻¹² of every value, and faster to add up (criterion, `light_columns_256x256`): an integer
+//! widens to f32 in the instruction that multiplies it, where a half needs a conversion the
+//! compiler does not vectorise. They hold no subnormals: a row whose largest value is below
 //! [`SMALLEST_SCALE`] is stored as zeros. A row belongs to one band of tile rows, so the
 //! shards of a bake hold exactly the rows of the whole bake and merge bit for bit.
 //!
