@@ -56,6 +56,8 @@ use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+/// Bakes a scene in memory: [`crate::bake::bake_with`], with progress and cancellation.
+pub use crate::bake::bake_with as bake;
 pub use crate::bake::{BakeProgress, BakeSettings, Cancel};
 pub use crate::env::envmap::{EnvMap, EnvRotation};
 pub use crate::env::select::Weighting;
@@ -78,19 +80,6 @@ use crate::store::transport::Domain;
 /// glTF file's cameras, the image size); `Framing::default()` keeps what the file gives.
 pub fn load_scene(path: impl AsRef<Path>, framing: &Framing) -> Result<Scene> {
     Scene::load_with(path.as_ref(), framing)
-}
-
-/// Bakes `scene` with `settings` in memory, calling `progress` after each tile (from the
-/// bake's threads). Once `cancel` is cancelled the bake stops before its next tile and returns
-/// [`PrtError::Cancelled`]; a first stage under way (a medium's light, the interreflections'
-/// surface cache) runs to its end first.
-pub fn bake(
-    scene: &Scene,
-    settings: &BakeSettings,
-    progress: &(dyn Fn(BakeProgress) + Sync),
-    cancel: &Cancel,
-) -> Result<Transport> {
-    crate::bake::bake_with(scene, settings, progress, cancel)
 }
 
 /// Bakes `scene` with `settings` into the transport file `path` as `prt bake` does: the
@@ -303,7 +292,9 @@ impl Relighter {
         rotation: EnvRotation,
         lights: &LightMix,
     ) -> Result<Image> {
-        let image = self.relit(env, request, rotation, lights)?;
+        let i = self.prepare(env, rotation)?;
+        let light = &self.lights[i].1;
+        let (image, _) = Cpu(&self.transport).relight_with(&self.ctx, light, request, lights)?;
         match (self.background, &self.transport.domain) {
             (Background::Environment, Domain::View) => {
                 let t = &self.transport;
@@ -326,7 +317,8 @@ impl Relighter {
         camera: &Camera,
     ) -> Result<Image> {
         vertex::mesh_of(&self.transport)?;
-        let relit = self.relit(env, request, rotation, lights)?;
+        // A per-vertex bake's relit image is its vertex colours, with nothing behind them.
+        let relit = self.relight(env, request, rotation, lights)?;
         let behind = (self.background == Background::Environment).then_some((env.map(), rotation));
         let raster = vertex::draw_relit(
             &self.transport,
@@ -353,20 +345,6 @@ impl Relighter {
             target.into(),
             None,
         ))
-    }
-
-    /// The relit image as the back-end gives it.
-    fn relit(
-        &mut self,
-        env: &Environment,
-        request: &RelightRequest,
-        rotation: EnvRotation,
-        lights: &LightMix,
-    ) -> Result<Image> {
-        let i = self.prepare(env, rotation)?;
-        let light = &self.lights[i].1;
-        let (image, _) = Cpu(&self.transport).relight_with(&self.ctx, light, request, lights)?;
-        Ok(image)
     }
 
     /// The index of `env`'s light under `rotation` in the kept lights, prepared when it is not

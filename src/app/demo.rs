@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
-use crate::env::envmap::{EnvMap, EnvRotation};
+use crate::env::envmap::{BUNDLED_MAPS, BundledMap, EnvMap, EnvRotation};
 use crate::env::select::Weighting;
 use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
@@ -35,17 +35,8 @@ macro_rules! asset {
     };
 }
 
-/// A bundled environment map as an asset: its bytes are the ones `--env NAME` reads.
-macro_rules! bundled_map {
-    ($name:literal) => {
-        Asset {
-            path: concat!("envmaps/", $name, ".exr"),
-            bytes: crate::env::envmap::bundled_bytes($name),
-        }
-    };
-}
-
-/// Everything the demo needs, embedded so it runs from any directory.
+/// Everything the demo needs besides the environment maps (`env::envmap::BUNDLED_MAPS`, which it
+/// writes to `envmaps/`), embedded so it runs from any directory.
 pub const ASSETS: &[Asset] = &[
     asset!("scenes/demo.toml"),
     asset!("scenes/dusk.toml"),
@@ -58,13 +49,12 @@ pub const ASSETS: &[Asset] = &[
     asset!("meshes/bunny.obj"),
     asset!("meshes/teapot.obj"),
     asset!("meshes/suzanne.obj"),
-    bundled_map!("blender_sunrise"),
-    bundled_map!("blender_city"),
-    bundled_map!("blender_interior"),
-    bundled_map!("blender_night"),
-    bundled_map!("blender_studio"),
-    bundled_map!("pmndrs_city_overcast"),
 ];
+
+/// The path under `assets/` of a bundled environment map.
+fn map_path(map: &BundledMap) -> String {
+    format!("envmaps/{}.exr", map.name)
+}
 
 /// SH orders the demo shows.
 pub const DEMO_SH_ORDERS: [usize; 3] = [2, 4, 6];
@@ -130,17 +120,19 @@ pub struct DemoReport {
 pub fn write_assets(dir: &Path, log: &mut dyn FnMut(&str)) -> Result<PathBuf> {
     let root = dir.join("assets");
     let mut kept = Vec::new();
-    for a in ASSETS {
-        let p = root.join(a.path);
+    let assets = ASSETS.iter().map(|a| (a.path.to_string(), a.bytes));
+    let maps = BUNDLED_MAPS.iter().map(|m| (map_path(m), m.bytes));
+    for (path, bytes) in assets.chain(maps) {
+        let p = root.join(&path);
         if std::fs::symlink_metadata(&p).is_ok() {
-            if !std::fs::read(&p).is_ok_and(|b| b == a.bytes) {
-                kept.push(a.path);
+            if !std::fs::read(&p).is_ok_and(|b| b == bytes) {
+                kept.push(path);
             }
             continue;
         }
         let parent = p.parent().unwrap_or(&root);
         std::fs::create_dir_all(parent).map_err(|e| PrtError::io(parent, e))?;
-        crate::files::write_bytes_atomically(&p, a.bytes)?;
+        crate::files::write_bytes_atomically(&p, bytes)?;
     }
     if !kept.is_empty() {
         log(&format!(
@@ -581,17 +573,9 @@ pub fn markdown_table(rows: &[DemoRow]) -> String {
 /// The bundled environment maps, each loaded from the written assets when its turn comes, with
 /// its file stem.
 fn bundled_envs(assets: &Path) -> impl Iterator<Item = Result<(String, EnvMap)>> + '_ {
-    ASSETS
+    BUNDLED_MAPS
         .iter()
-        .filter(|a| a.path.starts_with("envmaps/"))
-        .map(move |a| {
-            let name = Path::new(a.path)
-                .file_stem()
-                .and_then(|s| s.to_str())
-                .unwrap_or("env")
-                .to_string();
-            Ok((name, EnvMap::load(&assets.join(a.path))?))
-        })
+        .map(move |m| Ok((m.name.to_string(), EnvMap::load(&assets.join(map_path(m)))?)))
 }
 
 /// Contact-sheet cells of images kept with their tone maps and captions.

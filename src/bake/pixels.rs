@@ -5,7 +5,7 @@
 use rayon::prelude::*;
 
 use super::{BakeSettings, ShadingPoint, TileContext, shading_point};
-use crate::math::cubemap::{solid_angles, texel_dirs};
+use crate::math::cubemap::Directions;
 use crate::math::sampling::pixel_samples;
 use crate::scene::trace::Tracer;
 use crate::scene::{Camera, Scene};
@@ -30,25 +30,9 @@ const EDGE_BAND: usize = 16;
 
 /// The directions of the shadow cube and their solid angles over π, so that `max(0, n·ω)` times
 /// one is that direction's share of an unshadowed diffuse row.
-struct ShadowCube {
-    dirs: Vec<Vec3>,
-    weights: Vec<f32>,
-}
+type ShadowCube = Directions;
 
 impl ShadowCube {
-    fn new() -> ShadowCube {
-        ShadowCube {
-            dirs: texel_dirs(SHADOW_CUBE)
-                .iter()
-                .map(|d| d.as_vec3())
-                .collect(),
-            weights: solid_angles(SHADOW_CUBE)
-                .iter()
-                .map(|w| (w / std::f64::consts::PI) as f32)
-                .collect(),
-        }
-    }
-
     /// The diffuse share of the directions whose bits are set in `bits`, seen with `normal`.
     fn share(&self, bits: &[u64; SHADOW_WORDS], normal: Vec3) -> f32 {
         let mut sum = 0.0;
@@ -184,7 +168,7 @@ impl EdgeMap {
     fn find(scene: &Scene, tracer: &Tracer, shadows: bool) -> EdgeMap {
         let cam = &scene.camera;
         let (w, h) = (cam.width as usize, cam.height as usize);
-        let cube = ShadowCube::new();
+        let cube = ShadowCube::diffuse(SHADOW_CUBE);
         let shadows = shadows.then_some(&cube);
         let mut edges = vec![false; w * h];
         edges

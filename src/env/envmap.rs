@@ -138,34 +138,6 @@ pub const BUNDLED_MAPS: &[BundledMap] = &[
     bundled!("pmndrs_city_overcast"),
 ];
 
-/// The bytes of the bundled map `name`, for tables built at compile time; a name that is not
-/// bundled stops the build there (and panics at run time).
-pub const fn bundled_bytes(name: &str) -> &'static [u8] {
-    let mut i = 0;
-    while i < BUNDLED_MAPS.len() {
-        if same_bytes(BUNDLED_MAPS[i].name.as_bytes(), name.as_bytes()) {
-            return BUNDLED_MAPS[i].bytes;
-        }
-        i += 1;
-    }
-    panic!("not the name of a bundled environment map");
-}
-
-/// Byte-wise equality in a `const fn`.
-const fn same_bytes(a: &[u8], b: &[u8]) -> bool {
-    if a.len() != b.len() {
-        return false;
-    }
-    let mut i = 0;
-    while i < a.len() {
-        if a[i] != b[i] {
-            return false;
-        }
-        i += 1;
-    }
-    true
-}
-
 /// The names of the bundled maps, comma-separated.
 pub fn bundled_names() -> String {
     let names: Vec<&str> = BUNDLED_MAPS.iter().map(|m| m.name).collect();
@@ -187,34 +159,13 @@ pub fn bundled_map(path: &Path) -> Option<&'static BundledMap> {
 impl BundledMap {
     /// The map, read from the bytes in the binary; its source names it as bundled.
     pub fn load(&self) -> Result<EnvMap> {
-        use exr::prelude::{ReadChannels as _, ReadLayers as _};
         let source = format!("{} (bundled)", self.name);
-        let image = exr::prelude::read()
-            .no_deep_data()
-            .largest_resolution_level()
-            .rgba_channels(
-                |size, _| {
-                    (
-                        size.width(),
-                        vec![[0.0f32; 3]; size.width() * size.height()],
-                    )
-                },
-                |pixels: &mut (usize, Vec<[f32; 3]>),
-                 at: exr::prelude::Vec2<usize>,
-                 (r, g, b, _a): (f32, f32, f32, f32)| {
-                    let width = pixels.0;
-                    if let Some(p) = pixels.1.get_mut(at.y() * width + at.x()) {
-                        *p = [r, g, b];
-                    }
-                },
-            )
-            .first_valid_layer()
-            .all_attributes()
-            .from_buffered(std::io::Cursor::new(self.bytes))
-            .map_err(|e| PrtError::file(&source, format!("OpenEXR: {e}")))?;
-        let size = image.layer_data.size;
-        let (_, pixels) = image.layer_data.channel_data.pixels;
-        EnvMap::from_pixels(size.width(), size.height(), pixels, &source)
+        let (w, h, pixels) = crate::output::film::read_exr_from(
+            std::io::Cursor::new(self.bytes),
+            Path::new(&source),
+            check_env_size,
+        )?;
+        EnvMap::from_pixels(w, h, pixels, &source)
     }
 }
 
@@ -663,7 +614,7 @@ mod tests {
         for spec in ["blender_sunrise", "blender_sunrise.exr"] {
             let map = bundled_map(Path::new(spec)).unwrap();
             assert_eq!(map.name, "blender_sunrise");
-            assert_eq!(map.bytes, bundled_bytes("blender_sunrise"));
+            assert_eq!(map.bytes, BUNDLED_MAPS[0].bytes);
             let bundled = EnvSpec::parse(spec).unwrap().load().unwrap();
             assert_eq!(
                 (bundled.width, bundled.height),

@@ -118,6 +118,29 @@ pub fn texel_dirs(n: usize) -> Vec<DVec3> {
         .collect()
 }
 
+/// The texel centres of an N-cube in f32 and their solid angles over π, so that the cosines of
+/// an open hemisphere weigh about 1: the coarse direction sets that ask what a point sees (an
+/// edge pixel's shadows, a vertex's visibility signature), each stage adding its own queries.
+pub struct Directions {
+    /// Unit texel centres, in the cube's linear order.
+    pub dirs: Vec<glam::Vec3>,
+    /// Each one's solid angle over π.
+    pub weights: Vec<f32>,
+}
+
+impl Directions {
+    /// The directions of the N-cube.
+    pub fn diffuse(n: usize) -> Directions {
+        Directions {
+            dirs: texel_dirs(n).iter().map(|d| d.as_vec3()).collect(),
+            weights: solid_angles(n)
+                .iter()
+                .map(|&w| (w / std::f64::consts::PI) as f32)
+                .collect(),
+        }
+    }
+}
+
 /// An RGB cube map of texel-average radiance.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CubeMap {

@@ -301,9 +301,23 @@ pub fn read_exr(
     path: &Path,
     check_size: fn(&Path, usize, usize) -> Result<()>,
 ) -> Result<(usize, usize, Vec<[f32; 3]>)> {
-    crate::files::open_regular(path, MAX_IMAGE_BYTES, "OpenEXR image")?;
+    let (file, _) = crate::files::open_regular(path, MAX_IMAGE_BYTES, "OpenEXR image")?;
+    read_exr_from(std::io::BufReader::new(file), path, check_size)
+}
+
+/// [`read_exr`] of the OpenEXR bytes `source` holds (a file, or bytes built into the binary),
+/// named `path` in messages.
+pub fn read_exr_from(
+    mut source: impl std::io::Read + std::io::Seek + Send,
+    path: &Path,
+    check_size: fn(&Path, usize, usize) -> Result<()>,
+) -> Result<(usize, usize, Vec<[f32; 3]>)> {
+    use exr::prelude::{ReadChannels as _, ReadLayers as _};
     let exr_err = |e: exr::error::Error| PrtError::file(path, format!("OpenEXR: {e}"));
-    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(exr_err)?;
+    let meta = exr::meta::MetaData::read_from_buffered(&mut source, false).map_err(exr_err)?;
+    source
+        .seek(std::io::SeekFrom::Start(0))
+        .map_err(|e| PrtError::io(path, e))?;
     let has = |h: &exr::meta::header::Header, name: &str| {
         h.channels
             .list
@@ -345,21 +359,28 @@ pub fn read_exr(
     let (w, h) = (header.layer_size.width(), header.layer_size.height());
     check_size(path, w, h)?;
     let reserved = std::cell::RefCell::new(Some(reserve_pixels(path, w, h)?));
-    let image = exr::prelude::read_first_rgba_layer_from_file(
-        path,
-        move |res, _| {
-            let mut px = reserved.borrow_mut().take().unwrap_or_default();
-            // The layer read is the one checked: the same size, so nothing is allocated here.
-            px.resize(res.width() * res.height(), [0.0; 3]);
-            px
-        },
-        move |px: &mut Vec<[f32; 3]>, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            if let Some(p) = px.get_mut(pos.y() * w + pos.x()) {
-                *p = [r, g, b];
-            }
-        },
-    )
-    .map_err(exr_err)?;
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            move |res, _| {
+                let mut px = reserved.borrow_mut().take().unwrap_or_default();
+                // The layer read is the one checked: the same size, so nothing is allocated here.
+                px.resize(res.width() * res.height(), [0.0; 3]);
+                px
+            },
+            move |px: &mut Vec<[f32; 3]>,
+                  pos: exr::prelude::Vec2<usize>,
+                  (r, g, b, _a): (f32, f32, f32, f32)| {
+                if let Some(p) = px.get_mut(pos.y() * w + pos.x()) {
+                    *p = [r, g, b];
+                }
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(source)
+        .map_err(exr_err)?;
     let size = image.layer_data.size;
     if (size.width(), size.height()) != (w, h) {
         return Err(PrtError::file(

@@ -24,7 +24,7 @@ use super::tessellate::{
 };
 use super::trace::Tracer;
 use crate::error::Result;
-use crate::math::cubemap::{solid_angles, texel_dirs};
+use crate::math::cubemap::Directions;
 
 /// Cube face size of a signature's directions: the centres of its 6 N² = 216 texels, about 108
 /// of them above a surface.
@@ -113,7 +113,7 @@ fn count(pieces: &[Piece]) -> usize {
 /// Splits edges of `pieces` where their ends' signatures differ most, in rounds, until they take
 /// `budget` vertices (or a few fewer), or no edge longer than `min_edge` differs.
 fn refine(pieces: &mut [Piece], tracer: &Tracer, budget: usize, min_edge: f32) {
-    let sky = Sky::new();
+    let sky = Sky::diffuse(SIGNATURE_N);
     let mut seen: Vec<Seen> = pieces.iter().map(|_| Seen::default()).collect();
     for _ in 0..ROUNDS {
         let left = budget.saturating_sub(count(pieces));
@@ -156,25 +156,9 @@ fn refine(pieces: &mut [Piece], tracer: &Tracer, budget: usize, min_edge: f32) {
 
 /// The directions of a signature and their weights: solid angle over π, so that the cosines of
 /// an open hemisphere weigh about 1.
-struct Sky {
-    dirs: Vec<Vec3>,
-    weights: Vec<f32>,
-}
+type Sky = Directions;
 
 impl Sky {
-    fn new() -> Sky {
-        Sky {
-            dirs: texel_dirs(SIGNATURE_N)
-                .iter()
-                .map(|d| d.as_vec3())
-                .collect(),
-            weights: solid_angles(SIGNATURE_N)
-                .iter()
-                .map(|&w| (w / std::f64::consts::PI) as f32)
-                .collect(),
-        }
-    }
-
     /// The directions above the surface at `p` with normal `n` that a shadow ray from just off
     /// it reaches (the bake's origin: `p` moved along `n` by the tracer's offset).
     fn signature(&self, tracer: &Tracer, p: Vec3, n: Vec3) -> Signature {

@@ -94,29 +94,20 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         settings.brdf_error = a.brdf_error;
         settings.refine_shadows = a.refine_shadows;
         settings.validate()?;
-        let glossy: Vec<&str> = scene
-            .materials
-            .iter()
-            .zip(&scene.material_names)
-            .filter(|(m, _)| m.glossy_lobe().is_some())
-            .map(|(_, n)| n.as_str())
-            .collect();
+        let named = |keep: fn(&crate::scene::Material) -> bool| -> Vec<&str> {
+            scene
+                .materials
+                .iter()
+                .zip(&scene.material_names)
+                .filter(|(m, _)| keep(m))
+                .map(|(_, n)| n.as_str())
+                .collect()
+        };
+        let glossy = named(|m| m.glossy_lobe().is_some());
         // Those whose highlight the diffuse base drops, and the rough ones whose lobe it drops
         // with much of their light.
-        let shiny: Vec<&str> = scene
-            .materials
-            .iter()
-            .zip(&scene.material_names)
-            .filter(|(m, _)| drops_visible_gloss(m))
-            .map(|(_, n)| n.as_str())
-            .collect();
-        let darkened: Vec<&str> = scene
-            .materials
-            .iter()
-            .zip(&scene.material_names)
-            .filter(|(m, _)| drops_rough_light(m))
-            .map(|(_, n)| n.as_str())
-            .collect();
+        let shiny = named(drops_visible_gloss);
+        let darkened = named(drops_rough_light);
         if !glossy.is_empty() && a.brdf_terms > 1 {
             eprintln!(
                 "the glossy material(s) {} take up to {} in-out BRDF terms a vertex",

@@ -115,20 +115,11 @@ const STILL_BYTES_PER_PIXEL: u64 = 32;
 
 /// Refuses a still larger than the memory this process can have, before any work.
 fn check_still_memory(width: u32, height: u32) -> Result<()> {
-    let need = width as u64 * height as u64 * STILL_BYTES_PER_PIXEL;
-    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
-    match crate::files::memory_headroom() {
-        Some(have) if need > have => Err(PrtError::invalid(
-            "--width/--height",
-            format!(
-                "a {width} x {height} still needs about {:.1} GiB ({STILL_BYTES_PER_PIXEL} bytes a \
-                 pixel), and this process can have {:.1} GiB: draw a smaller image",
-                gib(need),
-                gib(have)
-            ),
-        )),
-        _ => Ok(()),
-    }
+    crate::files::check_memory(
+        "--width/--height",
+        &format!("a {width} x {height} still ({STILL_BYTES_PER_PIXEL} bytes a pixel)"),
+        width as u64 * height as u64 * STILL_BYTES_PER_PIXEL,
+    )
 }
 
 /// Arguments of `prt reference`.
