@@ -61,20 +61,124 @@ pub use crate::bake::bake_with as bake;
 pub use crate::bake::{BakeProgress, BakeSettings, Cancel};
 pub use crate::env::envmap::{EnvMap, EnvRotation};
 pub use crate::env::select::Weighting;
+pub use crate::math::cubemap::CubeMap;
 pub use crate::output::film::Image;
 pub use crate::output::metrics::ErrorReport;
 pub use crate::relight::background::Background;
 pub use crate::relight::{LightMix, LightSetting, RelightRequest};
+pub use crate::relight::{Method, Terms};
 pub use crate::scene::{Camera, Framing, Scene};
 pub use crate::store::transport::{BakeDomain, Transport, TransportMeta};
 
 use crate::env::envmap::check_env_size;
+pub use crate::env::select::SparseLight;
 use crate::error::{PrtError, Result};
-use crate::relight::background::{composite, environment_behind};
+pub use crate::relight::PreparedLight;
+use crate::relight::background::{composite, environment_behind, environment_behind_camera};
 use crate::relight::raster::DRAW_SAMPLES;
 use crate::relight::vertex::{self, GlossEval};
-use crate::relight::{Backend, Cpu, LightContext, PreparedLight};
+use crate::relight::{Backend, Cpu, LightContext};
 use crate::store::transport::Domain;
+use glam::Vec3;
+
+/// Kept wavelet terms K when none are asked for: `prt relight --terms`, the viewer's first view
+/// and the Python package's `terms` (at most the file's 6 N², [`terms_for`]).
+pub const DEFAULT_TERMS: usize = 200;
+
+/// The K a relight of a cube of face size `cube_n` keeps when `asked` for: `asked`, except that
+/// the default [`DEFAULT_TERMS`] on a cube with fewer terms keeps every term (a K asked for
+/// that is out of range is left for the relight to refuse).
+pub fn terms_for(asked: usize, cube_n: usize) -> usize {
+    let total = crate::math::cubemap::texel_count(cube_n);
+    if asked == DEFAULT_TERMS && asked > total {
+        total
+    } else {
+        asked
+    }
+}
+
+/// The request `prt relight --method --terms --weighting --sh-order` makes of a transport
+/// baked as `meta` says: for wavelets K by [`terms_for`], checked against the cube's 6 N²
+/// terms; for both SH methods `sh_order`, by default the baked order, checked against it for
+/// `sh` (given with any other method but `sh-light`, it is still checked, as a flag that
+/// cannot apply).
+pub fn request(
+    meta: &TransportMeta,
+    method: Method,
+    terms: usize,
+    weighting: Weighting,
+    sh_order: Option<usize>,
+) -> Result<RelightRequest> {
+    let (n, baked) = (
+        meta.identity.cube_n as usize,
+        meta.identity.sh_order as usize,
+    );
+    if let Some(o) = sh_order
+        && method != Method::ShLight
+    {
+        crate::flags::sh_order(o, baked)?;
+    }
+    let k = terms_for(terms, n);
+    if method == Method::Wavelet {
+        crate::flags::terms(k, n)?;
+    }
+    Ok(RelightRequest::new(
+        method,
+        k,
+        weighting,
+        sh_order.unwrap_or(baked),
+    ))
+}
+
+/// The environment turned `yaw_deg` about +Y, then `pitch_deg` about +X, as `--yaw` and
+/// `--pitch` take it: finite angles.
+pub fn rotation(yaw_deg: f64, pitch_deg: f64) -> Result<EnvRotation> {
+    crate::flags::angle("yaw", yaw_deg)?;
+    crate::flags::angle("pitch", pitch_deg)?;
+    Ok(EnvRotation { yaw_deg, pitch_deg })
+}
+
+/// The domain of a per-vertex bake of `scene` with triangle edges up to `edge_length`, or by
+/// default the scene's `edge_length`, else 1/160 of the diagonal of its bounds (as `prt bake
+/// --per-vertex [--edge-length E]` takes it).
+pub fn vertices(scene: &Scene, edge_length: Option<f32>) -> BakeDomain {
+    BakeDomain::Vertices {
+        edge_length: edge_length
+            .unwrap_or_else(|| crate::scene::tessellate::VertexMesh::default_edge_length(scene)),
+    }
+}
+
+/// The metadata of the transport file at `path` when it already holds this bake (or shard) of
+/// `scene` with `settings`, whole and readable: [`bake_to_file`] then keeps it rather than
+/// baking again.
+pub fn already_baked(path: &Path, scene: &Scene, settings: &BakeSettings) -> Option<TransportMeta> {
+    crate::bake::load_if_baked_with(path, scene, settings).map(|t| t.meta)
+}
+
+/// Joins the shards of one bake (files of `prt bake --shard I/COUNT`, in any order) into the
+/// file a single bake writes, byte for byte. `progress(read, total)` follows the bytes read.
+/// Returns the merged file's metadata.
+pub fn merge(
+    shards: &[std::path::PathBuf],
+    path: impl AsRef<Path>,
+    progress: &dyn Fn(u64, u64),
+) -> Result<TransportMeta> {
+    let path = path.as_ref();
+    let inputs: Vec<&Path> = shards.iter().map(|p| p.as_path()).collect();
+    crate::files::check_output(path, &["prt"], "a transport file", &inputs)?;
+    let size = |p: &Path| std::fs::metadata(p).map(|m| m.len()).unwrap_or(0);
+    let total: u64 = shards.iter().map(|p| size(p)).sum();
+    let mut loaded = Vec::with_capacity(shards.len());
+    let mut before = 0;
+    for p in shards {
+        loaded.push(Transport::load_with_progress(p, &|read, _| {
+            progress(before + read, total)
+        })?);
+        before += size(p);
+    }
+    let names: Vec<String> = shards.iter().map(|p| p.display().to_string()).collect();
+    Transport::merge_to_file(&loaded, &names, path)
+}
 
 /// Loads a scene file: TOML, or glTF (`.gltf`, `.glb`), framed as `framing` says (which of a
 /// glTF file's cameras, the image size); `Framing::default()` keeps what the file gives.
@@ -87,7 +191,9 @@ pub fn load_scene(path: impl AsRef<Path>, framing: &Framing) -> Result<Scene> {
 /// can be written, none of the scene's own files), and each tile is written out once the tiles
 /// before it are, so memory holds only the tiles under way. The file appears whole when the
 /// bake ends; a cancelled or failed bake leaves nothing at `path` (and replaces no file there).
-/// Returns the file's metadata.
+/// A file at `path` that already holds this very bake is kept, not baked again
+/// ([`already_baked`]), so that a bake started again after a failure redoes only what is
+/// missing. Returns the file's metadata.
 pub fn bake_to_file(
     scene: &Scene,
     settings: &BakeSettings,
@@ -99,6 +205,11 @@ pub fn bake_to_file(
     settings.validate_for(scene)?;
     let inputs: Vec<&Path> = scene.input_files.iter().map(|p| p.as_path()).collect();
     crate::files::check_output(path, &["prt"], "a transport file", &inputs)?;
+    // A run killed while writing left its temporary file; this one takes its place.
+    crate::files::remove_stale_partials(path);
+    if let Some(meta) = already_baked(path, scene, settings) {
+        return Ok(meta);
+    }
     crate::bake::bake_to_file_with(scene, settings, path, progress, cancel)
 }
 
@@ -112,6 +223,84 @@ pub fn open(path: impl AsRef<Path>) -> Result<Transport> {
 /// view, [`Relighter::coverage`].
 pub fn compare(image: &Image, reference: &Image, mask: Option<&[f32]>) -> Result<ErrorReport> {
     crate::output::metrics::compare(image, reference, mask)
+}
+
+/// Where a per-vertex bake is drawn from: its bake's camera with what is given here replaced,
+/// as `prt relight --eye --target --up --width --height` take it. A moved camera stays upright:
+/// its up is `up`, else the world's +Y ([`crate::relight::vertex::WORLD_UP`]), not the scene
+/// camera's.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Still {
+    /// Camera position (default: the scene's camera).
+    pub eye: Option<Vec3>,
+    /// The point it looks at (default: the scene's target).
+    pub target: Option<Vec3>,
+    /// The up direction of a camera moved by `eye` or `target`.
+    pub up: Option<Vec3>,
+    /// Image width (default: the scene's).
+    pub width: Option<u32>,
+    /// Image height (default: the scene's).
+    pub height: Option<u32>,
+}
+
+/// Bytes a pixel of a per-vertex still takes at the peak of a relight: the drawn colours, depth
+/// and coverage, the environment behind, the composite and the encoded output. Measured: 27
+/// bytes a pixel between 2048² and 4096² (peak resident memory), rounded up.
+const STILL_BYTES_PER_PIXEL: u64 = 32;
+
+impl Still {
+    /// The camera of a still of `t`: `None` for a per-pixel bake, whose view is fixed (an error
+    /// when anything is given for one); the bake's camera with what is given replaced for a
+    /// per-vertex bake, checked, and refused before any work when its image would not fit in
+    /// memory.
+    pub fn camera(&self, t: &Transport) -> Result<Option<Camera>> {
+        let moved = self.eye.is_some() || self.target.is_some() || self.up.is_some();
+        let given = moved || self.width.is_some() || self.height.is_some();
+        if t.domain == Domain::View {
+            if given {
+                vertex::mesh_of(t)?;
+            }
+            return Ok(None);
+        }
+        let mut c = vertex::bake_camera(t)?;
+        if moved {
+            let (eye, target) = (self.eye.unwrap_or(c.eye), self.target.unwrap_or(c.target));
+            c = vertex::moved_camera(&c, eye, target, self.up);
+        }
+        c.width = self.width.unwrap_or(c.width);
+        c.height = self.height.unwrap_or(c.height);
+        c.validate()?;
+        crate::files::check_memory(
+            "--width/--height",
+            &format!(
+                "a {} x {} still ({STILL_BYTES_PER_PIXEL} bytes a pixel)",
+                c.width, c.height
+            ),
+            c.width as u64 * c.height as u64 * STILL_BYTES_PER_PIXEL,
+        )?;
+        Ok(Some(c))
+    }
+}
+
+/// Reads an OpenEXR image (its R, G and B channels as linear floats), as `prt compare` does.
+pub fn read_image(path: impl AsRef<Path>) -> Result<Image> {
+    Image::load_exr(path.as_ref())
+}
+
+/// Writes `image` as `prt relight -o` does: `.exr` linear 32-bit floats, `.png` tone-mapped at
+/// `exposure` stops (by default chosen from the image over the pixels where `mask` is above 0),
+/// atomically and never over an input.
+pub fn save_image(
+    image: &Image,
+    path: impl AsRef<Path>,
+    exposure: Option<f32>,
+    mask: Option<&[f32]>,
+) -> Result<()> {
+    let tone = match exposure {
+        Some(e) => crate::output::film::ToneMap::exposure(e),
+        None => crate::output::film::ToneMap::auto(image, mask),
+    };
+    image.save(path.as_ref(), tone)
 }
 
 /// What messages call an environment made from an array.
@@ -257,6 +446,11 @@ impl Relighter {
         self
     }
 
+    /// Sets what pixels that see no geometry show from now on ([`Relighter::with_background`]).
+    pub fn set_background(&mut self, background: Background) {
+        self.background = background;
+    }
+
     /// The transport.
     pub fn transport(&self) -> &Transport {
         &self.transport
@@ -279,6 +473,99 @@ impl Relighter {
     /// as the scene did, [`LightMix::none`] switches them all off.
     pub fn lights(&self, settings: &[LightSetting]) -> Result<LightMix> {
         LightMix::new(&self.transport.meta.lights, settings)
+    }
+
+    /// The image `prt relight --device cpu` writes: `request` under `env` turned by
+    /// `rotation` (none: the local lights alone), plus the local `lights`, and for a per-vertex
+    /// bake drawn from `still`'s camera with `samples` samples a pixel (1 or 4). Pixels that see
+    /// no geometry show what the background says.
+    pub fn render(
+        &mut self,
+        env: Option<&Environment>,
+        request: &RelightRequest,
+        rotation: EnvRotation,
+        lights: &LightMix,
+        still: &Still,
+        samples: u32,
+    ) -> Result<Image> {
+        crate::relight::raster::sample_offsets(samples)?;
+        let camera = still.camera(&self.transport)?;
+        let image = self.lit(env, request, rotation, lights)?;
+        let t = &self.transport;
+        let (image, coverage) = match &camera {
+            Some(camera) => {
+                let r = vertex::draw_relit(t, &image, camera, None, samples, GlossEval::default())?;
+                (r.image, r.coverage)
+            }
+            None => (image, t.coverage.clone()),
+        };
+        let behind = match (self.background, env, &camera) {
+            (Background::Black, ..) | (_, None, _) => return Ok(image),
+            (Background::Environment, Some(env), Some(camera)) => {
+                environment_behind_camera(camera, &coverage, env.map(), rotation)?
+            }
+            (Background::Environment, Some(env), None) => {
+                environment_behind(&t.meta, &coverage, env.map(), rotation)?
+            }
+        };
+        Ok(composite(&image, &behind))
+    }
+
+    /// The relit image of `request` under `env` (none: dark) plus `lights`, checked finite: a
+    /// per-pixel bake's view, a per-vertex bake's vertex colours.
+    fn lit(
+        &mut self,
+        env: Option<&Environment>,
+        request: &RelightRequest,
+        rotation: EnvRotation,
+        lights: &LightMix,
+    ) -> Result<Image> {
+        let n = self.ctx.n;
+        if let RelightRequest::Wavelet { k, .. } = *request {
+            crate::flags::terms(k, n)?;
+        }
+        let terms = match env {
+            Some(env) => self.terms(env, request, rotation)?,
+            None => Terms::dark(),
+        };
+        let (image, _) = Cpu(&self.transport).relight_lit(&terms, lights)?;
+        image.check_finite("relit image")?;
+        Ok(image)
+    }
+
+    /// The light terms `request` relights with under `env` turned by `rotation`: the K kept
+    /// Haar terms with their indices, every term, or the SH coefficients.
+    pub fn terms(
+        &mut self,
+        env: &Environment,
+        request: &RelightRequest,
+        rotation: EnvRotation,
+    ) -> Result<Terms> {
+        let i = self.prepare(env, rotation)?;
+        Terms::of(&self.transport, &self.ctx, &self.lights[i].1, request)
+    }
+
+    /// `env` turned by `rotation` and prepared for the transport: its 6 N² Haar coefficients
+    /// (the layout of [`crate::math::haar`]) and its SH coefficients at the baked order.
+    pub fn light(&mut self, env: &Environment, rotation: EnvRotation) -> Result<&PreparedLight> {
+        let i = self.prepare(env, rotation)?;
+        Ok(&self.lights[i].1)
+    }
+
+    /// `env` turned by `rotation` resampled to the transport's cube, exactly as a relight takes
+    /// it (6 faces of N x N texels, the layout of [`crate::math::cubemap`]).
+    pub fn cube(&self, env: &Environment, rotation: EnvRotation) -> Result<CubeMap> {
+        env.map().to_cube(self.ctx.n, rotation)
+    }
+
+    /// The weights of the transport's local lights after `--light`-style arguments
+    /// (`NAME=SCALE`, `NAME=R,G,B`, `NAME@POS[=…]`), lights not named as the scene file says.
+    pub fn light_args(&self, args: &[impl AsRef<str>]) -> Result<LightMix> {
+        let lights = &self.transport.meta.lights;
+        LightMix::new(
+            lights,
+            &crate::scene::light_mix::settings_from_args(lights, args)?,
+        )
     }
 
     /// Relights `request` under `env` turned by `rotation`, plus the local `lights`. For a
@@ -329,6 +616,81 @@ impl Relighter {
             GlossEval::default(),
         )?;
         Ok(raster.image)
+    }
+
+    /// The pixel whose rows are vertex `vertex`'s diffuse light in a per-vertex bake (its
+    /// in-out BRDF terms follow it); an error for a per-pixel bake or a vertex out of range.
+    pub fn vertex_pixel(&self, vertex: usize) -> Result<usize> {
+        let mesh = vertex::mesh_of(&self.transport)?;
+        if vertex >= mesh.vertex_count() {
+            return Err(PrtError::invalid(
+                "vertex",
+                format!(
+                    "{vertex}, but the bake has {} vertices",
+                    mesh.vertex_count()
+                ),
+            ));
+        }
+        Ok(vertex * mesh.stride())
+    }
+
+    /// Pixel `pixel`'s transport row as the relight takes it, dense: for each of the 6 N² Haar
+    /// coefficients j, the RGB value that light coefficient j adds to the pixel per unit of
+    /// light (the pixel's rows weighed by their albedo and sub-sample weights, as stored, so
+    /// quantised unless the bake was lossless). The wavelet relight of a light L is
+    /// Σ_j row[j] · L[j], plus the local lights.
+    pub fn row(&self, pixel: usize) -> Result<Vec<[f32; 3]>> {
+        let t = &self.transport;
+        let mut dense = vec![[0.0f64; 3]; t.coeff_count()];
+        for r in self.rows_of(pixel)? {
+            // The block that holds row r: blocks are in row order.
+            let b = t.block_row_start.partition_point(|&s| s as usize <= r) - 1;
+            let w = t.row_weight[r];
+            for (j, d) in dense.iter_mut().enumerate() {
+                if let Some((_, v)) = t.column(b, j).find(|&(row, _)| row == r) {
+                    for k in 0..3 {
+                        d[k] += w[k] as f64 * v as f64;
+                    }
+                }
+            }
+        }
+        Ok(dense.iter().map(|d| d.map(|v| v as f32)).collect())
+    }
+
+    /// Pixel `pixel`'s SH transport row, n² RGB values at the baked order, weighed as
+    /// [`Relighter::row`] is: the SH relight of a light of SH coefficients L is
+    /// Σ_i row[i] · L[i].
+    pub fn sh_row(&self, pixel: usize) -> Result<Vec<[f32; 3]>> {
+        let t = &self.transport;
+        let shc = t.sh_count();
+        let mut dense = vec![[0.0f64; 3]; shc];
+        for r in self.rows_of(pixel)? {
+            let w = t.row_weight[r];
+            for (d, &v) in dense.iter_mut().zip(&t.sh[r * shc..(r + 1) * shc]) {
+                for k in 0..3 {
+                    d[k] += w[k] as f64 * v as f64;
+                }
+            }
+        }
+        Ok(dense.iter().map(|d| d.map(|v| v as f32)).collect())
+    }
+
+    /// The rows that light `pixel`, checked against the image.
+    fn rows_of(&self, pixel: usize) -> Result<Vec<usize>> {
+        let t = &self.transport;
+        let pixels = t.meta.width as usize * t.meta.height as usize;
+        if pixel >= pixels {
+            return Err(PrtError::invalid(
+                "pixel",
+                format!(
+                    "{pixel}, but the transport's image has {pixels} ({} x {})",
+                    t.meta.width, t.meta.height
+                ),
+            ));
+        }
+        Ok((0..t.row_pixel.len())
+            .filter(|&r| t.row_pixel[r] as usize == pixel)
+            .collect())
     }
 
     /// The camera a per-vertex bake was made with: the scene's, at its image size.

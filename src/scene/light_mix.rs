@@ -120,6 +120,16 @@ impl LightMix {
     }
 }
 
+/// The settings of `lights` (one per light, in order) as the scene file gives them, then each of
+/// `args` applied in turn ([`apply_light_arg`]): what `--light` arguments ask for.
+pub fn settings_from_args(lights: &[Light], args: &[impl AsRef<str>]) -> Result<Vec<LightSetting>> {
+    let mut settings = LightSetting::defaults(lights);
+    for arg in args {
+        apply_light_arg(lights, &mut settings, arg.as_ref())?;
+    }
+    Ok(settings)
+}
+
 /// Applies one `--light` argument to `settings`: `NAME=S` relights the light at S times its
 /// scene file's colour and intensity (0 turns it off), `NAME=R,G,B` gives it that colour at its
 /// scene file's intensity, and `NAME@T` (with or without `=…`) places a moving light at T along

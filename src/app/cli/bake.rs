@@ -172,7 +172,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
     // A run killed while writing left its temporary file; this one takes its place.
     crate::files::remove_stale_partials(&a.output);
     // Resuming: a finished output of this very bake (or shard) is kept, not redone.
-    if crate::bake::load_if_baked_with(&a.output, &scene, &settings).is_some() {
+    if crate::api::already_baked(&a.output, &scene, &settings).is_some() {
         eprintln!(
             "{} already holds this bake (same scene and settings): kept",
             a.output.display()
@@ -372,25 +372,11 @@ fn warn_of_doubled_shadows(scene: &Scene) {
 }
 
 pub(super) fn merge_cmd(shards: Vec<PathBuf>, output: PathBuf) -> Result<()> {
-    let inputs: Vec<&std::path::Path> = shards.iter().map(PathBuf::as_path).collect();
-    crate::files::check_output(&output, &["prt"], "a transport file", &inputs)?;
-    let total: u64 = shards
-        .iter()
-        .map(|p| std::fs::metadata(p).map(|m| m.len()).unwrap_or(0))
-        .sum();
-    let progress = bar(total, "bytes read");
-    let mut loaded = Vec::with_capacity(shards.len());
-    let mut before = 0;
-    for p in &shards {
-        progress.set_message(p.display().to_string());
-        loaded.push(Transport::load_with_progress(p, &|read, _| {
-            progress.set_position(before + read)
-        })?);
-        before += std::fs::metadata(p).map(|m| m.len()).unwrap_or(0);
-    }
-    progress.set_message(format!("merging and writing {}", output.display()));
-    let names: Vec<String> = shards.iter().map(|p| p.display().to_string()).collect();
-    let meta = Transport::merge_to_file(&loaded, &names, &output)?;
+    let progress = bar(0, "bytes read");
+    let meta = crate::api::merge(&shards, &output, &|read, total| {
+        progress.set_length(total);
+        progress.set_position(read);
+    })?;
     progress.finish_and_clear();
     print_info(&output, &meta);
     warn_if_no_pixel_sees_the_scene(&meta);

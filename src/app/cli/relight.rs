@@ -3,7 +3,6 @@
 
 use super::*;
 use crate::relight::{Backend, LightMix, Terms};
-use crate::store::transport::Domain;
 
 /// Arguments of `prt relight`.
 #[derive(Args, Debug)]
@@ -84,42 +83,17 @@ pub struct StillArgs {
 }
 
 impl StillArgs {
-    /// The camera of a still of `t`: the bake's camera with what was given replaced; an error
-    /// for a per-pixel bake given any of it.
+    /// The camera of a still of `t` ([`crate::api::Still::camera`]).
     pub fn camera(&self, t: &Transport) -> Result<Option<crate::scene::Camera>> {
-        let moved = self.eye.is_some() || self.target.is_some() || self.up.is_some();
-        let given = moved || self.width.is_some() || self.height.is_some();
-        if t.domain == Domain::View {
-            if given {
-                crate::relight::vertex::mesh_of(t)?;
-            }
-            return Ok(None);
+        crate::api::Still {
+            eye: self.eye,
+            target: self.target,
+            up: self.up,
+            width: self.width,
+            height: self.height,
         }
-        let mut c = crate::relight::vertex::bake_camera(t)?;
-        if moved {
-            let (eye, target) = (self.eye.unwrap_or(c.eye), self.target.unwrap_or(c.target));
-            c = crate::relight::vertex::moved_camera(&c, eye, target, self.up);
-        }
-        c.width = self.width.unwrap_or(c.width);
-        c.height = self.height.unwrap_or(c.height);
-        c.validate()?;
-        check_still_memory(c.width, c.height)?;
-        Ok(Some(c))
+        .camera(t)
     }
-}
-
-/// Bytes a pixel of a per-vertex still takes at the peak of `prt relight`: the drawn colours,
-/// depth and coverage, the environment behind, the composite and the encoded output. Measured:
-/// 27 bytes a pixel between 2048² and 4096² (peak resident memory), rounded up.
-const STILL_BYTES_PER_PIXEL: u64 = 32;
-
-/// Refuses a still larger than the memory this process can have, before any work.
-fn check_still_memory(width: u32, height: u32) -> Result<()> {
-    crate::files::check_memory(
-        "--width/--height",
-        &format!("a {width} x {height} still ({STILL_BYTES_PER_PIXEL} bytes a pixel)"),
-        width as u64 * height as u64 * STILL_BYTES_PER_PIXEL,
-    )
 }
 
 /// Arguments of `prt reference`.
@@ -256,27 +230,16 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     });
     let t = t?;
     let still = a.view.camera(&t)?;
-    if let Some(o) = a.sh_order
-        && method != Method::ShLight
+    let req = crate::api::request(&t.meta, method, a.terms, weighting, a.sh_order)?;
+    // The default K on a cube too small to hold it keeps every term.
+    if let RelightRequest::Wavelet { k, .. } = req
+        && k != a.terms
     {
-        crate::flags::sh_order(o, t.meta.identity.sh_order as usize)?;
-    }
-    // The default K on a cube too small to hold it keeps every term; a K asked for is checked.
-    let total = crate::math::cubemap::texel_count(t.meta.identity.cube_n as usize);
-    let k = if a.terms == DEFAULT_TERMS && a.terms > total {
-        if method == Method::Wavelet {
-            eprintln!(
-                "note: the default K = {DEFAULT_TERMS} is more than the {total} terms of N = {}: \
-                 every term is kept",
-                t.meta.identity.cube_n
-            );
-        }
-        total
-    } else {
-        a.terms
-    };
-    if method == Method::Wavelet {
-        crate::flags::terms(k, t.meta.identity.cube_n as usize)?;
+        eprintln!(
+            "note: the default K = {DEFAULT_TERMS} is more than the {k} terms of N = {}: every \
+             term is kept",
+            t.meta.identity.cube_n
+        );
     }
     let start = Instant::now();
     let (ctx, light, prepared_in) = ahead;
@@ -294,12 +257,6 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         let light = env.as_ref().map(|env| ctx.prepare(env, rotation));
         (ctx, light)
     };
-    let req = RelightRequest::new(
-        method,
-        k,
-        weighting,
-        a.sh_order.unwrap_or(t.meta.identity.sh_order as usize),
-    );
     let terms = match light {
         Some(light) => Terms::of(&t, &ctx, &light?, &req)?,
         None => Terms::dark(),

@@ -6,9 +6,7 @@ use super::*;
 use crate::relight::{LightMix, LightSetting};
 use crate::scene::Light;
 
-/// Kept wavelet terms K when none are asked for: `prt relight --terms` and the viewer's first
-/// view (at most the file's 6 N²).
-pub const DEFAULT_TERMS: usize = 200;
+pub use crate::api::DEFAULT_TERMS;
 
 /// The local lights a relight is asked for.
 #[derive(Args, Debug, Clone, Default)]
@@ -29,11 +27,7 @@ impl LocalLightArgs {
 
     /// The settings of `lights` (one per light, in order) after the `--light` arguments.
     pub fn settings(&self, lights: &[Light]) -> Result<Vec<LightSetting>> {
-        let mut settings = LightSetting::defaults(lights);
-        for arg in &self.lights {
-            crate::scene::light_mix::apply_light_arg(lights, &mut settings, arg)?;
-        }
-        Ok(settings)
+        crate::scene::light_mix::settings_from_args(lights, &self.lights)
     }
 
     /// The weights of the baked columns of `lights` after the `--light` arguments.
