@@ -19,10 +19,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use wavelet_prt::bake::{BakeSettings, bake, load_if_baked_with};
+use wavelet_prt::draw::vertex::{GlossEval, draw_relit, orbit};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
-use wavelet_prt::relight::vertex::{GlossEval, draw_relit, orbit};
 use wavelet_prt::relight::{LightContext, RelightRequest, relight};
 use wavelet_prt::scene::tessellate::VertexMesh;
 use wavelet_prt::scene::{Camera, Scene};

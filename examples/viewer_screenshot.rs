@@ -64,7 +64,7 @@ fn main() {
     s.display.split = 0.5;
     s.relight.terms = terms.unwrap_or(64);
     // Ignored by a per-pixel bake, whose view is fixed.
-    s.orbit = wavelet_prt::relight::vertex::Orbit {
+    s.orbit = wavelet_prt::draw::vertex::Orbit {
         azimuth_deg: 35.0,
         elevation_deg: 10.0,
         distance: 1.0,

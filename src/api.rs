@@ -59,24 +59,24 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Bakes a scene in memory: [`crate::bake::bake_with`], with progress and cancellation.
 pub use crate::bake::bake_with as bake;
 pub use crate::bake::{BakeProgress, BakeSettings, Cancel};
+pub use crate::draw::background::Background;
 pub use crate::env::envmap::{EnvMap, EnvRotation};
 pub use crate::env::select::Weighting;
 pub use crate::math::cubemap::CubeMap;
 pub use crate::output::film::Image;
 pub use crate::output::metrics::ErrorReport;
-pub use crate::relight::background::Background;
 pub use crate::relight::{LightMix, LightSetting, RelightRequest};
 pub use crate::relight::{Method, Terms};
 pub use crate::scene::{Camera, Framing, Scene};
 pub use crate::store::transport::{BakeDomain, Transport, TransportMeta};
 
+use crate::draw::background::{composite, environment_behind, environment_behind_camera};
+use crate::draw::raster::DRAW_SAMPLES;
+use crate::draw::vertex::{self, GlossEval};
 use crate::env::envmap::check_env_size;
 pub use crate::env::select::SparseLight;
 use crate::error::{PrtError, Result};
 pub use crate::relight::PreparedLight;
-use crate::relight::background::{composite, environment_behind, environment_behind_camera};
-use crate::relight::raster::DRAW_SAMPLES;
-use crate::relight::vertex::{self, GlossEval};
 use crate::relight::{Backend, Cpu, LightContext};
 use crate::store::transport::Domain;
 use glam::Vec3;
@@ -227,7 +227,7 @@ pub fn compare(image: &Image, reference: &Image, mask: Option<&[f32]>) -> Result
 
 /// Where a per-vertex bake is drawn from: its bake's camera with what is given here replaced,
 /// as `prt relight --eye --target --up --width --height` take it. A moved camera stays upright:
-/// its up is `up`, else the world's +Y ([`crate::relight::vertex::WORLD_UP`]), not the scene
+/// its up is `up`, else the world's +Y ([`crate::draw::vertex::WORLD_UP`]), not the scene
 /// camera's.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Still {
@@ -488,7 +488,7 @@ impl Relighter {
         still: &Still,
         samples: u32,
     ) -> Result<Image> {
-        crate::relight::raster::sample_offsets(samples)?;
+        crate::draw::raster::sample_offsets(samples)?;
         let camera = still.camera(&self.transport)?;
         let image = self.lit(env, request, rotation, lights)?;
         let t = &self.transport;

@@ -53,5 +53,5 @@
 //! # Error metrics
 //! Relative L2 of image A against reference R: `‖A − R‖₂ / ‖R‖₂` over every channel of the pixels that
 //! see geometry; RMSE and PSNR beside it. Images show the environment behind the scene in the pixels
-//! (or the parts of pixels) that see none, turned with the light ([`crate::relight::background`]); metrics
+//! (or the parts of pixels) that see none, turned with the light ([`crate::draw::background`]); metrics
 //! are taken before it is added.

@@ -23,6 +23,7 @@ pub mod api;
 pub mod app;
 pub mod bake;
 pub mod conventions;
+pub mod draw;
 pub mod env;
 pub mod error;
 pub mod files;

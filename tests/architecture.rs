@@ -20,7 +20,7 @@ const STAGES: [&[&str]; 13] = [
     &["env"],
     &["store"],
     &["bake"],
-    &["relight", "volume"],
+    &["relight", "draw", "volume"],
     &["api"],
     &["app"],
 ];

@@ -11,10 +11,10 @@ use glam::{Vec2, Vec3};
 use serde_json::json;
 use wavelet_prt::bake::path_tracer::{path_trace, path_trace_lit};
 use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::draw::vertex::vertex_colours;
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::{CubeMap, texel_count};
 use wavelet_prt::output::film::Image;
-use wavelet_prt::relight::vertex::vertex_colours;
 use wavelet_prt::relight::{
     Backend, Cpu, LightMix, LightSetting, RelightRequest, Terms, relight_wavelet,
 };

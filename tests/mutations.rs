@@ -502,7 +502,7 @@ fn exercise_transport(
 /// Draws a per-vertex transport relit to `relit` from its own camera and from one it never
 /// saw, with each way of evaluating its gloss, and checks the pictures.
 fn draw_per_vertex(t: &Transport, relit: &wavelet_prt::output::film::Image) -> Result<(), String> {
-    use wavelet_prt::relight::vertex::{GlossEval, bake_camera, draw_relit, orbit};
+    use wavelet_prt::draw::vertex::{GlossEval, bake_camera, draw_relit, orbit};
     if t.domain.mesh().is_none() {
         return Ok(());
     }

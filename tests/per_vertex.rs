@@ -284,7 +284,7 @@ fn relit_sphere(name: &str, edge: f32) -> (Transport, Vec<[f32; 3]>) {
             weighting: Weighting::Transport,
         },
     );
-    let colours = wavelet_prt::relight::vertex::vertex_colours(&t, &image)
+    let colours = wavelet_prt::draw::vertex::vertex_colours(&t, &image)
         .unwrap()
         .to_vec();
     (t, colours)
@@ -292,7 +292,7 @@ fn relit_sphere(name: &str, edge: f32) -> (Transport, Vec<[f32; 3]>) {
 
 #[test]
 fn the_orbit_moves_the_image_but_not_the_vertex_colours() {
-    use wavelet_prt::relight::vertex::{bake_camera, draw, orbit};
+    use wavelet_prt::draw::vertex::{bake_camera, draw, orbit};
     let (t, colours) = relit_sphere("per-vertex-orbit", 0.3);
     let camera = bake_camera(&t).unwrap();
     assert_eq!((camera.width, camera.height), (37, 21));
@@ -339,9 +339,9 @@ fn a_flat_lit_per_vertex_bake_draws_its_one_colour_everywhere_it_covers() {
     let t = bake(&scene, &settings, &|_| {}).unwrap();
     let env = EnvMap::constant(64, 32, [2.0, 2.0, 2.0]);
     let image = relit(&t, &env, EnvRotation::default(), RelightRequest::Full);
-    let colours = wavelet_prt::relight::vertex::vertex_colours(&t, &image).unwrap();
-    let camera = wavelet_prt::relight::vertex::bake_camera(&t).unwrap();
-    let drawn = wavelet_prt::relight::vertex::draw(&t, &colours, &camera, None, 1).unwrap();
+    let colours = wavelet_prt::draw::vertex::vertex_colours(&t, &image).unwrap();
+    let camera = wavelet_prt::draw::vertex::bake_camera(&t).unwrap();
+    let drawn = wavelet_prt::draw::vertex::draw(&t, &colours, &camera, None, 1).unwrap();
     // albedo x L, within the cosine's discretisation over the texels of a 6x8² cube (0.52%).
     let want = [1.0f32, 0.5, 0.25];
     let mesh = t.domain.mesh().unwrap();
@@ -372,8 +372,8 @@ fn a_flat_lit_per_vertex_bake_draws_its_one_colour_everywhere_it_covers() {
 
 #[test]
 fn the_gpu_draws_a_per_vertex_bake_as_the_cpu_does() {
-    use wavelet_prt::relight::gpu::{GpuMesh, GpuRaster, upload_colours};
-    use wavelet_prt::relight::vertex::{bake_camera, orbit};
+    use wavelet_prt::draw::gpu::{GpuMesh, GpuRaster, upload_colours};
+    use wavelet_prt::draw::vertex::{bake_camera, orbit};
     let Some(gpu) = common::gpu_or_skip("the_gpu_draws_a_per_vertex_bake_as_the_cpu_does") else {
         return;
     };
@@ -385,7 +385,7 @@ fn the_gpu_draws_a_per_vertex_bake_as_the_cpu_does() {
     for az in [0.0, 135.0] {
         let mut camera = orbit(&bake_camera(&t).unwrap(), az, 10.0);
         (camera.width, camera.height) = (96, 64);
-        let cpu = wavelet_prt::relight::raster::rasterize(
+        let cpu = wavelet_prt::draw::raster::rasterize(
             &camera,
             &mesh.positions,
             &mesh.triangles,
@@ -496,9 +496,9 @@ fn closed_meshes_wound_inward_are_turned_outward_and_bake_as_the_per_pixel_view(
                 (t, image)
             };
             let (t, vertices) = lit(&per_vertex(0.1));
-            let colours = wavelet_prt::relight::vertex::vertex_colours(&t, &vertices).unwrap();
-            let camera = wavelet_prt::relight::vertex::bake_camera(&t).unwrap();
-            let drawn = wavelet_prt::relight::vertex::draw(&t, &colours, &camera, None, 1).unwrap();
+            let colours = wavelet_prt::draw::vertex::vertex_colours(&t, &vertices).unwrap();
+            let camera = wavelet_prt::draw::vertex::bake_camera(&t).unwrap();
+            let drawn = wavelet_prt::draw::vertex::draw(&t, &colours, &camera, None, 1).unwrap();
             let (pixel, per_pixel) = lit(&BakeSettings {
                 cube_n: 8,
                 sh_order: 2,

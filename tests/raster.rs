@@ -1,5 +1,5 @@
 //! The two rasterisers of per-vertex colours against each other: the GPU render pipeline
-//! (`relight::gpu::raster`) draws what the CPU's ray-exact twin (`relight::raster`) draws, for
+//! (`draw::gpu::raster`) draws what the CPU's ray-exact twin (`draw::raster`) draws, for
 //! cameras inside a ground that reaches behind the eye, a sphere and a two-sided panel; the GPU
 //! culls the same faces; the coverage fits the environment behind.
 //!
@@ -9,11 +9,12 @@ mod common;
 
 use common::{Rng, gpu_or_skip};
 use glam::Vec3;
+use wavelet_prt::draw::background::{composite, environment_behind_camera};
+use wavelet_prt::draw::gpu::{GpuMesh, GpuRaster, upload_colours};
+use wavelet_prt::draw::raster::{Raster, rasterize, rasterize_multisampled};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::gpu::map_and_read;
-use wavelet_prt::relight::background::{composite, environment_behind_camera};
-use wavelet_prt::relight::gpu::{Gpu, GpuMesh, GpuRaster, upload_colours};
-use wavelet_prt::relight::raster::{Raster, rasterize, rasterize_multisampled};
+use wavelet_prt::relight::gpu::Gpu;
 use wavelet_prt::scene::Camera;
 
 /// Relative colour difference beyond which a GPU pixel counts as drawn differently from the

@@ -10,11 +10,11 @@ use common::{
 };
 use glam::Vec3;
 use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::draw::raster::{Gloss, rasterize_glossy};
+use wavelet_prt::draw::vertex::{vertex_colours, vertex_terms};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::{solid_angles, texel_dirs};
 use wavelet_prt::relight::RelightRequest;
-use wavelet_prt::relight::raster::{Gloss, rasterize_glossy};
-use wavelet_prt::relight::vertex::{vertex_colours, vertex_terms};
 use wavelet_prt::scene::Camera;
 use wavelet_prt::scene::brdf::ggx_cosine;
 use wavelet_prt::scene::brdf_factor::{BrdfFactors, HemiOct, to_local};
@@ -428,8 +428,8 @@ fn the_command_line_bakes_draws_and_describes_a_glossy_vertex_bake() {
 
 #[test]
 fn the_gpu_draws_a_glossy_bake_as_the_cpu_does() {
-    use wavelet_prt::relight::gpu::{GpuMesh, GpuRaster, upload_colours};
-    use wavelet_prt::relight::vertex::{GlossEval, draw_relit, orbit};
+    use wavelet_prt::draw::gpu::{GpuMesh, GpuRaster, upload_colours};
+    use wavelet_prt::draw::vertex::{GlossEval, draw_relit, orbit};
     let Some(gpu) = gpu_or_skip("the_gpu_draws_a_glossy_bake_as_the_cpu_does") else {
         return;
     };
@@ -440,7 +440,7 @@ fn the_gpu_draws_a_glossy_bake_as_the_cpu_does() {
     let mesh = t.domain.mesh().unwrap();
     let m = GpuMesh::of_bake(&gpu, mesh).unwrap();
     let buffer = upload_colours(&gpu, &image.pixels[..mesh.pixel_count()]).unwrap();
-    let base = wavelet_prt::relight::vertex::bake_camera(&t).unwrap();
+    let base = wavelet_prt::draw::vertex::bake_camera(&t).unwrap();
     for samples in [1, 4] {
         let mut raster = GpuRaster::multisampled(&gpu, samples).unwrap();
         for az in [0.0, 130.0] {

@@ -12,14 +12,12 @@ use common::{StFile, assets, gpu_or_skip, temp_dir};
 use glam::Vec3;
 use wavelet_prt::bake::reference::render_reference_with;
 use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::draw::raster::{Texturing, rasterize, rasterize_multisampled, rasterize_textured};
+use wavelet_prt::draw::vertex::{bake_camera, draw, orbit, vertex_colours};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::metrics::relative_l2;
-use wavelet_prt::relight::raster::{
-    Texturing, rasterize, rasterize_multisampled, rasterize_textured,
-};
 use wavelet_prt::relight::relight_wavelet;
-use wavelet_prt::relight::vertex::{bake_camera, draw, orbit, vertex_colours};
 use wavelet_prt::scene::texture::srgb_to_linear;
 use wavelet_prt::scene::{Camera, Framing, Scene};
 use wavelet_prt::store::transport::{BakeDomain, Transport};
@@ -290,7 +288,7 @@ fn mip_levels_keep_a_distant_texture_from_aliasing() {
 
 #[test]
 fn the_gpu_draws_textured_vertices_as_the_cpu_does() {
-    use wavelet_prt::relight::gpu::{GpuMesh, GpuRaster, upload_colours};
+    use wavelet_prt::draw::gpu::{GpuMesh, GpuRaster, upload_colours};
     let Some(gpu) = gpu_or_skip("the_gpu_draws_textured_vertices_as_the_cpu_does") else {
         return;
     };

@@ -575,10 +575,10 @@ fn per_vertex_engine() -> (Engine, ViewState) {
 
 #[test]
 fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
+    use wavelet_prt::draw::background::environment_behind_camera;
+    use wavelet_prt::draw::raster::rasterize_multisampled;
+    use wavelet_prt::draw::vertex::{Orbit, bake_camera, vertex_colours};
     use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
-    use wavelet_prt::relight::background::environment_behind_camera;
-    use wavelet_prt::relight::raster::rasterize_multisampled;
-    use wavelet_prt::relight::vertex::{Orbit, bake_camera, vertex_colours};
     use wavelet_prt::relight::{LightContext, RelightRequest, relight};
     let (mut e, mut s) = per_vertex_engine();
     let t = e.transport.clone();

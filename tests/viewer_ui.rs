@@ -570,7 +570,7 @@ fn a_per_vertex_window_orbits_on_drag_and_draws_on_the_gpu() {
         return;
     }
     use egui_kittest::wgpu::{WgpuTestRenderer, create_render_state, default_wgpu_setup};
-    use wavelet_prt::relight::vertex::Orbit;
+    use wavelet_prt::draw::vertex::Orbit;
     let rs = create_render_state(
         default_wgpu_setup(),
         eframe::egui_wgpu::RendererOptions::PREDICTABLE,
@@ -599,7 +599,7 @@ fn a_per_vertex_window_orbits_on_drag_and_draws_on_the_gpu() {
     // images too.
     let t = wavelet_prt::store::transport::Transport::load(&common::per_vertex_transport_path())
         .unwrap();
-    let bake = wavelet_prt::relight::vertex::bake_camera(&t).unwrap();
+    let bake = wavelet_prt::draw::vertex::bake_camera(&t).unwrap();
     let (w, hh) = h.state().state.draw_size.expect("a draw size");
     assert!(
         w > 2 * bake.width && w < 1000,
@@ -706,7 +706,7 @@ fn toggling_and_scaling_a_light_in_the_panel_changes_the_image_by_its_column() {
 #[test]
 fn a_glossy_per_vertex_window_moves_its_highlight_as_the_camera_orbits() {
     use wavelet_prt::bake::{BakeSettings, bake};
-    use wavelet_prt::relight::vertex::bake_camera;
+    use wavelet_prt::draw::vertex::bake_camera;
     use wavelet_prt::store::transport::BakeDomain;
     let scene = common::scene_from(&common::glossy_sphere(), "viewer-gloss");
     let settings = BakeSettings {

@@ -480,7 +480,7 @@ fn the_environment_behind_a_medium_is_seen_through_its_transmittance() {
     assert!(veiled > 20 && clear > 20, "{veiled} veiled, {clear} clear");
     // Composited under a constant sky, a thinly veiled pixel shows most of the sky.
     let env = EnvMap::constant(64, 32, [1.0; 3]);
-    let sky = wavelet_prt::relight::background::environment_behind(
+    let sky = wavelet_prt::draw::background::environment_behind(
         &t.meta,
         &t.coverage,
         &env,

@@ -8,13 +8,13 @@
 use std::path::{Path, PathBuf};
 
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::draw::background::{composite, environment_behind};
 use crate::env::envmap::{BUNDLED_MAPS, BundledMap, EnvMap, EnvRotation};
 use crate::env::select::Weighting;
 use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{Cell, downsample, write_sheet};
-use crate::relight::background::{composite, environment_behind};
 use crate::relight::{LightContext, Method, RelightRequest, relight};
 use crate::scene::Scene;
 

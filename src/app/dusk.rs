@@ -6,11 +6,11 @@
 use std::path::{Path, PathBuf};
 
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::draw::background::{composite, environment_behind};
 use crate::env::envmap::{EnvRotation, EnvSpec};
 use crate::error::Result;
 use crate::output::film::{Image, ToneMap};
 use crate::output::sheet::{Cell, downsample, write_sheet};
-use crate::relight::background::{composite, environment_behind};
 use crate::relight::{Backend, Cpu, LightContext, LightMix, LightSetting, RelightRequest, Terms};
 use crate::scene::Scene;
 

@@ -13,6 +13,7 @@ use std::time::Instant;
 use crate::bake::path_tracer::path_trace;
 use crate::bake::reference::render_reference_with;
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::draw::vertex::{GlossEval, draw, draw_relit, vertex_colours};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::env::select::Weighting;
 use crate::error::{PrtError, Result};
@@ -20,7 +21,6 @@ use crate::output::film::ToneMap;
 use crate::output::metrics::relative_l2;
 use crate::output::plot::{self, PALETTE, PlotSpec, Series};
 use crate::relight::gpu::Gpu;
-use crate::relight::vertex::{GlossEval, draw, draw_relit, vertex_colours};
 use crate::relight::{Backend, LightContext, RelightRequest, Terms, relight};
 use crate::scene::tessellate::VertexMesh;
 use crate::scene::{Camera, Scene};
@@ -174,7 +174,7 @@ impl GlossBenchOptions {
         if self.runs == 0 {
             return bad("runs", "no frames to time".into());
         }
-        crate::relight::raster::sample_offsets(self.samples)?;
+        crate::draw::raster::sample_offsets(self.samples)?;
         crate::flags::within("--paths", self.paths, 1..=1 << 20, "")?;
         crate::flags::within("--frame-side", self.frame_side, 16..=4096, " pixels")?;
         self.bake.validate()
@@ -215,11 +215,11 @@ fn reportable(e: f64, what: impl FnOnce() -> String) -> Result<f64> {
 }
 
 /// The scene's camera turned about its target to `azimuths_deg` (see
-/// [`crate::relight::vertex::orbit`]): default cameras that the bake never saw.
+/// [`crate::draw::vertex::orbit`]): default cameras that the bake never saw.
 pub fn turned_cameras(scene: &Scene, azimuths_deg: &[f32]) -> Vec<Camera> {
     azimuths_deg
         .iter()
-        .map(|&az| crate::relight::vertex::orbit(&scene.camera, az, 0.0))
+        .map(|&az| crate::draw::vertex::orbit(&scene.camera, az, 0.0))
         .collect()
 }
 
@@ -461,10 +461,10 @@ fn gpu_frames(
     camera: &Camera,
     opts: &GlossBenchOptions,
 ) -> Result<Vec<FrameTime>> {
-    use crate::relight::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
+    use crate::draw::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
     let resident = crate::relight::gpu::GpuTransport::upload(gpu, t, None)?;
     let backend = crate::relight::gpu::GpuBackend::new(gpu, &resident, t)?;
-    let mesh = crate::relight::vertex::mesh_of(t)?;
+    let mesh = crate::draw::vertex::mesh_of(t)?;
     let m = GpuMesh::of_bake(gpu, mesh)?;
     let mut raster = GpuRaster::multisampled(gpu, 1)?;
     reqs.iter()

@@ -8,14 +8,14 @@ use std::path::{Path, PathBuf};
 use crate::app::orbit::ORBIT_AZIMUTHS;
 use crate::bake::path_tracer::path_trace;
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::draw::background::{composite, environment_behind_camera};
+use crate::draw::raster::DRAW_SAMPLES;
+use crate::draw::vertex::{GlossEval, bake_camera, compose, draw, draw_relit, orbit};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{cells_at, write_sheet};
-use crate::relight::background::{composite, environment_behind_camera};
-use crate::relight::raster::DRAW_SAMPLES;
-use crate::relight::vertex::{GlossEval, bake_camera, compose, draw, draw_relit, orbit};
 use crate::relight::{LightContext, RelightRequest, relight};
 use crate::scene::Scene;
 use crate::scene::tessellate::VertexMesh;
@@ -117,7 +117,7 @@ pub fn run_gloss_orbit(
 
     // One angle against the path tracer, the background black in all three.
     let cam = orbit(&camera, GLOSS_REFERENCE_AZIMUTH, 0.0);
-    let colours = crate::relight::vertex::vertex_colours(&t, &full)?;
+    let colours = crate::draw::vertex::vertex_colours(&t, &full)?;
     let diffuse = draw(&t, &colours, &cam, None, DRAW_SAMPLES)?;
     let exr = dir.join("gloss_path_traced.exr");
     let kept = Image::load_exr(&exr).ok().filter(|i| {

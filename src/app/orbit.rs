@@ -9,12 +9,12 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake};
+use crate::draw::vertex::{GlossEval, bake_camera, compose, orbit};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{cells_at, write_sheet};
-use crate::relight::vertex::{GlossEval, bake_camera, compose, orbit};
 use crate::relight::{LightContext, RelightRequest, relight};
 use crate::scene::Scene;
 use crate::scene::tessellate::VertexMesh;
@@ -152,7 +152,7 @@ pub fn run_orbit(
         let (k_img, _) = relight(&t, &ctx, &light, &k_req)?;
         let camera = bake_camera(&t)?;
         let drawn =
-            crate::relight::vertex::draw_relit(&t, &full, &camera, None, 1, GlossEval::PerPixel)?;
+            crate::draw::vertex::draw_relit(&t, &full, &camera, None, 1, GlossEval::PerPixel)?;
         let both: Vec<f32> = drawn
             .coverage
             .iter()
@@ -194,7 +194,7 @@ pub fn run_orbit(
     } = measure("demo_vertices_coarse.prt", edge * COARSE_EDGE_FACTOR)?;
     let camera = bake_camera(&t)?;
     let draw = |relit: &Image, camera: &crate::scene::Camera, samples: u32| {
-        crate::relight::vertex::draw_relit(&t, relit, camera, None, samples, GlossEval::PerPixel)
+        crate::draw::vertex::draw_relit(&t, relit, camera, None, samples, GlossEval::PerPixel)
     };
     // Frames as the viewer makes them on the CPU: relight at K terms, draw the pixel centres.
     let mut times = Vec::new();
@@ -224,7 +224,7 @@ pub fn run_orbit(
         let cam = orbit(&camera, az, 0.0);
         // Drawn as `prt relight` and the GPU display draw: antialiased.
         let shot = compose(
-            draw(&k_img, &cam, crate::relight::raster::DRAW_SAMPLES)?,
+            draw(&k_img, &cam, crate::draw::raster::DRAW_SAMPLES)?,
             &cam,
             Some((env, rotation)),
         )?;
@@ -233,9 +233,9 @@ pub fn run_orbit(
             [format!("K = {ORBIT_TERMS}, turned {az}°"), name.to_string()],
         ));
     }
-    let pixel_shown = crate::relight::background::composite(
+    let pixel_shown = crate::draw::background::composite(
         &pixel_full,
-        &crate::relight::background::environment_behind(
+        &crate::draw::background::environment_behind(
             &per_pixel.meta,
             &per_pixel.coverage,
             env,

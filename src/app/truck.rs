@@ -6,13 +6,13 @@
 use std::path::{Path, PathBuf};
 
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::draw::background::{composite, environment_behind};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::env::select::Weighting;
 use crate::error::Result;
 use crate::output::film::ToneMap;
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{Cell, write_sheet};
-use crate::relight::background::{composite, environment_behind};
 use crate::relight::{LightContext, RelightRequest, relight};
 use crate::scene::Scene;
 

@@ -298,7 +298,7 @@ pub fn backdrop(
     let (w, h) = (camera.width as usize, camera.height as usize);
     let what = format!("a {w} x {h} backdrop");
     let open = crate::files::try_filled("camera.width/height", &what, w * h, 0.0f32)?;
-    crate::relight::background::environment_behind_camera(camera, &open, map, key.rotation)
+    crate::draw::background::environment_behind_camera(camera, &open, map, key.rotation)
 }
 
 /// One relit view before tone mapping.

@@ -1,18 +1,14 @@
 //! Relighting a baked view. A request ([`RelightRequest`]: a method and its parameters) under a
 //! prepared light ([`prepare`]) becomes its light terms ([`Terms::of`]), and a [`Backend`] runs
 //! them: the CPU kernels ([`cpu`]) or the wgpu kernels ([`gpu`]), with the same inputs, the same
-//! image and the same statistics. SH through the light ([`sh_light`]) and the environment behind
-//! the scene ([`background`]) complete what a relit frame needs; [`raster`] draws a mesh with one
-//! relit colour per vertex from any camera.
+//! image and the same statistics. SH through the light ([`sh_light`]) completes the methods; what
+//! draws a relit image ([`crate::draw`]) is a stage of its own.
 
-pub mod background;
 pub mod cpu;
 pub mod gpu;
 pub mod prepare;
-pub mod raster;
 pub mod sh_light;
 pub mod strip_kernel;
-pub mod vertex;
 
 pub use crate::scene::light_mix::{LightMix, LightSetting};
 pub use cpu::{relight_dense_reference, relight_sh, relight_wavelet};

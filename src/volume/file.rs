@@ -425,7 +425,7 @@ impl VolumeTransfer {
         // A moved camera keeps the world's up, as every moved camera does; the baked one its own
         // (looking along it, straight down say, the other horizontal).
         let up = if moved {
-            crate::relight::vertex::upright(target - eye, crate::relight::vertex::WORLD_UP)
+            crate::draw::vertex::upright(target - eye, crate::draw::vertex::WORLD_UP)
         } else {
             let up = Vec3::from(c.up);
             if (target - eye).normalize_or_zero().cross(up).length() < 1e-3 {

@@ -198,9 +198,9 @@ fn reference_error(
     }
     let camera = match camera {
         Some(c) => c.clone(),
-        None => crate::relight::vertex::bake_camera(t)?,
+        None => crate::draw::vertex::bake_camera(t)?,
     };
-    let drawn = crate::relight::vertex::draw_relit(t, img, &camera, None, 1, Default::default())?;
+    let drawn = crate::draw::vertex::draw_relit(t, img, &camera, None, 1, Default::default())?;
     let both: Vec<f32> = match reference_coverage {
         Some(c) if c.len() == drawn.coverage.len() => drawn
             .coverage

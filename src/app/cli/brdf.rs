@@ -201,7 +201,7 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
     };
     for c in &mut cameras {
         let target = a.target.unwrap_or(c.target);
-        *c = crate::relight::vertex::moved_camera(c, c.eye, target, a.up);
+        *c = crate::draw::vertex::moved_camera(c, c.eye, target, a.up);
     }
     let opts = crate::app::gloss_bench::GlossBenchOptions {
         brdf_terms: a.brdf_terms,

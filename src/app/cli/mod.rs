@@ -10,11 +10,11 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::bake::bounce::BounceVisibility;
 use crate::bake::{BakeProgress, BakeSettings, bake, worst_case_bytes};
+use crate::draw::background::Background;
 use crate::env::envmap::{EnvMap, EnvRotation, EnvSpec};
 use crate::env::select::{WaveletLight, Weighting};
 use crate::error::{PrtError, Result};
 use crate::output::film::{ToneCurve, ToneMap};
-use crate::relight::background::Background;
 use crate::relight::{LightContext, Method, RelightRequest, relight};
 use crate::scene::Scene;
 use crate::store::transport::Transport;

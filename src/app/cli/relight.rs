@@ -51,13 +51,13 @@ pub struct RelightArgs {
     pub view: StillArgs,
     /// Per-vertex bakes: samples a pixel, 1 (its centre) or 4 (the standard 4x rotated grid),
     /// each drawn and depth-tested on its own and the pixel their mean.
-    #[arg(long, default_value_t = crate::relight::raster::DRAW_SAMPLES)]
+    #[arg(long, default_value_t = crate::draw::raster::DRAW_SAMPLES)]
     pub samples: u32,
     /// Per-vertex bakes with in-out BRDF terms: where the view factors g_k are evaluated,
     /// per-pixel (the direction to the eye at every sample) or per-vertex (at the vertices,
     /// the colours interpolated).
-    #[arg(long = "gloss", default_value = "per-pixel", value_parser = crate::relight::vertex::GlossEval::from_str)]
-    pub gloss_eval: crate::relight::vertex::GlossEval,
+    #[arg(long = "gloss", default_value = "per-pixel", value_parser = crate::draw::vertex::GlossEval::from_str)]
+    pub gloss_eval: crate::draw::vertex::GlossEval,
 }
 
 /// Where a per-vertex bake is seen from (a per-pixel bake's view is fixed).
@@ -188,7 +188,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let mut inputs = env_files(std::slice::from_ref(&a.env));
     inputs.push(a.file.clone());
     check_image_output(&a.output, &inputs)?;
-    crate::relight::raster::sample_offsets(a.samples)?;
+    crate::draw::raster::sample_offsets(a.samples)?;
     let gpu = open_device(a.device)?;
     // The header first (the cube's size, its SH order, the lights), then the environment, so that
     // the light is prepared on a second thread while the transport loads (its resampling weights
@@ -283,15 +283,15 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let mut drawn = String::new();
     let (img, coverage) = match &still {
         Some(camera) => {
-            let mesh = crate::relight::vertex::mesh_of(&t)?;
+            let mesh = crate::draw::vertex::mesh_of(&t)?;
             let glossy = mesh.factors.is_some();
             // The GPU raster weighs glossy terms per pixel only.
-            let on_cpu = glossy && a.gloss_eval == crate::relight::vertex::GlossEval::PerVertex;
+            let on_cpu = glossy && a.gloss_eval == crate::draw::vertex::GlossEval::PerVertex;
             if on_cpu && gpu.is_some() {
                 eprintln!("the GPU raster weighs glossy terms per pixel: drawn on the CPU");
             }
             let r = match gpu.as_ref().filter(|_| !on_cpu) {
-                None => crate::relight::vertex::draw_relit(
+                None => crate::draw::vertex::draw_relit(
                     &t,
                     &img,
                     camera,
@@ -300,7 +300,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
                     a.gloss_eval,
                 )?,
                 Some(gpu) => {
-                    use crate::relight::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
+                    use crate::draw::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
                     // A vertex's colours are its pixels of the relit image (its terms after
                     // its diffuse colour in a glossy bake).
                     let pixels = &img.pixels[..mesh.pixel_count().min(img.pixels.len())];
@@ -330,17 +330,13 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     };
     let img = match (background, &still, &env) {
         (Background::Black, ..) | (_, _, None) => img,
-        (Background::Environment, Some(camera), Some(env)) => {
-            crate::relight::background::composite(
-                &img,
-                &crate::relight::background::environment_behind_camera(
-                    camera, &coverage, env, rotation,
-                )?,
-            )
-        }
-        (Background::Environment, None, Some(env)) => crate::relight::background::composite(
+        (Background::Environment, Some(camera), Some(env)) => crate::draw::background::composite(
             &img,
-            &crate::relight::background::environment_behind(&t.meta, &coverage, env, rotation)?,
+            &crate::draw::background::environment_behind_camera(camera, &coverage, env, rotation)?,
+        ),
+        (Background::Environment, None, Some(env)) => crate::draw::background::composite(
+            &img,
+            &crate::draw::background::environment_behind(&t.meta, &coverage, env, rotation)?,
         ),
     };
     img.save(&a.output, tone)?;
@@ -398,7 +394,7 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     if a.eye.is_some() || a.target.is_some() || a.up.is_some() {
         let c = &scene.camera;
         let (eye, target) = (a.eye.unwrap_or(c.eye), a.target.unwrap_or(c.target));
-        scene.camera = crate::relight::vertex::moved_camera(c, eye, target, a.up);
+        scene.camera = crate::draw::vertex::moved_camera(c, eye, target, a.up);
     }
     scene.camera.validate()?;
     inputs.extend(scene.input_files.iter().cloned());
@@ -449,9 +445,9 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     r.image.check_finite("reference image")?;
     let tone = ToneMap::auto(&r.image, Some(&r.coverage));
     let img = match (background, &env) {
-        (Background::Environment, Some(env)) => crate::relight::background::composite(
+        (Background::Environment, Some(env)) => crate::draw::background::composite(
             &r.image,
-            &crate::relight::background::environment_behind_camera(
+            &crate::draw::background::environment_behind_camera(
                 &scene.camera,
                 &r.coverage,
                 env,

@@ -1,7 +1,7 @@
 //! `prt view`: the window, or with `--screenshot` the image it would show.
 
 use super::*;
-use crate::relight::vertex::Orbit;
+use crate::draw::vertex::Orbit;
 
 /// Arguments of `prt view`.
 #[derive(Args, Debug)]
@@ -171,7 +171,7 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
         state.relight.sh_order = o;
     }
     if let Some(o) = a.orbit {
-        crate::relight::vertex::mesh_of(&engine.transport)?;
+        crate::draw::vertex::mesh_of(&engine.transport)?;
         state.orbit = o;
     }
     state.display.exposure = match a.exposure {

@@ -397,7 +397,7 @@ pub(super) fn volume_reference_cmd(a: VolumeReferenceArgs) -> Result<()> {
                 c.eye.unwrap_or(camera.eye),
                 c.target.unwrap_or(camera.target),
             );
-            camera = crate::relight::vertex::moved_camera(&camera, eye, target, None);
+            camera = crate::draw::vertex::moved_camera(&camera, eye, target, None);
         }
         if let Some((w, h)) = c.size(camera.width, camera.height) {
             (camera.width, camera.height) = (w, h);

@@ -5,7 +5,7 @@
 
 use eframe::egui;
 
-use crate::relight::vertex::Orbit;
+use crate::draw::vertex::Orbit;
 use crate::scene::Camera;
 
 /// Degrees the camera turns for each point the pointer is dragged.

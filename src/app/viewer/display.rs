@@ -8,11 +8,12 @@ use std::time::Instant;
 use eframe::wgpu;
 
 use super::{GpuView, LightKey, LightShown, backdrop};
+use crate::draw::gpu::{GpuMesh, GpuRaster};
+use crate::draw::raster::DRAW_SAMPLES;
+use crate::draw::vertex::mesh_of;
 use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
-use crate::relight::gpu::{Gpu, GpuMesh, GpuRaster, GpuTransport};
-use crate::relight::raster::DRAW_SAMPLES;
-use crate::relight::vertex::mesh_of;
+use crate::relight::gpu::{Gpu, GpuTransport};
 use crate::relight::{LightContext, LightMix, RelightRequest, Terms};
 use crate::scene::Camera;
 use crate::store::transport::Transport;

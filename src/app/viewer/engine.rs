@@ -9,14 +9,14 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::*;
+use crate::draw::background::{composite, environment_behind};
+use crate::draw::vertex::{self, bake_camera};
 use crate::env::envmap::{EnvMap, EnvRotation, EnvSpec};
 use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{ErrorImage, HeatScale};
-use crate::relight::background::{composite, environment_behind};
 use crate::relight::gpu::{Gpu, GpuBackend, GpuTransport};
-use crate::relight::vertex::{self, bake_camera};
 use crate::relight::{Backend, LightContext, PreparedLight, RelightRequest, RelightStats, relight};
 use crate::scene::Camera;
 use crate::store::transport::Transport;

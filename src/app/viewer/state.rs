@@ -9,11 +9,11 @@ use std::path::PathBuf;
 use super::lights::STOPS;
 use super::{EnvEntry, EnvSource, LightsState};
 use crate::app::cli::DEFAULT_TERMS;
+use crate::draw::vertex::Orbit;
 use crate::env::envmap::{EnvRotation, EnvSpec, SunSpec};
 use crate::env::select::Weighting;
 use crate::error::{PrtError, Result};
 use crate::output::film::{ToneCurve, ToneMap};
-use crate::relight::vertex::Orbit;
 use crate::relight::{LightSetting, Method, RelightRequest};
 use crate::scene::Light;
 
@@ -330,10 +330,10 @@ impl ViewState {
     /// else 1, so a window without a GPU stays interactive at its pane's size (on 2 cores, a
     /// 760² draw of the demo's 84k vertices takes 13 ms at 1 sample and 61 ms at 4).
     ///
-    /// [`DRAW_SAMPLES`]: crate::relight::raster::DRAW_SAMPLES
+    /// [`DRAW_SAMPLES`]: crate::draw::raster::DRAW_SAMPLES
     pub fn draw_samples(&self) -> u32 {
         match self.display.gpu {
-            true => crate::relight::raster::DRAW_SAMPLES,
+            true => crate::draw::raster::DRAW_SAMPLES,
             false => 1,
         }
     }

@@ -13,11 +13,11 @@ use glam::Vec3;
 
 use super::worker::{Worker, next_batch};
 use super::{EnvEntry, LightKey, LightState, env_entries};
+use crate::draw::vertex::Orbit;
 use crate::error::Result;
 use crate::gpu::GpuDevice;
 use crate::math::cubemap::CubeMap;
 use crate::output::film::{Image, ToneCurve, ToneMap};
-use crate::relight::vertex::Orbit;
 use crate::scene::Camera;
 use crate::volume::gpu::GpuVolume;
 use crate::volume::{MediumLook, VolumeLight, VolumeTransfer, VolumeView, render_volume};

@@ -16,12 +16,11 @@
 //! split by tiles into chunks, each with its own buffers and dispatch. Per relight, only the kept
 //! light terms (16 bytes each) and a few parameters go up.
 //!
-//! [`raster`] draws a mesh with one colour per vertex, read from such a buffer, from any camera.
+//! [`crate::draw::gpu`] draws a mesh with one colour per vertex, read from such a buffer, from
+//! any camera.
 
 mod backend;
 mod lights;
-mod mesh;
-pub mod raster;
 mod transport;
 
 use crate::error::Result;
@@ -29,8 +28,6 @@ use crate::gpu::{GpuDevice, Workgroup2, wgsl};
 use crate::store::quant::BLOCK_ROWS;
 
 pub use backend::GpuBackend;
-pub use mesh::{GlossMesh, GpuMesh, upload_colours};
-pub use raster::GpuRaster;
 pub use transport::{GpuTransport, TERMS_PER_DISPATCH};
 
 /// Threads per workgroup of the relight kernels: one per pixel of a tile. The shaders receive it

@@ -1,5 +1,5 @@
 //! Drawing a mesh with one linear RGB colour per vertex from any camera: Gouraud shading with a
-//! depth test, the CPU twin of [`crate::relight::gpu::raster`] (the tests compare the two).
+//! depth test, the CPU twin of [`crate::draw::gpu::raster`] (the tests compare the two).
 //!
 //! A pixel is covered when the ray of [`Camera::ray`] through its centre hits a triangle that
 //! faces the eye (its right-handed winding normal `(b − a) × (c − a)` points towards the eye) at

@@ -1,19 +1,19 @@
 //! A per-vertex bake seen from any camera: the relit image of such a bake holds one colour per
 //! vertex (vertex `v` is pixel `v`; with in-out BRDF terms, `v · stride` and its terms after it),
-//! which [`crate::relight::raster`] draws with Gouraud shading and a depth test, the glossy
+//! which [`crate::draw::raster`] draws with Gouraud shading and a depth test, the glossy
 //! terms weighed per pixel by the direction to the eye, over the environment behind. The orbit
 //! camera turns the bake's own camera about its target; every camera a user moves is made upright
 //! by [`moved_camera`].
 
 use glam::{Quat, Vec3};
 
+use crate::draw::background::{composite, environment_behind_camera};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
 use crate::output::film::Image;
-use crate::relight::background::{composite, environment_behind_camera};
 use std::borrow::Cow;
 
-use crate::relight::raster::{Gloss, Raster, Texturing, rasterize_glossy};
+use crate::draw::raster::{Gloss, Raster, Texturing, rasterize_glossy};
 use crate::scene::Camera;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::Transport;
@@ -284,7 +284,7 @@ crate::named!(GlossEval, "gloss evaluation");
 /// (its diffuse light; see [`vertex_colours`]), its textured materials multiplied by their
 /// albedo maps per pixel, the glossy light of a bake with in-out terms added as `eval` says,
 /// with `behind` (the environment and its turn) where no surface is drawn, with `samples`
-/// samples a pixel (see [`crate::relight::raster::rasterize_multisampled`]). Also gives the
+/// samples a pixel (see [`crate::draw::raster::rasterize_multisampled`]). Also gives the
 /// coverage, for masks and tone mapping.
 pub fn draw_relit(
     t: &Transport,

@@ -4,9 +4,9 @@
 
 use wgpu::util::DeviceExt;
 
-use super::Gpu;
+use crate::draw::raster::{Texturing, check_mesh};
 use crate::error::{PrtError, Result};
-use crate::relight::raster::{Texturing, check_mesh};
+use crate::gpu::GpuDevice as Gpu;
 use crate::scene::albedo_map::wrap_code;
 use crate::scene::brdf_factor::BrdfFactors;
 use crate::scene::tessellate::VertexMesh;
@@ -276,7 +276,7 @@ impl GpuMesh {
 /// Uploads per-vertex colours into a storage buffer of `vec4<f32>` (alpha 1), the layout
 /// [`GpuRaster::draw`] reads. Non-finite colours are an error.
 pub fn upload_colours(gpu: &Gpu, colours: &[[f32; 3]]) -> Result<wgpu::Buffer> {
-    crate::relight::raster::check_colours(colours)?;
+    crate::draw::raster::check_colours(colours)?;
     let (bytes, max) = (
         colours.len() as u64 * TEXEL_BYTES as u64,
         gpu.max_binding_bytes(),

@@ -1,5 +1,5 @@
 //! Drawing a mesh with one colour per vertex on the GPU (a wgpu render pipeline,
-//! `shaders/raster.wgsl`): the twin of the CPU rasteriser [`crate::relight::raster`], with the
+//! `shaders/raster.wgsl`): the twin of the CPU rasteriser [`crate::draw::raster`], with the
 //! same camera, culling and near plane, so the two give the same pixels but at exact edges. The
 //! hardware rasterises and depth-tests; each fragment then takes the barycentrics of its pixel's
 //! ray on its triangle as the CPU does, rather than the hardware's interpolation, which works
@@ -9,7 +9,7 @@
 //! layout of the relight's output image buffer when vertex `i` is its pixel `i`), so relit
 //! colours need not leave the GPU. A glossy per-vertex bake's mesh ([`super::GlossMesh`]) reads
 //! `stride` of them a vertex, its diffuse colour and its in-out terms' responses, and weighs the
-//! terms per pixel by the view factors as the CPU's [`crate::relight::raster::Gloss`] does. [`GpuRaster::draw`] renders offscreen and reads the image and
+//! terms per pixel by the view factors as the CPU's [`crate::draw::raster::Gloss`] does. [`GpuRaster::draw`] renders offscreen and reads the image and
 //! coverage back; [`GpuRaster::render`] draws into a caller's texture for display.
 //!
 //! Conventions: clip space comes from [`clip_from_world`] (NDC y up is the film's top row, as
@@ -18,13 +18,13 @@
 //! CPU) and triangles counter-clockwise in NDC are front faces, which is the CPU's rule that the
 //! right-handed winding normal points at the eye.
 
-use super::Gpu;
 use super::mesh::TEXEL_BYTES;
 pub use super::mesh::{GpuMesh, upload_colours};
+use crate::draw::raster::{Frame, Raster, clip_from_world, sample_offsets};
 use crate::error::{PrtError, Result};
+use crate::gpu::GpuDevice as Gpu;
 use crate::gpu::{map_and_read, texture_2d};
 use crate::output::film::Image;
-use crate::relight::raster::{Frame, Raster, clip_from_world, sample_offsets};
 use crate::scene::Camera;
 
 /// The colour target's format: linear RGB and coverage in alpha, unclamped.
@@ -132,7 +132,7 @@ impl GpuRaster {
     }
 
     /// Builds the pipeline on `gpu`'s device, drawing `samples` samples a pixel (1 or 4, at the
-    /// positions of [`sample_offsets`]), as [`crate::relight::raster::rasterize_multisampled`]
+    /// positions of [`sample_offsets`]), as [`crate::draw::raster::rasterize_multisampled`]
     /// draws them: each sample in a pass of its own, then each pixel the mean of its samples.
     pub fn multisampled(gpu: &Gpu, samples: u32) -> Result<GpuRaster> {
         let offsets = sample_offsets(samples)?;

@@ -1,0 +1,9 @@
+//! The GPU raster: a mesh resident on the device ([`mesh`]) drawn with one colour per vertex from
+//! any camera ([`raster`]), on the base device of [`crate::gpu`], so that whatever relit the
+//! colours (the relight kernels, or the CPU) the draw is the same.
+
+mod mesh;
+pub mod raster;
+
+pub use mesh::{GlossMesh, GpuMesh, upload_colours};
+pub use raster::GpuRaster;

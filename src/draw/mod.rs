@@ -1,0 +1,9 @@
+//! Drawing what a relight gives: a per-vertex bake's relit colours drawn from any camera
+//! ([`vertex`], with its orbit and upright cameras), the rasteriser that draws them on the CPU
+//! ([`raster`]) and its GPU twin ([`gpu`]), and the environment behind the scene where no
+//! geometry is seen ([`background`]).
+
+pub mod background;
+pub mod gpu;
+pub mod raster;
+pub mod vertex;
