@@ -20,6 +20,7 @@
 #![warn(missing_docs)]
 
 pub mod api;
+#[cfg(feature = "studies")]
 pub mod app;
 pub mod bake;
 pub mod conventions;
@@ -28,6 +29,7 @@ pub mod env;
 pub mod error;
 pub mod files;
 pub mod flags;
+#[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod math;
 pub mod medium;

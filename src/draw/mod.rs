@@ -4,6 +4,7 @@
 //! geometry is seen ([`background`]).
 
 pub mod background;
+#[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod raster;
 pub mod vertex;

@@ -4,6 +4,9 @@
 
 pub mod film;
 pub mod metrics;
+#[cfg(feature = "studies")]
 pub mod plot;
+#[cfg(feature = "studies")]
 pub mod sheet;
+#[cfg(feature = "studies")]
 pub mod text;

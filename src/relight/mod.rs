@@ -5,6 +5,7 @@
 //! draws a relit image ([`crate::draw`]) is a stage of its own.
 
 pub mod cpu;
+#[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod prepare;
 pub mod sh_light;

@@ -11,6 +11,7 @@
 //! `tau = 1` (`2√π` in band 0) plus the quadrature of `tau − 1`, so empty space is exact.
 
 mod file;
+#[cfg(feature = "gpu")]
 pub mod gpu;
 mod light;
 pub mod path_trace;
