@@ -93,7 +93,15 @@ impl Rng {
 /// `name` (tests of one binary run in parallel: give each its own name).
 #[allow(dead_code)]
 pub fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("prt-test-{}-{name}", std::process::id()));
+    // The process id and the time this process first asked: a later run that is given the same
+    // id (ids are reused) must not find this one's files, which a bake would keep as its own.
+    static RUN: std::sync::OnceLock<u128> = std::sync::OnceLock::new();
+    let run = RUN.get_or_init(|| {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos())
+    });
+    let dir = std::env::temp_dir().join(format!("prt-test-{}-{run}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("create temp dir");
     dir
 }
