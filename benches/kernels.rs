@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use wavelet_prt::app::demo::write_assets;
+use wavelet_prt::app::studies::demo::write_assets;
 use wavelet_prt::bake::{BakeSettings, bake, load_if_baked_with};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::env::select::{WaveletLight, Weighting};

@@ -48,7 +48,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
     let scene = Scene::load(&assets.join("scenes/demo.toml"))?;
     let env = EnvMap::load(&assets.join("envmaps/blender_sunrise.exr"))?;
-    // The demo's settings (`app::demo::demo_settings`).
+    // The demo's settings (`app::studies::demo::demo_settings`).
     let settings = BakeSettings {
         sh_order: 8,
         ..BakeSettings::default()

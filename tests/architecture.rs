@@ -330,14 +330,13 @@ fn only_the_strip_kernel_allows_unsafe_code() {
 fn the_checker_sees_a_planted_violation() {
     // The rules above must be able to fail: a later stage named from an earlier one, by
     // `crate::` or by `super::`, found on its true line; a test module's imports ignored.
-    let text =
-        "//! Doc.\n\nuse crate::app::demo;\n#[cfg(test)]\nmod tests {\nuse crate::app::cli;\n}\n";
+    let text = "//! Doc.\n\nuse crate::app::studies::demo;\n#[cfg(test)]\nmod tests {\nuse crate::app::cli;\n}\n";
     let lines = library_lines(text);
-    assert_eq!(lines, vec![(2, ""), (3, "use crate::app::demo;")]);
-    assert!(stage_rank("app::demo") > stage_rank("math::sh"));
+    assert_eq!(lines, vec![(2, ""), (3, "use crate::app::studies::demo;")]);
+    assert!(stage_rank("app::studies::demo") > stage_rank("math::sh"));
     let modules: BTreeSet<String> = [
         "app",
-        "app::demo",
+        "app::studies::demo",
         "flags",
         "light",
         "light::resample",
@@ -346,8 +345,8 @@ fn the_checker_sees_a_planted_violation() {
     .map(String::from)
     .into();
     assert_eq!(
-        target_of("app::demo::write_assets", &modules).map(String::as_str),
-        Some("app::demo")
+        target_of("app::studies::demo::write_assets", &modules).map(String::as_str),
+        Some("app::studies::demo")
     );
     let targets = |line: &str, module: &str| -> Vec<String> {
         paths_in(line, module, &modules)
@@ -357,8 +356,8 @@ fn the_checker_sees_a_planted_violation() {
     };
     // `super::` from a top-level module reaches the crate root, and so any stage.
     assert_eq!(
-        targets("use super::app::demo::run;", "flags"),
-        ["app::demo"]
+        targets("use super::app::studies::demo::run;", "flags"),
+        ["app::studies::demo"]
     );
     // Chains climb one module each.
     assert_eq!(

@@ -8,7 +8,7 @@ use common::{SAME_SUM, SAME_VALUE};
 use std::path::PathBuf;
 use wavelet_prt::store::transport::BakeDomain;
 
-use wavelet_prt::app::bench::{
+use wavelet_prt::app::studies::bench::{
     BenchExtras, BenchOptions, SUMMARY_TARGETS, compression_sweep, csv, error_plot, run, summary,
     terms_to_reach, write_compression, write_report,
 };
@@ -344,7 +344,7 @@ fn compression_curve_trades_size_for_error() {
 #[test]
 fn paper_run_writes_every_table_and_the_picture_row() {
     // The paper-scale run at a toy size: two scenes at two cubes, the sweep at the larger.
-    use wavelet_prt::app::paper::{PaperOptions, run_paper};
+    use wavelet_prt::app::studies::paper::{PaperOptions, run_paper};
     let dir = common::temp_dir("paper");
     let opts = PaperOptions {
         size: 24,

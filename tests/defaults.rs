@@ -13,7 +13,7 @@ use common::{s, temp_dir};
 use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::{NodeT, Queryable};
-use wavelet_prt::app::demo::{DEMO_SH_ORDERS, demo_settings};
+use wavelet_prt::app::studies::demo::{DEMO_SH_ORDERS, demo_settings};
 use wavelet_prt::app::viewer::{Engine, ViewerApp, env_entries};
 use wavelet_prt::bake::BakeSettings;
 use wavelet_prt::output::text::CAPTION_HEIGHT;

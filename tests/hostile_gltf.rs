@@ -256,13 +256,15 @@ fn bundled_assets_never_replace_a_users_files() {
     let dir = temp_dir("hostile4-assets");
     let mut log = Vec::new();
     let root =
-        wavelet_prt::app::demo::write_assets(&dir, &mut |l| log.push(l.to_string())).unwrap();
+        wavelet_prt::app::studies::demo::write_assets(&dir, &mut |l| log.push(l.to_string()))
+            .unwrap();
     assert!(log.is_empty(), "{log:?}");
     let mine = root.join("scenes/spheres.toml");
     std::fs::write(&mine, "# my own edit\n").unwrap();
     std::fs::remove_file(root.join("scenes/fog.toml")).unwrap();
     let root =
-        wavelet_prt::app::demo::write_assets(&dir, &mut |l| log.push(l.to_string())).unwrap();
+        wavelet_prt::app::studies::demo::write_assets(&dir, &mut |l| log.push(l.to_string()))
+            .unwrap();
     assert_eq!(std::fs::read_to_string(&mine).unwrap(), "# my own edit\n");
     assert!(
         root.join("scenes/fog.toml").exists(),

@@ -483,7 +483,7 @@ const BENCH_GAIN_OVER_DIFFUSE: f64 = 1.1;
 /// files, tables and images are written.
 #[test]
 fn the_gloss_bench_holds_each_k_b_to_the_path_tracer_with_the_interpolation_apart() {
-    use wavelet_prt::app::gloss_bench::{GlossBenchOptions, csv, run, turned_cameras};
+    use wavelet_prt::app::studies::gloss_bench::{GlossBenchOptions, csv, run, turned_cameras};
     let scene = scene_from(&glossy_sphere(), "gloss-bench");
     let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
     let default_edge = wavelet_prt::scene::tessellate::VertexMesh::default_edge_length(&scene);

@@ -588,7 +588,7 @@ pub(super) fn paper(out: PathBuf) -> Result<()> {
     crate::files::check_output_folder(&out)?;
     let start = Instant::now();
     let bar = std::sync::Mutex::new(None::<ProgressBar>);
-    let report = crate::app::paper::run_paper(
+    let report = crate::app::studies::paper::run_paper(
         &out,
         &Default::default(),
         &mut |line| eprintln!("{line}"),
@@ -626,8 +626,10 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
     crate::files::check_output_folder(&out)?;
     let start = Instant::now();
     let bar = std::sync::Mutex::new(None::<ProgressBar>);
-    let report =
-        crate::app::demo::run_demo(&out, &mut |line| eprintln!("{line}"), &|p: BakeProgress| {
+    let report = crate::app::studies::demo::run_demo(
+        &out,
+        &mut |line| eprintln!("{line}"),
+        &|p: BakeProgress| {
             let mut guard = bar.lock().unwrap_or_else(|e| e.into_inner());
             // One bar per bake: the per-pixel one, then the per-vertex one.
             if guard
@@ -641,8 +643,12 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
             if p.pixels_done == p.pixels_total {
                 b.finish_and_clear();
             }
-        })?;
-    println!("{}", crate::app::demo::markdown_table(&report.rows));
+        },
+    )?;
+    println!(
+        "{}",
+        crate::app::studies::demo::markdown_table(&report.rows)
+    );
     println!(
         "bake {} ({:.1} s); everything in {:.1} s",
         if report.reused_bake { "reused" } else { "done" },
@@ -662,7 +668,7 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
         100.0 * o.fine.interpolation_error,
         o.coarse.vertices,
         100.0 * o.coarse.interpolation_error,
-        crate::app::orbit::ORBIT_TERMS,
+        crate::app::studies::orbit::ORBIT_TERMS,
         o.frame_ms,
     );
     let s = &report.gloss;
@@ -671,7 +677,7 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
          path tracer, {:.1}% for the diffuse base)",
         s.sheet_path.display(),
         s.vertices,
-        crate::app::gloss_orbit::GLOSS_BRDF_TERMS,
+        crate::app::studies::gloss_orbit::GLOSS_BRDF_TERMS,
         s.bake_seconds,
         if s.reused_bake { ", reused" } else { "" },
         100.0 * s.glossy_error,

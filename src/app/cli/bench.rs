@@ -55,7 +55,7 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
     crate::files::check_output_folder(&a.out)?;
     let t = Transport::load(&a.file)?;
     crate::files::guard_inputs(&[&a.file]);
-    let mut opts = crate::app::bench::BenchOptions::defaults_for(&t);
+    let mut opts = crate::app::studies::bench::BenchOptions::defaults_for(&t);
     if let Some(k) = a.terms {
         opts.terms = k;
     }
@@ -218,22 +218,22 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         Some((g, gt)) => Some(crate::relight::gpu::GpuBackend::new(g, gt, &t)?),
         None => None,
     };
-    let extras = crate::app::bench::BenchExtras {
+    let extras = crate::app::studies::bench::BenchExtras {
         gpu: backend.as_ref().map(|b| b as &dyn crate::relight::Backend),
         references: references.as_ref().map(|(r, _)| r.as_slice()),
         reference_coverage: references.as_ref().map(|(_, c)| c.as_slice()),
         camera: still.as_ref(),
     };
-    let points = crate::app::bench::run(&t, &envs, &opts, &extras, &mut |done, total| {
+    let points = crate::app::studies::bench::run(&t, &envs, &opts, &extras, &mut |done, total| {
         points_bar.set_length(total as u64);
         points_bar.set_position(done as u64);
     })?;
     points_bar.finish_and_clear();
-    let mut written = crate::app::bench::write_report(&a.out, &points)?;
+    let mut written = crate::app::studies::bench::write_report(&a.out, &points)?;
     if let (Some(scene), Some(thresholds)) = (&scene, &a.compression) {
         let sweep = progress_bar(0);
         let progress = bake_progress(&sweep, Instant::now());
-        let curve = crate::app::bench::compression_sweep(
+        let curve = crate::app::studies::bench::compression_sweep(
             scene,
             &settings,
             thresholds,
@@ -242,9 +242,11 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
             &progress,
         )?;
         sweep.finish_and_clear();
-        written.extend(crate::app::bench::write_compression(&a.out, &curve)?);
+        written.extend(crate::app::studies::bench::write_compression(
+            &a.out, &curve,
+        )?);
     }
-    println!("{}", crate::app::bench::summary(&points));
+    println!("{}", crate::app::studies::bench::summary(&points));
     if let Some(pv) = &t.meta.per_vertex {
         println!(
             "per vertex ({} vertices, edges up to {:.3}): the reference error is taken on the \

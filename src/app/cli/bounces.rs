@@ -261,7 +261,7 @@ pub(super) fn lights_cmd(a: LightsArgs) -> Result<()> {
     crate::flags::within("--samples", a.samples, 1..=1 << 20, "")?;
     crate::flags::within("--grid", a.grid, 1..=64, "")?;
     crate::flags::within("--many-side", a.many_side, 8..=2048, " pixels")?;
-    let opts = crate::app::lights_bench::LightsBenchOptions {
+    let opts = crate::app::studies::lights_bench::LightsBenchOptions {
         side: a.side,
         paths: a.samples,
         grid: a.grid,
@@ -269,8 +269,12 @@ pub(super) fn lights_cmd(a: LightsArgs) -> Result<()> {
         ..Default::default()
     };
     let start = Instant::now();
-    let report = crate::app::lights_bench::run(&a.out, &opts, &mut |line| eprintln!("{line}"))?;
-    print!("{}", crate::app::lights_bench::markdown(&report, &opts));
+    let report =
+        crate::app::studies::lights_bench::run(&a.out, &opts, &mut |line| eprintln!("{line}"))?;
+    print!(
+        "{}",
+        crate::app::studies::lights_bench::markdown(&report, &opts)
+    );
     println!("\nin {:.0} s; wrote", start.elapsed().as_secs_f64());
     for f in &report.files {
         println!("  {}", f.display());

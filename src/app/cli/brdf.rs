@@ -187,9 +187,9 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
     crate::files::check_output_folder(&a.out)?;
     let scene = crate::scene::Scene::load(&a.scene)?;
     crate::files::guard_inputs(&scene.input_files);
-    crate::app::gloss_bench::glossy_materials(&scene)?;
+    crate::app::studies::gloss_bench::glossy_materials(&scene)?;
     let mut cameras = match a.eyes.is_empty() {
-        true => crate::app::gloss_bench::turned_cameras(&scene, &DEFAULT_AZIMUTHS),
+        true => crate::app::studies::gloss_bench::turned_cameras(&scene, &DEFAULT_AZIMUTHS),
         false => a
             .eyes
             .iter()
@@ -203,7 +203,7 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
         let target = a.target.unwrap_or(c.target);
         *c = crate::draw::vertex::moved_camera(c, c.eye, target, a.up);
     }
-    let opts = crate::app::gloss_bench::GlossBenchOptions {
+    let opts = crate::app::studies::gloss_bench::GlossBenchOptions {
         brdf_terms: a.brdf_terms,
         edge_factors: a.edge_factors,
         cameras,
@@ -230,7 +230,7 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
     let start = Instant::now();
     let bar = super::progress_bar(0);
     let progress = super::bake_progress(&bar, Instant::now());
-    let report = crate::app::gloss_bench::run(
+    let report = crate::app::studies::gloss_bench::run(
         &a.out,
         &scene,
         (&name, &env),
@@ -240,7 +240,10 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
         &progress,
     )?;
     bar.finish_and_clear();
-    print!("{}", crate::app::gloss_bench::markdown(&report, &opts));
+    print!(
+        "{}",
+        crate::app::studies::gloss_bench::markdown(&report, &opts)
+    );
     println!("\nin {:.0} s; wrote", start.elapsed().as_secs_f64());
     for f in &report.files {
         println!("  {}", f.display());

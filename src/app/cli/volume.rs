@@ -206,7 +206,7 @@ pub struct VolumeOrdersArgs {
 }
 
 pub(super) fn volume_orders_cmd(a: VolumeOrdersArgs) -> Result<()> {
-    use crate::app::volume_orders::{OrdersStudy, run_orders_study};
+    use crate::app::studies::volume_orders::{OrdersStudy, run_orders_study};
     crate::files::check_output_folder(&a.out)?;
     crate::files::guard_inputs(&[&a.scene]);
     crate::files::check_folder_outputs(&a.out, &["volume_orders.md"])?;

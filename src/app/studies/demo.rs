@@ -30,7 +30,7 @@ macro_rules! asset {
     ($p:literal) => {
         Asset {
             path: $p,
-            bytes: include_bytes!(concat!("../../assets/", $p)),
+            bytes: include_bytes!(concat!("../../../assets/", $p)),
         }
     };
 }
@@ -103,14 +103,14 @@ pub struct DemoReport {
     /// Per bundled environment: its name and the cloud's CPU march time, milliseconds.
     pub volume_rows: Vec<(String, f64)>,
     /// The per-vertex bake drawn from four angles, and its error against the per-pixel bake.
-    pub orbit: crate::app::orbit::OrbitReport,
+    pub orbit: crate::app::studies::orbit::OrbitReport,
     /// The per-vertex bake with in-out BRDF terms, drawn from four angles and held to the path
     /// tracer from one.
-    pub gloss: crate::app::gloss_orbit::GlossReport,
+    pub gloss: crate::app::studies::gloss_orbit::GlossReport,
     /// The dusk scene with its local lights.
-    pub dusk: crate::app::dusk::DuskReport,
+    pub dusk: crate::app::studies::dusk::DuskReport,
     /// The glTF scene.
-    pub truck: crate::app::truck::TruckReport,
+    pub truck: crate::app::studies::truck::TruckReport,
 }
 
 /// Writes the bundled assets under `dir/assets`, and returns that folder. A file that is there
@@ -259,7 +259,7 @@ pub fn run_demo(
         ),
     )?;
     let sunrise = EnvMap::load(&assets.join("envmaps/blender_sunrise.exr"))?;
-    let orbit = crate::app::orbit::run_orbit(
+    let orbit = crate::app::studies::orbit::run_orbit(
         dir,
         &scene,
         &settings,
@@ -268,7 +268,7 @@ pub fn run_demo(
         log,
         progress,
     )?;
-    let gloss = crate::app::gloss_orbit::run_gloss_orbit(
+    let gloss = crate::app::studies::gloss_orbit::run_gloss_orbit(
         dir,
         &scene,
         &settings,
@@ -276,9 +276,22 @@ pub fn run_demo(
         log,
         progress,
     )?;
-    let dusk = crate::app::dusk::run_dusk(dir, &assets, &settings, DEMO_WEIGHTING, log, progress)?;
-    let truck =
-        crate::app::truck::run_truck(dir, &assets, &settings, DEMO_WEIGHTING, log, progress)?;
+    let dusk = crate::app::studies::dusk::run_dusk(
+        dir,
+        &assets,
+        &settings,
+        DEMO_WEIGHTING,
+        log,
+        progress,
+    )?;
+    let truck = crate::app::studies::truck::run_truck(
+        dir,
+        &assets,
+        &settings,
+        DEMO_WEIGHTING,
+        log,
+        progress,
+    )?;
     let (volume_bake_seconds, volume_rows) = run_volume_demo(dir, &assets, log)?;
     let table_path = dir.join("summary.md");
     let mut table = markdown_table(&rows);
@@ -296,7 +309,7 @@ pub fn run_demo(
          only the diffuse base of the glossy teapot). Light: K = {k} against every term, per \
          vertex.\n\n| edges up to | vertices | triangles | bake (s) | interpolation | light, K = \
          {k} |\n|---:|---:|---:|---:|---:|---:|\n",
-        k = crate::app::orbit::ORBIT_TERMS
+        k = crate::app::studies::orbit::ORBIT_TERMS
     ));
     for t in [&orbit.fine, &orbit.coarse] {
         table.push_str(&format!(
@@ -311,7 +324,7 @@ pub fn run_demo(
     }
     table.push_str(&format!(
         "\nA frame at K = {} on the CPU, {} vertices: relight {:.1} ms + draw {:.1} ms = {:.1} ms.\n",
-        crate::app::orbit::ORBIT_TERMS,
+        crate::app::studies::orbit::ORBIT_TERMS,
         orbit.fine.vertices,
         orbit.relight_ms,
         orbit.draw_ms,
@@ -322,13 +335,13 @@ pub fn run_demo(
          for its porcelain teapot ({} vertices, {:.1} KB a vertex), bake {:.1} s{}; from {}° \
          round, under sunrise, against the path tracer ({} paths a pixel{}), the whole image: \
          {:.1}% with the terms, {:.1}% for the diffuse base.\n",
-        crate::app::gloss_orbit::GLOSS_BRDF_TERMS,
+        crate::app::studies::gloss_orbit::GLOSS_BRDF_TERMS,
         gloss.vertices,
         gloss.bytes_per_vertex / 1e3,
         gloss.bake_seconds,
         if gloss.reused_bake { " (reused)" } else { "" },
-        crate::app::gloss_orbit::GLOSS_REFERENCE_AZIMUTH,
-        crate::app::gloss_orbit::GLOSS_REFERENCE_PATHS,
+        crate::app::studies::gloss_orbit::GLOSS_REFERENCE_AZIMUTH,
+        crate::app::studies::gloss_orbit::GLOSS_REFERENCE_PATHS,
         gloss
             .reference_noise
             .map(|n| format!(", noise {:.1}%", 100.0 * n))
@@ -340,7 +353,7 @@ pub fn run_demo(
         "\nLocal lights (`dusk_sheet.png`): `assets/scenes/dusk.toml` under `{}` with a quad \
          panel, a spot and a lamp baked at 5 positions ({} light columns), bake {:.1} s{}; \
          adding every light to a relit image takes {:.2} ms on the CPU.\n",
-        crate::app::dusk::DUSK_SUN,
+        crate::app::studies::dusk::DUSK_SUN,
         dusk.columns,
         dusk.bake_seconds,
         if dusk.reused_bake { " (reused)" } else { "" },

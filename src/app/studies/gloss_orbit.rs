@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::app::orbit::ORBIT_AZIMUTHS;
+use crate::app::studies::orbit::ORBIT_AZIMUTHS;
 use crate::bake::path_tracer::path_trace;
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::draw::background::{composite, environment_behind_camera};

@@ -174,7 +174,7 @@ pub fn run(
     log: &mut dyn FnMut(&str),
 ) -> Result<LightsReport> {
     std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
-    let assets = crate::app::demo::write_assets(dir, log)?;
+    let assets = crate::app::studies::demo::write_assets(dir, log)?;
     let base = base_scene(&assets, opts.side)?;
     let settings = BakeSettings {
         cube_n: 8,
@@ -347,7 +347,7 @@ fn many_lights(
         t.lights.add_to(&one.weights, &mut image.pixels);
         Ok(())
     })?;
-    let env = EnvSpec::parse(crate::app::dusk::DUSK_SUN)?.load()?;
+    let env = EnvSpec::parse(crate::app::studies::dusk::DUSK_SUN)?.load()?;
     let ctx = LightContext::new(&t)?;
     let prepared = ctx.prepare(&env, EnvRotation::default())?;
     let terms = Terms::of(
@@ -356,7 +356,7 @@ fn many_lights(
         &prepared,
         &RelightRequest::Wavelet {
             k: 200,
-            weighting: crate::app::demo::DEMO_WEIGHTING,
+            weighting: crate::app::studies::demo::DEMO_WEIGHTING,
         },
     )?;
     let env_ms = median_ms(opts.runs, || Cpu(&t).relight_terms(&terms).map(|_| ()))?;

@@ -8,8 +8,10 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::app::bench::{BenchExtras, BenchOptions, BenchPoint, run as bench_run, timed_runs};
-use crate::app::demo::write_assets;
+use crate::app::studies::bench::{
+    BenchExtras, BenchOptions, BenchPoint, run as bench_run, timed_runs,
+};
+use crate::app::studies::demo::write_assets;
 use crate::bake::{BakeProgress, BakeSettings, bake_to_file};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::env::select::Weighting;
