@@ -67,7 +67,13 @@ mod tests {
     use super::*;
 
     #[derive(
-        Clone, Copy, Debug, PartialEq, strum::IntoStaticStr, strum::Display, strum::VariantArray,
+        Clone,
+        Copy,
+        Debug,
+        PartialEq,
+        strum::IntoStaticStr,
+        strum::Display,
+        strum::VariantArray
     )]
     #[strum(serialize_all = "kebab-case")]
     enum Shade {

@@ -11,17 +11,8 @@ use crate::scene::Camera;
 use crate::store::transport::TransportMeta;
 
 /// What pixels that see no geometry show.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::VariantArray,
-)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(strum::IntoStaticStr, strum::Display, strum::VariantArray)]
 #[strum(serialize_all = "lowercase")]
 pub enum Background {
     /// The environment seen through the camera, rotated with the light.

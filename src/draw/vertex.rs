@@ -258,17 +258,8 @@ pub fn vertex_terms(t: &Transport, relit: &Image) -> Result<Option<Vec<[f32; 3]>
 }
 
 /// How the glossy light of a per-vertex bake is evaluated when drawn.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::VariantArray,
-)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(strum::IntoStaticStr, strum::Display, strum::VariantArray)]
 #[strum(serialize_all = "kebab-case")]
 pub enum GlossEval {
     /// `g_k` of the direction to the eye at every sample, the responses interpolated.

@@ -11,17 +11,8 @@ use crate::math::haar;
 use crate::math::rgb_magnitude;
 
 /// How light coefficients are ranked before the K largest are kept.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Hash,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::VariantArray,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(strum::IntoStaticStr, strum::Display, strum::VariantArray)]
 #[strum(serialize_all = "kebab-case")]
 pub enum Weighting {
     /// By magnitude alone: the best K-term approximation of the light in L2.

@@ -21,17 +21,8 @@ use crate::output::film::Image;
 use crate::store::transport::Transport;
 
 /// Which approximation of the light relights the image.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Hash,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::VariantArray,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(strum::IntoStaticStr, strum::Display, strum::VariantArray)]
 #[strum(serialize_all = "kebab-case")]
 pub enum Method {
     /// K Haar terms of the light (Ng et al. 2003).

@@ -20,19 +20,13 @@ use serde::{Deserialize, Serialize};
 use crate::math::haar::{coeff_info, support_solid_angles};
 
 /// How the thresholding budget weighs coefficients.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    Hash,
     Serialize,
     Deserialize,
     strum::IntoStaticStr,
     strum::Display,
-    strum::VariantArray,
+    strum::VariantArray
 )]
 #[serde(rename_all = "lowercase")]
 #[strum(serialize_all = "lowercase")]

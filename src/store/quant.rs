@@ -26,18 +26,13 @@ pub const SCALE_STEPS_PER_OCTAVE: i32 = 4;
 pub const UNIT_SCALE_CODE: u8 = SCALE_CODE_BIAS as u8;
 
 /// How stored coefficient values are quantised.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Hash,
     Serialize,
     Deserialize,
     strum::IntoStaticStr,
     strum::Display,
-    strum::VariantArray,
+    strum::VariantArray
 )]
 #[serde(rename_all = "lowercase")]
 #[strum(serialize_all = "lowercase")]

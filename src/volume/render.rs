@@ -144,17 +144,8 @@ impl PhaseLight {
 }
 
 /// What [`render_volume`] shows.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Default,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::VariantArray,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(strum::IntoStaticStr, strum::Display, strum::VariantArray)]
 #[strum(serialize_all = "lowercase")]
 pub enum VolumeView {
     /// Single scattering with the camera ray's transmittance.

@@ -149,7 +149,14 @@ pub struct ReferenceArgs {
 
 /// How `prt reference` integrates the light.
 #[derive(
-    Clone, Copy, Debug, PartialEq, Eq, strum::IntoStaticStr, strum::Display, strum::VariantArray,
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::VariantArray
 )]
 #[strum(serialize_all = "lowercase")]
 pub enum Estimator {

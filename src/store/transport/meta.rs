@@ -44,18 +44,13 @@ pub struct BakeStats {
 }
 
 /// Where the visibility of an interreflection vertex comes from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
     Serialize,
     Deserialize,
     strum::IntoStaticStr,
     strum::Display,
-    strum::VariantArray,
+    strum::VariantArray
 )]
 #[serde(rename_all = "kebab-case")]
 #[strum(serialize_all = "kebab-case")]
