@@ -51,6 +51,30 @@ pub struct Light {
     pub grid: [usize; 3],
 }
 
+/// The kinds of local light, by the one name the scene file's `type`, the transport file's
+/// metadata and every message give each.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(
+    serde::Deserialize,
+    strum::IntoStaticStr,
+    strum::Display,
+    strum::VariantArray
+)]
+#[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
+pub enum LightKind {
+    /// [`LightShape::Point`].
+    Point,
+    /// [`LightShape::Spot`].
+    Spot,
+    /// [`LightShape::Directional`].
+    Directional,
+    /// [`LightShape::Quad`].
+    Quad,
+}
+
+crate::named!(LightKind, "light type");
+
 /// The kind of a light and its shape about its position.
 #[derive(Clone, Debug, PartialEq)]
 pub enum LightShape {
@@ -81,13 +105,13 @@ pub enum LightShape {
 }
 
 impl LightShape {
-    /// The scene file's name of the kind.
-    pub fn kind(&self) -> &'static str {
+    /// Its kind.
+    pub fn kind(&self) -> LightKind {
         match self {
-            LightShape::Point => "point",
-            LightShape::Spot { .. } => "spot",
-            LightShape::Directional { .. } => "directional",
-            LightShape::Quad { .. } => "quad",
+            LightShape::Point => LightKind::Point,
+            LightShape::Spot { .. } => LightKind::Spot,
+            LightShape::Directional { .. } => LightKind::Directional,
+            LightShape::Quad { .. } => LightKind::Quad,
         }
     }
 

@@ -17,6 +17,7 @@ use crate::output::metrics::relative_l2;
 use crate::output::plot::{self, PlotSpec, Series};
 use crate::relight::{Backend, Cpu, LightContext, LightMix, LightSetting, RelightRequest, Terms};
 use crate::scene::Scene;
+use crate::scene::light::LightKind;
 use crate::store::transport::Transport;
 
 /// What to measure.
@@ -147,22 +148,22 @@ fn median_ms(runs: usize, mut f: impl FnMut() -> Result<()>) -> Result<f64> {
 }
 
 /// The lights of each kind the comparison bakes, one at a time.
-const KINDS: [(&str, &str); 4] = [
+const KINDS: [(LightKind, &str); 4] = [
     (
-        "point",
-        "type = \"point\"\nposition = [0.3, 1.1, 0.6]\nintensity = 1.5",
+        LightKind::Point,
+        "position = [0.3, 1.1, 0.6]\nintensity = 1.5",
     ),
     (
-        "spot",
-        "type = \"spot\"\nposition = [2.6, 2.8, 1.9]\ndirection = [-1.45, -2.5, -1.7]\ncone_deg = 20.0\nfalloff_deg = 6.0\nintensity = 14.0",
+        LightKind::Spot,
+        "position = [2.6, 2.8, 1.9]\ndirection = [-1.45, -2.5, -1.7]\ncone_deg = 20.0\nfalloff_deg = 6.0\nintensity = 14.0",
     ),
     (
-        "directional",
-        "type = \"directional\"\ndirection = [-0.5, -0.6, -0.62]\nangle_deg = 4.0\nintensity = 2.0",
+        LightKind::Directional,
+        "direction = [-0.5, -0.6, -0.62]\nangle_deg = 4.0\nintensity = 2.0",
     ),
     (
-        "quad",
-        "type = \"quad\"\ncorners = [[-2.0, 2.2, -0.7], [-0.6, 2.2, -0.7], [-0.6, 2.2, 0.7], [-2.0, 2.2, 0.7]]\nintensity = 5.0",
+        LightKind::Quad,
+        "corners = [[-2.0, 2.2, -0.7], [-0.6, 2.2, -0.7], [-0.6, 2.2, 0.7], [-2.0, 2.2, 0.7]]\nintensity = 5.0",
     ),
 ];
 
@@ -189,7 +190,7 @@ pub fn run(
     )?;
     let mut kinds = Vec::new();
     for (kind, keys) in KINDS {
-        let text = format!("{base}\n\n[[light]]\nname = \"{kind}\"\n{keys}\n");
+        let text = format!("{base}\n\n[[light]]\nname = \"{kind}\"\ntype = \"{kind}\"\n{keys}\n");
         let scene = scene_at(&assets, &format!("bench_{kind}.toml"), &text)?;
         log(&format!(
             "{kind} light: baking, then path tracing {} paths a pixel",

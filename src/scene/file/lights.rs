@@ -4,45 +4,27 @@
 use super::numbers::{numbers, some_numbers, some_point_list, some_points};
 use super::{Loader, finite3, position3};
 use crate::error::Result;
+use crate::names::Named;
 use crate::scene::light::{
-    Light, LightShape, MAX_INTENSITY, MAX_LIGHT_COLUMNS, quad_problem, valid_name,
+    Light, LightKind, LightShape, MAX_INTENSITY, MAX_LIGHT_COLUMNS, quad_problem, valid_name,
 };
 use glam::Vec3;
 use serde::Deserialize;
 
-#[derive(Deserialize, Clone, Copy, PartialEq, Debug)]
-#[serde(rename_all = "lowercase")]
-pub(super) enum LightKind {
-    Point,
-    Spot,
-    Directional,
-    Quad,
-}
-
-impl LightKind {
-    fn name(self) -> &'static str {
-        match self {
-            LightKind::Point => "point",
-            LightKind::Spot => "spot",
-            LightKind::Directional => "directional",
-            LightKind::Quad => "quad",
-        }
-    }
-
-    fn allowed_keys(self) -> &'static [&'static str] {
-        match self {
-            LightKind::Point => &["position", "positions", "grid"],
-            LightKind::Spot => &[
-                "position",
-                "positions",
-                "grid",
-                "direction",
-                "cone_deg",
-                "falloff_deg",
-            ],
-            LightKind::Directional => &["direction", "angle_deg"],
-            LightKind::Quad => &["corners", "positions", "grid"],
-        }
+/// The keys a light of `kind` takes besides those every light takes.
+fn allowed_keys(kind: LightKind) -> &'static [&'static str] {
+    match kind {
+        LightKind::Point => &["position", "positions", "grid"],
+        LightKind::Spot => &[
+            "position",
+            "positions",
+            "grid",
+            "direction",
+            "cone_deg",
+            "falloff_deg",
+        ],
+        LightKind::Directional => &["direction", "angle_deg"],
+        LightKind::Quad => &["corners", "positions", "grid"],
     }
 }
 
@@ -124,7 +106,7 @@ impl Loader<'_> {
                 ));
             }
             for (key, present) in l.present_keys() {
-                if present && !kind.allowed_keys().contains(&key) {
+                if present && !allowed_keys(kind).contains(&key) {
                     return Err(err(
                         key,
                         format!("`{key}` does not apply to a {} light", kind.name()),

@@ -10,7 +10,8 @@ use serde::{Deserialize, Serialize};
 
 use glam::Vec3;
 
-use crate::scene::light::{Light, LightShape};
+use crate::names::Named;
+use crate::scene::light::{Light, LightKind, LightShape};
 use crate::store::budget::Budget;
 use crate::store::quant::Quantization;
 
@@ -296,7 +297,7 @@ impl From<&Light> for LightMetaFile {
     fn from(l: &Light) -> Self {
         let mut f = LightMetaFile {
             name: l.name.clone(),
-            r#type: l.shape.kind().to_string(),
+            r#type: l.shape.kind().name().to_string(),
             color: l.color.to_array(),
             intensity: l.intensity,
             positions: l.positions.iter().map(|p| p.to_array()).collect(),
@@ -333,18 +334,19 @@ impl LightMetaFile {
     /// numbers, [`Light::problem`]).
     fn light(&self) -> Option<Light> {
         let v = Vec3::from_array;
-        let shape = match (self.r#type.as_str(), self.direction, self.corners) {
-            ("point", None, None) => LightShape::Point,
-            ("spot", Some(d), None) => LightShape::Spot {
+        let kind: LightKind = self.r#type.parse().ok()?;
+        let shape = match (kind, self.direction, self.corners) {
+            (LightKind::Point, None, None) => LightShape::Point,
+            (LightKind::Spot, Some(d), None) => LightShape::Spot {
                 direction: v(d),
                 cone: self.cone_deg?.to_radians(),
                 falloff: self.falloff_deg?.to_radians(),
             },
-            ("directional", Some(d), None) => LightShape::Directional {
+            (LightKind::Directional, Some(d), None) => LightShape::Directional {
                 direction: v(d),
                 angle: self.angle_deg?.to_radians(),
             },
-            ("quad", None, Some(c)) => LightShape::Quad { corners: c.map(v) },
+            (LightKind::Quad, None, Some(c)) => LightShape::Quad { corners: c.map(v) },
             _ => return None,
         };
         Some(Light {
