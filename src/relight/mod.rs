@@ -4,6 +4,7 @@
 //! image and the same statistics. SH through the light ([`sh_light`]) completes the methods; what
 //! draws a relit image ([`crate::draw`]) is a stage of its own.
 
+pub mod columns;
 pub mod cpu;
 #[cfg(feature = "gpu")]
 pub mod gpu;
@@ -289,7 +290,7 @@ impl Backend for Cpu<'_> {
             Terms::Sh(sh) => relight_sh(self.0, sh)?,
         };
         let start = std::time::Instant::now();
-        self.0.lights.add_to(&lights.weights, &mut image.pixels);
+        columns::add_columns(&self.0.lights, &lights.weights, &mut image.pixels);
         Ok((
             image,
             RelightStats {

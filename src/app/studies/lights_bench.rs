@@ -341,11 +341,11 @@ fn many_lights(
     let (w, h) = (t.meta.width as usize, t.meta.height as usize);
     let mut image = Image::new(w, h);
     let all_ms = median_ms(opts.runs, || {
-        t.lights.add_to(&all.weights, &mut image.pixels);
+        crate::relight::columns::add_columns(&t.lights, &all.weights, &mut image.pixels);
         Ok(())
     })?;
     let one_ms = median_ms(opts.runs, || {
-        t.lights.add_to(&one.weights, &mut image.pixels);
+        crate::relight::columns::add_columns(&t.lights, &one.weights, &mut image.pixels);
         Ok(())
     })?;
     let env = EnvSpec::parse(crate::app::studies::dusk::DUSK_SUN)?.load()?;

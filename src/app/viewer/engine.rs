@@ -321,9 +321,11 @@ impl Engine {
             shown.pixels.fill([0.0; 3]);
         }
         let mix = s.lights.mix(&self.transport.meta.lights)?;
-        self.transport
-            .lights
-            .add_to(&mix.weights, &mut shown.pixels);
+        crate::relight::columns::add_columns(
+            &self.transport.lights,
+            &mix.weights,
+            &mut shown.pixels,
+        );
         let full = &shown;
         // A per-vertex bake is exposed for what its camera sees, not for every vertex (the
         // unlit undersides of two-sided surfaces among them).
@@ -393,9 +395,11 @@ impl Engine {
             if !state.lights.environment_shown() {
                 image.pixels.fill([0.0; 3]);
             }
-            self.transport
-                .lights
-                .add_to(&mix.weights, &mut image.pixels);
+            crate::relight::columns::add_columns(
+                &self.transport.lights,
+                &mix.weights,
+                &mut image.pixels,
+            );
             image.check_finite("relit image")?;
             panes.push(LinearPane {
                 image,
