@@ -54,11 +54,15 @@
 
 use std::path::Path;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Bakes a scene in memory: [`crate::bake::bake_with`], with progress and cancellation.
 pub use crate::bake::bake_with as bake;
 pub use crate::bake::{BakeProgress, BakeSettings, Cancel};
+pub use environment::Environment;
+pub use still::Still;
+
+mod environment;
+mod still;
 pub use crate::draw::background::Background;
 pub use crate::env::envmap::{EnvMap, EnvRotation};
 pub use crate::env::select::Weighting;
@@ -73,13 +77,11 @@ pub use crate::store::transport::{BakeDomain, Transport, TransportMeta};
 use crate::draw::background::{composite, environment_behind, environment_behind_camera};
 use crate::draw::raster::DRAW_SAMPLES;
 use crate::draw::vertex::{self, GlossEval};
-use crate::env::envmap::check_env_size;
 pub use crate::env::select::SparseLight;
 use crate::error::{PrtError, Result};
 pub use crate::relight::PreparedLight;
 use crate::relight::{Backend, Cpu, LightContext};
 use crate::store::transport::Domain;
-use glam::Vec3;
 
 /// Kept wavelet terms K when none are asked for: `prt relight --terms`, the viewer's first view
 /// and the Python package's `terms` (at most the file's 6 N², [`terms_for`]).
@@ -225,63 +227,6 @@ pub fn compare(image: &Image, reference: &Image, mask: Option<&[f32]>) -> Result
     crate::output::metrics::compare(image, reference, mask)
 }
 
-/// Where a per-vertex bake is drawn from: its bake's camera with what is given here replaced,
-/// as `prt relight --eye --target --up --width --height` take it. A moved camera stays upright:
-/// its up is `up`, else the world's +Y ([`crate::draw::vertex::WORLD_UP`]), not the scene
-/// camera's.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Still {
-    /// Camera position (default: the scene's camera).
-    pub eye: Option<Vec3>,
-    /// The point it looks at (default: the scene's target).
-    pub target: Option<Vec3>,
-    /// The up direction of a camera moved by `eye` or `target`.
-    pub up: Option<Vec3>,
-    /// Image width (default: the scene's).
-    pub width: Option<u32>,
-    /// Image height (default: the scene's).
-    pub height: Option<u32>,
-}
-
-/// Bytes a pixel of a per-vertex still takes at the peak of a relight: the drawn colours, depth
-/// and coverage, the environment behind, the composite and the encoded output. Measured: 27
-/// bytes a pixel between 2048² and 4096² (peak resident memory), rounded up.
-const STILL_BYTES_PER_PIXEL: u64 = 32;
-
-impl Still {
-    /// The camera of a still of `t`: `None` for a per-pixel bake, whose view is fixed (an error
-    /// when anything is given for one); the bake's camera with what is given replaced for a
-    /// per-vertex bake, checked, and refused before any work when its image would not fit in
-    /// memory.
-    pub fn camera(&self, t: &Transport) -> Result<Option<Camera>> {
-        let moved = self.eye.is_some() || self.target.is_some() || self.up.is_some();
-        let given = moved || self.width.is_some() || self.height.is_some();
-        if t.domain == Domain::View {
-            if given {
-                vertex::mesh_of(t)?;
-            }
-            return Ok(None);
-        }
-        let mut c = vertex::bake_camera(t)?;
-        if moved {
-            let (eye, target) = (self.eye.unwrap_or(c.eye), self.target.unwrap_or(c.target));
-            c = vertex::moved_camera(&c, eye, target, self.up);
-        }
-        c.width = self.width.unwrap_or(c.width);
-        c.height = self.height.unwrap_or(c.height);
-        c.validate()?;
-        crate::files::check_memory(
-            "--width/--height",
-            &format!(
-                "a {} x {} still ({STILL_BYTES_PER_PIXEL} bytes a pixel)",
-                c.width, c.height
-            ),
-            c.width as u64 * c.height as u64 * STILL_BYTES_PER_PIXEL,
-        )?;
-        Ok(Some(c))
-    }
-}
-
 /// Reads an OpenEXR image (its R, G and B channels as linear floats), as `prt compare` does.
 pub fn read_image(path: impl AsRef<Path>) -> Result<Image> {
     Image::load_exr(path.as_ref())
@@ -301,103 +246,6 @@ pub fn save_image(
         None => crate::output::film::ToneMap::auto(image, mask),
     };
     image.save(path.as_ref(), tone)
-}
-
-/// What messages call an environment made from an array.
-const ARRAY: &str = "array";
-
-/// Numbers the environments, so that a [`Relighter`] knows one it has prepared.
-static NEXT_ENVIRONMENT: AtomicU64 = AtomicU64::new(0);
-
-/// A lat-long environment map ready to light with: loaded, checked, and shared by its clones.
-/// A [`Relighter`] prepares each environment once per rotation, so relight many times with the
-/// same value (or its clones) rather than making it again.
-#[derive(Clone, Debug)]
-pub struct Environment {
-    map: Arc<EnvMap>,
-    id: u64,
-}
-
-impl Environment {
-    /// A map already made (its pixels as they are).
-    pub fn from_map(map: EnvMap) -> Environment {
-        Environment {
-            map: Arc::new(map),
-            id: NEXT_ENVIRONMENT.fetch_add(1, Ordering::Relaxed),
-        }
-    }
-
-    /// An OpenEXR or Radiance HDR lat-long file. NaN or infinite pixels are an error; negative
-    /// ones (lossy compression leaves a few) are clamped to 0 ([`EnvMap::negatives_clamped`]).
-    pub fn from_file(path: impl AsRef<Path>) -> Result<Environment> {
-        EnvMap::load(path.as_ref()).map(Environment::from_map)
-    }
-
-    /// What `--env` takes: a file, a map bundled in the binary by name (`blender_sunrise`), or
-    /// the procedural sun and sky as `sun:ELEV,AZIM[,RADIUS]`.
-    pub fn from_spec(spec: &str) -> Result<Environment> {
-        EnvMap::from_spec(spec).map(Environment::from_map)
-    }
-
-    /// The procedural sun and sky with the sun `elevation_deg` above the horizon (-90 to 90)
-    /// and `azimuth_deg` round from −Z towards +X, as `sun:ELEV,AZIM` gives it.
-    pub fn sun(elevation_deg: f64, azimuth_deg: f64) -> Result<Environment> {
-        // Rust writes an f64 so that it reads back the same.
-        Environment::from_spec(&format!("sun:{elevation_deg},{azimuth_deg}"))
-    }
-
-    /// A lat-long map of `width` x `height` pixels, rows from the zenith down, linear RGB
-    /// radiance. Checked as a file is (sizes from 1 to [`crate::env::envmap::MAX_ENV_SIDE`],
-    /// finite values, some light), with `width · height` pixels, none of them negative.
-    pub fn from_array(width: usize, height: usize, pixels: Vec<[f32; 3]>) -> Result<Environment> {
-        check_env_size(Path::new(ARRAY), width, height)?;
-        if pixels.len() != width * height {
-            return Err(PrtError::file(
-                ARRAY,
-                format!(
-                    "{} pixels for a {width} x {height} map, which takes {}",
-                    pixels.len(),
-                    width * height
-                ),
-            ));
-        }
-        let negative = pixels.iter().enumerate().find_map(|(i, p)| {
-            let c = p.iter().position(|v| *v < 0.0)?;
-            Some((i, c, p[c]))
-        });
-        if let Some((i, c, v)) = negative {
-            return Err(PrtError::file(
-                ARRAY,
-                format!(
-                    "pixel (x = {}, y = {}) channel {} is {v}: radiance must not be negative",
-                    i % width,
-                    i / width,
-                    ["R", "G", "B"][c]
-                ),
-            ));
-        }
-        let map = EnvMap::from_pixels(width, height, pixels, ARRAY)?;
-        let power: f64 = map.power().iter().sum();
-        if power.is_nan() || power <= 0.0 {
-            return Err(PrtError::file(
-                ARRAY,
-                format!(
-                    "the map's power (Σ L Ω over its pixels) is {power:.4e}: it lights nothing"
-                ),
-            ));
-        }
-        Ok(Environment::from_map(map))
-    }
-
-    /// The map.
-    pub fn map(&self) -> &EnvMap {
-        &self.map
-    }
-
-    /// Where it came from: a file, a bundled map, the sun's description or "array".
-    pub fn source(&self) -> &str {
-        &self.map.source
-    }
 }
 
 /// How many prepared lights a [`Relighter`] keeps: a few environments or rotations in turn.
