@@ -88,8 +88,8 @@ fn array_image(a: &PyReadonlyArray3<'_, f32>) -> PyResult<Image> {
 /// Bakes the scene file `scene` into the transport file `out`, as `prt bake` does: `settings`
 /// is a JSON object of `BakeSettings` (the keys the command line's flags, `_` for `-`), the
 /// framing that of a glTF file. `progress(done, total)` is called as the rows are made; Ctrl-C
-/// (or an exception from `progress`) cancels the bake, leaving nothing at `out`. Returns the
-/// file's metadata as JSON and whether the file already held this bake and was kept.
+/// (or an exception from `progress`) cancels the bake, leaving nothing at `out`. A file that
+/// already holds this bake is kept ([`api::bake_to_file`]). Returns the file's metadata as JSON.
 #[pyfunction]
 #[pyo3(signature = (scene, out, settings, camera=None, width=None, height=None, read_outside_folder=false, per_vertex=false, edge_length=None, progress=None))]
 #[allow(clippy::too_many_arguments)] // the keywords of `prt bake`, named one by one from Python
@@ -105,7 +105,7 @@ fn bake(
     per_vertex: bool,
     edge_length: Option<f32>,
     progress: Option<Py<PyAny>>,
-) -> PyResult<(String, bool)> {
+) -> PyResult<String> {
     let mut settings: BakeSettings = serde_json::from_str(settings)
         .map_err(|e| PyValueError::new_err(format!("bake settings: {e}")))?;
     let framing = Framing {
@@ -117,10 +117,6 @@ fn bake(
     let scene = py.detach(|| api::load_scene(&scene, &framing)).py()?;
     if per_vertex {
         settings.domain = api::vertices(&scene, edge_length);
-    }
-    settings.validate_for(&scene).py()?;
-    if let Some(meta) = py.detach(|| api::already_baked(&out, &scene, &settings)) {
-        return Ok((meta_json(&meta)?, true));
     }
     let (done, total) = (AtomicUsize::new(0), AtomicUsize::new(0));
     let cancel = Cancel::new();
@@ -164,7 +160,7 @@ fn bake(
         let total = total.load(Ordering::Relaxed);
         f.bind(py).call1((total, total))?;
     }
-    Ok((meta_json(&meta)?, false))
+    meta_json(&meta)
 }
 
 /// A transport's metadata as the file's JSON header holds it.
@@ -435,33 +431,27 @@ impl Transport {
         Ok((rgb_rows(py, haar)?, sh))
     }
 
-    /// The light terms a request relights with: the Haar indices (int64, empty for `sh`) and
-    /// their RGB values, or the SH coefficients.
-    #[pyo3(signature = (env, method, terms, weighting, sh_order, yaw, pitch))]
-    #[allow(clippy::too_many_arguments)] // a request's keywords, as `relight` takes them
-    fn terms<'py>(
+    /// The K terms a wavelet relight keeps under `env` by `weighting`: their Haar indices
+    /// (int64) and RGB values.
+    fn kept_terms<'py>(
         &mut self,
         py: Python<'py>,
         env: PyRef<'py, Environment>,
-        method: &str,
         terms: usize,
         weighting: &str,
-        sh_order: Option<usize>,
         yaw: f64,
         pitch: f64,
     ) -> PyResult<Arrays<'py, PyArray1<i64>, PyArray2<f32>>> {
-        let req = request(self.inner.transport(), method, terms, weighting, sh_order)?;
+        let req = request(self.inner.transport(), "wavelet", terms, weighting, None)?;
         let rotation = api::rotation(yaw, pitch).py()?;
         let env = env.inner.clone();
         let inner = &mut self.inner;
         let terms = py.detach(|| inner.terms(&env, &req, rotation)).py()?;
-        let (indices, values): (Vec<i64>, Vec<[f32; 3]>) = match terms {
-            Terms::Wavelet(l) | Terms::ShLight { haar: l, .. } => {
-                (l.indices.iter().map(|&i| i as i64).collect(), l.values)
-            }
-            Terms::Sh(sh) => (Vec::new(), sh.iter().map(|c| c.map(|v| v as f32)).collect()),
+        let Terms::Wavelet(kept) = terms else {
+            return Err(PyValueError::new_err("a wavelet request gives Haar terms"));
         };
-        Ok((PyArray1::from_vec(py, indices), rgb_rows(py, values)?))
+        let indices = kept.indices.iter().map(|&i| i as i64).collect();
+        Ok((PyArray1::from_vec(py, indices), rgb_rows(py, kept.values)?))
     }
 
     /// Pixel `pixel`'s dense transport row, a (6 N², 3) array.

@@ -17,6 +17,8 @@ write) with the command line's messages. The work runs without the GIL; Ctrl-C c
 
 from __future__ import annotations
 
+import copy
+import inspect
 import json
 import os
 import sys
@@ -223,17 +225,16 @@ def bake(
     return Transport.open(out)
 
 
-def _bake_file(a: Dict[str, Any]) -> bool:
-    """Bakes with the arguments of :func:`bake` (all of them, as a dict); returns whether the
-    file already held this bake and was kept."""
-    defaults = {"brdf_terms": 1, "brdf_error": 0.0, "edge_length": None, "refine_shadows": False}
+def _bake_file(a: Dict[str, Any]) -> None:
+    """Bakes with the arguments of :func:`bake` (all of them, as a dict)."""
+    default = {name: p.default for name, p in inspect.signature(bake).parameters.items()}
     if not a["per_vertex"]:
-        for name, default in defaults.items():
-            if a[name] != default:
+        for name in ("brdf_terms", "brdf_error", "edge_length", "refine_shadows"):
+            if a[name] != default[name]:
                 raise ValueError(f"{name} applies to per-vertex bakes: pass per_vertex=True")
     if a["lossless"]:
-        for name, default in (("threshold", 0.005), ("budget", "l2"), ("quantization", "q8")):
-            if a[name] != default:
+        for name in ("threshold", "budget", "quantization"):
+            if a[name] != default[name]:
                 raise ValueError(f"{name} cannot be used with lossless: it keeps every coefficient")
     stored = ("sh_order", "spp", "edge_spp", "texel_samples", "edge_texel_samples", "threshold",
               "budget", "quantization", "lossless", "unshadowed", "seed", "bounces", "paths",
@@ -245,7 +246,7 @@ def _bake_file(a: Dict[str, Any]) -> bool:
     scene, out = os.fspath(a["scene"]), os.fspath(a["out"])
     report, bar = _progress(a["progress"], f"baking {scene}")
     try:
-        _, kept = _native.bake(
+        _native.bake(
             scene, out, json.dumps(settings), camera=a["camera"], width=a["width"],
             height=a["height"], read_outside_folder=a["read_outside_folder"],
             per_vertex=a["per_vertex"], edge_length=a["edge_length"], progress=report,
@@ -253,7 +254,6 @@ def _bake_file(a: Dict[str, Any]) -> bool:
     finally:
         if bar is not None:
             bar.close()
-    return kept
 
 
 def merge(shards: Sequence[Union[str, "os.PathLike[str]"]],
@@ -340,7 +340,7 @@ class Transport:
     @property
     def meta(self) -> Dict[str, Any]:
         """The file's metadata as its JSON header holds it."""
-        return json.loads(json.dumps(self._meta))
+        return copy.deepcopy(self._meta)
 
     @property
     def width(self) -> int:
@@ -456,8 +456,8 @@ class Transport:
     ) -> Tuple[np.ndarray, np.ndarray]:
         """The K terms a wavelet relight keeps: their indices (int64, (K,)) into
         :meth:`haar`, and their values (float32, (K, 3))."""
-        return self._t.terms(_required_environment(env), "wavelet", terms, weighting, None,
-                             float(yaw), float(pitch))
+        return self._t.kept_terms(_required_environment(env), terms, weighting, float(yaw),
+                                  float(pitch))
 
     def _pixel(self, pixel: Optional[Union[int, Tuple[int, int]]], vertex: Optional[int]) -> int:
         if (pixel is None) == (vertex is None):

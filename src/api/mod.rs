@@ -368,10 +368,7 @@ impl Relighter {
         rotation: EnvRotation,
         lights: &LightMix,
     ) -> Result<Image> {
-        let n = self.ctx.n;
-        if let RelightRequest::Wavelet { k, .. } = *request {
-            crate::flags::terms(k, n)?;
-        }
+        // K is checked where the terms are selected ([`Terms::of`]).
         let terms = match env {
             Some(env) => self.terms(env, request, rotation)?,
             None => Terms::dark(),
