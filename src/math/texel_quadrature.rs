@@ -55,7 +55,7 @@ impl TexelQuadrature {
             side,
             centres: Vec::with_capacity(count),
             solid_angles: Vec::with_capacity(count),
-            moments: Vec::with_capacity(count),
+            moments: Vec::new(),
             sin_radius: Vec::with_capacity(count),
             max_radius: 0.0,
             neighbours: Vec::with_capacity(count),
@@ -63,16 +63,44 @@ impl TexelQuadrature {
             sub_weights: Vec::with_capacity(count * side * side),
             centre_sub: (side % 2 == 1).then_some((side / 2) * side + side / 2),
         };
-        // Unit direction and solid angle of the sub-grid cells of a texel, row-major.
-        let cells = |face: usize, s0: f64, t0: f64, k: usize| {
+        // The corner of sub-cell i of a k x k grid over the texel at (s0, t0), row-major, and
+        // the cell's side.
+        let corner = |s0: f64, t0: f64, k: usize, i: usize| {
             let h = step / k as f64;
+            let (a, b) = ((i / k) as f64, (i % k) as f64);
+            (s0 + b * h, t0 + a * h, h)
+        };
+        // Unit direction and solid angle of the sub-grid cells of a texel, row-major.
+        let cells = move |face: usize, s0: f64, t0: f64, k: usize| {
             (0..k * k).map(move |i| {
-                let (a, b) = ((i / k) as f64, (i % k) as f64);
-                let (cs, ct) = (s0 + b * h, t0 + a * h);
+                let (cs, ct, h) = corner(s0, t0, k, i);
                 let d = face_st_to_dir(face, cs + 0.5 * h, ct + 0.5 * h).normalize();
                 (d, patch_solid_angle(cs, ct, cs + h, ct + h))
             })
         };
+        // The first moments, each texel's cells' solid angles taken once for the six faces
+        // (they are the same on each): the arctangents of the solid angles were most of the
+        // quadrature's time.
+        let mut moments = vec![Vec3::ZERO; count];
+        let mut weights = vec![0.0f64; MOMENT_SIDE * MOMENT_SIDE];
+        for texel in 0..n * n {
+            let (s0, t0) = (
+                (texel % n) as f64 * step - 1.0,
+                (texel / n) as f64 * step - 1.0,
+            );
+            for (i, w) in weights.iter_mut().enumerate() {
+                let (cs, ct, h) = corner(s0, t0, MOMENT_SIDE, i);
+                *w = patch_solid_angle(cs, ct, cs + h, ct + h);
+            }
+            for face in 0..6 {
+                let moment = weights.iter().enumerate().fold(DVec3::ZERO, |m, (i, &w)| {
+                    let (cs, ct, h) = corner(s0, t0, MOMENT_SIDE, i);
+                    m + face_st_to_dir(face, cs + 0.5 * h, ct + 0.5 * h).normalize() * w
+                });
+                moments[face * n * n + texel] = moment.as_vec3();
+            }
+        }
+        q.moments = moments;
         for j in 0..count {
             let (face, row, col) = (j / (n * n), (j / n) % n, j % n);
             let (s0, t0) = (col as f64 * step - 1.0, row as f64 * step - 1.0);
@@ -80,8 +108,6 @@ impl TexelQuadrature {
             q.centres.push(centre.as_vec3());
             q.solid_angles
                 .push(patch_solid_angle(s0, t0, s0 + step, t0 + step) as f32);
-            let moment = cells(face, s0, t0, MOMENT_SIDE).fold(DVec3::ZERO, |m, (d, w)| m + d * w);
-            q.moments.push(moment.as_vec3());
             let radius = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
                 .iter()
                 .map(|(a, b)| {
