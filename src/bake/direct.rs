@@ -23,7 +23,7 @@
 
 use glam::Vec3;
 
-use super::ShadingPoint;
+use super::{ShadingPoint, Shadows};
 use crate::math::sampling::TexelSamples;
 use crate::math::texel_quadrature::TexelQuadrature;
 use crate::medium::Medium;
@@ -85,14 +85,17 @@ impl ShadowRays<'_> {
 /// `alpha`, the GGX lobe of that width ([`brdf::ggx_cosine`]); a medium's transmittance is in
 /// both. One shadow ray serves both lobes. Returns the shadow rays traced.
 pub fn direct_texels(
-    tracer: &Tracer,
+    shadows: &Shadows,
     samples: &TexelSamples,
     sp: &ShadingPoint,
-    unshadowed: bool,
-    medium: Option<&Medium>,
     alpha: Option<f32>,
     mut visit: impl FnMut(usize, f32, f32),
 ) -> u64 {
+    let Shadows {
+        tracer,
+        unshadowed,
+        medium,
+    } = *shadows;
     if let Some(q) = &samples.refine {
         return integrated_texels(tracer, q, sp, unshadowed, medium, alpha, visit);
     }
@@ -264,19 +267,16 @@ fn summed(subs: &[Vec3], weights: &[f32], f: impl Fn(Vec3) -> f32) -> f32 {
 /// Adds `scale` times each texel's [`direct_texels`] to the rows (texel order): the Lambertian
 /// lobe to `diffuse` and, for a glossy material, the GGX lobe of width `alpha` to `glossy`.
 /// Returns the shadow rays traced.
-#[allow(clippy::too_many_arguments)]
 pub fn accumulate_direct_rows(
-    tracer: &Tracer,
+    shadows: &Shadows,
     samples: &TexelSamples,
     sp: &ShadingPoint,
-    unshadowed: bool,
-    medium: Option<&Medium>,
     scale: f32,
     diffuse: &mut [f32],
     mut glossy: Option<(f32, &mut [f32])>,
 ) -> u64 {
     let alpha = glossy.as_ref().map(|(a, _)| *a);
-    direct_texels(tracer, samples, sp, unshadowed, medium, alpha, |j, d, g| {
+    direct_texels(shadows, samples, sp, alpha, |j, d, g| {
         diffuse[j] += d * scale;
         if let Some((_, row)) = glossy.as_mut() {
             row[j] += g * scale;
@@ -311,7 +311,12 @@ mod tests {
         tracer: &Tracer,
     ) -> Vec<[f64; 2]> {
         let mut out = vec![[0.0; 2]; samples.dirs.len() / samples.per_texel];
-        let rays = direct_texels(tracer, samples, sp, true, None, alpha, |j, d, g| {
+        let open = Shadows {
+            tracer,
+            unshadowed: true,
+            medium: None,
+        };
+        let rays = direct_texels(&open, samples, sp, alpha, |j, d, g| {
             out[j] = [d as f64, g as f64];
         });
         assert_eq!(rays, 0, "unshadowed points trace nothing");
@@ -386,7 +391,12 @@ material = "m"
         };
         let shadowed = |samples: &TexelSamples| {
             let mut out = vec![0.0f64; samples.dirs.len() / samples.per_texel];
-            let rays = direct_texels(&tracer, samples, &sp, false, None, None, |j, d, _| {
+            let shadows = Shadows {
+                tracer: &tracer,
+                unshadowed: false,
+                medium: None,
+            };
+            let rays = direct_texels(&shadows, samples, &sp, None, |j, d, _| {
                 out[j] = d as f64;
             });
             (out, rays)

@@ -7,26 +7,27 @@
 
 use glam::Vec3;
 
-use super::ShadingPoint;
+use super::{ShadingPoint, Shadows};
 use crate::math::sampling::TexelSamples;
 use crate::scene::brdf;
 use crate::scene::brdf_factor::{BrdfFactors, local_frame};
-use crate::scene::trace::Tracer;
 
 /// For every texel sample ω above the vertex's horizon and not occluded, adds
 /// `scale · Ω_ω · cos θ / π` to `diffuse` and `scale · Ω_ω · h_k(ω)` to `terms[k − 1]` for each
-/// of the material's terms k ≥ 1 (texel order). Returns the shadow rays traced.
-#[allow(clippy::too_many_arguments)]
+/// of the material's terms k ≥ 1 (texel order). A medium's transmittance is not taken. Returns
+/// the shadow rays traced.
 pub fn accumulate_term_rows(
-    tracer: &Tracer,
+    shadows: &Shadows,
     samples: &TexelSamples,
     sp: &ShadingPoint,
-    unshadowed: bool,
     factors: &BrdfFactors,
     scale: f32,
     diffuse: &mut [f32],
     terms: &mut [Vec<f32>],
 ) -> u64 {
+    let Shadows {
+        tracer, unshadowed, ..
+    } = *shadows;
     let m = samples.per_texel;
     let k_b = factors.terms_of(sp.material);
     let (t, b) = local_frame(sp.normal);

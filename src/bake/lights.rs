@@ -14,16 +14,26 @@
 
 use glam::Vec3;
 
-use super::{BakeSettings, ShadingPoint};
+use super::{BakeSettings, ShadingPoint, Shadows};
 pub use crate::math::sampling::power_heuristic;
 use crate::math::sampling::{Rng, TexelSamples};
 use crate::scene::Scene;
 use crate::scene::brdf::Lobes;
 use crate::scene::light::{Emitter, emitters, strata, stratified};
-use crate::scene::trace::Tracer;
 
 /// Salt of the light samples' random streams, apart from every other stream of the bake.
 const LIGHT_STREAM: u64 = 0x11a7_5a3d_c0de_0001;
+
+/// How one shading point draws its light samples.
+#[derive(Clone, Copy, Debug)]
+pub struct Draw {
+    /// The random stream the samples come from.
+    pub stream: u64,
+    /// Samples of a sized light (`None`: the bake's count).
+    pub samples: Option<usize>,
+    /// On a glossy surface, as many BRDF samples too, weighed by multiple importance sampling.
+    pub mis: bool,
+}
 
 /// The light columns of a bake and how each is sampled.
 pub struct LightSampler {
@@ -50,23 +60,26 @@ impl LightSampler {
     }
 
     /// Adds `scale ⊙ ∫ f cos L dω` over every column to `out` (one RGB sum per column),
-    /// estimated at `at` with the BRDF `lobes` towards `at.view`; shadow rays stop at the light.
-    /// A sized light takes `samples` light samples (`None`: the bake's count) and, with `mis`
-    /// on a glossy surface, as many BRDF samples. The samples come from the random stream
-    /// `stream`. Returns the rays traced.
-    #[allow(clippy::too_many_arguments)]
+    /// estimated at `at` with the BRDF `lobes` towards `at.view`, its samples drawn as `draw`
+    /// says; shadow rays stop at the light (a medium's transmittance is not taken). Returns the
+    /// rays traced.
     pub fn add(
         &self,
-        tracer: &Tracer,
+        shadows: &Shadows,
         at: &ShadingPoint,
         lobes: &Lobes,
-        unshadowed: bool,
-        stream: u64,
-        samples: Option<usize>,
-        mis: bool,
+        draw: Draw,
         scale: Vec3,
         out: &mut [Vec3],
     ) -> u64 {
+        let Draw {
+            stream,
+            samples,
+            mis,
+        } = draw;
+        let Shadows {
+            tracer, unshadowed, ..
+        } = *shadows;
         let mut rng = Rng::new(self.seed, stream);
         let mut rays = 0;
         let (n, v) = (at.normal, at.view);

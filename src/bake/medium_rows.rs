@@ -50,21 +50,19 @@ pub struct MediumRows {
 }
 
 impl MediumRows {
-    /// Bakes the rows of the pixels `wanted(pixel)` of `scene`'s view (sub-samples as the bake's:
-    /// `spp`, `seed`), texel lights of `samples`, surfaces' visibility of `light`. Calls
-    /// `progress(texels done, texels)`.
-    #[allow(clippy::too_many_arguments)]
+    /// Bakes the rows of the pixels `wanted(pixel)` of `scene`'s view through `medium` (sub-samples
+    /// as the bake's: `[spp, seed]`), texel lights of `samples`, surfaces' visibility of `light`.
+    /// Calls `progress(texels done, texels)`.
     pub fn bake(
-        medium: &Medium,
-        light: &MediumLight,
+        (medium, light): (&Medium, &MediumLight),
         scene: &Scene,
         tracer: &Tracer,
         samples: &TexelSamples,
-        spp: u32,
-        seed: u64,
+        [spp, seed]: [u64; 2],
         wanted: &(dyn Fn(usize) -> bool + Sync),
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<MediumRows> {
+        let spp = spp as u32;
         let cam = &scene.camera;
         let (w, h) = (cam.width as usize, cam.height as usize);
         let n = samples.n;
@@ -141,9 +139,14 @@ impl MediumRows {
                 let seen_from = light.seen(t);
                 // Where surfaces hide the texel from the whole medium, its column stays 0.
                 if seen_from != Seen::Nowhere {
-                    medium_column(
-                        medium, light, &sweeper, samples, centres[t], t, &per_pixel, col,
-                    );
+                    let column = Column {
+                        medium,
+                        light,
+                        sweeper: &sweeper,
+                        samples,
+                        per_pixel: &per_pixel,
+                    };
+                    column.fill(t, centres[t], col);
                 }
                 let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 if d.is_multiple_of(64) || d == texels {
@@ -178,47 +181,56 @@ impl MediumRows {
     }
 }
 
-/// The medium rows' column of texel `t` (centre direction `centre`) for every pixel, into `col`.
-#[allow(clippy::too_many_arguments)]
-fn medium_column(
-    medium: &Medium,
-    light: &MediumLight,
-    sweeper: &Sweeper,
-    samples: &TexelSamples,
-    centre: Vec3,
-    t: usize,
-    per_pixel: &[PixelMarch],
-    col: &mut [f32],
-) {
-    let m = samples.per_texel;
-    let open = sweeper.transmittance(centre);
-    let dirs = &samples.dirs[t * m..(t + 1) * m];
-    let omegas = &samples.weights[t * m..(t + 1) * m];
-    let partly = light.seen(t) == Seen::Partly;
-    for (p, (rays, marks, points)) in per_pixel.iter().enumerate() {
-        let mut sum = 0.0f32;
-        for ray in rays {
-            let phase: f32 = dirs
-                .iter()
-                .zip(omegas)
-                .map(|(wd, o)| henyey_greenstein(medium.g, wd.dot(ray.dir)) * o)
-                .sum();
-            let mut s = 0.0f32;
-            let range = ray.samples.clone();
-            if partly {
-                for ((loc, weight), at) in marks[range.clone()].iter().zip(&points[range]) {
-                    let seen = light.visibility(t, at);
-                    if seen > 0.0 {
-                        s += weight * open.at_located(loc) * seen;
+/// What every texel's column of the medium rows reads.
+struct Column<'a> {
+    medium: &'a Medium,
+    light: &'a MediumLight,
+    sweeper: &'a Sweeper,
+    samples: &'a TexelSamples,
+    /// Every pixel's sub-rays and march samples.
+    per_pixel: &'a [PixelMarch],
+}
+
+impl Column<'_> {
+    /// The medium rows' column of texel `t` (centre direction `centre`) for every pixel, into `col`.
+    fn fill(&self, t: usize, centre: Vec3, col: &mut [f32]) {
+        let Column {
+            medium,
+            light,
+            sweeper,
+            samples,
+            per_pixel,
+        } = *self;
+        let m = samples.per_texel;
+        let open = sweeper.transmittance(centre);
+        let dirs = &samples.dirs[t * m..(t + 1) * m];
+        let omegas = &samples.weights[t * m..(t + 1) * m];
+        let partly = light.seen(t) == Seen::Partly;
+        for (p, (rays, marks, points)) in per_pixel.iter().enumerate() {
+            let mut sum = 0.0f32;
+            for ray in rays {
+                let phase: f32 = dirs
+                    .iter()
+                    .zip(omegas)
+                    .map(|(wd, o)| henyey_greenstein(medium.g, wd.dot(ray.dir)) * o)
+                    .sum();
+                let mut s = 0.0f32;
+                let range = ray.samples.clone();
+                if partly {
+                    for ((loc, weight), at) in marks[range.clone()].iter().zip(&points[range]) {
+                        let seen = light.visibility(t, at);
+                        if seen > 0.0 {
+                            s += weight * open.at_located(loc) * seen;
+                        }
+                    }
+                } else {
+                    for (loc, weight) in &marks[range] {
+                        s += weight * open.at_located(loc);
                     }
                 }
-            } else {
-                for (loc, weight) in &marks[range] {
-                    s += weight * open.at_located(loc);
-                }
+                sum += phase * s;
             }
-            sum += phase * s;
+            col[p] = sum;
         }
-        col[p] = sum;
     }
 }

@@ -17,9 +17,10 @@ use glam::Vec3;
 
 use crate::bake::LightSampler;
 use crate::bake::bounce::Bounces;
+use crate::bake::lights::Draw;
 use crate::bake::medium_light::MediumLight;
 use crate::bake::{
-    BakeSettings, EdgeMap, direct_texels, path_stream, pixel_subsamples, sample_stride,
+    BakeSettings, EdgeMap, Shadows, direct_texels, path_stream, pixel_subsamples, sample_stride,
     shading_point,
 };
 use crate::error::Result;
@@ -79,6 +80,11 @@ pub fn render_reference_lit(
         None => None,
     };
     let medium = medium.as_ref();
+    let shadows = Shadows {
+        tracer: &tracer,
+        unshadowed: settings.unshadowed,
+        medium,
+    };
     // The bake's own paths and surface cache, so that this checks the matrix's bookkeeping.
     let edges = EdgeMap::new(scene, &tracer, settings);
     let light = match medium {
@@ -157,21 +163,13 @@ pub fn render_reference_lit(
                     // each texel as the bake integrates it.
                     let (specular, alpha) =
                         glossy.map_or((glam::Vec3::ZERO, None), |(s, a)| (s, Some(a)));
-                    direct_texels(
-                        &tracer,
-                        &samples,
-                        &sp,
-                        settings.unshadowed,
-                        medium,
-                        alpha,
-                        |j, diffuse, ggx| {
-                            let l = cube.texels[j];
-                            for k in 0..3 {
-                                let f = albedo[k] * diffuse + specular[k] * ggx;
-                                sum[k] += f as f64 * inv_spp * l[k] as f64 * seen;
-                            }
-                        },
-                    );
+                    direct_texels(&shadows, &samples, &sp, alpha, |j, diffuse, ggx| {
+                        let l = cube.texels[j];
+                        for k in 0..3 {
+                            let f = albedo[k] * diffuse + specular[k] * ggx;
+                            sum[k] += f as f64 * inv_spp * l[k] as f64 * seen;
+                        }
+                    });
                     // Interreflections: every vertex of the bake's paths brings its throughput
                     // times its own direct light, seen through the medium.
                     if settings.bounces > 0 {
@@ -182,14 +180,16 @@ pub fn render_reference_lit(
                     }
                     if !weights.is_empty() {
                         let mut columns = vec![Vec3::ZERO; weights.len()];
+                        let draw = Draw {
+                            stream,
+                            samples: None,
+                            mis: true,
+                        };
                         sampler.add(
-                            &tracer,
+                            &shadows,
                             &sp,
                             &lobes,
-                            settings.unshadowed,
-                            stream,
-                            None,
-                            true,
+                            draw,
                             Vec3::splat(seen as f32),
                             &mut columns,
                         );

@@ -29,7 +29,7 @@ use glam::Vec3;
 
 mod cache;
 
-use crate::bake::{BakeSettings, EdgeMap, ShadingPoint, shading_point};
+use crate::bake::{BakeSettings, EdgeMap, ShadingPoint, Shadows, shading_point};
 use crate::error::Result;
 use crate::math::cubemap::CubeMap;
 use crate::math::sampling::{Rng, TexelSamples};
@@ -40,7 +40,7 @@ use crate::scene::trace::Tracer;
 pub use crate::store::transport::BounceVisibility;
 pub use cache::VisibilityCache;
 
-use super::lights::LightSampler;
+use super::lights::{Draw, LightSampler};
 use super::medium_light::MediumLight;
 
 /// A vertex of an interreflection path.
@@ -442,17 +442,17 @@ impl<'a> Bounces<'a> {
         let lobes = at.lobes(self.scene);
         // A stream of its own for every vertex, apart from the camera hits' (top bit).
         let vertex = Rng::new(stream, ((index[0] as u64) << 8) | index[1] as u64).next_u64();
-        sampler.add(
-            self.tracer,
-            at,
-            &lobes,
-            self.settings.unshadowed,
-            vertex | 1 << 63,
-            Some(1),
-            false,
-            throughput,
-            columns,
-        )
+        let shadows = Shadows {
+            tracer: self.tracer,
+            unshadowed: self.settings.unshadowed,
+            medium: None,
+        };
+        let draw = Draw {
+            stream: vertex | 1 << 63,
+            samples: Some(1),
+            mis: false,
+        };
+        sampler.add(&shadows, at, &lobes, draw, throughput, columns)
     }
 
     /// The local lights' part of [`Bounces::add_rows`] alone: `scale ⊙` the interreflected
