@@ -21,6 +21,7 @@
 //! sample ([`Emitter::sample`]) and what a path tracer's rays can hit ([`Emitter::hit`]).
 
 use glam::Vec3;
+use strum::{IntoStaticStr, VariantArray};
 
 /// Angular diameter, radians (about 0.0057°), below which a directional light is a delta light
 /// of the same irradiance. A narrower disc's penumbra is under 1e-4 of the occluder's distance
@@ -54,12 +55,7 @@ pub struct Light {
 /// The kinds of local light, by the one name the scene file's `type`, the transport file's
 /// metadata and every message give each.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[derive(
-    serde::Deserialize,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::VariantArray
-)]
+#[derive(serde::Deserialize, IntoStaticStr, strum::Display, VariantArray)]
 #[serde(rename_all = "lowercase")]
 #[strum(serialize_all = "lowercase")]
 pub enum LightKind {

@@ -16,18 +16,13 @@
 //!   `|v_j| < threshold · ‖reference row‖` is dropped, whatever the rest of the row holds.
 
 use serde::{Deserialize, Serialize};
+use strum::{IntoStaticStr, VariantArray};
 
 use crate::math::haar::{coeff_info, support_solid_angles};
 
 /// How the thresholding budget weighs coefficients.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-#[derive(
-    Serialize,
-    Deserialize,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::VariantArray
-)]
+#[derive(Serialize, Deserialize, IntoStaticStr, strum::Display, VariantArray)]
 #[serde(rename_all = "lowercase")]
 #[strum(serialize_all = "lowercase")]
 pub enum Budget {

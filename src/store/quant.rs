@@ -15,6 +15,7 @@
 use std::sync::LazyLock;
 
 use serde::{Deserialize, Serialize};
+use strum::{IntoStaticStr, VariantArray};
 
 /// Most rows in one block: row indices are one byte.
 pub const BLOCK_ROWS: usize = 256;
@@ -27,13 +28,7 @@ pub const UNIT_SCALE_CODE: u8 = SCALE_CODE_BIAS as u8;
 
 /// How stored coefficient values are quantised.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[derive(
-    Serialize,
-    Deserialize,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::VariantArray
-)]
+#[derive(Serialize, Deserialize, IntoStaticStr, strum::Display, VariantArray)]
 #[serde(rename_all = "lowercase")]
 #[strum(serialize_all = "lowercase")]
 pub enum Quantization {

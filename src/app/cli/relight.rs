@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::relight::{Backend, LightMix, Terms};
+use strum::{IntoStaticStr, VariantArray};
 
 /// Arguments of `prt relight`.
 #[derive(Args, Debug)]
@@ -148,16 +149,8 @@ pub struct ReferenceArgs {
 }
 
 /// How `prt reference` integrates the light.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::VariantArray
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(IntoStaticStr, strum::Display, VariantArray)]
 #[strum(serialize_all = "lowercase")]
 pub enum Estimator {
     /// Every texel sample direction; with bounces, the bake's own paths and surface cache.

@@ -7,6 +7,7 @@
 //! crate (Python, older builds) expect, whatever the types here become.
 
 use serde::{Deserialize, Serialize};
+use strum::{IntoStaticStr, VariantArray};
 
 use glam::Vec3;
 
@@ -46,13 +47,7 @@ pub struct BakeStats {
 
 /// Where the visibility of an interreflection vertex comes from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[derive(
-    Serialize,
-    Deserialize,
-    strum::IntoStaticStr,
-    strum::Display,
-    strum::VariantArray
-)]
+#[derive(Serialize, Deserialize, IntoStaticStr, strum::Display, VariantArray)]
 #[serde(rename_all = "kebab-case")]
 #[strum(serialize_all = "kebab-case")]
 pub enum BounceVisibility {
