@@ -23,7 +23,7 @@ mod volume_app;
 mod worker;
 
 pub use app::ViewerApp;
-pub use display::{DisplayPath, GpuTiming, MeshDisplay};
+pub use display::{DisplayPath, Frame, GpuTiming, MeshDisplay};
 pub use engine::{Engine, OnLight, save_view, screenshot, view_size};
 pub use gpu_view::GpuView;
 pub use lights::{LightControl, LightsState, lights_controls, outline_quads};

@@ -493,22 +493,33 @@ fn setup(view: &View, positions: &[Vec3], corners: [u32; 3], index: u32) -> Opti
     })
 }
 
+/// What a drawing shades its triangles with: one colour a vertex, the albedo maps of textured
+/// triangles, and a glossy bake's light.
+#[derive(Clone, Copy)]
+struct Shading<'a> {
+    triangles: &'a [[u32; 3]],
+    colours: &'a [[f32; 3]],
+    texturing: Option<&'a Texturing<'a>>,
+    gloss: Option<&'a Gloss<'a>>,
+}
+
 /// Draws the triangles `bin` (indices into `setups`) into one band of pixels starting at row
-/// `y0`: colours, coverage and a depth buffer of the band's size.
-#[allow(clippy::too_many_arguments)]
+/// `y0`, its colours and coverage, with a depth buffer of the band's size.
 fn draw_band(
     view: &View,
     film_x: &[f64],
     setups: &[Setup],
     bin: &[u32],
-    triangles: &[[u32; 3]],
-    colours: &[[f32; 3]],
-    texturing: Option<&Texturing>,
-    gloss: Option<&Gloss>,
+    shading: Shading,
     y0: usize,
-    pixels: &mut [[f32; 3]],
-    coverage: &mut [f32],
+    (pixels, coverage): (&mut [[f32; 3]], &mut [f32]),
 ) {
+    let Shading {
+        triangles,
+        colours,
+        texturing,
+        gloss,
+    } = shading;
     let rows = pixels.len() / view.width;
     let mut depth = vec![f64::INFINITY; pixels.len()];
     let near = NEAR as f64;
@@ -750,18 +761,20 @@ fn draw(
         .zip(&bins)
         .enumerate()
         .for_each(|(band, ((pixels, cov), bin))| {
+            let shading = Shading {
+                triangles,
+                colours,
+                texturing,
+                gloss,
+            };
             draw_band(
                 view,
                 &film_x,
                 &setups,
                 bin,
-                triangles,
-                colours,
-                texturing,
-                gloss,
+                shading,
                 band * BAND_ROWS,
-                pixels,
-                cov,
+                (pixels, cov),
             );
         });
     Ok(Raster { image, coverage })

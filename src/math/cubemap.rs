@@ -230,7 +230,6 @@ impl Splatter {
 
     /// Adds radiance `l` times the solid angle of [u0, u1] x [v0, v1] to the texels it covers.
     /// `corners` are the texels of (u0, v0), (u1, v0), (u0, v1), (u1, v1).
-    #[allow(clippy::too_many_arguments)]
     fn splat(
         &self,
         (u0, u1, v0, v1): (f64, f64, f64, f64),

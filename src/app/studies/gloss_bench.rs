@@ -231,7 +231,6 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// Runs the measurements on `scene` under `env` (named `env_name`) and writes `gloss.md`,
 /// `gloss.csv`, `gloss_error.png`, the bakes (`bakes/`, reused on the next run when the scene and
 /// settings are unchanged) and every compared image (`images/`) into `dir`.
-#[allow(clippy::too_many_arguments)]
 pub fn run(
     dir: &Path,
     scene: &Scene,

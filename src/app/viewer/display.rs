@@ -81,6 +81,21 @@ impl MeshDisplay {
     }
 }
 
+/// What one frame of a display shows.
+#[derive(Clone, Copy)]
+pub struct Frame<'a> {
+    /// The relight request: method, kept terms, weighting, SH order.
+    pub request: &'a RelightRequest,
+    /// The local lights' mix.
+    pub lights: &'a LightMix,
+    /// Whether the environment lights the scene and shows behind it.
+    pub environment: bool,
+    /// A per-vertex bake's camera; `None` for a per-pixel bake.
+    pub camera: Option<&'a Camera>,
+    /// How the result is tone-mapped.
+    pub tone: ToneMap,
+}
+
 /// A transport on the GPU and what draws it into a [`GpuView`]: the one display path, taken by
 /// the window for every pane and by [`super::Engine::relight_to_view`], so the tests of the one
 /// test the other.
@@ -100,23 +115,25 @@ impl DisplayPath {
         }
     }
 
-    /// Relights `request` under `lit` into `view` and tone-maps it as `tone` says: a per-pixel
-    /// bake's image over the environment behind its open pixels, or, with a `camera`, a
-    /// per-vertex bake drawn from it over the environment seen through it.
-    #[allow(clippy::too_many_arguments)]
+    /// Relights `frame` under `lit` into `view` and tone-maps it: a per-pixel bake's image over
+    /// the environment behind its open pixels, or, with a camera, a per-vertex bake drawn from it
+    /// over the environment seen through it.
     pub fn draw(
         &mut self,
         gpu: &Gpu,
         t: &Transport,
         ctx: &LightContext,
         lit: &LightShown,
-        request: &RelightRequest,
-        lights: &LightMix,
-        environment: bool,
-        camera: Option<&Camera>,
+        frame: &Frame,
         view: &mut GpuView,
-        tone: ToneMap,
     ) -> Result<GpuTiming> {
+        let Frame {
+            request,
+            lights,
+            environment,
+            camera,
+            tone,
+        } = *frame;
         // The environment behind goes up before the clock starts: a per-pixel bake's comes
         // with the light, a per-vertex bake's is the environment seen through the camera.
         // With the environment off, nothing is behind: the local lights alone.

@@ -140,18 +140,14 @@ impl Engine {
             .ok_or_else(|| PrtError::invalid("view", "nothing rendered yet"))?
             .shown;
         let display = self.display.as_mut().ok_or_else(no_gpu)?;
-        display.draw(
-            gpu,
-            &self.transport,
-            &self.ctx,
-            lit,
+        let frame = Frame {
             request,
-            &state.lights.mix(&self.transport.meta.lights)?,
-            state.lights.environment_shown(),
-            camera.as_ref(),
-            view,
-            state.tone_map(),
-        )
+            lights: &state.lights.mix(&self.transport.meta.lights)?,
+            environment: state.lights.environment_shown(),
+            camera: camera.as_ref(),
+            tone: state.tone_map(),
+        };
+        display.draw(gpu, &self.transport, &self.ctx, lit, &frame, view)
     }
 
     fn upload(&mut self) -> Result<()> {

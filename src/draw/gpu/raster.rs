@@ -389,7 +389,7 @@ impl GpuRaster {
                 Some((_, each)) => &each[k],
                 None => colour,
             };
-            self.draw_pass(gpu, mesh, colours, view, target, &t.depth, encoder);
+            self.draw_pass(gpu, (mesh, colours), view, (target, &t.depth), encoder);
         }
         if let (Some((pipeline, layout)), Some((all, _))) = (&self.resolve, &t.layers) {
             let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -414,17 +414,14 @@ impl GpuRaster {
         }
     }
 
-    /// Records one sample's pass: the mesh drawn with `view`'s uniform into `target`, with the
-    /// depth buffer cleared first.
-    #[allow(clippy::too_many_arguments)]
+    /// Records one sample's pass: the mesh with its colours drawn with `view`'s uniform into
+    /// `target`, with the `depth` buffer cleared first.
     fn draw_pass(
         &self,
         gpu: &Gpu,
-        mesh: &GpuMesh,
-        colours: &wgpu::Buffer,
+        (mesh, colours): (&GpuMesh, &wgpu::Buffer),
         view: &wgpu::Buffer,
-        target: &wgpu::TextureView,
-        depth: &wgpu::TextureView,
+        (target, depth): (&wgpu::TextureView, &wgpu::TextureView),
         encoder: &mut wgpu::CommandEncoder,
     ) {
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -167,16 +167,14 @@ impl Transport {
                 let nnz = entry_shape.first().copied().unwrap_or(0);
                 expect("entry_row", &entry_shape, &[nnz])?;
                 expect("entry_value", &value_shape, &[nnz])?;
-                strips_of_columns(
-                    layout,
-                    &block_row_start,
+                let columns = Columns {
+                    block_row_start: &block_row_start,
                     c,
-                    &counts,
-                    &col_scale,
-                    &entry_row,
-                    &values,
-                )
-                .map_err(bad)?
+                    counts: &counts,
+                    codes: &col_scale,
+                    rows: &entry_row,
+                };
+                strips_of_columns(layout, columns, &values).map_err(bad)?
             }
             (_, _, Some(((count_shape, counts), (place_shape, place), (value_shape, values)))) => {
                 expect("strip_count", &count_shape, &[blocks, c])?;
@@ -688,24 +686,22 @@ fn read_values(
 /// checked against the blocks' rows and the entries before anything is sliced.
 fn strips_of_columns(
     layout: Layout,
-    block_row_start: &[u32],
-    c: usize,
-    counts: &[u16],
-    codes: &[u8],
-    rows: &[u8],
+    columns: Columns,
     values: &Values,
 ) -> std::result::Result<Strips, String> {
-    #[allow(clippy::too_many_arguments)]
     fn of<V: Stored>(
         layout: Layout,
         starts: &[u64],
-        block_row_start: &[u32],
-        c: usize,
-        counts: &[u16],
-        codes: &[u8],
-        rows: &[u8],
+        columns: Columns,
         values: &[V],
     ) -> std::result::Result<Strips, String> {
+        let Columns {
+            block_row_start,
+            c,
+            counts,
+            codes,
+            rows,
+        } = columns;
         let blocks: Vec<BlockColumns<V>> = starts
             .windows(2)
             .zip(block_row_start.windows(2))
@@ -723,13 +719,34 @@ fn strips_of_columns(
             .collect();
         Strips::of_blocks(layout, &blocks, c)
     }
+    let Columns {
+        block_row_start,
+        c,
+        counts,
+        codes,
+        rows,
+    } = columns;
     if values.len() != rows.len() || counts.len() != codes.len() {
         return Err("the columns' tables differ in length".into());
     }
     let starts = column_pointers(counts, block_row_start, c, rows.len())?;
     match values {
-        Values::Q8(v) => of(layout, &starts, block_row_start, c, counts, codes, rows, v),
-        Values::Q16(v) => of(layout, &starts, block_row_start, c, counts, codes, rows, v),
-        Values::F32(v) => of(layout, &starts, block_row_start, c, counts, codes, rows, v),
+        Values::Q8(v) => of(layout, &starts, columns, v),
+        Values::Q16(v) => of(layout, &starts, columns, v),
+        Values::F32(v) => of(layout, &starts, columns, v),
     }
+}
+
+/// A version 3 to 6 file's columns of `c` coefficients a block, less their values.
+#[derive(Clone, Copy)]
+struct Columns<'a> {
+    /// Each block's first row, and the end.
+    block_row_start: &'a [u32],
+    c: usize,
+    /// Entries of each (block, coefficient).
+    counts: &'a [u16],
+    /// Scale code of each (block, coefficient).
+    codes: &'a [u8],
+    /// The entries' rows inside their blocks.
+    rows: &'a [u8],
 }

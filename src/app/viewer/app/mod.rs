@@ -13,7 +13,7 @@ use super::camera;
 use super::viewport::Viewport;
 use super::worker::{Job, Loaded, Reply, TransportWorker};
 use super::{
-    DisplayPath, GpuTiming, GpuView, Layout, LightShown, MAX_DRAW_SIDE, Rendered, ViewState,
+    DisplayPath, Frame, GpuTiming, GpuView, Layout, LightShown, MAX_DRAW_SIDE, Rendered, ViewState,
     sh_order_for_terms,
 };
 use crate::env::select::Weighting;
@@ -300,18 +300,14 @@ impl ViewerApp {
         }
         g.timings.clear();
         for ((_, request), (view, _)) in requests.iter().zip(&mut g.views) {
-            let timing = display.draw(
-                &g.gpu,
-                &loaded.transport,
-                &loaded.ctx,
-                lit,
+            let frame = Frame {
                 request,
-                &mix,
-                self.state.lights.environment_shown(),
-                camera.as_ref(),
-                view,
-                self.state.tone_map(),
-            )?;
+                lights: &mix,
+                environment: self.state.lights.environment_shown(),
+                camera: camera.as_ref(),
+                tone: self.state.tone_map(),
+            };
+            let timing = display.draw(&g.gpu, &loaded.transport, &loaded.ctx, lit, &frame, view)?;
             g.timings.push(timing);
         }
         g.shown = Some(self.state.clone());
