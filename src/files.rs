@@ -172,6 +172,11 @@ fn check_writable(output: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Creates folder `dir` with its parents where missing; the error names it.
+pub fn create_folder(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))
+}
+
 /// Checks a folder a command writes several files into, before any work: it is created when
 /// missing (with its parents), must be a folder, and must be writable.
 pub fn check_output_folder(dir: &Path) -> Result<()> {
@@ -181,7 +186,7 @@ pub fn check_output_folder(dir: &Path) -> Result<()> {
             "is a file: name a folder for the outputs",
         ));
     }
-    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
+    create_folder(dir)?;
     check_writable(&dir.join("probe")).map_err(|e| match e {
         PrtError::File { message, .. } => PrtError::file(dir, message),
         e => e,

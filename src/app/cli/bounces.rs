@@ -82,7 +82,7 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
     .validate()?;
     let cube = env.to_cube(base.cube_n, a.turn.rotation())?;
     let dir = &a.out;
-    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
+    crate::files::create_folder(dir)?;
     let full = |t: &Transport| -> Result<crate::output::film::Image> {
         let ctx = LightContext::new(t)?;
         let light = ctx.prepare(&env, a.turn.rotation())?;

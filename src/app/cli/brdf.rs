@@ -51,7 +51,7 @@ pub(super) fn brdf_cmd(a: BrdfArgs) -> Result<()> {
         ));
     }
     crate::files::check_output_folder(&a.out)?;
-    std::fs::create_dir_all(&a.out).map_err(|e| PrtError::io(&a.out, e))?;
+    crate::files::create_folder(&a.out)?;
     let mut all = Vec::new();
     for &r in &a.roughness {
         let start = Instant::now();
@@ -226,7 +226,7 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
     if let Some(g) = &gpu {
         eprintln!("gpu: {}", g.adapter);
     }
-    std::fs::create_dir_all(&a.out).map_err(|e| PrtError::io(&a.out, e))?;
+    crate::files::create_folder(&a.out)?;
     let start = Instant::now();
     let bar = super::progress_bar(0);
     let progress = super::bake_progress(&bar, Instant::now());

@@ -223,7 +223,7 @@ pub(super) fn volume_orders_cmd(a: VolumeOrdersArgs) -> Result<()> {
             Ok((name, load_env(e)?))
         })
         .collect::<Result<Vec<_>>>()?;
-    std::fs::create_dir_all(&a.out).map_err(|e| PrtError::io(&a.out, e))?;
+    crate::files::create_folder(&a.out)?;
     let study = OrdersStudy {
         scene: a.scene.clone(),
         envs,

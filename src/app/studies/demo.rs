@@ -11,7 +11,7 @@ use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::draw::background::{composite, environment_behind};
 use crate::env::envmap::{BUNDLED_MAPS, BundledMap, EnvMap, EnvRotation};
 use crate::env::select::Weighting;
-use crate::error::{PrtError, Result};
+use crate::error::Result;
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{Cell, downsample, write_sheet};
@@ -131,7 +131,7 @@ pub fn write_assets(dir: &Path, log: &mut dyn FnMut(&str)) -> Result<PathBuf> {
             continue;
         }
         let parent = p.parent().unwrap_or(&root);
-        std::fs::create_dir_all(parent).map_err(|e| PrtError::io(parent, e))?;
+        crate::files::create_folder(parent)?;
         crate::files::write_bytes_atomically(&p, bytes)?;
     }
     if !kept.is_empty() {
@@ -151,7 +151,7 @@ pub fn run_demo(
     log: &mut dyn FnMut(&str),
     progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<DemoReport> {
-    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
+    crate::files::create_folder(dir)?;
     let assets = write_assets(dir, log)?;
     log(&format!(
         "bundled environment maps in {} (any --env also takes them by name: {})",
@@ -173,7 +173,7 @@ pub fn run_demo(
         load_or_bake_logged(&transport_path, &scene, &settings, &what, log, progress)?;
     let ctx = LightContext::new(&transport)?;
     let images = dir.join("images");
-    std::fs::create_dir_all(&images).map_err(|e| PrtError::io(&images, e))?;
+    crate::files::create_folder(&images)?;
     let mut rows = Vec::new();
     let mut thumbs: Vec<(Image, ToneMap, [String; 2])> = Vec::new();
     for entry in bundled_envs(&assets) {
@@ -461,7 +461,7 @@ fn run_volume_demo(
         vt.meta.dims
     ));
     let out = dir.join("volume");
-    std::fs::create_dir_all(&out).map_err(|e| PrtError::io(&out, e))?;
+    crate::files::create_folder(&out)?;
     let camera = vt.camera(
         Some(glam::Vec3::new(2.1, 2.1, 2.3)),
         Some(glam::Vec3::new(0.0, 1.4, 0.0)),

@@ -244,9 +244,9 @@ pub fn run(
     let (env_name, env) = env;
     let glossy = glossy_materials(scene)?;
     let images = dir.join("images");
-    std::fs::create_dir_all(&images).map_err(|e| PrtError::io(&images, e))?;
+    crate::files::create_folder(&images)?;
     let bakes_dir = dir.join("bakes");
-    std::fs::create_dir_all(&bakes_dir).map_err(|e| PrtError::io(&bakes_dir, e))?;
+    crate::files::create_folder(&bakes_dir)?;
     let rotation = EnvRotation::default();
     // Per-vertex bakes take texel centres, and so does the brute force their interpolation is
     // measured against.

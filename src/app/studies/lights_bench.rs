@@ -174,7 +174,7 @@ pub fn run(
     opts: &LightsBenchOptions,
     log: &mut dyn FnMut(&str),
 ) -> Result<LightsReport> {
-    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
+    crate::files::create_folder(dir)?;
     let assets = crate::app::studies::demo::write_assets(dir, log)?;
     let base = base_scene(&assets, opts.side)?;
     let settings = BakeSettings {

@@ -121,7 +121,7 @@ pub fn run_paper(
             "cube sizes must be given, in increasing order",
         ));
     }
-    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
+    crate::files::create_folder(dir)?;
     let assets = write_assets(dir, log)?;
     let scenes = [
         ("diffuse", paper_scene(&assets, "demo", size, true)?),

@@ -257,7 +257,7 @@ pub fn load(dir: &Path, width: usize, height: usize, n: usize) -> Option<LatLong
 
 /// Writes `w` (unturned) into the folder, made if missing, atomically.
 pub fn store(dir: &Path, w: &LatLongWeights) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
+    crate::files::create_folder(dir)?;
     crate::files::write_bytes_atomically(&path(dir, w.width, w.height, w.n), &encode(w))
 }
 

@@ -719,17 +719,11 @@ fn strips_of_columns(
             .collect();
         Strips::of_blocks(layout, &blocks, c)
     }
-    let Columns {
-        block_row_start,
-        c,
-        counts,
-        codes,
-        rows,
-    } = columns;
-    if values.len() != rows.len() || counts.len() != codes.len() {
+    let rows = columns.rows.len();
+    if values.len() != rows || columns.counts.len() != columns.codes.len() {
         return Err("the columns' tables differ in length".into());
     }
-    let starts = column_pointers(counts, block_row_start, c, rows.len())?;
+    let starts = column_pointers(columns.counts, columns.block_row_start, columns.c, rows)?;
     match values {
         Values::Q8(v) => of(layout, &starts, columns, v),
         Values::Q16(v) => of(layout, &starts, columns, v),

@@ -84,7 +84,7 @@ pub fn compression_sweep(
 /// environment, Ng et al.'s kept fraction beside them) and `compression.md` (the same as a table
 /// with bytes per pixel and per coefficient). Returns the paths written.
 pub fn write_compression(dir: &Path, points: &[CompressionPoint]) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
+    crate::files::create_folder(dir)?;
     let mut text = String::from("threshold,environment,kept_fraction,bytes_per_pixel,rel_l2\n");
     for p in points {
         let _ = writeln!(

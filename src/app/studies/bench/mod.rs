@@ -648,7 +648,7 @@ fn level(cs: &[(String, Vec<&BenchPoint>)], target: f64) -> Level {
 /// Writes `bench.csv`, `summary.md` and per environment `error_<env>.png` (error against terms,
 /// [`error_plot`]) and `time_<env>.png` (relight time against terms). Returns the paths written.
 pub fn write_report(dir: &Path, points: &[BenchPoint]) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| PrtError::io(dir, e))?;
+    crate::files::create_folder(dir)?;
     let mut written = Vec::new();
     let text = |path: PathBuf, body: String| -> Result<PathBuf> {
         crate::files::write_bytes_atomically(&path, body.as_bytes())?;
