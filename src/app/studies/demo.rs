@@ -7,6 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::app::studies::{Study, dusk, gloss_orbit, orbit, truck};
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::draw::background::{composite, environment_behind};
 use crate::env::envmap::{BUNDLED_MAPS, BundledMap, EnvMap, EnvRotation};
@@ -259,39 +260,17 @@ pub fn run_demo(
         ),
     )?;
     let sunrise = EnvMap::load(&assets.join("envmaps/blender_sunrise.exr"))?;
-    let orbit = crate::app::studies::orbit::run_orbit(
+    let mut study = Study {
         dir,
-        &scene,
-        &settings,
-        &transport,
-        ("sunrise", &sunrise),
+        settings: &settings,
         log,
         progress,
-    )?;
-    let gloss = crate::app::studies::gloss_orbit::run_gloss_orbit(
-        dir,
-        &scene,
-        &settings,
-        ("sunrise", &sunrise),
-        log,
-        progress,
-    )?;
-    let dusk = crate::app::studies::dusk::run_dusk(
-        dir,
-        &assets,
-        &settings,
-        DEMO_WEIGHTING,
-        log,
-        progress,
-    )?;
-    let truck = crate::app::studies::truck::run_truck(
-        dir,
-        &assets,
-        &settings,
-        DEMO_WEIGHTING,
-        log,
-        progress,
-    )?;
+    };
+    let study = &mut study;
+    let orbit = orbit::run_orbit(study, &scene, &transport, ("sunrise", &sunrise))?;
+    let gloss = gloss_orbit::run_gloss_orbit(study, &scene, ("sunrise", &sunrise))?;
+    let dusk = dusk::run_dusk(study, &assets, DEMO_WEIGHTING)?;
+    let truck = truck::run_truck(study, &assets, DEMO_WEIGHTING)?;
     let (volume_bake_seconds, volume_rows) = run_volume_demo(dir, &assets, log)?;
     let table_path = dir.join("summary.md");
     let mut table = markdown_table(&rows);

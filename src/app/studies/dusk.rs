@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::app::studies::Study;
 use crate::draw::background::{composite, environment_behind};
 use crate::env::envmap::{EnvRotation, EnvSpec};
 use crate::error::Result;
@@ -38,13 +38,11 @@ pub struct DuskReport {
 /// demo's) and writes its sheet, the environment relit with K = 200 terms chosen by
 /// `weighting`.
 pub fn run_dusk(
-    dir: &Path,
+    study: &mut Study,
     assets: &Path,
-    settings: &BakeSettings,
     weighting: crate::env::select::Weighting,
-    log: &mut dyn FnMut(&str),
-    progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<DuskReport> {
+    let (dir, settings) = (study.dir, study.settings);
     let scene = Scene::load(&assets.join("scenes/dusk.toml"))?;
     let transport_path = dir.join("dusk.prt");
     let what = format!(
@@ -52,8 +50,7 @@ pub fn run_dusk(
         scene.source_path.display(),
         scene.lights.len()
     );
-    let (t, reused_bake, bake_seconds) =
-        load_or_bake_logged(&transport_path, &scene, settings, &what, log, progress)?;
+    let (t, reused_bake, bake_seconds) = study.bake("dusk.prt", &scene, settings, &what)?;
     let env = EnvSpec::parse(DUSK_SUN)?.load()?;
     let ctx = LightContext::new(&t)?;
     let light = ctx.prepare(&env, EnvRotation::default())?;
@@ -166,7 +163,7 @@ pub fn run_dusk(
         &cells,
         &format!("Dusk ({DUSK_SUN}): lights on, off, alone; the lamp moved (2 exposures)"),
     )?;
-    log(&format!("relit the dusk scene -> {}", sheet_path.display()));
+    study.log(&format!("relit the dusk scene -> {}", sheet_path.display()));
     Ok(DuskReport {
         transport_path,
         sheet_path,

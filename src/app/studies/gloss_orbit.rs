@@ -3,11 +3,12 @@
 //! following the camera, beside the diffuse base (term 0 of the same bake) and the independent
 //! path tracer from one of those angles (`gloss_sheet.png`), with both errors against it.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
+use crate::app::studies::Study;
 use crate::app::studies::orbit::ORBIT_AZIMUTHS;
+use crate::bake::BakeSettings;
 use crate::bake::path_tracer::path_trace;
-use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::draw::background::{composite, environment_behind_camera};
 use crate::draw::raster::DRAW_SAMPLES;
 use crate::draw::vertex::{GlossEval, bake_camera, compose, draw, draw_relit, orbit};
@@ -57,13 +58,11 @@ pub struct GlossReport {
 /// demo's per-pixel ones), relights it under `env` with every term, and writes
 /// `dir/gloss_sheet.png`.
 pub fn run_gloss_orbit(
-    dir: &Path,
+    study: &mut Study,
     scene: &Scene,
-    settings: &BakeSettings,
     env: (&str, &EnvMap),
-    log: &mut dyn FnMut(&str),
-    progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<GlossReport> {
+    let (dir, settings) = (study.dir, study.settings);
     let (name, env) = env;
     let rotation = EnvRotation::default();
     let glossy_settings = BakeSettings {
@@ -78,14 +77,8 @@ pub fn run_gloss_orbit(
         "baking {} per vertex with {GLOSS_BRDF_TERMS} in-out terms for its glossy materials ...",
         scene.source_path.display()
     );
-    let (t, reused_bake, bake_seconds) = load_or_bake_logged(
-        &transport_path,
-        scene,
-        &glossy_settings,
-        &what,
-        log,
-        progress,
-    )?;
+    let (t, reused_bake, bake_seconds) =
+        study.bake("demo_glossy.prt", scene, &glossy_settings, &what)?;
     let ctx = LightContext::new(&t)?;
     let light = ctx.prepare(env, rotation)?;
     let (full, _) = relight(&t, &ctx, &light, &RelightRequest::Full)?;
@@ -126,7 +119,7 @@ pub fn run_gloss_orbit(
     let (reference, reference_noise) = match kept {
         Some(image) => (image, None),
         None => {
-            log(&format!(
+            study.log(&format!(
                 "path tracing the demo from {GLOSS_REFERENCE_AZIMUTH}° round \
                  ({GLOSS_REFERENCE_PATHS} paths a pixel) ..."
             ));
@@ -194,7 +187,7 @@ pub fn run_gloss_orbit(
              the highlight follows the camera"
         ),
     )?;
-    log(&format!(
+    study.log(&format!(
         "drew the glossy per-vertex bake from {} angles; from {az}° round, against the path \
          tracer: {:.1}% with {GLOSS_BRDF_TERMS} in-out terms, {:.1}% for the diffuse base",
         ORBIT_AZIMUTHS.len(),

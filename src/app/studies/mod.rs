@@ -3,6 +3,13 @@
 //! [`volume_orders`]) and the paper's measurements ([`paper`]): each bakes, relights and measures
 //! through the library, and writes its tables, plots and sheets.
 
+use std::path::Path;
+
+use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::error::Result;
+use crate::scene::Scene;
+use crate::store::transport::Transport;
+
 pub mod bench;
 pub mod demo;
 pub mod dusk;
@@ -13,3 +20,37 @@ pub mod orbit;
 pub mod paper;
 pub mod truck;
 pub mod volume_orders;
+
+/// What the studies of a run share: the folder their outputs go into, the settings their bakes
+/// start from, where they say what they do, and their bakes' progress.
+pub struct Study<'a> {
+    /// The folder of the outputs (bakes reused from it when their scene and settings match).
+    pub dir: &'a Path,
+    /// The settings the bakes start from.
+    pub settings: &'a BakeSettings,
+    /// Where a study says what it does, a line at a time.
+    pub log: &'a mut dyn FnMut(&str),
+    /// The bakes' progress.
+    pub progress: &'a (dyn Fn(BakeProgress) + Sync),
+}
+
+impl Study<'_> {
+    /// Says `line`.
+    pub fn log(&mut self, line: &str) {
+        (self.log)(line)
+    }
+
+    /// Bakes `scene` with `settings` into the file `name` of the folder, saying `what` first, or
+    /// reuses the file where it holds that bake (and says so). Returns the transport, whether it
+    /// was reused, and the seconds taken.
+    pub fn bake(
+        &mut self,
+        name: &str,
+        scene: &Scene,
+        settings: &BakeSettings,
+        what: &str,
+    ) -> Result<(Transport, bool, f64)> {
+        let path = self.dir.join(name);
+        load_or_bake_logged(&path, scene, settings, what, self.log, self.progress)
+    }
+}

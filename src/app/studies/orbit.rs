@@ -4,11 +4,12 @@
 //! costs at each tessellation, apart from the light's approximation. Also times a frame as the
 //! viewer makes it: relight at K terms, then draw.
 
+use crate::app::studies::Study;
 use crate::store::transport::BakeDomain;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
-use crate::bake::{BakeProgress, BakeSettings, load_or_bake};
+use crate::bake::BakeSettings;
 use crate::draw::vertex::{GlossEval, bake_camera, compose, orbit};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
@@ -79,45 +80,32 @@ struct Measured {
 
 /// Bakes (or reuses) `scene` per vertex at edge length `edge` into `path`.
 fn bake_vertices(
-    path: &Path,
+    study: &mut Study,
+    name: &str,
     scene: &Scene,
-    settings: &BakeSettings,
     edge: f32,
-    log: &mut dyn FnMut(&str),
-    progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<(Transport, bool, f64)> {
     let settings = BakeSettings {
         domain: BakeDomain::Vertices { edge_length: edge },
-        ..settings.clone()
+        ..study.settings.clone()
     };
-    let start = Instant::now();
-    let (t, reused) = load_or_bake(
-        path,
-        scene,
-        &settings,
-        &mut || {
-            log(&format!(
-                "baking {} per vertex (edges up to {edge:.3}) ...",
-                scene.source_path.display(),
-            ))
-        },
-        progress,
-    )?;
-    Ok((t, reused, start.elapsed().as_secs_f64()))
+    let what = format!(
+        "baking {} per vertex (edges up to {edge:.3}) ...",
+        scene.source_path.display(),
+    );
+    study.bake(name, scene, &settings, &what)
 }
 
 /// Bakes (or reuses) `scene` per vertex into `dir/demo_vertices.prt` with `settings` at the
 /// default edge length, relights it under `env`, writes `dir/orbit_sheet.png`, and compares it
 /// with `per_pixel`, the same scene's per-pixel bake.
 pub fn run_orbit(
-    dir: &Path,
+    study: &mut Study,
     scene: &Scene,
-    settings: &BakeSettings,
     per_pixel: &Transport,
     env: (&str, &EnvMap),
-    log: &mut dyn FnMut(&str),
-    progress: &(dyn Fn(BakeProgress) + Sync),
 ) -> Result<OrbitReport> {
+    let dir = study.dir;
     let edge = VertexMesh::default_edge_length(scene);
     let (name, env) = env;
     let rotation = EnvRotation::default();
@@ -139,8 +127,7 @@ pub fn run_orbit(
     }
     // One tessellation: baked, relit with every term and with K, drawn from the scene's camera.
     let mut measure = |file: &str, edge: f32| -> Result<Measured> {
-        let (t, reused_bake, bake_seconds) =
-            bake_vertices(&dir.join(file), scene, settings, edge, log, progress)?;
+        let (t, reused_bake, bake_seconds) = bake_vertices(study, file, scene, edge)?;
         let pv = t
             .meta
             .per_vertex
@@ -266,7 +253,7 @@ pub fn run_orbit(
             fine.vertices
         ),
     )?;
-    log(&format!(
+    study.log(&format!(
         "drew the per-vertex bake from {} angles; a frame at K = {ORBIT_TERMS} takes {:.1} ms",
         ORBIT_AZIMUTHS.len(),
         median(2)

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::app::studies::Study;
 use crate::draw::background::{composite, environment_behind};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::env::select::Weighting;
@@ -39,14 +39,8 @@ pub struct TruckReport {
 
 /// Bakes (or reuses) the glTF scene under `assets` into `dir/truck.prt` with `settings` (the
 /// demo's) and writes its sheet, wavelets chosen by `weighting`.
-pub fn run_truck(
-    dir: &Path,
-    assets: &Path,
-    settings: &BakeSettings,
-    weighting: Weighting,
-    log: &mut dyn FnMut(&str),
-    progress: &(dyn Fn(BakeProgress) + Sync),
-) -> Result<TruckReport> {
+pub fn run_truck(study: &mut Study, assets: &Path, weighting: Weighting) -> Result<TruckReport> {
+    let (dir, settings) = (study.dir, study.settings);
     let scene = Scene::load(&assets.join("scenes/truck.toml"))?;
     let transport_path = dir.join("truck.prt");
     let what = format!(
@@ -55,8 +49,7 @@ pub fn run_truck(
         scene.triangle_count(),
         scene.textures.len()
     );
-    let (t, reused_bake, bake_seconds) =
-        load_or_bake_logged(&transport_path, &scene, settings, &what, log, progress)?;
+    let (t, reused_bake, bake_seconds) = study.bake("truck.prt", &scene, settings, &what)?;
     let ctx = LightContext::new(&t)?;
     let top = format!("SH order {}", settings.sh_order);
     let requests = [
@@ -112,7 +105,7 @@ pub fn run_truck(
         &cells,
         "glTF: the Cesium Milk Truck (CC BY 4.0) on a ground quad; SH against K wavelet terms, relative L2 against full",
     )?;
-    log(&format!("relit the glTF scene -> {}", sheet_path.display()));
+    study.log(&format!("relit the glTF scene -> {}", sheet_path.display()));
     Ok(TruckReport {
         transport_path,
         sheet_path,
