@@ -31,7 +31,7 @@ use rayon::prelude::*;
 
 use crate::bake::bounce::Vertex;
 use crate::bake::{BakeSettings, EdgeMap, pixel_subsamples, shading_point};
-use crate::env::importance::CubeSampler;
+use crate::env::importance::{CubeLight, EnvLight};
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
 use crate::math::sampling::Rng;
@@ -106,6 +106,21 @@ pub fn path_trace_lit(
     samples: u32,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<PathTraced> {
+    let env = CubeLight::new(cube);
+    path_trace_env(scene, &env, lights, settings, samples, progress)
+}
+
+/// [`path_trace_lit`] under any environment light: a cube ([`CubeLight`]), or a lat-long map's
+/// own pixels ([`crate::env::importance::MapLight`]), the true lighting with no cube's
+/// resolution in between.
+pub fn path_trace_env(
+    scene: &Scene,
+    env: &dyn EnvLight,
+    lights: &LightMix,
+    settings: &BakeSettings,
+    samples: u32,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<PathTraced> {
     settings.validate()?;
     let weights = light_weights(lights, emitters(&scene.lights).len())?;
     let lit: Vec<(Emitter, Vec3)> = emitters(&scene.lights)
@@ -136,7 +151,6 @@ pub fn path_trace_lit(
     let cam = &scene.camera;
     let edges = EdgeMap::new(scene, &tracer, settings);
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let sampler = CubeSampler::new(cube);
     let mut image = Image::new(w, h);
     let mut coverage = vec![0.0f32; w * h];
     let mut std_error = vec![[0.0f32; 3]; w * h];
@@ -180,8 +194,7 @@ pub fn path_trace_lit(
                     };
                     hits += 1;
                     let lighting = Lighting {
-                        cube,
-                        sampler: sampler.as_ref(),
+                        env,
                         lights: &lit,
                         tracker: tracker.as_ref(),
                     };
@@ -252,11 +265,10 @@ fn non_finite_material(scene: &Scene, x: usize, y: usize, m: u32) -> PrtError {
     )
 }
 
-/// What lights a path: the environment's cube and its sampler, and the local lights that are
-/// on, each with its RGB weight.
+/// What lights a path: the environment, and the local lights that are on, each with its RGB
+/// weight.
 struct Lighting<'a> {
-    cube: &'a CubeMap,
-    sampler: Option<&'a CubeSampler>,
+    env: &'a dyn EnvLight,
     lights: &'a [(Emitter, Vec3)],
     /// The medium's trackers, with a medium.
     tracker: Option<&'a Tracker<'a>>,
@@ -274,12 +286,11 @@ fn radiance(
     rng: &mut Rng,
 ) -> std::result::Result<Vec3, u32> {
     let Lighting {
-        cube,
-        sampler,
+        env: light,
         lights,
         tracker,
     } = *lighting;
-    let env = |d: Vec3| Vec3::from(cube.lookup(d.as_dvec3()));
+    let env = |d: Vec3| light.radiance(d);
     let mut total = Vec3::ZERO;
     let mut at = first;
     // The medium's transmittance along a shadow ray, by ratio tracking.
@@ -302,9 +313,9 @@ fn radiance(
                         Err(sp.material)
                     }
                 };
-                if let Some(sampler) = sampler {
+                if light.drawable() {
                     let u = [rng.next_f64(), rng.next_f64(), rng.next_f64()];
-                    let (d, p_light) = sampler.sample(u);
+                    let (d, p_light) = light.sample(u);
                     if p_light > 0.0
                         && n.dot(d) > 0.0
                         && (settings.unshadowed || !tracer.occluded(sp.origin, d, f32::INFINITY))
@@ -345,9 +356,9 @@ fn radiance(
             }
             Vertex::Medium { pos, dir } => {
                 let g = tracker.map_or(0.0, |t| t.medium().g);
-                if let Some(sampler) = sampler {
+                if light.drawable() {
                     let u = [rng.next_f64(), rng.next_f64(), rng.next_f64()];
-                    let (d, p_light) = sampler.sample(u);
+                    let (d, p_light) = light.sample(u);
                     if p_light > 0.0
                         && (settings.unshadowed || !tracer.occluded(*pos, d, f32::INFINITY))
                     {
@@ -372,7 +383,7 @@ fn radiance(
             _ => None,
         };
         if collision.is_none() && (hit.is_none() || settings.unshadowed) {
-            let p_light = sampler.map_or(0.0, |c| c.pdf(dir));
+            let p_light = light.pdf(dir);
             total += throughput * weight * env(dir) * power_heuristic(pdf, p_light);
         }
         if collision.is_none() {

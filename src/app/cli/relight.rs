@@ -146,6 +146,11 @@ pub struct ReferenceArgs {
     /// Paths per pixel of the path tracer.
     #[arg(long, default_value_t = 1024)]
     pub samples: u32,
+    /// What lights the path tracer: map (the map's own pixels, drawn by importance: the true
+    /// lighting) or cube (the bake's cube of --cube texels, to check a bake's bookkeeping).
+    /// Default: map for the path tracer; the texels estimator integrates the cube's texels.
+    #[arg(long, value_parser = EnvLightKind::from_str)]
+    pub env_light: Option<EnvLightKind>,
 }
 
 /// How `prt reference` integrates the light.
@@ -160,6 +165,19 @@ pub enum Estimator {
 }
 
 crate::named!(Estimator, "estimator");
+
+/// What lights the path tracer of `prt reference`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(IntoStaticStr, strum::Display, VariantArray)]
+#[strum(serialize_all = "lowercase")]
+pub enum EnvLightKind {
+    /// The map's own pixels: the true lighting.
+    Map,
+    /// The cube of --cube texels the bake is lit by: a check of the bake's bookkeeping.
+    Cube,
+}
+
+crate::named!(EnvLightKind, "environment light");
 
 /// Arguments of `prt env`.
 #[derive(Args, Debug)]
@@ -416,6 +434,23 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     } else {
         Estimator::Texels
     });
+    let env_light = match (estimator, a.env_light) {
+        (Estimator::Texels, Some(EnvLightKind::Map)) => {
+            return Err(PrtError::invalid(
+                "env-light",
+                "map: the texels estimator integrates the cube's texels; take --estimator path \
+                 to light the scene by the map's own pixels",
+            ));
+        }
+        (Estimator::Texels, _) => EnvLightKind::Cube,
+        (Estimator::Path, light) => light.unwrap_or(EnvLightKind::Map),
+    };
+    let lit = match (&env, env_light) {
+        (Some(map), EnvLightKind::Map) => {
+            format!("lit by the map's own {}x{} pixels", map.width, map.height)
+        }
+        _ => format!("lit by the cube, N = {}", settings.cube_n),
+    };
     let mut noise = None;
     let r = match estimator {
         Estimator::Texels => crate::bake::reference::render_reference_lit(
@@ -426,9 +461,14 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
             &|done, _| rows.set_position(done as u64),
         )?,
         Estimator::Path => {
-            let p = crate::bake::path_tracer::path_trace_lit(
+            use crate::env::importance::{CubeLight, EnvLight, MapLight};
+            let light: Box<dyn EnvLight> = match (&env, env_light) {
+                (Some(map), EnvLightKind::Map) => Box::new(MapLight::new(map, rotation)),
+                _ => Box::new(CubeLight::new(&cube)),
+            };
+            let p = crate::bake::path_tracer::path_trace_env(
                 &scene,
-                &cube,
+                light.as_ref(),
                 &mix,
                 &settings,
                 a.samples,
@@ -458,10 +498,9 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     };
     img.save(&a.output, tone)?;
     println!(
-        "reference: {}x{}, N = {}, {:.1} s -> {}",
+        "reference: {}x{}, {lit}, {:.1} s -> {}",
         img.width,
         img.height,
-        settings.cube_n,
         start.elapsed().as_secs_f64(),
         a.output.display()
     );
