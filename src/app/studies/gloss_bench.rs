@@ -10,18 +10,19 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::bake::path_tracer::path_trace;
+use crate::bake::path_tracer::path_trace_env;
 use crate::bake::reference::render_reference_with;
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::draw::vertex::{GlossEval, draw, draw_relit, vertex_colours};
 use crate::env::envmap::{EnvMap, EnvRotation};
+use crate::env::importance::MapLight;
 use crate::env::select::Weighting;
 use crate::error::{PrtError, Result};
 use crate::output::film::ToneMap;
 use crate::output::metrics::relative_l2;
 use crate::output::plot::{self, PALETTE, PlotSpec, Series};
 use crate::relight::gpu::Gpu;
-use crate::relight::{Backend, LightContext, RelightRequest, Terms, relight};
+use crate::relight::{Backend, LightContext, LightMix, RelightRequest, Terms, relight};
 use crate::scene::tessellate::VertexMesh;
 use crate::scene::{Camera, Scene};
 use crate::store::transport::{BakeDomain, Transport};
@@ -270,7 +271,16 @@ pub fn run(
         ));
         let mut at = scene.clone();
         at.camera = cam.clone();
-        let traced = path_trace(&at, &cube, &base, opts.paths, &|_, _| {})?;
+        // Lit by the map's own pixels: the true lighting, with no cube between it and the image.
+        let light = MapLight::new(env, rotation);
+        let traced = path_trace_env(
+            &at,
+            &light,
+            &LightMix::none(),
+            &base,
+            opts.paths,
+            &|_, _| {},
+        )?;
         traced.image.check_finite("path-traced image")?;
         let tone = ToneMap::auto(&traced.image, None);
         traced.image.save(
@@ -524,7 +534,8 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
         s,
         "# Glossy per-vertex bakes against the path tracer\n\nUnder `{}`; glossy materials {}. \
          Relative L2 over the whole image (the background black), every stored term, `g_k` per \
-         pixel ({} samples a pixel); the path tracer at {} paths a pixel.\n",
+         pixel ({} samples a pixel); the path tracer at {} paths a pixel, lit by the map's own \
+         pixels.\n",
         r.env,
         glossy.join(", "),
         opts.samples,

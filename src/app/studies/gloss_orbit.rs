@@ -8,16 +8,17 @@ use std::path::PathBuf;
 use crate::app::studies::Study;
 use crate::app::studies::orbit::ORBIT_AZIMUTHS;
 use crate::bake::BakeSettings;
-use crate::bake::path_tracer::path_trace;
+use crate::bake::path_tracer::path_trace_env;
 use crate::draw::background::{composite, environment_behind_camera};
 use crate::draw::raster::DRAW_SAMPLES;
 use crate::draw::vertex::{GlossEval, bake_camera, compose, draw, draw_relit, orbit};
 use crate::env::envmap::{EnvMap, EnvRotation};
+use crate::env::importance::MapLight;
 use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{cells_at, write_sheet};
-use crate::relight::{LightContext, RelightRequest, relight};
+use crate::relight::{LightContext, LightMix, RelightRequest, relight};
 use crate::scene::Scene;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::BakeDomain;
@@ -112,7 +113,9 @@ pub fn run_gloss_orbit(
     let cam = orbit(&camera, GLOSS_REFERENCE_AZIMUTH, 0.0);
     let colours = crate::draw::vertex::vertex_colours(&t, &full)?;
     let diffuse = draw(&t, &colours, &cam, None, DRAW_SAMPLES)?;
-    let exr = dir.join("gloss_path_traced.exr");
+    // Lit by the map's own pixels (an earlier demo's reference, lit by the cube, had another
+    // name and is not taken for this one).
+    let exr = dir.join("gloss_path_traced_map.exr");
     let kept = Image::load_exr(&exr).ok().filter(|i| {
         reused_bake && (i.width, i.height) == (cam.width as usize, cam.height as usize)
     });
@@ -125,8 +128,15 @@ pub fn run_gloss_orbit(
             ));
             let mut turned = scene.clone();
             turned.camera = cam.clone();
-            let cube = env.to_cube(settings.cube_n, rotation)?;
-            let traced = path_trace(&turned, &cube, settings, GLOSS_REFERENCE_PATHS, &|_, _| {})?;
+            let light = MapLight::new(env, rotation);
+            let traced = path_trace_env(
+                &turned,
+                &light,
+                &LightMix::none(),
+                settings,
+                GLOSS_REFERENCE_PATHS,
+                &|_, _| {},
+            )?;
             traced.image.check_finite("path-traced image")?;
             traced
                 .image
