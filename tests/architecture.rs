@@ -303,8 +303,9 @@ fn no_source_file_outgrows_the_limit() {
     );
 }
 
-/// The one module allowed `unsafe` (it calls AVX2 intrinsics behind run-time detection);
-/// `Cargo.toml` denies it everywhere else, and this keeps the exception from spreading.
+/// The one module allowed `unsafe`, with its own submodules (it calls AVX2 intrinsics behind
+/// run-time detection); `Cargo.toml` denies it everywhere else, and this keeps the exception
+/// from spreading.
 const UNSAFE_ALLOWED: &str = "relight::strip_kernel";
 
 #[test]
@@ -319,10 +320,10 @@ fn only_the_strip_kernel_allows_unsafe_code() {
             found.push(module_of(&src, f));
         }
     }
-    assert_eq!(
-        found,
-        [UNSAFE_ALLOWED],
-        "modules that allow or use unsafe code"
+    let inside = |m: &String| m == UNSAFE_ALLOWED || m.starts_with(&format!("{UNSAFE_ALLOWED}::"));
+    assert!(
+        found.iter().all(inside) && found.iter().any(|m| m == UNSAFE_ALLOWED),
+        "modules that allow or use unsafe code: {found:?}"
     );
 }
 
