@@ -9,8 +9,9 @@ use std::path::Path;
 use safetensors::tensor::Dtype;
 use serde::{Deserialize, Serialize};
 
+use super::legacy::{Columns, strips_of_columns};
 use super::reader::TensorReader;
-use super::strips::{BlockColumns, Layout, STRIP_ROWS, Stored};
+use super::strips::{Layout, STRIP_ROWS};
 use super::*;
 use crate::error::{PrtError, Result};
 use crate::scene::albedo_map::from_table;
@@ -208,54 +209,15 @@ impl Transport {
             None => LightColumns::empty(w, h),
         };
         let mesh = match (&meta.per_vertex, mesh) {
-            (
-                Some(pv),
-                Some(((ms, materials), (ns, normals), (ps, positions), (ts, triangles))),
-            ) => {
-                let (v, t) = (pv.vertices as usize, pv.triangles as usize);
-                expect("mesh_position", &ps, &[v, 3])?;
-                expect("mesh_normal", &ns, &[v, 3])?;
-                expect("mesh_material", &ms, &[v])?;
-                expect("mesh_triangle", &ts, &[t, 3])?;
-                let (uvs, albedo_maps) = match (mesh_uv, map_tables) {
-                    (Some((us, uvs)), Some(((ms, table), (os, owners), (xs, texels)))) => {
-                        expect("mesh_uv", &us, &[v, 2])?;
-                        expect("albedo_map", &ms, &[map_count, 5])?;
-                        let n = os.first().copied().unwrap_or(0);
-                        expect("albedo_map_material", &os, &[n, 2])?;
-                        let n = xs.first().copied().unwrap_or(0);
-                        expect("albedo_texel", &xs, &[n, 3])?;
-                        (uvs, from_table(&table, &owners, texels).map_err(bad)?)
-                    }
-                    _ => (vec![glam::Vec2::ZERO; v], Vec::new()),
-                };
-                let factors = match (brdf, brdf_tables) {
-                    (Some((stride, res)), Some(((ls, light), (ks, terms), (vs, view)))) => {
-                        let m = ks.first().copied().unwrap_or(0);
-                        expect("brdf_terms", &ks, &[m])?;
-                        let shape = [m, stride.saturating_sub(1), res * res];
-                        expect("brdf_light", &ls, &shape)?;
-                        expect("brdf_view", &vs, &shape)?;
-                        Some(Box::new(crate::scene::brdf_factor::BrdfFactors {
-                            map: crate::scene::brdf_factor::HemiOct { res },
-                            stride,
-                            terms,
-                            view,
-                            light,
-                        }))
-                    }
-                    _ => None,
-                };
-                Some(VertexMesh {
-                    positions,
-                    normals,
-                    materials,
-                    uvs,
-                    triangles,
-                    albedo_maps,
-                    factors,
-                })
-            }
+            (Some(pv), Some(tables)) => Some(
+                MeshTables {
+                    tables,
+                    uv: mesh_uv,
+                    maps: map_tables,
+                    brdf: brdf.zip(brdf_tables),
+                }
+                .into_mesh(pv, map_count, &expect, &bad)?,
+            ),
             _ => None,
         };
         let t = Transport {
@@ -681,66 +643,87 @@ fn read_values(
     })
 }
 
-/// The strips of a version 3 to 6 file's columns: per (block, coefficient) an entry count and
-/// a scale code, then the entries' rows and values in (block, coefficient) order. Counts are
-/// checked against the blocks' rows and the entries before anything is sliced.
-fn strips_of_columns(
-    layout: Layout,
-    columns: Columns,
-    values: &Values,
-) -> std::result::Result<Strips, String> {
-    fn of<V: Stored>(
-        layout: Layout,
-        starts: &[u64],
-        columns: Columns,
-        values: &[V],
-    ) -> std::result::Result<Strips, String> {
-        let Columns {
-            block_row_start,
-            c,
-            counts,
-            codes,
-            rows,
-        } = columns;
-        let blocks: Vec<BlockColumns<V>> = starts
-            .windows(2)
-            .zip(block_row_start.windows(2))
-            .enumerate()
-            .map(|(b, (e, r))| {
-                let e = e[0] as usize..e[1] as usize;
-                BlockColumns {
-                    counts: &counts[b * c..(b + 1) * c],
-                    codes: &codes[b * c..(b + 1) * c],
-                    rows: &rows[e.clone()],
-                    values: &values[e],
-                    block_rows: r[1].saturating_sub(r[0]) as usize,
-                }
-            })
-            .collect();
-        Strips::of_blocks(layout, &blocks, c)
-    }
-    let rows = columns.rows.len();
-    if values.len() != rows || columns.counts.len() != columns.codes.len() {
-        return Err("the columns' tables differ in length".into());
-    }
-    let starts = column_pointers(columns.counts, columns.block_row_start, columns.c, rows)?;
-    match values {
-        Values::Q8(v) => of(layout, &starts, columns, v),
-        Values::Q16(v) => of(layout, &starts, columns, v),
-        Values::F32(v) => of(layout, &starts, columns, v),
-    }
+/// A tensor as read: its shape and its values.
+type Tensor<T> = (Vec<usize>, Vec<T>);
+/// Checks a tensor's shape against what it must be: (name, shape, expected).
+type ShapeCheck<'a> = &'a dyn Fn(&str, &[usize], &[usize]) -> Result<()>;
+/// A mesh's vertex materials, normals and positions, and its triangles, as read.
+type MeshTensors = (
+    Tensor<u32>,
+    Tensor<glam::Vec3>,
+    Tensor<glam::Vec3>,
+    Tensor<[u32; 3]>,
+);
+/// The albedo maps' table, their materials and their texels, as read.
+type MapTensors = (Tensor<[u32; 5]>, Tensor<[u32; 2]>, Tensor<[u16; 3]>);
+/// The in-out BRDF factors' stride and map size, with their light, terms and view tables.
+type BrdfTensors = ((usize, usize), (Tensor<f32>, Tensor<u32>, Tensor<f32>));
+
+/// The tensors of a per-vertex bake's mesh as read, before their shapes are checked.
+struct MeshTables {
+    /// The vertices' materials, normals and positions, and the triangles.
+    tables: MeshTensors,
+    /// The vertices' texture coordinates, with albedo maps.
+    uv: Option<Tensor<glam::Vec2>>,
+    /// The albedo maps' table, their materials and their texels.
+    maps: Option<MapTensors>,
+    /// The in-out BRDF factors.
+    brdf: Option<BrdfTensors>,
 }
 
-/// A version 3 to 6 file's columns of `c` coefficients a block, less their values.
-#[derive(Clone, Copy)]
-struct Columns<'a> {
-    /// Each block's first row, and the end.
-    block_row_start: &'a [u32],
-    c: usize,
-    /// Entries of each (block, coefficient).
-    counts: &'a [u16],
-    /// Scale code of each (block, coefficient).
-    codes: &'a [u8],
-    /// The entries' rows inside their blocks.
-    rows: &'a [u8],
+impl MeshTables {
+    /// The mesh of `pv`'s vertices and triangles (with `map_count` albedo maps), every tensor's
+    /// shape checked by `expect` and the albedo maps' tables by their reader (errors by `bad`).
+    fn into_mesh(
+        self,
+        pv: &PerVertexMeta,
+        map_count: usize,
+        expect: ShapeCheck,
+        bad: &dyn Fn(String) -> PrtError,
+    ) -> Result<VertexMesh> {
+        let ((ms, materials), (ns, normals), (ps, positions), (ts, triangles)) = self.tables;
+        let (v, t) = (pv.vertices as usize, pv.triangles as usize);
+        expect("mesh_position", &ps, &[v, 3])?;
+        expect("mesh_normal", &ns, &[v, 3])?;
+        expect("mesh_material", &ms, &[v])?;
+        expect("mesh_triangle", &ts, &[t, 3])?;
+        let (uvs, albedo_maps) = match (self.uv, self.maps) {
+            (Some((us, uvs)), Some(((ms, table), (os, owners), (xs, texels)))) => {
+                expect("mesh_uv", &us, &[v, 2])?;
+                expect("albedo_map", &ms, &[map_count, 5])?;
+                let n = os.first().copied().unwrap_or(0);
+                expect("albedo_map_material", &os, &[n, 2])?;
+                let n = xs.first().copied().unwrap_or(0);
+                expect("albedo_texel", &xs, &[n, 3])?;
+                (uvs, from_table(&table, &owners, texels).map_err(bad)?)
+            }
+            _ => (vec![glam::Vec2::ZERO; v], Vec::new()),
+        };
+        let factors = match self.brdf {
+            Some(((stride, res), ((ls, light), (ks, terms), (vs, view)))) => {
+                let m = ks.first().copied().unwrap_or(0);
+                expect("brdf_terms", &ks, &[m])?;
+                let shape = [m, stride.saturating_sub(1), res * res];
+                expect("brdf_light", &ls, &shape)?;
+                expect("brdf_view", &vs, &shape)?;
+                Some(Box::new(crate::scene::brdf_factor::BrdfFactors {
+                    map: crate::scene::brdf_factor::HemiOct { res },
+                    stride,
+                    terms,
+                    view,
+                    light,
+                }))
+            }
+            None => None,
+        };
+        Ok(VertexMesh {
+            positions,
+            normals,
+            materials,
+            uvs,
+            triangles,
+            albedo_maps,
+            factors,
+        })
+    }
 }

@@ -82,6 +82,7 @@
 
 mod assemble;
 mod file;
+mod legacy;
 mod lights;
 mod meta;
 mod reader;
