@@ -4,6 +4,7 @@
 //! geometry is seen ([`background`]).
 
 pub mod background;
+pub mod gloss;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod raster;

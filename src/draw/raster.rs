@@ -33,7 +33,6 @@ use crate::error::{PrtError, Result};
 use crate::output::film::Image;
 use crate::scene::Camera;
 use crate::scene::albedo_map::AlbedoMap;
-use crate::scene::brdf_factor::{BrdfFactors, to_local};
 use crate::scene::tessellate::VertexMesh;
 
 /// What a textured mesh adds to a draw: each vertex's texture coordinate and material, and the
@@ -104,87 +103,23 @@ impl<'a> Texturing<'a> {
     }
 }
 
-/// What a glossy per-vertex bake adds to a draw: each vertex's in-out BRDF responses for terms
-/// `1..K_b` of its material, interpolated across the triangle and multiplied per pixel by
-/// `g_k` of the direction to the eye in the frame of the interpolated normal
-/// ([`crate::scene::brdf_factor`]). The responses are not multiplied by an albedo map.
-#[derive(Clone, Debug)]
-pub struct Gloss<'a> {
-    /// Unit shading normal of each vertex.
-    pub normals: &'a [Vec3],
-    /// Material of each vertex.
-    pub materials: &'a [u32],
-    /// The factors: each material's K_b and its `g_k`.
-    pub factors: &'a BrdfFactors,
-    /// Vertex `v`'s response of term k at `[v · (stride − 1) + k − 1]`.
-    pub terms: &'a [[f32; 3]],
-}
+/// What a per-vertex bake stores for view-dependent shading, as the raster asks for it: the
+/// light a point adds, seen from a direction, on top of its interpolated vertex colour. A new
+/// representation of glossy light is an impl of this ([`crate::draw::gloss::Gloss`], the in-out
+/// BRDF terms, is one).
+pub trait ViewDependent: Sync {
+    /// Checks the tables against a mesh of `vertices` vertices.
+    fn check(&self, vertices: usize) -> Result<()>;
 
-impl Gloss<'_> {
-    /// Checks the factors ([`BrdfFactors::problem`]), and one normal, material and
-    /// `stride − 1` finite responses per vertex of `vertices`.
-    pub fn check(&self, vertices: usize) -> Result<()> {
-        if let Some(p) = self.factors.problem(self.factors.terms.len()) {
-            return Err(PrtError::invalid("BRDF factors", p));
-        }
-        let per = self.factors.stride - 1;
-        if self.normals.len() != vertices
-            || self.materials.len() != vertices
-            || self.terms.len() != vertices * per
-        {
-            return Err(PrtError::invalid(
-                "gloss",
-                format!(
-                    "{} normals, {} materials and {} term responses for {vertices} vertices of \
-                     {per} terms",
-                    self.normals.len(),
-                    self.materials.len(),
-                    self.terms.len()
-                ),
-            ));
-        }
-        check_colours(self.terms)
-    }
+    /// The view-dependent light of a point of triangle `tri` at barycentrics `b` (summing to 1),
+    /// seen along `to_eye` (unit, from the point towards the eye).
+    fn shade(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> DVec3;
 
-    /// The glossy light of a point of triangle `tri` at barycentrics `b` (summing to 1), seen
-    /// along `to_eye` (unit, from the point towards the eye).
-    fn shade(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> DVec3 {
-        let m = self.materials[tri[0] as usize];
-        let k_b = self.factors.terms_of(m);
-        if k_b <= 1 {
-            return DVec3::ZERO;
-        }
-        let n = (0..3)
-            .map(|i| self.normals[tri[i] as usize].as_dvec3() * b[i])
-            .sum::<DVec3>();
-        let Some(n) = n.try_normalize() else {
-            return DVec3::ZERO;
-        };
-        let local = to_local(n.as_vec3(), to_eye.as_vec3());
-        if local.z <= 0.0 {
-            return DVec3::ZERO;
-        }
-        // The direction's taps serve every term.
-        let taps = self.factors.map.taps(local);
-        let per = self.factors.stride - 1;
-        (1..k_b)
-            .map(|k| {
-                let g = self.factors.view_with(m, k, &taps) as f64;
-                let r = (0..3)
-                    .map(|i| {
-                        DVec3::from(self.terms[tri[i] as usize * per + k - 1].map(f64::from)) * b[i]
-                    })
-                    .sum::<DVec3>();
-                r * g
-            })
-            .sum()
-    }
-
-    /// The vertex colours with each vertex's glossy light added as seen from `eye` (the
+    /// The vertex colours with each vertex's view-dependent light added as seen from `eye` (the
     /// direction to the eye taken at the vertex): the per-vertex evaluation that
-    /// [`rasterize_glossy`]'s per-pixel one is compared with. Errors as [`Gloss::check`] does,
-    /// and unless there is one colour per position.
-    pub fn per_vertex(
+    /// [`rasterize_glossy`]'s per-pixel one is compared with. Errors as
+    /// [`ViewDependent::check`] does, and unless there is one colour per position.
+    fn per_vertex(
         &self,
         positions: &[Vec3],
         colours: &[[f32; 3]],
@@ -500,7 +435,7 @@ struct Shading<'a> {
     triangles: &'a [[u32; 3]],
     colours: &'a [[f32; 3]],
     texturing: Option<&'a Texturing<'a>>,
-    gloss: Option<&'a Gloss<'a>>,
+    gloss: Option<&'a dyn ViewDependent>,
 }
 
 /// Draws the triangles `bin` (indices into `setups`) into one band of pixels starting at row
@@ -654,14 +589,15 @@ pub fn rasterize_multisampled(
     )
 }
 
-/// [`rasterize_multisampled`] with a glossy bake's light added per sample ([`Gloss`]).
+/// [`rasterize_multisampled`] with a bake's view-dependent light added per sample
+/// ([`ViewDependent`]).
 pub fn rasterize_glossy(
     camera: &Camera,
     positions: &[Vec3],
     triangles: &[[u32; 3]],
     colours: &[[f32; 3]],
     texturing: Option<&Texturing>,
-    gloss: Option<&Gloss>,
+    gloss: Option<&dyn ViewDependent>,
     samples: u32,
 ) -> Result<Raster> {
     let offsets = sample_offsets(samples)?;
@@ -731,7 +667,7 @@ fn draw(
     triangles: &[[u32; 3]],
     colours: &[[f32; 3]],
     texturing: Option<&Texturing>,
-    gloss: Option<&Gloss>,
+    gloss: Option<&dyn ViewDependent>,
 ) -> Result<Raster> {
     let (w, h) = (view.width, view.height);
     let setups: Vec<Setup> = triangles

@@ -13,7 +13,8 @@ use crate::error::{PrtError, Result};
 use crate::output::film::Image;
 use std::borrow::Cow;
 
-use crate::draw::raster::{Gloss, Raster, Texturing, rasterize_glossy};
+use crate::draw::gloss::Gloss;
+use crate::draw::raster::{Raster, Texturing, ViewDependent, rasterize_glossy};
 use crate::scene::Camera;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::Transport;
@@ -304,7 +305,10 @@ pub fn draw_relit(
             per_vertex = g.per_vertex(&mesh.positions, &colours, camera.eye)?;
             (&per_vertex[..], None)
         }
-        _ => (&colours[..], gloss.as_ref()),
+        _ => (
+            &colours[..],
+            gloss.as_ref().map(|g| g as &dyn ViewDependent),
+        ),
     };
     draw_mesh(mesh, colours, gloss, camera, behind, samples)
 }
@@ -325,7 +329,7 @@ pub fn draw(
 fn draw_mesh(
     mesh: &VertexMesh,
     colours: &[[f32; 3]],
-    gloss: Option<&Gloss>,
+    gloss: Option<&dyn ViewDependent>,
     camera: &Camera,
     behind: Option<(&EnvMap, EnvRotation)>,
     samples: u32,

@@ -9,7 +9,7 @@
 //! layout of the relight's output image buffer when vertex `i` is its pixel `i`), so relit
 //! colours need not leave the GPU. A glossy per-vertex bake's mesh ([`super::GlossMesh`]) reads
 //! `stride` of them a vertex, its diffuse colour and its in-out terms' responses, and weighs the
-//! terms per pixel by the view factors as the CPU's [`crate::draw::raster::Gloss`] does. [`GpuRaster::draw`] renders offscreen and reads the image and
+//! terms per pixel by the view factors as the CPU's [`crate::draw::gloss::Gloss`] does. [`GpuRaster::draw`] renders offscreen and reads the image and
 //! coverage back; [`GpuRaster::render`] draws into a caller's texture for display.
 //!
 //! Conventions: clip space comes from [`clip_from_world`] (NDC y up is the film's top row, as
