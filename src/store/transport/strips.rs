@@ -115,48 +115,29 @@ pub trait Stored: Copy + Default + PartialEq + Send + Sync {
     /// True when a stored value is an entry rather than padding (zero, or negative zero).
     fn is_entry(self) -> bool;
 }
-impl Stored for i8 {
-    fn wrap(v: Vec<i8>) -> Values {
-        Values::Q8(v)
-    }
-    fn slice(v: &Values) -> Option<&[i8]> {
-        match v {
-            Values::Q8(v) => Some(v),
-            _ => None,
+/// `Stored` for a value type held in a `Values` variant, padding being its `zero`.
+macro_rules! stored {
+    ($t:ty, $variant:ident, $zero:literal) => {
+        impl Stored for $t {
+            fn wrap(v: Vec<$t>) -> Values {
+                Values::$variant(v)
+            }
+            fn slice(v: &Values) -> Option<&[$t]> {
+                match v {
+                    Values::$variant(v) => Some(v),
+                    _ => None,
+                }
+            }
+            fn is_entry(self) -> bool {
+                self != $zero
+            }
         }
-    }
-    fn is_entry(self) -> bool {
-        self != 0
-    }
+    };
 }
-impl Stored for i16 {
-    fn wrap(v: Vec<i16>) -> Values {
-        Values::Q16(v)
-    }
-    fn slice(v: &Values) -> Option<&[i16]> {
-        match v {
-            Values::Q16(v) => Some(v),
-            _ => None,
-        }
-    }
-    fn is_entry(self) -> bool {
-        self != 0
-    }
-}
-impl Stored for f32 {
-    fn wrap(v: Vec<f32>) -> Values {
-        Values::F32(v)
-    }
-    fn slice(v: &Values) -> Option<&[f32]> {
-        match v {
-            Values::F32(v) => Some(v),
-            _ => None,
-        }
-    }
-    fn is_entry(self) -> bool {
-        self != 0.0
-    }
-}
+
+stored!(i8, Q8, 0);
+stored!(i16, Q16, 0);
+stored!(f32, F32, 0.0);
 
 /// Groups, bands and blocks of an image whose tile t holds blocks `tile_block_start[t] ..
 /// tile_block_start[t + 1]`, `tiles_x` tiles to a tile row: they follow from the tiles' row
