@@ -61,20 +61,28 @@ pub struct RelightArgs {
     pub gloss_eval: crate::draw::vertex::GlossEval,
 }
 
+/// A camera moved from the scene's: a moved camera stays upright, its up being --up, not the
+/// scene camera's.
+#[derive(Args, Debug, Clone, Copy, Default)]
+pub struct MovedCamera {
+    /// Camera position X,Y,Z (default: the scene's camera).
+    #[arg(long, value_parser = super::volume::parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<glam::Vec3>,
+    /// The point the camera looks at, X,Y,Z (default: the scene's target).
+    #[arg(long, value_parser = super::volume::parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<glam::Vec3>,
+    /// The up direction X,Y,Z of a camera moved by --eye or --target (default: the world's +Y;
+    /// looking straight along it, -Z).
+    #[arg(long, value_parser = super::parse_up, allow_hyphen_values = true)]
+    pub up: Option<glam::Vec3>,
+}
+
 /// Where a per-vertex bake is seen from (a per-pixel bake's view is fixed).
 #[derive(Args, Debug, Clone, Copy, Default)]
 pub struct StillArgs {
-    /// Per-vertex bakes: camera position X,Y,Z (default: the scene's camera). A moved camera
-    /// stays upright: its up is --up, not the scene camera's.
-    #[arg(long, value_parser = super::volume::parse_vec3, allow_hyphen_values = true)]
-    pub eye: Option<glam::Vec3>,
-    /// Per-vertex bakes: the point the camera looks at, X,Y,Z (default: the scene's target).
-    #[arg(long, value_parser = super::volume::parse_vec3, allow_hyphen_values = true)]
-    pub target: Option<glam::Vec3>,
-    /// Per-vertex bakes: the up direction X,Y,Z of a camera moved by --eye or --target
-    /// (default: the world's +Y; looking straight along it, -Z).
-    #[arg(long, value_parser = super::parse_up, allow_hyphen_values = true)]
-    pub up: Option<glam::Vec3>,
+    /// Per-vertex bakes: where the camera is moved to.
+    #[command(flatten)]
+    pub moved: MovedCamera,
     /// Per-vertex bakes: image width (default: the scene's).
     #[arg(long)]
     pub width: Option<u32>,
@@ -87,9 +95,9 @@ impl StillArgs {
     /// The camera of a still of `t` ([`crate::api::Still::camera`]).
     pub fn camera(&self, t: &Transport) -> Result<Option<crate::scene::Camera>> {
         crate::api::Still {
-            eye: self.eye,
-            target: self.target,
-            up: self.up,
+            eye: self.moved.eye,
+            target: self.moved.target,
+            up: self.moved.up,
             width: self.width,
             height: self.height,
         }
@@ -105,18 +113,10 @@ pub struct ReferenceArgs {
     /// The view: a glTF camera, the image size.
     #[command(flatten)]
     pub framing: FramingArgs,
-    /// Camera position X,Y,Z (default: the scene's camera): the reference of a per-vertex bake
-    /// drawn with `prt relight --eye`. A moved camera stays upright: its up is --up, not the
-    /// scene camera's.
-    #[arg(long, value_parser = super::volume::parse_vec3, allow_hyphen_values = true)]
-    pub eye: Option<glam::Vec3>,
-    /// The point the camera looks at, X,Y,Z (default: the scene's target).
-    #[arg(long, value_parser = super::volume::parse_vec3, allow_hyphen_values = true)]
-    pub target: Option<glam::Vec3>,
-    /// The up direction X,Y,Z of a camera moved by --eye or --target (default: the world's +Y;
-    /// looking straight along it, -Z).
-    #[arg(long, value_parser = super::parse_up, allow_hyphen_values = true)]
-    pub up: Option<glam::Vec3>,
+    /// Where the camera is moved to: the reference of a per-vertex bake drawn with
+    /// `prt relight --eye`.
+    #[command(flatten)]
+    pub moved: MovedCamera,
     /// Environment: an .exr/.hdr lat-long map, a bundled map by name (`prt env --list`),
     /// sun:ELEV,AZIM[,RADIUS], or none (the local lights alone).
     #[arg(long)]
@@ -409,10 +409,11 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     let mut inputs = env_files(std::slice::from_ref(&a.env));
     check_image_output(&a.output, &inputs)?;
     let mut scene = a.framing.load(&a.scene)?;
-    if a.eye.is_some() || a.target.is_some() || a.up.is_some() {
+    let MovedCamera { eye, target, up } = a.moved;
+    if eye.is_some() || target.is_some() || up.is_some() {
         let c = &scene.camera;
-        let (eye, target) = (a.eye.unwrap_or(c.eye), a.target.unwrap_or(c.target));
-        scene.camera = crate::draw::vertex::moved_camera(c, eye, target, a.up);
+        let (eye, target) = (eye.unwrap_or(c.eye), target.unwrap_or(c.target));
+        scene.camera = crate::draw::vertex::moved_camera(c, eye, target, up);
     }
     scene.camera.validate()?;
     inputs.extend(scene.input_files.iter().cloned());
