@@ -163,6 +163,25 @@ pub(super) struct Loader<'a> {
     gltf_offsets: HashMap<PathBuf, (u32, u32)>,
 }
 
+/// What a scene is built from as its shapes are read: materials (a glTF file's added after the
+/// scene file's own), textures, lights, triangles and spheres, and the named surfaces.
+#[derive(Default)]
+struct Built {
+    materials: Vec<Material>,
+    material_maps: Vec<Option<TexturedMaterial>>,
+    material_names: Vec<String>,
+    textures: Vec<texture::Texture>,
+    lights: Vec<Light>,
+    /// glTF features the loader passes over, by name.
+    ignored: std::collections::BTreeSet<String>,
+    /// A glTF file's surfaces, moved to `surfaces` once its shape is read.
+    surfaces_from_gltf: Vec<(std::ops::Range<usize>, String)>,
+    triangles: Vec<Triangle>,
+    spheres: Vec<Sphere>,
+    surfaces: Vec<std::ops::Range<usize>>,
+    surface_names: Vec<String>,
+}
+
 impl<'a> Loader<'a> {
     pub(super) fn new(text: &'a str, path: &Path) -> Result<Self> {
         let map = SourceMap::new(text, path)?;
@@ -220,184 +239,189 @@ impl<'a> Loader<'a> {
                 format!("must be a length > 0 and <= {MAX_COORDINATE:e}, got {e}"),
             ));
         }
-        let mut lights = self.lights(&file.light)?;
-        let mut material_maps = vec![None; materials.len()];
-        let mut textures = Vec::new();
-        let mut ignored = std::collections::BTreeSet::new();
-        let mut surfaces_from_gltf = Vec::new();
-        let mut triangles = Vec::new();
-        let mut spheres = Vec::new();
-        let mut surfaces = Vec::new();
-        let mut surface_names = Vec::new();
+        let lights = self.lights(&file.light)?;
+        let mut b = Built {
+            material_maps: vec![None; materials.len()],
+            materials,
+            material_names,
+            lights,
+            ..Built::default()
+        };
         for (i, shape) in file.shape.iter().enumerate() {
-            let first_triangle = triangles.len();
-            let field = |key: &str| format!("shape[{i}].{key}");
-            for (key, present) in shape.present_keys() {
-                if present && !shape.r#type.allowed_keys().contains(&key) {
-                    return Err(self.map.error(
-                        &field(key),
-                        format!("`{key}` does not apply to a {}", shape.r#type.name()),
-                    ));
-                }
-            }
-            let require = |key: &str, present: bool| {
-                if present {
-                    Ok(())
-                } else {
-                    Err(self.map.error(
-                        &field(key),
-                        format!("a {} needs `{key}`", shape.r#type.name()),
-                    ))
-                }
-            };
-            if shape.r#type != ShapeKind::Gltf {
-                require("material", shape.material.is_some())?;
-            }
-            let material = match &shape.material {
-                Some(name) => self.material_index(&material_names, name, &field("material"))?,
-                None => 0,
-            };
-            match shape.r#type {
-                ShapeKind::Gltf => {
-                    require("path", shape.path.is_some())?;
-                    let data = self.gltf(i, shape)?;
-                    let (first_material, first_texture) = if data.first_placement {
-                        let first = (materials.len() as u32, textures.len() as u32);
-                        self.gltf_offsets.insert(data.key.clone(), first);
-                        first
-                    } else {
-                        self.gltf_offsets
-                            .get(&data.key)
-                            .copied()
-                            .unwrap_or_default()
-                    };
-                    for m in data.materials {
-                        materials.push(m.material);
-                        material_maps.push(m.maps.map(|mut maps| {
-                            for t in [
-                                &mut maps.base_color_texture,
-                                &mut maps.metallic_roughness_texture,
-                            ] {
-                                *t = t.map(|t| t + first_texture);
-                            }
-                            maps
-                        }));
-                        material_names.push(format!(
-                            "{}:{}",
-                            shape.path.as_deref().unwrap_or_default(),
-                            m.name
-                        ));
-                    }
-                    textures.extend(data.textures);
-                    for l in data.lights {
-                        if lights.iter().any(|k: &Light| k.name == l.name) {
-                            return Err(self.map.error(
-                                &field("path"),
-                                format!("its light `{}` has the name of another light", l.name),
-                            ));
-                        }
-                        lights.push(l);
-                        let columns: usize = lights.iter().map(Light::columns).sum();
-                        if columns > crate::scene::light::MAX_LIGHT_COLUMNS {
-                            return Err(self.map.error(
-                                &field("path"),
-                                format!(
-                                    "its lights take the scene past {} light columns",
-                                    crate::scene::light::MAX_LIGHT_COLUMNS
-                                ),
-                            ));
-                        }
-                    }
-                    ignored.extend(data.ignored);
-                    for (range, name) in data.surfaces {
-                        let offset = triangles.len();
-                        surfaces_from_gltf.push((
-                            range.start + offset..range.end + offset,
-                            format!("shape[{i}] {name}"),
-                        ));
-                    }
-                    triangles.extend(data.triangles.into_iter().map(|mut t| {
-                        t.material += first_material;
-                        t
-                    }));
-                }
-                ShapeKind::Sphere => {
-                    require("center", shape.center.is_some())?;
-                    require("radius", shape.radius.is_some())?;
-                    let center = position3(
-                        &self.map,
-                        &field("center"),
-                        shape.center.unwrap_or_default(),
-                    )?;
-                    let radius = shape.radius.unwrap_or_default();
-                    if !(radius.is_finite() && radius > 0.0 && radius <= MAX_COORDINATE) {
-                        return Err(self.map.error(
-                            &field("radius"),
-                            format!("must be a number > 0 and <= {MAX_COORDINATE:e}, got {radius}"),
-                        ));
-                    }
-                    spheres.push(Sphere {
-                        center,
-                        radius,
-                        material,
-                    });
-                }
-                ShapeKind::Quad => {
-                    require("corners", shape.corners.is_some())?;
-                    let mut c = [Vec3::ZERO; 4];
-                    for (k, corner) in shape.corners.unwrap_or_default().iter().enumerate() {
-                        c[k] = position3(&self.map, &field("corners"), *corner)?;
-                    }
-                    let before = triangles.len();
-                    for [a, b, d] in [[c[0], c[1], c[2]], [c[0], c[2], c[3]]] {
-                        if let Some(tri) = flat_triangle([a, b, d], material) {
-                            triangles.push(tri);
-                        }
-                    }
-                    if triangles.len() == before {
-                        return Err(self.map.error(&field("corners"), "the quad has zero area"));
-                    }
-                }
-                ShapeKind::Mesh => {
-                    require("path", shape.path.is_some())?;
-                    let mesh = self.mesh(i, shape, material)?;
-                    triangles.extend(mesh);
-                }
-            }
-            if shape.r#type == ShapeKind::Gltf {
-                for (range, name) in surfaces_from_gltf.drain(..) {
-                    surfaces.push(range);
-                    surface_names.push(name);
-                }
-            } else if triangles.len() > first_triangle {
-                surfaces.push(first_triangle..triangles.len());
-                surface_names.push(match &shape.path {
-                    Some(p) => format!("shape[{i}] ({p})"),
-                    None => format!("shape[{i}]"),
-                });
-            }
+            self.shape(i, shape, &mut b)?;
         }
 
         Ok(Scene {
             camera,
-            material_maps,
-            materials,
-            material_names,
-            textures,
-            triangles,
-            surfaces,
-            surface_names,
+            material_maps: b.material_maps,
+            materials: b.materials,
+            material_names: b.material_names,
+            textures: b.textures,
+            triangles: b.triangles,
+            surfaces: b.surfaces,
+            surface_names: b.surface_names,
             edge_length: file.edge_length,
-            spheres,
+            spheres: b.spheres,
             medium,
-            lights,
+            lights: b.lights,
             source_path: self.map.file.clone(),
             input_files: std::iter::once(self.map.file.clone())
                 .chain(self.inputs)
                 .collect(),
-            ignored: ignored.into_iter().collect(),
+            ignored: b.ignored.into_iter().collect(),
             content_hash: self.hasher.0,
         })
+    }
+
+    /// Adds shape `i` of the scene file to what the scene is `b`uilding from.
+    fn shape(&mut self, i: usize, shape: &ShapeFile, b: &mut Built) -> Result<()> {
+        let first_triangle = b.triangles.len();
+        let field = |key: &str| format!("shape[{i}].{key}");
+        for (key, present) in shape.present_keys() {
+            if present && !shape.r#type.allowed_keys().contains(&key) {
+                return Err(self.map.error(
+                    &field(key),
+                    format!("`{key}` does not apply to a {}", shape.r#type.name()),
+                ));
+            }
+        }
+        let require = |key: &str, present: bool| {
+            if present {
+                Ok(())
+            } else {
+                Err(self.map.error(
+                    &field(key),
+                    format!("a {} needs `{key}`", shape.r#type.name()),
+                ))
+            }
+        };
+        if shape.r#type != ShapeKind::Gltf {
+            require("material", shape.material.is_some())?;
+        }
+        let material = match &shape.material {
+            Some(name) => self.material_index(&b.material_names, name, &field("material"))?,
+            None => 0,
+        };
+        match shape.r#type {
+            ShapeKind::Gltf => {
+                require("path", shape.path.is_some())?;
+                let data = self.gltf(i, shape)?;
+                let (first_material, first_texture) = if data.first_placement {
+                    let first = (b.materials.len() as u32, b.textures.len() as u32);
+                    self.gltf_offsets.insert(data.key.clone(), first);
+                    first
+                } else {
+                    self.gltf_offsets
+                        .get(&data.key)
+                        .copied()
+                        .unwrap_or_default()
+                };
+                for m in data.materials {
+                    b.materials.push(m.material);
+                    b.material_maps.push(m.maps.map(|mut maps| {
+                        for t in [
+                            &mut maps.base_color_texture,
+                            &mut maps.metallic_roughness_texture,
+                        ] {
+                            *t = t.map(|t| t + first_texture);
+                        }
+                        maps
+                    }));
+                    b.material_names.push(format!(
+                        "{}:{}",
+                        shape.path.as_deref().unwrap_or_default(),
+                        m.name
+                    ));
+                }
+                b.textures.extend(data.textures);
+                for l in data.lights {
+                    if b.lights.iter().any(|k: &Light| k.name == l.name) {
+                        return Err(self.map.error(
+                            &field("path"),
+                            format!("its light `{}` has the name of another light", l.name),
+                        ));
+                    }
+                    b.lights.push(l);
+                    let columns: usize = b.lights.iter().map(Light::columns).sum();
+                    if columns > crate::scene::light::MAX_LIGHT_COLUMNS {
+                        return Err(self.map.error(
+                            &field("path"),
+                            format!(
+                                "its b.lights take the scene past {} light columns",
+                                crate::scene::light::MAX_LIGHT_COLUMNS
+                            ),
+                        ));
+                    }
+                }
+                b.ignored.extend(data.ignored);
+                for (range, name) in data.surfaces {
+                    let offset = b.triangles.len();
+                    b.surfaces_from_gltf.push((
+                        range.start + offset..range.end + offset,
+                        format!("shape[{i}] {name}"),
+                    ));
+                }
+                b.triangles.extend(data.triangles.into_iter().map(|mut t| {
+                    t.material += first_material;
+                    t
+                }));
+            }
+            ShapeKind::Sphere => {
+                require("center", shape.center.is_some())?;
+                require("radius", shape.radius.is_some())?;
+                let center = position3(
+                    &self.map,
+                    &field("center"),
+                    shape.center.unwrap_or_default(),
+                )?;
+                let radius = shape.radius.unwrap_or_default();
+                if !(radius.is_finite() && radius > 0.0 && radius <= MAX_COORDINATE) {
+                    return Err(self.map.error(
+                        &field("radius"),
+                        format!("must be a number > 0 and <= {MAX_COORDINATE:e}, got {radius}"),
+                    ));
+                }
+                b.spheres.push(Sphere {
+                    center,
+                    radius,
+                    material,
+                });
+            }
+            ShapeKind::Quad => {
+                require("corners", shape.corners.is_some())?;
+                let mut c = [Vec3::ZERO; 4];
+                for (k, corner) in shape.corners.unwrap_or_default().iter().enumerate() {
+                    c[k] = position3(&self.map, &field("corners"), *corner)?;
+                }
+                let before = b.triangles.len();
+                for corners in [[c[0], c[1], c[2]], [c[0], c[2], c[3]]] {
+                    if let Some(tri) = flat_triangle(corners, material) {
+                        b.triangles.push(tri);
+                    }
+                }
+                if b.triangles.len() == before {
+                    return Err(self.map.error(&field("corners"), "the quad has zero area"));
+                }
+            }
+            ShapeKind::Mesh => {
+                require("path", shape.path.is_some())?;
+                let mesh = self.mesh(i, shape, material)?;
+                b.triangles.extend(mesh);
+            }
+        }
+        if shape.r#type == ShapeKind::Gltf {
+            for (range, name) in b.surfaces_from_gltf.drain(..) {
+                b.surfaces.push(range);
+                b.surface_names.push(name);
+            }
+        } else if b.triangles.len() > first_triangle {
+            b.surfaces.push(first_triangle..b.triangles.len());
+            b.surface_names.push(match &shape.path {
+                Some(p) => format!("shape[{i}] ({p})"),
+                None => format!("shape[{i}]"),
+            });
+        }
+        Ok(())
     }
 
     /// The index of material `name`, or an error listing those defined.
