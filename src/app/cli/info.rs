@@ -4,9 +4,7 @@ use super::*;
 
 /// Prints what the metadata `m` of the transport file at `path` says of its bake.
 pub(super) fn print_info(path: &std::path::Path, m: &crate::store::transport::TransportMeta) {
-    let (s, id) = (&m.stats, &m.identity);
-    let bytes = std::fs::metadata(path).map(|x| x.len()).unwrap_or(0);
-    let dense_bytes = s.dense_entries as f64 * 4.0;
+    let id = &m.identity;
     println!("file          {}", path.display());
     // Strings from the file are printed with their control characters escaped: a crafted
     // file must not drive the terminal.
@@ -120,6 +118,15 @@ pub(super) fn print_info(path: &std::path::Path, m: &crate::store::transport::Tr
             id.bounces, id.paths
         );
     }
+    print_storage(path, m);
+}
+
+/// The part of [`print_info`] that says what the bake kept and what it cost: sparsity, size,
+/// energy dropped, rays; then its lights and its shard.
+fn print_storage(path: &std::path::Path, m: &crate::store::transport::TransportMeta) {
+    let (s, id) = (&m.stats, &m.identity);
+    let bytes = std::fs::metadata(path).map(|x| x.len()).unwrap_or(0);
+    let dense_bytes = s.dense_entries as f64 * 4.0;
     println!(
         "sparsify      threshold {} ({} budget, {} values)",
         id.threshold, id.budget, id.quantization
