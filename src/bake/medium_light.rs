@@ -292,37 +292,10 @@ impl MediumLight {
                     *v = visible_by_texel[t * nodes + i] as u8;
                 }
             });
-        let mut transmittance = Vec::new();
-        if table {
-            let count = voxels.count();
-            transmittance = crate::files::try_filled(field, &what, count * texels, 0u8)?;
-            let sweeper = Sweeper::new(medium);
-            let [nx, ny, _] = grid.dims;
-            for t0 in (0..texels).step_by(CHUNK) {
-                let chunk: Vec<Vec<u8>> = (t0..(t0 + CHUNK).min(texels))
-                    .into_par_iter()
-                    .map(|t| {
-                        let grid = sweeper.transmittance(centres[t]);
-                        let bytes = (0..count)
-                            .map(|v| {
-                                let tr = grid.voxel(v % nx, (v / nx) % ny, v / (nx * ny));
-                                (tr.clamp(0.0, 1.0) * 255.0).round() as u8
-                            })
-                            .collect();
-                        step(1);
-                        bytes
-                    })
-                    .collect();
-                transmittance
-                    .par_chunks_mut(texels)
-                    .enumerate()
-                    .for_each(|(v, row)| {
-                        for (k, bytes) in chunk.iter().enumerate() {
-                            row[t0 + k] = bytes[v];
-                        }
-                    });
-            }
-        }
+        let transmittance = match table {
+            true => transmittance_table(medium, &centres, [field, &what], &step)?,
+            false => Vec::new(),
+        };
         let (lo, hi) = grid.support();
         Ok(MediumLight {
             texels,
@@ -475,6 +448,46 @@ impl MediumLight {
     pub fn bytes(&self) -> usize {
         self.transmittance.len() + self.visible_by_node.len() + self.visible_by_texel.len() * 4
     }
+}
+
+/// Each voxel's transmittance towards every texel's centre, `[voxel, texel]` as bytes (1 = 255),
+/// calling `step(1)` per texel; memory checked as `[field, what]`.
+fn transmittance_table(
+    medium: &Medium,
+    centres: &[Vec3],
+    [field, what]: [&str; 2],
+    step: &(dyn Fn(usize) + Sync),
+) -> Result<Vec<u8>> {
+    let grid = &medium.grid;
+    let (count, texels) = (Lattice::new(grid.dims, 1).count(), centres.len());
+    let mut transmittance = crate::files::try_filled(field, what, count * texels, 0u8)?;
+    let sweeper = Sweeper::new(medium);
+    let [nx, ny, _] = grid.dims;
+    for t0 in (0..texels).step_by(CHUNK) {
+        let chunk: Vec<Vec<u8>> = (t0..(t0 + CHUNK).min(texels))
+            .into_par_iter()
+            .map(|t| {
+                let grid = sweeper.transmittance(centres[t]);
+                let bytes = (0..count)
+                    .map(|v| {
+                        let tr = grid.voxel(v % nx, (v / nx) % ny, v / (nx * ny));
+                        (tr.clamp(0.0, 1.0) * 255.0).round() as u8
+                    })
+                    .collect();
+                step(1);
+                bytes
+            })
+            .collect();
+        transmittance
+            .par_chunks_mut(texels)
+            .enumerate()
+            .for_each(|(v, row)| {
+                for (k, bytes) in chunk.iter().enumerate() {
+                    row[t0 + k] = bytes[v];
+                }
+            });
+    }
+    Ok(transmittance)
 }
 
 #[cfg(test)]
