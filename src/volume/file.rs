@@ -185,57 +185,9 @@ impl VolumeTransfer {
     pub fn load(path: &Path) -> Result<VolumeTransfer> {
         let bad = |m: String| PrtError::file(path, m);
         let bytes = crate::files::read_regular(path, MAX_VOLUME_BYTES, "volume")?;
-        let (_, md) = safetensors::SafeTensors::read_metadata(&bytes).map_err(|e| {
-            bad(container::what_else(path, container::VOLUME)
-                .unwrap_or(format!("not a volume transfer file: {e}")))
-        })?;
-        let json = md
-            .metadata()
-            .as_ref()
-            .and_then(|m| m.get("meta"))
-            .ok_or_else(|| bad("no `meta` entry: not a volume transfer file".into()))?;
-        let format = serde_json::from_str::<serde_json::Value>(json)
-            .ok()
-            .and_then(|v| v.get("format")?.as_str().map(str::to_string));
-        if let Some(e) = container::other_format(path, format.as_deref(), container::VOLUME) {
-            return Err(e);
-        }
-        if let Some(entries) = md.metadata() {
-            container::check_metadata_entries(entries.keys()).map_err(bad)?;
-        }
-        check_meta_seal(json).map_err(bad)?;
-        let header: FileHeader =
-            serde_json::from_str(json).map_err(|e| bad(format!("metadata: {e}")))?;
-        container::check_known_keys(json, &header).map_err(bad)?;
-        let names = md.tensors();
-        if let Some(name) = names.keys().find(|k| !TENSOR_NAMES.contains(&k.as_str())) {
-            return Err(bad(format!(
-                "unknown tensor `{}`: a volume file holds {}",
-                crate::files::printable(name),
-                TENSOR_NAMES.join(" and ")
-            )));
-        }
-        if header.format != FORMAT_NAME {
-            return Err(bad(format!(
-                "format `{}`, expected `{FORMAT_NAME}`",
-                header.format
-            )));
-        }
-        // Version 1 files hold single scattering only and read as they are.
-        if header.format_version != FORMAT_VERSION && header.format_version != 1 {
-            return Err(bad(format!(
-                "format version {}, this build reads {FORMAT_VERSION}",
-                header.format_version
-            )));
-        }
+        let (header, scatter_tensor) = header_of(path, &bytes)?;
         let m = &header.meta;
-        if !(1..=MAX_TRANSFER_ORDER).contains(&m.sh_order) {
-            return Err(bad(format!("SH order {} out of range", m.sh_order)));
-        }
         let voxels = m.dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d));
-        if voxels.is_none_or(|v| v == 0 || v > crate::medium::MAX_VOXELS) {
-            return Err(bad(format!("grid {:?} out of range", m.dims)));
-        }
         let st = safetensors::SafeTensors::deserialize(&bytes)
             .map_err(|e| bad(format!("not a valid safetensors file: {e}")))?;
         let tensor = |name: &str, len: usize| -> Result<Vec<f32>> {
@@ -257,7 +209,7 @@ impl VolumeTransfer {
         let v = voxels.unwrap_or(0);
         if let Some(sm) = &m.scatter {
             check_scatter_meta(sm).map_err(bad)?;
-        } else if names.contains_key("scatter") {
+        } else if scatter_tensor {
             return Err(bad(
                 "tensor `scatter` without its metadata `scatter`: the header was edited".into(),
             ));
@@ -337,6 +289,64 @@ impl VolumeTransfer {
             .map_err(|e| bad(format!("metadata, the default view: {e}")))?;
         Ok(vt)
     }
+}
+
+/// A volume file's header, read from `bytes` (the file at `path`) and checked: its container,
+/// format and version, tensor names, SH order and grid; and whether it holds a `scatter` tensor.
+fn header_of(path: &Path, bytes: &[u8]) -> Result<(FileHeader, bool)> {
+    let bad = |m: String| PrtError::file(path, m);
+    let (_, md) = safetensors::SafeTensors::read_metadata(bytes).map_err(|e| {
+        bad(container::what_else(path, container::VOLUME)
+            .unwrap_or(format!("not a volume transfer file: {e}")))
+    })?;
+    let json = md
+        .metadata()
+        .as_ref()
+        .and_then(|m| m.get("meta"))
+        .ok_or_else(|| bad("no `meta` entry: not a volume transfer file".into()))?;
+    let format = serde_json::from_str::<serde_json::Value>(json)
+        .ok()
+        .and_then(|v| v.get("format")?.as_str().map(str::to_string));
+    if let Some(e) = container::other_format(path, format.as_deref(), container::VOLUME) {
+        return Err(e);
+    }
+    if let Some(entries) = md.metadata() {
+        container::check_metadata_entries(entries.keys()).map_err(bad)?;
+    }
+    check_meta_seal(json).map_err(bad)?;
+    let header: FileHeader =
+        serde_json::from_str(json).map_err(|e| bad(format!("metadata: {e}")))?;
+    container::check_known_keys(json, &header).map_err(bad)?;
+    let names = md.tensors();
+    if let Some(name) = names.keys().find(|k| !TENSOR_NAMES.contains(&k.as_str())) {
+        return Err(bad(format!(
+            "unknown tensor `{}`: a volume file holds {}",
+            crate::files::printable(name),
+            TENSOR_NAMES.join(" and ")
+        )));
+    }
+    if header.format != FORMAT_NAME {
+        return Err(bad(format!(
+            "format `{}`, expected `{FORMAT_NAME}`",
+            header.format
+        )));
+    }
+    // Version 1 files hold single scattering only and read as they are.
+    if header.format_version != FORMAT_VERSION && header.format_version != 1 {
+        return Err(bad(format!(
+            "format version {}, this build reads {FORMAT_VERSION}",
+            header.format_version
+        )));
+    }
+    let m = &header.meta;
+    if !(1..=MAX_TRANSFER_ORDER).contains(&m.sh_order) {
+        return Err(bad(format!("SH order {} out of range", m.sh_order)));
+    }
+    let voxels = m.dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d));
+    if voxels.is_none_or(|v| v == 0 || v > crate::medium::MAX_VOXELS) {
+        return Err(bad(format!("grid {:?} out of range", m.dims)));
+    }
+    Ok((header, names.contains_key("scatter")))
 }
 
 /// The eight voxels around `p` in `meta`'s grid and their trilinear weights, between voxel
