@@ -193,6 +193,98 @@ impl Layout {
     }
 }
 
+/// Where each of block `b`'s columns starts among its entries.
+fn column_starts<'b, V>(b: &BlockColumns<'b, V>) -> impl Iterator<Item = Range<usize>> + 'b {
+    let mut at = 0usize;
+    b.counts.iter().map(move |&n| {
+        let s = at;
+        at += n as usize;
+        s..at
+    })
+}
+
+/// Checks the blocks' columns of `c` coefficients against their entries: counts, codes, rows
+/// strictly increasing in each column, and no entry past its block's rows.
+fn check_blocks<V: Stored>(
+    blocks: &[BlockColumns<V>],
+    c: usize,
+) -> std::result::Result<(), String> {
+    for (i, b) in blocks.iter().enumerate() {
+        let total: usize = b.counts.iter().map(|&n| n as usize).sum();
+        if b.counts.len() != c
+            || b.codes.len() != c
+            || b.rows.len() != total
+            || b.values.len() != total
+            || b.block_rows > BLOCK_ROWS
+        {
+            return Err(format!("block {i}: its columns do not fit its entries"));
+        }
+        for (j, col) in column_starts(b).enumerate() {
+            if b.rows[col.clone()].windows(2).any(|w| w[1] <= w[0]) {
+                return Err(format!(
+                    "block {i}, coefficient {j}: rows not strictly increasing"
+                ));
+            }
+            // A stored zero (an older file may hold one) is no entry and may lie anywhere.
+            let mut entries = b.rows[col.clone()].iter().zip(&b.values[col]);
+            if entries.any(|(&r, v)| v.is_entry() && r as usize >= b.block_rows) {
+                return Err(format!(
+                    "block {i}, coefficient {j}: a row past the block's {}",
+                    b.block_rows
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The first pass of [`Strips::of_blocks`] for group `g`: every column's strips counted, and the
+/// group's slots laid out band by band, coefficient by coefficient; with the group's strips.
+fn group_slots<V: Stored>(
+    layout: &Layout,
+    blocks: &[BlockColumns<V>],
+    c: usize,
+    g: usize,
+) -> (Vec<Slot>, usize) {
+    let group = layout.group_blocks(g);
+    let mut counts = vec![0u8; group.len() * c];
+    for (i, b) in blocks[group.clone()].iter().enumerate() {
+        let block_strips = block_strips(b.block_rows);
+        for (col, count) in column_starts(b).zip(&mut counts[i * c..(i + 1) * c]) {
+            let mut last = None;
+            // A stored zero (an older file may hold one) is no entry and takes no strip.
+            let entries = b.rows[col.clone()].iter().zip(&b.values[col]);
+            for (&r, _) in entries.filter(|(_, v)| v.is_entry()) {
+                let place = r / STRIP_ROWS as u8;
+                if last != Some(place) {
+                    last = Some(place);
+                    *count += 1;
+                }
+            }
+            if stored_whole(*count as usize, block_strips) {
+                *count = block_strips as u8;
+            }
+        }
+    }
+    let mut slots = Vec::with_capacity(group.len() * c);
+    let mut strips = 0usize;
+    for band in layout.group_bands_of(g) {
+        for j in 0..c {
+            for b in band.clone() {
+                let count = counts[(b - group.start) * c + j];
+                slots.push(Slot {
+                    first: strips as u32,
+                    count,
+                    code: blocks[b].codes[j],
+                    entries: blocks[b].counts[j],
+                });
+                strips += count as usize;
+            }
+        }
+    }
+    (slots, strips)
+}
+
 impl Strips {
     /// The strips of the blocks `blocks` (block b's columns), laid out as `layout` says, in
     /// `c` coefficients. Groups are laid out in parallel, in two passes straight into the final
@@ -207,86 +299,12 @@ impl Strips {
         if layout.band_block_start.last().copied().unwrap_or(0) as usize != blocks.len() {
             return Err("the layout's bands do not cover the blocks".into());
         }
-        // Where each block's columns start among its entries.
-        fn column_starts<'b, V>(
-            b: &BlockColumns<'b, V>,
-        ) -> impl Iterator<Item = Range<usize>> + 'b {
-            let mut at = 0usize;
-            b.counts.iter().map(move |&n| {
-                let s = at;
-                at += n as usize;
-                s..at
-            })
-        }
-        for (i, b) in blocks.iter().enumerate() {
-            let total: usize = b.counts.iter().map(|&n| n as usize).sum();
-            if b.counts.len() != c
-                || b.codes.len() != c
-                || b.rows.len() != total
-                || b.values.len() != total
-                || b.block_rows > BLOCK_ROWS
-            {
-                return Err(format!("block {i}: its columns do not fit its entries"));
-            }
-            for (j, col) in column_starts(b).enumerate() {
-                if b.rows[col.clone()].windows(2).any(|w| w[1] <= w[0]) {
-                    return Err(format!(
-                        "block {i}, coefficient {j}: rows not strictly increasing"
-                    ));
-                }
-                // A stored zero (an older file may hold one) is no entry and may lie anywhere.
-                let mut entries = b.rows[col.clone()].iter().zip(&b.values[col]);
-                if entries.any(|(&r, v)| v.is_entry() && r as usize >= b.block_rows) {
-                    return Err(format!(
-                        "block {i}, coefficient {j}: a row past the block's {}",
-                        b.block_rows
-                    ));
-                }
-            }
-        }
+        check_blocks(blocks, c)?;
         // First pass, in parallel over groups: every column's strips counted, and the slots
         // laid out band by band, coefficient by coefficient.
         let layouts: Vec<(Vec<Slot>, usize)> = (0..groups)
             .into_par_iter()
-            .map(|g| {
-                let group = layout.group_blocks(g);
-                let mut counts = vec![0u8; group.len() * c];
-                for (i, b) in blocks[group.clone()].iter().enumerate() {
-                    let block_strips = block_strips(b.block_rows);
-                    for (col, count) in column_starts(b).zip(&mut counts[i * c..(i + 1) * c]) {
-                        let mut last = None;
-                        // A stored zero (an older file may hold one) is no entry and takes no strip.
-                        let entries = b.rows[col.clone()].iter().zip(&b.values[col]);
-                        for (&r, _) in entries.filter(|(_, v)| v.is_entry()) {
-                            let place = r / STRIP_ROWS as u8;
-                            if last != Some(place) {
-                                last = Some(place);
-                                *count += 1;
-                            }
-                        }
-                        if stored_whole(*count as usize, block_strips) {
-                            *count = block_strips as u8;
-                        }
-                    }
-                }
-                let mut slots = Vec::with_capacity(group.len() * c);
-                let mut strips = 0usize;
-                for band in layout.group_bands_of(g) {
-                    for j in 0..c {
-                        for b in band.clone() {
-                            let count = counts[(b - group.start) * c + j];
-                            slots.push(Slot {
-                                first: strips as u32,
-                                count,
-                                code: blocks[b].codes[j],
-                                entries: blocks[b].counts[j],
-                            });
-                            strips += count as usize;
-                        }
-                    }
-                }
-                (slots, strips)
-            })
+            .map(|g| group_slots(&layout, blocks, c, g))
             .collect();
         let total: usize = layouts.iter().map(|l| l.1).sum();
         if u32::try_from(total).is_err() {
