@@ -110,6 +110,22 @@ pub fn path_trace_lit(
     path_trace_env(scene, &env, lights, settings, samples, progress)
 }
 
+/// `scene` seen from `camera`, path traced under the environment `env` alone (no local lights)
+/// with `samples` paths a pixel, as a study's reference: an image that is not finite is an error.
+pub fn path_trace_from(
+    scene: &Scene,
+    camera: &crate::scene::Camera,
+    env: &dyn EnvLight,
+    settings: &BakeSettings,
+    samples: u32,
+) -> Result<PathTraced> {
+    let mut seen = scene.clone();
+    seen.camera = camera.clone();
+    let traced = path_trace_env(&seen, env, &LightMix::none(), settings, samples, &|_, _| {})?;
+    traced.image.check_finite("path-traced image")?;
+    Ok(traced)
+}
+
 /// [`path_trace_lit`] under any environment light: a cube ([`CubeLight`]), or a lat-long map's
 /// own pixels ([`crate::env::importance::MapLight`]), the true lighting with no cube's
 /// resolution in between.

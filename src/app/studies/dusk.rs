@@ -7,12 +7,13 @@ use std::path::{Path, PathBuf};
 
 use crate::app::studies::Study;
 use crate::draw::background::{composite, environment_behind};
-use crate::env::envmap::{EnvRotation, EnvSpec};
+use crate::env::envmap::{EnvMap, EnvRotation, EnvSpec};
+use crate::env::select::Weighting;
 use crate::error::Result;
 use crate::output::film::{Image, ToneMap};
 use crate::output::sheet::{Cell, downsample, write_sheet};
 use crate::relight::{Backend, Cpu, LightContext, LightMix, LightSetting, RelightRequest, Terms};
-use crate::scene::Scene;
+use crate::store::transport::Transport;
 
 /// The environment of the dusk scene: a sun 4° above the horizon, in the west.
 pub const DUSK_SUN: &str = "sun:4,250";
@@ -36,30 +37,32 @@ pub struct DuskReport {
 
 /// Bakes (or reuses) the dusk scene under `assets` into `dir/dusk.prt` with `settings` (the
 /// demo's) and writes its sheet, the environment relit with K = 200 terms chosen by
+/// The dusk's sun and sky, and its light as the dusk's sheet relights it: the 200 wavelet terms
+/// `weighting` keeps.
+pub fn dusk_terms(t: &Transport, weighting: Weighting) -> Result<(EnvMap, Terms)> {
+    let env = EnvSpec::parse(DUSK_SUN)?.load()?;
+    let ctx = LightContext::new(t)?;
+    let light = ctx.prepare(&env, EnvRotation::default())?;
+    let terms = Terms::of(
+        t,
+        &ctx,
+        &light,
+        &RelightRequest::Wavelet { k: 200, weighting },
+    )?;
+    Ok((env, terms))
+}
+
 /// `weighting`.
-pub fn run_dusk(
-    study: &mut Study,
-    assets: &Path,
-    weighting: crate::env::select::Weighting,
-) -> Result<DuskReport> {
+pub fn run_dusk(study: &mut Study, assets: &Path, weighting: Weighting) -> Result<DuskReport> {
     let (dir, settings) = (study.dir, study.settings);
-    let scene = Scene::load(&assets.join("scenes/dusk.toml"))?;
-    let transport_path = dir.join("dusk.prt");
+    let (scene, transport_path) = study.asset_scene(assets, "dusk")?;
     let what = format!(
         "baking {} with its {} local lights ...",
         scene.source_path.display(),
         scene.lights.len()
     );
-    let (t, reused_bake, bake_seconds) = study.bake("dusk.prt", &scene, settings, &what)?;
-    let env = EnvSpec::parse(DUSK_SUN)?.load()?;
-    let ctx = LightContext::new(&t)?;
-    let light = ctx.prepare(&env, EnvRotation::default())?;
-    let terms = Terms::of(
-        &t,
-        &ctx,
-        &light,
-        &RelightRequest::Wavelet { k: 200, weighting },
-    )?;
+    let (t, reused_bake, bake_seconds) = study.bake(&transport_path, &scene, settings, &what)?;
+    let (env, terms) = dusk_terms(&t, weighting)?;
     let behind = environment_behind(&t.meta, &t.coverage, &env, EnvRotation::default())?;
     let lights = &t.meta.lights;
     let defaults = LightSetting::defaults(lights);

@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::bake::path_tracer::path_trace_env;
+use crate::bake::path_tracer::path_trace_from;
 use crate::bake::reference::render_reference_with;
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::draw::vertex::{GlossEval, draw, draw_relit, vertex_colours};
@@ -22,7 +22,7 @@ use crate::output::film::ToneMap;
 use crate::output::metrics::relative_l2;
 use crate::output::plot::{self, PALETTE, PlotSpec, Series};
 use crate::relight::gpu::Gpu;
-use crate::relight::{Backend, LightContext, LightMix, RelightRequest, Terms, relight};
+use crate::relight::{Backend, LightContext, RelightRequest, Terms, relight};
 use crate::scene::tessellate::VertexMesh;
 use crate::scene::{Camera, Scene};
 use crate::store::transport::{BakeDomain, Transport};
@@ -263,25 +263,16 @@ pub fn run(
     let diffuse_scene = scene.with_diffuse_materials();
     let mut references = Vec::new();
     let mut cameras = Vec::new();
+    // The path tracer is lit by the map's own pixels: the true lighting, with no cube between it
+    // and the image.
+    let light = MapLight::new(env, rotation);
     for (i, cam) in opts.cameras.iter().enumerate() {
         log(&format!(
             "camera {}: path tracing ({} paths a pixel) and the diffuse brute force ...",
             i + 1,
             opts.paths
         ));
-        let mut at = scene.clone();
-        at.camera = cam.clone();
-        // Lit by the map's own pixels: the true lighting, with no cube between it and the image.
-        let light = MapLight::new(env, rotation);
-        let traced = path_trace_env(
-            &at,
-            &light,
-            &LightMix::none(),
-            &base,
-            opts.paths,
-            &|_, _| {},
-        )?;
-        traced.image.check_finite("path-traced image")?;
+        let traced = path_trace_from(scene, cam, &light, &base, opts.paths)?;
         let tone = ToneMap::auto(&traced.image, None);
         traced.image.save(
             &images.join(format!("camera{}_path_traced.exr", i + 1)),

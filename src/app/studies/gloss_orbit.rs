@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use crate::app::studies::Study;
 use crate::app::studies::orbit::ORBIT_AZIMUTHS;
 use crate::bake::BakeSettings;
-use crate::bake::path_tracer::path_trace_env;
+use crate::bake::path_tracer::path_trace_from;
 use crate::draw::background::{composite, environment_behind_camera};
 use crate::draw::raster::DRAW_SAMPLES;
 use crate::draw::vertex::{GlossEval, bake_camera, compose, draw, draw_relit, orbit};
@@ -18,7 +18,7 @@ use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{cells_at, write_sheet};
-use crate::relight::{LightContext, LightMix, RelightRequest, relight};
+use crate::relight::{LightContext, RelightRequest, relight};
 use crate::scene::Scene;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::BakeDomain;
@@ -79,7 +79,7 @@ pub fn run_gloss_orbit(
         scene.source_path.display()
     );
     let (t, reused_bake, bake_seconds) =
-        study.bake("demo_glossy.prt", scene, &glossy_settings, &what)?;
+        study.bake(&transport_path, scene, &glossy_settings, &what)?;
     let ctx = LightContext::new(&t)?;
     let light = ctx.prepare(env, rotation)?;
     let (full, _) = relight(&t, &ctx, &light, &RelightRequest::Full)?;
@@ -126,18 +126,8 @@ pub fn run_gloss_orbit(
                 "path tracing the demo from {GLOSS_REFERENCE_AZIMUTH}° round \
                  ({GLOSS_REFERENCE_PATHS} paths a pixel) ..."
             ));
-            let mut turned = scene.clone();
-            turned.camera = cam.clone();
             let light = MapLight::new(env, rotation);
-            let traced = path_trace_env(
-                &turned,
-                &light,
-                &LightMix::none(),
-                settings,
-                GLOSS_REFERENCE_PATHS,
-                &|_, _| {},
-            )?;
-            traced.image.check_finite("path-traced image")?;
+            let traced = path_trace_from(scene, &cam, &light, settings, GLOSS_REFERENCE_PATHS)?;
             traced
                 .image
                 .save(&exr, ToneMap::auto(&traced.image, None))?;

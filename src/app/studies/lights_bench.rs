@@ -9,13 +9,12 @@ use std::time::Instant;
 
 use crate::bake::path_tracer::path_trace_lit;
 use crate::bake::{BakeSettings, bake};
-use crate::env::envmap::{EnvRotation, EnvSpec};
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::{CubeMap, texel_count};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::plot::{self, PlotSpec, Series};
-use crate::relight::{Backend, Cpu, LightContext, LightMix, LightSetting, RelightRequest, Terms};
+use crate::relight::{Backend, Cpu, LightMix, LightSetting, Terms};
 use crate::scene::Scene;
 use crate::scene::light::LightKind;
 use crate::store::transport::Transport;
@@ -348,18 +347,8 @@ fn many_lights(
         crate::relight::columns::add_columns(&t.lights, &one.weights, &mut image.pixels);
         Ok(())
     })?;
-    let env = EnvSpec::parse(crate::app::studies::dusk::DUSK_SUN)?.load()?;
-    let ctx = LightContext::new(&t)?;
-    let prepared = ctx.prepare(&env, EnvRotation::default())?;
-    let terms = Terms::of(
-        &t,
-        &ctx,
-        &prepared,
-        &RelightRequest::Wavelet {
-            k: 200,
-            weighting: crate::app::studies::demo::DEMO_WEIGHTING,
-        },
-    )?;
+    let (_, terms) =
+        crate::app::studies::dusk::dusk_terms(&t, crate::app::studies::demo::DEMO_WEIGHTING)?;
     let env_ms = median_ms(opts.runs, || Cpu(&t).relight_terms(&terms).map(|_| ()))?;
     let frame_ms = median_ms(opts.runs, || Cpu(&t).relight_lit(&terms, &all).map(|_| ()))?;
     Ok(ManyLights {

@@ -3,7 +3,7 @@
 //! [`volume_orders`]) and the paper's measurements ([`paper`]): each bakes, relights and measures
 //! through the library, and writes its tables, plots and sheets.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::error::Result;
@@ -40,17 +40,23 @@ impl Study<'_> {
         (self.log)(line)
     }
 
-    /// Bakes `scene` with `settings` into the file `name` of the folder, saying `what` first, or
-    /// reuses the file where it holds that bake (and says so). Returns the transport, whether it
-    /// was reused, and the seconds taken.
+    /// The bundled scene `assets/scenes/NAME.toml`, and where the folder keeps its bake,
+    /// `NAME.prt`.
+    pub fn asset_scene(&self, assets: &Path, name: &str) -> Result<(Scene, PathBuf)> {
+        let scene = Scene::load(&assets.join(format!("scenes/{name}.toml")))?;
+        Ok((scene, self.dir.join(format!("{name}.prt"))))
+    }
+
+    /// Bakes `scene` with `settings` into `path`, saying `what` first, or reuses the file where it
+    /// holds that bake (and says so). Returns the transport, whether it was reused, and the
+    /// seconds taken.
     pub fn bake(
         &mut self,
-        name: &str,
+        path: &Path,
         scene: &Scene,
         settings: &BakeSettings,
         what: &str,
     ) -> Result<(Transport, bool, f64)> {
-        let path = self.dir.join(name);
-        load_or_bake_logged(&path, scene, settings, what, self.log, self.progress)
+        load_or_bake_logged(path, scene, settings, what, self.log, self.progress)
     }
 }

@@ -93,7 +93,7 @@ fn bake_vertices(
         "baking {} per vertex (edges up to {edge:.3}) ...",
         scene.source_path.display(),
     );
-    study.bake(name, scene, &settings, &what)
+    study.bake(&study.dir.join(name), scene, &settings, &what)
 }
 
 /// Bakes (or reuses) `scene` per vertex into `dir/demo_vertices.prt` with `settings` at the

@@ -14,7 +14,6 @@ use crate::output::film::ToneMap;
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{Cell, write_sheet};
 use crate::relight::{LightContext, RelightRequest, relight};
-use crate::scene::Scene;
 
 /// The environments of the sheet, one row each.
 pub const TRUCK_ENVS: [&str; 2] = ["blender_sunrise", "blender_studio"];
@@ -41,15 +40,14 @@ pub struct TruckReport {
 /// demo's) and writes its sheet, wavelets chosen by `weighting`.
 pub fn run_truck(study: &mut Study, assets: &Path, weighting: Weighting) -> Result<TruckReport> {
     let (dir, settings) = (study.dir, study.settings);
-    let scene = Scene::load(&assets.join("scenes/truck.toml"))?;
-    let transport_path = dir.join("truck.prt");
+    let (scene, transport_path) = study.asset_scene(assets, "truck")?;
     let what = format!(
         "baking {} ({} triangles, {} textures) ...",
         scene.source_path.display(),
         scene.triangle_count(),
         scene.textures.len()
     );
-    let (t, reused_bake, bake_seconds) = study.bake("truck.prt", &scene, settings, &what)?;
+    let (t, reused_bake, bake_seconds) = study.bake(&transport_path, &scene, settings, &what)?;
     let ctx = LightContext::new(&t)?;
     let top = format!("SH order {}", settings.sh_order);
     let requests = [
