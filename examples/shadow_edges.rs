@@ -177,7 +177,7 @@ fn error(
     camera: &Camera,
     r: &Reference,
 ) -> Result<f64, Box<dyn Error>> {
-    let drawn = draw_relit(t, full, camera, None, 1, GlossEval::PerPixel)?;
+    let drawn = draw_relit(t, full, None, camera, None, 1, GlossEval::PerPixel)?;
     let both: Vec<f32> = drawn
         .coverage
         .iter()

@@ -51,6 +51,7 @@ fn unusual() -> BakeSettings {
         brdf_terms: 3,
         brdf_error: 0.02,
         refine_shadows: true,
+        visibility: true,
     }
 }
 

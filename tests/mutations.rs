@@ -513,7 +513,7 @@ fn draw_per_vertex(t: &Transport, relit: &wavelet_prt::output::film::Image) -> R
         (camera.clone(), GlossEval::PerPixel),
         (orbit(&camera, 50.0, 20.0), GlossEval::PerVertex),
     ] {
-        if let Ok(drawn) = draw_relit(t, relit, &camera, None, 1, eval)
+        if let Ok(drawn) = draw_relit(t, relit, None, &camera, None, 1, eval)
             && let Some(p) = drawn.image.first_non_finite()
         {
             return Err(format!("a per-vertex draw ({eval}) wrote {p:?}"));

@@ -406,7 +406,7 @@ fn the_command_line_bakes_draws_and_describes_a_glossy_vertex_bake() {
     let env = assets().join("envmaps/blender_studio.exr");
     let env = env.to_str().unwrap();
     for (flag, value, said) in [
-        ("--brdf-terms", "0,4", "--brdf-terms"),
+        ("--brdf-terms", "4,17", "--brdf-terms"),
         ("--edge-factors", "2,2", "twice"),
     ] {
         let (code, out) = prt(&["gloss", s, "--env", env, "--out", bench, flag, value]);
@@ -450,7 +450,16 @@ fn the_gpu_draws_a_glossy_bake_as_the_cpu_does() {
                 height: 48,
                 ..orbit(&base, az, 10.0)
             };
-            let cpu = draw_relit(&t, &image, &camera, None, samples, GlossEval::PerPixel).unwrap();
+            let cpu = draw_relit(
+                &t,
+                &image,
+                None,
+                &camera,
+                None,
+                samples,
+                GlossEval::PerPixel,
+            )
+            .unwrap();
             let dev = raster.draw(&gpu, &camera, &m, &buffer).unwrap();
             let brightest = cpu
                 .image

@@ -80,7 +80,7 @@ use crate::draw::vertex::{self, GlossEval};
 pub use crate::env::select::SparseLight;
 use crate::error::{PrtError, Result};
 pub use crate::relight::PreparedLight;
-use crate::relight::{Backend, Cpu, LightContext};
+use crate::relight::{Backend, Cpu, LightContext, lobe_light};
 use crate::store::transport::Domain;
 
 /// Kept wavelet terms K when none are asked for: `prt relight --terms`, the viewer's first view
@@ -338,11 +338,24 @@ impl Relighter {
     ) -> Result<Image> {
         crate::draw::raster::sample_offsets(samples)?;
         let camera = still.camera(&self.transport)?;
-        let image = self.lit(env, request, rotation, lights)?;
+        let terms = match env {
+            Some(env) => self.terms(env, request, rotation)?,
+            None => Terms::dark(),
+        };
+        let image = self.lit(&terms, lights)?;
         let t = &self.transport;
         let (image, coverage) = match &camera {
             Some(camera) => {
-                let r = vertex::draw_relit(t, &image, camera, None, samples, GlossEval::default())?;
+                let light = lobe_light(t, &terms)?;
+                let r = vertex::draw_relit(
+                    t,
+                    &image,
+                    light.as_ref(),
+                    camera,
+                    None,
+                    samples,
+                    GlossEval::default(),
+                )?;
                 (r.image, r.coverage)
             }
             None => (image, t.coverage.clone()),
@@ -359,21 +372,10 @@ impl Relighter {
         Ok(composite(&image, &behind))
     }
 
-    /// The relit image of `request` under `env` (none: dark) plus `lights`, checked finite: a
-    /// per-pixel bake's view, a per-vertex bake's vertex colours.
-    fn lit(
-        &mut self,
-        env: Option<&Environment>,
-        request: &RelightRequest,
-        rotation: EnvRotation,
-        lights: &LightMix,
-    ) -> Result<Image> {
-        // K is checked where the terms are selected ([`Terms::of`]).
-        let terms = match env {
-            Some(env) => self.terms(env, request, rotation)?,
-            None => Terms::dark(),
-        };
-        let (image, _) = Cpu(&self.transport).relight_lit(&terms, lights)?;
+    /// The relit image of `terms` plus `lights`, checked finite: a per-pixel bake's view, a
+    /// per-vertex bake's vertex colours.
+    fn lit(&mut self, terms: &Terms, lights: &LightMix) -> Result<Image> {
+        let (image, _) = Cpu(&self.transport).relight_lit(terms, lights)?;
         image.check_finite("relit image")?;
         Ok(image)
     }
@@ -451,10 +453,13 @@ impl Relighter {
         vertex::mesh_of(&self.transport)?;
         // A per-vertex bake's relit image is its vertex colours, with nothing behind them.
         let relit = self.relight(env, request, rotation, lights)?;
+        let terms = self.terms(env, request, rotation)?;
+        let light = lobe_light(&self.transport, &terms)?;
         let behind = (self.background == Background::Environment).then_some((env.map(), rotation));
         let raster = vertex::draw_relit(
             &self.transport,
             &relit,
+            light.as_ref(),
             camera,
             behind,
             DRAW_SAMPLES,

@@ -20,6 +20,7 @@ mod settings;
 mod slot;
 mod tile;
 mod tint;
+mod visibility;
 
 use crate::store::transport::BakeDomain;
 pub use direct::{accumulate_direct_rows, direct_texels};
@@ -242,13 +243,18 @@ fn image_size(scene: &Scene, mesh: Option<&VertexMesh>) -> (usize, usize) {
 fn bake_tiles(
     scene: &Scene,
     settings: &BakeSettings,
-    mesh: Option<VertexMesh>,
+    mut mesh: Option<VertexMesh>,
     progress: &(dyn Fn(BakeProgress) + Sync),
     cancel: &Cancel,
     deliver: &mut (dyn FnMut(EncodedTile, TileStats) -> Result<()> + Send),
 ) -> Result<Untiled> {
     let identity = settings.identity(scene)?;
     let tracer = Tracer::new(scene);
+    if let Some(m) = mesh.as_mut().filter(|_| identity.visibility) {
+        let (bits, _rays) =
+            visibility::glossy_vertices(scene, &tracer, m, settings.cube_n, settings.unshadowed)?;
+        m.visibility = Some(Box::new(bits));
+    }
     let (w, h) = image_size(scene, mesh.as_ref());
     let n = settings.cube_n;
     let samples = TexelSamples::new(n, settings.texel_samples as usize, settings.seed)

@@ -84,6 +84,10 @@ pub struct BakeSettings {
     /// shadow's edge, yet the drawn image is no closer to the per-pixel bake (3.75% against
     /// 3.68% at equal vertex counts), so it is not yet the better choice.
     pub refine_shadows: bool,
+    /// Whether a per-vertex bake stores which cube texels each glossy vertex sees
+    /// ([`crate::scene::visibility::Visibility`]), so that its glossy lobe is drawn per pixel from
+    /// the light itself ([`crate::draw::lobe`]) rather than left out.
+    pub visibility: bool,
 }
 
 impl Default for BakeSettings {
@@ -111,6 +115,7 @@ impl Default for BakeSettings {
             brdf_terms: 1,
             brdf_error: 0.0,
             refine_shadows: false,
+            visibility: false,
         }
     }
 }
@@ -184,6 +189,13 @@ impl BakeSettings {
                          material)",
                         self.brdf_error
                     ),
+                ));
+            }
+            if self.visibility && self.brdf_terms > 1 {
+                return Err(PrtError::invalid(
+                    "per-vertex bake",
+                    "a glossy lobe is drawn either from in-out terms or from visibility: bake \
+                     with --brdf-terms 1 to store visibility",
                 ));
             }
             if self.bounces > 0 {
@@ -314,6 +326,7 @@ impl BakeSettings {
                 _ => 0.0,
             },
             refine_shadows: self.refines_shadows(),
+            visibility: self.visibility && matches!(self.domain, BakeDomain::Vertices { .. }),
         })
     }
 
@@ -368,6 +381,7 @@ impl BakeSettings {
                 BakeDomain::View => defaults.refine_shadows,
                 BakeDomain::Vertices { .. } => id.refine_shadows,
             },
+            visibility: id.visibility,
         }
     }
 }

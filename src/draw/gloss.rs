@@ -5,7 +5,7 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::draw::raster::{ViewDependent, check_colours};
+use crate::draw::raster::{ViewDependent, check_colours, interpolated_normal};
 use crate::error::{PrtError, Result};
 use crate::scene::brdf_factor::{BrdfFactors, to_local};
 
@@ -59,10 +59,7 @@ impl ViewDependent for Gloss<'_> {
         if k_b <= 1 {
             return DVec3::ZERO;
         }
-        let n = (0..3)
-            .map(|i| self.normals[tri[i] as usize].as_dvec3() * b[i])
-            .sum::<DVec3>();
-        let Some(n) = n.try_normalize() else {
+        let Some(n) = interpolated_normal(self.normals, tri, b) else {
             return DVec3::ZERO;
         };
         let local = to_local(n.as_vec3(), to_eye.as_vec3());

@@ -7,5 +7,6 @@ pub mod background;
 pub mod gloss;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub mod lobe;
 pub mod raster;
 pub mod vertex;

@@ -103,6 +103,16 @@ impl<'a> Texturing<'a> {
     }
 }
 
+/// The unit normal at barycentrics `b` of triangle `tri`, its vertices' `normals` interpolated;
+/// `None` where they cancel.
+#[inline]
+pub fn interpolated_normal(normals: &[Vec3], tri: [u32; 3], b: [f64; 3]) -> Option<DVec3> {
+    (0..3)
+        .map(|i| normals[tri[i] as usize].as_dvec3() * b[i])
+        .sum::<DVec3>()
+        .try_normalize()
+}
+
 /// What a per-vertex bake stores for view-dependent shading, as the raster asks for it: the
 /// light a point adds, seen from a direction, on top of its interpolated vertex colour. A new
 /// representation of glossy light is an impl of this ([`crate::draw::gloss::Gloss`], the in-out

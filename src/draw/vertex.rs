@@ -14,7 +14,9 @@ use crate::output::film::Image;
 use std::borrow::Cow;
 
 use crate::draw::gloss::Gloss;
+use crate::draw::lobe::{DEFAULT_LOBE_SAMPLES, Lobe};
 use crate::draw::raster::{Raster, Texturing, ViewDependent, rasterize_glossy};
+use crate::math::cube_pyramid::CubePyramid;
 use crate::scene::Camera;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::Transport;
@@ -274,19 +276,40 @@ crate::named!(GlossEval, "gloss evaluation");
 
 /// Draws a per-vertex bake relit to `relit` as `camera` sees it, on the CPU: its vertex colours
 /// (its diffuse light; see [`vertex_colours`]), its textured materials multiplied by their
-/// albedo maps per pixel, the glossy light of a bake with in-out terms added as `eval` says,
-/// with `behind` (the environment and its turn) where no surface is drawn, with `samples`
-/// samples a pixel (see [`crate::draw::raster::rasterize_multisampled`]). Also gives the
-/// coverage, for masks and tone mapping.
+/// albedo maps per pixel, the glossy light of a bake with in-out terms added as `eval` says, or
+/// that of a bake with visibility drawn per pixel from `light` (the pyramid of the light the
+/// relight used, [`crate::relight::Terms::cube`]; an error without it), with `behind` (the
+/// environment and its turn) where no surface is drawn, with `samples` samples a pixel (see
+/// [`crate::draw::raster::rasterize_multisampled`]). Also gives the coverage, for masks and tone
+/// mapping.
 pub fn draw_relit(
     t: &Transport,
     relit: &Image,
+    light: Option<&CubePyramid>,
     camera: &Camera,
     behind: Option<(&EnvMap, EnvRotation)>,
     samples: u32,
     eval: GlossEval,
 ) -> Result<Raster> {
     let mesh = mesh_of(t)?;
+    if let Some(vis) = &mesh.visibility {
+        let light = light.ok_or_else(|| {
+            PrtError::invalid(
+                "light",
+                "a glossy bake with visibility draws its highlights from the light: it needs \
+                 the light the relight used",
+            )
+        })?;
+        let lobe = Lobe::new(
+            &mesh.normals,
+            &mesh.materials,
+            vis,
+            light,
+            DEFAULT_LOBE_SAMPLES,
+        );
+        let colours = vertex_colours(t, relit)?;
+        return draw_mesh(mesh, &colours, Some(&lobe), camera, behind, samples);
+    }
     let colours = vertex_colours(t, relit)?;
     let terms = vertex_terms(t, relit)?;
     let gloss = mesh

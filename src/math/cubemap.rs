@@ -76,12 +76,19 @@ pub fn texel_dir(n: usize, face: usize, row: usize, col: usize) -> DVec3 {
     face_st_to_dir(face, s, t).normalize()
 }
 
+/// Face, row and column of the texel containing direction `d`.
+#[inline]
+pub fn dir_to_cell(n: usize, d: DVec3) -> (usize, usize, usize) {
+    let (face, s, t) = dir_to_face_st(d);
+    let to_cell = |x: f64| (((x + 1.0) * 0.5 * n as f64) as usize).min(n - 1);
+    (face, to_cell(t), to_cell(s))
+}
+
 /// Linear index of the texel containing direction `d`.
 #[inline]
 pub fn dir_to_texel(n: usize, d: DVec3) -> usize {
-    let (face, s, t) = dir_to_face_st(d);
-    let to_cell = |x: f64| (((x + 1.0) * 0.5 * n as f64) as usize).min(n - 1);
-    texel_index(n, face, to_cell(t), to_cell(s))
+    let (face, row, col) = dir_to_cell(n, d);
+    texel_index(n, face, row, col)
 }
 
 /// Solid angle of the face region [0, s] x [0, t] as seen from the cube centre (cube of half-size 1).

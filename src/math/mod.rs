@@ -3,6 +3,7 @@
 //! the magnitude that ranks an RGB coefficient, and the leading singular triplets of a matrix.
 //! Nothing here knows of scenes or files.
 
+pub mod cube_pyramid;
 pub mod cubemap;
 pub mod haar;
 pub mod sampling;

@@ -18,6 +18,8 @@ pub use prepare::{LightContext, PreparedLight};
 
 use crate::env::select::{SparseLight, WaveletLight, Weighting};
 use crate::error::{PrtError, Result};
+use crate::math::cube_pyramid::CubePyramid;
+use crate::math::cubemap::CubeMap;
 use crate::output::film::Image;
 use crate::store::transport::Transport;
 
@@ -198,6 +200,44 @@ impl Terms {
         })
     }
 
+    /// The light these terms stand for on an N-cube, as texels: the inverse Haar transform of
+    /// the kept terms (the others zero), or the SH coefficients' sum at each texel centre. What
+    /// a glossy lobe drawn per pixel reads ([`crate::draw::lobe`]), so that K and SH against
+    /// wavelets act on highlights as on the diffuse light.
+    pub fn cube(&self, n: usize) -> Result<CubeMap> {
+        crate::math::cubemap::validate_n(n)?;
+        match self {
+            Terms::Wavelet(light) | Terms::ShLight { haar: light, .. } => {
+                let mut coeffs = vec![[0.0f32; 3]; crate::math::cubemap::texel_count(n)];
+                for (&i, v) in light.indices.iter().zip(&light.values) {
+                    let slot = coeffs.get_mut(i as usize).ok_or_else(|| {
+                        PrtError::invalid("light", format!("term {i} of an N = {n} cube"))
+                    })?;
+                    *slot = *v;
+                }
+                WaveletLight { n, coeffs }.to_cube()
+            }
+            Terms::Sh(sh) => {
+                let order = crate::math::sh::order_from_len(sh.len())?;
+                let mut basis = vec![0.0; sh.len()];
+                let texels = crate::math::cubemap::texel_dirs(n)
+                    .iter()
+                    .map(|&d| {
+                        crate::math::sh::eval(order, d, &mut basis);
+                        let mut c = [0.0f64; 3];
+                        for (y, s) in basis.iter().zip(sh) {
+                            for k in 0..3 {
+                                c[k] += y * s[k];
+                            }
+                        }
+                        c.map(|v| v as f32)
+                    })
+                    .collect();
+                Ok(CubeMap { n, texels })
+            }
+        }
+    }
+
     /// How many light terms these stand for: K, n², or 6 N².
     pub fn count(&self) -> usize {
         match self {
@@ -251,6 +291,16 @@ pub trait Backend {
         image.check_finite("relit image")?;
         Ok((image, stats))
     }
+}
+
+/// The pyramid of the light `terms` stand for, which a per-vertex bake with visibility draws its
+/// glossy lobes from ([`crate::draw::lobe`]); `None` for any other transport, which needs none.
+pub fn lobe_light(t: &Transport, terms: &Terms) -> Result<Option<CubePyramid>> {
+    if t.domain.mesh().is_none_or(|m| m.visibility.is_none()) {
+        return Ok(None);
+    }
+    let cube = terms.cube(t.meta.identity.cube_n as usize)?;
+    Ok(Some(CubePyramid::new(&cube)?))
 }
 
 /// Checks that `lights` has a weight for every light column of `t` (or none at all).

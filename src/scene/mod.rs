@@ -585,6 +585,7 @@ mod refine;
 pub mod tessellate;
 pub mod texture;
 pub mod trace;
+pub mod visibility;
 
 #[cfg(test)]
 mod tests;

@@ -20,6 +20,7 @@ use glam::{Vec2, Vec3};
 
 use super::albedo_map::AlbedoMap;
 use super::brdf_factor::BrdfFactors;
+use super::visibility::Visibility;
 use super::{Scene, Triangle};
 use crate::error::{PrtError, Result};
 
@@ -58,6 +59,9 @@ pub struct VertexMesh {
     /// The in-out factors of its glossy materials when they are baked with more than their
     /// diffuse term (see [`BrdfFactors`]): vertex `v`'s terms are pixels `v · stride + k`.
     pub factors: Option<Box<BrdfFactors>>,
+    /// Which cube texels each glossy vertex sees, when its glossy light is drawn per pixel from
+    /// the light itself ([`Visibility`]); the bake makes it once the vertex order is final.
+    pub visibility: Option<Box<Visibility>>,
 }
 
 impl VertexMesh {
@@ -331,6 +335,8 @@ impl VertexMesh {
                 .collect(),
             albedo_maps: self.albedo_maps,
             factors: self.factors,
+            // Rows of the old order; none yet while the mesh is being made.
+            visibility: None,
         }
     }
 }

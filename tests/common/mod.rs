@@ -444,6 +444,7 @@ fn random_rows_of_density(
             brdf_terms: 1,
             brdf_error: 0.0,
             refine_shadows: false,
+            visibility: false,
         },
         cache_points: 0,
         per_vertex: None,

@@ -64,6 +64,12 @@ pub struct BakeArgs {
     /// is even); false splits every edge alike.
     #[arg(long, default_value_t = BakeSettings::default().refine_shadows, action = clap::ArgAction::Set, requires = "per_vertex")]
     pub refine_shadows: bool,
+    /// Per-vertex bakes: store which cube texels each glossy vertex sees (a bit a texel, 6N²/8
+    /// bytes a glossy vertex), so that its GGX lobe is drawn per pixel from the light itself,
+    /// for the pixel's own direction to the camera, however sharp the lobe. Not with
+    /// --brdf-terms above 1.
+    #[arg(long, requires = "per_vertex")]
+    pub visibility: bool,
 }
 
 /// Parses `I/COUNT`.
@@ -93,6 +99,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         settings.brdf_terms = a.brdf_terms;
         settings.brdf_error = a.brdf_error;
         settings.refine_shadows = a.refine_shadows;
+        settings.visibility = a.visibility;
         settings.validate()?;
         let named = |keep: fn(&crate::scene::Material) -> bool| -> Vec<&str> {
             scene
@@ -108,7 +115,14 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         // with much of their light.
         let shiny = named(drops_visible_gloss);
         let darkened = named(drops_rough_light);
-        if !glossy.is_empty() && a.brdf_terms > 1 {
+        if !glossy.is_empty() && a.visibility {
+            eprintln!(
+                "the glossy material(s) {} keep their visibility ({} bytes a vertex): their lobe \
+                 is drawn per pixel from the light",
+                glossy.join(", "),
+                4 * crate::scene::visibility::Visibility::words(settings.cube_n)
+            );
+        } else if !glossy.is_empty() && a.brdf_terms > 1 {
             eprintln!(
                 "the glossy material(s) {} take up to {} in-out BRDF terms a vertex",
                 glossy.join(", "),

@@ -145,7 +145,9 @@ pub struct GlossArgs {
     /// when the scene is unchanged) and the compared images (`images/`).
     #[arg(long)]
     pub out: PathBuf,
-    /// Counts of in-out terms K_b to bake, comma-separated (1 is the diffuse base).
+    /// Counts of in-out terms K_b to bake, comma-separated: 1 is the diffuse base, 0 the glossy
+    /// vertices' visibility with the lobe drawn per pixel from the light (`prt bake
+    /// --visibility`).
     #[arg(long, value_delimiter = ',', default_value = "1,2,4,8")]
     pub brdf_terms: Vec<u32>,
     /// Tessellations, as multiples of the scene's default edge length, comma-separated.

@@ -303,15 +303,27 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         Some(camera) => {
             let mesh = crate::draw::vertex::mesh_of(&t)?;
             let glossy = mesh.factors.is_some();
-            // The GPU raster weighs glossy terms per pixel only.
-            let on_cpu = glossy && a.gloss_eval == crate::draw::vertex::GlossEval::PerVertex;
+            // The GPU raster weighs glossy terms per pixel only, and draws no lobe from
+            // visibility.
+            let lobe = mesh.visibility.is_some();
+            let on_cpu =
+                lobe || glossy && a.gloss_eval == crate::draw::vertex::GlossEval::PerVertex;
             if on_cpu && gpu.is_some() {
-                eprintln!("the GPU raster weighs glossy terms per pixel: drawn on the CPU");
+                eprintln!(
+                    "the GPU raster {}: drawn on the CPU",
+                    if lobe {
+                        "draws no glossy lobe from visibility"
+                    } else {
+                        "weighs glossy terms per pixel"
+                    }
+                );
             }
+            let light = crate::relight::lobe_light(&t, &terms)?;
             let r = match gpu.as_ref().filter(|_| !on_cpu) {
                 None => crate::draw::vertex::draw_relit(
                     &t,
                     &img,
+                    light.as_ref(),
                     camera,
                     None,
                     a.samples,

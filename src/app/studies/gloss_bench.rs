@@ -22,7 +22,7 @@ use crate::output::film::ToneMap;
 use crate::output::metrics::relative_l2;
 use crate::output::plot::{self, PALETTE, PlotSpec, Series};
 use crate::relight::gpu::Gpu;
-use crate::relight::{Backend, LightContext, RelightRequest, Terms, relight};
+use crate::relight::{Backend, Cpu, LightContext, RelightRequest, Terms, lobe_light, relight};
 use crate::scene::tessellate::VertexMesh;
 use crate::scene::{Camera, Scene};
 use crate::store::transport::{BakeDomain, Transport};
@@ -30,7 +30,8 @@ use crate::store::transport::{BakeDomain, Transport};
 /// What to measure.
 #[derive(Clone, Debug)]
 pub struct GlossBenchOptions {
-    /// Counts of in-out terms K_b (1 is the diffuse base).
+    /// Counts of in-out terms K_b (1 is the diffuse base, 0 visibility with the lobe per
+    /// pixel).
     pub brdf_terms: Vec<u32>,
     /// Tessellations, as multiples of the scene's default edge length.
     pub edge_factors: Vec<f32>,
@@ -127,10 +128,13 @@ impl GlossBenchOptions {
     /// Checks the lists.
     pub fn validate(&self) -> Result<()> {
         let bad = |what: &str, why: String| Err(PrtError::invalid(what, why));
-        if self.brdf_terms.is_empty() || self.brdf_terms.iter().any(|k| !(1..=16).contains(k)) {
+        if self.brdf_terms.is_empty() || self.brdf_terms.iter().any(|k| *k > 16) {
             return bad(
                 "--brdf-terms",
-                format!("{:?}; each must be from 1 to 16", self.brdf_terms),
+                format!(
+                    "{:?}; each must be from 0 (visibility) to 16",
+                    self.brdf_terms
+                ),
             );
         }
         let mut seen = self.edge_factors.clone();
@@ -306,7 +310,9 @@ pub fn run(
                 domain: BakeDomain::Vertices {
                     edge_length: default_edge * factor,
                 },
-                brdf_terms: k_b,
+                // K_b = 0 stands for visibility with the lobe per pixel, on the diffuse base.
+                brdf_terms: k_b.max(1),
+                visibility: k_b == 0,
                 ..base.clone()
             };
             let path = bakes_dir.join(format!("edges{factor}_kb{k_b}.prt"));
@@ -316,6 +322,7 @@ pub fn run(
             let ctx = LightContext::new(&t)?;
             let light = ctx.prepare(env, rotation)?;
             let (full, _) = relight(&t, &ctx, &light, &RelightRequest::Full)?;
+            let full_light = lobe_light(&t, &Terms::of(&t, &ctx, &light, &RelightRequest::Full)?)?;
             let mut row = GlossBakeRow {
                 edge_factor: factor,
                 edge_length: t.meta.identity.domain.edge_length().unwrap_or_default(),
@@ -341,7 +348,15 @@ pub fn run(
                     (GlossEval::PerPixel, &mut row.error),
                     (GlossEval::PerVertex, &mut row.error_per_vertex),
                 ] {
-                    let drawn = draw_relit(&t, &full, cam, None, opts.samples, eval)?;
+                    let drawn = draw_relit(
+                        &t,
+                        &full,
+                        full_light.as_ref(),
+                        cam,
+                        None,
+                        opts.samples,
+                        eval,
+                    )?;
                     errors.push(reportable(
                         relative_l2(&drawn.image, traced, None)?,
                         || format!("camera {}", i + 1),
@@ -383,9 +398,19 @@ pub fn run(
                 let mut times = Vec::new();
                 for _ in 0..opts.runs {
                     let t0 = Instant::now();
-                    let (img, _) = relight(&t, &ctx, &light, req)?;
+                    let terms = Terms::of(&t, &ctx, &light, req)?;
+                    let (img, _) = Cpu(&t).relight_terms(&terms)?;
+                    let lobe = lobe_light(&t, &terms)?;
                     let t1 = Instant::now();
-                    draw_relit(&t, &img, &frame_cam, None, 1, GlossEval::PerPixel)?;
+                    draw_relit(
+                        &t,
+                        &img,
+                        lobe.as_ref(),
+                        &frame_cam,
+                        None,
+                        1,
+                        GlossEval::PerPixel,
+                    )?;
                     times.push([t0, t1, Instant::now()]);
                 }
                 row.cpu.push(FrameTime {
@@ -393,7 +418,8 @@ pub fn run(
                     draw_ms: median(times.iter().map(|t| ms(t[1], t[2])).collect()),
                 });
             }
-            if let Some(gpu) = gpu {
+            // The GPU raster draws no lobe from visibility: its frame is not timed.
+            if let Some(gpu) = gpu.filter(|_| k_b != 0) {
                 row.gpu = Some(gpu_frames(
                     gpu, &t, &ctx, &light, &k_reqs, &frame_cam, opts,
                 )?);
@@ -492,25 +518,54 @@ fn gpu_frames(
         .collect()
 }
 
-/// The plot's curves: per tessellation and camera, the error against K_b.
+/// The plot's curves: per tessellation and camera, the error against K_b, and the visibility
+/// bake's error (K_b = 0) as a level across the K_b axis.
 fn error_series(r: &GlossBenchReport, opts: &GlossBenchOptions) -> Vec<Series> {
     let mut out = Vec::new();
+    let terms = || {
+        opts.brdf_terms
+            .iter()
+            .filter(|&&k| k > 0)
+            .map(|&k| k as f64)
+    };
+    let span = [
+        terms().fold(f64::INFINITY, f64::min),
+        terms().fold(f64::NEG_INFINITY, f64::max),
+    ];
     for (f, &factor) in opts.edge_factors.iter().enumerate() {
         for (c, _) in r.cameras.iter().enumerate() {
+            let color = PALETTE[(f * r.cameras.len() + c) % PALETTE.len()];
+            let of = || r.bakes.iter().filter(|b| b.edge_factor == factor);
             out.push(Series {
                 label: format!("camera {}, edges {factor}x", c + 1),
-                points: r
-                    .bakes
-                    .iter()
-                    .filter(|b| b.edge_factor == factor)
+                points: of()
+                    .filter(|b| b.brdf_terms > 0)
                     .map(|b| (b.brdf_terms as f64, b.error[c]))
                     .collect(),
-                color: PALETTE[(f * r.cameras.len() + c) % PALETTE.len()],
+                color,
                 dashed: f % 2 == 1,
             });
+            if let Some(v) = of().find(|b| b.brdf_terms == 0)
+                && span[0] <= span[1]
+            {
+                out.push(Series {
+                    label: format!("visibility, camera {}, edges {factor}x", c + 1),
+                    points: span.iter().map(|&x| (x, v.error[c])).collect(),
+                    color,
+                    dashed: true,
+                });
+            }
         }
     }
     out
+}
+
+/// The K_b column of a bake: its count, or `visibility`.
+fn method(k_b: u32) -> String {
+    match k_b {
+        0 => "visibility".into(),
+        k => k.to_string(),
+    }
 }
 
 /// The report as markdown.
@@ -595,7 +650,7 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
             b.edge_factor,
             b.edge_length,
             b.vertices,
-            b.brdf_terms,
+            method(b.brdf_terms),
             100.0 * b.error_per_vertex.first().copied().unwrap_or(0.0),
             b.bytes as f64 / (1u64 << 20) as f64,
             b.bytes as f64 / b.vertices.max(1) as f64,
@@ -643,7 +698,7 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
         )
     };
     for b in &r.bakes {
-        let mut line = format!("| {}x | {} |", b.edge_factor, b.brdf_terms);
+        let mut line = format!("| {}x | {} |", b.edge_factor, method(b.brdf_terms));
         for (i, c) in b.cpu.iter().enumerate() {
             line.push_str(&cell(c));
             if let Some(g) = b.gpu.as_ref().and_then(|g| g.get(i)) {

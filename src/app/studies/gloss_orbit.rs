@@ -90,7 +90,15 @@ pub fn run_gloss_orbit(
     let mut glossy = None;
     for az in ORBIT_AZIMUTHS {
         let cam = orbit(&camera, az, 0.0);
-        let drawn = draw_relit(&t, &full, &cam, None, DRAW_SAMPLES, GlossEval::PerPixel)?;
+        let drawn = draw_relit(
+            &t,
+            &full,
+            None,
+            &cam,
+            None,
+            DRAW_SAMPLES,
+            GlossEval::PerPixel,
+        )?;
         if az == GLOSS_REFERENCE_AZIMUTH {
             glossy = Some(drawn.clone());
         }

@@ -138,8 +138,15 @@ pub fn run_orbit(
         let (full, _) = relight(&t, &ctx, &light, &full_req)?;
         let (k_img, _) = relight(&t, &ctx, &light, &k_req)?;
         let camera = bake_camera(&t)?;
-        let drawn =
-            crate::draw::vertex::draw_relit(&t, &full, &camera, None, 1, GlossEval::PerPixel)?;
+        let drawn = crate::draw::vertex::draw_relit(
+            &t,
+            &full,
+            None,
+            &camera,
+            None,
+            1,
+            GlossEval::PerPixel,
+        )?;
         let both: Vec<f32> = drawn
             .coverage
             .iter()
@@ -181,7 +188,7 @@ pub fn run_orbit(
     } = measure("demo_vertices_coarse.prt", edge * COARSE_EDGE_FACTOR)?;
     let camera = bake_camera(&t)?;
     let draw = |relit: &Image, camera: &crate::scene::Camera, samples: u32| {
-        crate::draw::vertex::draw_relit(&t, relit, camera, None, samples, GlossEval::PerPixel)
+        crate::draw::vertex::draw_relit(&t, relit, None, camera, None, samples, GlossEval::PerPixel)
     };
     // Frames as the viewer makes them on the CPU: relight at K terms, draw the pixel centres.
     let mut times = Vec::new();

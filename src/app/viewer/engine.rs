@@ -13,11 +13,14 @@ use crate::draw::background::{composite, environment_behind};
 use crate::draw::vertex::{self, bake_camera};
 use crate::env::envmap::{EnvMap, EnvRotation, EnvSpec};
 use crate::error::{PrtError, Result};
+use crate::math::cube_pyramid::CubePyramid;
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{ErrorImage, HeatScale};
 use crate::relight::gpu::{Gpu, GpuBackend, GpuTransport};
-use crate::relight::{Backend, LightContext, PreparedLight, RelightRequest, RelightStats, relight};
+use crate::relight::{
+    Backend, LightContext, PreparedLight, RelightRequest, RelightStats, Terms, relight,
+};
 use crate::scene::Camera;
 use crate::store::transport::Transport;
 
@@ -328,9 +331,11 @@ impl Engine {
         Ok(match self.camera(&s) {
             Some(camera) => {
                 let t = &self.transport;
+                let lobe = self.lobe_light(&RelightRequest::Full, s.lights.environment_shown())?;
                 let drawn = vertex::draw_relit(
                     t,
                     full,
+                    lobe.as_ref(),
                     &camera,
                     None,
                     s.draw_samples(),
@@ -340,6 +345,21 @@ impl Engine {
             }
             None => ToneMap::auto(full, None).exposure,
         })
+    }
+
+    /// The light a per-vertex bake with visibility draws its glossy lobes from for `request`
+    /// under the prepared light (dark where the environment is not `shown`); `None` for any
+    /// other transport.
+    fn lobe_light(&self, request: &RelightRequest, shown: bool) -> Result<Option<CubePyramid>> {
+        let t = &self.transport;
+        if t.domain.mesh().is_none_or(|m| m.visibility.is_none()) {
+            return Ok(None);
+        }
+        let terms = match (&self.light, shown) {
+            (Some(lit), true) => Terms::of(t, &self.ctx, &lit.shown.light, request)?,
+            _ => Terms::dark(),
+        };
+        crate::relight::lobe_light(t, &terms)
     }
 
     fn relight_panes(
@@ -533,6 +553,15 @@ impl Engine {
         state: &ViewState,
         camera: &Camera,
     ) -> Result<(Vec<(LinearPane, Image, Image)>, Image)> {
+        // The light each pane's glossy lobes are drawn from (a bake with visibility), and the
+        // full light's.
+        let shown = state.lights.environment_shown();
+        let (_, linear) = self.last.as_ref().expect("relit");
+        let lobes = linear
+            .iter()
+            .map(|l| self.lobe_light(&l.request, shown))
+            .collect::<Result<Vec<_>>>()?;
+        let full_lobe = self.lobe_light(&RelightRequest::Full, shown)?;
         let lit = self.light.as_ref().expect("prepared");
         if !self
             .backdrop
@@ -544,10 +573,11 @@ impl Engine {
         }
         let (_, _, back) = self.backdrop.as_ref().expect("drawn");
         let t = &self.transport;
-        let draw = |relit: &Image| -> Result<(Image, Image)> {
+        let draw = |relit: &Image, lobe: &Option<CubePyramid>| -> Result<(Image, Image)> {
             let raster = vertex::draw_relit(
                 t,
                 relit,
+                lobe.as_ref(),
                 camera,
                 None,
                 state.draw_samples(),
@@ -568,12 +598,12 @@ impl Engine {
         };
         let (_, linear) = self.last.as_ref().expect("relit");
         let mut panes = Vec::with_capacity(linear.len());
-        for l in linear {
-            let (drawn, over) = draw(&l.image)?;
+        for (l, lobe) in linear.iter().zip(&lobes) {
+            let (drawn, over) = draw(&l.image, lobe)?;
             panes.push((l.clone(), drawn, over));
         }
         let full = if state.display.error_map {
-            draw(&lit.full)?.0
+            draw(&lit.full, &full_lobe)?.0
         } else {
             Image::new(0, 0)
         };

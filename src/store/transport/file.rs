@@ -15,6 +15,7 @@ use super::strips::{Layout, STRIP_ROWS};
 use super::*;
 use crate::error::{PrtError, Result};
 use crate::scene::albedo_map::from_table;
+use crate::scene::visibility::Visibility;
 use crate::store::container::{self, check_meta_seal};
 
 impl Transport {
@@ -127,6 +128,15 @@ impl Transport {
         let (stats_shape, tile_stats) = reader.read::<[f64; 3]>("tile_stats", Dtype::F64)?;
         let (magnitude_shape, transport_magnitude) =
             reader.read::<f32>("transport_magnitude", Dtype::F32)?;
+        let visibility = if meta.identity.visibility {
+            Some((
+                reader.read::<u32>("visibility_bits", Dtype::U32)?,
+                reader.read::<[f32; 4]>("visibility_lobe", Dtype::F32)?,
+                reader.read::<u32>("visibility_vertex", Dtype::U32)?,
+            ))
+        } else {
+            None
+        };
         let sum = format!("{:016x}", reader.checksum());
         if sum != stored {
             return Err(PrtError::file(
@@ -220,6 +230,8 @@ impl Transport {
             ),
             _ => None,
         };
+        let mesh = with_visibility(mesh, visibility, meta.identity.cube_n as usize, &expect)
+            .map_err(|e| bad(e.to_string()))?;
         let t = Transport {
             meta,
             tile_row_start,
@@ -431,21 +443,7 @@ fn read_header(path: &Path) -> Result<Header> {
     let header: FileHeader = serde_json::from_value(value)
         .map_err(|e| PrtError::file(path, format!("metadata `meta`: {e}")))?;
     container::check_known_keys(text, &header).map_err(|m| PrtError::file(path, m))?;
-    let known = tensor_names(
-        header.format_version,
-        header.meta.per_vertex.is_some(),
-        header
-            .meta
-            .per_vertex
-            .as_ref()
-            .is_some_and(|p| p.albedo_maps > 0),
-        header
-            .meta
-            .per_vertex
-            .as_ref()
-            .is_some_and(|p| p.brdf_stride > 1),
-        header.meta.light_columns() > 0,
-    );
+    let known = tensor_names(header.format_version, &header.meta);
     if let Some(name) = obj
         .keys()
         .find(|k| *k != "__metadata__" && !known.contains(&k.as_str()))
@@ -562,15 +560,15 @@ fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
     Ok(())
 }
 
-/// Names of the tensors in a file, in the order the checksum covers them: those of every file,
-/// a per-vertex bake's mesh, its albedo maps, and the local lights' columns.
-pub(super) fn tensor_names(
-    version: u32,
-    per_vertex: bool,
-    albedo_maps: bool,
-    brdf: bool,
-    lights: bool,
-) -> Vec<&'static str> {
+/// Names of the tensors in a file of `version` with `meta`, in the order the checksum covers
+/// them: those of every file, a per-vertex bake's mesh, its albedo maps, BRDF terms and
+/// visibility, and the local lights' columns.
+pub(super) fn tensor_names(version: u32, meta: &TransportMeta) -> Vec<&'static str> {
+    let pv = meta.per_vertex.as_ref();
+    let per_vertex = pv.is_some();
+    let albedo_maps = pv.is_some_and(|p| p.albedo_maps > 0);
+    let brdf = pv.is_some_and(|p| p.brdf_stride > 1);
+    let lights = meta.light_columns() > 0;
     let mut names: Vec<&str> = TENSOR_NAMES.to_vec();
     if version < 7 {
         names.extend(["col_count", "entry_row", "entry_value"]);
@@ -593,6 +591,9 @@ pub(super) fn tensor_names(
     }
     if lights {
         names.extend(["light_scale", "light_value"]);
+    }
+    if per_vertex && meta.identity.visibility {
+        names.extend(["visibility_bits", "visibility_lobe", "visibility_vertex"]);
     }
     names.sort();
     names
@@ -643,8 +644,39 @@ fn read_values(
     })
 }
 
+/// `mesh` with the visibility tables read (their shapes checked by `expect`), if any: an
+/// error for tables without a per-vertex mesh.
+fn with_visibility(
+    mesh: Option<VertexMesh>,
+    tables: Option<VisibilityTensors>,
+    n: usize,
+    expect: ShapeCheck,
+) -> Result<Option<VertexMesh>> {
+    let Some(((bs, bits), (ls, lobes), (vs, vertices))) = tables else {
+        return Ok(mesh);
+    };
+    let mut mesh = mesh.ok_or_else(|| {
+        PrtError::invalid("visibility", "stored for a bake that is not per vertex")
+    })?;
+    let g = vs.first().copied().unwrap_or(0);
+    expect("visibility_vertex", &vs, &[g])?;
+    expect("visibility_bits", &bs, &[g, Visibility::words(n)])?;
+    let m = ls.first().copied().unwrap_or(0);
+    expect("visibility_lobe", &ls, &[m, 4])?;
+    mesh.visibility = Some(Box::new(Visibility::new(
+        n,
+        mesh.vertex_count(),
+        vertices,
+        bits,
+        lobes,
+    )?));
+    Ok(Some(mesh))
+}
+
 /// A tensor as read: its shape and its values.
 type Tensor<T> = (Vec<usize>, Vec<T>);
+/// The visibility's bits, lobes and vertices, as read.
+type VisibilityTensors = (Tensor<u32>, Tensor<[f32; 4]>, Tensor<u32>);
 /// Checks a tensor's shape against what it must be: (name, shape, expected).
 type ShapeCheck<'a> = &'a dyn Fn(&str, &[usize], &[usize]) -> Result<()>;
 /// A mesh's vertex materials, normals and positions, and its triangles, as read.
@@ -724,6 +756,7 @@ impl MeshTables {
             triangles,
             albedo_maps,
             factors,
+            visibility: None,
         })
     }
 }

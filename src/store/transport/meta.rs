@@ -158,6 +158,9 @@ pub struct BakeIdentity {
     /// Whether a per-vertex bake's tessellation was refined at shadow edges within the uniform
     /// one's vertex count (false: uniform, as in every file before it; always false for a view).
     pub refine_shadows: bool,
+    /// Whether a per-vertex bake stores its glossy vertices' visibility (format version 9;
+    /// always false for a view and before).
+    pub visibility: bool,
 }
 
 /// How many vertices and triangles a per-vertex bake's mesh has, and the image it is drawn at:
@@ -387,6 +390,8 @@ struct PerVertexFile {
     brdf_map: u32,
     #[serde(default, skip_serializing_if = "is_false")]
     refine_shadows: bool,
+    #[serde(default, skip_serializing_if = "is_false")]
+    visibility: bool,
 }
 
 fn is_zero(v: &u32) -> bool {
@@ -464,6 +469,7 @@ impl TryFrom<MetaFile> for TransportMeta {
                 brdf_terms: f.per_vertex.as_ref().map_or(1, |p| p.brdf_terms),
                 brdf_error: f.per_vertex.as_ref().map_or(0.0, |p| p.brdf_error),
                 refine_shadows: f.per_vertex.as_ref().is_some_and(|p| p.refine_shadows),
+                visibility: f.per_vertex.as_ref().is_some_and(|p| p.visibility),
             },
             cache_points: f.indirect.as_ref().map_or(0, |i| i.cache_points),
             per_vertex: f.per_vertex.map(|p| PerVertexMeta {
@@ -524,6 +530,7 @@ impl From<TransportMeta> for MetaFile {
                     brdf_stride: p.brdf_stride,
                     brdf_map: p.brdf_map,
                     refine_shadows: id.refine_shadows,
+                    visibility: id.visibility,
                 }),
                 _ => None,
             },

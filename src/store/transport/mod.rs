@@ -50,6 +50,7 @@
 //! | `mesh_position`, `mesh_normal`, `mesh_material`, `mesh_triangle` | f32 [V, 3], f32 [V, 3], u32 [V], u32 [F, 3] | only per vertex: the mesh ([`VertexMesh`]) |
 //! | `mesh_uv`, `albedo_map`, `albedo_map_material`, `albedo_texel` | f32 [V, 2], u32 [M, 5], u32 [K, 2], u16 [X, 3] | only per vertex with textured materials: each vertex's texture coordinate; per albedo map its width, height, wrap along u and v (0 repeat, 1 mirrored repeat, 2 clamp) and filter (0 linear, 1 nearest); per textured material, the material and its map (materials with the same map share it); the maps' level-0 texels in turn, linear albedo as `q / 65535` ([`crate::scene::albedo_map`]) |
 //! | `brdf_terms`, `brdf_view`, `brdf_light` | u32 [M], f32 [M, S−1, r²], f32 [M, S−1, r²] | only per vertex with glossy materials baked with in-out terms: K_b of each material, and `g_k` and `h_k` of its terms 1..K_b on `r × r` hemi-octahedral maps (zero past its K_b), S the pixels a vertex takes (`per_vertex.brdf_stride`; r is `per_vertex.brdf_map`) ([`crate::scene::brdf_factor::BrdfFactors`]) |
+//! | `visibility_bits`, `visibility_lobe`, `visibility_vertex` | u32 [G, ⌈6N²/32⌉], f32 [M, 4], u32 [G] | only per vertex with `per_vertex.visibility`: per glossy vertex (listed, ascending), a bit a cube texel in Morton order, set where the texel is open; each material's GGX lobe (specular RGB, α; zero for a diffuse one) ([`crate::scene::visibility::Visibility`]) |
 //! | `light_value`, `light_scale` | u16 [L, 3, H, W], f32 [L, H] | only with local lights: each light column's RGB response per pixel, as fractions `q / 65535` of a scale per (column, pixel row) ([`LightColumns`]) |
 //!
 //! Version 4 added the local lights (the two `light_` tensors and the metadata's `lights` and
@@ -61,7 +62,9 @@
 //! files have one pixel a vertex and are read as before. Version 7 stores the Haar matrix as
 //! strips; version 8 stores a slot whole when at least half its block's strips hold entries, its
 //! other strips as zeros (version 7 kept only the strips that hold an entry, and still loads:
-//! a reused bake of it is written again in this version, its strips made anew); versions 3 to 6
+//! a reused bake of it is written again in this version, its strips made anew); version 9 added
+//! the glossy vertices' visibility (the `visibility_` tensors and `per_vertex.visibility`); older
+//! files have none and are read as before; versions 3 to 6
 //! stored it as columns, in (block, coefficient) order, blocks in tile
 //! order: `col_count` (u16 [B, C], each column's entries), `col_scale` (u8 [B, C]), `entry_row`
 //! (u8, each entry's row in its block, increasing within a column) and `entry_value`. They are
@@ -112,7 +115,7 @@ pub const TILE: usize = 16;
 /// Name written in every transport file.
 pub const FORMAT_NAME: &str = container::TRANSPORT.name;
 /// Version of the layout described in this module.
-pub const FORMAT_VERSION: u32 = 8;
+pub const FORMAT_VERSION: u32 = 9;
 /// The oldest version this build reads: versions 3 to 6 store the Haar matrix as columns, which
 /// are made into strips as they load; version 3 has no local lights, versions 3 and 4 no albedo
 /// maps, and versions 3 to 5 no in-out BRDF terms.

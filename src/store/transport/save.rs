@@ -10,6 +10,7 @@ use super::file::{FileHeader, tensor_names};
 use super::strips::STRIP_ROWS;
 use super::*;
 use crate::error::{PrtError, Result};
+use crate::scene::visibility::Visibility;
 use crate::store::container::{self, Tensor};
 
 impl Transport {
@@ -148,6 +149,23 @@ pub(super) fn save_file<'a>(
             ("brdf_view", Tensor::new(Dtype::F32, shape, &f.view)),
         ]);
     }
+    if let Some(vis) = tables.mesh.and_then(|m| m.visibility.as_ref()) {
+        let words = Visibility::words(vis.n);
+        tensors.extend([
+            (
+                "visibility_bits",
+                Tensor::new(Dtype::U32, vec![vis.vertices.len(), words], &vis.bits),
+            ),
+            (
+                "visibility_lobe",
+                Tensor::new(Dtype::F32, vec![vis.lobes.len(), 4], &vis.lobes),
+            ),
+            (
+                "visibility_vertex",
+                Tensor::new(Dtype::U32, vec![vis.vertices.len()], &vis.vertices),
+            ),
+        ]);
+    }
     if let Some(mesh) = tables.mesh {
         let (v, t) = (mesh.vertex_count(), mesh.triangles.len());
         tensors.extend([
@@ -189,13 +207,11 @@ pub(super) fn save_file<'a>(
         ]);
     }
     tensors.sort_by_key(|(name, _)| *name);
-    if !tensors.iter().map(|(n, _)| *n).eq(tensor_names(
-        FORMAT_VERSION,
-        tables.mesh.is_some(),
-        tables.mesh.is_some_and(|m| !m.albedo_maps.is_empty()),
-        tables.mesh.is_some_and(|m| m.factors.is_some()),
-        columns > 0,
-    )) {
+    if !tensors
+        .iter()
+        .map(|(n, _)| *n)
+        .eq(tensor_names(FORMAT_VERSION, meta))
+    {
         return Err(PrtError::file(
             path,
             "the tensors to write are not those of a transport file",

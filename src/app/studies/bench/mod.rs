@@ -200,7 +200,8 @@ fn reference_error(
         Some(c) => c.clone(),
         None => crate::draw::vertex::bake_camera(t)?,
     };
-    let drawn = crate::draw::vertex::draw_relit(t, img, &camera, None, 1, Default::default())?;
+    let drawn =
+        crate::draw::vertex::draw_relit(t, img, None, &camera, None, 1, Default::default())?;
     let both: Vec<f32> = match reference_coverage {
         Some(c) if c.len() == drawn.coverage.len() => drawn
             .coverage

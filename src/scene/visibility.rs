@@ -1,0 +1,214 @@
+//! Which cube texels each glossy vertex of a per-vertex bake sees: one bit a texel, in the Morton
+//! order of [`crate::math::cube_pyramid`], so that the visible fraction of any coarser texel is a
+//! count of the set bits in one run. The raster interpolates these fractions across a triangle
+//! and weighs a glossy lobe's light by them per pixel ([`crate::draw::lobe`]).
+
+use crate::error::{PrtError, Result};
+use crate::math::cube_pyramid::node_run;
+use crate::math::cubemap::{texel_count, validate_n};
+
+/// No row: a vertex whose visibility was not baked (its material is not glossy).
+pub const NO_ROW: u32 = u32::MAX;
+
+/// The visibility bits of a mesh's glossy vertices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Visibility {
+    /// Face size N of the cube the bits are over.
+    pub n: usize,
+    /// The vertices with bits, ascending.
+    pub vertices: Vec<u32>,
+    /// Row `r` (of vertex `vertices[r]`) is words `r · words .. (r + 1) · words`; bit `m % 32` of
+    /// word `m / 32` is texel `m` in Morton order, set where the texel's direction is open.
+    pub bits: Vec<u32>,
+    /// Each material's GGX lobe as `[specular r, g, b, α]`, all zero for a diffuse material:
+    /// what the raster draws the bits with.
+    pub lobes: Vec<[f32; 4]>,
+    /// Each vertex's row, or [`NO_ROW`] (built from `vertices`).
+    rows: Vec<u32>,
+}
+
+impl Visibility {
+    /// Words a vertex's bits take at face size `n`.
+    pub fn words(n: usize) -> usize {
+        texel_count(n).div_ceil(32)
+    }
+
+    /// The lobes of `materials` as [`Visibility::lobes`] holds them.
+    pub fn lobes_of(materials: &[crate::scene::Material]) -> Vec<[f32; 4]> {
+        materials
+            .iter()
+            .map(|m| match m.glossy_lobe() {
+                Some((s, alpha)) => [s.x, s.y, s.z, alpha],
+                None => [0.0; 4],
+            })
+            .collect()
+    }
+
+    /// The glossy lobe of material `m`: specular colour and α, `None` for a diffuse one or
+    /// past the table.
+    #[inline]
+    pub fn lobe(&self, m: u32) -> Option<(glam::Vec3, f32)> {
+        let l = self.lobes.get(m as usize)?;
+        (l[0] > 0.0 || l[1] > 0.0 || l[2] > 0.0).then(|| (glam::Vec3::new(l[0], l[1], l[2]), l[3]))
+    }
+
+    /// The visibility of `vertex_count` vertices from the rows of `vertices` (ascending, each
+    /// below the count), their `bits` and the materials' `lobes`, checked.
+    pub fn new(
+        n: usize,
+        vertex_count: usize,
+        vertices: Vec<u32>,
+        bits: Vec<u32>,
+        lobes: Vec<[f32; 4]>,
+    ) -> Result<Visibility> {
+        validate_n(n)?;
+        if let Some(i) = lobes.iter().position(|l| {
+            !l.iter().all(|v| v.is_finite() && *v >= 0.0)
+                || (l[..3].iter().any(|v| *v > 0.0) && !(1e-6..=1.0).contains(&l[3]))
+        }) {
+            return Err(PrtError::invalid(
+                format!("visibility lobe {i}"),
+                format!(
+                    "{:?}: a specular colour of finite values ≥ 0 and, where it is not black,                      an α in [1e-6, 1]",
+                    lobes[i]
+                ),
+            ));
+        }
+        let words = Self::words(n);
+        if vertices.len().checked_mul(words) != Some(bits.len()) {
+            return Err(PrtError::invalid(
+                "visibility",
+                format!(
+                    "{} words of bits for {} vertices of {words} words each",
+                    bits.len(),
+                    vertices.len()
+                ),
+            ));
+        }
+        if let Some(i) = (0..vertices.len()).find(|&i| {
+            vertices[i] as usize >= vertex_count || (i > 0 && vertices[i] <= vertices[i - 1])
+        }) {
+            return Err(PrtError::invalid(
+                format!("visibility vertex {i}"),
+                format!(
+                    "{} is not below the mesh's {vertex_count} vertices or not above the one \
+                     before it",
+                    vertices[i]
+                ),
+            ));
+        }
+        let mut rows = vec![NO_ROW; vertex_count];
+        for (r, &v) in vertices.iter().enumerate() {
+            rows[v as usize] = r as u32;
+        }
+        Ok(Visibility {
+            n,
+            vertices,
+            bits,
+            lobes,
+            rows,
+        })
+    }
+
+    /// Vertices of the mesh these were made for.
+    pub fn vertex_count(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// Vertex `v`'s bits, if it has them.
+    #[inline]
+    pub fn row(&self, v: usize) -> Option<&[u32]> {
+        let r = *self.rows.get(v)? as usize;
+        let w = Self::words(self.n);
+        self.bits.get(r * w..(r + 1) * w)
+    }
+
+    /// The open share of the level-`level` node holding Morton index `m` in `row` (1 for a
+    /// vertex without bits).
+    #[inline]
+    pub fn open_share(row: Option<&[u32]>, m: usize, level: usize) -> f32 {
+        let Some(row) = row else {
+            return 1.0;
+        };
+        let (start, end) = node_run(m, level);
+        count_ones(row, start, end) as f32 / (end - start) as f32
+    }
+
+    /// Bytes the bits take.
+    pub fn bytes(&self) -> usize {
+        4 * (self.bits.len() + self.vertices.len() + 4 * self.lobes.len())
+    }
+}
+
+/// Set bits of `words` at bit positions `[start, end)`.
+#[inline]
+fn count_ones(words: &[u32], start: usize, end: usize) -> u32 {
+    let (first, last) = (start / 32, (end - 1) / 32);
+    let mask = |w: usize| {
+        let lo = if w == first { start % 32 } else { 0 };
+        let hi = if w == last { (end - 1) % 32 + 1 } else { 32 };
+        let ones = if hi - lo == 32 {
+            u32::MAX
+        } else {
+            ((1u32 << (hi - lo)) - 1) << lo
+        };
+        words[w] & ones
+    };
+    (first..=last).map(|w| mask(w).count_ones()).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_the_set_bits_of_any_run() {
+        let words = [0xffff_0000u32, 0x0000_00ff, 0xffff_ffff];
+        assert_eq!(count_ones(&words, 0, 16), 0);
+        assert_eq!(count_ones(&words, 16, 32), 16);
+        assert_eq!(count_ones(&words, 0, 96), 16 + 8 + 32);
+        assert_eq!(count_ones(&words, 20, 36), 12 + 4);
+        assert_eq!(count_ones(&words, 39, 41), 1);
+        let brute = |a: usize, b: usize| {
+            (a..b)
+                .filter(|i| words[i / 32] >> (i % 32) & 1 == 1)
+                .count()
+        };
+        for a in 0..96 {
+            for b in a + 1..=96 {
+                assert_eq!(count_ones(&words, a, b) as usize, brute(a, b), "[{a}, {b})");
+            }
+        }
+    }
+
+    #[test]
+    fn rows_and_shares_follow_the_vertices_and_bad_tables_are_refused() {
+        let n = 2; // 24 texels, one word.
+        let lobes = vec![[0.5, 0.5, 0.5, 0.04], [0.0; 4]];
+        let vis = Visibility::new(
+            n,
+            5,
+            vec![1, 3],
+            vec![0x00ff_ffff, 0x0000_000f],
+            lobes.clone(),
+        )
+        .unwrap();
+        assert_eq!(vis.lobe(0), Some((glam::Vec3::splat(0.5), 0.04)));
+        assert_eq!(vis.lobe(1), None);
+        assert_eq!(vis.lobe(2), None);
+        assert!(vis.row(0).is_none() && vis.row(9).is_none());
+        assert_eq!(Visibility::open_share(vis.row(1), 5, 0), 1.0);
+        assert_eq!(Visibility::open_share(vis.row(3), 0, 1), 1.0);
+        assert_eq!(Visibility::open_share(vis.row(3), 4, 1), 0.0);
+        assert_eq!(Visibility::open_share(vis.row(0), 4, 1), 1.0);
+        let bad = |n, v, rows: Vec<u32>, bits: Vec<u32>, lobes: &[[f32; 4]]| {
+            Visibility::new(n, v, rows, bits, lobes.to_vec()).is_err()
+        };
+        assert!(bad(n, 5, vec![3, 1], vec![0, 0], &lobes));
+        assert!(bad(n, 3, vec![1, 3], vec![0, 0], &lobes));
+        assert!(bad(n, 5, vec![1], vec![0, 0], &lobes));
+        assert!(bad(3, 5, vec![1], vec![0], &lobes));
+        assert!(bad(n, 5, vec![1], vec![0], &[[0.5, 0.5, 0.5, 0.0]]));
+        assert!(bad(n, 5, vec![1], vec![0], &[[f32::NAN, 0.5, 0.5, 0.1]]));
+    }
+}
