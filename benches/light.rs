@@ -57,6 +57,7 @@ fn exact_prepare(ctx: &LightContext, env: &EnvMap, rotation: EnvRotation) -> Pre
         sh: sh::Rotation::new(ctx.sh_order, rotation.world_from_map())
             .unwrap()
             .apply_rgb(&unturned_sh),
+        lobe: None,
     }
 }
 
@@ -190,6 +191,7 @@ fn prepare(c: &mut Criterion) {
                     sh: sh::Rotation::new(ctx.sh_order, rotation.world_from_map())
                         .unwrap()
                         .apply_rgb(&unturned_sh),
+                    lobe: None,
                 }
             })
         });

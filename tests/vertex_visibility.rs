@@ -115,11 +115,13 @@ fn the_sphere_from_a_new_camera_is_near_the_path_tracer_under_the_same_cube() {
     let t = bake(&scene, &settings(n, 0.05), &|_| {}).unwrap();
     let env = EnvMap::load(&assets().join("envmaps/blender_studio.exr")).unwrap();
     let rotation = EnvRotation::default();
-    let ctx = LightContext::new(&t).unwrap();
+    // The lobe's light on the transport's own cube, the path tracer's (no finer cube).
+    let ctx = LightContext::with_sizes(n, 2).unwrap();
     let light = ctx.prepare(&env, rotation).unwrap();
+    assert!(light.lobe.is_none());
     let terms = Terms::of(&t, &ctx, &light, &RelightRequest::Full).unwrap();
     let (relit, _) = Cpu(&t).relight_terms(&terms).unwrap();
-    let lobe = lobe_light(&t, &terms).unwrap();
+    let lobe = lobe_light(&t, &ctx, Some(&light), &RelightRequest::Full).unwrap();
     assert!(lobe.is_some());
     let camera = orbit(&scene.camera, 60.0, 0.0);
     let drawn = draw_relit(
@@ -220,4 +222,81 @@ fn the_command_line_bakes_visibility_and_draws_its_highlights() {
     assert!(drawn.pixels.iter().flatten().any(|v| *v > 0.0));
     let (code, out) = prt(&["info", out_path]);
     assert_eq!(code, 0, "{out}");
+}
+
+#[test]
+fn the_lobe_reads_the_map_on_a_finer_cube_as_the_request_keeps_it() {
+    use wavelet_prt::env::select::Weighting;
+    use wavelet_prt::math::cube_pyramid::CubePyramid;
+    use wavelet_prt::relight::lobe_light::LOBE_N;
+    let scene = sphere();
+    let t = bake(&scene, &settings(4, 0.4), &|_| {}).unwrap();
+    let env = EnvMap::load(&assets().join("envmaps/blender_studio.exr")).unwrap();
+    let rotation = EnvRotation::default();
+    let ctx = LightContext::new(&t).unwrap();
+    assert_eq!(ctx.lobe_n, Some(LOBE_N));
+    let light = ctx.prepare(&env, rotation).unwrap();
+    let lobe = |req: &RelightRequest| {
+        lobe_light(&t, &ctx, Some(&light), req)
+            .unwrap()
+            .expect("a bake with visibility")
+    };
+    // Every term: the map on the finer cube itself.
+    let full = lobe(&RelightRequest::Full);
+    let cube = env.to_cube(LOBE_N, rotation).unwrap();
+    let want = CubePyramid::new(&cube).unwrap();
+    assert_eq!(full.n, LOBE_N);
+    for (a, b) in full.levels[0].iter().zip(&want.levels[0]) {
+        for c in 0..4 {
+            assert!(
+                (a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1e-3),
+                "{a:?} {b:?}"
+            );
+        }
+    }
+    // Each face's power, the coarsest level, is what every request keeps; the finer levels
+    // differ as the terms kept do.
+    let faces = |p: &CubePyramid| p.levels.last().unwrap().clone();
+    let power = |p: &CubePyramid| faces(p).iter().map(|f| f[0] as f64).sum::<f64>();
+    let few = lobe(&RelightRequest::Wavelet {
+        k: 10,
+        weighting: Weighting::Transport,
+    });
+    for (a, b) in faces(&few).iter().zip(&faces(&full)) {
+        assert!(
+            (a[0] - b[0]).abs() <= 1e-3 * b[0].abs().max(1e-3),
+            "{a:?} {b:?}"
+        );
+    }
+    assert_ne!(few.levels[0], full.levels[0]);
+    let sh = lobe(&RelightRequest::Sh { order: 2 });
+    assert!(
+        (power(&sh) / power(&full) - 1.0).abs() < 0.02,
+        "{} {}",
+        power(&sh),
+        power(&full)
+    );
+    // The environment off: a dark lobe.
+    let dark = lobe_light(&t, &ctx, None, &RelightRequest::Full)
+        .unwrap()
+        .unwrap();
+    assert!(dark.levels.iter().flatten().all(|v| v[..3] == [0.0; 3]));
+    // A bake without visibility draws no lobe and prepares no finer cube.
+    let plain = bake(
+        &scene,
+        &BakeSettings {
+            visibility: false,
+            ..settings(4, 0.4)
+        },
+        &|_| {},
+    )
+    .unwrap();
+    let plain_ctx = LightContext::new(&plain).unwrap();
+    assert!(plain_ctx.lobe_n.is_none());
+    assert!(plain_ctx.prepare(&env, rotation).unwrap().lobe.is_none());
+    assert!(
+        lobe_light(&plain, &plain_ctx, Some(&light), &RelightRequest::Full)
+            .unwrap()
+            .is_none()
+    );
 }

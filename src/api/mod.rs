@@ -79,6 +79,7 @@ use crate::draw::raster::DRAW_SAMPLES;
 use crate::draw::vertex::{self, GlossEval};
 pub use crate::env::select::SparseLight;
 use crate::error::{PrtError, Result};
+use crate::math::cube_pyramid::CubePyramid;
 pub use crate::relight::PreparedLight;
 use crate::relight::{Backend, Cpu, LightContext, lobe_light};
 use crate::store::transport::Domain;
@@ -343,14 +344,17 @@ impl Relighter {
             None => Terms::dark(),
         };
         let image = self.lit(&terms, lights)?;
+        let lobe = match &camera {
+            Some(_) => self.lobe(env, request, rotation)?,
+            None => None,
+        };
         let t = &self.transport;
         let (image, coverage) = match &camera {
             Some(camera) => {
-                let light = lobe_light(t, &terms)?;
                 let r = vertex::draw_relit(
                     t,
                     &image,
-                    light.as_ref(),
+                    lobe.as_ref(),
                     camera,
                     None,
                     samples,
@@ -370,6 +374,22 @@ impl Relighter {
             }
         };
         Ok(composite(&image, &behind))
+    }
+
+    /// The light a bake with visibility draws its glossy lobes from for `request` under `env`
+    /// turned by `rotation` (none: dark); `None` for any other bake.
+    fn lobe(
+        &mut self,
+        env: Option<&Environment>,
+        request: &RelightRequest,
+        rotation: EnvRotation,
+    ) -> Result<Option<CubePyramid>> {
+        let light = match env {
+            Some(env) => Some(self.prepare(env, rotation)?),
+            None => None,
+        };
+        let light = light.map(|i| &self.lights[i].1);
+        lobe_light(&self.transport, &self.ctx, light, request)
     }
 
     /// The relit image of `terms` plus `lights`, checked finite: a per-pixel bake's view, a
@@ -453,8 +473,7 @@ impl Relighter {
         vertex::mesh_of(&self.transport)?;
         // A per-vertex bake's relit image is its vertex colours, with nothing behind them.
         let relit = self.relight(env, request, rotation, lights)?;
-        let terms = self.terms(env, request, rotation)?;
-        let light = lobe_light(&self.transport, &terms)?;
+        let light = self.lobe(Some(env), request, rotation)?;
         let behind = (self.background == Background::Environment).then_some((env.map(), rotation));
         let raster = vertex::draw_relit(
             &self.transport,

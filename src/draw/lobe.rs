@@ -17,7 +17,6 @@ use crate::draw::raster::{ViewDependent, interpolated_normal};
 use crate::error::{PrtError, Result};
 use crate::math::cube_pyramid::{CubePyramid, dir_to_morton};
 use crate::math::cubemap::texel_count;
-use crate::scene::brdf::{ggx_cosine, ggx_pdf, sample_ggx};
 use crate::scene::visibility::Visibility;
 
 /// Lobe directions a pixel takes unless asked otherwise. Against the brute-force integral over
@@ -52,6 +51,42 @@ pub struct Lobe<'a> {
     pub light: &'a CubePyramid,
     /// The lobe's directions in the unit square ([`lobe_pattern`]).
     pub pattern: Vec<[f32; 2]>,
+    /// Per material, the pattern's half vectors for its α (`None` for a diffuse material).
+    taps: Vec<Option<Vec<Tap>>>,
+}
+
+/// One direction of the pattern for one GGX width: the half vector in the frame of the normal
+/// (x and y along [`Vec3::any_orthonormal_pair`], z the normal), as
+/// [`crate::scene::brdf::sample_ggx`] draws it, and `D(h) (n·h)`, which its density over
+/// directions divides by `4 (v·h)`.
+#[derive(Clone, Copy, Debug)]
+struct Tap {
+    h: Vec3,
+    d_nh: f64,
+}
+
+/// The taps of `pattern` for GGX width `alpha`, in f64 as [`crate::scene::brdf`] evaluates.
+fn taps(alpha: f32, pattern: &[[f32; 2]]) -> Vec<Tap> {
+    let a2 = (alpha as f64).powi(2);
+    pattern
+        .iter()
+        .map(|&[u1, u2]| {
+            let u = (u1 as f64).clamp(0.0, 1.0);
+            let den = (1.0 - u) + a2 * u;
+            let (cos2, sin2) = if den > 0.0 {
+                ((1.0 - u) / den, a2 * u / den)
+            } else {
+                (1.0, 0.0)
+            };
+            let (ct, st) = (cos2.sqrt(), sin2.sqrt());
+            let phi = std::f64::consts::TAU * u2 as f64;
+            let d = a2 / (std::f64::consts::PI * (a2 * cos2 + sin2).powi(2));
+            Tap {
+                h: DVec3::new(st * phi.cos(), st * phi.sin(), ct).as_vec3(),
+                d_nh: d * ct,
+            }
+        })
+        .collect()
 }
 
 impl<'a> Lobe<'a> {
@@ -63,12 +98,17 @@ impl<'a> Lobe<'a> {
         light: &'a CubePyramid,
         samples: usize,
     ) -> Lobe<'a> {
+        let pattern = lobe_pattern(samples);
+        let taps = (0..visibility.lobes.len() as u32)
+            .map(|m| visibility.lobe(m).map(|(_, alpha)| taps(alpha, &pattern)))
+            .collect();
         Lobe {
             normals,
             materials,
             visibility,
             light,
-            pattern: lobe_pattern(samples),
+            pattern,
+            taps,
         }
     }
 
@@ -76,27 +116,27 @@ impl<'a> Lobe<'a> {
     /// `x` (clamped to the pyramids' levels), between the two levels about it.
     #[inline]
     fn read(&self, l: DVec3, x: f64, rows: &[Option<&[u32]>; 3], b: [f64; 3]) -> DVec3 {
-        let (ml, mv) = (
-            dir_to_morton(self.light.n, l),
-            dir_to_morton(self.visibility.n, l),
-        );
-        // The visibility cube may be coarser or finer than the light's: its level is offset.
-        let shift = (self.light.n as f64 / self.visibility.n as f64).log2();
-        let top = (self.light.levels.len() - 1) as f64;
-        let x = x.clamp(0.0, top);
+        let (nl, nv) = (self.light.n, self.visibility.n);
+        let ml = dir_to_morton(nl, l);
+        let mv = if nv == nl { ml } else { dir_to_morton(nv, l) };
+        let top = self.light.levels.len() - 1;
+        let x = x.clamp(0.0, top as f64);
         let lo = x.floor();
-        let at = |level: f64| {
-            let light = DVec3::from(self.light.mean(ml, level as usize).map(f64::from));
-            let vl = (level - shift).max(0.0) as usize;
-            let vl = vl.min(crate::math::cube_pyramid::levels(self.visibility.n) - 1);
+        let at = |level: usize| {
+            let light = DVec3::from(self.light.mean(ml, level).map(f64::from));
+            // The visibility cube may be coarser or finer than the light's: its level is the
+            // one of the same texel size.
+            let vl = (level + nv.trailing_zeros() as usize)
+                .saturating_sub(nl.trailing_zeros() as usize)
+                .min(nv.trailing_zeros() as usize);
             let open: f64 = (0..3)
                 .map(|i| b[i] * Visibility::open_share(rows[i], mv, vl) as f64)
                 .sum();
             light * open
         };
-        let f = x - lo;
+        let (f, lo) = (x - lo, lo as usize);
         if f > 0.0 && lo < top {
-            at(lo) * (1.0 - f) + at(lo + 1.0) * f
+            at(lo) * (1.0 - f) + at(lo + 1) * f
         } else {
             at(lo)
         }
@@ -141,37 +181,51 @@ impl ViewDependent for Lobe<'_> {
         Ok(())
     }
 
-    /// The glossy light of a point of triangle `tri` at barycentrics `b`, seen along `to_eye`.
+    /// The glossy light of a point of triangle `tri` at barycentrics `b`, seen along `to_eye`:
+    /// each tap's direction `l = 2 (v·h) h − v` weighed by `f cos / pdf`, which for GGX is
+    /// `G1(l) G1(v) (v·h) / ((n·v) (n·h))`.
     fn shade(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> DVec3 {
-        let Some((specular, alpha)) = self.visibility.lobe(self.materials[tri[0] as usize]) else {
+        let m = self.materials[tri[0] as usize];
+        let (Some((specular, alpha)), Some(Some(taps))) =
+            (self.visibility.lobe(m), self.taps.get(m as usize))
+        else {
             return DVec3::ZERO;
         };
         let Some(n) = interpolated_normal(self.normals, tri, b) else {
             return DVec3::ZERO;
         };
-        if n.dot(to_eye) <= 0.0 {
+        let (n, v) = (n.as_vec3(), to_eye.as_vec3());
+        let nv = n.dot(v);
+        if nv <= 0.0 {
             return DVec3::ZERO;
         }
         let rows = tri.map(|v| self.visibility.row(v as usize));
-        let (n32, v32) = (n.as_vec3(), to_eye.as_vec3());
-        let m = self.pattern.len() as f64;
+        let a2 = alpha * alpha;
+        let g1 = |c: f32| 2.0 * c / (c + (a2 + (1.0 - a2) * c * c).sqrt());
+        let g1v = g1(nv);
+        let (t, s) = n.any_orthonormal_pair();
+        let count = taps.len() as f64;
         // A level-0 node's mean solid angle; a level-k node is 4^k of them.
         let texel = 4.0 * std::f64::consts::PI / texel_count(self.light.n) as f64;
         let mut sum = DVec3::ZERO;
-        for &[u1, u2] in &self.pattern {
-            let Some(l) = sample_ggx(n32, v32, alpha, u1, u2) else {
-                continue;
-            };
-            let pdf = ggx_pdf(n32, v32, l, alpha) as f64;
-            if pdf <= 0.0 {
+        for tap in taps {
+            let h = t * tap.h.x + s * tap.h.y + n * tap.h.z;
+            let vh = v.dot(h);
+            if vh <= 0.0 {
                 continue;
             }
-            let weight = ggx_cosine(n32, v32, l, alpha) as f64 / pdf;
-            let footprint = 1.0 / (m * pdf);
+            let l = h * (2.0 * vh) - v;
+            let nl = n.dot(l);
+            if nl <= 0.0 {
+                continue;
+            }
+            let weight = (g1(nl) * g1v * vh / (nv * tap.h.z)) as f64;
+            // The footprint 1 / (M · pdf), pdf = D (n·h) / (4 v·h).
+            let footprint = 4.0 * vh as f64 / (count * tap.d_nh);
             let x = 0.5 * (footprint / texel).log2();
             sum += self.read(l.as_dvec3(), x, &rows, b) * weight;
         }
-        specular.as_dvec3() * sum / m
+        specular.as_dvec3() * sum / count
     }
 }
 

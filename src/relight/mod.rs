@@ -8,17 +8,18 @@ pub mod columns;
 pub mod cpu;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub mod lobe_light;
 pub mod prepare;
 pub mod sh_light;
 pub mod strip_kernel;
 
 pub use crate::scene::light_mix::{LightMix, LightSetting};
 pub use cpu::{relight_dense_reference, relight_sh, relight_wavelet};
+pub use lobe_light::lobe_light;
 pub use prepare::{LightContext, PreparedLight};
 
 use crate::env::select::{SparseLight, WaveletLight, Weighting};
 use crate::error::{PrtError, Result};
-use crate::math::cube_pyramid::CubePyramid;
 use crate::math::cubemap::CubeMap;
 use crate::output::film::Image;
 use crate::store::transport::Transport;
@@ -291,16 +292,6 @@ pub trait Backend {
         image.check_finite("relit image")?;
         Ok((image, stats))
     }
-}
-
-/// The pyramid of the light `terms` stand for, which a per-vertex bake with visibility draws its
-/// glossy lobes from ([`crate::draw::lobe`]); `None` for any other transport, which needs none.
-pub fn lobe_light(t: &Transport, terms: &Terms) -> Result<Option<CubePyramid>> {
-    if t.domain.mesh().is_none_or(|m| m.visibility.is_none()) {
-        return Ok(None);
-    }
-    let cube = terms.cube(t.meta.identity.cube_n as usize)?;
-    Ok(Some(CubePyramid::new(&cube)?))
 }
 
 /// Checks that `lights` has a weight for every light column of `t` (or none at all).

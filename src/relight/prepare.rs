@@ -18,6 +18,9 @@ pub struct PreparedLight {
     pub wavelet: WaveletLight,
     /// SH coefficients at the transport's order.
     pub sh: Vec<[f64; 3]>,
+    /// All Haar coefficients on the glossy lobe's finer cube, where the context asks for one
+    /// ([`LightContext::lobe_n`]).
+    pub lobe: Option<WaveletLight>,
 }
 
 /// What the light side needs from a transport, computed once per file: support areas, the SH
@@ -32,15 +35,33 @@ pub struct LightContext {
     pub support_area: Vec<f32>,
     /// Tabulated SH basis at the texel centres.
     pub basis: TexelShBasis,
+    /// The face size of the cube a glossy lobe's light is prepared on besides
+    /// ([`crate::relight::lobe_light`]): for a transport that keeps visibility.
+    pub lobe_n: Option<usize>,
+    /// Support solid angle of every Haar coefficient of that cube (empty without it).
+    pub lobe_support: Vec<f32>,
 }
 
 impl LightContext {
     /// For a transport.
     pub fn new(t: &Transport) -> Result<Self> {
-        Self::with_sizes(
+        Ok(Self::with_sizes(
             t.meta.identity.cube_n as usize,
             t.meta.identity.sh_order as usize,
-        )
+        )?
+        .with_lobe(t.meta.identity.visibility))
+    }
+
+    /// This context, preparing each light on the glossy lobe's finer cube besides
+    /// ([`crate::relight::lobe_light::LOBE_N`], or the transport's N if finer) where `visibility`
+    /// says the transport draws lobes.
+    pub fn with_lobe(mut self, visibility: bool) -> Self {
+        self.lobe_n = visibility.then(|| crate::relight::lobe_light::LOBE_N.max(self.n));
+        self.lobe_support = match self.lobe_n {
+            Some(n) => support_solid_angles(n).iter().map(|&a| a as f32).collect(),
+            None => Vec::new(),
+        };
+        self
     }
 
     /// For a cube of face size `n` and SH order `sh_order`, without a transport (benchmarks,
@@ -52,6 +73,8 @@ impl LightContext {
             sh_order,
             support_area: support_solid_angles(n).iter().map(|&a| a as f32).collect(),
             basis: TexelShBasis::new(n, sh_order)?,
+            lobe_n: None,
+            lobe_support: Vec::new(),
         })
     }
 
@@ -65,6 +88,7 @@ impl LightContext {
             let light = PreparedLight {
                 wavelet: WaveletLight::from_cube(&cube).map_err(|e| named(e, env))?,
                 sh: self.basis.project_light(&cube)?,
+                lobe: self.prepare_lobe(env, rotation)?,
             };
             return light.checked(env);
         }
@@ -94,8 +118,16 @@ impl LightContext {
         PreparedLight {
             wavelet: WaveletLight::from_cube(&cube).map_err(|e| named(e, env))?,
             sh,
+            lobe: self.prepare_lobe(env, rotation)?,
         }
         .checked(env)
+    }
+
+    /// The Haar coefficients of `env` turned by `rotation` on the lobe's cube, if any.
+    fn prepare_lobe(&self, env: &EnvMap, rotation: EnvRotation) -> Result<Option<WaveletLight>> {
+        self.lobe_n
+            .map(|n| WaveletLight::from_cube(&env.to_cube(n, rotation)?).map_err(|e| named(e, env)))
+            .transpose()
     }
 }
 

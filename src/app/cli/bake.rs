@@ -502,11 +502,10 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
     );
     let s = &report.gloss;
     println!(
-        "glossy orbit   {} ({} vertices with {} in-out terms baked in {:.1} s{}; {:.1}% from the \
-         path tracer, {:.1}% for the diffuse base)",
+        "glossy orbit   {} ({} vertices with visibility baked in {:.1} s{}; the lobe per pixel \
+         {:.1}% from the path tracer, {:.1}% for the diffuse base)",
         s.sheet_path.display(),
         s.vertices,
-        crate::app::studies::gloss_orbit::GLOSS_BRDF_TERMS,
         s.bake_seconds,
         if s.reused_bake { ", reused" } else { "" },
         100.0 * s.glossy_error,

@@ -232,7 +232,8 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         }
         let ahead = s.spawn(|| {
             let start = Instant::now();
-            let ctx = LightContext::with_sizes(sizes.0, sizes.1);
+            let ctx = LightContext::with_sizes(sizes.0, sizes.1)
+                .map(|c| c.with_lobe(header.identity.visibility));
             let light = match (&ctx, &env) {
                 (Ok(ctx), Some(env)) => Some(ctx.prepare(env, rotation)),
                 _ => None,
@@ -275,8 +276,9 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         let light = env.as_ref().map(|env| ctx.prepare(env, rotation));
         (ctx, light)
     };
-    let terms = match light {
-        Some(light) => Terms::of(&t, &ctx, &light?, &req)?,
+    let prepared = light.transpose()?;
+    let terms = match &prepared {
+        Some(light) => Terms::of(&t, &ctx, light, &req)?,
         None => Terms::dark(),
     };
     let light_ms = (start.elapsed() + waited).as_secs_f64() * 1e3;
@@ -318,7 +320,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
                     }
                 );
             }
-            let light = crate::relight::lobe_light(&t, &terms)?;
+            let light = crate::relight::lobe_light(&t, &ctx, prepared.as_ref(), &req)?;
             let r = match gpu.as_ref().filter(|_| !on_cpu) {
                 None => crate::draw::vertex::draw_relit(
                     &t,

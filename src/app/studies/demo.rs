@@ -310,11 +310,10 @@ pub fn run_demo(
         orbit.frame_ms
     ));
     table.push_str(&format!(
-        "\nGlossy per vertex (`gloss_sheet.png`): the same scene per vertex with {} in-out terms \
-         for its porcelain teapot ({} vertices, {:.1} KB a vertex), bake {:.1} s{}; from {}° \
-         round, under sunrise, against the path tracer ({} paths a pixel{}), the whole image: \
-         {:.1}% with the terms, {:.1}% for the diffuse base.\n",
-        crate::app::studies::gloss_orbit::GLOSS_BRDF_TERMS,
+        "\nGlossy per vertex (`gloss_sheet.png`): the same scene per vertex with its porcelain \
+         teapot's visibility, the lobe drawn per pixel ({} vertices, {:.1} KB a vertex), bake \
+         {:.1} s{}; from {}° round, under sunrise, against the path tracer ({} paths a \
+         pixel{}), the whole image: {:.1}% with the lobe, {:.1}% for the diffuse base.\n",
         gloss.vertices,
         gloss.bytes_per_vertex / 1e3,
         gloss.bake_seconds,

@@ -322,7 +322,7 @@ pub fn run(
             let ctx = LightContext::new(&t)?;
             let light = ctx.prepare(env, rotation)?;
             let (full, _) = relight(&t, &ctx, &light, &RelightRequest::Full)?;
-            let full_light = lobe_light(&t, &Terms::of(&t, &ctx, &light, &RelightRequest::Full)?)?;
+            let full_light = lobe_light(&t, &ctx, Some(&light), &RelightRequest::Full)?;
             let mut row = GlossBakeRow {
                 edge_factor: factor,
                 edge_length: t.meta.identity.domain.edge_length().unwrap_or_default(),
@@ -400,7 +400,7 @@ pub fn run(
                     let t0 = Instant::now();
                     let terms = Terms::of(&t, &ctx, &light, req)?;
                     let (img, _) = Cpu(&t).relight_terms(&terms)?;
-                    let lobe = lobe_light(&t, &terms)?;
+                    let lobe = lobe_light(&t, &ctx, Some(&light), req)?;
                     let t1 = Instant::now();
                     draw_relit(
                         &t,

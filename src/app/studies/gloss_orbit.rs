@@ -1,7 +1,8 @@
-//! The demo's glossy orbit: the demo scene baked per vertex with in-out BRDF terms for its
-//! porcelain teapot (`--brdf-terms 4`), relit once and drawn from four angles, its highlight
-//! following the camera, beside the diffuse base (term 0 of the same bake) and the independent
-//! path tracer from one of those angles (`gloss_sheet.png`), with both errors against it.
+//! The demo's glossy orbit: the demo scene baked per vertex with its porcelain teapot's
+//! visibility (`--visibility`), relit once and drawn from four angles with the GGX lobe per
+//! pixel, its highlights following the camera, beside the diffuse base (the same bake's vertex
+//! colours alone) and the independent path tracer from one of those angles
+//! (`gloss_sheet.png`), with both errors against it.
 
 use std::path::PathBuf;
 
@@ -18,13 +19,13 @@ use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{cells_at, write_sheet};
-use crate::relight::{LightContext, RelightRequest, relight};
+use crate::relight::{Backend, Cpu, LightContext, RelightRequest, Terms, lobe_light};
 use crate::scene::Scene;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::BakeDomain;
 
-/// In-out terms of the glossy orbit's glossy materials.
-pub const GLOSS_BRDF_TERMS: u32 = 4;
+/// What the glossy orbit's glossy materials keep, as its captions say it.
+pub const GLOSS_METHOD: &str = "visibility, lobe per pixel";
 /// The angle of the orbit the path tracer renders, degrees about +Y from the scene's camera: the
 /// second of [`ORBIT_AZIMUTHS`].
 pub const GLOSS_REFERENCE_AZIMUTH: f32 = ORBIT_AZIMUTHS[1];
@@ -48,16 +49,16 @@ pub struct GlossReport {
     /// The path tracer's own noise (relative L2), or `None` when its image was kept from the
     /// last run.
     pub reference_noise: Option<f64>,
-    /// Every term with the in-out terms, against the path tracer, relative L2 over the image.
+    /// Every term with the lobe drawn per pixel, against the path tracer, relative L2 over the
+    /// image.
     pub glossy_error: f64,
-    /// The diffuse base (term 0 alone) against the path tracer.
+    /// The diffuse base (the vertex colours alone) against the path tracer.
     pub diffuse_error: f64,
 }
 
-/// Bakes (or reuses) `scene` per vertex at its default edge length with
-/// [`GLOSS_BRDF_TERMS`] in-out terms into `dir/demo_glossy.prt` (`settings` otherwise, the
-/// demo's per-pixel ones), relights it under `env` with every term, and writes
-/// `dir/gloss_sheet.png`.
+/// Bakes (or reuses) `scene` per vertex at its default edge length with its glossy vertices'
+/// visibility into `dir/demo_glossy.prt` (`settings` otherwise, the demo's per-pixel ones),
+/// relights it under `env` with every term, and writes `dir/gloss_sheet.png`.
 pub fn run_gloss_orbit(
     study: &mut Study,
     scene: &Scene,
@@ -70,19 +71,21 @@ pub fn run_gloss_orbit(
         domain: BakeDomain::Vertices {
             edge_length: VertexMesh::default_edge_length(scene),
         },
-        brdf_terms: GLOSS_BRDF_TERMS,
+        visibility: true,
         ..settings.clone()
     };
     let transport_path = dir.join("demo_glossy.prt");
     let what = format!(
-        "baking {} per vertex with {GLOSS_BRDF_TERMS} in-out terms for its glossy materials ...",
+        "baking {} per vertex with its glossy materials' visibility ...",
         scene.source_path.display()
     );
     let (t, reused_bake, bake_seconds) =
         study.bake(&transport_path, scene, &glossy_settings, &what)?;
     let ctx = LightContext::new(&t)?;
     let light = ctx.prepare(env, rotation)?;
-    let (full, _) = relight(&t, &ctx, &light, &RelightRequest::Full)?;
+    let terms = Terms::of(&t, &ctx, &light, &RelightRequest::Full)?;
+    let (full, _) = Cpu(&t).relight_terms(&terms)?;
+    let lobe = lobe_light(&t, &ctx, Some(&light), &RelightRequest::Full)?;
     let camera = bake_camera(&t)?;
     let behind = Some((env, rotation));
     // Every angle drawn once, the reference's kept unlit behind for the errors.
@@ -93,7 +96,7 @@ pub fn run_gloss_orbit(
         let drawn = draw_relit(
             &t,
             &full,
-            None,
+            lobe.as_ref(),
             &cam,
             None,
             DRAW_SAMPLES,
@@ -105,7 +108,7 @@ pub fn run_gloss_orbit(
         shots.push((
             compose(drawn, &cam, behind)?.image,
             [
-                format!("K_b = {GLOSS_BRDF_TERMS}, turned {az}°"),
+                format!("{GLOSS_METHOD}, turned {az}°"),
                 format!("every term, {name}"),
             ],
         ));
@@ -167,7 +170,7 @@ pub fn run_gloss_orbit(
         (
             compose(glossy, &cam, behind)?.image,
             [
-                format!("K_b = {GLOSS_BRDF_TERMS}, turned {az}°"),
+                format!("{GLOSS_METHOD}, turned {az}°"),
                 format!("L2 {:.1}% vs path traced", 100.0 * glossy_error),
             ],
         ),
@@ -191,13 +194,13 @@ pub fn run_gloss_orbit(
         4,
         &cells,
         &format!(
-            "Glossy per-vertex transport ({vertices} vertices, {GLOSS_BRDF_TERMS} in-out terms): \
-             the highlight follows the camera"
+            "Glossy per-vertex transport ({vertices} vertices, {GLOSS_METHOD}): the highlights \
+             follow the camera"
         ),
     )?;
     study.log(&format!(
         "drew the glossy per-vertex bake from {} angles; from {az}° round, against the path \
-         tracer: {:.1}% with {GLOSS_BRDF_TERMS} in-out terms, {:.1}% for the diffuse base",
+         tracer: {:.1}% with the lobe per pixel, {:.1}% for the diffuse base",
         ORBIT_AZIMUTHS.len(),
         100.0 * glossy_error,
         100.0 * diffuse_error

@@ -18,9 +18,7 @@ use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{ErrorImage, HeatScale};
 use crate::relight::gpu::{Gpu, GpuBackend, GpuTransport};
-use crate::relight::{
-    Backend, LightContext, PreparedLight, RelightRequest, RelightStats, Terms, relight,
-};
+use crate::relight::{Backend, LightContext, PreparedLight, RelightRequest, RelightStats, relight};
 use crate::scene::Camera;
 use crate::store::transport::Transport;
 
@@ -355,11 +353,8 @@ impl Engine {
         if t.domain.mesh().is_none_or(|m| m.visibility.is_none()) {
             return Ok(None);
         }
-        let terms = match (&self.light, shown) {
-            (Some(lit), true) => Terms::of(t, &self.ctx, &lit.shown.light, request)?,
-            _ => Terms::dark(),
-        };
-        crate::relight::lobe_light(t, &terms)
+        let light = self.light.as_ref().filter(|_| shown);
+        crate::relight::lobe_light(t, &self.ctx, light.map(|l| &*l.shown.light), request)
     }
 
     fn relight_panes(

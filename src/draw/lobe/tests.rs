@@ -1,6 +1,7 @@
 use super::*;
 use crate::math::cube_pyramid::morton_index;
 use crate::math::cubemap::{CubeMap, face_st_to_dir, patch_solid_angle, texel_index};
+use crate::scene::brdf::ggx_cosine;
 
 /// Face size of the test light and visibility.
 const N: usize = 8;
@@ -9,11 +10,16 @@ const SUB: usize = 16;
 
 /// A light with smooth variation, and one texel 40 times brighter where `spot` asks.
 fn light(spot: bool) -> CubeMap {
-    let texels = (0..texel_count(N))
+    light_at(N, spot)
+}
+
+/// [`light`] on an n-cube.
+fn light_at(n: usize, spot: bool) -> CubeMap {
+    let texels = (0..texel_count(n))
         .map(|i| {
-            let d = crate::math::cubemap::texel_dir(N, i / (N * N), (i / N) % N, i % N);
+            let d = crate::math::cubemap::texel_dir(n, i / (n * n), (i / n) % n, i % n);
             let base = [1.0 + 0.5 * d.x, 0.8 + 0.3 * d.y * d.y, 0.6 + 0.4 * d.z];
-            let spot = if spot && i == texel_index(N, 2, 3, 4) {
+            let spot = if spot && i == texel_index(n, 2, 3, 4) {
                 40.0
             } else {
                 0.0
@@ -21,7 +27,7 @@ fn light(spot: bool) -> CubeMap {
             base.map(|v| (v + spot) as f32)
         })
         .collect();
-    CubeMap { n: N, texels }
+    CubeMap { n, texels }
 }
 
 /// Bits open on the side of `towards` of a plane through the origin, per vertex.
@@ -60,22 +66,24 @@ fn brute_force(
     b: [f64; 3],
 ) -> DVec3 {
     let mut sum = DVec3::ZERO;
-    let step = 2.0 / (N * SUB) as f64;
+    let n_light = cube.n;
+    let step = 2.0 / (n_light * SUB) as f64;
     for face in 0..6 {
-        for j in 0..N * SUB {
-            for i in 0..N * SUB {
+        for j in 0..n_light * SUB {
+            for i in 0..n_light * SUB {
                 let (s0, t0) = (-1.0 + i as f64 * step, -1.0 + j as f64 * step);
                 let d = face_st_to_dir(face, s0 + 0.5 * step, t0 + 0.5 * step).normalize();
                 let f = ggx_cosine(n.as_vec3(), v.as_vec3(), d.as_vec3(), alpha) as f64;
                 if f == 0.0 {
                     continue;
                 }
-                let m = dir_to_morton(N, d);
+                let m = dir_to_morton(vis.n, d);
                 let open: f64 = (0..3)
                     .map(|k| b[k] * Visibility::open_share(vis.row(k), m, 0) as f64)
                     .sum();
-                let l =
-                    DVec3::from(cube.texels[texel_index(N, face, j / SUB, i / SUB)].map(f64::from));
+                let l = DVec3::from(
+                    cube.texels[texel_index(n_light, face, j / SUB, i / SUB)].map(f64::from),
+                );
                 sum += l * (f * open * patch_solid_angle(s0, t0, s0 + step, t0 + step));
             }
         }
@@ -91,6 +99,11 @@ fn rel(a: DVec3, b: DVec3) -> f64 {
 /// The lobe of a triangle of three vertices with normals about +Y, one glossy material, under
 /// the test light, with `samples` directions, against the brute force at several views.
 fn worst_against_brute_force(alpha: f32, samples: usize, spot: bool) -> f64 {
+    worst_at(alpha, samples, light(spot))
+}
+
+/// [`worst_against_brute_force`] under `cube`, whose N may differ from the visibility's.
+fn worst_at(alpha: f32, samples: usize, cube: CubeMap) -> f64 {
     let normals = [
         Vec3::new(0.1, 1.0, 0.0).normalize(),
         Vec3::new(-0.1, 1.0, 0.05).normalize(),
@@ -104,7 +117,6 @@ fn worst_against_brute_force(alpha: f32, samples: usize, spot: bool) -> f64 {
         ],
         alpha,
     );
-    let cube = light(spot);
     let pyramid = CubePyramid::new(&cube).unwrap();
     let lobe = Lobe::new(&normals, &[0, 0, 0], &vis, &pyramid, samples);
     lobe.check(3).unwrap();
@@ -139,6 +151,15 @@ fn many_lobe_directions_reach_the_brute_force_integral_over_the_same_texels() {
         assert!(smooth < 0.005, "α = {alpha}: {smooth}");
         let spot = worst_against_brute_force(alpha, 4096, true);
         assert!(spot < 0.05, "α = {alpha}, a bright texel: {spot}");
+    }
+}
+
+/// A light finer than the visibility reads the visibility at the level of its own texel size.
+#[test]
+fn a_light_finer_than_the_visibility_reaches_the_brute_force_integral() {
+    for alpha in [0.04, 0.5] {
+        let e = worst_at(alpha, 4096, light_at(2 * N, false));
+        assert!(e < 0.005, "α = {alpha}: {e}");
     }
 }
 
