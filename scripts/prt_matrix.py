@@ -1,6 +1,6 @@
 """Reads a transport file's Haar matrix into numpy, every stored value decoded with its row and
 coefficient, as the format documents it in `src/store/transport/mod.rs`: strips in light-major
-bands (versions 7 and 8) or columns (versions 3 to 6). Shared by the scripts beside it; needs numpy and
+bands (versions 7 to 9) or columns (versions 3 to 6). Shared by the scripts beside it; needs numpy and
 safetensors.
 """
 

@@ -638,7 +638,14 @@ fn only_visible_gloss_is_warned_of_per_vertex() {
             ),
         )
     };
-    let per_vertex = ["--per-vertex", "--edge-length", "0.6"];
+    // With the lobe left out (`--visibility false`); by default it is drawn per pixel.
+    let per_vertex = [
+        "--per-vertex",
+        "--edge-length",
+        "0.6",
+        "--visibility",
+        "false",
+    ];
     let cases = [
         (
             "rough",
@@ -656,8 +663,8 @@ fn only_visible_gloss_is_warned_of_per_vertex() {
             Some("rough material(s) ground keep only their diffuse base"),
         ),
     ];
-    for (name, text, warning) in cases {
-        let (_, printed) = bake_text(&dir, name, &text, &per_vertex);
+    for (name, text, warning) in &cases {
+        let (_, printed) = bake_text(&dir, name, text, &per_vertex);
         match warning {
             None => assert!(!printed.contains("warning"), "{name}: {printed}"),
             Some(w) => {
@@ -669,6 +676,9 @@ fn only_visible_gloss_is_warned_of_per_vertex() {
             }
         }
     }
+    let (_, printed) = bake_text(&dir, "shiny-lobe", &cases[1].1, &per_vertex[..3]);
+    assert!(!printed.contains("warning"), "{printed}");
+    assert!(printed.contains("keep their visibility"), "{printed}");
 }
 
 // 6c. A moving light baked 0.8 apart at 0.6 above the ground doubles its shadows between

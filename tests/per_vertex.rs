@@ -192,7 +192,8 @@ fn prt_bake_per_vertex_reports_its_vertices_and_info_reads_them() {
         !text.contains("warning"),
         "every material is diffuse: {text}"
     );
-    // A glossy material keeps its diffuse base, and the bake says so by name.
+    // A glossy material kept at its diffuse base (`--visibility false`), and the bake says so by
+    // name.
     let glossy = dir.join("glossy.toml");
     std::fs::write(
         &glossy,
@@ -210,6 +211,8 @@ fn prt_bake_per_vertex_reports_its_vertices_and_info_reads_them() {
         "--per-vertex",
         "--cube",
         "4",
+        "--visibility",
+        "false",
     ]);
     assert_eq!(code, 0, "{text}");
     assert!(

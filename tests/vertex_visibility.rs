@@ -189,20 +189,31 @@ fn the_command_line_bakes_visibility_and_draws_its_highlights() {
     .unwrap();
     let out = dir.join("v.prt");
     let out_path = out.to_str().unwrap();
-    let (code, said) = prt(&[
-        "bake",
-        scene.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--per-vertex",
-        "--visibility",
-        "--cube",
-        "8",
-        "--edge-length",
-        "0.3",
-    ]);
+    let bake = |extra: &[&str]| {
+        let common = [
+            "bake",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--per-vertex",
+            "--cube",
+            "8",
+            "--edge-length",
+            "0.3",
+        ];
+        prt(&[&common[..], extra].concat())
+    };
+    // Without it asked for, the diffuse base alone, and the bake says how to keep the lobe.
+    let (code, said) = bake(&["--visibility", "false"]);
+    assert_eq!(code, 0, "{said}");
+    assert!(said.contains("--visibility true"), "{said}");
+    assert!(!Transport::load(&out).unwrap().meta.identity.visibility);
+    // A glossy scene keeps its visibility by default.
+    std::fs::remove_file(&out).unwrap();
+    let (code, said) = bake(&[]);
     assert_eq!(code, 0, "{said}");
     assert!(said.contains("keep their visibility"), "{said}");
+    assert!(Transport::load(&out).unwrap().meta.identity.visibility);
     let image = dir.join("drawn.exr");
     let (code, out) = prt(&[
         "relight",
@@ -254,8 +265,10 @@ fn the_lobe_reads_the_map_on_a_finer_cube_as_the_request_keeps_it() {
             );
         }
     }
-    // Each face's power, the coarsest level, is what every request keeps; the finer levels
-    // differ as the terms kept do.
+    // Each face's power, the coarsest level, is about what every request keeps (a kept face's
+    // mean is its texels' unweighted one, so the power moves by the detail dropped times the
+    // texels' differing solid angles: 0.16% measured); the finer levels differ as the terms
+    // kept do.
     let faces = |p: &CubePyramid| p.levels.last().unwrap().clone();
     let power = |p: &CubePyramid| faces(p).iter().map(|f| f[0] as f64).sum::<f64>();
     let few = lobe(&RelightRequest::Wavelet {
@@ -264,7 +277,7 @@ fn the_lobe_reads_the_map_on_a_finer_cube_as_the_request_keeps_it() {
     });
     for (a, b) in faces(&few).iter().zip(&faces(&full)) {
         assert!(
-            (a[0] - b[0]).abs() <= 1e-3 * b[0].abs().max(1e-3),
+            (a[0] - b[0]).abs() <= 0.01 * b[0].abs().max(1e-3),
             "{a:?} {b:?}"
         );
     }

@@ -91,7 +91,7 @@ fn array_image(a: &PyReadonlyArray3<'_, f32>) -> PyResult<Image> {
 /// (or an exception from `progress`) cancels the bake, leaving nothing at `out`. A file that
 /// already holds this bake is kept ([`api::bake_to_file`]). Returns the file's metadata as JSON.
 #[pyfunction]
-#[pyo3(signature = (scene, out, settings, camera=None, width=None, height=None, read_outside_folder=false, per_vertex=false, edge_length=None, progress=None))]
+#[pyo3(signature = (scene, out, settings, camera=None, width=None, height=None, read_outside_folder=false, per_vertex=false, edge_length=None, visibility=None, progress=None))]
 #[allow(clippy::too_many_arguments)] // the keywords of `prt bake`, named one by one from Python
 fn bake(
     py: Python<'_>,
@@ -104,6 +104,7 @@ fn bake(
     read_outside_folder: bool,
     per_vertex: bool,
     edge_length: Option<f32>,
+    visibility: Option<bool>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<String> {
     let mut settings: BakeSettings = serde_json::from_str(settings)
@@ -117,6 +118,8 @@ fn bake(
     let scene = py.detach(|| api::load_scene(&scene, &framing)).py()?;
     if per_vertex {
         settings.domain = api::vertices(&scene, edge_length);
+        settings.visibility =
+            visibility.unwrap_or_else(|| api::glossy_visibility(&scene, settings.brdf_terms));
     }
     let (done, total) = (AtomicUsize::new(0), AtomicUsize::new(0));
     let cancel = Cancel::new();

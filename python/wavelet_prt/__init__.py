@@ -195,6 +195,7 @@ def bake(
     brdf_error: float = 0.0,
     edge_length: Optional[float] = None,
     refine_shadows: bool = False,
+    visibility: Optional[bool] = None,
     progress: ProgressLike = None,
 ) -> "Transport":
     """Bakes the scene file ``scene`` (TOML, or glTF) into the transport file ``out`` (.prt),
@@ -216,7 +217,9 @@ def bake(
 
     Per vertex: ``per_vertex`` (one row per mesh vertex, so the camera can move),
     ``brdf_terms``, ``brdf_error``, ``edge_length`` (default: the scene's, else 1/160 of its
-    diagonal), ``refine_shadows``.
+    diagonal), ``refine_shadows``, ``visibility`` (keep each glossy vertex's visibility, its GGX
+    lobe drawn per pixel; default, as the command line: for a scene with glossy materials unless
+    ``brdf_terms`` asks for in-out terms).
 
     ``progress``: see :data:`ProgressLike`.
     """
@@ -229,7 +232,7 @@ def _bake_file(a: Dict[str, Any]) -> None:
     """Bakes with the arguments of :func:`bake` (all of them, as a dict)."""
     default = {name: p.default for name, p in inspect.signature(bake).parameters.items()}
     if not a["per_vertex"]:
-        for name in ("brdf_terms", "brdf_error", "edge_length", "refine_shadows"):
+        for name in ("brdf_terms", "brdf_error", "edge_length", "refine_shadows", "visibility"):
             if a[name] != default[name]:
                 raise ValueError(f"{name} applies to per-vertex bakes: pass per_vertex=True")
     if a["lossless"]:
@@ -249,7 +252,8 @@ def _bake_file(a: Dict[str, Any]) -> None:
         _native.bake(
             scene, out, json.dumps(settings), camera=a["camera"], width=a["width"],
             height=a["height"], read_outside_folder=a["read_outside_folder"],
-            per_vertex=a["per_vertex"], edge_length=a["edge_length"], progress=report,
+            per_vertex=a["per_vertex"], edge_length=a["edge_length"],
+            visibility=a["visibility"], progress=report,
         )
     finally:
         if bar is not None:

@@ -20,6 +20,7 @@ def bake(
     read_outside_folder: bool = False,
     per_vertex: bool = False,
     edge_length: Optional[float] = None,
+    visibility: Optional[bool] = None,
     progress: Optional[Callable[[int, int], object]] = None,
 ) -> str: ...
 def default_settings() -> str: ...

@@ -151,6 +151,13 @@ pub fn vertices(scene: &Scene, edge_length: Option<f32>) -> BakeDomain {
     }
 }
 
+/// Whether a per-vertex bake of `scene` keeps its glossy vertices' visibility unless told: when
+/// it has a glossy material and no in-out terms are asked for (`brdf_terms` ≤ 1), as
+/// `prt bake --per-vertex` does.
+pub fn glossy_visibility(scene: &Scene, brdf_terms: u32) -> bool {
+    brdf_terms <= 1 && scene.materials.iter().any(|m| m.glossy_lobe().is_some())
+}
+
 /// The metadata of the transport file at `path` when it already holds this bake (or shard) of
 /// `scene` with `settings`, whole and readable: [`bake_to_file`] then keeps it rather than
 /// baking again.

@@ -17,6 +17,7 @@ use crate::draw::raster::{ViewDependent, interpolated_normal};
 use crate::error::{PrtError, Result};
 use crate::math::cube_pyramid::{CubePyramid, dir_to_morton};
 use crate::math::cubemap::texel_count;
+use crate::scene::brdf::ggx_half_vector;
 use crate::scene::visibility::Visibility;
 
 /// Lobe directions a pixel takes unless asked otherwise. Against the brute-force integral over
@@ -67,23 +68,13 @@ struct Tap {
 
 /// The taps of `pattern` for GGX width `alpha`, in f64 as [`crate::scene::brdf`] evaluates.
 fn taps(alpha: f32, pattern: &[[f32; 2]]) -> Vec<Tap> {
-    let a2 = (alpha as f64).powi(2);
     pattern
         .iter()
         .map(|&[u1, u2]| {
-            let u = (u1 as f64).clamp(0.0, 1.0);
-            let den = (1.0 - u) + a2 * u;
-            let (cos2, sin2) = if den > 0.0 {
-                ((1.0 - u) / den, a2 * u / den)
-            } else {
-                (1.0, 0.0)
-            };
-            let (ct, st) = (cos2.sqrt(), sin2.sqrt());
-            let phi = std::f64::consts::TAU * u2 as f64;
-            let d = a2 / (std::f64::consts::PI * (a2 * cos2 + sin2).powi(2));
+            let (h, d) = ggx_half_vector(alpha, u1, u2);
             Tap {
-                h: DVec3::new(st * phi.cos(), st * phi.sin(), ct).as_vec3(),
-                d_nh: d * ct,
+                h: h.as_vec3(),
+                d_nh: d * h.z,
             }
         })
         .collect()

@@ -58,6 +58,18 @@ fn ggx_d(n: DVec3, h: DVec3, a2: f64) -> f64 {
 /// directions is [`ggx_pdf`]. `None` when it points below the surface.
 #[inline]
 pub fn sample_ggx(n: Vec3, v: Vec3, alpha: f32, u1: f32, u2: f32) -> Option<Vec3> {
+    let (local, _) = ggx_half_vector(alpha, u1, u2);
+    let (t, b) = n.any_orthonormal_pair();
+    let (n, v) = (n.as_dvec3(), v.as_dvec3());
+    let h = t.as_dvec3() * local.x + b.as_dvec3() * local.y + n * local.z;
+    let l = h * (2.0 * v.dot(h)) - v;
+    (n.dot(l) > 0.0).then(|| l.normalize().as_vec3())
+}
+
+/// The microfacet normal [`sample_ggx`] draws from two uniform numbers, in the frame of the
+/// normal (x and y along [`Vec3::any_orthonormal_pair`], z the normal), and `D(h)` there.
+#[inline]
+pub fn ggx_half_vector(alpha: f32, u1: f32, u2: f32) -> (DVec3, f64) {
     // cos²θh = (1 − u) / (1 − u + α² u) and sin²θh = α² u / (1 − u + α² u), neither taken as a
     // difference of numbers near 1, in f64.
     let (a2, u) = ((alpha as f64).powi(2), (u1 as f64).clamp(0.0, 1.0));
@@ -69,11 +81,8 @@ pub fn sample_ggx(n: Vec3, v: Vec3, alpha: f32, u1: f32, u2: f32) -> Option<Vec3
     };
     let (ct, st) = (cos2.sqrt(), sin2.sqrt());
     let phi = std::f64::consts::TAU * u2 as f64;
-    let (t, b) = n.any_orthonormal_pair();
-    let (n, v) = (n.as_dvec3(), v.as_dvec3());
-    let h = t.as_dvec3() * (st * phi.cos()) + b.as_dvec3() * (st * phi.sin()) + n * ct;
-    let l = h * (2.0 * v.dot(h)) - v;
-    (n.dot(l) > 0.0).then(|| l.normalize().as_vec3())
+    let d = a2 / (std::f64::consts::PI * (a2 * cos2 + sin2).powi(2));
+    (DVec3::new(st * phi.cos(), st * phi.sin(), ct), d)
 }
 
 /// Density over directions of [`sample_ggx`]: `D(h) (n·h) / (4 |v·h|)`, in f64 as

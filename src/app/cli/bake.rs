@@ -66,10 +66,12 @@ pub struct BakeArgs {
     pub refine_shadows: bool,
     /// Per-vertex bakes: store which cube texels each glossy vertex sees (a bit a texel, 6N²/8
     /// bytes a glossy vertex), so that its GGX lobe is drawn per pixel from the light itself,
-    /// for the pixel's own direction to the camera, however sharp the lobe. Not with
-    /// --brdf-terms above 1.
-    #[arg(long, requires = "per_vertex")]
-    pub visibility: bool,
+    /// for the pixel's own direction to the camera, however sharp the lobe. Default: true for a
+    /// scene with glossy materials unless --brdf-terms gives them in-out terms (the lobe per
+    /// pixel is the closer of the two to the path tracer on the glossy sphere and the demo's
+    /// teapot); false keeps their diffuse base alone.
+    #[arg(long, action = clap::ArgAction::Set, requires = "per_vertex")]
+    pub visibility: Option<bool>,
 }
 
 /// Parses `I/COUNT`.
@@ -99,7 +101,9 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         settings.brdf_terms = a.brdf_terms;
         settings.brdf_error = a.brdf_error;
         settings.refine_shadows = a.refine_shadows;
-        settings.visibility = a.visibility;
+        settings.visibility = a
+            .visibility
+            .unwrap_or_else(|| crate::api::glossy_visibility(&scene, a.brdf_terms));
         settings.validate()?;
         let named = |keep: fn(&crate::scene::Material) -> bool| -> Vec<&str> {
             scene
@@ -115,10 +119,11 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         // with much of their light.
         let shiny = named(drops_visible_gloss);
         let darkened = named(drops_rough_light);
-        if !glossy.is_empty() && a.visibility {
+        if !glossy.is_empty() && settings.visibility {
             eprintln!(
                 "the glossy material(s) {} keep their visibility ({} bytes a vertex): their lobe \
-                 is drawn per pixel from the light",
+                 is drawn per pixel from the light (--visibility false keeps their diffuse base \
+                 alone)",
                 glossy.join(", "),
                 4 * crate::scene::visibility::Visibility::words(settings.cube_n)
             );
@@ -154,7 +159,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
                 eprintln!(
                     "warning: per vertex, the glossy material(s) {} keep only their diffuse base: \
                      a glossy lobe depends on the direction to the camera, which moves \
-                     (--brdf-terms 4 keeps it in in-out terms)",
+                     (--visibility true draws it per pixel)",
                     shiny.join(", ")
                 );
             }
@@ -162,7 +167,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
                 eprintln!(
                     "warning: per vertex, the rough material(s) {} keep only their diffuse base, \
                      without the specular reflectance of their lobe (more than {} of the light): \
-                     they come out darker (--brdf-terms 2 keeps it)",
+                     they come out darker (--visibility true draws their lobe per pixel)",
                     darkened.join(", "),
                     ROUGH_SPECULAR_NOTED
                 );

@@ -1,4 +1,4 @@
-//! Reading the transport file (format version 8, laid out in the [module docs](super); versions
+//! Reading the transport file (format version 9, laid out in the [module docs](super); versions
 //! 3 to 6, which stored columns, into strips; version 7, whose slots are whole only when full, as
 //! stored): reading and validating all of it, and reading only its header and small tables for
 //! `prt info`. Every size and index is checked before anything is sliced or allocated.
@@ -70,7 +70,7 @@ impl Transport {
             )),
             None => None,
         };
-        // Versions 3 to 6 store columns (`col_count`, `entry_row`, `entry_value`), versions 7 and 8
+        // Versions 3 to 6 store columns (`col_count`, `entry_row`, `entry_value`), versions 7 to 9
         // strips; `col_scale` is in both.
         let legacy = version < 7;
         let col_count = if legacy {

@@ -28,7 +28,7 @@
 //! runs of each band. Groups and bands follow from `tile_row_start` alone; the *slots* (band,
 //! coefficient, block), in that order, each give a strip count and a scale code.
 //!
-//! # File (format version 8)
+//! # File (format version 9)
 //! A safetensors file (readable from Python with `safetensors.numpy.load_file`); its one metadata
 //! entry `meta` is JSON: `format = "wavelet-prt transport"`, `format_version`, `checksum` and the
 //! fields of [`TransportMeta`]. Tensors (T tiles, R rows, B blocks, C = 6 N² coefficients, S

@@ -1,4 +1,4 @@
-//! Writing the transport file (format version 8, laid out in the [module docs](super)): a whole
+//! Writing the transport file (format version 9, laid out in the [module docs](super)): a whole
 //! transport in memory, or the tensors a streamed bake spilled ([`super::TransportWriter`]),
 //! both through [`save_file`], so the same content gives the same bytes.
 
