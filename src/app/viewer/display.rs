@@ -149,6 +149,14 @@ impl DisplayPath {
                 None
             }
             Some(camera) => {
+                if mesh_of(t)?.visibility.is_some() {
+                    // The window then turns the GPU display off, says why, and draws on the CPU.
+                    return Err(PrtError::invalid(
+                        "GPU display",
+                        "the GPU raster draws no glossy lobe from visibility yet: this bake is \
+                         drawn on the CPU",
+                    ));
+                }
                 if self.mesh.is_none() {
                     self.mesh = Some(MeshDisplay::new(gpu, t)?);
                 }

@@ -150,21 +150,7 @@ pub(super) fn save_file<'a>(
         ]);
     }
     if let Some(vis) = tables.mesh.and_then(|m| m.visibility.as_ref()) {
-        let words = Visibility::words(vis.n);
-        tensors.extend([
-            (
-                "visibility_bits",
-                Tensor::new(Dtype::U32, vec![vis.vertices.len(), words], &vis.bits),
-            ),
-            (
-                "visibility_lobe",
-                Tensor::new(Dtype::F32, vec![vis.lobes.len(), 4], &vis.lobes),
-            ),
-            (
-                "visibility_vertex",
-                Tensor::new(Dtype::U32, vec![vis.vertices.len()], &vis.vertices),
-            ),
-        ]);
+        tensors.extend(visibility_tensors(vis));
     }
     if let Some(mesh) = tables.mesh {
         let (v, t) = (mesh.vertex_count(), mesh.triangles.len());
@@ -227,6 +213,25 @@ pub(super) fn save_file<'a>(
             meta: meta.clone(),
         })
     })
+}
+
+/// The tensors of a glossy mesh's visibility: its bits, the materials' lobes and the vertices.
+fn visibility_tensors(vis: &Visibility) -> [(&'static str, Tensor<'_>); 3] {
+    let rows = vis.vertices.len();
+    [
+        (
+            "visibility_bits",
+            Tensor::new(Dtype::U32, vec![rows, Visibility::words(vis.n)], &vis.bits),
+        ),
+        (
+            "visibility_lobe",
+            Tensor::new(Dtype::F32, vec![vis.lobes.len(), 4], &vis.lobes),
+        ),
+        (
+            "visibility_vertex",
+            Tensor::new(Dtype::U32, vec![rows], &vis.vertices),
+        ),
+    ]
 }
 
 /// The tensors of a Haar matrix in strips: `strip_count` and `col_scale` of shape `slots`
