@@ -251,7 +251,7 @@ fn bake_tiles(
     let identity = settings.identity(scene)?;
     let tracer = Tracer::new(scene);
     if let Some(m) = mesh.as_mut().filter(|_| identity.visibility) {
-        let (bits, _rays) =
+        let bits =
             visibility::glossy_vertices(scene, &tracer, m, settings.cube_n, settings.unshadowed)?;
         m.visibility = Some(Box::new(bits));
     }

@@ -12,15 +12,15 @@ use crate::scene::tessellate::VertexMesh;
 use crate::scene::trace::Tracer;
 use crate::scene::visibility::Visibility;
 
-/// The bits of every vertex of `mesh` whose material has a glossy lobe, over an N-cube, with
-/// the shadow rays traced (none when `unshadowed`: every texel above the horizon open).
+/// The bits of every vertex of `mesh` whose material has a glossy lobe, over an N-cube (every
+/// texel above the horizon open when `unshadowed`, no ray traced).
 pub fn glossy_vertices(
     scene: &Scene,
     tracer: &Tracer,
     mesh: &VertexMesh,
     n: usize,
     unshadowed: bool,
-) -> crate::error::Result<(Visibility, u64)> {
+) -> crate::error::Result<Visibility> {
     let vertices: Vec<u32> = (0..mesh.vertex_count() as u32)
         .filter(|&v| {
             scene
@@ -32,39 +32,31 @@ pub fn glossy_vertices(
     let dirs: Vec<glam::Vec3> = texel_dirs(n).iter().map(|d| d.as_vec3()).collect();
     let morton = morton_of_linear(n);
     let words = Visibility::words(n);
-    let rows: Vec<(Vec<u32>, u64)> = vertices
+    let rows: Vec<Vec<u32>> = vertices
         .par_iter()
         .map(|&v| {
             let normal = mesh.normals[v as usize];
             let origin = mesh.positions[v as usize] + normal * tracer.spawn_offset();
             let mut rays = tracer.rays_from(origin);
             let mut bits = vec![0u32; words];
-            let mut traced = 0u64;
             for (d, &m) in dirs.iter().zip(&morton) {
                 if normal.dot(*d) <= 0.0 {
                     continue;
                 }
-                let open = unshadowed || {
-                    traced += 1;
-                    !rays.occluded(*d, f32::INFINITY)
-                };
+                let open = unshadowed || !rays.occluded(*d, f32::INFINITY);
                 if open {
                     bits[m as usize / 32] |= 1 << (m % 32);
                 }
             }
-            (bits, traced)
+            bits
         })
         .collect();
-    let traced = rows.iter().map(|r| r.1).sum();
-    let bits = rows.into_iter().flat_map(|r| r.0).collect();
-    Ok((
-        Visibility::new(
-            n,
-            mesh.vertex_count(),
-            vertices,
-            bits,
-            Visibility::lobes_of(&scene.materials),
-        )?,
-        traced,
-    ))
+    let bits = rows.into_iter().flatten().collect();
+    Visibility::new(
+        n,
+        mesh.vertex_count(),
+        vertices,
+        bits,
+        Visibility::lobes_of(&scene.materials),
+    )
 }

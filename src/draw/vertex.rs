@@ -292,6 +292,7 @@ pub fn draw_relit(
     eval: GlossEval,
 ) -> Result<Raster> {
     let mesh = mesh_of(t)?;
+    let colours = vertex_colours(t, relit)?;
     if let Some(vis) = &mesh.visibility {
         let light = light.ok_or_else(|| {
             PrtError::invalid(
@@ -307,10 +308,8 @@ pub fn draw_relit(
             light,
             DEFAULT_LOBE_SAMPLES,
         );
-        let colours = vertex_colours(t, relit)?;
         return draw_mesh(mesh, &colours, Some(&lobe), camera, behind, samples);
     }
-    let colours = vertex_colours(t, relit)?;
     let terms = vertex_terms(t, relit)?;
     let gloss = mesh
         .factors

@@ -18,7 +18,7 @@ use crate::store::transport::Transport;
 /// 64 against the map itself; on the glossy sphere under the studio, the drawn image is 14.7%,
 /// 13.9% and 20.8% from the path tracer at N = 32, 9.7%, 8.6% and 19.6% at 64 and 9.2%, 8.1%
 /// and 19.4% at 128, while the demo's teapot under the sunrise, whose small sun the lobe's
-/// directions sample worse the sharper it is, went from 11.3% at 32 to 12.7% at 128.
+/// directions sample worse the sharper it is, went from 11.3% at 32 to 12.7% at 64 and 128.
 pub const LOBE_N: usize = 64;
 
 /// The pyramid of the light `req` relights `t` with under `light` (`None`: the environment off),

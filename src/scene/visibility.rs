@@ -133,11 +133,6 @@ impl Visibility {
         let (start, end) = node_run(m, level);
         count_ones(row, start, end) as f32 / (end - start) as f32
     }
-
-    /// Bytes the bits take.
-    pub fn bytes(&self) -> usize {
-        4 * (self.bits.len() + self.vertices.len() + 4 * self.lobes.len())
-    }
 }
 
 /// Set bits of `words` at bit positions `[start, end)`.
