@@ -30,8 +30,7 @@ use crate::store::transport::{BakeDomain, Transport};
 /// What to measure.
 #[derive(Clone, Debug)]
 pub struct GlossBenchOptions {
-    /// Counts of in-out terms K_b (1 is the diffuse base, 0 visibility with the lobe per
-    /// pixel).
+    /// Counts of in-out terms K_b (1: the diffuse base; 0: visibility, the lobe per pixel).
     pub brdf_terms: Vec<u32>,
     /// Tessellations, as multiples of the scene's default edge length.
     pub edge_factors: Vec<f32>,

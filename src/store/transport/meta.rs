@@ -102,7 +102,8 @@ impl BakeDomain {
 /// the form they are stored. The bake's settings give it for a scene
 /// (`bake::BakeSettings::identity`, where the rules live: a lossless bake stores threshold 0,
 /// texel samples are a square, and so on) and a file is reused for a bake exactly when its
-/// identity is equal.
+/// identity is equal. Its fields twin `bake::BakeSettings`' by design, in the form a file
+/// stores them (the store cannot see the bake's settings).
 #[derive(Clone, Debug, PartialEq)]
 pub struct BakeIdentity {
     /// FNV-1a hash of the scene text and its meshes, hex (`Scene::hash_hex`).
