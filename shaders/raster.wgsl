@@ -1,5 +1,5 @@
 // Draws a mesh with one colour per vertex (Gouraud shading), the GPU twin of the CPU rasteriser
-// in src/relight/raster.rs. The colours are read from a storage buffer of vec4<f32> per vertex,
+// in src/draw/raster.rs. The colours are read from a storage buffer of vec4<f32> per vertex,
 // indexed by the vertex's index, so a relit buffer can be drawn without leaving the GPU. Clip
 // space (`clip_from_world`) puts x right and y up over the film, w the forward distance from the
 // eye and z the near distance, so the depth is near / w: reversed depth, cleared to 0 and tested
@@ -26,8 +26,16 @@
 // diffuse colour is colours[v * stride] and its term k's response colours[v * stride + k]. A
 // fragment interpolates each response with the barycentrics, weighs it by the view factor g_k of
 // the direction to the eye in the frame of the interpolated normal, and adds it, as
-// src/relight/raster.rs (Gloss) does: the frame, the hemi-octahedral map and its bilinear lookup
-// are those of src/scene/brdf_factor.rs, written again here.
+// src/draw/gloss.rs does: the frame, the hemi-octahedral map and its bilinear lookup are those of
+// src/scene/brdf_factor.rs, written again here.
+//
+// A glossy per-vertex bake with visibility (view.lobe.y, its taps a material, above 0) keeps which
+// cube texels each glossy vertex sees, one bit a texel in Morton order. A fragment evaluates the
+// material's GGX lobe for its interpolated normal and its own direction to the eye by filtered
+// importance sampling against the light's pyramid (binding 8) and the three vertices' visible
+// shares at the matching level, interpolated with the barycentrics, as src/draw/lobe.rs does: the
+// taps, the level choice, the weights and the Morton walk are those of src/draw/lobe.rs and
+// src/math/cube_pyramid.rs, written again here.
 
 struct View {
     clip_from_world: mat4x4<f32>,
@@ -42,8 +50,14 @@ struct View {
     // its centre, in pixels (y down): the film is shifted by as much, so the hardware's pixel
     // centre is the sample.
     size: vec4<f32>,
-    // A glossy bake's stride (1 without terms), its factor maps' cells a side, and its materials.
+    // A glossy bake's stride (1 without terms), its factor maps' cells a side, its materials, and
+    // the face size of the light's pyramid (0 without a light).
     gloss: vec4<u32>,
+    // A bake with visibility: its cube's face size, the lobe's taps a material, the materials and
+    // the words of a vertex's bits; then where in `gloss` the taps, the lobes and the bits start
+    // (each vertex's row, or NO_ROW, is at its index). All zero without visibility.
+    lobe: vec4<u32>,
+    lobe_at: vec4<u32>,
 };
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -62,10 +76,17 @@ struct View {
 // Per triangle, its three vertices.
 @group(0) @binding(6) var<storage, read> indices: array<u32>;
 // A glossy bake's factors: K_b of each material, then the view factors g_k (f32 bits) of
-// material m's term k at ((m * (stride - 1) + k - 1) * cells) (one word when there are none).
+// material m's term k at ((m * (stride - 1) + k - 1) * cells) (one word when there are none). Or
+// a bake's visibility: the vertices' rows, then per material its taps (the half vector in the
+// normal's frame and D(h) (n.h), f32 bits), the materials' lobes (specular colour and alpha), and
+// the rows' bits.
 @group(0) @binding(7) var<storage, read> gloss: array<u32>;
+// The light's pyramid: each node's mean radiance, level 0 (the texels, Morton order) first.
+@group(0) @binding(8) var<storage, read> light: array<vec4<f32>>;
 
 const NO_MAP: u32 = 0xffffffffu;
+const NO_ROW: u32 = 0xffffffffu;
+const PI: f32 = 3.141592653589793;
 const VERTEX_WORDS: u32 = 10u;
 const UNORM: f32 = 1.0 / 65535.0;
 // Largest texel coordinate read: past it f32 holds no fraction, and the index must fit an i32.
@@ -154,6 +175,175 @@ fn glossy(corners: vec3<u32>, bary: vec3<f32>, to_eye: vec3<f32>) -> vec3<f32> {
         light += r * view_factor(m, k, local);
     }
     return light;
+}
+
+// The bits of x's low half spread to the even bit positions.
+fn spread(v: u32) -> u32 {
+    var x = v & 0xffffu;
+    x = (x | (x << 8u)) & 0x00ff00ffu;
+    x = (x | (x << 4u)) & 0x0f0f0f0fu;
+    x = (x | (x << 2u)) & 0x33333333u;
+    return (x | (x << 1u)) & 0x55555555u;
+}
+
+// The Morton index of the texel of an n-cube that holds direction d (any length).
+fn dir_to_morton(n: u32, d: vec3<f32>) -> u32 {
+    let a = abs(d);
+    // The face, and the position on it from -1 to 1, as src/math/cubemap.rs (dir_to_face_st).
+    var face: u32;
+    var s: f32;
+    var t: f32;
+    if a.x >= a.y && a.x >= a.z {
+        face = select(1u, 0u, d.x >= 0.0);
+        s = select(d.z, -d.z, d.x >= 0.0) / a.x;
+        t = -d.y / a.x;
+    } else if a.y >= a.z {
+        face = select(3u, 2u, d.y >= 0.0);
+        s = d.x / a.y;
+        t = select(-d.z, d.z, d.y >= 0.0) / a.y;
+    } else {
+        face = select(5u, 4u, d.z >= 0.0);
+        s = select(-d.x, d.x, d.z >= 0.0) / a.z;
+        t = -d.y / a.z;
+    }
+    let col = min(u32((s + 1.0) * 0.5 * f32(n)), n - 1u);
+    let row = min(u32((t + 1.0) * 0.5 * f32(n)), n - 1u);
+    return face * n * n + (spread(col) | (spread(row) << 1u));
+}
+
+// The light's mean radiance over the level-`level` node that holds Morton index m.
+fn light_mean(m: u32, level: u32) -> vec3<f32> {
+    var at = 0u;
+    for (var k = 0u; k < level; k++) {
+        let side = view.gloss.w >> k;
+        at += 6u * side * side;
+    }
+    return light[at + (m >> (2u * level))].rgb;
+}
+
+// The open share of the level-`level` node holding Morton index m in visibility row `row` (1 for a
+// vertex without bits).
+fn open_share(row: u32, m: u32, level: u32) -> f32 {
+    if row == NO_ROW {
+        return 1.0;
+    }
+    let base = view.lobe_at.z + row * view.lobe.w;
+    let len = 1u << (2u * level);
+    let start = (m >> (2u * level)) << (2u * level);
+    var ones = 0u;
+    if len < 32u {
+        ones = countOneBits((gloss[base + start / 32u] >> (start % 32u)) & ((1u << len) - 1u));
+    } else {
+        for (var w = start / 32u; w < (start + len) / 32u; w++) {
+            ones += countOneBits(gloss[base + w]);
+        }
+    }
+    return f32(ones) / f32(len);
+}
+
+// The light times the interpolated open share over lobe direction l's node at pyramid level
+// `level`, the visibility read at the level of the same texel size.
+fn lobe_at_level(ml: u32, mv: u32, level: u32, rows: vec3<u32>, b: vec3<f32>) -> vec3<f32> {
+    let tl = countTrailingZeros(view.gloss.w);
+    let tv = countTrailingZeros(view.lobe.x);
+    let vl = min(max(level + tv, tl) - tl, tv);
+    let open = b.x * open_share(rows.x, mv, vl) + b.y * open_share(rows.y, mv, vl)
+        + b.z * open_share(rows.z, mv, vl);
+    return light_mean(ml, level) * open;
+}
+
+// The mean of light times open share over direction l's node at fractional level x (clamped to
+// the pyramid's levels), between the two levels about it.
+fn lobe_read(l: vec3<f32>, x: f32, rows: vec3<u32>, b: vec3<f32>) -> vec3<f32> {
+    let ml = dir_to_morton(view.gloss.w, l);
+    var mv = ml;
+    if view.lobe.x != view.gloss.w {
+        mv = dir_to_morton(view.lobe.x, l);
+    }
+    let top = countTrailingZeros(view.gloss.w);
+    let xc = clamp(x, 0.0, f32(top));
+    let lo = u32(floor(xc));
+    let f = xc - floor(xc);
+    let below = lobe_at_level(ml, mv, lo, rows, b);
+    if f > 0.0 && lo < top {
+        return below * (1.0 - f) + lobe_at_level(ml, mv, lo + 1u, rows, b) * f;
+    }
+    return below;
+}
+
+// Three f32 of the gloss buffer from word `at`.
+fn gloss_vec3(at: u32) -> vec3<f32> {
+    return vec3<f32>(
+        bitcast<f32>(gloss[at]),
+        bitcast<f32>(gloss[at + 1u]),
+        bitcast<f32>(gloss[at + 2u]),
+    );
+}
+
+// Smith's masking of GGX with alpha squared a2 at cosine c.
+fn smith_g1(c: f32, a2: f32) -> f32 {
+    return 2.0 * c / (c + sqrt(a2 + (1.0 - a2) * c * c));
+}
+
+// The glossy light of a point of the triangle with `corners` at barycentrics `bary` of a bake with
+// visibility, seen along `v` (unit, towards the eye): each tap's direction l = 2 (v.h) h - v
+// weighed by f cos / pdf, G1(l) G1(v) (v.h) / ((n.v) (n.h)) for GGX.
+fn lobe_light(corners: vec3<u32>, bary: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
+    let m = vertices[corners.x * VERTEX_WORDS + 9u];
+    if m >= view.lobe.z {
+        return vec3<f32>(0.0);
+    }
+    let at = view.lobe_at.y + m * 4u;
+    let specular = gloss_vec3(at);
+    let alpha = bitcast<f32>(gloss[at + 3u]);
+    if !(specular.x > 0.0 || specular.y > 0.0 || specular.z > 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let sum = normal_of(corners.x) * bary.x + normal_of(corners.y) * bary.y
+        + normal_of(corners.z) * bary.z;
+    if !(dot(sum, sum) > 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let n = normalize(sum);
+    let nv = dot(n, v);
+    if nv <= 0.0 {
+        return vec3<f32>(0.0);
+    }
+    let rows = vec3<u32>(gloss[corners.x], gloss[corners.y], gloss[corners.z]);
+    let a2 = alpha * alpha;
+    let g1v = smith_g1(nv, a2);
+    // The normal's frame as glam's Vec3::any_orthonormal_pair builds it (Duff et al. 2017).
+    let sign = select(1.0, -1.0, (bitcast<u32>(n.z) & 0x80000000u) != 0u);
+    let ka = -1.0 / (sign + n.z);
+    let kb = n.x * n.y * ka;
+    let t = vec3<f32>(1.0 + sign * n.x * n.x * ka, sign * kb, -sign * n.x);
+    let s = vec3<f32>(kb, sign + n.y * n.y * ka, -n.y);
+    let taps = view.lobe.y;
+    let count = f32(taps);
+    let side = f32(view.gloss.w);
+    let texel = 4.0 * PI / (6.0 * side * side);
+    var total = vec3<f32>(0.0);
+    for (var k = 0u; k < taps; k++) {
+        let o = view.lobe_at.x + (m * taps + k) * 4u;
+        let th = gloss_vec3(o);
+        let d_nh = bitcast<f32>(gloss[o + 3u]);
+        let h = t * th.x + s * th.y + n * th.z;
+        let vh = dot(v, h);
+        if vh <= 0.0 {
+            continue;
+        }
+        let l = h * (2.0 * vh) - v;
+        let nl = dot(n, l);
+        if nl <= 0.0 {
+            continue;
+        }
+        let weight = smith_g1(nl, a2) * g1v * vh / (nv * th.z);
+        // The footprint 1 / (M pdf), pdf = D (n.h) / (4 v.h).
+        let footprint = 4.0 * vh / (count * d_nh);
+        let x = 0.5 * log2(footprint / texel);
+        total += lobe_read(l, x, rows, bary) * weight;
+    }
+    return specular * total / count;
 }
 
 fn uv_of(v: u32) -> vec2<f32> {
@@ -303,6 +493,10 @@ fn fragment(in: Varyings) -> @location(0) vec4<f32> {
         let dir = view.right.xyz * d.x + view.up.xyz * d.y + view.forward.xyz;
         // A truncated factorisation can undershoot: radiance stays non-negative.
         colour = max(colour + glossy(corners, bary, -normalize(dir)), vec3<f32>(0.0));
+    }
+    if view.lobe.y > 0u {
+        let dir = view.right.xyz * d.x + view.up.xyz * d.y + view.forward.xyz;
+        colour = max(colour + lobe_light(corners, bary, -normalize(dir)), vec3<f32>(0.0));
     }
     return vec4<f32>(colour, 1.0);
 }

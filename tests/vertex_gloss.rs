@@ -461,12 +461,7 @@ fn the_gpu_draws_a_glossy_bake_as_the_cpu_does() {
             )
             .unwrap();
             let dev = raster.draw(&gpu, &camera, &m, &buffer).unwrap();
-            let brightest = cpu
-                .image
-                .pixels
-                .iter()
-                .flatten()
-                .fold(0.0f32, |a, b| a.max(*b));
+            let brightest = common::brightest(&cpu.image);
             let apart = (0..cpu.coverage.len())
                 .filter(|&i| {
                     let (a, b) = (dev.image.pixels[i], cpu.image.pixels[i]);

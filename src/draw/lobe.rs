@@ -80,6 +80,15 @@ fn taps(alpha: f32, pattern: &[[f32; 2]]) -> Vec<Tap> {
         .collect()
 }
 
+/// The taps of [`lobe_pattern`]`(samples)` for GGX width `alpha` as the GPU raster reads them:
+/// the half vector in the normal's frame, then `D(h) (n·h)`.
+pub fn lobe_taps(alpha: f32, samples: usize) -> Vec<[f32; 4]> {
+    taps(alpha, &lobe_pattern(samples))
+        .iter()
+        .map(|t| [t.h.x, t.h.y, t.h.z, t.d_nh as f32])
+        .collect()
+}
+
 impl<'a> Lobe<'a> {
     /// The lobe of a mesh's vertices under `light`, with `samples` directions a pixel.
     pub fn new(

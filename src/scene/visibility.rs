@@ -115,6 +115,12 @@ impl Visibility {
         self.rows.len()
     }
 
+    /// Vertex `v`'s row, if it has bits.
+    #[inline]
+    pub fn row_index(&self, v: usize) -> Option<u32> {
+        self.rows.get(v).copied().filter(|&r| r != NO_ROW)
+    }
+
     /// Vertex `v`'s bits, if it has them.
     #[inline]
     pub fn row(&self, v: usize) -> Option<&[u32]> {

@@ -274,6 +274,11 @@ pub fn per_vertex_transport_path() -> PathBuf {
     .clone()
 }
 
+/// The brightest channel of any pixel of `image`.
+pub fn brightest(image: &wavelet_prt::output::film::Image) -> f32 {
+    image.pixels.iter().flatten().fold(0.0f32, |a, b| a.max(*b))
+}
+
 /// A GPU for the tests: `None` (after printing why) when no adapter exists, unless
 /// `PRT_REQUIRE_GPU=1`, when the test fails instead.
 pub fn gpu_or_skip(test: &str) -> Option<wavelet_prt::relight::gpu::Gpu> {

@@ -305,20 +305,10 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         Some(camera) => {
             let mesh = crate::draw::vertex::mesh_of(&t)?;
             let glossy = mesh.factors.is_some();
-            // The GPU raster weighs glossy terms per pixel only, and draws no lobe from
-            // visibility.
-            let lobe = mesh.visibility.is_some();
-            let on_cpu =
-                lobe || glossy && a.gloss_eval == crate::draw::vertex::GlossEval::PerVertex;
+            // The GPU raster weighs glossy terms per pixel only.
+            let on_cpu = glossy && a.gloss_eval == crate::draw::vertex::GlossEval::PerVertex;
             if on_cpu && gpu.is_some() {
-                eprintln!(
-                    "the GPU raster {}: drawn on the CPU",
-                    if lobe {
-                        "draws no glossy lobe from visibility"
-                    } else {
-                        "weighs glossy terms per pixel"
-                    }
-                );
+                eprintln!("the GPU raster weighs glossy terms per pixel: drawn on the CPU");
             }
             let light = crate::relight::lobe_light(&t, &ctx, prepared.as_ref(), &req)?;
             let r = match gpu.as_ref().filter(|_| !on_cpu) {
@@ -338,7 +328,9 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
                     let pixels = &img.pixels[..mesh.pixel_count().min(img.pixels.len())];
                     let m = GpuMesh::of_bake(gpu, mesh)?;
                     let c = upload_colours(gpu, pixels)?;
-                    GpuRaster::multisampled(gpu, a.samples)?.draw(gpu, camera, &m, &c)?
+                    let mut raster = GpuRaster::multisampled(gpu, a.samples)?;
+                    raster.set_light(gpu, light.as_ref())?;
+                    raster.draw(gpu, camera, &m, &c)?
                 }
             };
             drawn = format!(

@@ -417,8 +417,7 @@ pub fn run(
                     draw_ms: median(times.iter().map(|t| ms(t[1], t[2])).collect()),
                 });
             }
-            // The GPU raster draws no lobe from visibility: its frame is not timed.
-            if let Some(gpu) = gpu.filter(|_| k_b != 0) {
+            if let Some(gpu) = gpu {
                 row.gpu = Some(gpu_frames(
                     gpu, &t, &ctx, &light, &k_reqs, &frame_cam, opts,
                 )?);
@@ -476,7 +475,8 @@ fn ms(a: Instant, b: Instant) -> f64 {
     (b - a).as_secs_f64() * 1e3
 }
 
-/// A GPU frame at each K: the kernel's own time, then the colours uploaded, drawn and read back.
+/// A GPU frame at each K: the kernel's own time, then the colours (and a lobe's light) uploaded,
+/// drawn and read back.
 fn gpu_frames(
     gpu: &Gpu,
     t: &Transport,
@@ -503,6 +503,9 @@ fn gpu_frames(
                 let t0 = Instant::now();
                 let pixels = &img.pixels[..mesh.pixel_count().min(img.pixels.len())];
                 let c = upload_colours(gpu, pixels)?;
+                // A bake with visibility draws its lobe from the request's light, built on the
+                // CPU and uploaded with the colours.
+                raster.set_light(gpu, lobe_light(t, ctx, Some(light), req)?.as_ref())?;
                 raster.draw(gpu, camera, &m, &c)?;
                 if run > 0 {
                     kernel.push(stats.kernel_seconds * 1e3);

@@ -149,14 +149,6 @@ impl DisplayPath {
                 None
             }
             Some(camera) => {
-                if mesh_of(t)?.visibility.is_some() {
-                    // The window then turns the GPU display off, says why, and draws on the CPU.
-                    return Err(PrtError::invalid(
-                        "GPU display",
-                        "the GPU raster draws no glossy lobe from visibility yet: this bake is \
-                         drawn on the CPU",
-                    ));
-                }
                 if self.mesh.is_none() {
                     self.mesh = Some(MeshDisplay::new(gpu, t)?);
                 }
@@ -184,6 +176,12 @@ impl DisplayPath {
             }
             // The vertex colours stay in the transport's buffer, which the raster reads.
             Some((mesh, camera)) => {
+                if mesh.mesh.has_lobe() {
+                    // The lobe's light, as the request keeps it, from the CPU.
+                    let env = environment.then_some(&*lit.light);
+                    let lobe = crate::relight::lobe_light(t, ctx, env, request)?;
+                    mesh.raster.set_light(gpu, lobe.as_ref())?;
+                }
                 gt.relight_terms_in_place(gpu, &terms, lights)?;
                 let kernel_seconds = gpu.last_kernel_seconds();
                 mesh.raster

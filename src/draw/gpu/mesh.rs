@@ -4,6 +4,7 @@
 
 use wgpu::util::DeviceExt;
 
+use crate::draw::lobe::{DEFAULT_LOBE_SAMPLES, lobe_taps};
 use crate::draw::raster::{Texturing, check_mesh};
 use crate::error::{PrtError, Result};
 use crate::gpu::GpuDevice as Gpu;
@@ -11,6 +12,7 @@ use crate::scene::albedo_map::wrap_code;
 use crate::scene::brdf_factor::BrdfFactors;
 use crate::scene::tessellate::VertexMesh;
 use crate::scene::texture::Filter;
+use crate::scene::visibility::{NO_ROW, Visibility};
 use glam::Vec3;
 
 /// Bytes of one vertex's colour in a colour buffer (`vec4<f32>`), and of one pixel of the
@@ -24,27 +26,96 @@ const NO_MAP: u32 = u32::MAX;
 const VERTEX_WORDS: usize = 10;
 
 /// What a glossy per-vertex bake adds to its mesh on the GPU: each vertex's shading normal and
-/// material, and the in-out factors (each material's K_b and view factors `g_k`).
+/// material, and what it keeps for view-dependent light.
 #[derive(Clone, Copy, Debug)]
 pub struct GlossMesh<'a> {
     /// Unit shading normal of each vertex.
     pub normals: &'a [Vec3],
     /// Material of each vertex.
     pub materials: &'a [u32],
-    /// The factors.
-    pub factors: &'a BrdfFactors,
+    /// The in-out factors or the visibility.
+    pub tables: GlossTables<'a>,
+}
+
+/// The view-dependent tables of a glossy per-vertex bake, as the raster draws them.
+#[derive(Clone, Copy, Debug)]
+pub enum GlossTables<'a> {
+    /// The in-out factors: each material's K_b and view factors `g_k`, the vertices' responses
+    /// in the colour buffer.
+    Factors(&'a BrdfFactors),
+    /// The glossy vertices' visibility bits and the materials' lobes, drawn per pixel against
+    /// the light's pyramid ([`super::GpuRaster::set_light`]).
+    Visibility(&'a Visibility),
 }
 
 impl<'a> GlossMesh<'a> {
     /// The gloss of a per-vertex bake's mesh, `None` for its diffuse base.
     pub fn of(mesh: &'a VertexMesh) -> Option<GlossMesh<'a>> {
-        mesh.factors.as_deref().map(|factors| GlossMesh {
+        let tables = match (&mesh.factors, &mesh.visibility) {
+            (Some(f), _) => GlossTables::Factors(f),
+            (None, Some(v)) => GlossTables::Visibility(v),
+            (None, None) => return None,
+        };
+        Some(GlossMesh {
             normals: &mesh.normals,
             materials: &mesh.materials,
-            factors,
+            tables,
         })
     }
 }
+
+/// Where the lobe's tables sit in the gloss buffer and their shape, as the shader's view
+/// uniform takes them: `[visibility N, taps a material, materials, words a row]`, then the
+/// offsets of the taps, the lobes and the bits (the vertices' rows start at 0). All zero
+/// without visibility.
+pub(super) type LobeShape = [u32; 8];
+
+/// The gloss buffer's words and shapes of `gloss`: the in-out factors' K_b and view factors,
+/// or the visibility's vertex rows, lobe taps, lobes and bits.
+fn gloss_tables(gloss: Option<&GlossMesh>, vertices: usize) -> (Vec<u32>, [u32; 3], LobeShape) {
+    match gloss.map(|g| g.tables) {
+        Some(GlossTables::Factors(f)) => {
+            let words = f
+                .terms
+                .iter()
+                .copied()
+                .chain(f.view.iter().map(|v| v.to_bits()))
+                .collect();
+            let shape = [f.stride as u32, f.map.res as u32, f.terms.len() as u32];
+            (words, shape, [0; 8])
+        }
+        Some(GlossTables::Visibility(vis)) => {
+            let mut words: Vec<u32> = (0..vertices)
+                .map(|v| vis.row_index(v).unwrap_or(NO_ROW))
+                .collect();
+            let taps_at = words.len() as u32;
+            for m in 0..vis.lobes.len() as u32 {
+                let taps = match vis.lobe(m) {
+                    Some((_, alpha)) => lobe_taps(alpha, DEFAULT_LOBE_SAMPLES),
+                    None => vec![[0.0; 4]; DEFAULT_LOBE_SAMPLES],
+                };
+                words.extend(taps.iter().flatten().map(|x| x.to_bits()));
+            }
+            let lobes_at = words.len() as u32;
+            words.extend(vis.lobes.iter().flatten().map(|x| x.to_bits()));
+            let bits_at = words.len() as u32;
+            words.extend(&vis.bits);
+            let shape = [
+                vis.n as u32,
+                DEFAULT_LOBE_SAMPLES as u32,
+                vis.lobes.len() as u32,
+                Visibility::words(vis.n) as u32,
+                taps_at,
+                lobes_at,
+                bits_at,
+                0,
+            ];
+            (words, [1, 0, 0], shape)
+        }
+        None => (vec![0], [1, 0, 0], [0; 8]),
+    }
+}
+
 /// A mesh resident on the GPU, in storage buffers as `shaders/raster.wgsl` reads them: per vertex
 /// its position, texture coordinate and albedo-map slot, per triangle its three vertices, and the
 /// albedo maps (the maps, their levels and their texels).
@@ -60,6 +131,8 @@ pub struct GpuMesh {
     pub(super) gloss: wgpu::Buffer,
     /// `[stride, map cells a side, materials]` of a glossy bake; `[1, 0, 0]` without gloss.
     pub(super) gloss_shape: [u32; 3],
+    /// The lobe's tables in `gloss` where the bake keeps visibility.
+    pub(super) lobe_shape: LobeShape,
 }
 
 /// The shader's map, level and texel tables.
@@ -130,9 +203,26 @@ impl GpuMesh {
             t.check(positions.len())?;
         }
         if let Some(g) = &gloss {
-            let f = g.factors;
-            if let Some(p) = f.problem(f.terms.len()) {
+            if let GlossTables::Factors(f) = g.tables
+                && let Some(p) = f.problem(f.terms.len())
+            {
                 return Err(PrtError::invalid("BRDF factors", p));
+            }
+            if let GlossTables::Visibility(v) = g.tables
+                && (v.vertex_count() != positions.len()
+                    || g.materials.iter().any(|&m| m as usize >= v.lobes.len()))
+            {
+                return Err(PrtError::invalid(
+                    "visibility",
+                    format!(
+                        "visibility of {} vertices with {} materials' lobes for {} vertices \
+                         of materials up to {}",
+                        v.vertex_count(),
+                        v.lobes.len(),
+                        positions.len(),
+                        g.materials.iter().max().map_or(0, |m| *m)
+                    ),
+                ));
             }
             if g.normals.len() != positions.len() || g.materials.len() != positions.len() {
                 return Err(PrtError::invalid(
@@ -172,26 +262,14 @@ impl GpuMesh {
                 ),
             ));
         }
-        let (gloss_words, gloss_shape): (Vec<u32>, [u32; 3]) = match &gloss {
-            Some(g) => {
-                let f = g.factors;
-                let words = f
-                    .terms
-                    .iter()
-                    .copied()
-                    .chain(f.view.iter().map(|v| v.to_bits()))
-                    .collect();
-                (
-                    words,
-                    [f.stride as u32, f.map.res as u32, f.terms.len() as u32],
-                )
-            }
-            None => (vec![0], [1, 0, 0]),
-        };
+        let (gloss_words, gloss_shape, lobe_shape) = gloss_tables(gloss.as_ref(), positions.len());
         if gloss_words.len() as u64 * 4 > gpu.max_binding_bytes() {
             return Err(PrtError::invalid(
-                "BRDF factors",
-                format!("{} words; too many for one binding", gloss_words.len()),
+                "gloss",
+                format!(
+                    "{} words of BRDF factors or visibility; too many for one binding",
+                    gloss_words.len()
+                ),
             ));
         }
         let mut table = Vec::with_capacity(positions.len() * VERTEX_WORDS);
@@ -254,12 +332,18 @@ impl GpuMesh {
                 wgpu::BufferUsages::STORAGE,
             ),
             gloss_shape,
+            lobe_shape,
         })
     }
 
     /// Vertices of the mesh.
     pub fn vertex_count(&self) -> usize {
         self.vertices as usize
+    }
+
+    /// Whether the mesh's gloss is visibility, whose lobe the raster draws from a light.
+    pub fn has_lobe(&self) -> bool {
+        self.lobe_shape[1] > 0
     }
 
     /// Colours a vertex takes in the colour buffer: its stride (1 without gloss).

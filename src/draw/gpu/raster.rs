@@ -9,8 +9,11 @@
 //! layout of the relight's output image buffer when vertex `i` is its pixel `i`), so relit
 //! colours need not leave the GPU. A glossy per-vertex bake's mesh ([`super::GlossMesh`]) reads
 //! `stride` of them a vertex, its diffuse colour and its in-out terms' responses, and weighs the
-//! terms per pixel by the view factors as the CPU's [`crate::draw::gloss::Gloss`] does. [`GpuRaster::draw`] renders offscreen and reads the image and
-//! coverage back; [`GpuRaster::render`] draws into a caller's texture for display.
+//! terms per pixel by the view factors as the CPU's [`crate::draw::gloss::Gloss`] does. One with
+//! visibility evaluates each pixel's GGX lobe against the light's pyramid
+//! ([`GpuRaster::set_light`]) and the vertices' visibility bits, as the CPU's
+//! [`crate::draw::lobe::Lobe`] does. [`GpuRaster::draw`] renders offscreen and reads the image
+//! and coverage back; [`GpuRaster::render`] draws into a caller's texture for display.
 //!
 //! Conventions: clip space comes from [`clip_from_world`] (NDC y up is the film's top row, as
 //! wgpu's viewport puts NDC y = 1 on row 0, so no flip is needed), depth is reversed (`NEAR / w`
@@ -24,6 +27,7 @@ use crate::draw::raster::{Frame, Raster, clip_from_world, sample_offsets};
 use crate::error::{PrtError, Result};
 use crate::gpu::GpuDevice as Gpu;
 use crate::gpu::{map_and_read, texture_2d};
+use crate::math::cube_pyramid::CubePyramid;
 use crate::output::film::Image;
 use crate::scene::Camera;
 
@@ -31,9 +35,9 @@ use crate::scene::Camera;
 pub const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
-/// Bytes of the view uniform: the clip transform, then five `vec4<f32>` (the camera's frame and
-/// the image size).
-const VIEW_BYTES: u64 = 64 + 6 * 16;
+/// Bytes of the view uniform: the clip transform, then eight 16-byte rows (the camera's frame,
+/// the image size, the in-out factors' shape, the lobe's shape and its tables' offsets).
+const VIEW_BYTES: u64 = 64 + 8 * 16;
 
 /// The textures of one image size: the offscreen colour target, the depth buffer and the buffer
 /// the colours are read back through (rows padded to wgpu's copy alignment).
@@ -123,6 +127,9 @@ pub struct GpuRaster {
     offsets: &'static [[f32; 2]],
     resolve: Option<(wgpu::RenderPipeline, wgpu::BindGroupLayout)>,
     targets: Option<Targets>,
+    /// The light a lobe is drawn from: its pyramid's face size and each node's mean radiance,
+    /// level after level (one zero entry before [`GpuRaster::set_light`]).
+    light: (u32, wgpu::Buffer),
 }
 
 impl GpuRaster {
@@ -176,13 +183,45 @@ impl GpuRaster {
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(PrtError::Gpu(format!("building the raster pipeline: {e}")));
         }
+        let light = (0, light_buffer(device, &[[0.0; 4]]));
         Ok(GpuRaster {
             pipeline,
             views,
             offsets,
             resolve,
             targets: None,
+            light,
         })
+    }
+
+    /// Sets the light that the lobes of a bake with visibility are drawn from, as the relight
+    /// used it (what [`crate::relight::lobe_light`] gives), or none. Errors where its nodes
+    /// outgrow one binding.
+    pub fn set_light(&mut self, gpu: &Gpu, light: Option<&CubePyramid>) -> Result<()> {
+        let Some(p) = light else {
+            self.light = (0, light_buffer(&gpu.device, &[[0.0; 4]]));
+            return Ok(());
+        };
+        let means: Vec<[f32; 4]> = (0..p.levels.len())
+            .flat_map(|level| {
+                (0..p.levels[level].len()).map(move |i| {
+                    let [r, g, b] = p.mean(i << (2 * level), level);
+                    [r, g, b, 0.0]
+                })
+            })
+            .collect();
+        let bytes = means.len() as u64 * TEXEL_BYTES as u64;
+        if bytes > gpu.max_binding_bytes() {
+            return Err(PrtError::invalid(
+                "light",
+                format!(
+                    "a pyramid of {bytes} bytes; the device binds at most {}",
+                    gpu.max_binding_bytes()
+                ),
+            ));
+        }
+        self.light = (p.n as u32, light_buffer(&gpu.device, &means));
+        Ok(())
     }
 
     /// Draws `mesh` with per-vertex colours read from `colours` (a storage buffer of
@@ -304,6 +343,13 @@ impl GpuRaster {
         colours: &wgpu::Buffer,
     ) -> Result<()> {
         camera.validate()?;
+        if mesh.has_lobe() && self.light.0 == 0 {
+            return Err(PrtError::invalid(
+                "light",
+                "a glossy bake with visibility draws its highlights from the light: set the \
+                 light the relight used first (GpuRaster::set_light)",
+            ));
+        }
         let limits = gpu.device.limits();
         let max = limits.max_texture_dimension_2d;
         let readback = (camera.width * TEXEL_BYTES)
@@ -381,7 +427,8 @@ impl GpuRaster {
                 offset[1],
             ]);
             let [stride, res, materials] = mesh.gloss_shape;
-            uniform.extend([stride, res, materials, 0].map(f32::from_bits));
+            uniform.extend([stride, res, materials, self.light.0].map(f32::from_bits));
+            uniform.extend(mesh.lobe_shape.map(f32::from_bits));
             debug_assert_eq!(uniform.len() as u64 * 4, VIEW_BYTES);
             gpu.queue
                 .write_buffer(view, 0, bytemuck::cast_slice(&uniform));
@@ -471,6 +518,10 @@ impl GpuRaster {
                     binding: 7,
                     resource: mesh.gloss.as_entire_binding(),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 8,
+                    resource: self.light.1.as_entire_binding(),
+                },
             ],
         });
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -496,6 +547,16 @@ impl GpuRaster {
         // Not indexed: the shader reads each corner's vertex from `indices` itself.
         pass.draw(0..mesh.index_count, 0..1);
     }
+}
+
+/// A storage buffer of a light pyramid's node means.
+fn light_buffer(device: &wgpu::Device, means: &[[f32; 4]]) -> wgpu::Buffer {
+    crate::gpu::buffer_with(
+        device,
+        "raster light",
+        bytemuck::cast_slice(means),
+        wgpu::BufferUsages::STORAGE,
+    )
 }
 
 /// The resolve pipeline (`shaders/raster_resolve.wgsl`) into a [`COLOUR_FORMAT`] target, and its
