@@ -17,12 +17,13 @@ pub mod path_tracer;
 mod pixels;
 pub mod reference;
 mod settings;
+mod setup;
 mod slot;
 mod tile;
 mod tint;
 mod visibility;
 
-use crate::store::transport::BakeDomain;
+use crate::store::transport::{BakeDomain, BakeIdentity};
 pub use direct::{accumulate_direct_rows, direct_texels};
 pub use in_order::Cancel;
 use in_order::in_tile_order;
@@ -31,24 +32,21 @@ pub use pixels::{EdgeMap, pixel_subsamples, sample_stride};
 pub use settings::{
     BakeSettings, load_if_baked_with, load_or_bake, load_or_bake_logged, worst_case_bytes,
 };
+use setup::{TileParts, with_tile_context};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use tile::{TileContext, bake_tile};
 
 use glam::Vec3;
 
-use crate::bake::medium_light::MediumLight;
-use crate::bake::medium_rows::MediumRows;
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::{texel_count, validate_n};
-use crate::math::haar;
 use crate::math::sampling::TexelSamples;
-use crate::math::texel_sh::TexelShBasis;
 use crate::medium::Medium;
 use crate::scene::Scene;
 use crate::scene::brdf;
 use crate::scene::tessellate::VertexMesh;
 use crate::scene::trace::{Hit, Tracer};
-use crate::store::budget::{Budget, Thresholder};
+use crate::store::budget::Budget;
 use crate::store::transport::{
     BakeStats, CameraMeta, EncodedTile, KeptTiles, LightColumns, PerVertexMeta, Quantization, TILE,
     Transport, TransportMeta, TransportWriter, Untiled, shard_of_band, tile_grid,
@@ -238,140 +236,135 @@ fn image_size(scene: &Scene, mesh: Option<&VertexMesh>) -> (usize, usize) {
     }
 }
 
+/// What a bake's tiles are made with: its identity, the scene's tracer, its mesh (with its
+/// glossy vertices' visibility where the settings keep it) and the size of its image.
+struct Prepared {
+    identity: BakeIdentity,
+    tracer: Tracer,
+    mesh: Option<VertexMesh>,
+    size: [usize; 2],
+}
+
+impl Prepared {
+    fn new(scene: &Scene, settings: &BakeSettings, mut mesh: Option<VertexMesh>) -> Result<Self> {
+        let identity = settings.identity(scene)?;
+        let tracer = Tracer::new(scene);
+        if let Some(m) = mesh.as_mut().filter(|_| identity.visibility) {
+            let bits = visibility::glossy_vertices(
+                scene,
+                &tracer,
+                m,
+                settings.cube_n,
+                settings.unshadowed,
+            )?;
+            m.visibility = Some(Box::new(bits));
+        }
+        let (w, h) = image_size(scene, mesh.as_ref());
+        Ok(Prepared {
+            identity,
+            tracer,
+            mesh,
+            size: [w, h],
+        })
+    }
+
+    /// What the tiles' context is built from, for a bake of `pixels_total` pixels.
+    fn parts<'a>(
+        &'a self,
+        scene: &'a Scene,
+        settings: &'a BakeSettings,
+        pixels_total: usize,
+    ) -> TileParts<'a> {
+        TileParts {
+            scene,
+            settings,
+            identity: &self.identity,
+            tracer: &self.tracer,
+            mesh: self.mesh.as_ref(),
+            size: self.size,
+            pixels_total,
+        }
+    }
+}
+
 /// The bake of `mesh` (from [`bake_mesh`]), handing each encoded tile and its statistics to
 /// `deliver` in tile order; `cancel` is checked before the tiles and before each tile.
 fn bake_tiles(
     scene: &Scene,
     settings: &BakeSettings,
-    mut mesh: Option<VertexMesh>,
+    mesh: Option<VertexMesh>,
     progress: &(dyn Fn(BakeProgress) + Sync),
     cancel: &Cancel,
     deliver: &mut (dyn FnMut(EncodedTile, TileStats) -> Result<()> + Send),
 ) -> Result<Untiled> {
-    let identity = settings.identity(scene)?;
-    let tracer = Tracer::new(scene);
-    if let Some(m) = mesh.as_mut().filter(|_| identity.visibility) {
-        let bits =
-            visibility::glossy_vertices(scene, &tracer, m, settings.cube_n, settings.unshadowed)?;
-        m.visibility = Some(Box::new(bits));
-    }
-    let (w, h) = image_size(scene, mesh.as_ref());
-    let n = settings.cube_n;
-    let samples = TexelSamples::new(n, settings.texel_samples as usize, settings.seed)
-        .refined(settings.stored_edge_texel_samples() as usize);
-    let basis = TexelShBasis::new(n, settings.sh_order)?;
+    let prepared = Prepared::new(scene, settings, mesh)?;
+    let [w, h] = prepared.size;
     let (tx, ty) = tile_grid(w, h);
     let mine = shard_tiles(settings, [tx, ty])?;
     let pixels_total: usize = (0..tx * ty)
         .filter(|&t| mine(t))
-        .map(|t| tile_pixels(w, h, mesh.as_ref(), [tx, t]))
+        .map(|t| tile_pixels(w, h, prepared.mesh.as_ref(), [tx, t]))
         .sum();
-    let medium = match &scene.medium {
-        Some(spec) => Some(spec.build(None)?),
-        None => None,
-    };
-    // The pixels that take more sub-samples (none per vertex); the cache's paths start at the
-    // same ones as the rows.
-    let edges = EdgeMap::new(scene, &tracer, settings);
-    let edge_pixels = edges.count();
-    // Whether a pixel is this bake's (its tile is), and the progress of a first stage.
+    // Whether a pixel is this bake's (its tile is).
     let mine_pixel = |p: usize| mine((p / w / TILE) * tx + (p % w) / TILE);
-    let stage = |medium_light: [usize; 2], medium_texels: [usize; 2], cache_points: [usize; 2]| {
-        progress(BakeProgress {
-            pixels_done: 0,
-            pixels_total,
-            shadow_rays: 0,
-            edge_pixels,
-            medium_light,
-            medium_texels,
-            cache_points,
-        })
-    };
-    let (medium_light, medium_rows) = medium_stages(
-        medium.as_ref(),
-        scene,
-        &tracer,
-        &samples,
-        settings,
-        &mine_pixel,
-        &stage,
-    )?;
-    let through = medium.as_ref().zip(medium_light.as_ref());
-    let bounces = bounce::Bounces::new(scene, &tracer, settings, &samples)
-        .with_medium(through.filter(|_| settings.bounces > 0))
-        .with_cache(&edges, &mine_pixel, &|done, total| {
-            stage([0, 0], [0, 0], [done, total])
-        })?;
-    let light_sampler = LightSampler::new(scene, settings);
-    let (reference_energy, term_budgets, thresholder) = budgets(&identity, &samples, mesh.as_ref());
-    let ctx = TileContext {
-        scene,
-        width: w,
-        height: h,
-        mesh: mesh.as_ref(),
-        tracer: &tracer,
-        edges: &edges,
-        settings,
-        reference_energy,
-        term_budgets,
-        thresholder,
-        samples: &samples,
-        basis: &basis,
-        medium: medium.as_ref(),
-        medium_rows: medium_rows.as_ref(),
-        bounces: &bounces,
-        lights: &light_sampler,
-    };
-    let done = AtomicUsize::new(0);
-    let rays = AtomicU64::new(0);
+    let parts = prepared.parts(scene, settings, pixels_total);
     let (c, shc, quantization) = (
-        texel_count(n),
+        texel_count(settings.cube_n),
         settings.sh_order.pow(2),
-        identity.quantization,
+        prepared.identity.quantization,
     );
-    let mut tables = PixelTables::new(light_sampler.columns(), w, h);
-    cancel.check()?;
-    in_tile_order(
-        tx * ty,
-        |t| {
-            cancel.check()?;
-            if !mine(t) {
-                return Ok((t, None));
-            }
-            let mut out = bake_tile(&ctx, t % tx, t / tx);
-            // Quantised here, in parallel, so the rows' floats are freed tile by tile.
-            let encoded = EncodedTile::encode(&out.rows, c, shc, quantization)?;
-            out.rows = Vec::new();
-            let px = out.pixels.len();
-            progress(BakeProgress {
-                pixels_done: done.fetch_add(px, Ordering::Relaxed) + px,
-                pixels_total,
-                shadow_rays: rays.fetch_add(out.rays, Ordering::Relaxed) + out.rays,
-                edge_pixels,
-                medium_light: [0, 0],
-                medium_texels: [0, 0],
-                cache_points: [0, 0],
-            });
-            Ok((t, Some((out, encoded))))
-        },
-        |(t, tile)| {
-            let band_done = t % tx == tx - 1;
-            let Some((out, encoded)) = tile else {
+    let (tables, cache_points) = with_tile_context(&parts, &mine_pixel, progress, |ctx| {
+        let edge_pixels = ctx.edges.count();
+        let done = AtomicUsize::new(0);
+        let rays = AtomicU64::new(0);
+        let mut tables = PixelTables::new(ctx.lights.columns(), w, h);
+        cancel.check()?;
+        in_tile_order(
+            tx * ty,
+            |t| {
+                cancel.check()?;
+                if !mine(t) {
+                    return Ok((t, None));
+                }
+                let mut out = bake_tile(ctx, t % tx, t / tx);
+                // Quantised here, in parallel, so the rows' floats are freed tile by tile.
+                let encoded = EncodedTile::encode(&out.rows, c, shc, quantization)?;
+                out.rows = Vec::new();
+                let px = out.pixels.len();
+                progress(BakeProgress {
+                    pixels_done: done.fetch_add(px, Ordering::Relaxed) + px,
+                    pixels_total,
+                    shadow_rays: rays.fetch_add(out.rays, Ordering::Relaxed) + out.rays,
+                    edge_pixels,
+                    medium_light: [0, 0],
+                    medium_texels: [0, 0],
+                    cache_points: [0, 0],
+                });
+                Ok((t, Some((out, encoded))))
+            },
+            |(t, tile)| {
+                let band_done = t % tx == tx - 1;
+                let Some((out, encoded)) = tile else {
+                    tables.band_done(t / tx, band_done);
+                    return deliver(EncodedTile::encode(&[], c, shc, quantization)?, [0.0; 3]);
+                };
+                tables.take(&out)?;
                 tables.band_done(t / tx, band_done);
-                return deliver(EncodedTile::encode(&[], c, shc, quantization)?, [0.0; 3]);
-            };
-            tables.take(&out)?;
-            tables.band_done(t / tx, band_done);
-            let stats = [
-                out.dropped_energy + encoded.quantization_energy,
-                out.total_energy,
-                out.rays as f64,
-            ];
-            deliver(encoded, stats)
-        },
-    )?;
-    debug_assert_eq!(identity.texel_samples as usize, samples.per_texel);
-    let cache_points = bounces.cache().map_or(0, |c| c.points as u64);
+                let stats = [
+                    out.dropped_energy + encoded.quantization_energy,
+                    out.total_energy,
+                    out.rays as f64,
+                ];
+                deliver(encoded, stats)
+            },
+        )?;
+        debug_assert_eq!(
+            prepared.identity.texel_samples as usize,
+            ctx.samples.per_texel
+        );
+        Ok((tables, ctx.bounces.cache().map_or(0, |c| c.points as u64)))
+    })?;
+    let Prepared { identity, mesh, .. } = prepared;
     let meta = meta_of(scene, [w, h], identity, cache_points, mesh.as_ref());
     Ok(Untiled {
         meta,
@@ -512,82 +505,4 @@ fn shard_tiles(
         None => true,
         Some([i, count]) => shard_of_band(tile / tx, ty, count as usize) == i as usize,
     })
-}
-
-/// A medium's stages before the tiles: what its points see of the texels (with bounces, the
-/// transmittance table too), then its rows for the pixels `mine_pixel`, each reporting to
-/// `stage(medium light, medium texels, cache points)`.
-fn medium_stages(
-    medium: Option<&Medium>,
-    scene: &Scene,
-    tracer: &Tracer,
-    samples: &TexelSamples,
-    settings: &BakeSettings,
-    mine_pixel: &(dyn Fn(usize) -> bool + Sync),
-    stage: &(dyn Fn([usize; 2], [usize; 2], [usize; 2]) + Sync),
-) -> Result<(Option<MediumLight>, Option<MediumRows>)> {
-    let Some(m) = medium else {
-        return Ok((None, None));
-    };
-    let light = MediumLight::build(
-        m,
-        tracer,
-        settings.cube_n,
-        settings.bounces > 0,
-        &|done, total| stage([done, total], [0, 0], [0, 0]),
-    )?;
-    let rows = MediumRows::bake(
-        (m, &light),
-        scene,
-        tracer,
-        samples,
-        [settings.spp as u64, settings.seed],
-        mine_pixel,
-        &|done, total| stage([0, 0], [done, total], [0, 0]),
-    )?;
-    Ok((Some(light), Some(rows)))
-}
-
-/// The thresholding budgets: the energy of an unshadowed row (the scale of every row's budget),
-/// the scale of each glossy term's rows' budget (material-major, as the factors), and the
-/// thresholder.
-fn budgets(
-    identity: &crate::store::transport::BakeIdentity,
-    samples: &TexelSamples,
-    mesh: Option<&VertexMesh>,
-) -> (f64, Vec<f64>, Thresholder) {
-    let mut reference_haar = unoccluded_row(samples);
-    let reference_energy: f64 = reference_haar.iter().map(|&v| (v as f64).powi(2)).sum();
-    haar::forward_face_all(&mut reference_haar, samples.n, &mut Vec::new());
-    // A term's budget is the diffuse row's, divided by the square of the largest g_k the term's
-    // response is multiplied by, so that its error once drawn is at most the diffuse row's.
-    let term_budgets: Vec<f64> = match mesh.and_then(|m| m.factors.as_deref()) {
-        Some(f) => (0..f.terms.len() as u32)
-            .flat_map(|m| (1..f.stride).map(move |k| (m, k)))
-            .map(|(m, k)| reference_energy / (f.view_peak(m, k).max(1e-6) as f64).powi(2))
-            .collect(),
-        None => Vec::new(),
-    };
-    let thresholder = Thresholder::new(
-        identity.budget,
-        identity.threshold,
-        samples.n,
-        &reference_haar,
-    );
-    (reference_energy, term_budgets, thresholder)
-}
-
-/// The row of an unshadowed surface facing +Y with unit albedo, in texel order: the row the
-/// thresholding budget is relative to (the same energy for every normal up to texel
-/// discretisation).
-fn unoccluded_row(samples: &TexelSamples) -> Vec<f32> {
-    let m = samples.per_texel;
-    (0..samples.dirs.len() / m)
-        .map(|j| {
-            ((j * m..(j + 1) * m)
-                .map(|k| samples.dirs[k].y.max(0.0) as f64 * samples.weights[k] as f64)
-                .sum::<f64>()
-                * std::f64::consts::FRAC_1_PI) as f32
-        })
-        .collect()
 }
