@@ -935,3 +935,28 @@ fn a_tile_lays_its_rows_out_kind_by_kind_so_bounce_rows_fill_their_strips() {
     let fill = t.nonzeros() as f64 / (8 * held) as f64;
     assert!(fill > 0.5, "strips {fill:.2} full");
 }
+
+/// The tile baker of the benchmarks bakes the tiles a bake does: over every tile, as many shadow
+/// rays as the bake's statistics count, tile by tile the same whatever the order; a tile past
+/// the last is an error.
+#[test]
+fn the_tile_baker_traces_the_rays_of_the_bake() {
+    use wavelet_prt::bake::with_tile_baker;
+    let scene = common::scene_from(common::SPHERE_ON_PLANE, "tile-baker");
+    let settings = BakeSettings {
+        cube_n: 4,
+        sh_order: 2,
+        ..BakeSettings::default()
+    };
+    let t = bake(&scene, &settings, &|_| {}).unwrap();
+    let (forward, backward, past) = with_tile_baker(&scene, &settings, |tiles, one| {
+        let forward: Vec<u64> = (0..tiles).map(|k| one(k).unwrap()).collect();
+        let mut backward: Vec<u64> = (0..tiles).rev().map(|k| one(k).unwrap()).collect();
+        backward.reverse();
+        (forward, backward, one(tiles).is_err())
+    })
+    .unwrap();
+    assert!(forward.len() > 1 && past);
+    assert_eq!(forward, backward);
+    assert_eq!(forward.iter().sum::<u64>(), t.meta.stats.shadow_rays);
+}

@@ -375,6 +375,37 @@ fn bake_tiles(
     })
 }
 
+/// Bakes the tiles of `scene` one at a time, for benchmarks and profilers: what every tile
+/// reads (the tracer, the texel samples, the edge map, a medium's and the bounces' stages) is
+/// built once, then `f` is handed the number of tiles and a function that bakes and encodes
+/// tile `t` (row-major over the image's tiles, as a bake takes them) and returns its shadow
+/// rays, or an error for a tile past the last.
+pub fn with_tile_baker<R>(
+    scene: &Scene,
+    settings: &BakeSettings,
+    f: impl FnOnce(usize, &(dyn Fn(usize) -> Result<u64> + Sync)) -> R,
+) -> Result<R> {
+    let prepared = Prepared::new(scene, settings, bake_mesh(scene, settings)?)?;
+    let [w, h] = prepared.size;
+    let (tx, ty) = tile_grid(w, h);
+    let parts = prepared.parts(scene, settings, w * h);
+    let (c, shc) = (texel_count(settings.cube_n), settings.sh_order.pow(2));
+    with_tile_context(&parts, &|_| true, &|_| {}, |ctx| {
+        let one = |t: usize| {
+            if t >= tx * ty {
+                return Err(PrtError::invalid(
+                    "tile",
+                    format!("tile {t} of an image of {} tiles", tx * ty),
+                ));
+            }
+            let out = bake_tile(ctx, t % tx, t / tx);
+            EncodedTile::encode(&out.rows, c, shc, prepared.identity.quantization)?;
+            Ok(out.rays)
+        };
+        Ok(f(tx * ty, &one))
+    })
+}
+
 /// A bake's metadata: its image of `[w, h]` pixels, the camera and the mesh, the identity.
 fn meta_of(
     scene: &Scene,
