@@ -506,7 +506,18 @@ fn the_gloss_bench_holds_each_k_b_to_the_path_tracer_with_the_interpolation_apar
             lossless: true,
             ..glossy_settings(1)
         },
+        sh_orders: vec![],
     };
+    // SH glossy transfer draws the bakes with visibility: refused without one, or past order 8.
+    for (terms, orders) in [(vec![1, 4], vec![4]), (vec![0], vec![9])] {
+        let bad = GlossBenchOptions {
+            brdf_terms: terms,
+            sh_orders: orders,
+            ..opts.clone()
+        };
+        let e = bad.validate().unwrap_err().to_string();
+        assert!(e.contains("--sh-transfer"), "{e}");
+    }
     let dir = temp_dir("gloss-bench");
     let bench = || {
         run(

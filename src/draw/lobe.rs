@@ -144,37 +144,10 @@ impl<'a> Lobe<'a> {
 }
 
 impl ViewDependent for Lobe<'_> {
-    /// Checks one normal and material per vertex of `vertices`, visibility for as many, and a
-    /// lobe for every material index.
+    /// Checks the mesh's tables ([`Visibility::check_draw`]) and the lobe's directions.
     fn check(&self, vertices: usize) -> Result<()> {
-        if self.normals.len() != vertices
-            || self.materials.len() != vertices
-            || self.visibility.vertex_count() != vertices
-        {
-            return Err(PrtError::invalid(
-                "gloss",
-                format!(
-                    "{} normals, {} materials and visibility of {} vertices for {vertices} \
-                     vertices",
-                    self.normals.len(),
-                    self.materials.len(),
-                    self.visibility.vertex_count()
-                ),
-            ));
-        }
-        if let Some(m) = self
-            .materials
-            .iter()
-            .find(|&&m| m as usize >= self.visibility.lobes.len())
-        {
-            return Err(PrtError::invalid(
-                "gloss",
-                format!(
-                    "material {m} of {} materials' lobes",
-                    self.visibility.lobes.len()
-                ),
-            ));
-        }
+        self.visibility
+            .check_draw(self.normals.len(), self.materials, vertices)?;
         if self.pattern.is_empty() {
             return Err(PrtError::invalid("gloss", "no lobe directions"));
         }

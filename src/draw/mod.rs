@@ -9,4 +9,5 @@ pub mod gloss;
 pub mod gpu;
 pub mod lobe;
 pub mod raster;
+pub mod sh_gloss;
 pub mod vertex;

@@ -16,7 +16,9 @@ use std::borrow::Cow;
 use crate::draw::gloss::Gloss;
 use crate::draw::lobe::{DEFAULT_LOBE_SAMPLES, Lobe};
 use crate::draw::raster::{Raster, Texturing, ViewDependent, rasterize_glossy};
+use crate::draw::sh_gloss::ShGloss;
 use crate::math::cube_pyramid::CubePyramid;
+use crate::relight::sh_transfer::ShTransfer;
 use crate::scene::Camera;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::Transport;
@@ -333,6 +335,33 @@ pub fn draw_relit(
         ),
     };
     draw_mesh(mesh, colours, gloss, camera, behind, samples)
+}
+
+/// Draws a per-vertex bake with visibility relit to `relit` as [`draw_relit`] does, its glossy
+/// light by SH glossy transfer instead of the lobe per pixel: `transfer` (made from the bake's
+/// visibility) takes `light` (the pyramid of the light the relight used), projected on SH, to each
+/// glossy vertex's transferred radiance, which each pixel reflects through its material's lobe
+/// ([`crate::draw::sh_gloss`]). An error for a bake without visibility.
+pub fn draw_sh_glossy(
+    t: &Transport,
+    relit: &Image,
+    light: &CubePyramid,
+    transfer: &ShTransfer,
+    camera: &Camera,
+    behind: Option<(&EnvMap, EnvRotation)>,
+    samples: u32,
+) -> Result<Raster> {
+    let mesh = mesh_of(t)?;
+    let vis = mesh.visibility.as_deref().ok_or_else(|| {
+        PrtError::invalid(
+            "SH transfer",
+            "SH glossy transfer draws a bake with visibility: bake a glossy scene with \
+             --per-vertex (visibility is its default)",
+        )
+    })?;
+    let colours = vertex_colours(t, relit)?;
+    let gloss = ShGloss::new(&mesh.normals, &mesh.materials, vis, transfer, light);
+    draw_mesh(mesh, &colours, Some(&gloss), camera, behind, samples)
 }
 
 /// Draws a per-vertex bake with the given vertex `colours` (one per vertex, its glossy terms

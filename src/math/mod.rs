@@ -11,6 +11,7 @@ pub mod sh;
 pub mod svd;
 pub mod texel_quadrature;
 pub mod texel_sh;
+pub mod zonal;
 
 /// Magnitude used to rank an RGB coefficient: Rec. 709 luminance weights on absolute values, so
 /// channels of opposite sign do not cancel.

@@ -11,6 +11,7 @@ pub mod gpu;
 pub mod lobe_light;
 pub mod prepare;
 pub mod sh_light;
+pub mod sh_transfer;
 pub mod strip_kernel;
 
 pub use crate::scene::light_mix::{LightMix, LightSetting};

@@ -115,6 +115,30 @@ impl Visibility {
         self.rows.len()
     }
 
+    /// Checks what a draw of these bits takes against a mesh of `vertices` vertices: as many
+    /// `normals` (a count) and `materials`, visibility of as many vertices, and a lobe for every
+    /// material index.
+    pub fn check_draw(&self, normals: usize, materials: &[u32], vertices: usize) -> Result<()> {
+        if normals != vertices || materials.len() != vertices || self.vertex_count() != vertices {
+            return Err(PrtError::invalid(
+                "gloss",
+                format!(
+                    "{normals} normals, {} materials and visibility of {} vertices for \
+                     {vertices} vertices",
+                    materials.len(),
+                    self.vertex_count()
+                ),
+            ));
+        }
+        if let Some(m) = materials.iter().find(|&&m| m as usize >= self.lobes.len()) {
+            return Err(PrtError::invalid(
+                "gloss",
+                format!("material {m} of {} materials' lobes", self.lobes.len()),
+            ));
+        }
+        Ok(())
+    }
+
     /// Vertex `v`'s row, if it has bits.
     #[inline]
     pub fn row_index(&self, v: usize) -> Option<u32> {

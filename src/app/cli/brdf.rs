@@ -180,6 +180,10 @@ pub struct GlossArgs {
     /// gpu (any adapter, a software one included).
     #[arg(long, value_enum, default_value_t = super::Device::Auto)]
     pub device: super::Device,
+    /// SH orders, comma-separated, at which each bake with visibility (0 in --brdf-terms) is
+    /// also drawn by SH glossy transfer (Sloan, Kautz & Snyder 2002), beside the lobe per pixel.
+    #[arg(long, value_delimiter = ',')]
+    pub sh_transfer: Vec<usize>,
 }
 
 /// Azimuths of `prt gloss`'s default cameras about the scene's target, degrees.
@@ -215,6 +219,7 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
         frame_side: a.frame_side,
         runs: 5,
         bake: crate::bake::BakeSettings::default(),
+        sh_orders: a.sh_transfer,
     };
     opts.validate()?;
     let env = super::load_env(&a.env)?;

@@ -59,6 +59,11 @@ pub struct RelightArgs {
     /// the colours interpolated).
     #[arg(long = "gloss", default_value = "per-pixel", value_parser = crate::draw::vertex::GlossEval::from_str)]
     pub gloss_eval: crate::draw::vertex::GlossEval,
+    /// Per-vertex bakes with visibility: draw the glossy light by SH glossy transfer at this SH
+    /// order (1 to 8; Sloan, Kautz & Snyder 2002) instead of the lobe per pixel: the light's
+    /// low orders, shadowed per vertex, reflected about the view per pixel.
+    #[arg(long)]
+    pub sh_transfer: Option<usize>,
 }
 
 /// A camera moved from the scene's: a moved camera stays upright, its up being --up, not the
@@ -303,48 +308,17 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let mut drawn = String::new();
     let (img, coverage) = match &still {
         Some(camera) => {
-            let mesh = crate::draw::vertex::mesh_of(&t)?;
-            let glossy = mesh.factors.is_some();
-            // The GPU raster weighs glossy terms per pixel only.
-            let on_cpu = glossy && a.gloss_eval == crate::draw::vertex::GlossEval::PerVertex;
-            if on_cpu && gpu.is_some() {
-                eprintln!("the GPU raster weighs glossy terms per pixel: drawn on the CPU");
-            }
             let light = crate::relight::lobe_light(&t, &ctx, prepared.as_ref(), &req)?;
-            let r = match gpu.as_ref().filter(|_| !on_cpu) {
-                None => crate::draw::vertex::draw_relit(
-                    &t,
-                    &img,
-                    light.as_ref(),
-                    camera,
-                    None,
-                    a.samples,
-                    a.gloss_eval,
-                )?,
-                Some(gpu) => {
-                    use crate::draw::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
-                    // A vertex's colours are its pixels of the relit image (its terms after
-                    // its diffuse colour in a glossy bake).
-                    let pixels = &img.pixels[..mesh.pixel_count().min(img.pixels.len())];
-                    let m = GpuMesh::of_bake(gpu, mesh)?;
-                    let c = upload_colours(gpu, pixels)?;
-                    let mut raster = GpuRaster::multisampled(gpu, a.samples)?;
-                    raster.set_light(gpu, light.as_ref())?;
-                    raster.draw(gpu, camera, &m, &c)?
-                }
-            };
+            let r = draw_still(&t, &img, light.as_ref(), camera, gpu.as_ref(), &a)?;
             drawn = format!(
                 ", drawn {}x{} ({} sample(s) a pixel{}) in {:.1} ms",
                 camera.width,
                 camera.height,
                 a.samples,
-                match glossy {
-                    true => format!(", glossy terms {}", a.gloss_eval),
-                    false => String::new(),
-                },
+                r.1,
                 drawing.elapsed().as_secs_f64() * 1e3
             );
-            (r.image, r.coverage)
+            (r.0.image, r.0.coverage)
         }
         None => (img, t.coverage.clone()),
     };
@@ -648,4 +622,64 @@ fn optional_env(spec: &str, mix: &LightMix) -> Result<Option<EnvMap>> {
         ));
     }
     Ok(None)
+}
+
+/// Draws a per-vertex bake's relit image `img` from `camera`, with `light` (the pyramid a bake
+/// with visibility draws its glossy light from), on `gpu` where it can: with what was drawn
+/// beyond the diffuse base, for the command's line.
+fn draw_still(
+    t: &crate::store::transport::Transport,
+    img: &crate::output::film::Image,
+    light: Option<&crate::math::cube_pyramid::CubePyramid>,
+    camera: &crate::scene::Camera,
+    gpu: Option<&crate::relight::gpu::Gpu>,
+    a: &RelightArgs,
+) -> Result<(crate::draw::raster::Raster, String)> {
+    let mesh = crate::draw::vertex::mesh_of(t)?;
+    if let Some(order) = a.sh_transfer {
+        let (Some(vis), Some(light)) = (mesh.visibility.as_deref(), light) else {
+            return Err(PrtError::invalid(
+                "--sh-transfer",
+                "SH glossy transfer draws a per-vertex bake with visibility (a glossy scene's \
+                 `prt bake --per-vertex` keeps it by default)",
+            ));
+        };
+        if gpu.is_some() {
+            eprintln!(
+                "the GPU raster draws the glossy lobe, not SH glossy transfer: drawn on the CPU"
+            );
+        }
+        let transfer = crate::relight::sh_transfer::ShTransfer::new(vis, order)?;
+        let r =
+            crate::draw::vertex::draw_sh_glossy(t, img, light, &transfer, camera, None, a.samples)?;
+        return Ok((r, format!(", glossy light by SH transfer at order {order}")));
+    }
+    let glossy = mesh.factors.is_some();
+    let what = match (glossy, &mesh.visibility) {
+        (true, _) => format!(", glossy terms {}", a.gloss_eval),
+        (false, Some(_)) => ", the glossy lobe per pixel".to_string(),
+        (false, None) => String::new(),
+    };
+    // The GPU raster weighs glossy terms per pixel only.
+    let on_cpu = glossy && a.gloss_eval == crate::draw::vertex::GlossEval::PerVertex;
+    if on_cpu && gpu.is_some() {
+        eprintln!("the GPU raster weighs glossy terms per pixel: drawn on the CPU");
+    }
+    let r = match gpu.filter(|_| !on_cpu) {
+        None => {
+            crate::draw::vertex::draw_relit(t, img, light, camera, None, a.samples, a.gloss_eval)?
+        }
+        Some(gpu) => {
+            use crate::draw::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
+            // A vertex's colours are its pixels of the relit image (its terms after its diffuse
+            // colour in a glossy bake).
+            let pixels = &img.pixels[..mesh.pixel_count().min(img.pixels.len())];
+            let m = GpuMesh::of_bake(gpu, mesh)?;
+            let c = upload_colours(gpu, pixels)?;
+            let mut raster = GpuRaster::multisampled(gpu, a.samples)?;
+            raster.set_light(gpu, light)?;
+            raster.draw(gpu, camera, &m, &c)?
+        }
+    };
+    Ok((r, what))
 }

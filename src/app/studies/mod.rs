@@ -15,6 +15,7 @@ pub mod demo;
 pub mod dusk;
 pub mod gloss_bench;
 pub mod gloss_orbit;
+pub mod gloss_sh;
 pub mod lights_bench;
 pub mod orbit;
 pub mod paper;
@@ -59,4 +60,19 @@ impl Study<'_> {
     ) -> Result<(Transport, bool, f64)> {
         load_or_bake_logged(path, scene, settings, what, self.log, self.progress)
     }
+}
+
+/// The median of `v` (0 when empty).
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Relative errors as percentages, one decimal, comma-separated.
+pub fn percents(errors: &[f64]) -> String {
+    errors
+        .iter()
+        .map(|e| format!("{:.1}%", 100.0 * e))
+        .collect::<Vec<_>>()
+        .join(", ")
 }

@@ -9,6 +9,8 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use super::gloss_sh::{ShInputs, ShTransferRow};
+use super::median;
 use crate::bake::path_tracer::path_trace_from;
 use crate::bake::reference::render_reference_with;
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
@@ -17,18 +19,19 @@ use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::env::importance::MapLight;
 use crate::env::select::Weighting;
 use crate::error::{PrtError, Result};
-use crate::output::film::ToneMap;
+use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::plot::{self, PALETTE, PlotSpec};
 use crate::relight::gpu::Gpu;
+use crate::relight::sh_transfer::MAX_TRANSFER_ORDER;
 use crate::relight::{Backend, Cpu, LightContext, RelightRequest, Terms, lobe_light, relight};
 use crate::scene::tessellate::VertexMesh;
 use crate::scene::{Camera, Scene};
 use crate::store::transport::{BakeDomain, Transport};
 
 mod report;
-pub use report::{csv, markdown};
 use report::error_series;
+pub use report::{csv, markdown};
 
 /// What to measure.
 #[derive(Clone, Debug)]
@@ -53,6 +56,9 @@ pub struct GlossBenchOptions {
     /// The bakes' settings but for their tessellation and K_b (`prt bake`'s defaults from the
     /// command line); the references take their cube and camera sub-samples.
     pub bake: BakeSettings,
+    /// SH orders at which each bake with visibility (K_b = 0) is also drawn by SH glossy
+    /// transfer ([`super::gloss_sh`]).
+    pub sh_orders: Vec<usize>,
 }
 
 /// A frame's median times, milliseconds: the relight (its kernel alone on a GPU) and the
@@ -122,6 +128,8 @@ pub struct GlossBenchReport {
     pub cameras: Vec<GlossCameraRow>,
     /// The GPU's name, when one was given.
     pub gpu: Option<String>,
+    /// The bakes with visibility drawn by SH glossy transfer, at each order.
+    pub sh: Vec<ShTransferRow>,
     /// What was written.
     pub files: Vec<PathBuf>,
 }
@@ -181,6 +189,22 @@ impl GlossBenchOptions {
         if self.runs == 0 {
             return bad("runs", "no frames to time".into());
         }
+        if let Some(o) = self
+            .sh_orders
+            .iter()
+            .find(|o| !(1..=MAX_TRANSFER_ORDER).contains(o))
+        {
+            return bad(
+                "--sh-transfer",
+                format!("order {o}; each must be from 1 to {MAX_TRANSFER_ORDER}"),
+            );
+        }
+        if !self.sh_orders.is_empty() && !self.brdf_terms.contains(&0) {
+            return bad(
+                "--sh-transfer",
+                "SH glossy transfer draws the bakes with visibility: add 0 to --brdf-terms".into(),
+            );
+        }
         crate::draw::raster::sample_offsets(self.samples)?;
         crate::flags::within("--paths", self.paths, 1..=1 << 20, "")?;
         crate::flags::within("--frame-side", self.frame_side, 16..=4096, " pixels")?;
@@ -228,11 +252,6 @@ pub fn turned_cameras(scene: &Scene, azimuths_deg: &[f32]) -> Vec<Camera> {
         .iter()
         .map(|&az| crate::draw::vertex::orbit(&scene.camera, az, 0.0))
         .collect()
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(0.0)
 }
 
 /// Runs the measurements on `scene` under `env` (named `env_name`) and writes `gloss.md`,
@@ -306,6 +325,14 @@ pub fn run(
         })
         .collect();
     let mut bakes = Vec::new();
+    let mut sh = Vec::new();
+    let sh_references: Vec<(Image, ToneMap)> = match opts.sh_orders.is_empty() {
+        true => Vec::new(),
+        false => references
+            .iter()
+            .map(|(traced, _, tone)| (traced.clone(), *tone))
+            .collect(),
+    };
     for &factor in &opts.edge_factors {
         for (b, &k_b) in opts.brdf_terms.iter().enumerate() {
             let settings = BakeSettings {
@@ -386,6 +413,29 @@ pub fn run(
                     )?);
                 }
             }
+            if let Some(full_light) = full_light.as_ref().filter(|_| k_b == 0) {
+                let inputs = ShInputs {
+                    t: &t,
+                    ctx: &ctx,
+                    light: &light,
+                    full: &full,
+                    full_light,
+                    references: &sh_references,
+                    edge_factor: factor,
+                    cameras: &opts.cameras,
+                    samples: opts.samples,
+                    frame: [opts.frame_side as usize, opts.runs, opts.light_terms[0]],
+                };
+                for &order in &opts.sh_orders {
+                    let row = super::gloss_sh::measure(&inputs, order, &images)?;
+                    log(&format!(
+                        "edges {factor}x, SH glossy transfer at order {order}: against the path \
+                         tracer {}",
+                        super::percents(&row.error)
+                    ));
+                    sh.push(row);
+                }
+            }
             let frame_cam = Camera {
                 width: opts.frame_side,
                 height: opts.frame_side,
@@ -430,11 +480,7 @@ pub fn run(
                  tracer {}",
                 row.vertices,
                 row.bytes as f64 / row.vertices.max(1) as f64 / 1e3,
-                row.error
-                    .iter()
-                    .map(|e| format!("{:.1}%", 100.0 * e))
-                    .collect::<Vec<_>>()
-                    .join(", ")
+                super::percents(&row.error)
             ));
             bakes.push(row);
         }
@@ -445,6 +491,7 @@ pub fn run(
         bakes,
         cameras,
         gpu: gpu.map(|g| g.adapter.clone()),
+        sh,
         files: Vec::new(),
     };
     let files = vec![

@@ -194,6 +194,11 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
         }
         let _ = writeln!(s, "{line}");
     }
+    s.push_str(&crate::app::studies::gloss_sh::markdown(
+        &r.sh,
+        opts.cameras.len(),
+        [opts.frame_side as usize, opts.runs, opts.light_terms[0]],
+    ));
     s
 }
 
