@@ -567,3 +567,66 @@ fn the_gloss_bench_holds_each_k_b_to_the_path_tracer_with_the_interpolation_apar
     assert!(again.bakes.iter().all(|b| b.reused));
     assert_eq!(again.bakes[1].error, glossy.error);
 }
+
+/// `prt gloss --roughness`: each roughness run as `prt gloss` runs, then every method's error
+/// set against roughness; the lobe per pixel nearer the path tracer than the diffuse base at
+/// both roughnesses, the sharper lobe further from the diffuse base.
+#[test]
+fn the_roughness_sweep_sets_each_method_against_roughness() {
+    use wavelet_prt::app::studies::gloss_bench::{GlossBenchOptions, turned_cameras};
+    use wavelet_prt::app::studies::gloss_sweep::{sweep, with_roughness};
+    let scene = scene_from(&glossy_sphere(), "gloss-sweep");
+    let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
+    let default_edge = wavelet_prt::scene::tessellate::VertexMesh::default_edge_length(&scene);
+    let opts = GlossBenchOptions {
+        brdf_terms: vec![1, 0],
+        edge_factors: vec![0.3 / default_edge],
+        cameras: turned_cameras(&scene, &[60.0]),
+        paths: 256,
+        samples: 1,
+        light_terms: vec![10],
+        frame_side: 16,
+        runs: 1,
+        bake: BakeSettings {
+            sh_order: 2,
+            cube_n: 8,
+            ..BakeSettings::default()
+        },
+        sh_orders: vec![2],
+    };
+    assert!(with_roughness(&scene, 0.01).is_err() && with_roughness(&scene, 1.5).is_err());
+    let matte = scene.with_diffuse_materials();
+    assert!(with_roughness(&matte, 0.3).is_err());
+    let dir = temp_dir("gloss-sweep");
+    let r = sweep(
+        &dir,
+        &scene,
+        ("sunrise", &env),
+        (&opts, &[0.3, 0.7]),
+        None,
+        &mut |_| {},
+        &|_| {},
+    )
+    .unwrap();
+    let methods: Vec<&str> = r.curves.iter().map(|c| c.method.as_str()).collect();
+    assert_eq!(
+        methods,
+        [
+            "diffuse base",
+            "visibility (the lobe per pixel)",
+            "SH transfer, order 2"
+        ]
+    );
+    assert!(r.curves.iter().all(|c| c.errors.len() == 2));
+    let (diffuse, lobe) = (&r.curves[0].errors, &r.curves[1].errors);
+    for k in 0..2 {
+        assert!(lobe[k][0] < diffuse[k][0], "{lobe:?} {diffuse:?}");
+        assert!(lobe[k][0] <= lobe[k][1]);
+    }
+    assert!(diffuse[0][0] > diffuse[1][0], "{diffuse:?}");
+    for f in &r.files {
+        assert!(std::fs::metadata(f).unwrap().len() > 0, "{}", f.display());
+    }
+    let csv = std::fs::read_to_string(dir.join("roughness.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 3 * 2);
+}

@@ -184,6 +184,11 @@ pub struct GlossArgs {
     /// also drawn by SH glossy transfer (Sloan, Kautz & Snyder 2002), beside the lobe per pixel.
     #[arg(long, value_delimiter = ',')]
     pub sh_transfer: Vec<usize>,
+    /// Roughnesses, comma-separated (for example 0.1,0.2,0.35,0.5,0.7): every glossy material
+    /// takes each in turn, each run's files go into `roughness_R/`, and roughness.md,
+    /// roughness.csv and roughness.png set each method's error against roughness.
+    #[arg(long, value_delimiter = ',')]
+    pub roughness: Vec<f32>,
 }
 
 /// Azimuths of `prt gloss`'s default cameras about the scene's target, degrees.
@@ -224,6 +229,9 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
     opts.validate()?;
     let env = super::load_env(&a.env)?;
     crate::files::check_folder_outputs(&a.out, &["gloss.md", "gloss.csv", "gloss_error.png"])?;
+    for r in &a.roughness {
+        crate::app::studies::gloss_sweep::with_roughness(&scene, *r)?;
+    }
     let name = std::path::Path::new(&a.env)
         .file_stem()
         .and_then(|s| s.to_str())
@@ -237,22 +245,39 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
     let start = Instant::now();
     let bar = super::progress_bar(0);
     let progress = super::bake_progress(&bar, Instant::now());
-    let report = crate::app::studies::gloss_bench::run(
-        &a.out,
-        &scene,
-        (&name, &env),
-        &opts,
-        gpu.as_ref(),
-        &mut |line| bar.suspend(|| eprintln!("{line}")),
-        &progress,
-    )?;
+    let mut log = |line: &str| bar.suspend(|| eprintln!("{line}"));
+    let (text, files) = match a.roughness.is_empty() {
+        true => {
+            let report = crate::app::studies::gloss_bench::run(
+                &a.out,
+                &scene,
+                (&name, &env),
+                &opts,
+                gpu.as_ref(),
+                &mut log,
+                &progress,
+            )?;
+            let text = crate::app::studies::gloss_bench::markdown(&report, &opts);
+            (text, report.files)
+        }
+        false => {
+            use crate::app::studies::gloss_sweep::{sweep, sweep_markdown};
+            let report = sweep(
+                &a.out,
+                &scene,
+                (&name, &env),
+                (&opts, &a.roughness),
+                gpu.as_ref(),
+                &mut log,
+                &progress,
+            )?;
+            (sweep_markdown(&report), report.files)
+        }
+    };
     bar.finish_and_clear();
-    print!(
-        "{}",
-        crate::app::studies::gloss_bench::markdown(&report, &opts)
-    );
+    print!("{text}");
     println!("\nin {:.0} s; wrote", start.elapsed().as_secs_f64());
-    for f in &report.files {
+    for f in &files {
         println!("  {}", f.display());
     }
     Ok(())

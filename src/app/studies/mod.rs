@@ -16,6 +16,7 @@ pub mod dusk;
 pub mod gloss_bench;
 pub mod gloss_orbit;
 pub mod gloss_sh;
+pub mod gloss_sweep;
 pub mod lights_bench;
 pub mod orbit;
 pub mod paper;
