@@ -629,4 +629,20 @@ fn the_roughness_sweep_sets_each_method_against_roughness() {
     }
     let csv = std::fs::read_to_string(dir.join("roughness.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 3 * 2);
+    // Visibility alone, without in-out bakes to plot it against, still draws its level.
+    let alone = wavelet_prt::app::studies::gloss_bench::run(
+        &temp_dir("gloss-visibility-alone"),
+        &scene,
+        ("sunrise", &env),
+        &GlossBenchOptions {
+            brdf_terms: vec![0],
+            sh_orders: vec![],
+            ..opts.clone()
+        },
+        None,
+        &mut |_| {},
+        &|_| {},
+    )
+    .unwrap();
+    assert!(alone.files.iter().all(|f| f.exists()));
 }

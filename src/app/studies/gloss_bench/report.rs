@@ -15,10 +15,14 @@ pub(super) fn error_series(r: &GlossBenchReport, opts: &GlossBenchOptions) -> Ve
             .filter(|&&k| k > 0)
             .map(|&k| k as f64)
     };
-    let span = [
-        terms().fold(f64::INFINITY, f64::min),
-        terms().fold(f64::NEG_INFINITY, f64::max),
-    ];
+    // Without in-out bakes, the visibility's level spans every K_b the bench takes.
+    let span = match terms().next() {
+        Some(_) => [
+            terms().fold(f64::INFINITY, f64::min),
+            terms().fold(f64::NEG_INFINITY, f64::max),
+        ],
+        None => [1.0, 16.0],
+    };
     for (f, &factor) in opts.edge_factors.iter().enumerate() {
         for (c, _) in r.cameras.iter().enumerate() {
             let color = PALETTE[(f * r.cameras.len() + c) % PALETTE.len()];
