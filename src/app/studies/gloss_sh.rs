@@ -123,6 +123,27 @@ pub fn measure(i: &ShInputs, order: usize, images: &Path) -> Result<ShTransferRo
     })
 }
 
+/// [`measure`] at each of `orders`, saying each row's errors to `log`.
+pub fn measure_orders(
+    i: &ShInputs,
+    orders: &[usize],
+    images: &Path,
+    log: &mut dyn FnMut(&str),
+) -> Result<Vec<ShTransferRow>> {
+    orders
+        .iter()
+        .map(|&order| {
+            let row = measure(i, order, images)?;
+            log(&format!(
+                "edges {}x, SH glossy transfer at order {order}: against the path tracer {}",
+                i.edge_factor,
+                super::percents(&row.error)
+            ));
+            Ok(row)
+        })
+        .collect()
+}
+
 /// The SH transfer's section of the report, beside the lobe's figures of the same bakes, from
 /// `cameras` cameras, the frames as [`ShInputs::frame`] says.
 pub fn markdown(rows: &[ShTransferRow], cameras: usize, [side, runs, k]: [usize; 3]) -> String {

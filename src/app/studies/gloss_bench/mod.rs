@@ -12,13 +12,14 @@ use std::time::Instant;
 use super::gloss_sh::{ShInputs, ShTransferRow};
 use super::median;
 use crate::bake::path_tracer::path_trace_from;
-use crate::bake::reference::render_reference_with;
+use crate::bake::reference::{Reference, render_reference_with};
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::draw::vertex::{GlossEval, draw, draw_relit, vertex_colours};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::env::importance::MapLight;
 use crate::env::select::Weighting;
 use crate::error::{PrtError, Result};
+use crate::math::cubemap::CubeMap;
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::plot::{self, PALETTE, PlotSpec};
@@ -101,6 +102,36 @@ pub struct GlossBakeRow {
     pub gpu: Option<Vec<FrameTime>>,
 }
 
+impl GlossBakeRow {
+    /// The row of bake `t` at edge factor and K_b `[factor, k_b]`, its file of `bytes`, baked in
+    /// `seconds` or `reused`, nothing measured yet.
+    fn new(
+        t: &Transport,
+        [factor, k_b]: [f32; 2],
+        bytes: u64,
+        (bake_seconds, reused): (f64, bool),
+    ) -> GlossBakeRow {
+        GlossBakeRow {
+            edge_factor: factor,
+            edge_length: t.meta.identity.domain.edge_length().unwrap_or_default(),
+            brdf_terms: k_b as u32,
+            vertices: t
+                .meta
+                .per_vertex
+                .as_ref()
+                .map_or(0, |p| p.vertices as usize),
+            bytes,
+            bake_seconds,
+            reused,
+            error: Vec::new(),
+            error_per_vertex: Vec::new(),
+            light_error: Vec::new(),
+            cpu: Vec::new(),
+            gpu: None,
+        }
+    }
+}
+
 /// One camera: its path-traced reference and the interpolation error at each tessellation.
 #[derive(Clone, Debug)]
 pub struct GlossCameraRow {
@@ -135,6 +166,17 @@ pub struct GlossBenchReport {
 }
 
 impl GlossBenchOptions {
+    /// The relights of [`GlossBenchOptions::light_terms`]: K transport-weighted wavelet terms.
+    pub fn light_requests(&self) -> Vec<RelightRequest> {
+        self.light_terms
+            .iter()
+            .map(|&k| RelightRequest::Wavelet {
+                k,
+                weighting: Weighting::Transport,
+            })
+            .collect()
+    }
+
     /// Checks the lists.
     pub fn validate(&self) -> Result<()> {
         let bad = |what: &str, why: String| Err(PrtError::invalid(what, why));
@@ -283,47 +325,10 @@ pub fn run(
     };
     let cube = env.to_cube(base.cube_n, rotation)?;
 
-    // The references of each camera: the path tracer (exact lobes) and the brute force of the
-    // scene made diffuse (for the interpolation).
-    let diffuse_scene = scene.with_diffuse_materials();
-    let mut references = Vec::new();
-    let mut cameras = Vec::new();
-    // The path tracer is lit by the map's own pixels: the true lighting, with no cube between it
-    // and the image.
-    let light = MapLight::new(env, rotation);
-    for (i, cam) in opts.cameras.iter().enumerate() {
-        log(&format!(
-            "camera {}: path tracing ({} paths a pixel) and the diffuse brute force ...",
-            i + 1,
-            opts.paths
-        ));
-        let traced = path_trace_from(scene, cam, &light, &base, opts.paths)?;
-        let tone = ToneMap::auto(&traced.image, None);
-        traced.image.save(
-            &images.join(format!("camera{}_path_traced.exr", i + 1)),
-            tone,
-        )?;
-        let mut diffuse = diffuse_scene.clone();
-        diffuse.camera = cam.clone();
-        let brute = render_reference_with(&diffuse, &cube, &base, &|_, _| {})?;
-        cameras.push(GlossCameraRow {
-            eye: cam.eye.to_array(),
-            target: cam.target.to_array(),
-            noise: traced.relative_noise(None),
-            interpolation: Vec::new(),
-        });
-        references.push((traced.image, brute, tone));
-    }
+    let (references, mut cameras) = references(scene, env, (&base, &cube), opts, &images, log)?;
 
     let default_edge = VertexMesh::default_edge_length(scene);
-    let k_reqs: Vec<RelightRequest> = opts
-        .light_terms
-        .iter()
-        .map(|&k| RelightRequest::Wavelet {
-            k,
-            weighting: Weighting::Transport,
-        })
-        .collect();
+    let k_reqs = opts.light_requests();
     let mut bakes = Vec::new();
     let mut sh = Vec::new();
     let sh_references: Vec<(Image, ToneMap)> = match opts.sh_orders.is_empty() {
@@ -352,24 +357,9 @@ pub fn run(
             let light = ctx.prepare(env, rotation)?;
             let (full, _) = relight(&t, &ctx, &light, &RelightRequest::Full)?;
             let full_light = lobe_light(&t, &ctx, Some(&light), &RelightRequest::Full)?;
-            let mut row = GlossBakeRow {
-                edge_factor: factor,
-                edge_length: t.meta.identity.domain.edge_length().unwrap_or_default(),
-                brdf_terms: k_b,
-                vertices: t
-                    .meta
-                    .per_vertex
-                    .as_ref()
-                    .map_or(0, |p| p.vertices as usize),
-                bytes: std::fs::metadata(&path).map_or(0, |m| m.len()),
-                bake_seconds,
-                reused,
-                error: Vec::new(),
-                error_per_vertex: Vec::new(),
-                light_error: Vec::new(),
-                cpu: Vec::new(),
-                gpu: None,
-            };
+            let bytes = std::fs::metadata(&path).map_or(0, |m| m.len());
+            let mut row =
+                GlossBakeRow::new(&t, [factor, k_b as f32], bytes, (bake_seconds, reused));
             for (i, (cam, (traced, brute, tone))) in
                 opts.cameras.iter().zip(&references).enumerate()
             {
@@ -426,55 +416,14 @@ pub fn run(
                     samples: opts.samples,
                     frame: [opts.frame_side as usize, opts.runs, opts.light_terms[0]],
                 };
-                for &order in &opts.sh_orders {
-                    let row = super::gloss_sh::measure(&inputs, order, &images)?;
-                    log(&format!(
-                        "edges {factor}x, SH glossy transfer at order {order}: against the path \
-                         tracer {}",
-                        super::percents(&row.error)
-                    ));
-                    sh.push(row);
-                }
-            }
-            let frame_cam = Camera {
-                width: opts.frame_side,
-                height: opts.frame_side,
-                ..opts.cameras[0].clone()
-            };
-            for req in &k_reqs {
-                let (k_img, _) = relight(&t, &ctx, &light, req)?;
-                row.light_error.push(reportable(
-                    relative_l2(&k_img, &full, Some(&t.coverage))?,
-                    || "the light's K terms".to_string(),
-                )?);
-                let mut times = Vec::new();
-                for _ in 0..opts.runs {
-                    let t0 = Instant::now();
-                    let terms = Terms::of(&t, &ctx, &light, req)?;
-                    let (img, _) = Cpu(&t).relight_terms(&terms)?;
-                    let lobe = lobe_light(&t, &ctx, Some(&light), req)?;
-                    let t1 = Instant::now();
-                    draw_relit(
-                        &t,
-                        &img,
-                        lobe.as_ref(),
-                        &frame_cam,
-                        None,
-                        1,
-                        GlossEval::PerPixel,
-                    )?;
-                    times.push([t0, t1, Instant::now()]);
-                }
-                row.cpu.push(FrameTime {
-                    relight_ms: median(times.iter().map(|t| ms(t[0], t[1])).collect()),
-                    draw_ms: median(times.iter().map(|t| ms(t[1], t[2])).collect()),
-                });
-            }
-            if let Some(gpu) = gpu {
-                row.gpu = Some(gpu_frames(
-                    gpu, &t, &ctx, &light, &k_reqs, &frame_cam, opts,
+                sh.extend(super::gloss_sh::measure_orders(
+                    &inputs,
+                    &opts.sh_orders,
+                    &images,
+                    log,
                 )?);
             }
+            frames(&t, (&ctx, &light, &full), &k_reqs, (opts, gpu), &mut row)?;
             log(&format!(
                 "edges {factor}x, K_b = {k_b}: {} vertices, {:.1} KB a vertex; against the path \
                  tracer {}",
@@ -494,13 +443,71 @@ pub fn run(
         sh,
         files: Vec::new(),
     };
+    report.files = write_report(dir, &report, opts)?;
+    Ok(report)
+}
+
+/// Per camera, the path tracer's image, the diffuse brute force and the tone; and the cameras'
+/// rows.
+type References = (Vec<(Image, Reference, ToneMap)>, Vec<GlossCameraRow>);
+
+/// Each camera's references and row: the path tracer lit by the map's own pixels (its image
+/// saved into `images`) and the brute force of the scene made diffuse under `cube` with the
+/// per-pixel settings `base`.
+fn references(
+    scene: &Scene,
+    env: &EnvMap,
+    (base, cube): (&BakeSettings, &CubeMap),
+    opts: &GlossBenchOptions,
+    images: &Path,
+    log: &mut dyn FnMut(&str),
+) -> Result<References> {
+    let rotation = EnvRotation::default();
+    let diffuse_scene = scene.with_diffuse_materials();
+    let mut references = Vec::new();
+    let mut cameras = Vec::new();
+    // The path tracer is lit by the map's own pixels: the true lighting, with no cube between it
+    // and the image.
+    let light = MapLight::new(env, rotation);
+    for (i, cam) in opts.cameras.iter().enumerate() {
+        log(&format!(
+            "camera {}: path tracing ({} paths a pixel) and the diffuse brute force ...",
+            i + 1,
+            opts.paths
+        ));
+        let traced = path_trace_from(scene, cam, &light, base, opts.paths)?;
+        let tone = ToneMap::auto(&traced.image, None);
+        traced.image.save(
+            &images.join(format!("camera{}_path_traced.exr", i + 1)),
+            tone,
+        )?;
+        let mut diffuse = diffuse_scene.clone();
+        diffuse.camera = cam.clone();
+        let brute = render_reference_with(&diffuse, cube, base, &|_, _| {})?;
+        cameras.push(GlossCameraRow {
+            eye: cam.eye.to_array(),
+            target: cam.target.to_array(),
+            noise: traced.relative_noise(None),
+            interpolation: Vec::new(),
+        });
+        references.push((traced.image, brute, tone));
+    }
+    Ok((references, cameras))
+}
+
+/// Writes `gloss.md`, `gloss.csv` and `gloss_error.png` of `report` into `dir`, and says where.
+fn write_report(
+    dir: &Path,
+    report: &GlossBenchReport,
+    opts: &GlossBenchOptions,
+) -> Result<Vec<PathBuf>> {
     let files = vec![
         dir.join("gloss.md"),
         dir.join("gloss.csv"),
         dir.join("gloss_error.png"),
     ];
-    crate::files::write_bytes_atomically(&files[0], markdown(&report, opts).as_bytes())?;
-    crate::files::write_bytes_atomically(&files[1], csv(&report).as_bytes())?;
+    crate::files::write_bytes_atomically(&files[0], markdown(report, opts).as_bytes())?;
+    crate::files::write_bytes_atomically(&files[1], csv(report).as_bytes())?;
     plot::write(
         &files[2],
         &PlotSpec {
@@ -515,10 +522,59 @@ pub fn run(
             width: 720,
             height: 440,
         },
-        &error_series(&report, opts),
+        &error_series(report, opts),
     )?;
-    report.files = files;
-    Ok(report)
+    Ok(files)
+}
+
+/// Each K of `reqs` on bake `t` relit under `light` (its image with every term `full`): the
+/// K terms' error against every term, and a CPU frame (and a GPU one, given a GPU) at the
+/// options' frame side, into `row`.
+fn frames(
+    t: &Transport,
+    (ctx, light, full): (&LightContext, &crate::relight::PreparedLight, &Image),
+    k_reqs: &[RelightRequest],
+    (opts, gpu): (&GlossBenchOptions, Option<&Gpu>),
+    row: &mut GlossBakeRow,
+) -> Result<()> {
+    let frame_cam = Camera {
+        width: opts.frame_side,
+        height: opts.frame_side,
+        ..opts.cameras[0].clone()
+    };
+    for req in k_reqs {
+        let (k_img, _) = relight(t, ctx, light, req)?;
+        row.light_error.push(reportable(
+            relative_l2(&k_img, full, Some(&t.coverage))?,
+            || "the light's K terms".to_string(),
+        )?);
+        let mut times = Vec::new();
+        for _ in 0..opts.runs {
+            let t0 = Instant::now();
+            let terms = Terms::of(t, ctx, light, req)?;
+            let (img, _) = Cpu(t).relight_terms(&terms)?;
+            let lobe = lobe_light(t, ctx, Some(light), req)?;
+            let t1 = Instant::now();
+            draw_relit(
+                t,
+                &img,
+                lobe.as_ref(),
+                &frame_cam,
+                None,
+                1,
+                GlossEval::PerPixel,
+            )?;
+            times.push([t0, t1, Instant::now()]);
+        }
+        row.cpu.push(FrameTime {
+            relight_ms: median(times.iter().map(|t| ms(t[0], t[1])).collect()),
+            draw_ms: median(times.iter().map(|t| ms(t[1], t[2])).collect()),
+        });
+    }
+    if let Some(gpu) = gpu {
+        row.gpu = Some(gpu_frames(gpu, t, ctx, light, k_reqs, &frame_cam, opts)?);
+    }
+    Ok(())
 }
 
 fn ms(a: Instant, b: Instant) -> f64 {
