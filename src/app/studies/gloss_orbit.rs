@@ -20,8 +20,8 @@ use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{cells_at, write_sheet};
 use crate::relight::{Backend, Cpu, LightContext, RelightRequest, Terms, lobe_light};
-use crate::scene::Scene;
 use crate::scene::tessellate::VertexMesh;
+use crate::scene::{Camera, Scene};
 use crate::store::transport::BakeDomain;
 
 /// What the glossy orbit's glossy materials keep, as its captions say it.
@@ -124,28 +124,7 @@ pub fn run_gloss_orbit(
     let cam = orbit(&camera, GLOSS_REFERENCE_AZIMUTH, 0.0);
     let colours = crate::draw::vertex::vertex_colours(&t, &full)?;
     let diffuse = draw(&t, &colours, &cam, None, DRAW_SAMPLES)?;
-    // Lit by the map's own pixels (an earlier demo's reference, lit by the cube, had another
-    // name and is not taken for this one).
-    let exr = dir.join("gloss_path_traced_map.exr");
-    let kept = Image::load_exr(&exr).ok().filter(|i| {
-        reused_bake && (i.width, i.height) == (cam.width as usize, cam.height as usize)
-    });
-    let (reference, reference_noise) = match kept {
-        Some(image) => (image, None),
-        None => {
-            study.log(&format!(
-                "path tracing the demo from {GLOSS_REFERENCE_AZIMUTH}° round \
-                 ({GLOSS_REFERENCE_PATHS} paths a pixel) ..."
-            ));
-            let light = MapLight::new(env, rotation);
-            let traced = path_trace_from(scene, &cam, &light, settings, GLOSS_REFERENCE_PATHS)?;
-            traced
-                .image
-                .save(&exr, ToneMap::auto(&traced.image, None))?;
-            let noise = traced.relative_noise(None);
-            (traced.image, Some(noise))
-        }
-    };
+    let (reference, reference_noise) = path_traced_reference(study, scene, env, &cam, reused_bake)?;
     let glossy_error = relative_l2(&glossy.image, &reference, None)?;
     let diffuse_error = relative_l2(&diffuse.image, &reference, None)?;
     // The environment behind, where the raster from the same camera draws nothing.
@@ -216,5 +195,39 @@ pub fn run_gloss_orbit(
         reference_noise,
         glossy_error,
         diffuse_error,
+    })
+}
+
+/// The demo's glossy reference from `cam`: the path tracer lit by the map's own pixels (an
+/// earlier demo's reference, lit by the cube, had another name and is not taken for this one),
+/// kept in the study's folder and taken again where the bake was `reused`, with its noise when
+/// traced now.
+fn path_traced_reference(
+    study: &mut Study,
+    scene: &Scene,
+    env: &EnvMap,
+    cam: &Camera,
+    reused: bool,
+) -> Result<(Image, Option<f64>)> {
+    let exr = study.dir.join("gloss_path_traced_map.exr");
+    let kept = Image::load_exr(&exr)
+        .ok()
+        .filter(|i| reused && (i.width, i.height) == (cam.width as usize, cam.height as usize));
+    Ok(match kept {
+        Some(image) => (image, None),
+        None => {
+            study.log(&format!(
+                "path tracing the demo from {GLOSS_REFERENCE_AZIMUTH}° round \
+                 ({GLOSS_REFERENCE_PATHS} paths a pixel) ..."
+            ));
+            let light = MapLight::new(env, EnvRotation::default());
+            let traced =
+                path_trace_from(scene, cam, &light, study.settings, GLOSS_REFERENCE_PATHS)?;
+            traced
+                .image
+                .save(&exr, ToneMap::auto(&traced.image, None))?;
+            let noise = traced.relative_noise(None);
+            (traced.image, Some(noise))
+        }
     })
 }
