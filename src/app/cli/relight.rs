@@ -255,33 +255,24 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let t = t?;
     let still = a.view.camera(&t)?;
     let req = crate::api::request(&t.meta, method, a.terms, weighting, a.sh_order)?;
-    // The default K on a cube too small to hold it keeps every term.
-    if let RelightRequest::Wavelet { k, .. } = req
-        && k != a.terms
-    {
-        eprintln!(
-            "note: the default K = {DEFAULT_TERMS} is more than the {k} terms of N = {}: every \
-             term is kept",
-            t.meta.identity.cube_n
-        );
-    }
+    note_default_terms(&req, a.terms, t.meta.identity.cube_n);
     let start = Instant::now();
     let (ctx, light, prepared_in) = ahead;
     // The header read first and the file loaded agree on the sizes but for a file replaced in
     // between; the light is then prepared again for the file loaded.
-    let beside = sizes
-        == (
-            t.meta.identity.cube_n as usize,
-            t.meta.identity.sh_order as usize,
-        );
-    let (ctx, light) = if beside {
-        (ctx?, light)
-    } else {
-        let ctx = LightContext::new(&t)?;
-        let light = env.as_ref().map(|env| ctx.prepare(env, rotation));
-        (ctx, light)
+    let stored = (
+        t.meta.identity.cube_n as usize,
+        t.meta.identity.sh_order as usize,
+    );
+    let beside = sizes == stored;
+    let (ctx, prepared) = match beside {
+        true => (ctx?, light.transpose()?),
+        false => {
+            let ctx = LightContext::new(&t)?;
+            let light = env.as_ref().map(|env| ctx.prepare(env, rotation));
+            (ctx, light.transpose()?)
+        }
     };
-    let prepared = light.transpose()?;
     let terms = match &prepared {
         Some(light) => Terms::of(&t, &ctx, light, &req)?,
         None => Terms::dark(),
@@ -289,18 +280,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let light_ms = (start.elapsed() + waited).as_secs_f64() * 1e3;
     let (img, stats) = match &gpu {
         None => crate::relight::Cpu(&t).relight_lit(&terms, &mix)?,
-        Some(gpu) => {
-            let upload = Instant::now();
-            let g = crate::relight::gpu::GpuTransport::upload(gpu, &t, None)?;
-            eprintln!(
-                "gpu: {} ({} chunk(s), {} bytes a strip of 8 values, upload {:.0} ms)",
-                gpu.adapter,
-                g.chunk_count(),
-                g.bytes_per_strip(),
-                upload.elapsed().as_secs_f64() * 1e3
-            );
-            crate::relight::gpu::GpuBackend::new(gpu, &g, &t)?.relight_lit(&terms, &mix)?
-        }
+        Some(gpu) => relight_on_gpu(gpu, &t, &terms, &mix)?,
     };
     img.check_finite("relit image")?;
     // A per-vertex bake's image holds its vertex colours: drawn from the camera asked for.
@@ -348,13 +328,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
         Some(_) => format!(
             "{method}: {} terms{}, {} nonzeros touched ({:.1} MiB), light {light_ms:.1} ms{}",
             stats.terms,
-            match req {
-                RelightRequest::Wavelet { weighting, .. } => format!(" ({weighting} weighting)"),
-                RelightRequest::ShLight { order } => format!(
-                    " (the light through SH order {order}, relit with every stored Haar term)"
-                ),
-                _ => String::new(),
-            },
+            request_detail(&req),
             stats.nonzeros_touched,
             stats.bytes_touched as f64 / 1048576.0,
             match beside {
@@ -622,6 +596,49 @@ fn optional_env(spec: &str, mix: &LightMix) -> Result<Option<EnvMap>> {
         ));
     }
     Ok(None)
+}
+
+/// What the command's line adds about `req`: the weighting of wavelet terms, or the SH light's
+/// order.
+fn request_detail(req: &RelightRequest) -> String {
+    match req {
+        RelightRequest::Wavelet { weighting, .. } => format!(" ({weighting} weighting)"),
+        RelightRequest::ShLight { order } => {
+            format!(" (the light through SH order {order}, relit with every stored Haar term)")
+        }
+        _ => String::new(),
+    }
+}
+
+/// Says so where the default K is more than a small cube's terms, and every term is kept.
+fn note_default_terms(req: &RelightRequest, asked: usize, cube_n: u32) {
+    if let RelightRequest::Wavelet { k, .. } = *req
+        && k != asked
+    {
+        eprintln!(
+            "note: the default K = {DEFAULT_TERMS} is more than the {k} terms of N = {cube_n}: \
+             every term is kept"
+        );
+    }
+}
+
+/// `terms` and the local lights' `mix` relit on `gpu`, the transport uploaded first (and said).
+fn relight_on_gpu(
+    gpu: &crate::relight::gpu::Gpu,
+    t: &Transport,
+    terms: &Terms,
+    mix: &LightMix,
+) -> Result<(crate::output::film::Image, crate::relight::RelightStats)> {
+    let upload = Instant::now();
+    let g = crate::relight::gpu::GpuTransport::upload(gpu, t, None)?;
+    eprintln!(
+        "gpu: {} ({} chunk(s), {} bytes a strip of 8 values, upload {:.0} ms)",
+        gpu.adapter,
+        g.chunk_count(),
+        g.bytes_per_strip(),
+        upload.elapsed().as_secs_f64() * 1e3
+    );
+    crate::relight::gpu::GpuBackend::new(gpu, &g, t)?.relight_lit(terms, mix)
 }
 
 /// Draws a per-vertex bake's relit image `img` from `camera`, with `light` (the pyramid a bake

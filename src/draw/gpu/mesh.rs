@@ -287,50 +287,27 @@ impl GpuMesh {
             table.extend([n.x, n.y, n.z].map(f32::to_bits));
             table.push(m);
         }
-        // wgpu rejects empty initialised buffers for some uses: keep at least one element.
-        let buffer = |label, contents: &[u8], usage| {
+        // Storage buffers; wgpu rejects empty initialised buffers for some uses: keep at least
+        // one element.
+        let buffer = |label, contents: &[u8]| {
             let mut data = contents.to_vec();
             data.resize(data.len().max(16), 0);
             gpu.device
                 .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some(label),
                     contents: &data,
-                    usage,
+                    usage: wgpu::BufferUsages::STORAGE,
                 })
         };
         Ok(GpuMesh {
-            table: buffer(
-                "raster vertices",
-                bytemuck::cast_slice(&table),
-                wgpu::BufferUsages::STORAGE,
-            ),
-            indices: buffer(
-                "raster indices",
-                bytemuck::cast_slice(triangles),
-                wgpu::BufferUsages::STORAGE,
-            ),
-            maps: buffer(
-                "raster albedo maps",
-                bytemuck::cast_slice(&maps),
-                wgpu::BufferUsages::STORAGE,
-            ),
-            levels: buffer(
-                "raster albedo levels",
-                bytemuck::cast_slice(&levels),
-                wgpu::BufferUsages::STORAGE,
-            ),
-            texels: buffer(
-                "raster albedo texels",
-                bytemuck::cast_slice(&texels),
-                wgpu::BufferUsages::STORAGE,
-            ),
+            table: buffer("raster vertices", bytemuck::cast_slice(&table)),
+            indices: buffer("raster indices", bytemuck::cast_slice(triangles)),
+            maps: buffer("raster albedo maps", bytemuck::cast_slice(&maps)),
+            levels: buffer("raster albedo levels", bytemuck::cast_slice(&levels)),
+            texels: buffer("raster albedo texels", bytemuck::cast_slice(&texels)),
             vertices: positions.len() as u32,
             index_count,
-            gloss: buffer(
-                "raster gloss",
-                bytemuck::cast_slice(&gloss_words),
-                wgpu::BufferUsages::STORAGE,
-            ),
+            gloss: buffer("raster gloss", bytemuck::cast_slice(&gloss_words)),
             gloss_shape,
             lobe_shape,
         })
