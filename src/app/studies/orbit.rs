@@ -16,7 +16,7 @@ use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{cells_at, write_sheet};
-use crate::relight::{LightContext, RelightRequest, relight};
+use crate::relight::{LightContext, PreparedLight, RelightRequest, relight};
 use crate::scene::Scene;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::Transport;
@@ -121,10 +121,7 @@ pub fn run_orbit(
     let (pixel_full, _) = relight(per_pixel, &pixel_ctx, &pixel_light, &full_req)?;
     // Pixels of glossy surfaces hold a second (GGX) row per pixel; a per-vertex bake keeps only
     // their diffuse base, so they are left out of the comparison.
-    let mut rows = vec![0u32; per_pixel.coverage.len()];
-    for &p in &per_pixel.row_pixel {
-        rows[p as usize] += 1;
-    }
+    let rows = rows_per_pixel(per_pixel);
     // One tessellation: baked, relit with every term and with K, drawn from the scene's camera.
     let mut measure = |file: &str, edge: f32| -> Result<Measured> {
         let (t, reused_bake, bake_seconds) = bake_vertices(study, file, scene, edge)?;
@@ -190,28 +187,7 @@ pub fn run_orbit(
     let draw = |relit: &Image, camera: &crate::scene::Camera, samples: u32| {
         crate::draw::vertex::draw_relit(&t, relit, None, camera, None, samples, GlossEval::PerPixel)
     };
-    // Frames as the viewer makes them on the CPU: relight at K terms, draw the pixel centres.
-    let mut times = Vec::new();
-    let mut k_img = k_img;
-    for _ in 0..5 {
-        let t0 = Instant::now();
-        let (img, _) = relight(&t, &ctx, &light, &k_req)?;
-        let t1 = Instant::now();
-        let raster = draw(&img, &camera, 1)?;
-        let t2 = Instant::now();
-        times.push([
-            (t1 - t0).as_secs_f64(),
-            (t2 - t1).as_secs_f64(),
-            (t2 - t0).as_secs_f64(),
-        ]);
-        drop(raster);
-        k_img = img;
-    }
-    let median = |k: usize| {
-        let mut v: Vec<f64> = times.iter().map(|t| t[k]).collect();
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2] * 1e3
-    };
+    let (ms, k_img) = timed_frames(&t, (&ctx, &light), &k_req, &camera, k_img)?;
     let tone = ToneMap::auto(&pixel_full, Some(&per_pixel.coverage));
     let mut shots: Vec<(Image, [String; 2])> = Vec::new();
     for az in ORBIT_AZIMUTHS {
@@ -227,15 +203,13 @@ pub fn run_orbit(
             [format!("K = {ORBIT_TERMS}, turned {az}°"), name.to_string()],
         ));
     }
-    let pixel_shown = crate::draw::background::composite(
-        &pixel_full,
-        &crate::draw::background::environment_behind(
-            &per_pixel.meta,
-            &per_pixel.coverage,
-            env,
-            rotation,
-        )?,
-    );
+    let behind = crate::draw::background::environment_behind(
+        &per_pixel.meta,
+        &per_pixel.coverage,
+        env,
+        rotation,
+    )?;
+    let pixel_shown = crate::draw::background::composite(&pixel_full, &behind);
     shots.push((
         pixel_shown,
         ["per pixel, every term".into(), "the scene's camera".into()],
@@ -263,14 +237,50 @@ pub fn run_orbit(
     study.log(&format!(
         "drew the per-vertex bake from {} angles; a frame at K = {ORBIT_TERMS} takes {:.1} ms",
         ORBIT_AZIMUTHS.len(),
-        median(2)
+        ms[2]
     ));
     Ok(OrbitReport {
         fine,
         coarse,
-        relight_ms: median(0),
-        draw_ms: median(1),
-        frame_ms: median(2),
+        relight_ms: ms[0],
+        draw_ms: ms[1],
+        frame_ms: ms[2],
         sheet_path,
     })
+}
+
+/// Frames as the viewer makes them on the CPU, five of them: `t` relit at `k_req` under `light`,
+/// then drawn from `camera` at the pixel centres. The median milliseconds of the relight, the
+/// draw and the frame, and the last image relit (`k_img` without frames).
+fn timed_frames(
+    t: &Transport,
+    (ctx, light): (&LightContext, &PreparedLight),
+    k_req: &RelightRequest,
+    camera: &crate::scene::Camera,
+    mut k_img: Image,
+) -> Result<([f64; 3], Image)> {
+    let mut times = [Vec::new(), Vec::new(), Vec::new()];
+    for _ in 0..5 {
+        let t0 = Instant::now();
+        let (img, _) = relight(t, ctx, light, k_req)?;
+        let t1 = Instant::now();
+        let raster =
+            crate::draw::vertex::draw_relit(t, &img, None, camera, None, 1, GlossEval::PerPixel)?;
+        let t2 = Instant::now();
+        for (v, d) in times.iter_mut().zip([t1 - t0, t2 - t1, t2 - t0]) {
+            v.push(d.as_secs_f64() * 1e3);
+        }
+        drop(raster);
+        k_img = img;
+    }
+    Ok((times.map(super::median), k_img))
+}
+
+/// How many rows each pixel of a per-pixel bake keeps (two on a glossy surface).
+fn rows_per_pixel(t: &Transport) -> Vec<u32> {
+    let mut rows = vec![0u32; t.coverage.len()];
+    for &p in &t.row_pixel {
+        rows[p as usize] += 1;
+    }
+    rows
 }
