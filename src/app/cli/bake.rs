@@ -105,74 +105,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
             .visibility
             .unwrap_or_else(|| crate::api::glossy_visibility(&scene, a.brdf_terms));
         settings.validate()?;
-        let named = |keep: fn(&crate::scene::Material) -> bool| -> Vec<&str> {
-            scene
-                .materials
-                .iter()
-                .zip(&scene.material_names)
-                .filter(|(m, _)| keep(m))
-                .map(|(_, n)| n.as_str())
-                .collect()
-        };
-        let glossy = named(|m| m.glossy_lobe().is_some());
-        // Those whose highlight the diffuse base drops, and the rough ones whose lobe it drops
-        // with much of their light.
-        let shiny = named(drops_visible_gloss);
-        let darkened = named(drops_rough_light);
-        if !glossy.is_empty() && settings.visibility {
-            eprintln!(
-                "the glossy material(s) {} keep their visibility ({} bytes a vertex): their lobe \
-                 is drawn per pixel from the light (--visibility false keeps their diffuse base \
-                 alone)",
-                glossy.join(", "),
-                4 * crate::scene::visibility::Visibility::words(settings.cube_n)
-            );
-        } else if !glossy.is_empty() && a.brdf_terms > 1 {
-            eprintln!(
-                "the glossy material(s) {} take up to {} in-out BRDF terms a vertex",
-                glossy.join(", "),
-                a.brdf_terms
-            );
-            let textured: Vec<&str> = scene
-                .materials
-                .iter()
-                .zip(&scene.material_names)
-                .zip(&scene.material_maps)
-                .filter(|((m, _), maps)| m.glossy_lobe().is_some() && maps.is_some())
-                .map(|((_, n), _)| n.as_str())
-                .collect();
-            if !textured.is_empty() {
-                eprintln!(
-                    "warning: the textured glossy material(s) {} keep their diffuse base: their \
-                     vertices are baked white for their albedo maps",
-                    textured.join(", ")
-                );
-            }
-            if !scene.lights.is_empty() {
-                eprintln!(
-                    "warning: the local lights' columns are diffuse at every vertex; only the \
-                     environment's light takes the in-out terms"
-                );
-            }
-        } else {
-            if !shiny.is_empty() {
-                eprintln!(
-                    "warning: per vertex, the glossy material(s) {} keep only their diffuse base: \
-                     a glossy lobe depends on the direction to the camera, which moves \
-                     (--visibility true draws it per pixel)",
-                    shiny.join(", ")
-                );
-            }
-            if !darkened.is_empty() {
-                eprintln!(
-                    "warning: per vertex, the rough material(s) {} keep only their diffuse base, \
-                     without the specular reflectance of their lobe (more than {} of the light): \
-                     they come out darker (--visibility true draws their lobe per pixel)",
-                    darkened.join(", "),
-                    ROUGH_SPECULAR_NOTED
-                );
-            }
-        }
+        say_glossy_choice(&scene, &settings, a.brdf_terms);
         for name in crate::scene::tessellate::inward_surfaces(&scene) {
             eprintln!(
                 "warning: {}: its normals point into the closed mesh (faces wound inward); the \
@@ -206,40 +139,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         None => (scene.camera.width as usize, scene.camera.height as usize),
     };
     let worst = worst_case_bytes(w, h, &settings);
-    let plural =
-        |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
-    let at = match (&mesh, settings.domain) {
-        (Some(m), BakeDomain::Vertices { edge_length: edge }) => format!(
-            "per vertex: {}{} vertices, {} triangles, {}edges up to {edge:.4}{}{}; spp does not \
-             apply",
-            if settings.refines_shadows() {
-                "at most "
-            } else {
-                ""
-            },
-            m.vertex_count(),
-            m.triangles.len(),
-            if settings.refines_shadows() {
-                "as many as "
-            } else {
-                ""
-            },
-            if settings.refines_shadows() {
-                " make, spent where shadows fall"
-            } else {
-                ""
-            },
-            match m.albedo_maps.len() {
-                0 => String::new(),
-                n => format!(
-                    ", {} of {:.1} M texels with their mip levels",
-                    plural(n, "albedo map", "albedo maps"),
-                    m.albedo_maps.iter().map(|a| a.texel_count()).sum::<usize>() as f64 / 1e6
-                ),
-            }
-        ),
-        _ => format!("at {w}x{h}, {} spp", settings.spp),
-    };
+    let at = describe_domain(mesh.as_ref(), &settings, [w, h]);
     eprintln!(
         "baking {} ({}, {}{}) {at}, N = {}, SH order {}, {} samples/texel",
         a.scene.display(),
@@ -290,6 +190,126 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Says what a per-vertex bake with `settings` keeps of `scene`'s glossy materials: their
+/// visibility, their in-out terms (`brdf_terms`, and what those leave out), or their diffuse base
+/// alone (and which materials lose a highlight or light by it).
+fn say_glossy_choice(scene: &crate::scene::Scene, settings: &BakeSettings, brdf_terms: u32) {
+    let named = |keep: fn(&crate::scene::Material) -> bool| -> Vec<&str> {
+        scene
+            .materials
+            .iter()
+            .zip(&scene.material_names)
+            .filter(|(m, _)| keep(m))
+            .map(|(_, n)| n.as_str())
+            .collect()
+    };
+    let glossy = named(|m| m.glossy_lobe().is_some());
+    // Those whose highlight the diffuse base drops, and the rough ones whose lobe it drops
+    // with much of their light.
+    let shiny = named(drops_visible_gloss);
+    let darkened = named(drops_rough_light);
+    if !glossy.is_empty() && settings.visibility {
+        eprintln!(
+            "the glossy material(s) {} keep their visibility ({} bytes a vertex): their lobe \
+             is drawn per pixel from the light (--visibility false keeps their diffuse base \
+             alone)",
+            glossy.join(", "),
+            4 * crate::scene::visibility::Visibility::words(settings.cube_n)
+        );
+    } else if !glossy.is_empty() && brdf_terms > 1 {
+        eprintln!(
+            "the glossy material(s) {} take up to {} in-out BRDF terms a vertex",
+            glossy.join(", "),
+            brdf_terms
+        );
+        let textured: Vec<&str> = scene
+            .materials
+            .iter()
+            .zip(&scene.material_names)
+            .zip(&scene.material_maps)
+            .filter(|((m, _), maps)| m.glossy_lobe().is_some() && maps.is_some())
+            .map(|((_, n), _)| n.as_str())
+            .collect();
+        if !textured.is_empty() {
+            eprintln!(
+                "warning: the textured glossy material(s) {} keep their diffuse base: their \
+                 vertices are baked white for their albedo maps",
+                textured.join(", ")
+            );
+        }
+        if !scene.lights.is_empty() {
+            eprintln!(
+                "warning: the local lights' columns are diffuse at every vertex; only the \
+                 environment's light takes the in-out terms"
+            );
+        }
+    } else {
+        if !shiny.is_empty() {
+            eprintln!(
+                "warning: per vertex, the glossy material(s) {} keep only their diffuse base: \
+                 a glossy lobe depends on the direction to the camera, which moves \
+                 (--visibility true draws it per pixel)",
+                shiny.join(", ")
+            );
+        }
+        if !darkened.is_empty() {
+            eprintln!(
+                "warning: per vertex, the rough material(s) {} keep only their diffuse base, \
+                 without the specular reflectance of their lobe (more than {} of the light): \
+                 they come out darker (--visibility true draws their lobe per pixel)",
+                darkened.join(", "),
+                ROUGH_SPECULAR_NOTED
+            );
+        }
+    }
+}
+
+/// `n` and the noun `one` or `many`, as the count asks.
+fn plural(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
+/// What a bake with `settings` makes rows for, as its first line says: the mesh's vertices,
+/// triangles, edges and albedo maps, or the view's size and sub-samples.
+fn describe_domain(
+    mesh: Option<&crate::scene::tessellate::VertexMesh>,
+    settings: &BakeSettings,
+    [w, h]: [usize; 2],
+) -> String {
+    match (mesh, settings.domain) {
+        (Some(m), BakeDomain::Vertices { edge_length: edge }) => format!(
+            "per vertex: {}{} vertices, {} triangles, {}edges up to {edge:.4}{}{}; spp does not \
+             apply",
+            if settings.refines_shadows() {
+                "at most "
+            } else {
+                ""
+            },
+            m.vertex_count(),
+            m.triangles.len(),
+            if settings.refines_shadows() {
+                "as many as "
+            } else {
+                ""
+            },
+            if settings.refines_shadows() {
+                " make, spent where shadows fall"
+            } else {
+                ""
+            },
+            match m.albedo_maps.len() {
+                0 => String::new(),
+                n => format!(
+                    ", {} of {:.1} M texels with their mip levels",
+                    plural(n, "albedo map", "albedo maps"),
+                    m.albedo_maps.iter().map(|a| a.texel_count()).sum::<usize>() as f64 / 1e6
+                ),
+            }
+        ),
+        _ => format!("at {w}x{h}, {} spp", settings.spp),
+    }
 }
 
 /// Perceptual roughness from which a GGX lobe is as broad as it gets: it hardly depends on the
