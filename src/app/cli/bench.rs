@@ -85,20 +85,7 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
     let still = a.view.camera(&t)?;
     let mut envs = Vec::new();
     for spec in &a.env {
-        let name: String = std::path::Path::new(spec)
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .unwrap_or(spec)
-            .chars()
-            .map(|c| {
-                if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
-                    c
-                } else {
-                    '_'
-                }
-            })
-            .collect();
-        envs.push((name, load_env(spec)?));
+        envs.push((env_name(spec), load_env(spec)?));
     }
     crate::files::check_folder_outputs(
         &a.out,
@@ -157,61 +144,13 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         None
     };
     let references = match (&scene, a.reference) {
-        (Some(scene), true) => {
-            // A per-vertex bake holds the diffuse light at its vertices: its reference is the
-            // per-pixel brute force of the same scene with glossy materials at their diffuse base,
-            // unless the bake keeps in-out BRDF terms, whose reference keeps the glossy lobes.
-            let diffuse;
-            let (scene, settings) = match &t.domain {
-                Domain::Mesh(mesh) => {
-                    let mut d = match mesh.factors {
-                        Some(_) => scene.clone(),
-                        None => scene.with_diffuse_materials(),
-                    };
-                    if let Some(c) = &still {
-                        d.camera = c.clone();
-                    }
-                    diffuse = d;
-                    // The raster filters textures by their mip levels; against one sample a
-                    // pixel (which aliases a minified texture) the error would be the
-                    // reference's, so a textured scene's reference takes 16 a pixel.
-                    let spp = match diffuse.is_textured() {
-                        true => settings.spp.max(TEXTURED_REFERENCE_SPP),
-                        false => settings.spp,
-                    };
-                    (
-                        &diffuse,
-                        BakeSettings {
-                            domain: BakeDomain::View,
-                            spp,
-                            ..settings.clone()
-                        },
-                    )
-                }
-                Domain::View => (scene, settings.clone()),
-            };
-            let mut refs = Vec::new();
-            let mut coverage = Vec::new();
-            let rows = bar(
-                (envs.len() * scene.camera.height as usize) as u64,
-                "reference rows",
-            );
-            for (i, (name, env)) in envs.iter().enumerate() {
-                rows.set_message(format!("brute force under {name}"));
-                let cube = env.to_cube(settings.cube_n, EnvRotation::default())?;
-                let before = (i * scene.camera.height as usize) as u64;
-                let r = crate::bake::reference::render_reference_with(
-                    scene,
-                    &cube,
-                    &settings,
-                    &|done, _| rows.set_position(before + done as u64),
-                )?;
-                refs.push(r.image);
-                coverage = r.coverage;
-            }
-            rows.finish_and_clear();
-            Some((refs, coverage))
-        }
+        (Some(scene), true) => Some(brute_force_references(
+            &t,
+            scene,
+            &settings,
+            still.as_ref(),
+            &envs,
+        )?),
         _ => None,
     };
     let backend = match &device {
@@ -261,4 +200,84 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
         println!("wrote {}", p.display());
     }
     Ok(())
+}
+
+/// The brute-force references of bake `t` of `scene` (with its own `settings`) under each of
+/// `envs`, and their coverage. A per-vertex bake holds the diffuse light at its vertices: its
+/// reference is the per-pixel brute force of the same scene, seen from `still` where given,
+/// with glossy materials at their diffuse base, unless the bake keeps in-out BRDF terms, whose
+/// reference keeps the glossy lobes.
+fn brute_force_references(
+    t: &Transport,
+    scene: &Scene,
+    settings: &BakeSettings,
+    still: Option<&crate::scene::Camera>,
+    envs: &[(String, crate::env::envmap::EnvMap)],
+) -> Result<(Vec<crate::output::film::Image>, Vec<f32>)> {
+    let diffuse;
+    let (scene, settings) = match &t.domain {
+        Domain::Mesh(mesh) => {
+            let mut d = match mesh.factors {
+                Some(_) => scene.clone(),
+                None => scene.with_diffuse_materials(),
+            };
+            if let Some(c) = still {
+                d.camera = c.clone();
+            }
+            diffuse = d;
+            // The raster filters textures by their mip levels; against one sample a
+            // pixel (which aliases a minified texture) the error would be the
+            // reference's, so a textured scene's reference takes 16 a pixel.
+            let spp = match diffuse.is_textured() {
+                true => settings.spp.max(TEXTURED_REFERENCE_SPP),
+                false => settings.spp,
+            };
+            (
+                &diffuse,
+                BakeSettings {
+                    domain: BakeDomain::View,
+                    spp,
+                    ..settings.clone()
+                },
+            )
+        }
+        Domain::View => (scene, settings.clone()),
+    };
+    let mut refs = Vec::new();
+    let mut coverage = Vec::new();
+    let rows = bar(
+        (envs.len() * scene.camera.height as usize) as u64,
+        "reference rows",
+    );
+    for (i, (name, env)) in envs.iter().enumerate() {
+        rows.set_message(format!("brute force under {name}"));
+        let cube = env.to_cube(settings.cube_n, EnvRotation::default())?;
+        let before = (i * scene.camera.height as usize) as u64;
+        let r =
+            crate::bake::reference::render_reference_with(scene, &cube, &settings, &|done, _| {
+                rows.set_position(before + done as u64)
+            })?;
+        refs.push(r.image);
+        coverage = r.coverage;
+    }
+    rows.finish_and_clear();
+    Ok((refs, coverage))
+}
+
+/// The name of an environment given as `spec`, for file names: its file stem, every character
+/// but letters, digits, `_` and `-` turned into `_`.
+fn env_name(spec: &str) -> String {
+    std::path::Path::new(spec)
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or(spec)
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
 }
