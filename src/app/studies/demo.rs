@@ -272,116 +272,22 @@ pub fn run_demo(
     let dusk = dusk::run_dusk(study, &assets, DEMO_WEIGHTING)?;
     let truck = truck::run_truck(study, &assets, DEMO_WEIGHTING)?;
     let (volume_bake_seconds, volume_rows) = run_volume_demo(dir, &assets, log)?;
-    let table_path = dir.join("summary.md");
-    let mut table = markdown_table(&rows);
-    table.push_str(&format!(
-        "\nVolume (`assets/scenes/cloud.toml`, SH order 3, 512 directions): transfer baked in \
-         {volume_bake_seconds:.2} s; `volume/` holds the cloud marched under each environment.\n\n\
-         | environment | CPU march (ms) |\n|---|---:|\n"
-    ));
-    for (env, ms) in &volume_rows {
-        table.push_str(&format!("| {env} | {ms:.1} |\n"));
-    }
-    table.push_str(&format!(
-        "\nPer vertex (`orbit_sheet.png`), under sunrise from the scene's camera. Interpolation: \
-         every term, against the per-pixel bake on its diffuse surfaces (a per-vertex bake keeps \
-         only the diffuse base of the glossy teapot). Light: K = {k} against every term, per \
-         vertex.\n\n| edges up to | vertices | triangles | bake (s) | interpolation | light, K = \
-         {k} |\n|---:|---:|---:|---:|---:|---:|\n",
-        k = crate::app::studies::orbit::ORBIT_TERMS
-    ));
-    for t in [&orbit.fine, &orbit.coarse] {
-        table.push_str(&format!(
-            "| {:.3} | {} | {} | {:.1} | {:.2}% | {:.2}% |\n",
-            t.edge_length,
-            t.vertices,
-            t.triangles,
-            t.bake_seconds,
-            100.0 * t.interpolation_error,
-            100.0 * t.light_error
-        ));
-    }
-    table.push_str(&format!(
-        "\nA frame at K = {} on the CPU, {} vertices: relight {:.1} ms + draw {:.1} ms = {:.1} ms.\n",
-        crate::app::studies::orbit::ORBIT_TERMS,
-        orbit.fine.vertices,
-        orbit.relight_ms,
-        orbit.draw_ms,
-        orbit.frame_ms
-    ));
-    table.push_str(&format!(
-        "\nGlossy per vertex (`gloss_sheet.png`): the same scene per vertex with its porcelain \
-         teapot's visibility, the lobe drawn per pixel ({} vertices, {:.1} KB a vertex), bake \
-         {:.1} s{}; from {}° round, under sunrise, against the path tracer ({} paths a \
-         pixel{}), the whole image: {:.1}% with the lobe, {:.1}% for the diffuse base.\n",
-        gloss.vertices,
-        gloss.bytes_per_vertex / 1e3,
-        gloss.bake_seconds,
-        if gloss.reused_bake { " (reused)" } else { "" },
-        crate::app::studies::gloss_orbit::GLOSS_REFERENCE_AZIMUTH,
-        crate::app::studies::gloss_orbit::GLOSS_REFERENCE_PATHS,
-        gloss
-            .reference_noise
-            .map(|n| format!(", noise {:.1}%", 100.0 * n))
-            .unwrap_or_default(),
-        100.0 * gloss.glossy_error,
-        100.0 * gloss.diffuse_error
-    ));
-    table.push_str(&format!(
-        "\nLocal lights (`dusk_sheet.png`): `assets/scenes/dusk.toml` under `{}` with a quad \
-         panel, a spot and a lamp baked at 5 positions ({} light columns), bake {:.1} s{}; \
-         adding every light to a relit image takes {:.2} ms on the CPU.\n",
-        crate::app::studies::dusk::DUSK_SUN,
-        dusk.columns,
-        dusk.bake_seconds,
-        if dusk.reused_bake { " (reused)" } else { "" },
-        dusk.lights_ms
-    ));
-    table.push_str(&format!(
-        "\nglTF (`truck_sheet.png`): `assets/scenes/truck.toml`, the Cesium Milk Truck ({} \
-         triangles with the ground, {} texels of texture), bake {:.1} s{}; relative L2 against \
-         every term:\n\n| environment |{}\n|---|{}\n",
-        truck.triangles,
-        truck.texels,
-        truck.bake_seconds,
-        if truck.reused_bake { " (reused)" } else { "" },
-        truck
-            .errors
-            .first()
-            .map(|(_, row)| row
-                .iter()
-                .map(|(c, _)| format!(" {c} |"))
-                .collect::<String>())
-            .unwrap_or_default(),
-        truck
-            .errors
-            .first()
-            .map(|(_, row)| "---:|".repeat(row.len()))
-            .unwrap_or_default(),
-    ));
-    for (env, row) in &truck.errors {
-        table.push_str(&format!(
-            "| {env} |{}\n",
-            row.iter()
-                .map(|(_, e)| format!(" {:.2}% |", 100.0 * e))
-                .collect::<String>()
-        ));
-    }
-    crate::files::write_bytes_atomically(&table_path, table.as_bytes())?;
-    Ok(DemoReport {
+    let report = DemoReport {
         gloss,
         dusk,
         truck,
         rows,
         transport_path,
         sheet_path,
-        table_path,
+        table_path: dir.join("summary.md"),
         reused_bake: reused,
         bake_seconds,
         volume_bake_seconds,
         volume_rows,
         orbit,
-    })
+    };
+    crate::files::write_bytes_atomically(&report.table_path, summary_markdown(&report).as_bytes())?;
+    Ok(report)
 }
 
 /// Paths per pixel of the demo's volumetric references.
@@ -579,4 +485,105 @@ fn cells_of(shots: &[(Image, ToneMap, [String; 2])]) -> Vec<Cell<'_>> {
             caption: caption.clone(),
         })
         .collect()
+}
+
+/// The demo's `summary.md`: the relights' table, then the volume, per-vertex, glossy, local
+/// lights' and glTF figures of `r`.
+fn summary_markdown(r: &DemoReport) -> String {
+    let mut table = markdown_table(&r.rows);
+    table.push_str(&format!(
+        "\nVolume (`assets/scenes/cloud.toml`, SH order 3, 512 directions): transfer baked in \
+         {:.2} s; `volume/` holds the cloud marched under each environment.\n\n\
+         | environment | CPU march (ms) |\n|---|---:|\n",
+        r.volume_bake_seconds
+    ));
+    for (env, ms) in &r.volume_rows {
+        table.push_str(&format!("| {env} | {ms:.1} |\n"));
+    }
+    table.push_str(&format!(
+        "\nPer vertex (`orbit_sheet.png`), under sunrise from the scene's camera. Interpolation: \
+         every term, against the per-pixel bake on its diffuse surfaces (a per-vertex bake keeps \
+         only the diffuse base of the glossy teapot). Light: K = {k} against every term, per \
+         vertex.\n\n| edges up to | vertices | triangles | bake (s) | interpolation | light, K = \
+         {k} |\n|---:|---:|---:|---:|---:|---:|\n",
+        k = crate::app::studies::orbit::ORBIT_TERMS
+    ));
+    for t in [&r.orbit.fine, &r.orbit.coarse] {
+        table.push_str(&format!(
+            "| {:.3} | {} | {} | {:.1} | {:.2}% | {:.2}% |\n",
+            t.edge_length,
+            t.vertices,
+            t.triangles,
+            t.bake_seconds,
+            100.0 * t.interpolation_error,
+            100.0 * t.light_error
+        ));
+    }
+    table.push_str(&format!(
+        "\nA frame at K = {} on the CPU, {} vertices: relight {:.1} ms + draw {:.1} ms = {:.1} ms.\n",
+        crate::app::studies::orbit::ORBIT_TERMS,
+        r.orbit.fine.vertices,
+        r.orbit.relight_ms,
+        r.orbit.draw_ms,
+        r.orbit.frame_ms
+    ));
+    table.push_str(&format!(
+        "\nGlossy per vertex (`gloss_sheet.png`): the same scene per vertex with its porcelain \
+         teapot's visibility, the lobe drawn per pixel ({} vertices, {:.1} KB a vertex), bake \
+         {:.1} s{}; from {}° round, under sunrise, against the path tracer ({} paths a \
+         pixel{}), the whole image: {:.1}% with the lobe, {:.1}% for the diffuse base.\n",
+        r.gloss.vertices,
+        r.gloss.bytes_per_vertex / 1e3,
+        r.gloss.bake_seconds,
+        if r.gloss.reused_bake { " (reused)" } else { "" },
+        crate::app::studies::gloss_orbit::GLOSS_REFERENCE_AZIMUTH,
+        crate::app::studies::gloss_orbit::GLOSS_REFERENCE_PATHS,
+        r.gloss
+            .reference_noise
+            .map(|n| format!(", noise {:.1}%", 100.0 * n))
+            .unwrap_or_default(),
+        100.0 * r.gloss.glossy_error,
+        100.0 * r.gloss.diffuse_error
+    ));
+    table.push_str(&format!(
+        "\nLocal lights (`dusk_sheet.png`): `assets/scenes/dusk.toml` under `{}` with a quad \
+         panel, a spot and a lamp baked at 5 positions ({} light columns), bake {:.1} s{}; \
+         adding every light to a relit image takes {:.2} ms on the CPU.\n",
+        crate::app::studies::dusk::DUSK_SUN,
+        r.dusk.columns,
+        r.dusk.bake_seconds,
+        if r.dusk.reused_bake { " (reused)" } else { "" },
+        r.dusk.lights_ms
+    ));
+    table.push_str(&format!(
+        "\nglTF (`truck_sheet.png`): `assets/scenes/truck.toml`, the Cesium Milk Truck ({} \
+         triangles with the ground, {} texels of texture), bake {:.1} s{}; relative L2 against \
+         every term:\n\n| environment |{}\n|---|{}\n",
+        r.truck.triangles,
+        r.truck.texels,
+        r.truck.bake_seconds,
+        if r.truck.reused_bake { " (reused)" } else { "" },
+        r.truck
+            .errors
+            .first()
+            .map(|(_, row)| row
+                .iter()
+                .map(|(c, _)| format!(" {c} |"))
+                .collect::<String>())
+            .unwrap_or_default(),
+        r.truck
+            .errors
+            .first()
+            .map(|(_, row)| "---:|".repeat(row.len()))
+            .unwrap_or_default(),
+    ));
+    for (env, row) in &r.truck.errors {
+        table.push_str(&format!(
+            "| {env} |{}\n",
+            row.iter()
+                .map(|(_, e)| format!(" {:.2}% |", 100.0 * e))
+                .collect::<String>()
+        ));
+    }
+    table
 }
