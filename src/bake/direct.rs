@@ -26,9 +26,8 @@ use glam::Vec3;
 use super::{ShadingPoint, Shadows};
 use crate::math::sampling::TexelSamples;
 use crate::math::texel_quadrature::TexelQuadrature;
-use crate::medium::Medium;
 use crate::scene::brdf;
-use crate::scene::trace::{RaysFrom, Tracer};
+use crate::scene::trace::{PACKET, RayPacket, RaysFrom};
 
 /// A GGX lobe's texels are summed over their sub-texels where its distribution is above this
 /// fraction of its peak: D(h)/D(0) ≈ (α²/(α² + tan²θ_h))², so out to tan θ_h = 3α, twice that
@@ -80,6 +79,39 @@ impl ShadowRays<'_> {
     }
 }
 
+/// The texel centres of a quadrature's cube in blocks traced together from a shading point:
+/// squares of up to 8 x 8 texels of a face, each on one side of the face's middle lines, so that
+/// every direction of a block enters each axis's slabs by the same side (what the packets'
+/// interval test needs).
+pub struct CentrePackets {
+    /// Each block's texels (linear indices), and its centres as a packet in that order.
+    blocks: Vec<(Vec<u32>, RayPacket)>,
+}
+
+impl CentrePackets {
+    /// The blocks of `q`'s centres.
+    pub fn new(q: &TexelQuadrature) -> CentrePackets {
+        let n = q.n;
+        // A side of 8 fills a packet; no block straddles a face's middle (N is a power of 2).
+        let side = (n / 2).clamp(1, 8);
+        debug_assert!(side * side <= PACKET);
+        let mut blocks = Vec::new();
+        for face in 0..6 {
+            for r0 in (0..n).step_by(side) {
+                for c0 in (0..n).step_by(side) {
+                    let texels: Vec<u32> = (r0..(r0 + side).min(n))
+                        .flat_map(|r| (c0..(c0 + side).min(n)).map(move |c| (r, c)))
+                        .map(|(r, c)| (face * n * n + r * n + c) as u32)
+                        .collect();
+                    let dirs: Vec<Vec3> = texels.iter().map(|&j| q.centres[j as usize]).collect();
+                    blocks.push((texels, RayPacket::new(&dirs)));
+                }
+            }
+        }
+        CentrePackets { blocks }
+    }
+}
+
 /// For every texel j with light on it, calls `visit(j, diffuse, ggx)` with the texel's integral
 /// of visibility x lobe x cosine: the Lambertian lobe ([`brdf::diffuse_cosine`]) and, with
 /// `alpha`, the GGX lobe of that width ([`brdf::ggx_cosine`]); a medium's transmittance is in
@@ -91,14 +123,15 @@ pub fn direct_texels(
     alpha: Option<f32>,
     mut visit: impl FnMut(usize, f32, f32),
 ) -> u64 {
+    if let Some(q) = &samples.refine {
+        return integrated_texels(shadows, q, sp, alpha, visit);
+    }
     let Shadows {
         tracer,
         unshadowed,
         medium,
+        ..
     } = *shadows;
-    if let Some(q) = &samples.refine {
-        return integrated_texels(tracer, q, sp, unshadowed, medium, alpha, visit);
-    }
     let m = samples.per_texel;
     let mut rays = 0u64;
     let mut shadow = tracer.rays_from(sp.origin);
@@ -134,37 +167,25 @@ pub fn direct_texels(
 
 /// [`direct_texels`] with every texel integrated (see the module's notes).
 fn integrated_texels(
-    tracer: &Tracer,
+    shadows: &Shadows,
     q: &TexelQuadrature,
     sp: &ShadingPoint,
-    unshadowed: bool,
-    medium: Option<&Medium>,
     alpha: Option<f32>,
     mut visit: impl FnMut(usize, f32, f32),
 ) -> u64 {
+    let Shadows {
+        tracer,
+        unshadowed,
+        medium,
+        packets,
+    } = *shadows;
     let n = sp.normal;
     let mut shadow = ShadowRays {
         from: tracer.rays_from(sp.origin),
         unshadowed,
         rays: 0,
     };
-    let centres: Vec<Centre> = q
-        .centres
-        .iter()
-        .zip(&q.sin_radius)
-        .map(|(c, &r)| {
-            let up = n.dot(*c);
-            if up <= -r {
-                Centre::Below
-            } else if up <= 0.0 {
-                Centre::Horizon
-            } else if shadow.open(*c) {
-                Centre::Open
-            } else {
-                Centre::Blocked
-            }
-        })
-        .collect();
+    let centres = classify_centres(q, n, &mut shadow, packets);
     // The cone of the GGX lobe's texels about the mirror direction, as the cosine of its
     // half-angle widened by a texel's radius.
     let lobe = alpha.map(|a| {
@@ -259,6 +280,54 @@ fn integrated_texels(
     shadow.rays
 }
 
+/// What each texel's centre ray finds from the shading point with normal `n`: the rays traced
+/// block by block where `packets` are given, one by one otherwise (the same answers).
+fn classify_centres(
+    q: &TexelQuadrature,
+    n: Vec3,
+    shadow: &mut ShadowRays,
+    packets: Option<&CentrePackets>,
+) -> Vec<Centre> {
+    let side = |j: usize| {
+        let up = n.dot(q.centres[j]);
+        if up <= -q.sin_radius[j] {
+            Some(Centre::Below)
+        } else if up <= 0.0 {
+            Some(Centre::Horizon)
+        } else {
+            None
+        }
+    };
+    let Some(packets) = packets.filter(|_| !shadow.unshadowed) else {
+        return (0..q.centres.len())
+            .map(|j| {
+                side(j).unwrap_or_else(|| match shadow.open(q.centres[j]) {
+                    true => Centre::Open,
+                    false => Centre::Blocked,
+                })
+            })
+            .collect();
+    };
+    let mut centres = vec![Centre::Open; q.centres.len()];
+    for (texels, packet) in &packets.blocks {
+        let mut above = 0u64;
+        for (i, &j) in texels.iter().enumerate() {
+            match side(j as usize) {
+                Some(c) => centres[j as usize] = c,
+                None => above |= 1 << i,
+            }
+        }
+        shadow.rays += above.count_ones() as u64;
+        let mut blocked = shadow.from.occluded_packet(packet, above, f32::INFINITY);
+        while blocked != 0 {
+            let i = blocked.trailing_zeros() as usize;
+            blocked &= blocked - 1;
+            centres[texels[i] as usize] = Centre::Blocked;
+        }
+    }
+    centres
+}
+
 /// Σ f(ω) Ω over a texel's sub-texels.
 fn summed(subs: &[Vec3], weights: &[f32], f: impl Fn(Vec3) -> f32) -> f32 {
     subs.iter().zip(weights).map(|(d, w)| f(*d) * w).sum()
@@ -288,6 +357,7 @@ pub fn accumulate_direct_rows(
 mod tests {
     use super::*;
     use crate::scene::Scene;
+    use crate::scene::trace::Tracer;
     use crate::test_support::CANONICAL;
     use std::path::Path;
 
@@ -315,6 +385,7 @@ mod tests {
             tracer,
             unshadowed: true,
             medium: None,
+            packets: None,
         };
         let rays = direct_texels(&open, samples, sp, alpha, |j, d, g| {
             out[j] = [d as f64, g as f64];
@@ -395,6 +466,7 @@ material = "m"
                 tracer: &tracer,
                 unshadowed: false,
                 medium: None,
+                packets: None,
             };
             let rays = direct_texels(&shadows, samples, &sp, None, |j, d, _| {
                 out[j] = d as f64;
@@ -426,6 +498,58 @@ material = "m"
             "{} {}",
             l1(&integrated),
             l1(&point)
+        );
+    }
+
+    /// The centres traced in packets give every texel the value, and the point the ray count,
+    /// that tracing them one by one gives: on the demo scene, from a grid of camera hits, with
+    /// a glossy lobe and without.
+    #[test]
+    fn packets_of_centres_change_nothing() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/demo.toml");
+        let scene = Scene::load(&path).unwrap();
+        let tracer = Tracer::new(&scene);
+        let samples = TexelSamples::new(32, 1, 3).refined(9);
+        let packets = CentrePackets::new(samples.refine.as_ref().unwrap());
+        let texels = |packets: Option<&CentrePackets>, sp: &ShadingPoint, alpha| {
+            let shadows = Shadows {
+                tracer: &tracer,
+                unshadowed: false,
+                medium: None,
+                packets,
+            };
+            let mut out = Vec::new();
+            let rays = direct_texels(&shadows, &samples, sp, alpha, |j, d, g| {
+                out.push((j, d.to_bits(), g.to_bits()));
+            });
+            (out, rays)
+        };
+        let cam = &scene.camera;
+        let (mut points, mut shadowed) = (0, 0);
+        for y in 0..8 {
+            for x in 0..8 {
+                let fx = (x as f32 + 0.5) * cam.width as f32 / 8.0;
+                let ray = cam.ray(fx, (y as f32 + 0.5) * cam.height as f32 / 8.0);
+                let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
+                    continue;
+                };
+                let sp = super::super::shading_point(&tracer, &hit, ray.dir);
+                let alpha = (x % 2 == 0).then_some(0.1);
+                let alone = texels(None, &sp, alpha);
+                assert_eq!(
+                    texels(Some(&packets), &sp, alpha),
+                    alone,
+                    "pixel ({x}, {y})"
+                );
+                points += 1;
+                let open = alone.0.iter().filter(|v| v.1 != 0).count();
+                shadowed += usize::from(open < 2900);
+            }
+        }
+        // Points in shadow and in the open both, for the packets' two ways out.
+        assert!(
+            points > 40 && shadowed > 5 && shadowed < points,
+            "{points} {shadowed}"
         );
     }
 }

@@ -24,7 +24,7 @@ mod tint;
 mod visibility;
 
 use crate::store::transport::{BakeDomain, BakeIdentity};
-pub use direct::{accumulate_direct_rows, direct_texels};
+pub use direct::{CentrePackets, accumulate_direct_rows, direct_texels};
 pub use in_order::Cancel;
 use in_order::in_tile_order;
 pub use lights::LightSampler;
@@ -132,6 +132,9 @@ pub struct Shadows<'a> {
     pub unshadowed: bool,
     /// The scene's medium, whose transmittance a visible direction takes (where shadows are on).
     pub medium: Option<&'a Medium>,
+    /// The quadrature's texel centres in blocks traced together; `None` traces them one by one
+    /// (the same answers).
+    pub packets: Option<&'a CentrePackets>,
 }
 
 /// The random stream of a camera sub-sample's interreflection paths.

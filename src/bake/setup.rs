@@ -3,7 +3,7 @@
 //! and their SH basis, and the thresholding budgets, gathered into the tiles' context.
 
 use super::tile::TileContext;
-use super::{BakeProgress, BakeSettings, EdgeMap, LightSampler, bounce};
+use super::{BakeProgress, BakeSettings, CentrePackets, EdgeMap, LightSampler, bounce};
 use crate::bake::medium_light::MediumLight;
 use crate::bake::medium_rows::MediumRows;
 use crate::error::Result;
@@ -46,6 +46,7 @@ pub(super) fn with_tile_context<R>(
         settings.seed,
     )
     .refined(settings.stored_edge_texel_samples() as usize);
+    let packets = samples.refine.as_ref().map(CentrePackets::new);
     let basis = TexelShBasis::new(settings.cube_n, settings.sh_order)?;
     let medium = match &scene.medium {
         Some(spec) => Some(spec.build(None)?),
@@ -95,6 +96,7 @@ pub(super) fn with_tile_context<R>(
         term_budgets,
         thresholder,
         samples: &samples,
+        packets: packets.as_ref(),
         basis: &basis,
         medium: medium.as_ref(),
         medium_rows: medium_rows.as_ref(),

@@ -9,8 +9,8 @@ use super::lights::LightSampler;
 use super::pixels::{EdgeMap, Visit, visits};
 use super::slot::Slot;
 use super::{
-    BakeSettings, ShadingPoint, Shadows, accumulate_direct_rows, bounce, gloss, path_stream,
-    sample_stride,
+    BakeSettings, CentrePackets, ShadingPoint, Shadows, accumulate_direct_rows, bounce, gloss,
+    path_stream, sample_stride,
 };
 use crate::bake::medium_rows::MediumRows;
 use crate::math::cubemap::texel_count;
@@ -49,6 +49,8 @@ pub(super) struct TileContext<'a> {
     pub(super) edges: &'a EdgeMap,
     pub(super) settings: &'a BakeSettings,
     pub(super) samples: &'a TexelSamples,
+    /// The quadrature's texel centres in blocks traced together.
+    pub(super) packets: Option<&'a CentrePackets>,
     pub(super) basis: &'a TexelShBasis,
     /// Energy of an unshadowed row, the scale of the thresholding budget.
     pub(super) reference_energy: f64,
@@ -72,6 +74,7 @@ impl TileContext<'_> {
             tracer: self.tracer,
             unshadowed: self.settings.unshadowed,
             medium: self.medium,
+            packets: self.packets,
         }
     }
 

@@ -446,6 +446,7 @@ impl<'a> Bounces<'a> {
             tracer: self.tracer,
             unshadowed: self.settings.unshadowed,
             medium: None,
+            packets: None,
         };
         let draw = Draw {
             stream: vertex | 1 << 63,

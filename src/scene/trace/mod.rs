@@ -4,11 +4,12 @@
 //! Triangles go into a four-wide BVH with plain boxes and leaves of four triangles (`wide`,
 //! collapsed from obvhs' binary BVH, built with spatial pre-splits so that large triangles such
 //! as a ground quad do not bloat the nodes); rays from one point ([`Tracer::rays_from`]) share
-//! its stack and try the last ray's occluder first. Spheres get a compressed eight-wide BVH
-//! (obvhs' CWBVH) over their bounding boxes, and so do triangles where the four-wide tree would
-//! come out deeper than its stack, and in the tests, where it is the four-wide one's slow twin.
-//! All are traversed with SIMD tests. The tracer is immutable after construction, so one instance is
-//! shared by all threads, and every query is deterministic.
+//! its stack and try the last ray's occluder first, or walk the tree together in packets of up
+//! to 64 directions (`packet`), such as a block of cube texels' centres. Spheres get a
+//! compressed eight-wide BVH (obvhs' CWBVH) over their bounding boxes, and so do triangles where
+//! the four-wide tree would come out deeper than its stack, and in the tests, where it is the
+//! four-wide one's slow twin. All are traversed with SIMD tests. The tracer is immutable after
+//! construction, so one instance is shared by all threads, and every query is deterministic.
 
 use std::time::Duration;
 
@@ -22,7 +23,10 @@ use obvhs::triangle::Triangle as BvhTriangle;
 
 use crate::scene::{Scene, Sphere};
 
+mod packet;
 mod wide;
+
+pub use packet::PACKET;
 
 /// Self-intersection offset as a fraction of the scene's extent. Hit points computed in f32 are
 /// off by a few ulps of the coordinates (about 1e-7 relative); 1e-5 clears that a hundredfold
@@ -186,6 +190,43 @@ fn traverse_any(bvh: &CwBvh, ray: &BvhRay, mut test: impl FnMut(usize) -> bool) 
     hit
 }
 
+/// Up to [`PACKET`] directions prepared once to be traced together from any point
+/// ([`RaysFrom::occluded_packet`]), such as a block of cube texels' centres.
+#[derive(Clone, Debug)]
+pub struct RayPacket {
+    dirs: Vec<Vec3>,
+    /// The directions a ray can take (finite and non-zero), a bit each.
+    valid: u64,
+    packet: packet::Packet,
+}
+
+impl RayPacket {
+    /// The packet of the first [`PACKET`] of `dirs`, in order: bit i of a mask is `dirs[i]`.
+    pub fn new(dirs: &[Vec3]) -> RayPacket {
+        let dirs = &dirs[..dirs.len().min(PACKET)];
+        let valid = dirs
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| d.is_finite() && **d != Vec3::ZERO)
+            .fold(0u64, |m, (i, _)| m | 1 << i);
+        // A direction no ray takes stands in the packet as +x, which its mask leaves out.
+        let usable = dirs.iter().enumerate().map(|(i, d)| match valid >> i & 1 {
+            1 => Vec3A::from(*d),
+            _ => Vec3A::X,
+        });
+        RayPacket {
+            dirs: dirs.to_vec(),
+            valid,
+            packet: packet::Packet::new(usable),
+        }
+    }
+
+    /// The packet's directions.
+    pub fn dirs(&self) -> &[Vec3] {
+        &self.dirs
+    }
+}
+
 /// Occlusion queries from one origin; see [`Tracer::rays_from`].
 pub struct RaysFrom<'a> {
     tracer: &'a Tracer,
@@ -218,6 +259,23 @@ impl RaysFrom<'_> {
                 intersect_triangle(&tracer.packed[slot], o, d, t_max).is_some()
             }),
         }
+    }
+
+    /// Which of the packet's rays with a bit in `active` are occluded along t in (0, `t_max`),
+    /// a bit each: ray for ray the answers of [`RaysFrom::occluded`], traced together.
+    pub fn occluded_packet(&mut self, packet: &RayPacket, active: u64, t_max: f32) -> u64 {
+        let tracer = self.tracer;
+        let active = active & packet.valid;
+        if let (Some(wide), true) = (&tracer.wide, tracer.spheres.is_empty()) {
+            let ok = self.origin.is_finite() && t_max > 0.0;
+            return match ok {
+                true => wide.occluded_packet(self.origin.into(), &packet.packet, active, t_max),
+                false => 0,
+            };
+        }
+        packet::bits(active)
+            .filter(|&i| self.occluded(packet.dirs[i], t_max))
+            .fold(0, |m, i| m | 1 << i)
     }
 }
 

@@ -19,15 +19,15 @@ use obvhs::triangle::Triangle as BvhTriangle;
 use super::BARYCENTRIC_SLACK;
 
 /// A child slot's tag for a leaf: the rest holds its first triangle group and group count.
-const LEAF: u32 = 1 << 31;
+pub(super) const LEAF: u32 = 1 << 31;
 /// Bits of a leaf's group count (minus one).
 const COUNT_BITS: u32 = 3;
 /// Most triangles the binary BVH puts in a leaf: one group of four (eight timed the same).
 const MAX_LEAF_TRIANGLES: u32 = 4;
 /// A child slot that holds nothing (its box is empty, so no ray reaches it).
-const EMPTY: u32 = LEAF - 1;
+pub(super) const EMPTY: u32 = LEAF - 1;
 /// Traversal stack size. A pop pushes at most four, so depth D needs at most 3 D + 1 entries.
-const STACK: usize = 128;
+pub(super) const STACK: usize = 128;
 /// Deepest tree the stack can hold; a deeper one is not used (see [`WideBvh::build`]).
 const MAX_DEPTH: usize = (STACK - 1) / 3;
 /// Smallest magnitude of a direction component whose reciprocal is taken, as a fraction of its
@@ -39,10 +39,10 @@ const MIN_COMPONENT_RELATIVE: f32 = 1.0 / (1u64 << 60) as f32;
 /// Four children's boxes, each coordinate in a lane of its own.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-struct Node {
+pub(super) struct Node {
     /// The low corners, then the high ones. An empty slot's box runs from +inf to -inf.
-    bounds: [[Vec4; 3]; 2],
-    child: [u32; 4],
+    pub(super) bounds: [[Vec4; 3]; 2],
+    pub(super) child: [u32; 4],
 }
 
 impl Node {
@@ -56,7 +56,7 @@ impl Node {
 /// without a triangle hold NaN, which fails every comparison.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(16))]
-struct Triangles4 {
+pub(super) struct Triangles4 {
     v0: [Vec4; 3],
     e1: [Vec4; 3],
     e2: [Vec4; 3],
@@ -115,7 +115,7 @@ impl Triangles4 {
 
     /// Whether the ray hits any of the four with t in (0, t_max).
     #[inline(always)]
-    fn any_hit(&self, o: [Vec4; 3], d: [Vec4; 3], t_max: Vec4) -> bool {
+    pub(super) fn any_hit(&self, o: [Vec4; 3], d: [Vec4; 3], t_max: Vec4) -> bool {
         self.test(o, d, t_max).0.any()
     }
 
@@ -137,20 +137,20 @@ impl Triangles4 {
     }
 }
 
-/// A ray as the box and triangle tests take it: origin, direction and the direction's
-/// reciprocal in every lane, and the side of each slab it enters by.
-struct Ray4 {
-    o: [Vec4; 3],
-    d: [Vec4; 3],
-    inv: [Vec4; 3],
+/// A direction as the box and triangle tests take it: the direction and its reciprocal in every
+/// lane, and the side of each slab a ray along it enters by.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Dir4 {
+    pub(super) d: [Vec4; 3],
+    pub(super) inv: [Vec4; 3],
     /// 0 where the ray enters the axis's slab at its low side, 1 at its high side.
-    near: [usize; 3],
+    pub(super) near: [usize; 3],
     far: [usize; 3],
 }
 
-impl Ray4 {
+impl Dir4 {
     #[inline(always)]
-    fn new(o: Vec3A, d: Vec3A) -> Ray4 {
+    pub(super) fn new(d: Vec3A) -> Dir4 {
         // Relative to the direction's largest component, so the test does not depend on its
         // length; the reciprocals stay finite (their products may overflow to a signed
         // infinity, which the slab test takes as it should).
@@ -162,8 +162,7 @@ impl Ray4 {
                 c
             }
         });
-        Ray4 {
-            o: o.to_array().map(Vec4::splat),
+        Dir4 {
             d: d.to_array().map(Vec4::splat),
             inv: d_safe.map(|c| Vec4::splat(1.0 / c)),
             near: d_safe.map(|c| (c < 0.0) as usize),
@@ -171,11 +170,11 @@ impl Ray4 {
         }
     }
 
-    /// Where the ray enters each of the node's four boxes, and a bit for each it passes
-    /// through with t in [0, t_max].
+    /// Where a ray from `o` (in every lane) enters each of the node's four boxes, and a bit for
+    /// each it passes through with t in [0, t_max].
     #[inline(always)]
-    fn boxes(&self, n: &Node, t_max: Vec4) -> (Vec4, u32) {
-        let (b, o, inv) = (&n.bounds, &self.o, &self.inv);
+    pub(super) fn boxes(&self, n: &Node, o: &[Vec4; 3], t_max: Vec4) -> (Vec4, u32) {
+        let (b, inv) = (&n.bounds, &self.inv);
         let (near, far) = (self.near, self.far);
         let enter = ((b[near[0]][0] - o[0]) * inv[0])
             .max((b[near[1]][1] - o[1]) * inv[1])
@@ -187,9 +186,31 @@ impl Ray4 {
     }
 }
 
+/// A ray: its origin in every lane, and its direction.
+struct Ray4 {
+    o: [Vec4; 3],
+    dir: Dir4,
+}
+
+impl Ray4 {
+    #[inline(always)]
+    fn new(o: Vec3A, d: Vec3A) -> Ray4 {
+        Ray4 {
+            o: o.to_array().map(Vec4::splat),
+            dir: Dir4::new(d),
+        }
+    }
+
+    /// [`Dir4::boxes`] from the ray's origin.
+    #[inline(always)]
+    fn boxes(&self, n: &Node, t_max: Vec4) -> (Vec4, u32) {
+        self.dir.boxes(n, &self.o, t_max)
+    }
+}
+
 /// A leaf's groups, from its child code.
 #[inline(always)]
-fn leaf_groups(code: u32) -> std::ops::Range<usize> {
+pub(super) fn leaf_groups(code: u32) -> std::ops::Range<usize> {
     let first = ((code & !LEAF) >> COUNT_BITS) as usize;
     let count = (code & ((1 << COUNT_BITS) - 1)) as usize + 1;
     first..first + count
@@ -218,8 +239,8 @@ impl Default for Scratch {
 /// The four-wide occlusion BVH over a scene's triangles.
 #[derive(Debug, Default)]
 pub(super) struct WideBvh {
-    nodes: Vec<Node>,
-    groups: Vec<Triangles4>,
+    pub(super) nodes: Vec<Node>,
+    pub(super) groups: Vec<Triangles4>,
     /// Each group's triangles, as indices into the triangles it was built from (`u32::MAX` in
     /// a lane without one).
     ids: Vec<[u32; 4]>,
@@ -343,7 +364,7 @@ impl WideBvh {
         let ray = Ray4::new(o, d);
         let t_max4 = Vec4::splat(t_max);
         if let Some(group) = self.groups.get(scratch.last_occluder as usize) {
-            if group.any_hit(ray.o, ray.d, t_max4) {
+            if group.any_hit(ray.o, ray.dir.d, t_max4) {
                 return true;
             }
             scratch.last_occluder = NO_OCCLUDER;
@@ -368,7 +389,7 @@ impl WideBvh {
                 let first = range.start;
                 if let Some(i) = self.groups[range]
                     .iter()
-                    .position(|g| g.any_hit(ray.o, ray.d, t_max4))
+                    .position(|g| g.any_hit(ray.o, ray.dir.d, t_max4))
                 {
                     scratch.last_occluder = (first + i) as u32;
                     return true;
@@ -411,7 +432,7 @@ impl WideBvh {
                 }
                 for g in leaf_groups(code) {
                     if let Some((lane, t, u, v)) =
-                        self.groups[g].nearest(ray.o, ray.d, Vec4::splat(best_t))
+                        self.groups[g].nearest(ray.o, ray.dir.d, Vec4::splat(best_t))
                     {
                         best_t = t;
                         best = Some((t, u, v, self.ids[g][lane]));
