@@ -3,8 +3,9 @@
 //! pixel of an every-STRIDE-th grid, one ray a cube texel at N = 32, on the side the normal
 //! faces; a default bake adds sub-texel rays on shadow borders, which are left out here),
 //! with the scene's triangles, so that `scripts/embree_shadow_rays.py` can trace the same rays
-//! with Embree's one-ray query (`rtcOccluded1`) and compare the rates. They are timed as the bake
-//! traces them: each shading point's rays through one `Tracer::rays_from`.
+//! with Embree's one-ray query (`rtcOccluded1`) and compare the rates. They are timed twice:
+//! one by one, each shading point's rays through one `Tracer::rays_from`, and as the bake traces
+//! them, in packets of 8 x 8 texels (`RaysFrom::occluded_packet`); the two must answer alike.
 //!
 //! ```sh
 //! cargo run --release --example shadow_rays -- assets/scenes/demo.toml DIR [STRIDE]
@@ -19,16 +20,17 @@
 //!
 //! Writes `DIR/triangles.f32` (F x 3 x 3 corner positions), `DIR/rays.f32` (R x 7: origin,
 //! direction, t_max), `DIR/occluded.u8` (this tracer's answer per ray) and `DIR/rays.json` (the
-//! counts, this tracer's rate and the whole bake's). The rates are taken on one thread, so rays
-//! per second are rays per CPU-second; the tracer's is the median of three passes. A scene's analytic spheres are not written (the
-//! script traces triangles): the example refuses a scene that has any.
+//! counts, this tracer's rates, alone and in packets, and the whole bake's). The rates are taken
+//! on one thread, so rays per second are rays per CPU-second; the tracer's are the medians of
+//! three passes. A scene's analytic spheres are not written (the script traces triangles): the
+//! example refuses a scene that has any.
 
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use wavelet_prt::bake::{BakeSettings, shading_point, with_tile_baker};
-use wavelet_prt::math::sampling::TexelSamples;
+use wavelet_prt::bake::{BakeSettings, CentrePackets, shading_point, with_tile_baker};
+use wavelet_prt::math::texel_quadrature::TexelQuadrature;
 use wavelet_prt::scene::Scene;
 use wavelet_prt::scene::trace::Tracer;
 
@@ -62,8 +64,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = PathBuf::from(dir);
     std::fs::create_dir_all(&dir)?;
     let tracer = Tracer::new(&scene);
-    let samples = TexelSamples::new(CUBE_N, 1, 0);
+    // The bake's texel centres and its packets of them.
+    let quadrature = TexelQuadrature::new(CUBE_N, 1);
+    let packets = CentrePackets::new(&quadrature);
+    let centres = &quadrature.centres;
     let cam = &scene.camera;
+    let mut points = Vec::new();
     let mut rays: Vec<[f32; 7]> = Vec::new();
     let mut hits = 0usize;
     for y in (0..cam.height).step_by(stride as usize) {
@@ -74,7 +80,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             };
             hits += 1;
             let sp = shading_point(&tracer, &hit, ray.dir);
-            for d in &samples.dirs {
+            points.push((sp.origin, sp.normal, rays.len()));
+            for d in centres {
                 if sp.normal.dot(*d) > 0.0 {
                     let (o, d) = (sp.origin, *d);
                     rays.push([o.x, o.y, o.z, d.x, d.y, d.z, f32::INFINITY]);
@@ -105,6 +112,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     seconds.sort_by(f64::total_cmp);
     let median = seconds[PASSES / 2];
     let rate = rays.len() as f64 / median;
+    let packet_seconds = in_packets(&tracer, &points, (&packets, centres), &occluded)?;
+    let packet_rate = rays.len() as f64 / packet_seconds;
     let blocked = occluded.iter().filter(|&&o| o == 1).count();
     let mut tri = std::io::BufWriter::new(std::fs::File::create(dir.join("triangles.f32"))?);
     for t in &scene.triangles {
@@ -128,6 +137,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let json = format!(
         "{{\"scene\": {scene_path:?}, \"triangles\": {}, \"hits\": {hits}, \"rays\": {}, \
          \"occluded\": {blocked}, \"seconds\": {median}, \"rays_per_cpu_second\": {rate}, \
+         \"packet_seconds\": {packet_seconds}, \"packet_rays_per_cpu_second\": {packet_rate}, \
          \"bake_rays\": {bake_rays}, \"bake_seconds\": {bake_seconds}, \
          \"bake_rays_per_cpu_second\": {bake_rate}}}\n",
         scene.triangles.len(),
@@ -145,12 +155,67 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         median
     );
     println!(
+        "in packets of 8 x 8 texels, as the bake traces them: {:.2} M rays per CPU-second \
+         ({packet_seconds:.2} s, {:.2}x one by one), every answer the same",
+        packet_rate / 1e6,
+        packet_rate / rate
+    );
+    println!(
         "the bake's whole pipeline on every {stride}th tile, one thread: {bake_rays} shadow rays \
          in {bake_seconds:.2} s, {:.2} M rays per CPU-second ({:.2} of the tracer alone)",
         bake_rate / 1e6,
         bake_rate / rate
     );
     Ok(())
+}
+
+/// The seconds (median of [`PASSES`]) the rays of `points` (origin, normal, index of its first
+/// ray) take in packets of texel centres, one thread; each answer checked against `alone`, the
+/// rays' answers one by one in the same order (texel order, the centres on the normal's side).
+fn in_packets(
+    tracer: &Tracer,
+    points: &[(glam::Vec3, glam::Vec3, usize)],
+    (packets, centres): (&CentrePackets, &[glam::Vec3]),
+    alone: &[u8],
+) -> Result<f64, Box<dyn std::error::Error>> {
+    let blocks = packets.blocks().count();
+    let mut answers = vec![0u64; points.len() * blocks];
+    let mut seconds = Vec::new();
+    for _ in 0..PASSES {
+        let start = Instant::now();
+        for (&(origin, normal, _), found) in points.iter().zip(answers.chunks_mut(blocks)) {
+            let mut from = tracer.rays_from(origin);
+            for ((_, packet), bits) in packets.blocks().zip(found) {
+                let up = packet.dirs().iter().enumerate();
+                let above = up
+                    .filter(|(_, d)| normal.dot(**d) > 0.0)
+                    .fold(0u64, |m, (i, _)| m | 1 << i);
+                *bits = from.occluded_packet(packet, above, f32::INFINITY);
+            }
+        }
+        seconds.push(start.elapsed().as_secs_f64());
+    }
+    // The same answers as one by one: the rays of a point are its texels above the surface, in
+    // texel order.
+    for (&(_, normal, first), found) in points.iter().zip(answers.chunks(blocks)) {
+        let mut blocked = vec![false; centres.len()];
+        for ((texels, _), bits) in packets.blocks().zip(found) {
+            for (i, &j) in texels.iter().enumerate() {
+                blocked[j as usize] = bits >> i & 1 == 1;
+            }
+        }
+        let mut at = first;
+        for (j, c) in centres.iter().enumerate() {
+            if normal.dot(*c) > 0.0 {
+                if (alone[at] == 1) != blocked[j] {
+                    return Err(format!("texel {j}: the packet answers otherwise").into());
+                }
+                at += 1;
+            }
+        }
+    }
+    seconds.sort_by(f64::total_cmp);
+    Ok(seconds[PASSES / 2])
 }
 
 /// The shadow rays of every `stride`-th tile of a bake of `scene` at N = 32 without extra edge

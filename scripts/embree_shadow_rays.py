@@ -3,8 +3,8 @@
 the engine's tracer on the same rays and triangles.
 
 The rays come from `cargo run --release --example shadow_rays -- SCENE.toml DIR`, which also
-times the engine's `Tracer::occluded` on one thread, and the bake's whole pipeline per ray; both
-rates are set beside Embree's. This script needs numpy and the `embreex`
+times the engine's tracer on one thread, one ray at a time and in the bake's packets, and the
+bake's whole pipeline per ray; all three rates are set beside Embree's. This script needs numpy and the `embreex`
 package (Embree 4 bindings; `pip install embreex`); it is not a build dependency. embreex's
 `EmbreeScene.run(..., query='OCCLUDED')` calls `rtcOccluded1` once per ray from compiled code, so
 the Python interpreter is outside the timed loop. The rate is rays per CPU-second of this
@@ -75,6 +75,13 @@ def main() -> int:
         f"Embree rtcOccluded1: {rate / 1e6:.2f} M rays per CPU-second (median of {PASSES}); "
         f"the engine's tracer: {ours_rate / 1e6:.2f} M, {ours_rate / rate:.2f}x Embree's rate"
     )
+    packet_rate = meta.get("packet_rays_per_cpu_second")
+    if packet_rate is not None:
+        print(
+            f"the engine's tracer in packets of 8 x 8 texels (as the bake traces them): "
+            f"{packet_rate / 1e6:.2f} M rays per CPU-second, {packet_rate / rate:.2f}x Embree's "
+            f"one-ray rate"
+        )
     bake_rate = meta.get("bake_rays_per_cpu_second")
     if bake_rate is not None:
         print(

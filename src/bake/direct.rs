@@ -110,6 +110,11 @@ impl CentrePackets {
         }
         CentrePackets { blocks }
     }
+
+    /// Each block's texels (linear indices) and its packet of their centres, in that order.
+    pub fn blocks(&self) -> impl Iterator<Item = (&[u32], &RayPacket)> {
+        self.blocks.iter().map(|(t, p)| (&t[..], p))
+    }
 }
 
 /// For every texel j with light on it, calls `visit(j, diffuse, ggx)` with the texel's integral
