@@ -66,7 +66,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let tracer = Tracer::new(&scene);
     // The bake's texel centres and its packets of them.
     let quadrature = TexelQuadrature::new(CUBE_N, 1);
-    let packets = CentrePackets::new(&quadrature);
+    let packets = CentrePackets::new(CUBE_N, &quadrature.centres);
     let centres = &quadrature.centres;
     let cam = &scene.camera;
     let mut points = Vec::new();

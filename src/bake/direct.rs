@@ -23,11 +23,13 @@
 
 use glam::Vec3;
 
+use super::CentrePackets;
+use super::packets::SampleRays;
 use super::{ShadingPoint, Shadows};
 use crate::math::sampling::TexelSamples;
 use crate::math::texel_quadrature::TexelQuadrature;
 use crate::scene::brdf;
-use crate::scene::trace::{PACKET, RayPacket, RaysFrom};
+use crate::scene::trace::RaysFrom;
 
 /// A GGX lobe's texels are summed over their sub-texels where its distribution is above this
 /// fraction of its peak: D(h)/D(0) ≈ (α²/(α² + tan²θ_h))², so out to tan θ_h = 3α, twice that
@@ -79,44 +81,6 @@ impl ShadowRays<'_> {
     }
 }
 
-/// The texel centres of a quadrature's cube in blocks traced together from a shading point:
-/// squares of up to 8 x 8 texels of a face, each on one side of the face's middle lines, so that
-/// every direction of a block enters each axis's slabs by the same side (what the packets'
-/// interval test needs).
-pub struct CentrePackets {
-    /// Each block's texels (linear indices), and its centres as a packet in that order.
-    blocks: Vec<(Vec<u32>, RayPacket)>,
-}
-
-impl CentrePackets {
-    /// The blocks of `q`'s centres.
-    pub fn new(q: &TexelQuadrature) -> CentrePackets {
-        let n = q.n;
-        // A side of 8 fills a packet; no block straddles a face's middle (N is a power of 2).
-        let side = (n / 2).clamp(1, 8);
-        debug_assert!(side * side <= PACKET);
-        let mut blocks = Vec::new();
-        for face in 0..6 {
-            for r0 in (0..n).step_by(side) {
-                for c0 in (0..n).step_by(side) {
-                    let texels: Vec<u32> = (r0..(r0 + side).min(n))
-                        .flat_map(|r| (c0..(c0 + side).min(n)).map(move |c| (r, c)))
-                        .map(|(r, c)| (face * n * n + r * n + c) as u32)
-                        .collect();
-                    let dirs: Vec<Vec3> = texels.iter().map(|&j| q.centres[j as usize]).collect();
-                    blocks.push((texels, RayPacket::new(&dirs)));
-                }
-            }
-        }
-        CentrePackets { blocks }
-    }
-
-    /// Each block's texels (linear indices) and its packet of their centres, in that order.
-    pub fn blocks(&self) -> impl Iterator<Item = (&[u32], &RayPacket)> {
-        self.blocks.iter().map(|(t, p)| (&t[..], p))
-    }
-}
-
 /// For every texel j with light on it, calls `visit(j, diffuse, ggx)` with the texel's integral
 /// of visibility x lobe x cosine: the Lambertian lobe ([`brdf::diffuse_cosine`]) and, with
 /// `alpha`, the GGX lobe of that width ([`brdf::ggx_cosine`]); a medium's transmittance is in
@@ -131,32 +95,23 @@ pub fn direct_texels(
     if let Some(q) = &samples.refine {
         return integrated_texels(shadows, q, sp, alpha, visit);
     }
-    let Shadows {
-        tracer,
-        unshadowed,
-        medium,
-        ..
-    } = *shadows;
+    let (unshadowed, medium) = (shadows.unshadowed, shadows.medium);
     let m = samples.per_texel;
-    let mut rays = 0u64;
-    let mut shadow = tracer.rays_from(sp.origin);
+    let mut shadow = SampleRays::new(shadows, samples, sp);
     for j in 0..samples.dirs.len() / m {
         let dirs = &samples.dirs[j * m..(j + 1) * m];
         let weights = &samples.weights[j * m..(j + 1) * m];
         let (mut acc, mut acc_glossy) = (0.0f32, 0.0f32);
-        for (d, w) in dirs.iter().zip(weights) {
+        for (s, (d, w)) in dirs.iter().zip(weights).enumerate() {
             if sp.normal.dot(*d) <= 0.0 {
                 continue;
             }
             let mut w = *w;
-            if !unshadowed {
-                rays += 1;
-                if shadow.occluded(*d, f32::INFINITY) {
-                    continue;
-                }
-                if let Some(m) = medium {
-                    w *= m.transmittance(sp.origin, *d, f32::INFINITY);
-                }
+            if !shadow.open(j * m + s, *d) {
+                continue;
+            }
+            if let Some(m) = medium.filter(|_| !unshadowed) {
+                w *= m.transmittance(sp.origin, *d, f32::INFINITY);
             }
             acc += brdf::diffuse_cosine(sp.normal, *d) * w;
             if let Some(alpha) = alpha {
@@ -167,7 +122,7 @@ pub fn direct_texels(
             visit(j, acc, acc_glossy);
         }
     }
-    rays
+    shadow.rays
 }
 
 /// [`direct_texels`] with every texel integrated (see the module's notes).
@@ -303,31 +258,23 @@ fn classify_centres(
             None
         }
     };
+    let mut centres: Vec<Centre> = (0..q.centres.len())
+        .map(|j| side(j).unwrap_or(Centre::Open))
+        .collect();
     let Some(packets) = packets.filter(|_| !shadow.unshadowed) else {
-        return (0..q.centres.len())
-            .map(|j| {
-                side(j).unwrap_or_else(|| match shadow.open(q.centres[j]) {
-                    true => Centre::Open,
-                    false => Centre::Blocked,
-                })
-            })
-            .collect();
-    };
-    let mut centres = vec![Centre::Open; q.centres.len()];
-    for (texels, packet) in &packets.blocks {
-        let mut above = 0u64;
-        for (i, &j) in texels.iter().enumerate() {
-            match side(j as usize) {
-                Some(c) => centres[j as usize] = c,
-                None => above |= 1 << i,
+        for (c, d) in centres.iter_mut().zip(&q.centres) {
+            if *c == Centre::Open && !shadow.open(*d) {
+                *c = Centre::Blocked;
             }
         }
-        shadow.rays += above.count_ones() as u64;
-        let mut blocked = shadow.from.occluded_packet(packet, above, f32::INFINITY);
-        while blocked != 0 {
-            let i = blocked.trailing_zeros() as usize;
-            blocked &= blocked - 1;
-            centres[texels[i] as usize] = Centre::Blocked;
+        return centres;
+    };
+    let mut open = vec![0u64; q.centres.len().div_ceil(64)];
+    let traced = |j: usize| centres[j] == Centre::Open;
+    shadow.rays += packets.open_bits(&mut shadow.from, traced, &mut open);
+    for (j, c) in centres.iter_mut().enumerate() {
+        if *c == Centre::Open && open[j / 64] >> (j % 64) & 1 == 0 {
+            *c = Centre::Blocked;
         }
     }
     centres
@@ -514,9 +461,15 @@ material = "m"
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/demo.toml");
         let scene = Scene::load(&path).unwrap();
         let tracer = Tracer::new(&scene);
-        let samples = TexelSamples::new(32, 1, 3).refined(9);
-        let packets = CentrePackets::new(samples.refine.as_ref().unwrap());
-        let texels = |packets: Option<&CentrePackets>, sp: &ShadingPoint, alpha| {
+        // Texels integrated (the quadrature's centres), and one direction a texel.
+        let integrated = TexelSamples::new(32, 1, 3).refined(9);
+        let q = integrated.refine.as_ref().unwrap();
+        let centres = TexelSamples::new(32, 1, 3);
+        let sets = [
+            (&integrated, CentrePackets::new(q.n, &q.centres)),
+            (&centres, CentrePackets::new(32, &centres.dirs)),
+        ];
+        let texels = |samples, packets: Option<&CentrePackets>, sp: &ShadingPoint, alpha| {
             let shadows = Shadows {
                 tracer: &tracer,
                 unshadowed: false,
@@ -524,7 +477,7 @@ material = "m"
                 packets,
             };
             let mut out = Vec::new();
-            let rays = direct_texels(&shadows, &samples, sp, alpha, |j, d, g| {
+            let rays = direct_texels(&shadows, samples, sp, alpha, |j, d, g| {
                 out.push((j, d.to_bits(), g.to_bits()));
             });
             (out, rays)
@@ -540,13 +493,14 @@ material = "m"
                 };
                 let sp = super::super::shading_point(&tracer, &hit, ray.dir);
                 let alpha = (x % 2 == 0).then_some(0.1);
-                let alone = texels(None, &sp, alpha);
-                assert_eq!(
-                    texels(Some(&packets), &sp, alpha),
-                    alone,
-                    "pixel ({x}, {y})"
-                );
+                for (samples, packets) in &sets {
+                    let alone = texels(samples, None, &sp, alpha);
+                    let together = texels(samples, Some(packets), &sp, alpha);
+                    assert_eq!(together, alone, "pixel ({x}, {y})");
+                    assert!(alone.1 > 0);
+                }
                 points += 1;
+                let alone = texels(&integrated, None, &sp, alpha);
                 let open = alone.0.iter().filter(|v| v.1 != 0).count();
                 shadowed += usize::from(open < 2900);
             }

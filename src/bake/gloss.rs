@@ -7,6 +7,7 @@
 
 use glam::Vec3;
 
+use super::packets::SampleRays;
 use super::{ShadingPoint, Shadows};
 use crate::math::sampling::TexelSamples;
 use crate::scene::brdf;
@@ -25,28 +26,18 @@ pub fn accumulate_term_rows(
     diffuse: &mut [f32],
     terms: &mut [Vec<f32>],
 ) -> u64 {
-    let Shadows {
-        tracer, unshadowed, ..
-    } = *shadows;
     let m = samples.per_texel;
     let k_b = factors.terms_of(sp.material);
     let (t, b) = local_frame(sp.normal);
-    let mut rays = 0u64;
     let mut acc = vec![0.0f32; k_b];
-    let mut shadow = tracer.rays_from(sp.origin);
+    let mut shadow = SampleRays::new(shadows, samples, sp);
     for (j, out) in diffuse.iter_mut().enumerate() {
         let dirs = &samples.dirs[j * m..(j + 1) * m];
         let weights = &samples.weights[j * m..(j + 1) * m];
         acc.fill(0.0);
-        for (d, w) in dirs.iter().zip(weights) {
-            if sp.normal.dot(*d) <= 0.0 {
+        for (s, (d, w)) in dirs.iter().zip(weights).enumerate() {
+            if sp.normal.dot(*d) <= 0.0 || !shadow.open(j * m + s, *d) {
                 continue;
-            }
-            if !unshadowed {
-                rays += 1;
-                if shadow.occluded(*d, f32::INFINITY) {
-                    continue;
-                }
             }
             acc[0] += brdf::diffuse_cosine(sp.normal, *d) * w;
             // Above the horizon (tested above): the direction's taps serve every term.
@@ -62,7 +53,7 @@ pub fn accumulate_term_rows(
             row[j] += a * scale;
         }
     }
-    rays
+    shadow.rays
 }
 
 /// The factors whose terms vertex `sp` is baked with, when its material takes more than its

@@ -13,6 +13,7 @@ mod in_order;
 pub mod lights;
 pub mod medium_light;
 pub mod medium_rows;
+mod packets;
 pub mod path_tracer;
 mod pixels;
 pub mod reference;
@@ -24,10 +25,11 @@ mod tint;
 mod visibility;
 
 use crate::store::transport::{BakeDomain, BakeIdentity};
-pub use direct::{CentrePackets, accumulate_direct_rows, direct_texels};
+pub use direct::{accumulate_direct_rows, direct_texels};
 pub use in_order::Cancel;
 use in_order::in_tile_order;
 pub use lights::LightSampler;
+pub use packets::CentrePackets;
 pub use pixels::{EdgeMap, pixel_subsamples, sample_stride};
 pub use settings::{
     BakeSettings, load_if_baked_with, load_or_bake, load_or_bake_logged, worst_case_bytes,
@@ -132,8 +134,8 @@ pub struct Shadows<'a> {
     pub unshadowed: bool,
     /// The scene's medium, whose transmittance a visible direction takes (where shadows are on).
     pub medium: Option<&'a Medium>,
-    /// The quadrature's texel centres in blocks traced together; `None` traces them one by one
-    /// (the same answers).
+    /// The texel centres the shading points trace (the quadrature's, or the samples' at one a
+    /// texel) in blocks traced together; `None` traces them one by one (the same answers).
     pub packets: Option<&'a CentrePackets>,
 }
 

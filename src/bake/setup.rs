@@ -46,7 +46,11 @@ pub(super) fn with_tile_context<R>(
         settings.seed,
     )
     .refined(settings.stored_edge_texel_samples() as usize);
-    let packets = samples.refine.as_ref().map(CentrePackets::new);
+    // The centres the shading points trace: the quadrature's, or the samples' at one a texel.
+    let packets = match &samples.refine {
+        Some(q) => Some(CentrePackets::new(q.n, &q.centres)),
+        None => (samples.per_texel == 1).then(|| CentrePackets::new(samples.n, &samples.dirs)),
+    };
     let basis = TexelShBasis::new(settings.cube_n, settings.sh_order)?;
     let medium = match &scene.medium {
         Some(spec) => Some(spec.build(None)?),

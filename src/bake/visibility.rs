@@ -5,6 +5,7 @@
 
 use rayon::prelude::*;
 
+use super::CentrePackets;
 use crate::math::cube_pyramid::morton_of_linear;
 use crate::math::cubemap::texel_dirs;
 use crate::scene::Scene;
@@ -32,19 +33,25 @@ pub fn glossy_vertices(
     let dirs: Vec<glam::Vec3> = texel_dirs(n).iter().map(|d| d.as_vec3()).collect();
     let morton = morton_of_linear(n);
     let words = Visibility::words(n);
+    let packets = CentrePackets::new(n, &dirs);
     let rows: Vec<Vec<u32>> = vertices
         .par_iter()
         .map(|&v| {
             let normal = mesh.normals[v as usize];
             let origin = mesh.positions[v as usize] + normal * tracer.spawn_offset();
-            let mut rays = tracer.rays_from(origin);
+            // The open texels in linear order, then in Morton order.
+            let mut open = vec![0u64; dirs.len().div_ceil(64)];
+            let above = |j: usize| normal.dot(dirs[j]) > 0.0;
+            if unshadowed {
+                (0..dirs.len())
+                    .filter(|&j| above(j))
+                    .for_each(|j| open[j / 64] |= 1 << (j % 64));
+            } else {
+                packets.open_bits(&mut tracer.rays_from(origin), above, &mut open);
+            }
             let mut bits = vec![0u32; words];
-            for (d, &m) in dirs.iter().zip(&morton) {
-                if normal.dot(*d) <= 0.0 {
-                    continue;
-                }
-                let open = unshadowed || !rays.occluded(*d, f32::INFINITY);
-                if open {
+            for (j, &m) in morton.iter().enumerate() {
+                if open[j / 64] >> (j % 64) & 1 == 1 {
                     bits[m as usize / 32] |= 1 << (m % 32);
                 }
             }

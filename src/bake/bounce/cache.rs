@@ -125,6 +125,7 @@ impl VisibilityCache {
             tracer,
             settings,
             samples,
+            ref packets,
             ..
         } = *bounces;
         let Some(cell) = Self::cell_size(scene, tracer, settings.cache_spacing) else {
@@ -233,16 +234,19 @@ impl VisibilityCache {
             .map(|(_, c)| {
                 let transmittance = light.map_or(Vec::new(), |l| l.surface_transmittance(c.origin));
                 let mut bits = vec![0u64; cache.words];
-                let mut rays = 0;
                 let mut shadow = tracer.rays_from(c.origin);
-                for (s, d) in samples.dirs.iter().enumerate() {
-                    if c.normal.dot(*d) > 0.0 {
-                        rays += 1;
-                        if !shadow.occluded(*d, f32::INFINITY) {
-                            bits[s / 64] |= 1 << (s % 64);
-                        }
-                    }
-                }
+                let above = |s: usize| c.normal.dot(samples.dirs[s]) > 0.0;
+                let rays = match packets {
+                    Some(p) => p.open_bits(&mut shadow, above, &mut bits),
+                    None => (0..samples.dirs.len())
+                        .filter(|&s| above(s))
+                        .fold(0, |rays, s| {
+                            if !shadow.occluded(samples.dirs[s], f32::INFINITY) {
+                                bits[s / 64] |= 1 << (s % 64);
+                            }
+                            rays + 1
+                        }),
+                };
                 let n = done.fetch_add(1, Ordering::Relaxed) + 1;
                 if n.is_multiple_of(256) || n == chosen.len() {
                     progress(n, chosen.len());

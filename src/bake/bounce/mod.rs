@@ -29,7 +29,7 @@ use glam::Vec3;
 
 mod cache;
 
-use crate::bake::{BakeSettings, EdgeMap, ShadingPoint, Shadows, shading_point};
+use crate::bake::{BakeSettings, CentrePackets, EdgeMap, ShadingPoint, Shadows, shading_point};
 use crate::error::Result;
 use crate::math::cubemap::CubeMap;
 use crate::math::sampling::{Rng, TexelSamples};
@@ -74,6 +74,8 @@ pub struct Bounces<'a> {
     tracer: &'a Tracer,
     settings: &'a BakeSettings,
     samples: &'a TexelSamples,
+    /// With one sample a texel, its centres in blocks traced together.
+    packets: Option<CentrePackets>,
     cache: Option<VisibilityCache>,
     /// The medium's trackers and what its points see, with a medium.
     medium: Option<(Tracker<'a>, &'a MediumLight)>,
@@ -98,11 +100,14 @@ impl<'a> Bounces<'a> {
                 .map(|(d, w)| d[k] * w)
                 .collect()
         });
+        let packets =
+            (samples.per_texel == 1).then(|| CentrePackets::new(samples.n, &samples.dirs));
         Bounces {
             scene,
             tracer,
             settings,
             samples,
+            packets,
             cache: None,
             medium: None,
             weighted,
@@ -280,6 +285,18 @@ impl<'a> Bounces<'a> {
             out(s / m, value * (weights[s] * through));
         };
         let mut rays = 0;
+        let mut traced: Vec<u64>;
+        let visibility = match (visibility, &self.packets) {
+            (Visibility::Trace, Some(p)) => {
+                // The same rays in blocks: their bits, then as the cache's.
+                traced = vec![0u64; dirs.len().div_ceil(64)];
+                let mut from = self.tracer.rays_from(at.origin);
+                let above = |s: usize| at.normal.dot(dirs[s]) > 0.0;
+                rays += p.open_bits(&mut from, above, &mut traced);
+                Visibility::Bits(&traced)
+            }
+            (visibility, _) => visibility,
+        };
         match visibility {
             Visibility::Bits(bits) => {
                 for (wi, &word) in bits.iter().enumerate() {
