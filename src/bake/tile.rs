@@ -107,7 +107,7 @@ enum RowKind {
 /// What a tile reuses from one pixel to the next.
 struct Scratch {
     /// The thresholder's ordering.
-    order: Vec<(f32, u32)>,
+    order: Vec<u64>,
     /// The Haar transform's.
     haar: Vec<f32>,
     /// One sub-sample's rows of a textured material, before its colour weighs them.

@@ -105,7 +105,7 @@ impl Thresholder {
         &self,
         row: &[f32],
         reference_energy: f64,
-        order: &mut Vec<(f32, u32)>,
+        order: &mut Vec<u64>,
     ) -> (Vec<(u32, f32)>, f64, f64) {
         let total: f64 = row.iter().map(|&v| (v as f64) * (v as f64)).sum();
         let weight = |j: u32| self.weights.as_ref().map_or(1.0, |w| w[j as usize]);
@@ -114,7 +114,7 @@ impl Thresholder {
             row.iter()
                 .enumerate()
                 .filter(|(_, v)| **v != 0.0)
-                .map(|(j, v)| (v.abs() * weight(j as u32), j as u32)),
+                .map(|(j, v)| key(v.abs() * weight(j as u32), j as u32)),
         );
         let mut dropped = 0.0f64;
         let drop_count = if self.threshold <= 0.0 {
@@ -124,8 +124,9 @@ impl Thresholder {
             // Everything below eps goes, in any order: moved to the front.
             let mut front = 0;
             for i in 0..order.len() {
-                if (order[i].0 as f64) < eps {
-                    dropped += (order[i].0 as f64).powi(2);
+                let m = magnitude(order[i]) as f64;
+                if m < eps {
+                    dropped += m.powi(2);
                     order.swap(front, i);
                     front += 1;
                 }
@@ -136,14 +137,14 @@ impl Thresholder {
             let n = smallest_within(order, budget);
             dropped = order[..n]
                 .iter()
-                .map(|&(_, j)| (row[j as usize] as f64).powi(2))
+                .map(|&k| (row[k as u32 as usize] as f64).powi(2))
                 .sum();
             n
         };
         // Every other non-zero coefficient is kept, in coefficient order.
         let mut gone = vec![false; row.len()];
-        for &(_, j) in &order[..drop_count] {
-            gone[j as usize] = true;
+        for &k in &order[..drop_count] {
+            gone[k as u32 as usize] = true;
         }
         let kept = row
             .iter()
@@ -156,12 +157,22 @@ impl Thresholder {
     }
 }
 
+/// A coefficient's magnitude (finite and not negative) and index as one key that orders them
+/// by magnitude, then by index: a non-negative float's bits order as it does.
+fn key(magnitude: f32, j: u32) -> u64 {
+    (magnitude.to_bits() as u64) << 32 | j as u64
+}
+
+/// The magnitude of a [`key`].
+fn magnitude(key: u64) -> f32 {
+    f32::from_bits((key >> 32) as u32)
+}
+
 /// Reorders `items` so that its first `n` are its `n` smallest by (magnitude, coefficient), and
 /// returns the largest `n` whose magnitudes' squares sum to at most `budget`: the prefix that
 /// sorting and summing from the smallest would drop, found by selection in expected linear time
 /// (a sort was 6–8% of a bake).
-fn smallest_within(items: &mut [(f32, u32)], budget: f64) -> usize {
-    let order = |a: &(f32, u32), b: &(f32, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+fn smallest_within(items: &mut [u64], budget: f64) -> usize {
     // items[..lo] are the lo smallest and all go (their squares sum to `spent`); the last one
     // to go lies in items[lo..hi]; everything from hi on is larger than all before it and stays.
     let (mut lo, mut hi) = (0, items.len());
@@ -169,8 +180,11 @@ fn smallest_within(items: &mut [(f32, u32)], budget: f64) -> usize {
     while lo < hi {
         let part = &mut items[lo..hi];
         let mid = part.len() / 2;
-        part.select_nth_unstable_by(mid, order);
-        let smaller: f64 = part[..=mid].iter().map(|&(m, _)| (m as f64).powi(2)).sum();
+        part.select_nth_unstable(mid);
+        let smaller: f64 = part[..=mid]
+            .iter()
+            .map(|&k| (magnitude(k) as f64).powi(2))
+            .sum();
         if spent + smaller <= budget {
             spent += smaller;
             lo += mid + 1;
@@ -242,9 +256,9 @@ mod tests {
             let energy: f64 = items.iter().map(|&(m, _)| (m as f64).powi(2)).sum();
             let budget = energy * (case % 10) as f64 / 10.0;
             let want = smallest_within_by_sort(&items, budget);
-            let mut work = items.clone();
+            let mut work: Vec<u64> = items.iter().map(|&(m, j)| key(m, j)).collect();
             let k = smallest_within(&mut work, budget);
-            let mut got: Vec<u32> = work[..k].iter().map(|&(_, j)| j).collect();
+            let mut got: Vec<u32> = work[..k].iter().map(|&k| k as u32).collect();
             got.sort_unstable();
             assert_eq!(got, want, "case {case}: n {n}, budget {budget}");
         }
