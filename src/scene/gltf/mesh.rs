@@ -9,10 +9,17 @@ use super::{MAX_TRIANGLES, Reader, printable};
 use crate::error::Result;
 use crate::scene::{MAX_COORDINATE, Triangle};
 
+/// A primitive's vertex attributes as read and checked: positions, normals and texture
+/// coordinates (as many of each), and the corner indices, each below the vertex count.
+struct Attributes {
+    positions: Vec<[f32; 3]>,
+    normals: Option<Vec<[f32; 3]>>,
+    uvs: Option<Vec<[f32; 2]>>,
+    indices: Vec<u32>,
+}
+
 impl Reader<'_> {
     pub(super) fn place_mesh(&mut self, mesh: &gltf::Mesh, node: usize, world: Mat4) -> Result<()> {
-        let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
-        let mirrored = Mat3::from_mat4(world).determinant() < 0.0;
         for prim in mesh.primitives() {
             let field = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
             let corners = match prim.mode() {
@@ -24,152 +31,12 @@ impl Reader<'_> {
                     continue;
                 }
             };
-            let Some(pos) = prim.get(&gltf::Semantic::Positions) else {
-                return Err(self.error(format!("{field}.attributes"), "has no POSITION"));
-            };
-            // Every instance of a primitive is read again: its vertices and corners count
-            // against one budget for the whole scene, before anything is read.
-            let work =
-                pos.count() as u64 + prim.indices().map_or(pos.count(), |a| a.count()) as u64;
-            if work > self.limits.corners_left {
-                return Err(self.error(
-                    &field,
-                    format!(
-                        "the scene's glTF primitives, every instance counted, hold more than \
-                         {} vertices and corners",
-                        3 * MAX_TRIANGLES
-                    ),
-                ));
-            }
-            self.limits.corners_left -= work;
-            let positions: Vec<[f32; 3]> = self.read_floats(
-                &pos,
-                &format!("{field}.attributes.POSITION"),
-                &[DataType::F32],
-            )?;
-            let normals: Option<Vec<[f32; 3]>> = match prim.get(&gltf::Semantic::Normals) {
-                Some(a) => Some(self.read_floats(
-                    &a,
-                    &format!("{field}.attributes.NORMAL"),
-                    &[DataType::F32, DataType::I8, DataType::I16],
-                )?),
-                None => None,
-            };
-            let uvs: Option<Vec<[f32; 2]>> = match prim.get(&gltf::Semantic::TexCoords(0)) {
-                Some(a) => Some(self.read_floats(
-                    &a,
-                    &format!("{field}.attributes.TEXCOORD_0"),
-                    &[DataType::F32, DataType::U8, DataType::U16],
-                )?),
-                None => None,
-            };
-            let n = positions.len();
-            for (what, len) in [
-                ("NORMAL", normals.as_ref().map(Vec::len)),
-                ("TEXCOORD_0", uvs.as_ref().map(Vec::len)),
-            ] {
-                if let Some(len) = len.filter(|&l| l != n) {
-                    return Err(self.error(
-                        format!("{field}.attributes.{what}"),
-                        format!("has {len} elements for {n} positions"),
-                    ));
-                }
-            }
-            let indices = match prim.indices() {
-                Some(a) => self.read_indices(&a, &format!("{field}.indices"))?,
-                None => (0..n as u32).collect(),
-            };
-            if let Some((k, &bad)) = indices.iter().enumerate().find(|(_, v)| **v as usize >= n) {
-                return Err(self.error(
-                    format!("{field}.indices"),
-                    format!("index {k} is {bad}, but there are {n} vertices"),
-                ));
-            }
-            let corner_lists = triangle_corners(&indices, corners);
+            let attributes = self.read_attributes(&prim, &field)?;
+            let corner_lists = triangle_corners(&attributes.indices, corners);
             let material = self.material(prim.material().index())?;
             let first = self.out.triangles.len();
-            if first + corner_lists.len() > MAX_TRIANGLES {
-                return Err(self.error(
-                    &field,
-                    format!("the file places more than {MAX_TRIANGLES} triangles"),
-                ));
-            }
-            // The triangle list's memory, before it grows: a model instanced many times must
-            // be refused, not abort. It grows by doubling, so twice what it will hold is asked.
-            let size = std::mem::size_of::<Triangle>() as u64;
-            crate::files::check_memory(
-                &field,
-                "placing the scene's glTF triangles",
-                2 * (first + corner_lists.len()) as u64 * size,
-            )
-            .map_err(|e| match e {
-                crate::error::PrtError::Invalid { message, .. } => self.error(&field, message),
-                e => e,
-            })?;
-            self.out
-                .triangles
-                .try_reserve(corner_lists.len())
-                .map_err(|_| {
-                    self.error(
-                        &field,
-                        format!(
-                            "{} triangles do not fit in this process's memory",
-                            first + corner_lists.len()
-                        ),
-                    )
-                })?;
-            let world_pos: Vec<Vec3> = positions
-                .iter()
-                .map(|p| world.transform_point3(Vec3::from(*p)))
-                .collect();
-            if let Some(v) = world_pos
-                .iter()
-                .find(|v| !(v.is_finite() && v.abs().max_element() <= MAX_COORDINATE))
-            {
-                return Err(self.error(
-                    format!("{field}.attributes.POSITION"),
-                    format!("a vertex lands at {v}, beyond ±{MAX_COORDINATE:e} scene units"),
-                ));
-            }
-            for mut c in corner_lists {
-                if mirrored {
-                    c.swap(1, 2);
-                }
-                let vertices = c.map(|i| world_pos[i as usize]);
-                let [a, b, d] = vertices;
-                let geometric = (b - a).cross(d - a).normalize_or_zero();
-                if geometric == Vec3::ZERO {
-                    continue;
-                }
-                let normals = match &normals {
-                    Some(ns) => c.map(|i| {
-                        let s = (normal_matrix * Vec3::from(ns[i as usize])).normalize_or_zero();
-                        if s.is_finite() && s != Vec3::ZERO {
-                            s
-                        } else {
-                            geometric
-                        }
-                    }),
-                    None => [geometric; 3],
-                };
-                let uvs = match &uvs {
-                    Some(t) => c.map(|i| {
-                        let uv = Vec2::from(t[i as usize]);
-                        if uv.is_finite() { uv } else { Vec2::ZERO }
-                    }),
-                    None => [Vec2::ZERO; 3],
-                };
-                let triangle = Triangle {
-                    vertices,
-                    normals,
-                    uvs,
-                    material,
-                };
-                if self.is_duplicate(&triangle) {
-                    continue;
-                }
-                self.out.triangles.push(triangle);
-            }
+            self.reserve_triangles(&field, first + corner_lists.len())?;
+            self.push_triangles(&field, &attributes, (world, material), corner_lists)?;
             let end = self.out.triangles.len();
             if end > first {
                 let name = mesh
@@ -185,6 +52,175 @@ impl Reader<'_> {
                     ),
                 ));
             }
+        }
+        Ok(())
+    }
+
+    /// The primitive's attributes, counted against the scene's budget of vertices and corners
+    /// before anything is read, and every size and index checked.
+    fn read_attributes(&mut self, prim: &gltf::Primitive, field: &str) -> Result<Attributes> {
+        let Some(pos) = prim.get(&gltf::Semantic::Positions) else {
+            return Err(self.error(format!("{field}.attributes"), "has no POSITION"));
+        };
+        // Every instance of a primitive is read again: its vertices and corners count
+        // against one budget for the whole scene, before anything is read.
+        let work = pos.count() as u64 + prim.indices().map_or(pos.count(), |a| a.count()) as u64;
+        if work > self.limits.corners_left {
+            return Err(self.error(
+                field,
+                format!(
+                    "the scene's glTF primitives, every instance counted, hold more than \
+                     {} vertices and corners",
+                    3 * MAX_TRIANGLES
+                ),
+            ));
+        }
+        self.limits.corners_left -= work;
+        let positions: Vec<[f32; 3]> = self.read_floats(
+            &pos,
+            &format!("{field}.attributes.POSITION"),
+            &[DataType::F32],
+        )?;
+        let normals: Option<Vec<[f32; 3]>> = match prim.get(&gltf::Semantic::Normals) {
+            Some(a) => Some(self.read_floats(
+                &a,
+                &format!("{field}.attributes.NORMAL"),
+                &[DataType::F32, DataType::I8, DataType::I16],
+            )?),
+            None => None,
+        };
+        let uvs: Option<Vec<[f32; 2]>> = match prim.get(&gltf::Semantic::TexCoords(0)) {
+            Some(a) => Some(self.read_floats(
+                &a,
+                &format!("{field}.attributes.TEXCOORD_0"),
+                &[DataType::F32, DataType::U8, DataType::U16],
+            )?),
+            None => None,
+        };
+        let n = positions.len();
+        for (what, len) in [
+            ("NORMAL", normals.as_ref().map(Vec::len)),
+            ("TEXCOORD_0", uvs.as_ref().map(Vec::len)),
+        ] {
+            if let Some(len) = len.filter(|&l| l != n) {
+                return Err(self.error(
+                    format!("{field}.attributes.{what}"),
+                    format!("has {len} elements for {n} positions"),
+                ));
+            }
+        }
+        let indices = match prim.indices() {
+            Some(a) => self.read_indices(&a, &format!("{field}.indices"))?,
+            None => (0..n as u32).collect(),
+        };
+        if let Some((k, &bad)) = indices.iter().enumerate().find(|(_, v)| **v as usize >= n) {
+            return Err(self.error(
+                format!("{field}.indices"),
+                format!("index {k} is {bad}, but there are {n} vertices"),
+            ));
+        }
+        Ok(Attributes {
+            positions,
+            normals,
+            uvs,
+            indices,
+        })
+    }
+
+    /// Room in the scene's triangle list for `total` triangles, refused with an error (not an
+    /// abort) past the scene's limit or this process's memory.
+    fn reserve_triangles(&mut self, field: &str, total: usize) -> Result<()> {
+        if total > MAX_TRIANGLES {
+            return Err(self.error(
+                field,
+                format!("the file places more than {MAX_TRIANGLES} triangles"),
+            ));
+        }
+        // The triangle list's memory, before it grows: a model instanced many times must
+        // be refused, not abort. It grows by doubling, so twice what it will hold is asked.
+        let size = std::mem::size_of::<Triangle>() as u64;
+        crate::files::check_memory(
+            field,
+            "placing the scene's glTF triangles",
+            2 * total as u64 * size,
+        )
+        .map_err(|e| match e {
+            crate::error::PrtError::Invalid { message, .. } => self.error(field, message),
+            e => e,
+        })?;
+        let more = total - self.out.triangles.len();
+        self.out.triangles.try_reserve(more).map_err(|_| {
+            self.error(
+                field,
+                format!("{total} triangles do not fit in this process's memory"),
+            )
+        })
+    }
+
+    /// The primitive's triangles placed by `world` with `material`: shading normals through the
+    /// inverse transpose, winding kept under a mirroring matrix, degenerate triangles and exact
+    /// repeats left out.
+    fn push_triangles(
+        &mut self,
+        field: &str,
+        attributes: &Attributes,
+        (world, material): (Mat4, u32),
+        corner_lists: Vec<[u32; 3]>,
+    ) -> Result<()> {
+        let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
+        let mirrored = Mat3::from_mat4(world).determinant() < 0.0;
+        let world_pos: Vec<Vec3> = attributes
+            .positions
+            .iter()
+            .map(|p| world.transform_point3(Vec3::from(*p)))
+            .collect();
+        if let Some(v) = world_pos
+            .iter()
+            .find(|v| !(v.is_finite() && v.abs().max_element() <= MAX_COORDINATE))
+        {
+            return Err(self.error(
+                format!("{field}.attributes.POSITION"),
+                format!("a vertex lands at {v}, beyond ±{MAX_COORDINATE:e} scene units"),
+            ));
+        }
+        for mut c in corner_lists {
+            if mirrored {
+                c.swap(1, 2);
+            }
+            let vertices = c.map(|i| world_pos[i as usize]);
+            let [a, b, d] = vertices;
+            let geometric = (b - a).cross(d - a).normalize_or_zero();
+            if geometric == Vec3::ZERO {
+                continue;
+            }
+            let normals = match &attributes.normals {
+                Some(ns) => c.map(|i| {
+                    let s = (normal_matrix * Vec3::from(ns[i as usize])).normalize_or_zero();
+                    if s.is_finite() && s != Vec3::ZERO {
+                        s
+                    } else {
+                        geometric
+                    }
+                }),
+                None => [geometric; 3],
+            };
+            let uvs = match &attributes.uvs {
+                Some(t) => c.map(|i| {
+                    let uv = Vec2::from(t[i as usize]);
+                    if uv.is_finite() { uv } else { Vec2::ZERO }
+                }),
+                None => [Vec2::ZERO; 3],
+            };
+            let triangle = Triangle {
+                vertices,
+                normals,
+                uvs,
+                material,
+            };
+            if self.is_duplicate(&triangle) {
+                continue;
+            }
+            self.out.triangles.push(triangle);
         }
         Ok(())
     }
