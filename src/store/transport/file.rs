@@ -12,6 +12,9 @@ use serde::{Deserialize, Serialize};
 use super::legacy::{Columns, strips_of_columns};
 use super::reader::TensorReader;
 use super::strips::{Layout, STRIP_ROWS};
+use super::tensors::{
+    BrdfTensors, FileTensors, MapTensors, MeshTensors, Tensor, VisibilityTensors, read_all,
+};
 use super::*;
 use crate::error::{PrtError, Result};
 use crate::scene::albedo_map::from_table;
@@ -43,109 +46,33 @@ impl Transport {
         let (tx, ty) = tile_grid(w, h);
         let tiles = tx * ty;
         let c = 6 * (meta.identity.cube_n as usize).pow(2);
-        let (albedo_shape, albedo) = reader.read::<[f32; 3]>("albedo", Dtype::F32)?;
+        let FileTensors {
+            albedo: (albedo_shape, albedo),
+            map_tables,
+            brdf,
+            col_count,
+            col_scale: (scale_shape, col_scale),
+            coverage: (coverage_shape, coverage),
+            entries,
+            light_tables,
+            mesh,
+            mesh_uv,
+            row_pixel: (pixel_shape, row_pixel),
+            row_scale: (row_scale_shape, row_scale),
+            row_weight: (weight_shape, row_weight),
+            sh: (sh_shape, sh),
+            strip_tables,
+            tile_row_start: (start_shape, tile_row_start),
+            tile_stats: (stats_shape, tile_stats),
+            transport_magnitude: (magnitude_shape, transport_magnitude),
+            visibility,
+        } = read_all(&mut reader, &meta, version)?;
         let map_count = meta
             .per_vertex
             .as_ref()
             .map_or(0, |p| p.albedo_maps as usize);
-        let map_tables = if map_count > 0 {
-            Some((
-                reader.read::<[u32; 5]>("albedo_map", Dtype::U32)?,
-                reader.read::<[u32; 2]>("albedo_map_material", Dtype::U32)?,
-                reader.read::<[u16; 3]>("albedo_texel", Dtype::U16)?,
-            ))
-        } else {
-            None
-        };
-        let brdf = meta
-            .per_vertex
-            .as_ref()
-            .filter(|p| p.brdf_stride > 1)
-            .map(|p| (p.brdf_stride as usize, p.brdf_map as usize));
-        let brdf_tables = match brdf {
-            Some(_) => Some((
-                reader.read::<f32>("brdf_light", Dtype::F32)?,
-                reader.read::<u32>("brdf_terms", Dtype::U32)?,
-                reader.read::<f32>("brdf_view", Dtype::F32)?,
-            )),
-            None => None,
-        };
-        // Versions 3 to 6 store columns (`col_count`, `entry_row`, `entry_value`), versions 7 to 9
-        // strips; `col_scale` is in both.
-        let legacy = version < 7;
-        let col_count = if legacy {
-            Some(reader.read::<u16>("col_count", Dtype::U16)?)
-        } else {
-            None
-        };
-        let (scale_shape, col_scale) = reader.read::<u8>("col_scale", Dtype::U8)?;
-        let (coverage_shape, coverage) = reader.read::<f32>("coverage", Dtype::F32)?;
-        let entries = if legacy {
-            Some((
-                reader.read::<u8>("entry_row", Dtype::U8)?,
-                read_values(&mut reader, "entry_value", meta.identity.quantization)?,
-            ))
-        } else {
-            None
-        };
         let columns = meta.light_columns();
-        let light_tables = if columns > 0 {
-            Some((
-                reader.read::<f32>("light_scale", Dtype::F32)?,
-                reader.read::<u16>("light_value", Dtype::U16)?,
-            ))
-        } else {
-            None
-        };
-        let mesh = match &meta.per_vertex {
-            None => None,
-            Some(_) => Some((
-                reader.read::<u32>("mesh_material", Dtype::U32)?,
-                reader.read::<glam::Vec3>("mesh_normal", Dtype::F32)?,
-                reader.read::<glam::Vec3>("mesh_position", Dtype::F32)?,
-                reader.read::<[u32; 3]>("mesh_triangle", Dtype::U32)?,
-            )),
-        };
-        let mesh_uv = if map_count > 0 {
-            Some(reader.read::<glam::Vec2>("mesh_uv", Dtype::F32)?)
-        } else {
-            None
-        };
-        let (pixel_shape, row_pixel) = reader.read::<u32>("row_pixel", Dtype::U32)?;
-        let (row_scale_shape, row_scale) = reader.read::<f32>("row_scale", Dtype::F32)?;
-        let (weight_shape, row_weight) = reader.read::<[f32; 3]>("row_weight", Dtype::F32)?;
-        let (sh_shape, sh) = reader.read::<f32>("sh", Dtype::F32)?;
-        let strip_tables = if legacy {
-            None
-        } else {
-            Some((
-                reader.read::<u8>("strip_count", Dtype::U8)?,
-                reader.read::<u8>("strip_place", Dtype::U8)?,
-                read_values(&mut reader, "strip_value", meta.identity.quantization)?,
-            ))
-        };
-        let (start_shape, tile_row_start) = reader.read::<u32>("tile_row_start", Dtype::U32)?;
-        let (stats_shape, tile_stats) = reader.read::<[f64; 3]>("tile_stats", Dtype::F64)?;
-        let (magnitude_shape, transport_magnitude) =
-            reader.read::<f32>("transport_magnitude", Dtype::F32)?;
-        let visibility = if meta.identity.visibility {
-            Some((
-                reader.read::<u32>("visibility_bits", Dtype::U32)?,
-                reader.read::<[f32; 4]>("visibility_lobe", Dtype::F32)?,
-                reader.read::<u32>("visibility_vertex", Dtype::U32)?,
-            ))
-        } else {
-            None
-        };
-        let sum = format!("{:016x}", reader.checksum());
-        if sum != stored {
-            return Err(PrtError::file(
-                path,
-                format!(
-                    "checksum mismatch (stored {stored}, computed {sum}): the file is corrupted"
-                ),
-            ));
-        }
+        check_checksum(path, &stored, reader.checksum())?;
         let expect = |name: &str, shape: &[usize], want: &[usize]| -> Result<()> {
             if shape != want {
                 return Err(PrtError::file(
@@ -205,26 +132,14 @@ impl Transport {
         expect("coverage", &coverage_shape, &[h, w])?;
         expect("transport_magnitude", &magnitude_shape, &[c])?;
         expect("tile_stats", &stats_shape, &[tiles, 3])?;
-        let lights = match light_tables {
-            Some(((ss, scale), (vs, values))) => {
-                expect("light_scale", &ss, &[columns, h])?;
-                expect("light_value", &vs, &[columns, 3, h, w])?;
-                LightColumns {
-                    width: w,
-                    height: h,
-                    scale,
-                    values,
-                }
-            }
-            None => LightColumns::empty(w, h),
-        };
+        let lights = light_columns(light_tables, (columns, w, h), &expect)?;
         let mesh = match (&meta.per_vertex, mesh) {
             (Some(pv), Some(tables)) => Some(
                 MeshTables {
                     tables,
                     uv: mesh_uv,
                     maps: map_tables,
-                    brdf: brdf.zip(brdf_tables),
+                    brdf,
                 }
                 .into_mesh(pv, map_count, &expect, &bad)?,
             ),
@@ -622,25 +537,35 @@ const TENSOR_NAMES: [&str; 10] = [
     "transport_magnitude",
 ];
 
-/// Tensor `name` of stored values in quantisation `q`: its shape and values.
-fn read_values(
-    reader: &mut TensorReader,
-    name: &str,
-    q: Quantization,
-) -> Result<(Vec<usize>, Values)> {
-    Ok(match q {
-        Quantization::Q8 => {
-            let (s, v) = reader.read(name, Dtype::I8)?;
-            (s, Values::Q8(v))
-        }
-        Quantization::Q16 => {
-            let (s, v) = reader.read(name, Dtype::I16)?;
-            (s, Values::Q16(v))
-        }
-        Quantization::F32 => {
-            let (s, v) = reader.read(name, Dtype::F32)?;
-            (s, Values::F32(v))
-        }
+/// An error unless the checksum computed over the tensors, `computed`, is the one stored.
+fn check_checksum(path: &Path, stored: &str, computed: u64) -> Result<()> {
+    let sum = format!("{computed:016x}");
+    if sum != stored {
+        return Err(PrtError::file(
+            path,
+            format!("checksum mismatch (stored {stored}, computed {sum}): the file is corrupted"),
+        ));
+    }
+    Ok(())
+}
+
+/// The light columns of `columns` lights over a `w` x `h` image from their tables as read
+/// (their shapes checked by `expect`); none without tables.
+fn light_columns(
+    tables: Option<(Tensor<f32>, Tensor<u16>)>,
+    (columns, w, h): (usize, usize, usize),
+    expect: ShapeCheck,
+) -> Result<LightColumns> {
+    let Some(((ss, scale), (vs, values))) = tables else {
+        return Ok(LightColumns::empty(w, h));
+    };
+    expect("light_scale", &ss, &[columns, h])?;
+    expect("light_value", &vs, &[columns, 3, h, w])?;
+    Ok(LightColumns {
+        width: w,
+        height: h,
+        scale,
+        values,
     })
 }
 
@@ -673,23 +598,8 @@ fn with_visibility(
     Ok(Some(mesh))
 }
 
-/// A tensor as read: its shape and its values.
-type Tensor<T> = (Vec<usize>, Vec<T>);
-/// The visibility's bits, lobes and vertices, as read.
-type VisibilityTensors = (Tensor<u32>, Tensor<[f32; 4]>, Tensor<u32>);
 /// Checks a tensor's shape against what it must be: (name, shape, expected).
 type ShapeCheck<'a> = &'a dyn Fn(&str, &[usize], &[usize]) -> Result<()>;
-/// A mesh's vertex materials, normals and positions, and its triangles, as read.
-type MeshTensors = (
-    Tensor<u32>,
-    Tensor<glam::Vec3>,
-    Tensor<glam::Vec3>,
-    Tensor<[u32; 3]>,
-);
-/// The albedo maps' table, their materials and their texels, as read.
-type MapTensors = (Tensor<[u32; 5]>, Tensor<[u32; 2]>, Tensor<[u16; 3]>);
-/// The in-out BRDF factors' stride and map size, with their light, terms and view tables.
-type BrdfTensors = ((usize, usize), (Tensor<f32>, Tensor<u32>, Tensor<f32>));
 
 /// The tensors of a per-vertex bake's mesh as read, before their shapes are checked.
 struct MeshTables {

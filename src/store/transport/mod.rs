@@ -92,6 +92,7 @@ mod reader;
 mod save;
 mod stream;
 pub mod strips;
+mod tensors;
 
 use std::ops::Range;
 
