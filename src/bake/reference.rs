@@ -84,8 +84,7 @@ pub fn render_reference_lit(
         tracer: &tracer,
         unshadowed: settings.unshadowed,
         medium,
-        // Ray by ray: the slow twin of the bake's packets.
-        packets: None,
+        packets: None, // ray by ray: the slow twin of the bake's packets
     };
     // The bake's own paths and surface cache, so that this checks the matrix's bookkeeping.
     let edges = EdgeMap::new(scene, &tracer, settings);
