@@ -29,7 +29,6 @@ use super::{ShadingPoint, Shadows};
 use crate::math::sampling::TexelSamples;
 use crate::math::texel_quadrature::TexelQuadrature;
 use crate::scene::brdf;
-use crate::scene::trace::RaysFrom;
 
 /// A GGX lobe's texels are summed over their sub-texels where its distribution is above this
 /// fraction of its peak: D(h)/D(0) ≈ (α²/(α² + tan²θ_h))², so out to tan θ_h = 3α, twice that
@@ -60,24 +59,6 @@ impl Centre {
             Centre::Blocked => Some(false),
             _ => None,
         }
-    }
-}
-
-/// A shading point's shadow rays, counted.
-struct ShadowRays<'a> {
-    from: RaysFrom<'a>,
-    unshadowed: bool,
-    rays: u64,
-}
-
-impl ShadowRays<'_> {
-    /// Whether direction `d` is open.
-    fn open(&mut self, d: Vec3) -> bool {
-        if self.unshadowed {
-            return true;
-        }
-        self.rays += 1;
-        !self.from.occluded(d, f32::INFINITY)
     }
 }
 
@@ -134,17 +115,13 @@ fn integrated_texels(
     mut visit: impl FnMut(usize, f32, f32),
 ) -> u64 {
     let Shadows {
-        tracer,
         unshadowed,
         medium,
         packets,
+        ..
     } = *shadows;
     let n = sp.normal;
-    let mut shadow = ShadowRays {
-        from: tracer.rays_from(sp.origin),
-        unshadowed,
-        rays: 0,
-    };
+    let mut shadow = SampleRays::one_by_one(shadows, sp);
     let centres = classify_centres(q, n, &mut shadow, packets);
     // The cone of the GGX lobe's texels about the mirror direction, as the cosine of its
     // half-angle widened by a texel's radius.
@@ -179,7 +156,7 @@ fn integrated_texels(
                     continue;
                 }
                 let seen = if q.towards(s, differs) {
-                    shadow.open(*d)
+                    shadow.open_along(*d)
                 } else {
                     centre == Centre::Open
                 };
@@ -245,7 +222,7 @@ fn integrated_texels(
 fn classify_centres(
     q: &TexelQuadrature,
     n: Vec3,
-    shadow: &mut ShadowRays,
+    shadow: &mut SampleRays,
     packets: Option<&CentrePackets>,
 ) -> Vec<Centre> {
     let side = |j: usize| {
@@ -261,9 +238,9 @@ fn classify_centres(
     let mut centres: Vec<Centre> = (0..q.centres.len())
         .map(|j| side(j).unwrap_or(Centre::Open))
         .collect();
-    let Some(packets) = packets.filter(|_| !shadow.unshadowed) else {
+    let Some(packets) = packets.filter(|_| !shadow.unshadowed()) else {
         for (c, d) in centres.iter_mut().zip(&q.centres) {
-            if *c == Centre::Open && !shadow.open(*d) {
+            if *c == Centre::Open && !shadow.open_along(*d) {
                 *c = Centre::Blocked;
             }
         }
@@ -271,7 +248,7 @@ fn classify_centres(
     };
     let mut open = vec![0u64; q.centres.len().div_ceil(64)];
     let traced = |j: usize| centres[j] == Centre::Open;
-    shadow.rays += packets.open_bits(&mut shadow.from, traced, &mut open);
+    shadow.trace_blocks(packets, traced, &mut open);
     for (j, c) in centres.iter_mut().enumerate() {
         if *c == Centre::Open && open[j / 64] >> (j % 64) & 1 == 0 {
             *c = Centre::Blocked;

@@ -72,8 +72,9 @@ impl CentrePackets {
 }
 
 /// A shading point's shadow rays towards a set of texel samples, counted: with one sample a
-/// texel and packets, every sample above the surface traced beforehand in blocks; otherwise
-/// each traced when asked. Either way a sample's answer is the same.
+/// texel and packets of the samples' own centres, every sample above the surface traced
+/// beforehand in blocks; otherwise each traced when asked. Either way a sample's answer is the
+/// same.
 pub struct SampleRays<'a> {
     from: RaysFrom<'a>,
     unshadowed: bool,
@@ -86,28 +87,56 @@ pub struct SampleRays<'a> {
 impl<'a> SampleRays<'a> {
     /// The rays from `sp` towards `samples`, shadowed by `shadows`.
     pub fn new(shadows: &Shadows<'a>, samples: &TexelSamples, sp: &ShadingPoint) -> Self {
-        let mut rays = SampleRays {
-            from: shadows.tracer.rays_from(sp.origin),
-            unshadowed: shadows.unshadowed,
-            open: Vec::new(),
-            rays: 0,
-        };
-        let blocks = shadows.packets.filter(|_| samples.per_texel == 1);
-        if let Some(p) = blocks.filter(|_| !shadows.unshadowed) {
-            rays.open = vec![0u64; samples.dirs.len().div_ceil(64)];
+        let mut rays = Self::one_by_one(shadows, sp);
+        // With a quadrature the packets hold its centres, not these samples.
+        let own = samples.per_texel == 1 && samples.refine.is_none();
+        if let Some(p) = shadows.packets.filter(|_| own && !shadows.unshadowed) {
+            let mut open = vec![0u64; samples.dirs.len().div_ceil(64)];
             let above = |s: usize| sp.normal.dot(samples.dirs[s]) > 0.0;
-            rays.rays = p.open_bits(&mut rays.from, above, &mut rays.open);
+            rays.trace_blocks(p, above, &mut open);
+            rays.open = open;
         }
         rays
     }
 
+    /// The rays from `sp`, each traced when asked ([`SampleRays::open_along`]).
+    pub fn one_by_one(shadows: &Shadows<'a>, sp: &ShadingPoint) -> Self {
+        SampleRays {
+            from: shadows.tracer.rays_from(sp.origin),
+            unshadowed: shadows.unshadowed,
+            open: Vec::new(),
+            rays: 0,
+        }
+    }
+
+    /// Whether every direction is open (no ray is traced).
+    pub fn unshadowed(&self) -> bool {
+        self.unshadowed
+    }
+
+    /// Traces the centres of `packets` whose texel j has `traced(j)` and sets bit j of `open`
+    /// for each one that escapes ([`CentrePackets::open_bits`]), counting the rays.
+    pub fn trace_blocks(
+        &mut self,
+        packets: &CentrePackets,
+        traced: impl Fn(usize) -> bool,
+        open: &mut [u64],
+    ) {
+        self.rays += packets.open_bits(&mut self.from, traced, open);
+    }
+
     /// Whether sample `s`, direction `d` (above the surface), is open.
     pub fn open(&mut self, s: usize, d: Vec3) -> bool {
+        if !self.open.is_empty() && !self.unshadowed {
+            return self.open[s / 64] >> (s % 64) & 1 == 1;
+        }
+        self.open_along(d)
+    }
+
+    /// Whether direction `d` is open, traced now (unless every direction is).
+    pub fn open_along(&mut self, d: Vec3) -> bool {
         if self.unshadowed {
             return true;
-        }
-        if !self.open.is_empty() {
-            return self.open[s / 64] >> (s % 64) & 1 == 1;
         }
         self.rays += 1;
         !self.from.occluded(d, f32::INFINITY)

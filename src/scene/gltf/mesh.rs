@@ -81,22 +81,22 @@ impl Reader<'_> {
             &format!("{field}.attributes.POSITION"),
             &[DataType::F32],
         )?;
-        let normals: Option<Vec<[f32; 3]>> = match prim.get(&gltf::Semantic::Normals) {
-            Some(a) => Some(self.read_floats(
-                &a,
+        let normals: Option<Vec<[f32; 3]>> = self.read_optional(
+            prim,
+            (
+                gltf::Semantic::Normals,
                 &format!("{field}.attributes.NORMAL"),
-                &[DataType::F32, DataType::I8, DataType::I16],
-            )?),
-            None => None,
-        };
-        let uvs: Option<Vec<[f32; 2]>> = match prim.get(&gltf::Semantic::TexCoords(0)) {
-            Some(a) => Some(self.read_floats(
-                &a,
+            ),
+            &[DataType::F32, DataType::I8, DataType::I16],
+        )?;
+        let uvs: Option<Vec<[f32; 2]>> = self.read_optional(
+            prim,
+            (
+                gltf::Semantic::TexCoords(0),
                 &format!("{field}.attributes.TEXCOORD_0"),
-                &[DataType::F32, DataType::U8, DataType::U16],
-            )?),
-            None => None,
-        };
+            ),
+            &[DataType::F32, DataType::U8, DataType::U16],
+        )?;
         let n = positions.len();
         for (what, len) in [
             ("NORMAL", normals.as_ref().map(Vec::len)),
@@ -125,6 +125,18 @@ impl Reader<'_> {
             uvs,
             indices,
         })
+    }
+
+    /// The primitive's attribute `semantic` (its field `field`) as [`Reader::read_floats`]
+    /// reads it, where the primitive has it.
+    fn read_optional<const N: usize>(
+        &self,
+        prim: &gltf::Primitive,
+        (semantic, field): (gltf::Semantic, &str),
+        types: &[DataType],
+    ) -> Result<Option<Vec<[f32; N]>>> {
+        let read = |a| self.read_floats(&a, field, types);
+        prim.get(&semantic).map(read).transpose()
     }
 
     /// Room in the scene's triangle list for `total` triangles, refused with an error (not an
