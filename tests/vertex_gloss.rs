@@ -11,7 +11,8 @@ use common::{
 use glam::Vec3;
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::draw::gloss::Gloss;
-use wavelet_prt::draw::raster::{ViewDependent, rasterize_glossy};
+use wavelet_prt::draw::raster::rasterize_glossy;
+use wavelet_prt::draw::shading::ViewDependent;
 use wavelet_prt::draw::vertex::{vertex_colours, vertex_terms};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::math::cubemap::{solid_angles, texel_dirs};

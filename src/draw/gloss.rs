@@ -5,7 +5,8 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::draw::raster::{ViewDependent, check_colours, interpolated_normal};
+use crate::draw::raster::check_colours;
+use crate::draw::shading::{ViewDependent, interpolated_normal};
 use crate::error::{PrtError, Result};
 use crate::scene::brdf_factor::{BrdfFactors, to_local};
 

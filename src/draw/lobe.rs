@@ -13,7 +13,7 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::draw::raster::{ViewDependent, interpolated_normal};
+use crate::draw::shading::{ViewDependent, interpolated_normal};
 use crate::error::{PrtError, Result};
 use crate::math::cube_pyramid::{CubePyramid, dir_to_morton};
 use crate::math::cubemap::texel_count;

@@ -10,4 +10,5 @@ pub mod gpu;
 pub mod lobe;
 pub mod raster;
 pub mod sh_gloss;
+pub mod shading;
 pub mod vertex;

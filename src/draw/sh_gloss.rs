@@ -7,7 +7,7 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::draw::raster::{ViewDependent, interpolated_normal};
+use crate::draw::shading::{ViewDependent, interpolated_normal};
 use crate::error::Result;
 use crate::math::cube_pyramid::CubePyramid;
 use crate::math::sh;

@@ -15,8 +15,9 @@ use std::borrow::Cow;
 
 use crate::draw::gloss::Gloss;
 use crate::draw::lobe::{DEFAULT_LOBE_SAMPLES, Lobe};
-use crate::draw::raster::{Raster, Texturing, ViewDependent, rasterize_glossy};
+use crate::draw::raster::{Raster, rasterize_glossy};
 use crate::draw::sh_gloss::ShGloss;
+use crate::draw::shading::{Texturing, ViewDependent};
 use crate::math::cube_pyramid::CubePyramid;
 use crate::relight::sh_transfer::ShTransfer;
 use crate::scene::Camera;

@@ -5,7 +5,8 @@
 use wgpu::util::DeviceExt;
 
 use crate::draw::lobe::{DEFAULT_LOBE_SAMPLES, lobe_taps};
-use crate::draw::raster::{Texturing, check_mesh};
+use crate::draw::raster::check_mesh;
+use crate::draw::shading::Texturing;
 use crate::error::{PrtError, Result};
 use crate::gpu::GpuDevice as Gpu;
 use crate::scene::albedo_map::wrap_code;
