@@ -87,6 +87,7 @@ mod assemble;
 mod file;
 mod legacy;
 mod lights;
+mod merge;
 mod meta;
 mod reader;
 mod save;
@@ -101,9 +102,10 @@ use crate::store::container;
 use crate::store::quant::scale_of;
 pub use crate::store::quant::{BLOCK_ROWS, Quantization};
 
-pub use assemble::{EncodedTile, KeptTiles, RowData, Untiled, shard_of_band};
+pub use assemble::{EncodedTile, KeptTiles, RowData, Untiled};
 pub use file::{read_format_version, read_header_meta, read_summary};
 pub use lights::LightColumns;
+pub use merge::shard_of_band;
 pub use meta::{
     BakeDomain, BakeIdentity, BakeStats, BounceVisibility, CameraMeta, IndirectSettings,
     PerVertexMeta, TransportMeta,
