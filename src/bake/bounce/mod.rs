@@ -341,6 +341,20 @@ impl<'a> Bounces<'a> {
         stream: u64,
         scale: f32,
         rows: &mut [Vec<f32>; 3],
+        lights: Option<(&LightSampler, &mut [Vec3])>,
+    ) -> u64 {
+        self.add_along_paths(start, (stream, scale), Some(rows), lights)
+    }
+
+    /// Walks the paths of a camera sub-sample and adds `scale` times what each vertex sends:
+    /// its rows to `rows`, and (at surface vertices; local lights are not baked through a
+    /// medium, the settings refuse them) one sample of each local light's column to `lights`'
+    /// columns. Returns the rays traced.
+    fn add_along_paths(
+        &self,
+        start: &ShadingPoint,
+        (stream, scale): (u64, f32),
+        mut rows: Option<&mut [Vec<f32>; 3]>,
         mut lights: Option<(&LightSampler, &mut [Vec3])>,
     ) -> u64 {
         let mut shadow = 0;
@@ -355,7 +369,9 @@ impl<'a> Bounces<'a> {
                     columns,
                 );
             }
-            shadow += self.vertex_rows(at, throughput * scale, rows);
+            if let Some(rows) = rows.as_deref_mut() {
+                shadow += self.vertex_rows(at, throughput * scale, rows);
+            }
         });
         rays + shadow
     }
@@ -484,20 +500,7 @@ impl<'a> Bounces<'a> {
         sampler: &LightSampler,
         columns: &mut [Vec3],
     ) {
-        self.walk(start, stream, &mut |path, bounce, at, throughput| {
-            // Local lights are not baked through a medium (the settings refuse them).
-            let Vertex::Surface(at) = at else {
-                return;
-            };
-            self.light_vertex(
-                stream,
-                [path, bounce],
-                at,
-                throughput * scale,
-                sampler,
-                columns,
-            );
-        });
+        self.add_along_paths(start, (stream, scale), None, Some((sampler, columns)));
     }
 
     /// The fast case of [`Bounces::vertex_row`]: a Lambertian vertex, one sample a texel,
