@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::store::transport::BakeDomain;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Arguments of `prt bake`.
@@ -438,34 +439,39 @@ fn warn_if_no_pixel_sees_the_scene(m: &crate::store::transport::TransportMeta) {
     }
 }
 
+/// A progress bar for each bake of a study, in turn (a study bakes a view, then its mesh's
+/// vertices): a bake whose size is not the bar's gets a bar of its own, and a bar is cleared
+/// when its bake is done.
+fn bar_per_bake(bar: &Mutex<Option<ProgressBar>>) -> impl Fn(BakeProgress) + Sync + '_ {
+    move |p: BakeProgress| {
+        if p.pixels_total == 0 {
+            return;
+        }
+        let mut guard = bar.lock().unwrap_or_else(|e| e.into_inner());
+        if guard
+            .as_ref()
+            .is_none_or(|b| b.length() != Some(p.pixels_total as u64))
+        {
+            *guard = Some(progress_bar(p.pixels_total));
+        }
+        let Some(b) = guard.as_mut() else { return };
+        b.set_position(p.pixels_done as u64);
+        if p.pixels_done == p.pixels_total {
+            b.finish_and_clear();
+            *guard = None;
+        }
+    }
+}
+
 pub(super) fn paper(out: PathBuf) -> Result<()> {
     crate::files::check_output_folder(&out)?;
     let start = Instant::now();
-    let bar = std::sync::Mutex::new(None::<ProgressBar>);
+    let bar = Mutex::new(None);
     let report = crate::app::studies::paper::run_paper(
         &out,
         &Default::default(),
         &mut |line| eprintln!("{line}"),
-        &|p: BakeProgress| {
-            let mut guard = bar.lock().unwrap_or_else(|e| e.into_inner());
-            if p.pixels_total == 0 {
-                return;
-            }
-            // One bar per bake: the per-pixel one, then the per-vertex one.
-            if guard
-                .as_ref()
-                .is_none_or(|b| b.length() != Some(p.pixels_total as u64))
-            {
-                *guard = Some(progress_bar(p.pixels_total));
-            }
-            let Some(b) = guard.as_mut() else { return };
-            b.set_length(p.pixels_total as u64);
-            b.set_position(p.pixels_done as u64);
-            if p.pixels_done == p.pixels_total {
-                b.finish_and_clear();
-                *guard = None;
-            }
-        },
+        &bar_per_bake(&bar),
     )?;
     println!(
         "everything in {:.1} s\nreport   {}\npicture  {}",
@@ -479,25 +485,11 @@ pub(super) fn paper(out: PathBuf) -> Result<()> {
 pub(super) fn demo(out: PathBuf) -> Result<()> {
     crate::files::check_output_folder(&out)?;
     let start = Instant::now();
-    let bar = std::sync::Mutex::new(None::<ProgressBar>);
+    let bar = Mutex::new(None);
     let report = crate::app::studies::demo::run_demo(
         &out,
         &mut |line| eprintln!("{line}"),
-        &|p: BakeProgress| {
-            let mut guard = bar.lock().unwrap_or_else(|e| e.into_inner());
-            // One bar per bake: the per-pixel one, then the per-vertex one.
-            if guard
-                .as_ref()
-                .is_none_or(|b| b.length() != Some(p.pixels_total as u64))
-            {
-                *guard = Some(progress_bar(p.pixels_total));
-            }
-            let Some(b) = guard.as_mut() else { return };
-            b.set_position(p.pixels_done as u64);
-            if p.pixels_done == p.pixels_total {
-                b.finish_and_clear();
-            }
-        },
+        &bar_per_bake(&bar),
     )?;
     println!(
         "{}",

@@ -5,11 +5,9 @@ use super::*;
 use crate::relight::{Backend, LightMix, Terms};
 use strum::{IntoStaticStr, VariantArray};
 
-/// Arguments of `prt relight`.
+/// What lights an image and where it goes: `prt relight`'s and `prt reference`'s.
 #[derive(Args, Debug)]
-pub struct RelightArgs {
-    /// Transport file.
-    pub file: PathBuf,
+pub struct LitImage {
     /// Environment: an .exr/.hdr lat-long map, a bundled map by name (`prt env --list`),
     /// sun:ELEV,AZIM[,RADIUS], or none (the local lights alone).
     #[arg(long)]
@@ -20,6 +18,16 @@ pub struct RelightArgs {
     /// Output image (.exr linear, .png tone-mapped).
     #[arg(short, long)]
     pub output: PathBuf,
+}
+
+/// Arguments of `prt relight`.
+#[derive(Args, Debug)]
+pub struct RelightArgs {
+    /// Transport file.
+    pub file: PathBuf,
+    /// The light and the image it makes.
+    #[command(flatten)]
+    pub lit: LitImage,
     /// wavelet, sh, full or sh-light (SH through the light, at any --sh-order up to 142).
     #[arg(long, default_value = "wavelet", value_parser = Method::from_str)]
     pub method: Method,
@@ -122,16 +130,9 @@ pub struct ReferenceArgs {
     /// `prt relight --eye`.
     #[command(flatten)]
     pub moved: MovedCamera,
-    /// Environment: an .exr/.hdr lat-long map, a bundled map by name (`prt env --list`),
-    /// sun:ELEV,AZIM[,RADIUS], or none (the local lights alone).
-    #[arg(long)]
-    pub env: String,
-    /// The local lights (`--light`), as `prt relight` takes them.
+    /// The light and the image it makes, as `prt relight` takes them.
     #[command(flatten)]
-    pub lights: LocalLightArgs,
-    /// Output image (.exr linear, .png tone-mapped).
-    #[arg(short, long)]
-    pub output: PathBuf,
+    pub lit: LitImage,
     /// The sampling, as a bake of the scene would take it.
     #[command(flatten)]
     pub sampling: SamplingArgs,
@@ -187,9 +188,9 @@ crate::named!(EnvLightKind, "environment light");
 pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let (method, weighting, background) = (a.method, a.weighting, a.background);
     check_light_flags(a.turn.yaw, a.turn.pitch, a.exposure)?;
-    let mut inputs = env_files(std::slice::from_ref(&a.env));
+    let mut inputs = env_files(std::slice::from_ref(&a.lit.env));
     inputs.push(a.file.clone());
-    check_image_output(&a.output, &inputs)?;
+    check_image_output(&a.lit.output, &inputs)?;
     crate::draw::raster::sample_offsets(a.samples)?;
     let gpu = open_device(a.device)?;
     // The header first (the cube's size, its SH order, the lights), then the environment, so that
@@ -197,8 +198,8 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     // read or recorded, the cube gathered, its Haar and SH coefficients taken): a fresh process
     // then spends on its light, after the load, little more than the selection of terms.
     let header = crate::store::transport::read_header_meta(&a.file)?;
-    let mix = a.lights.mix(&header.lights)?;
-    let env = optional_env(&a.env, &mix)?;
+    let mix = a.lit.lights.mix(&header.lights)?;
+    let env = optional_env(&a.lit.env, &mix)?;
     let rotation = a.turn.rotation();
     let sizes = (
         header.identity.cube_n as usize,
@@ -296,7 +297,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
             &crate::draw::background::environment_behind(&t.meta, &coverage, env, rotation)?,
         ),
     };
-    img.save(&a.output, tone)?;
+    img.save(&a.lit.output, tone)?;
     let lit = match stats.light_columns {
         0 => String::new(),
         n => format!(", {n} light column(s) added"),
@@ -329,7 +330,7 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
             Some(g) => format!("GPU ({})", g.adapter),
             None => "CPU".to_string(),
         },
-        a.output.display()
+        a.lit.output.display()
     );
     Ok(())
 }
@@ -339,8 +340,8 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     settings.validate()?;
     let background = a.background;
     check_light_flags(a.turn.yaw, a.turn.pitch, None)?;
-    let mut inputs = env_files(std::slice::from_ref(&a.env));
-    check_image_output(&a.output, &inputs)?;
+    let mut inputs = env_files(std::slice::from_ref(&a.lit.env));
+    check_image_output(&a.lit.output, &inputs)?;
     let mut scene = a.framing.load(&a.scene)?;
     let MovedCamera { eye, target, up } = a.moved;
     if eye.is_some() || target.is_some() || up.is_some() {
@@ -350,9 +351,9 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     }
     scene.camera.validate()?;
     inputs.extend(scene.input_files.iter().cloned());
-    check_image_output(&a.output, &inputs)?;
-    let mix = a.lights.mix(&scene.lights)?;
-    let env = optional_env(&a.env, &mix)?;
+    check_image_output(&a.lit.output, &inputs)?;
+    let mix = a.lit.lights.mix(&scene.lights)?;
+    let env = optional_env(&a.lit.env, &mix)?;
     let rotation = a.turn.rotation();
     let cube = match &env {
         Some(env) => env.to_cube(settings.cube_n, rotation)?,
@@ -430,13 +431,13 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
         ),
         _ => r.image,
     };
-    img.save(&a.output, tone)?;
+    img.save(&a.lit.output, tone)?;
     println!(
         "reference: {}x{}, {lit}, {:.1} s -> {}",
         img.width,
         img.height,
         start.elapsed().as_secs_f64(),
-        a.output.display()
+        a.lit.output.display()
     );
     if let Some(noise) = noise {
         println!(
