@@ -61,13 +61,7 @@ fn empty_space_is_exactly_2_sqrt_pi_in_band_0_and_nothing_else() {
 fn sphere_centre_sees_exp_minus_sigma_r_every_way() {
     // Constant sigma = 2 inside radius 0.75: from the centre tau = 1.5 along every direction.
     let m = sphere(48, 0.75, 2.0);
-    let t = bake_transfer(&m, &TransferSettings::default(), &|_, _| {}).unwrap();
-    let vt = VolumeTransfer {
-        meta: meta_for(&m, 3, 512),
-        density: m.grid.data.clone(),
-        transfer: t,
-        scatter: None,
-    };
+    let vt = baked_order_3(&m);
     let mut v = [0.0f32; 9];
     vt.transfer_at(Vec3::ZERO, &mut v);
     let want = 2.0 * std::f32::consts::PI.sqrt() * (-1.5f32).exp();
@@ -145,6 +139,17 @@ fn axis_aligned_sweep_of_a_slab_is_exact() {
     }
 }
 
+/// `m`'s transfer baked at order 3 with the default settings, with its metadata for 512
+/// directions.
+fn baked_order_3(m: &Medium) -> VolumeTransfer {
+    VolumeTransfer {
+        meta: meta_for(m, 3, 512),
+        density: m.grid.data.clone(),
+        transfer: bake_transfer(m, &TransferSettings::default(), &|_, _| {}).unwrap(),
+        scatter: None,
+    }
+}
+
 pub(crate) fn meta_for(m: &Medium, order: usize, directions: usize) -> VolumeMeta {
     VolumeMeta {
         dims: m.grid.dims,
@@ -171,13 +176,7 @@ pub(crate) fn meta_for(m: &Medium, order: usize, directions: usize) -> VolumeMet
 #[test]
 fn file_round_trip_and_damage() {
     let m = sphere(8, 0.7, 2.0);
-    let t = bake_transfer(&m, &TransferSettings::default(), &|_, _| {}).unwrap();
-    let vt = VolumeTransfer {
-        meta: meta_for(&m, 3, 512),
-        density: m.grid.data.clone(),
-        transfer: t,
-        scatter: None,
-    };
+    let vt = baked_order_3(&m);
     let dir = std::env::temp_dir().join(format!("prt-vol-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("v.prtv");
