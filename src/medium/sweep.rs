@@ -210,7 +210,9 @@ impl Sweeper {
     /// Each voxel takes the upstream point's `I`, `S` and `sigma_t` (bilinear in the previous
     /// slice; outside the grid `I` and `sigma_t` are zero and `S` is the voxel's own), and over the step of optical depth `Δ = h (sigma_x +
     /// sigma_up) / 2` adds `e^−Δ I_up + S_x (1 − (1 − e^−Δ)/Δ) + S_up ((1 − e^−Δ)/Δ − e^−Δ)`,
-    /// the exact integral for a source linear in optical depth.
+    /// the exact integral for a source linear in optical depth. It steps through the slices as
+    /// [`Sweeper::sweep`] does, a twin by design: that one carries one optical depth a voxel,
+    /// this one `channels` values and their sources, in a loop of its own for speed.
     pub fn gather(&self, dir: Vec3, channels: usize, source: &[f32], out: &mut [f32]) {
         let (layout, st) = self.stepping(dir);
         let Stepping {

@@ -90,7 +90,8 @@ impl Recorder {
 
     /// Adds the last pieces of cell part [u0, u1] x [v0, v1] to `pieces`. `tau` is the part's span
     /// across its cell's width; `corners` are the texels of (u0, v0), (u1, v0), (u0, v1),
-    /// (u1, v1).
+    /// (u1, v1). The same cuts as the exact splat's (`Splatter::splat` in [`crate::math::cubemap`],
+    /// its slow twin by design), recording the pieces instead of adding their power.
     pub(super) fn splat(
         &self,
         (u0, u1, v0, v1): (Edge, Edge, Edge, Edge),
