@@ -29,7 +29,7 @@
 //! the **average** radiance over its solid angle (area resampling, see [`crate::math::cubemap`]).
 //!
 //! # Light vector and transport
-//! Texel light j carries radiance L_j. Outgoing radiance at pixel p is `Σ_j T[p][j] L_j`, where T[p][j]
+//! Texel light j carries radiance L_j. Outgoing radiance at pixel p is `Σ_j T[p][j] L_j`, where `T[p][j]`
 //! integrates visibility × BRDF × cosine over texel j's solid angle, so T contains the solid angle
 //! and L is a radiance. Relighting with every term reproduces the brute-force render exactly.
 //!

@@ -11,11 +11,11 @@ use crate::error::{PrtError, Result};
 /// What messages call an environment made from an array.
 const ARRAY: &str = "array";
 
-/// Numbers the environments, so that a [`Relighter`] knows one it has prepared.
+/// Numbers the environments, so that a [`Relighter`](super::Relighter) knows one it has prepared.
 static NEXT_ENVIRONMENT: AtomicU64 = AtomicU64::new(0);
 
 /// A lat-long environment map ready to light with: loaded, checked, and shared by its clones.
-/// A [`Relighter`] prepares each environment once per rotation, so relight many times with the
+/// A [`Relighter`](super::Relighter) prepares each environment once per rotation, so relight many times with the
 /// same value (or its clones) rather than making it again.
 #[derive(Clone, Debug)]
 pub struct Environment {

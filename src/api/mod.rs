@@ -514,7 +514,7 @@ impl Relighter {
     /// coefficients j, the RGB value that light coefficient j adds to the pixel per unit of
     /// light (the pixel's rows weighed by their albedo and sub-sample weights, as stored, so
     /// quantised unless the bake was lossless). The wavelet relight of a light L is
-    /// Σ_j row[j] · L[j], plus the local lights.
+    /// `Σ_j row[j] · L[j]`, plus the local lights.
     pub fn row(&self, pixel: usize) -> Result<Vec<[f32; 3]>> {
         let t = &self.transport;
         let mut dense = vec![[0.0f64; 3]; t.coeff_count()];
@@ -535,7 +535,7 @@ impl Relighter {
 
     /// Pixel `pixel`'s SH transport row, n² RGB values at the baked order, weighed as
     /// [`Relighter::row`] is: the SH relight of a light of SH coefficients L is
-    /// Σ_i row[i] · L[i].
+    /// `Σ_i row[i] · L[i]`.
     pub fn sh_row(&self, pixel: usize) -> Result<Vec<[f32; 3]>> {
         let t = &self.transport;
         let shc = t.sh_count();

@@ -59,7 +59,7 @@ pub fn bundled_env_dir() -> Option<PathBuf> {
 pub enum EnvSource {
     /// A lat-long EXR or HDR file.
     File(PathBuf),
-    /// The procedural sun and sky, placed by [`ViewState::sun_elev`] and [`ViewState::sun_azim`].
+    /// The procedural sun and sky, placed by [`LightState::sun`].
     Sun,
 }
 
@@ -372,7 +372,7 @@ impl Rendered {
     }
 
     /// What the window shows, as one RGB8 image: the panes side by side, or with
-    /// [`Layout::Split`] each (SH, wavelet) pair as one image split at [`ViewState::split`] by a
+    /// [`Layout::Split`] each (SH, wavelet) pair as one image split at [`DisplayState::split`] by a
     /// white line.
     pub fn composite(&self, gap: usize) -> (usize, usize, Vec<u8>) {
         if !self.state.split_pairs() {

@@ -2,7 +2,7 @@
 //! cube map directly, with no rows, no surface cache and none of the bake's paths.
 //!
 //! At every path vertex it draws one light direction from the map by importance
-//! ([`CubeSampler`]) and one direction from the material ([`Lobes::sample`]), and weighs the two
+//! ([`crate::env::importance::CubeSampler`]) and one direction from the material ([`crate::scene::brdf::Lobes::sample`]), and weighs the two
 //! by multiple importance sampling with the power heuristic (Veach 1997), as pbrt-v4's path
 //! integrator does. The map is the same piecewise-constant cube of texels the bake is lit by, so
 //! a converged image differs from the bake's with every term only by the bake's own errors (its

@@ -13,7 +13,7 @@
 //!
 //! A textured mesh ([`Texturing`]) multiplies each drawn pixel by its material's albedo map,
 //! read at the pixel's perspective-correct texture coordinate with the level of detail of
-//! [`AlbedoMap::lod`]. The coordinate's screen derivatives are those a GPU's fine derivatives take
+//! [`crate::scene::albedo_map::AlbedoMap::lod`]. The coordinate's screen derivatives are those a GPU's fine derivatives take
 //! (`dpdxFine`, `dpdyFine`): differences across the pixel's aligned 2 × 2 quad, each pixel of it
 //! interpolated (or extrapolated) on the same triangle. So the twins read the same texels.
 //!

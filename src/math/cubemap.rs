@@ -364,7 +364,7 @@ pub(crate) fn splat_limits(n: usize, width: usize, height: usize) -> (f64, f64) 
 /// texel-average radiance, with the environment turned by `world_from_map` (any rotation).
 ///
 /// Each lat-long cell's power (radiance x exact cell solid angle) is split over the texels it
-/// overlaps (see [`Splatter`]); a texel's radiance is its power over the solid angle it received.
+/// overlaps (see `Splatter`); a texel's radiance is its power over the solid angle it received.
 /// A constant map gives a constant cube and the total power is kept to rounding error.
 ///
 /// This is the direct splat, cell by cell, with trigonometry at every cut: the slow twin of

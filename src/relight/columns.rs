@@ -1,5 +1,5 @@
 //! The local lights' part of a relight: the weighted sum of a transport's light columns
-//! ([`crate::store::transport::lights`]) added to the image, one weight per column, beside the
+//! (`store::transport::lights`) added to the image, one weight per column, beside the
 //! environment's sparse product.
 
 use rayon::prelude::*;

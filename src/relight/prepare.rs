@@ -36,7 +36,7 @@ pub struct LightContext {
     /// Tabulated SH basis at the texel centres.
     pub basis: TexelShBasis,
     /// The face size of the cube a glossy lobe's light is prepared on besides
-    /// ([`crate::relight::lobe_light`]): for a transport that keeps visibility.
+    /// ([`crate::relight::lobe_light()`]): for a transport that keeps visibility.
     pub lobe_n: Option<usize>,
     /// Support solid angle of every Haar coefficient of that cube (empty without it).
     pub lobe_support: Vec<f32>,

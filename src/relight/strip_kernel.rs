@@ -11,14 +11,14 @@
 //! - A slot that holds every strip of its block (32, or fewer in a tile's last block; a bake
 //!   stores a slot so from half full, and on the demo bake 96% of the strips lie in such slots)
 //!   goes to its block's list. Those are added a panel of 4 strips at a time, with the panel's
-//!   12 accumulators held in registers across up to 64 terms ([`add_panels`]): a strip then
+//!   12 accumulators held in registers across up to 64 terms (`add_panels`): a strip then
 //!   costs one widening load, one conversion and three fused multiply-adds, with no accumulator
 //!   traffic. The slot's next cache line is fetched ahead into the first-level cache, and the
 //!   next block's slot of the same term, which follows in memory, into the second.
 //! - The other slots are added strip by strip into the accumulators in memory, each slot's values
 //!   and places fetched a few slots ahead, since they are short runs scattered among the whole
 //!   ones (which the panels have just read).
-//! - The rows' sums go to their pixels a strip at a time ([`add_rows_avx2`]): scaled, turned
+//! - The rows' sums go to their pixels a strip at a time (`add_rows_avx2`): scaled, turned
 //!   from three channels into the rows' RGB, weighted and added to 8 pixels at once where the
 //!   strip's rows light 8 pixels in a row, with the portable arithmetic, so the same bits.
 //!

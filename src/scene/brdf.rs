@@ -14,7 +14,7 @@ pub fn diffuse_cosine(n: Vec3, l: Vec3) -> f32 {
 /// GGX (Trowbridge–Reitz) microfacet lobe with the separable Smith shadowing term, per unit of
 /// specular colour: `D(h) · G1(l) · G1(v) / (4 (n·l)(n·v)) · (n·l)`. `alpha` is the GGX width
 /// (perceptual roughness squared); `v` points from the surface towards the viewer. Evaluated in
-/// f64 with [`ggx_d`], so it stays finite down to the narrowest lobe a material may have.
+/// f64 with `ggx_d`, so it stays finite down to the narrowest lobe a material may have.
 #[inline]
 pub fn ggx_cosine(n: Vec3, v: Vec3, l: Vec3, alpha: f32) -> f32 {
     let (n, v, l) = (n.as_dvec3(), v.as_dvec3(), l.as_dvec3());

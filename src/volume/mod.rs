@@ -3,7 +3,7 @@
 //! each direction projected onto SH, so that any environment relights the medium by ray marching
 //! (`render.rs`, `gpu.rs`) with a free camera.
 //!
-//! The optical depth towards a direction is not marched per voxel: [`Sweeper`](crate::medium::sweep::Sweeper) sweeps the grid
+//! The optical depth towards a direction is not marched per voxel: [`crate::medium::sweep::Sweeper`] sweeps the grid
 //! once per direction, slice by slice from the side the light comes from. Each voxel takes the
 //! optical depth of the point one slice upstream (bilinear in the previous slice, the same weights
 //! for the whole slice) plus the trapezoid of the density over that step. The projection uses D

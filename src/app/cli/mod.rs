@@ -1,5 +1,8 @@
 //! The `prt` command line: argument parsing, progress bars and printing. Everything else is the
 //! library; this module is the only place that writes to the terminal.
+// The doc comments of the arguments are the help a terminal shows: brackets in them
+// (`sun:ELEV,AZIM[,RADIUS]`, a scene file's `[medium]` table) are text, not links.
+#![allow(rustdoc::broken_intra_doc_links)]
 
 use std::path::{Path, PathBuf};
 use std::str::FromStr;

@@ -1,5 +1,5 @@
 //! The studies: the demo and its scenes ([`demo`], with [`orbit`], [`gloss_orbit`], [`dusk`] and
-//! [`truck`]), the error, time and storage sweeps ([`bench`], [`gloss_bench`], [`lights_bench`],
+//! [`truck`]), the error, time and storage sweeps ([`bench`](mod@bench), [`gloss_bench`], [`lights_bench`],
 //! [`volume_orders`]) and the paper's measurements ([`paper`]): each bakes, relights and measures
 //! through the library, and writes its tables, plots and sheets.
 

@@ -105,7 +105,7 @@ impl Engine {
         })
     }
 
-    /// Lets [`ViewState::gpu`] relight on `gpu` (the transport is uploaded on first use).
+    /// Lets [`DisplayState::gpu`](super::DisplayState::gpu) relight on `gpu` (the transport is uploaded on first use).
     pub fn attach_gpu(&mut self, gpu: Gpu) {
         self.gpu = Some(gpu);
         self.display = None;

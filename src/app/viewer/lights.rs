@@ -100,7 +100,7 @@ impl LightsState {
     }
 
     /// Brings the controls into range for `lights`: one per light (reset when they do not
-    /// match), stops within ±[`STOPS`], colours finite and >= 0, places on the path, solo on a
+    /// match), stops within ±`STOPS`, colours finite and >= 0, places on the path, solo on a
     /// light that exists.
     pub fn clamp(&mut self, lights: &[Light]) {
         if self.lights.len() != lights.len() {
@@ -188,7 +188,7 @@ const LIGHT_SLIDER_WIDTH: f32 = 64.0;
 
 /// The Lights panel: the heading with the environment's switch, then one row per light (its
 /// switch, solo, colour and intensity in stops) and, for a light that moves, a row per axis of
-/// its path; past [`LIST_ROWS`] rows the list scrolls, so the rows below stay in the window.
+/// its path; past `LIST_ROWS` rows the list scrolls, so the rows below stay in the window.
 pub fn lights_controls(ui: &mut egui::Ui, lights: &[Light], state: &mut LightsState) {
     ui.horizontal(|ui| {
         ui.heading("Lights").on_hover_text(

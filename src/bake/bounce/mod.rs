@@ -1,7 +1,7 @@
 //! Interreflections by next-event estimation into the row.
 //!
 //! From every camera hit, `paths` paths of up to `bounces` bounces are drawn by importance
-//! ([`Lobes::sample`]: cosine and GGX mixed by multiple importance sampling). At every vertex a
+//! ([`crate::scene::brdf::Lobes::sample`]: cosine and GGX mixed by multiple importance sampling). At every vertex a
 //! path reaches, the path's throughput times that vertex's own direct row (visibility x f x cos x
 //! solid angle to every texel sample) is added to the pixel's three colour rows: the interreflected
 //! transfer of Sloan et al. 2002, per pixel. A path that leaves the scene adds nothing, since the

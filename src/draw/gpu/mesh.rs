@@ -336,7 +336,7 @@ impl GpuMesh {
 }
 
 /// Uploads per-vertex colours into a storage buffer of `vec4<f32>` (alpha 1), the layout
-/// [`GpuRaster::draw`] reads. Non-finite colours are an error.
+/// [`super::raster::GpuRaster::draw`] reads. Non-finite colours are an error.
 pub fn upload_colours(gpu: &Gpu, colours: &[[f32; 3]]) -> Result<wgpu::Buffer> {
     crate::draw::raster::check_colours(colours)?;
     let (bytes, max) = (

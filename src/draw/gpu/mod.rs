@@ -1,4 +1,4 @@
-//! The GPU raster: a mesh resident on the device ([`mesh`]) drawn with one colour per vertex from
+//! The GPU raster: a mesh resident on the device (`mesh`) drawn with one colour per vertex from
 //! any camera ([`raster`]), on the base device of [`crate::gpu`], so that whatever relit the
 //! colours (the relight kernels, or the CPU) the draw is the same.
 

@@ -195,7 +195,7 @@ impl GpuRaster {
     }
 
     /// Sets the light that the lobes of a bake with visibility are drawn from, as the relight
-    /// used it (what [`crate::relight::lobe_light`] gives), or none. Errors where its nodes
+    /// used it (what [`crate::relight::lobe_light()`] gives), or none. Errors where its nodes
     /// outgrow one binding.
     pub fn set_light(&mut self, gpu: &Gpu, light: Option<&CubePyramid>) -> Result<()> {
         let Some(p) = light else {

@@ -492,7 +492,7 @@ pub fn yaw_shift(width: usize, yaw_deg: f64) -> Result<(usize, f64)> {
 
 /// Resamples a `width` x `height` lat-long map into a cube of face size `n` turned by `rotation`:
 /// the cached weights gathered with the yaw's shift; a pitch splatted at the cells' centres
-/// where they are no larger than the smallest texels ([`pitch`]), else by weights recorded for
+/// where they are no larger than the smallest texels (`pitch`), else by weights recorded for
 /// it.
 pub fn resample_latlong(
     width: usize,

@@ -102,7 +102,7 @@ unsafe fn add_panel<V: StripValue, const N: usize>(
 const CACHED_SLOTS: usize = 64;
 
 /// The panels' arithmetic alone, the ceiling of the product on this processor however its
-/// strips are read: [`add_panels`] over 64 whole slots of 32 int8 strips that stay in the
+/// strips are read: `add_panels` over 64 whole slots of 32 int8 strips that stay in the
 /// first-level cache, made once so that a round times the panels and nothing else.
 pub struct CachedPanels {
     values: Vec<[i8; STRIP_ROWS]>,

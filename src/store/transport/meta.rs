@@ -210,7 +210,7 @@ pub struct TransportMeta {
     /// The mesh of a per-vertex bake (`identity.domain` is [`BakeDomain::Vertices`] exactly
     /// when this is present).
     pub per_vertex: Option<PerVertexMeta>,
-    /// Derived from the tables (see [`super::Transport::finish`]): the same for a bake and a
+    /// Derived from the tables (see [`super::TransportWriter::finish`]): the same for a bake and a
     /// merge.
     pub stats: BakeStats,
     /// The scene's local lights, in column order (each takes one column per position), with the

@@ -37,20 +37,20 @@
 //! | tensor | dtype, shape | what |
 //! |---|---|---|
 //! | `tile_row_start` | u32 [T+1] | tile t holds rows `tile_row_start[t] .. tile_row_start[t+1]`; its blocks are those rows in runs of 256 |
-//! | `row_pixel`, `row_weight` | u32 [R], f32 [R, 3] | the pixel (y · width + x) and RGB weight of each row |
-//! | `row_scale` | f32 [R] | each row's stored values are relative to this (its largest magnitude) |
+//! | `row_pixel`, `row_weight` | u32 \[R\], f32 [R, 3] | the pixel (y · width + x) and RGB weight of each row |
+//! | `row_scale` | f32 \[R\] | each row's stored values are relative to this (its largest magnitude) |
 //! | `strip_count` | u8 [B, C] | the strips of each slot, slots in (group, band, coefficient, block) order; they follow one another |
 //! | `col_scale` | u8 [B, C] | the scale code of each slot, in the same order: `scale = 2^((code − 192) / 4)` |
-//! | `strip_place` | u8 [S] | each strip's place in its block: rows `8 · place .. 8 · place + 8`, increasing within a slot |
+//! | `strip_place` | u8 \[S\] | each strip's place in its block: rows `8 · place .. 8 · place + 8`, increasing within a slot |
 //! | `strip_value` | i8, i16 or f32 [S, 8] | per strip, the integer (`quantization` q8, q16) or the value (f32, scale 1) of each of its rows, 0 where the row has no entry |
 //! | `sh` | f32 [R, n²] | SH transport of each row |
 //! | `albedo`, `coverage` | f32 [H, W, 3], f32 [H, W] | per pixel: albedo seen, fraction of sub-samples that hit |
-//! | `transport_magnitude` | f32 [C] | mean magnitude of each coefficient over the rows (transport weighting) |
+//! | `transport_magnitude` | f32 \[C\] | mean magnitude of each coefficient over the rows (transport weighting) |
 //! | `tile_stats` | f64 [T, 3] | per tile: energy dropped by thresholding and quantisation, total energy, shadow rays |
-//! | `mesh_position`, `mesh_normal`, `mesh_material`, `mesh_triangle` | f32 [V, 3], f32 [V, 3], u32 [V], u32 [F, 3] | only per vertex: the mesh ([`VertexMesh`]) |
+//! | `mesh_position`, `mesh_normal`, `mesh_material`, `mesh_triangle` | f32 [V, 3], f32 [V, 3], u32 \[V\], u32 [F, 3] | only per vertex: the mesh ([`VertexMesh`]) |
 //! | `mesh_uv`, `albedo_map`, `albedo_map_material`, `albedo_texel` | f32 [V, 2], u32 [M, 5], u32 [K, 2], u16 [X, 3] | only per vertex with textured materials: each vertex's texture coordinate; per albedo map its width, height, wrap along u and v (0 repeat, 1 mirrored repeat, 2 clamp) and filter (0 linear, 1 nearest); per textured material, the material and its map (materials with the same map share it); the maps' level-0 texels in turn, linear albedo as `q / 65535` ([`crate::scene::albedo_map`]) |
-//! | `brdf_terms`, `brdf_view`, `brdf_light` | u32 [M], f32 [M, S−1, r²], f32 [M, S−1, r²] | only per vertex with glossy materials baked with in-out terms: K_b of each material, and `g_k` and `h_k` of its terms 1..K_b on `r × r` hemi-octahedral maps (zero past its K_b), S the pixels a vertex takes (`per_vertex.brdf_stride`; r is `per_vertex.brdf_map`) ([`crate::scene::brdf_factor::BrdfFactors`]) |
-//! | `visibility_bits`, `visibility_lobe`, `visibility_vertex` | u32 [G, ⌈6N²/32⌉], f32 [M, 4], u32 [G] | only per vertex with `per_vertex.visibility`: per glossy vertex (listed, ascending), a bit a cube texel in Morton order, set where the texel is open; each material's GGX lobe (specular RGB, α; zero for a diffuse one) ([`crate::scene::visibility::Visibility`]) |
+//! | `brdf_terms`, `brdf_view`, `brdf_light` | u32 \[M\], f32 [M, S−1, r²], f32 [M, S−1, r²] | only per vertex with glossy materials baked with in-out terms: K_b of each material, and `g_k` and `h_k` of its terms 1..K_b on `r × r` hemi-octahedral maps (zero past its K_b), S the pixels a vertex takes (`per_vertex.brdf_stride`; r is `per_vertex.brdf_map`) ([`crate::scene::brdf_factor::BrdfFactors`]) |
+//! | `visibility_bits`, `visibility_lobe`, `visibility_vertex` | u32 [G, ⌈6N²/32⌉], f32 [M, 4], u32 \[G\] | only per vertex with `per_vertex.visibility`: per glossy vertex (listed, ascending), a bit a cube texel in Morton order, set where the texel is open; each material's GGX lobe (specular RGB, α; zero for a diffuse one) ([`crate::scene::visibility::Visibility`]) |
 //! | `light_value`, `light_scale` | u16 [L, 3, H, W], f32 [L, H] | only with local lights: each light column's RGB response per pixel, as fractions `q / 65535` of a scale per (column, pixel row) ([`LightColumns`]) |
 //!
 //! Version 4 added the local lights (the two `light_` tensors and the metadata's `lights` and
