@@ -79,6 +79,7 @@ pub fn direct_texels(
     let (unshadowed, medium) = (shadows.unshadowed, shadows.medium);
     let m = samples.per_texel;
     let mut shadow = SampleRays::new(shadows, samples, sp);
+    let ggx = alpha.map(|a| brdf::GgxAt::new(sp.normal, sp.view, a));
     for j in 0..samples.dirs.len() / m {
         let dirs = &samples.dirs[j * m..(j + 1) * m];
         let weights = &samples.weights[j * m..(j + 1) * m];
@@ -95,8 +96,8 @@ pub fn direct_texels(
                 w *= m.transmittance(sp.origin, *d, f32::INFINITY);
             }
             acc += brdf::diffuse_cosine(sp.normal, *d) * w;
-            if let Some(alpha) = alpha {
-                acc_glossy += brdf::ggx_cosine(sp.normal, sp.view, *d, alpha) * w;
+            if let Some(ggx) = &ggx {
+                acc_glossy += ggx.cosine(*d) * w;
             }
         }
         if acc != 0.0 || acc_glossy != 0.0 {
@@ -134,7 +135,8 @@ fn integrated_texels(
         Some(m) if !unshadowed => m.transmittance(sp.origin, d, f32::INFINITY),
         _ => 1.0,
     };
-    let ggx = |d: Vec3| lobe.map_or(0.0, |(a, ..)| brdf::ggx_cosine(n, sp.view, d, a));
+    let at = alpha.map(|a| brdf::GgxAt::new(n, sp.view, a));
+    let ggx = |d: Vec3| at.as_ref().map_or(0.0, |g| g.cosine(d));
     for (j, &centre) in centres.iter().enumerate() {
         if centre == Centre::Below {
             continue;

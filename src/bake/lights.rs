@@ -84,6 +84,7 @@ impl LightSampler {
         let mut rays = 0;
         let (n, v) = (at.normal, at.view);
         let glossy = mis && lobes.specular != Vec3::ZERO;
+        let lobes_at = lobes.at(n, v);
         let visible = |dir: Vec3, dist: f32, rays: &mut u64| {
             unshadowed || {
                 *rays += 1;
@@ -101,7 +102,7 @@ impl LightSampler {
                 if n.dot(s.dir) <= 0.0 {
                     return Vec3::ZERO;
                 }
-                let f = lobes.eval_cosine(n, v, s.dir);
+                let f = lobes_at.eval_cosine(s.dir);
                 if f == Vec3::ZERO || !visible(s.dir, s.dist, rays) {
                     return Vec3::ZERO;
                 }

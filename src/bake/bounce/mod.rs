@@ -273,9 +273,10 @@ impl<'a> Bounces<'a> {
         let m = self.samples.per_texel;
         let diffuse = throughput * lobes.albedo * std::f32::consts::FRAC_1_PI;
         let glossy = lobes.specular != Vec3::ZERO;
+        let lobes_at = lobes.at(at.normal, at.view);
         let mut emit = |s: usize, cos: f32| {
             let value = if glossy {
-                throughput * lobes.eval_cosine(at.normal, at.view, dirs[s])
+                throughput * lobes_at.eval_cosine(dirs[s])
             } else {
                 diffuse * cos
             };
