@@ -795,6 +795,31 @@ fn orbit_on_the_command_line_turns_a_per_vertex_bake_and_is_refused_for_a_fixed_
     assert!(text.contains("--screenshot"), "{text}");
 }
 
+#[test]
+fn sh_transfer_on_the_command_line_needs_a_bake_with_visibility_and_a_screenshot() {
+    let dir = common::temp_dir("viewer-sh-transfer-cli");
+    // A matte scene's per-vertex bake keeps no visibility.
+    let file = common::per_vertex_transport_path();
+    let out = dir.join("transfer.png");
+    let (code, text) = common::prt(&[
+        "view",
+        file.to_str().unwrap(),
+        "--screenshot",
+        out.to_str().unwrap(),
+        "--sh-transfer",
+        "6",
+    ]);
+    assert_ne!(code, 0);
+    assert!(
+        text.contains("--sh-transfer") && text.contains("visibility"),
+        "{text}"
+    );
+    assert!(!out.exists());
+    let (code, text) = common::prt(&["view", file.to_str().unwrap(), "--sh-transfer", "6"]);
+    assert_ne!(code, 0);
+    assert!(text.contains("--screenshot"), "{text}");
+}
+
 /// The pixels' difference between two renders' first panes (linear, before tone mapping).
 fn difference(
     a: &wavelet_prt::app::viewer::Rendered,

@@ -53,6 +53,11 @@ pub struct ViewArgs {
     /// optionally DISTANCE, a multiple of the bake camera's distance (with --screenshot).
     #[arg(long, allow_hyphen_values = true, value_parser = Orbit::from_str)]
     pub orbit: Option<Orbit>,
+    /// A per-vertex bake with visibility: draw the glossy light by SH glossy transfer at this SH
+    /// order (1 to 8) instead of the lobe per pixel, as `prt relight --sh-transfer` does (with
+    /// --screenshot).
+    #[arg(long)]
+    pub sh_transfer: Option<usize>,
 }
 
 pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
@@ -71,6 +76,7 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
             || a.split.is_some()
             || a.tone.is_some()
             || a.orbit.is_some()
+            || a.sh_transfer.is_some()
         {
             return Err(PrtError::invalid(
                 "viewer",
@@ -109,11 +115,12 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
             || a.error_map
             || a.split.is_some()
             || a.orbit.is_some()
+            || a.sh_transfer.is_some()
         {
             return Err(PrtError::invalid(
                 "viewer",
-                "--method, --terms, --weighting, --light, --compare, --split, --error-map and \
-                 --orbit apply to transport files; for a volume's views and cameras use `prt \
+                "--method, --terms, --weighting, --light, --compare, --split, --error-map, \
+                 --orbit and --sh-transfer apply to transport files; for a volume's views and cameras use `prt \
                  volume render`",
             ));
         }
@@ -169,6 +176,24 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
             crate::flags::sh_order(o, limits.sh_order)?;
         }
         state.relight.sh_order = o;
+    }
+    if let Some(order) = a.sh_transfer {
+        let mesh = crate::draw::vertex::mesh_of(&engine.transport)?;
+        if mesh.visibility.is_none() {
+            return Err(PrtError::invalid(
+                "--sh-transfer",
+                "SH glossy transfer draws a per-vertex bake with visibility (a glossy scene's \
+                 `prt bake --per-vertex` keeps it by default)",
+            ));
+        }
+        let most = crate::relight::sh_transfer::MAX_TRANSFER_ORDER;
+        if !(1..=most).contains(&order) {
+            return Err(PrtError::invalid(
+                "--sh-transfer",
+                format!("{order}; the glossy transfer matrix takes orders 1 to {most}"),
+            ));
+        }
+        state.display.sh_transfer = Some(order);
     }
     if let Some(o) = a.orbit {
         crate::draw::vertex::mesh_of(&engine.transport)?;

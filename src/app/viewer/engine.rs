@@ -10,6 +10,7 @@ use std::time::Instant;
 
 use super::*;
 use crate::draw::background::{composite, environment_behind};
+use crate::draw::raster::Raster;
 use crate::draw::vertex::{self, bake_camera};
 use crate::env::envmap::{EnvMap, EnvRotation, EnvSpec};
 use crate::error::{PrtError, Result};
@@ -18,6 +19,7 @@ use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{ErrorImage, HeatScale};
 use crate::relight::gpu::{Gpu, GpuBackend, GpuTransport};
+use crate::relight::sh_transfer::ShTransfer;
 use crate::relight::{Backend, LightContext, PreparedLight, RelightRequest, RelightStats, relight};
 use crate::scene::Camera;
 use crate::store::transport::Transport;
@@ -59,6 +61,9 @@ pub struct Engine {
     gpu: Option<Gpu>,
     /// The transport on the attached GPU and its display path, once uploaded.
     display: Option<DisplayPath>,
+    /// The SH glossy transfer matrices of a per-vertex bake with visibility, at the order last
+    /// drawn with.
+    transfer: Option<(usize, ShTransfer)>,
 }
 
 impl Engine {
@@ -102,6 +107,7 @@ impl Engine {
             backdrop: None,
             gpu: None,
             display: None,
+            transfer: None,
         })
     }
 
@@ -328,21 +334,61 @@ impl Engine {
         // unlit undersides of two-sided surfaces among them).
         Ok(match self.camera(&s) {
             Some(camera) => {
-                let t = &self.transport;
                 let lobe = self.lobe_light(&RelightRequest::Full, s.lights.environment_shown())?;
-                let drawn = vertex::draw_relit(
-                    t,
-                    full,
-                    lobe.as_ref(),
-                    &camera,
-                    None,
-                    s.draw_samples(),
-                    Default::default(),
-                )?;
+                self.make_transfer(s.display.sh_transfer)?;
+                let drawn = self.draw_vertices(full, lobe.as_ref(), &camera, &s)?;
                 ToneMap::auto(&drawn.image, Some(&drawn.coverage)).exposure
             }
             None => ToneMap::auto(full, None).exposure,
         })
+    }
+
+    /// Makes the SH glossy transfer matrices at `order` (a per-vertex bake with visibility;
+    /// nothing otherwise), unless they are the last ones made.
+    fn make_transfer(&mut self, order: Option<usize>) -> Result<()> {
+        let Some(order) = order else {
+            return Ok(());
+        };
+        let mesh = self.transport.domain.mesh();
+        let Some(vis) = mesh.and_then(|m| m.visibility.as_deref()) else {
+            return Ok(());
+        };
+        if self.transfer.as_ref().is_none_or(|(o, _)| *o != order) {
+            self.transfer = Some((order, ShTransfer::new(vis, order)?));
+        }
+        Ok(())
+    }
+
+    /// A per-vertex bake's `relit` vertex colours drawn from `camera`, its glossy light from
+    /// `lobe` (the light's pyramid, for a bake with visibility) as `state` says: by SH glossy
+    /// transfer at its order ([`Engine::make_transfer`] made the matrices), or the lobe per pixel.
+    fn draw_vertices(
+        &self,
+        relit: &Image,
+        lobe: Option<&CubePyramid>,
+        camera: &Camera,
+        state: &ViewState,
+    ) -> Result<Raster> {
+        let t = &self.transport;
+        let transfer = self
+            .transfer
+            .as_ref()
+            .filter(|(order, _)| state.display.sh_transfer == Some(*order));
+        match (transfer, lobe) {
+            (Some((_, transfer)), Some(light)) => {
+                let samples = state.draw_samples();
+                vertex::draw_sh_glossy(t, relit, light, transfer, camera, None, samples)
+            }
+            _ => vertex::draw_relit(
+                t,
+                relit,
+                lobe,
+                camera,
+                None,
+                state.draw_samples(),
+                Default::default(),
+            ),
+        }
     }
 
     /// The light a per-vertex bake with visibility draws its glossy lobes from for `request`
@@ -557,6 +603,7 @@ impl Engine {
             .map(|l| self.lobe_light(&l.request, shown))
             .collect::<Result<Vec<_>>>()?;
         let full_lobe = self.lobe_light(&RelightRequest::Full, shown)?;
+        self.make_transfer(state.display.sh_transfer)?;
         let lit = self.light.as_ref().expect("prepared");
         if !self
             .backdrop
@@ -567,17 +614,8 @@ impl Engine {
             self.backdrop = Some((camera.clone(), lit.shown.key.clone(), image));
         }
         let (_, _, back) = self.backdrop.as_ref().expect("drawn");
-        let t = &self.transport;
         let draw = |relit: &Image, lobe: &Option<CubePyramid>| -> Result<(Image, Image)> {
-            let raster = vertex::draw_relit(
-                t,
-                relit,
-                lobe.as_ref(),
-                camera,
-                None,
-                state.draw_samples(),
-                Default::default(),
-            )?;
+            let raster = self.draw_vertices(relit, lobe.as_ref(), camera, state)?;
             let mut over = raster.image.clone();
             for ((o, b), c) in over
                 .pixels

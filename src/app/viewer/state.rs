@@ -4,6 +4,7 @@
 //! on the light's [`LightKey`], the relit values on [`RelightKey`] (light and relight), so an
 //! exposure or a camera change never relights and a new field is keyed where its part is.
 
+use crate::relight::sh_transfer::MAX_TRANSFER_ORDER;
 use std::path::PathBuf;
 
 use super::lights::STOPS;
@@ -254,6 +255,10 @@ pub struct DisplayState {
     /// straight into a texture (the numbers still come from the CPU relight); in
     /// [`super::Engine::render`] the image is read back.
     pub gpu: bool,
+    /// A per-vertex bake with visibility: its glossy light drawn by SH glossy transfer at this
+    /// order (1 to [`MAX_TRANSFER_ORDER`]; Sloan, Kautz & Snyder 2002) instead of the lobe per
+    /// pixel (`None`). The GPU raster draws the lobe alone, so the CPU draws this.
+    pub sh_transfer: Option<usize>,
 }
 
 impl Default for DisplayState {
@@ -265,6 +270,7 @@ impl Default for DisplayState {
             split: 0.5,
             error_map: false,
             gpu: false,
+            sh_transfer: None,
         }
     }
 }
@@ -278,8 +284,11 @@ impl DisplayState {
         }
     }
 
-    /// Brings the split into [0, 1].
+    /// Brings the split into [0, 1] and the SH transfer's order into its range.
     pub fn clamp(&mut self) {
+        if let Some(order) = &mut self.sh_transfer {
+            *order = (*order).clamp(1, MAX_TRANSFER_ORDER);
+        }
         if !(0.0..=1.0).contains(&self.split) {
             self.split = if self.split.is_finite() {
                 self.split.clamp(0.0, 1.0)

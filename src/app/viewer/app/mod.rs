@@ -3,6 +3,7 @@
 //! and the transport is on it); the worker thread computes the CPU images and the errors against
 //! `full` behind it, and the panel shows them when they arrive.
 
+use crate::relight::sh_transfer::MAX_TRANSFER_ORDER;
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -254,7 +255,11 @@ impl ViewerApp {
     }
 
     fn gpu_wanted(&self) -> bool {
-        self.state.display.gpu && !self.state.display.error_map && self.gpu.is_some()
+        // The GPU raster draws the glossy lobe, not SH glossy transfer.
+        self.state.display.gpu
+            && !self.state.display.error_map
+            && self.state.display.sh_transfer.is_none()
+            && self.gpu.is_some()
     }
 
     /// Relights the current state on the GPU when it changed and its light is at hand; a failure
@@ -476,6 +481,10 @@ impl ViewerApp {
         if let Some(base) = &loaded.camera {
             ui.separator();
             camera::camera_controls(ui, &mut s.orbit, base);
+            let mesh = loaded.transport.domain.mesh();
+            if mesh.is_some_and(|m| m.visibility.is_some()) {
+                glossy_controls(ui, &mut s.display.sh_transfer);
+            }
         }
         ui.separator();
         super::tone_controls(ui, &mut s.display.exposure, &mut s.display.tone);
@@ -661,3 +670,25 @@ impl eframe::App for ViewerApp {
         self.show(ui);
     }
 }
+
+/// The glossy light of a per-vertex bake with visibility: the lobe per pixel, or SH glossy
+/// transfer at an order (drawn on the CPU).
+fn glossy_controls(ui: &mut egui::Ui, sh_transfer: &mut Option<usize>) {
+    let mut on = sh_transfer.is_some();
+    ui.checkbox(&mut on, "Glossy light by SH transfer")
+        .on_hover_text(
+            "Sloan, Kautz & Snyder 2002: the light's low SH orders, shadowed per vertex, reflected \
+             about the view per pixel; off: the GGX lobe per pixel from the kept terms",
+        );
+    *sh_transfer = match (on, *sh_transfer) {
+        (false, _) => None,
+        (true, Some(order)) => Some(order),
+        (true, None) => Some(DEFAULT_TRANSFER_ORDER),
+    };
+    if let Some(order) = sh_transfer {
+        ui.add(egui::Slider::new(order, 1..=MAX_TRANSFER_ORDER).text("transfer order"));
+    }
+}
+
+/// The SH order the glossy transfer starts at when switched on.
+const DEFAULT_TRANSFER_ORDER: usize = 6;
