@@ -26,10 +26,16 @@ const SPHERE_SAME_LIGHT: f64 = 0.35;
 
 /// The glossy sphere of the bundled scene (roughness 0.2 on a matte ground), its image small.
 fn sphere() -> wavelet_prt::scene::Scene {
+    rough_sphere("0.2")
+}
+
+/// [`sphere`] at GGX `roughness`.
+fn rough_sphere(roughness: &str) -> wavelet_prt::scene::Scene {
     let text = std::fs::read_to_string(assets().join("scenes/glossy_sphere.toml"))
         .unwrap()
-        .replace("width = 256\nheight = 256", "width = 64\nheight = 64");
-    scene_from(&text, "vertex-visibility")
+        .replace("width = 256\nheight = 256", "width = 64\nheight = 64")
+        .replace("roughness = 0.2", &format!("roughness = {roughness}"));
+    scene_from(&text, &format!("vertex-visibility-{roughness}"))
 }
 
 fn settings(n: usize, edge: f32) -> BakeSettings {
@@ -371,78 +377,86 @@ const GPU_LOBE_PIXELS_APART: usize = 500;
 #[test]
 fn the_gpu_draws_the_lobe_as_the_cpu_does() {
     use wavelet_prt::draw::gpu::{GpuMesh, GpuRaster, upload_colours};
+    use wavelet_prt::draw::lobe::lobe_samples;
     let Some(gpu) = common::gpu_or_skip("the_gpu_draws_the_lobe_as_the_cpu_does") else {
         return;
     };
-    let scene = sphere();
-    let t = bake(&scene, &settings(8, 0.3), &|_| {}).unwrap();
     let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
     let rotation = EnvRotation::default();
-    let mesh = t.domain.mesh().unwrap();
-    let m = GpuMesh::of_bake(&gpu, mesh).unwrap();
-    assert!(m.has_lobe());
-    // The lobe's light on a finer cube than the visibility's (the default) and on the same one.
-    for ctx in [
-        LightContext::new(&t).unwrap(),
-        LightContext::with_sizes(8, 2).unwrap(),
-    ] {
-        let light = ctx.prepare(&env, rotation).unwrap();
-        let terms = Terms::of(&t, &ctx, &light, &RelightRequest::Full).unwrap();
-        let (relit, _) = Cpu(&t).relight_terms(&terms).unwrap();
-        let lobe = lobe_light(&t, &ctx, Some(&light), &RelightRequest::Full)
-            .unwrap()
-            .unwrap();
-        let colours = upload_colours(&gpu, &relit.pixels[..mesh.pixel_count()]).unwrap();
-        for samples in [1, 4] {
-            let mut raster = GpuRaster::multisampled(&gpu, samples).unwrap();
-            // Without the light the lobe is drawn from, the draw says so.
-            let e = raster.draw(&gpu, &scene.camera, &m, &colours).unwrap_err();
-            assert!(e.to_string().contains("light"), "{e}");
-            raster.set_light(&gpu, Some(&lobe)).unwrap();
-            for az in [0.0, 130.0] {
-                let camera = orbit(&scene.camera, az, 10.0);
-                let cpu = draw_relit(
-                    &t,
-                    &relit,
-                    Some(&lobe),
-                    &camera,
-                    None,
-                    samples,
-                    GlossEval::PerPixel,
-                )
+    // A sharp lobe (64 directions a pixel) and a broad one (256).
+    for (roughness, directions) in [("0.2", 64), ("0.6", 256)] {
+        let scene = rough_sphere(roughness);
+        let t = bake(&scene, &settings(8, 0.3), &|_| {}).unwrap();
+        let mesh = t.domain.mesh().unwrap();
+        assert_eq!(lobe_samples(mesh.visibility.as_ref().unwrap()), directions);
+        let m = GpuMesh::of_bake(&gpu, mesh).unwrap();
+        assert!(m.has_lobe());
+        // The lobe's light on a finer cube than the visibility's (the default) and on the same one.
+        for ctx in [
+            LightContext::new(&t).unwrap(),
+            LightContext::with_sizes(8, 2).unwrap(),
+        ] {
+            let light = ctx.prepare(&env, rotation).unwrap();
+            let terms = Terms::of(&t, &ctx, &light, &RelightRequest::Full).unwrap();
+            let (relit, _) = Cpu(&t).relight_terms(&terms).unwrap();
+            let lobe = lobe_light(&t, &ctx, Some(&light), &RelightRequest::Full)
+                .unwrap()
                 .unwrap();
-                let dev = raster.draw(&gpu, &camera, &m, &colours).unwrap();
-                // The lobe is most of what the sphere shows: a draw without it is far off.
-                let base = wavelet_prt::draw::vertex::draw(
-                    &t,
-                    &wavelet_prt::draw::vertex::vertex_colours(&t, &relit).unwrap(),
-                    &camera,
-                    None,
-                    samples,
-                )
-                .unwrap();
-                let gloss = relative_l2(&base.image, &cpu.image, None).unwrap();
-                assert!(gloss > 0.2, "the lobe adds {gloss}");
-                let brightest = common::brightest(&cpu.image);
-                let (mut apart, mut worst) = (0, 0.0f32);
-                for i in 0..cpu.coverage.len() {
-                    let (a, b) = (dev.image.pixels[i], cpu.image.pixels[i]);
-                    let d = (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f32::max);
-                    if dev.coverage[i] != cpu.coverage[i] || d > GPU_LOBE_OF_BRIGHTEST * brightest {
-                        apart += 1;
-                    } else {
-                        worst = worst.max(d / brightest);
+            let colours = upload_colours(&gpu, &relit.pixels[..mesh.pixel_count()]).unwrap();
+            for samples in [1, 4] {
+                let mut raster = GpuRaster::multisampled(&gpu, samples).unwrap();
+                // Without the light the lobe is drawn from, the draw says so.
+                let e = raster.draw(&gpu, &scene.camera, &m, &colours).unwrap_err();
+                assert!(e.to_string().contains("light"), "{e}");
+                raster.set_light(&gpu, Some(&lobe)).unwrap();
+                for az in [0.0, 130.0] {
+                    let camera = orbit(&scene.camera, az, 10.0);
+                    let cpu = draw_relit(
+                        &t,
+                        &relit,
+                        Some(&lobe),
+                        &camera,
+                        None,
+                        samples,
+                        GlossEval::PerPixel,
+                    )
+                    .unwrap();
+                    let dev = raster.draw(&gpu, &camera, &m, &colours).unwrap();
+                    // The lobe is most of what the sphere shows: a draw without it is far off.
+                    let base = wavelet_prt::draw::vertex::draw(
+                        &t,
+                        &wavelet_prt::draw::vertex::vertex_colours(&t, &relit).unwrap(),
+                        &camera,
+                        None,
+                        samples,
+                    )
+                    .unwrap();
+                    let gloss = relative_l2(&base.image, &cpu.image, None).unwrap();
+                    assert!(gloss > 0.2, "the lobe adds {gloss}");
+                    let brightest = common::brightest(&cpu.image);
+                    let (mut apart, mut worst) = (0, 0.0f32);
+                    for i in 0..cpu.coverage.len() {
+                        let (a, b) = (dev.image.pixels[i], cpu.image.pixels[i]);
+                        let d = (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f32::max);
+                        if dev.coverage[i] != cpu.coverage[i]
+                            || d > GPU_LOBE_OF_BRIGHTEST * brightest
+                        {
+                            apart += 1;
+                        } else {
+                            worst = worst.max(d / brightest);
+                        }
                     }
+                    eprintln!(
+                        "roughness {roughness}, light N = {}, {samples} sample(s), turned {az}°: \
+                     {apart} pixels apart, the rest within {worst:.2e} of the brightest, the \
+                     lobe adding {gloss:.3}",
+                        lobe.n
+                    );
+                    assert!(
+                        apart * 100_000 <= GPU_LOBE_PIXELS_APART * cpu.coverage.len(),
+                        "{samples} sample(s), turned {az}°: {apart} pixels apart"
+                    );
                 }
-                eprintln!(
-                    "light N = {}, {samples} sample(s), turned {az}°: {apart} pixels apart, \
-                     the rest within {worst:.2e} of the brightest",
-                    lobe.n
-                );
-                assert!(
-                    apart * 100_000 <= GPU_LOBE_PIXELS_APART * cpu.coverage.len(),
-                    "{samples} sample(s), turned {az}°: {apart} pixels apart"
-                );
             }
         }
     }

@@ -27,6 +27,30 @@ use crate::scene::visibility::Visibility;
 /// to 128 directions for the broad lobes), as the lobe alone steers the directions.
 pub const DEFAULT_LOBE_SAMPLES: usize = 64;
 
+/// Lobe directions a pixel takes for a GGX lobe of width `alpha`: [`DEFAULT_LOBE_SAMPLES`] below
+/// α = 0.1 (roughness 0.32), twice that below α = 0.2 (roughness 0.45), four times beyond. A
+/// broad lobe steered by itself alone misses a small bright light between its directions: the
+/// glossy sphere at roughness 0.5 under the studio was 13.5–13.8% from the path tracer with 64
+/// directions and 7.8–8.7% with 256, while a sharp one is within 1.2% of the brute-force
+/// integral at 64 (the tests) and its frame would only slow.
+pub fn lobe_samples_for(alpha: f32) -> usize {
+    match alpha {
+        a if a < 0.1 => DEFAULT_LOBE_SAMPLES,
+        a if a < 0.2 => 2 * DEFAULT_LOBE_SAMPLES,
+        _ => 4 * DEFAULT_LOBE_SAMPLES,
+    }
+}
+
+/// Lobe directions a pixel takes for a bake with visibility: as its broadest glossy material
+/// asks ([`lobe_samples_for`]); one count for every material, as the GPU raster reads them.
+pub fn lobe_samples(visibility: &Visibility) -> usize {
+    let widest = (0..visibility.lobes.len() as u32)
+        .filter_map(|m| visibility.lobe(m))
+        .map(|(_, alpha)| alpha)
+        .fold(0.0f32, f32::max);
+    lobe_samples_for(widest)
+}
+
 /// The fixed pattern of `m` points in the unit square: rows stratified in `u1`, the base-2
 /// radical inverse in `u2` (a Hammersley set).
 pub fn lobe_pattern(m: usize) -> Vec<[f32; 2]> {

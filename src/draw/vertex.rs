@@ -14,7 +14,7 @@ use crate::output::film::Image;
 use std::borrow::Cow;
 
 use crate::draw::gloss::Gloss;
-use crate::draw::lobe::{DEFAULT_LOBE_SAMPLES, Lobe};
+use crate::draw::lobe::{Lobe, lobe_samples};
 use crate::draw::raster::{Raster, rasterize_glossy};
 use crate::draw::sh_gloss::ShGloss;
 use crate::draw::shading::{Texturing, ViewDependent};
@@ -309,7 +309,7 @@ pub fn draw_relit(
             &mesh.materials,
             vis,
             light,
-            DEFAULT_LOBE_SAMPLES,
+            lobe_samples(vis),
         );
         return draw_mesh(mesh, &colours, Some(&lobe), camera, behind, samples);
     }

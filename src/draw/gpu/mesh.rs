@@ -4,7 +4,7 @@
 
 use wgpu::util::DeviceExt;
 
-use crate::draw::lobe::{DEFAULT_LOBE_SAMPLES, lobe_taps};
+use crate::draw::lobe::{lobe_samples, lobe_taps};
 use crate::draw::raster::check_mesh;
 use crate::draw::shading::Texturing;
 use crate::error::{PrtError, Result};
@@ -90,10 +90,11 @@ fn gloss_tables(gloss: Option<&GlossMesh>, vertices: usize) -> (Vec<u32>, [u32; 
                 .map(|v| vis.row_index(v).unwrap_or(NO_ROW))
                 .collect();
             let taps_at = words.len() as u32;
+            let samples = lobe_samples(vis);
             for m in 0..vis.lobes.len() as u32 {
                 let taps = match vis.lobe(m) {
-                    Some((_, alpha)) => lobe_taps(alpha, DEFAULT_LOBE_SAMPLES),
-                    None => vec![[0.0; 4]; DEFAULT_LOBE_SAMPLES],
+                    Some((_, alpha)) => lobe_taps(alpha, samples),
+                    None => vec![[0.0; 4]; samples],
                 };
                 words.extend(taps.iter().flatten().map(|x| x.to_bits()));
             }
@@ -103,7 +104,7 @@ fn gloss_tables(gloss: Option<&GlossMesh>, vertices: usize) -> (Vec<u32>, [u32; 
             words.extend(&vis.bits);
             let shape = [
                 vis.n as u32,
-                DEFAULT_LOBE_SAMPLES as u32,
+                samples as u32,
                 vis.lobes.len() as u32,
                 Visibility::words(vis.n) as u32,
                 taps_at,

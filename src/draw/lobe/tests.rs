@@ -172,6 +172,34 @@ fn the_default_directions_stay_near_the_brute_force_integral() {
     }
 }
 
+/// The directions a lobe's width asks for ([`lobe_samples_for`]): the default for a sharp lobe,
+/// more for a broad one, which then comes nearer the brute force than the default does. Measured
+/// with 256 directions at α = 0.2 and 0.5: 0.83% and 1.24% on a smooth light (the default's
+/// 2.7% and 3.4%), 10.0% and 16.7% under a bright texel (the default's 10.4% and 63%).
+#[test]
+fn a_broad_lobe_takes_more_directions_and_comes_nearer_the_brute_force() {
+    assert_eq!(lobe_samples_for(0.04), DEFAULT_LOBE_SAMPLES);
+    assert_eq!(lobe_samples_for(0.0625), DEFAULT_LOBE_SAMPLES);
+    assert_eq!(lobe_samples_for(0.15), 2 * DEFAULT_LOBE_SAMPLES);
+    for (alpha, spot, within) in [
+        (0.2, false, 0.015),
+        (0.2, true, 0.12),
+        (0.5, false, 0.02),
+        (0.5, true, 0.2),
+    ] {
+        let more = lobe_samples_for(alpha);
+        assert!(more > DEFAULT_LOBE_SAMPLES, "α = {alpha}: {more}");
+        let (default, own) = (
+            worst_against_brute_force(alpha, DEFAULT_LOBE_SAMPLES, spot),
+            worst_against_brute_force(alpha, more, spot),
+        );
+        assert!(
+            own < default && own < within,
+            "α = {alpha}, bright texel {spot}: {own} against the default's {default}"
+        );
+    }
+}
+
 #[test]
 fn under_a_constant_open_sky_the_lobe_is_its_directional_albedo() {
     let n = Vec3::Y;
