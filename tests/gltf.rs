@@ -354,6 +354,32 @@ fn punctual_lights_become_local_lights() {
 }
 
 #[test]
+fn a_punctual_light_past_the_intensity_range_is_refused() {
+    let dir = temp_dir("gltf-bright");
+    for (intensity, color) in [(1e20, 1.0), (683.0, -1.0)] {
+        let mut b = test_scene(4, false);
+        b.set("extensionsUsed", json!(["KHR_lights_punctual"]));
+        b.set(
+            "extensions",
+            json!({"KHR_lights_punctual": {"lights": [
+                {"name": "lamp", "type": "point", "intensity": intensity,
+                 "color": [color, 1.0, 1.0]}
+            ]}}),
+        );
+        let mut nodes = b.json["nodes"].as_array().unwrap().clone();
+        nodes.push(json!({"extensions": {"KHR_lights_punctual": {"light": 0}}}));
+        b.set("nodes", json!(nodes));
+        b.set("scenes", json!([{"nodes": [0, 1, 3, 4]}]));
+        let path = b.write_glb(&dir, "bright");
+        let e = Scene::load(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("lights[0]") && e.contains("must be in [0, 1e12]"),
+            "{intensity} cd, red {color}: {e}"
+        );
+    }
+}
+
+#[test]
 fn a_toml_scene_includes_a_gltf_file_beside_its_own_shapes() {
     let dir = temp_dir("gltf-include");
     test_scene(4, false).write_glb(&dir, "model");

@@ -126,6 +126,12 @@ impl LightShape {
 /// divide it.
 pub const MAX_INTENSITY: f32 = 1e12;
 
+/// The one rule for a light's intensity and each channel of its colour: finite, in
+/// [0, [`MAX_INTENSITY`]]. The scene file, a glTF light and a stored light are held to it.
+pub fn in_light_range(v: f32) -> bool {
+    v.is_finite() && (0.0..=MAX_INTENSITY).contains(&v)
+}
+
 /// Whether `name` can name a light: 1 to 64 ASCII letters, digits, `_`, `-` or `.`, so that
 /// `--light NAME=…` parses and messages print it plainly.
 pub fn valid_name(name: &str) -> bool {
@@ -174,7 +180,7 @@ impl Light {
         if !valid_name(&self.name) {
             return Some("its name must be 1 to 64 letters, digits, `_`, `-` or `.`".into());
         }
-        let in_range = |v: f32| v.is_finite() && (0.0..=MAX_INTENSITY).contains(&v);
+        let in_range = in_light_range;
         if !(self.color.to_array().into_iter().all(in_range) && in_range(self.intensity)) {
             return Some(format!(
                 "colour {} and intensity {} must be in [0, {MAX_INTENSITY:e}]",

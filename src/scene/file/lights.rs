@@ -6,7 +6,8 @@ use super::{Loader, finite3, position3};
 use crate::error::Result;
 use crate::names::Named;
 use crate::scene::light::{
-    Light, LightKind, LightShape, MAX_INTENSITY, MAX_LIGHT_COLUMNS, quad_problem, valid_name,
+    Light, LightKind, LightShape, MAX_INTENSITY, MAX_LIGHT_COLUMNS, in_light_range, quad_problem,
+    valid_name,
 };
 use glam::Vec3;
 use serde::Deserialize;
@@ -140,13 +141,13 @@ impl Loader<'_> {
             }
         };
         let color = finite3(&self.map, &field("color"), l.color.unwrap_or([1.0; 3]))?;
-        if color.min_element() < 0.0 || color.max_element() > MAX_INTENSITY {
+        if !color.to_array().into_iter().all(in_light_range) {
             return Err(err(
                 "color",
                 format!("each channel must be in [0, {MAX_INTENSITY:e}], got {color}"),
             ));
         }
-        if !(l.intensity.is_finite() && (0.0..=MAX_INTENSITY).contains(&l.intensity)) {
+        if !in_light_range(l.intensity) {
             return Err(err(
                 "intensity",
                 format!(

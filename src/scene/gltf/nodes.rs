@@ -7,7 +7,7 @@ use gltf::json::extensions::scene::khr_lights_punctual::Type as LightType;
 use super::{GltfCamera, LUMENS_PER_WATT, Reader, printable};
 use crate::error::Result;
 use crate::scene::MAX_COORDINATE;
-use crate::scene::light::{Light, LightShape, MAX_INTENSITY, MAX_LIGHT_COLUMNS, valid_name};
+use crate::scene::light::{Light, LightShape, MAX_LIGHT_COLUMNS, valid_name};
 
 impl Reader<'_> {
     /// Walks the scene's nodes, placing meshes, cameras and lights.
@@ -217,11 +217,9 @@ impl Reader<'_> {
             positions: vec![position],
             grid: [1, 1, 1],
         };
+        // The intensity's range is the rule every light is held to (`Light::problem`).
         if let Some(problem) = light.problem() {
             return Err(self.error(format!("lights[{index}]"), problem));
-        }
-        if intensity > MAX_INTENSITY {
-            return Err(self.error(format!("lights[{index}].intensity"), "too bright"));
         }
         self.out.lights.push(light);
         Ok(())
