@@ -124,19 +124,18 @@ fn integrated_texels(
     let n = sp.normal;
     let mut shadow = SampleRays::one_by_one(shadows, sp);
     let centres = classify_centres(q, n, &mut shadow, packets);
-    // The cone of the GGX lobe's texels about the mirror direction, as the cosine of its
-    // half-angle widened by a texel's radius.
+    // The GGX lobe at this point, and the cone of its texels about the mirror direction, as the
+    // cosine of its half-angle widened by a texel's radius.
     let lobe = alpha.map(|a| {
         let mirror = 2.0 * n.dot(sp.view) * n - sp.view;
         let cone = (2.0 * (LOBE_TAN_HALF * a).atan()).min(LOBE_CONE_MAX) + q.max_radius;
-        (a, mirror, cone.cos())
+        (brdf::GgxAt::new(n, sp.view, a), mirror, cone.cos())
     });
     let transmittance = |d: Vec3| match medium {
         Some(m) if !unshadowed => m.transmittance(sp.origin, d, f32::INFINITY),
         _ => 1.0,
     };
-    let at = alpha.map(|a| brdf::GgxAt::new(n, sp.view, a));
-    let ggx = |d: Vec3| at.as_ref().map_or(0.0, |g| g.cosine(d));
+    let ggx = |d: Vec3| lobe.as_ref().map_or(0.0, |(g, ..)| g.cosine(d));
     for (j, &centre) in centres.iter().enumerate() {
         if centre == Centre::Below {
             continue;

@@ -46,18 +46,22 @@ fn morton_basis(cube_n: usize, order: usize) -> (Vec<f32>, Vec<f32>) {
     (basis, weight)
 }
 
+/// Checks that the glossy transfer matrix takes SH order `order`: 1 to [`MAX_TRANSFER_ORDER`].
+pub fn check_order(order: usize) -> Result<()> {
+    if !(1..=MAX_TRANSFER_ORDER).contains(&order) {
+        return Err(PrtError::invalid(
+            "SH transfer order",
+            format!("{order}; the glossy transfer matrix takes orders 1 to {MAX_TRANSFER_ORDER}"),
+        ));
+    }
+    Ok(())
+}
+
 impl ShTransfer {
     /// The matrices at SH order `order` (1 to [`MAX_TRANSFER_ORDER`]) of every vertex with
     /// visibility bits.
     pub fn new(vis: &Visibility, order: usize) -> Result<ShTransfer> {
-        if !(1..=MAX_TRANSFER_ORDER).contains(&order) {
-            return Err(PrtError::invalid(
-                "SH transfer order",
-                format!(
-                    "{order}; the glossy transfer matrix takes orders 1 to {MAX_TRANSFER_ORDER}"
-                ),
-            ));
-        }
+        check_order(order)?;
         let nn = order * order;
         let packed = nn * (nn + 1) / 2;
         let (basis, weight) = morton_basis(vis.n, order);

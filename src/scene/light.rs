@@ -180,8 +180,9 @@ impl Light {
         if !valid_name(&self.name) {
             return Some("its name must be 1 to 64 letters, digits, `_`, `-` or `.`".into());
         }
-        let in_range = in_light_range;
-        if !(self.color.to_array().into_iter().all(in_range) && in_range(self.intensity)) {
+        if !(self.color.to_array().into_iter().all(in_light_range)
+            && in_light_range(self.intensity))
+        {
             return Some(format!(
                 "colour {} and intensity {} must be in [0, {MAX_INTENSITY:e}]",
                 self.color, self.intensity

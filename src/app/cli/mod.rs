@@ -486,6 +486,21 @@ pub fn three_significant(x: f64) -> String {
     format!("{v:.decimals$}{suffix}")
 }
 
+/// The glossy vertices' visibility that `--sh-transfer` draws from; for a bake without it, an
+/// error that says how to bake one.
+fn transfer_visibility(
+    t: &crate::store::transport::Transport,
+) -> Result<&crate::scene::visibility::Visibility> {
+    let mesh = crate::draw::vertex::mesh_of(t)?;
+    mesh.visibility.as_deref().ok_or_else(|| {
+        PrtError::invalid(
+            "--sh-transfer",
+            "SH glossy transfer draws a per-vertex bake with visibility (a glossy scene's \
+             `prt bake --per-vertex` keeps it by default)",
+        )
+    })
+}
+
 fn progress_bar(total: usize) -> ProgressBar {
     bar(total as u64, "px")
 }

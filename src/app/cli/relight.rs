@@ -546,13 +546,9 @@ fn draw_still(
 ) -> Result<(crate::draw::raster::Raster, String)> {
     let mesh = crate::draw::vertex::mesh_of(t)?;
     if let Some(order) = a.sh_transfer {
-        let (Some(vis), Some(light)) = (mesh.visibility.as_deref(), light) else {
-            return Err(PrtError::invalid(
-                "--sh-transfer",
-                "SH glossy transfer draws a per-vertex bake with visibility (a glossy scene's \
-                 `prt bake --per-vertex` keeps it by default)",
-            ));
-        };
+        let vis = transfer_visibility(t)?;
+        // A bake with visibility is relit with the light its glossy light is drawn from.
+        let light = light.ok_or_else(|| PrtError::invalid("light", "no light to draw from"))?;
         if gpu.is_some() {
             eprintln!(
                 "the GPU raster draws the glossy lobe, not SH glossy transfer: drawn on the CPU"

@@ -60,27 +60,6 @@ pub struct ViewArgs {
     pub sh_transfer: Option<usize>,
 }
 
-/// `--sh-transfer ORDER` for a screenshot of `t`: a per-vertex bake with visibility, and an
-/// order the glossy transfer matrix takes.
-fn sh_transfer_order(t: &Transport, order: usize) -> Result<usize> {
-    let mesh = crate::draw::vertex::mesh_of(t)?;
-    if mesh.visibility.is_none() {
-        return Err(PrtError::invalid(
-            "--sh-transfer",
-            "SH glossy transfer draws a per-vertex bake with visibility (a glossy scene's \
-             `prt bake --per-vertex` keeps it by default)",
-        ));
-    }
-    let most = crate::relight::sh_transfer::MAX_TRANSFER_ORDER;
-    if !(1..=most).contains(&order) {
-        return Err(PrtError::invalid(
-            "--sh-transfer",
-            format!("{order}; the glossy transfer matrix takes orders 1 to {most}"),
-        ));
-    }
-    Ok(order)
-}
-
 pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
     use crate::app::viewer::{Engine, LightState, env_entries, screenshot};
     let Some(out) = a.screenshot.clone() else {
@@ -199,7 +178,9 @@ pub(super) fn view_cmd(a: ViewArgs) -> Result<()> {
         state.relight.sh_order = o;
     }
     if let Some(order) = a.sh_transfer {
-        state.display.sh_transfer = Some(sh_transfer_order(&engine.transport, order)?);
+        transfer_visibility(&engine.transport)?;
+        crate::relight::sh_transfer::check_order(order)?;
+        state.display.sh_transfer = Some(order);
     }
     if let Some(o) = a.orbit {
         crate::draw::vertex::mesh_of(&engine.transport)?;

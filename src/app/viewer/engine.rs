@@ -369,25 +369,16 @@ impl Engine {
         camera: &Camera,
         state: &ViewState,
     ) -> Result<Raster> {
-        let t = &self.transport;
+        let (t, samples) = (&self.transport, state.draw_samples());
         let transfer = self
             .transfer
             .as_ref()
             .filter(|(order, _)| state.display.sh_transfer == Some(*order));
         match (transfer, lobe) {
             (Some((_, transfer)), Some(light)) => {
-                let samples = state.draw_samples();
                 vertex::draw_sh_glossy(t, relit, light, transfer, camera, None, samples)
             }
-            _ => vertex::draw_relit(
-                t,
-                relit,
-                lobe,
-                camera,
-                None,
-                state.draw_samples(),
-                Default::default(),
-            ),
+            _ => vertex::draw_relit(t, relit, lobe, camera, None, samples, Default::default()),
         }
     }
 

@@ -4,7 +4,6 @@
 //! on the light's [`LightKey`], the relit values on [`RelightKey`] (light and relight), so an
 //! exposure or a camera change never relights and a new field is keyed where its part is.
 
-use crate::relight::sh_transfer::MAX_TRANSFER_ORDER;
 use std::path::PathBuf;
 
 use super::lights::STOPS;
@@ -15,6 +14,7 @@ use crate::env::envmap::{EnvRotation, EnvSpec, SunSpec};
 use crate::env::select::Weighting;
 use crate::error::{PrtError, Result};
 use crate::output::film::{ToneCurve, ToneMap};
+use crate::relight::sh_transfer::MAX_TRANSFER_ORDER;
 use crate::relight::{LightSetting, Method, RelightRequest};
 use crate::scene::Light;
 

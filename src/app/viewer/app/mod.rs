@@ -3,7 +3,6 @@
 //! and the transport is on it); the worker thread computes the CPU images and the errors against
 //! `full` behind it, and the panel shows them when they arrive.
 
-use crate::relight::sh_transfer::MAX_TRANSFER_ORDER;
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -21,6 +20,7 @@ use crate::env::select::Weighting;
 use crate::output::sheet::heat_color;
 use crate::relight::Method;
 use crate::relight::gpu::Gpu;
+use crate::relight::sh_transfer::MAX_TRANSFER_ORDER;
 
 mod images;
 
