@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use wavelet_prt::bake::{BakeSettings, bake, load_if_baked_with};
-use wavelet_prt::draw::vertex::{GlossEval, draw_relit, orbit};
+use wavelet_prt::draw::vertex::{draw_relit, orbit};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
@@ -177,7 +177,7 @@ fn error(
     camera: &Camera,
     r: &Reference,
 ) -> Result<f64, Box<dyn Error>> {
-    let drawn = draw_relit(t, full, None, camera, None, 1, GlossEval::PerPixel)?;
+    let drawn = draw_relit(t, full, None, camera, None, 1)?;
     let both: Vec<f32> = drawn
         .coverage
         .iter()

@@ -22,13 +22,6 @@
 // the coordinate at the other pixels of the 2 x 2 quad, on the same triangle (extrapolated past
 // its edges), rather than whatever the quad's neighbours hold.
 
-// A glossy per-vertex bake (view.gloss.x, its stride, above 1) keeps in-out BRDF terms: vertex v's
-// diffuse colour is colours[v * stride] and its term k's response colours[v * stride + k]. A
-// fragment interpolates each response with the barycentrics, weighs it by the view factor g_k of
-// the direction to the eye in the frame of the interpolated normal, and adds it, as
-// src/draw/gloss.rs does: the frame, the hemi-octahedral map and its bilinear lookup are those of
-// src/scene/brdf_factor.rs, written again here.
-//
 // A glossy per-vertex bake with visibility (view.lobe.y, its taps a material, above 0) keeps which
 // cube texels each glossy vertex sees, one bit a texel in Morton order. A fragment evaluates the
 // material's GGX lobe for its interpolated normal and its own direction to the eye by filtered
@@ -50,9 +43,8 @@ struct View {
     // its centre, in pixels (y down): the film is shifted by as much, so the hardware's pixel
     // centre is the sample.
     size: vec4<f32>,
-    // A glossy bake's stride (1 without terms), its factor maps' cells a side, its materials, and
-    // the face size of the light's pyramid (0 without a light).
-    gloss: vec4<u32>,
+    // The face size of the light's pyramid (0 without a light), then padding.
+    pyramid: vec4<u32>,
     // A bake with visibility: its cube's face size, the lobe's taps a material, the materials and
     // the words of a vertex's bits; then where in `gloss` the taps, the lobes and the bits start
     // (each vertex's row, or NO_ROW, is at its index). All zero without visibility.
@@ -75,9 +67,7 @@ struct View {
 @group(0) @binding(5) var<storage, read> vertices: array<u32>;
 // Per triangle, its three vertices.
 @group(0) @binding(6) var<storage, read> indices: array<u32>;
-// A glossy bake's factors: K_b of each material, then the view factors g_k (f32 bits) of
-// material m's term k at ((m * (stride - 1) + k - 1) * cells) (one word when there are none). Or
-// a bake's visibility: the vertices' rows, then per material its taps (the half vector in the
+// A glossy bake's visibility (one word without one): the vertices' rows, then per material its taps (the half vector in the
 // normal's frame and D(h) (n.h), f32 bits), the materials' lobes (specular colour and alpha), and
 // the rows' bits.
 @group(0) @binding(7) var<storage, read> gloss: array<u32>;
@@ -113,68 +103,6 @@ fn normal_of(v: u32) -> vec3<f32> {
         bitcast<f32>(vertices[o + 1u]),
         bitcast<f32>(vertices[o + 2u]),
     );
-}
-
-// The local frame's tangent of a unit normal: +X turned by the shortest rotation that takes +Y
-// to n (the bitangent is n x t).
-fn tangent_of(n: vec3<f32>) -> vec3<f32> {
-    let c = 1.0 + n.y;
-    if c > 5e-5 {
-        return vec3<f32>(n.y + n.z * n.z / c, -n.x, -n.x * n.z / c);
-    }
-    return vec3<f32>(1.0, 0.0, 0.0);
-}
-
-// View factor k of material m at a local direction (z along the normal), bilinear between the
-// hemi-octahedral map's cell centres.
-fn view_factor(m: u32, k: u32, d: vec3<f32>) -> f32 {
-    let res = view.gloss.y;
-    let n = f32(res);
-    let dz = max(d.z, 0.0);
-    let p = vec3<f32>(d.x, d.y, dz) / max(abs(d.x) + abs(d.y) + dz, 1e-20);
-    let uv = vec2<f32>(p.x + p.y, p.x - p.y);
-    let t = clamp((uv + 1.0) * 0.5 * n - 0.5, vec2<f32>(0.0), vec2<f32>(n - 1.0));
-    let i0 = min(vec2<u32>(t), vec2<u32>(max(res, 2u) - 2u));
-    let i1 = min(i0 + 1u, vec2<u32>(res - 1u));
-    let f = t - vec2<f32>(i0);
-    let base = view.gloss.z + (m * (view.gloss.x - 1u) + k - 1u) * res * res;
-    let a = bitcast<f32>(gloss[base + i0.y * res + i0.x]);
-    let b = bitcast<f32>(gloss[base + i0.y * res + i1.x]);
-    let c = bitcast<f32>(gloss[base + i1.y * res + i0.x]);
-    let e = bitcast<f32>(gloss[base + i1.y * res + i1.x]);
-    let top = a + (b - a) * f.x;
-    let bottom = c + (e - c) * f.x;
-    return top + (bottom - top) * f.y;
-}
-
-// The glossy light of a point of the triangle with `corners` at barycentrics `bary`, seen from
-// the eye along `to_eye` (unit).
-fn glossy(corners: vec3<u32>, bary: vec3<f32>, to_eye: vec3<f32>) -> vec3<f32> {
-    let stride = view.gloss.x;
-    let m = vertices[corners.x * VERTEX_WORDS + 9u];
-    if stride <= 1u || m >= view.gloss.z {
-        return vec3<f32>(0.0);
-    }
-    let k_b = gloss[m];
-    let sum = normal_of(corners.x) * bary.x + normal_of(corners.y) * bary.y
-        + normal_of(corners.z) * bary.z;
-    if !(dot(sum, sum) > 0.0) {
-        return vec3<f32>(0.0);
-    }
-    let n = normalize(sum);
-    let t = tangent_of(n);
-    let local = vec3<f32>(dot(to_eye, t), dot(to_eye, cross(n, t)), dot(to_eye, n));
-    if local.z <= 0.0 {
-        return vec3<f32>(0.0);
-    }
-    var light = vec3<f32>(0.0);
-    for (var k = 1u; k < k_b; k++) {
-        let r = colours[corners.x * stride + k].rgb * bary.x
-            + colours[corners.y * stride + k].rgb * bary.y
-            + colours[corners.z * stride + k].rgb * bary.z;
-        light += r * view_factor(m, k, local);
-    }
-    return light;
 }
 
 // The bits of x's low half spread to the even bit positions.
@@ -215,7 +143,7 @@ fn dir_to_morton(n: u32, d: vec3<f32>) -> u32 {
 fn light_mean(m: u32, level: u32) -> vec3<f32> {
     var at = 0u;
     for (var k = 0u; k < level; k++) {
-        let side = view.gloss.w >> k;
+        let side = view.pyramid.x >> k;
         at += 6u * side * side;
     }
     return light[at + (m >> (2u * level))].rgb;
@@ -244,7 +172,7 @@ fn open_share(row: u32, m: u32, level: u32) -> f32 {
 // The light times the interpolated open share over lobe direction l's node at pyramid level
 // `level`, the visibility read at the level of the same texel size.
 fn lobe_at_level(ml: u32, mv: u32, level: u32, rows: vec3<u32>, b: vec3<f32>) -> vec3<f32> {
-    let tl = countTrailingZeros(view.gloss.w);
+    let tl = countTrailingZeros(view.pyramid.x);
     let tv = countTrailingZeros(view.lobe.x);
     let vl = min(max(level + tv, tl) - tl, tv);
     let open = b.x * open_share(rows.x, mv, vl) + b.y * open_share(rows.y, mv, vl)
@@ -255,12 +183,12 @@ fn lobe_at_level(ml: u32, mv: u32, level: u32, rows: vec3<u32>, b: vec3<f32>) ->
 // The mean of light times open share over direction l's node at fractional level x (clamped to
 // the pyramid's levels), between the two levels about it.
 fn lobe_read(l: vec3<f32>, x: f32, rows: vec3<u32>, b: vec3<f32>) -> vec3<f32> {
-    let ml = dir_to_morton(view.gloss.w, l);
+    let ml = dir_to_morton(view.pyramid.x, l);
     var mv = ml;
-    if view.lobe.x != view.gloss.w {
+    if view.lobe.x != view.pyramid.x {
         mv = dir_to_morton(view.lobe.x, l);
     }
-    let top = countTrailingZeros(view.gloss.w);
+    let top = countTrailingZeros(view.pyramid.x);
     let xc = clamp(x, 0.0, f32(top));
     let lo = u32(floor(xc));
     let f = xc - floor(xc);
@@ -320,7 +248,7 @@ fn lobe_light(corners: vec3<u32>, bary: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
     let s = vec3<f32>(kb, sign + n.y * n.y * ka, -n.y);
     let taps = view.lobe.y;
     let count = f32(taps);
-    let side = f32(view.gloss.w);
+    let side = f32(view.pyramid.x);
     let texel = 4.0 * PI / (6.0 * side * side);
     var total = vec3<f32>(0.0);
     for (var k = 0u; k < taps; k++) {
@@ -470,9 +398,8 @@ fn fragment(in: Varyings) -> @location(0) vec4<f32> {
         discard;
     }
     let bary = w / sum;
-    let stride = view.gloss.x;
-    var colour = colours[corners.x * stride].rgb * bary.x
-        + colours[corners.y * stride].rgb * bary.y + colours[corners.z * stride].rgb * bary.z;
+    var colour = colours[corners.x].rgb * bary.x + colours[corners.y].rgb * bary.y
+        + colours[corners.z].rgb * bary.z;
     let slot = vertices[corners.x * VERTEX_WORDS + 5u];
     if slot != NO_MAP {
         let uvs = array<vec2<f32>, 3>(uv_of(corners.x), uv_of(corners.y), uv_of(corners.z));
@@ -488,11 +415,6 @@ fn fragment(in: Varyings) -> @location(0) vec4<f32> {
         let dx = select(across - uv, uv - across, odd.x);
         let dy = select(down - uv, uv - down, odd.y);
         colour = colour * albedo(slot, uv, dx, dy);
-    }
-    if stride > 1u {
-        let dir = view.right.xyz * d.x + view.up.xyz * d.y + view.forward.xyz;
-        // A truncated factorisation can undershoot: radiance stays non-negative.
-        colour = max(colour + glossy(corners, bary, -normalize(dir)), vec3<f32>(0.0));
     }
     if view.lobe.y > 0u {
         let dir = view.right.xyz * d.x + view.up.xyz * d.y + view.forward.xyz;

@@ -48,8 +48,6 @@ fn unusual() -> BakeSettings {
         cache_spacing: 2.5,
         domain: BakeDomain::Vertices { edge_length: 0.037 },
         light_samples: 16,
-        brdf_terms: 3,
-        brdf_error: 0.02,
         refine_shadows: true,
         visibility: true,
     }

@@ -240,32 +240,41 @@ fn the_lowest_roughness_path_traces_and_bakes_a_bounce_to_finite_images() {
 }
 
 #[test]
-fn the_lowest_roughness_bakes_finite_gloss_terms_per_vertex() {
-    // What `prt gloss` bakes: the lobe factored into in-out terms, kept per glossy vertex.
+fn the_lowest_roughness_bakes_and_draws_a_finite_lobe_per_vertex() {
+    // What `prt bake --per-vertex` bakes of a glossy scene: the glossy vertices' visibility, and
+    // their lobe drawn per pixel against the light, from a camera the bake never saw.
+    use wavelet_prt::draw::vertex::{bake_camera, draw_relit, orbit};
+    use wavelet_prt::relight::{LightContext, lobe_light};
     let scene = scene_from(&mirror_ball(""), "hostile-mirror-vertices");
     let settings = BakeSettings {
         cube_n: 8,
         sh_order: 2,
         lossless: true,
         domain: BakeDomain::Vertices { edge_length: 0.3 },
-        brdf_terms: 4,
+        visibility: true,
         ..BakeSettings::default()
     };
     let t = bake(&scene, &settings, &|_| {}).unwrap();
-    let f = t
+    let vis = t
         .domain
         .mesh()
-        .and_then(|m| m.factors.as_ref())
-        .expect("the glossy material keeps its terms");
-    assert!(
-        f.view.iter().chain(&f.light).all(|v| v.is_finite()),
-        "a factor is not finite"
-    );
+        .and_then(|m| m.visibility.as_ref())
+        .expect("the glossy material keeps its visibility");
+    assert!(!vis.vertices.is_empty(), "no glossy vertex");
     let env = EnvMap::from_spec("sun:35,60").unwrap();
     let image = relit(&t, &env, EnvRotation::default(), RelightRequest::Full);
     assert_finite("the per-vertex bake, relit", &image);
     let colours = vertex_colours(&t, &image).unwrap();
     assert!(colours.iter().flatten().all(|c| c.is_finite()));
+    let ctx = LightContext::new(&t).unwrap();
+    let light = ctx.prepare(&env, EnvRotation::default()).unwrap();
+    let lobe = lobe_light(&t, &ctx, Some(&light), &RelightRequest::Full)
+        .unwrap()
+        .expect("a light for the lobe");
+    let camera = orbit(&bake_camera(&t).unwrap(), 40.0, 10.0);
+    let drawn = draw_relit(&t, &image, Some(&lobe), &camera, None, 1).unwrap();
+    assert_finite("the lobe drawn per pixel", &drawn.image);
+    assert!(drawn.coverage.iter().any(|&c| c > 0.0), "nothing drawn");
 }
 
 #[test]

@@ -344,7 +344,7 @@ fn a_flat_lit_per_vertex_bake_draws_its_one_colour_everywhere_it_covers() {
     let image = relit(&t, &env, EnvRotation::default(), RelightRequest::Full);
     let colours = wavelet_prt::draw::vertex::vertex_colours(&t, &image).unwrap();
     let camera = wavelet_prt::draw::vertex::bake_camera(&t).unwrap();
-    let drawn = wavelet_prt::draw::vertex::draw(&t, &colours, &camera, None, 1).unwrap();
+    let drawn = wavelet_prt::draw::vertex::draw(&t, colours, &camera, None, 1).unwrap();
     // albedo x L, within the cosine's discretisation over the texels of a 6x8² cube (0.52%).
     let want = [1.0f32, 0.5, 0.25];
     let mesh = t.domain.mesh().unwrap();
@@ -501,7 +501,7 @@ fn closed_meshes_wound_inward_are_turned_outward_and_bake_as_the_per_pixel_view(
             let (t, vertices) = lit(&per_vertex(0.1));
             let colours = wavelet_prt::draw::vertex::vertex_colours(&t, &vertices).unwrap();
             let camera = wavelet_prt::draw::vertex::bake_camera(&t).unwrap();
-            let drawn = wavelet_prt::draw::vertex::draw(&t, &colours, &camera, None, 1).unwrap();
+            let drawn = wavelet_prt::draw::vertex::draw(&t, colours, &camera, None, 1).unwrap();
             let (pixel, per_pixel) = lit(&BakeSettings {
                 cube_n: 8,
                 sh_order: 2,

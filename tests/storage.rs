@@ -223,7 +223,7 @@ fn columns_of_format_6(f: &StFile) -> std::collections::HashMap<(usize, usize), 
 /// Files of format 6, which stored columns where version 7 stores strips, load with every value
 /// where those columns put it (a view in q8 and lossless, a per-vertex bake in q16, all written
 /// by the build that wrote version 6); they save in this version and load back the same. Versions
-/// 3 to 5 differ from 6 only in having no lights, albedo maps or in-out terms, so the same
+/// 3 to 5 differ from 6 only in having no lights or albedo maps, so the same
 /// files labelled 3 to 5 load the same.
 #[test]
 fn format_6_files_load_into_strips_with_every_value_in_place() {

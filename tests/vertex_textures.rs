@@ -138,7 +138,7 @@ fn a_coarse_per_vertex_bake_shows_the_checker_where_a_new_camera_sees_it() {
     );
     let cube = CubeMap::constant(8, [1.0; 3]).unwrap();
     let (img, _) = relight_wavelet(&t, &common::full_light(&cube)).unwrap();
-    let colours = &vertex_colours(&t, &img).unwrap()[..];
+    let colours = vertex_colours(&t, &img).unwrap();
     // Unshadowed under a white sky every upward ground vertex holds the same white light.
     let up: Vec<[f32; 3]> = (0..mesh.vertex_count())
         .filter(|&v| mesh.is_textured(v) && mesh.normals[v].y > 0.5)
@@ -211,7 +211,7 @@ fn a_per_vertex_bake_drawn_from_a_new_camera_matches_the_per_pixel_reference() {
     let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
     let cube = env.to_cube(8, EnvRotation::yaw(75.0)).unwrap();
     let (img, _) = relight_wavelet(&t, &common::full_light(&cube)).unwrap();
-    let colours = &vertex_colours(&t, &img).unwrap()[..];
+    let colours = vertex_colours(&t, &img).unwrap();
     let mut worst = 0.0f64;
     for (az, el, d, w, bound) in [
         (40.0, 15.0, 1.0, 384, VERTEX_VS_REFERENCE_MAGNIFIED),
@@ -252,7 +252,7 @@ fn mip_levels_keep_a_distant_texture_from_aliasing() {
     let t = bake(&scene, &settings, &|_| {}).unwrap();
     let cube = CubeMap::constant(8, [1.0; 3]).unwrap();
     let (img, _) = relight_wavelet(&t, &common::full_light(&cube)).unwrap();
-    let colours = &vertex_colours(&t, &img).unwrap()[..];
+    let colours = vertex_colours(&t, &img).unwrap();
     let mesh = t.domain.mesh().unwrap();
     let cam = new_camera(&t, 10.0, 30.0, 2.5, 40, 30);
     let mut seen = scene.with_diffuse_materials();
@@ -299,7 +299,7 @@ fn the_gpu_draws_textured_vertices_as_the_cpu_does() {
     let mesh = t.domain.mesh().unwrap();
     let cube = CubeMap::constant(8, [1.0; 3]).unwrap();
     let (img, _) = relight_wavelet(&t, &common::full_light(&cube)).unwrap();
-    let colours = &vertex_colours(&t, &img).unwrap()[..];
+    let colours = vertex_colours(&t, &img).unwrap();
     let texturing = Texturing::of(mesh).unwrap();
     let g = GpuMesh::textured(&gpu, &mesh.positions, &mesh.triangles, Some(&texturing)).unwrap();
     let c = upload_colours(&gpu, colours).unwrap();

@@ -6,7 +6,7 @@ mod common;
 
 use common::{assets, prt, scene_from, temp_dir};
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::draw::vertex::{GlossEval, draw_relit, orbit};
+use wavelet_prt::draw::vertex::{draw_relit, orbit};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::env::importance::CubeLight;
 use wavelet_prt::math::cube_pyramid::morton_index;
@@ -96,7 +96,7 @@ fn each_glossy_vertex_keeps_the_texels_its_rays_escape_to() {
 }
 
 #[test]
-fn visibility_is_written_read_back_and_refused_beside_in_out_terms() {
+fn visibility_is_written_read_back_and_an_old_file_with_in_out_terms_is_refused() {
     let scene = sphere();
     let t = bake(&scene, &settings(4, 0.4), &|_| {}).unwrap();
     let dir = temp_dir("visibility-file");
@@ -106,12 +106,22 @@ fn visibility_is_written_read_back_and_refused_beside_in_out_terms() {
     let (a, b) = (t.domain.mesh().unwrap(), back.domain.mesh().unwrap());
     assert_eq!(a.visibility, b.visibility);
     assert!(back.meta.identity.visibility);
-    let both = BakeSettings {
-        brdf_terms: 4,
-        ..settings(4, 0.4)
-    };
-    let e = bake(&scene, &both, &|_| {}).unwrap_err().to_string();
-    assert!(e.contains("--brdf-terms 1"), "{e}");
+    // A file of versions 6 to 9 baked with in-out BRDF terms says so with the pixels a vertex
+    // took: it is refused, naming the file and saying how to bake it again, whatever its
+    // checksums say.
+    let mut file = common::StFile::read(&path);
+    file.meta["per_vertex"]["brdf_stride"] = 4.into();
+    let old = dir.join("in_out.prt");
+    file.write(&old, true);
+    let e = Transport::load(&old).unwrap_err().to_string();
+    for part in [
+        "in_out.prt",
+        "in-out BRDF terms",
+        "prt bake",
+        "--per-vertex",
+    ] {
+        assert!(e.contains(part), "{part} is not in: {e}");
+    }
 }
 
 #[test]
@@ -130,19 +140,10 @@ fn the_sphere_from_a_new_camera_is_near_the_path_tracer_under_the_same_cube() {
     let lobe = lobe_light(&t, &ctx, Some(&light), &RelightRequest::Full).unwrap();
     assert!(lobe.is_some());
     let camera = orbit(&scene.camera, 60.0, 0.0);
-    let drawn = draw_relit(
-        &t,
-        &relit,
-        lobe.as_ref(),
-        &camera,
-        None,
-        4,
-        GlossEval::PerPixel,
-    )
-    .unwrap();
+    let drawn = draw_relit(&t, &relit, lobe.as_ref(), &camera, None, 4).unwrap();
     let base = wavelet_prt::draw::vertex::draw(
         &t,
-        &wavelet_prt::draw::vertex::vertex_colours(&t, &relit).unwrap(),
+        wavelet_prt::draw::vertex::vertex_colours(&t, &relit).unwrap(),
         &camera,
         None,
         4,
@@ -203,7 +204,7 @@ fn the_sphere_from_a_new_camera_is_near_the_path_tracer_under_the_same_cube() {
         last = es;
     }
     // Without the light it is drawn from, the draw says so.
-    let err = draw_relit(&t, &relit, None, &camera, None, 1, GlossEval::PerPixel).unwrap_err();
+    let err = draw_relit(&t, &relit, None, &camera, None, 1).unwrap_err();
     assert!(err.to_string().contains("light"), "{err}");
 }
 
@@ -402,7 +403,7 @@ fn the_gpu_draws_the_lobe_as_the_cpu_does() {
             let lobe = lobe_light(&t, &ctx, Some(&light), &RelightRequest::Full)
                 .unwrap()
                 .unwrap();
-            let colours = upload_colours(&gpu, &relit.pixels[..mesh.pixel_count()]).unwrap();
+            let colours = upload_colours(&gpu, &relit.pixels[..mesh.vertex_count()]).unwrap();
             for samples in [1, 4] {
                 let mut raster = GpuRaster::multisampled(&gpu, samples).unwrap();
                 // Without the light the lobe is drawn from, the draw says so.
@@ -411,21 +412,12 @@ fn the_gpu_draws_the_lobe_as_the_cpu_does() {
                 raster.set_light(&gpu, Some(&lobe)).unwrap();
                 for az in [0.0, 130.0] {
                     let camera = orbit(&scene.camera, az, 10.0);
-                    let cpu = draw_relit(
-                        &t,
-                        &relit,
-                        Some(&lobe),
-                        &camera,
-                        None,
-                        samples,
-                        GlossEval::PerPixel,
-                    )
-                    .unwrap();
+                    let cpu = draw_relit(&t, &relit, Some(&lobe), &camera, None, samples).unwrap();
                     let dev = raster.draw(&gpu, &camera, &m, &colours).unwrap();
                     // The lobe is most of what the sphere shows: a draw without it is far off.
                     let base = wavelet_prt::draw::vertex::draw(
                         &t,
-                        &wavelet_prt::draw::vertex::vertex_colours(&t, &relit).unwrap(),
+                        wavelet_prt::draw::vertex::vertex_colours(&t, &relit).unwrap(),
                         &camera,
                         None,
                         samples,

@@ -592,7 +592,7 @@ fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
         weighting: s.relight.weighting,
     };
     let (relit, _) = relight(&t, &ctx, &light, &request).unwrap();
-    let colours = &vertex_colours(&t, &relit).unwrap()[..];
+    let colours = vertex_colours(&t, &relit).unwrap();
     let mesh = t.domain.mesh().unwrap();
     let mut errors = Vec::new();
     let mut images = Vec::new();

@@ -713,9 +713,9 @@ struct GlossyWindow {
 }
 
 impl GlossyWindow {
-    /// `visibility`: the bake keeps its glossy vertices' visibility (the lobe per pixel) rather
-    /// than in-out terms.
-    fn open(name: &str, visibility: bool) -> GlossyWindow {
+    /// The glossy sphere baked per vertex with its glossy vertices' visibility (the lobe per
+    /// pixel), opened in the viewer under a sun.
+    fn open(name: &str) -> GlossyWindow {
         use wavelet_prt::bake::{BakeSettings, bake};
         use wavelet_prt::store::transport::BakeDomain;
         let scene = common::scene_from(&common::glossy_sphere(), name);
@@ -724,8 +724,7 @@ impl GlossyWindow {
             sh_order: 2,
             lossless: true,
             domain: BakeDomain::Vertices { edge_length: 0.15 },
-            brdf_terms: if visibility { 1 } else { 4 },
-            visibility,
+            visibility: true,
             ..BakeSettings::default()
         };
         let t = bake(&scene, &settings, &|_| {}).unwrap();
@@ -826,17 +825,20 @@ fn at(
 
 #[test]
 fn a_glossy_per_vertex_window_moves_its_highlight_as_the_camera_orbits() {
-    let mut w = GlossyWindow::open("viewer-gloss", false);
-    // The vertex colours (the diffuse light and every term's response) are the same in both
-    // views; only the terms' weights follow the eye. So each view is brighter than the other at
-    // its own highlight (measured 1.13x and 1.63x; a draw that kept the first view's weights, or
-    // none, would be 1x at both, as the ground is).
+    if common::gpu_or_skip("a_glossy_per_vertex_window_moves_its_highlight").is_none() {
+        return;
+    }
+    let mut w = GlossyWindow::open("viewer-gloss");
+    // The vertex colours (the diffuse light) are the same in both views; the lobe is evaluated
+    // per pixel for its own direction to the eye. So each view is brighter than the other at its
+    // own highlight (measured 4.06x and 3.07x; a lobe drawn for the first view, or none, would
+    // be 1x at both, as the ground is).
     let (mine, theirs, matte) = w.highlight_ratios();
     assert!(
-        mine > 1.05 && theirs > 1.05,
+        mine > 1.5 && theirs > 1.5,
         "at the first view's highlight {mine}x the second's brightness, at the second's {theirs}x"
     );
-    // A matte point on the ground is the same from both sides (measured 1.00004x).
+    // A matte point on the ground is the same from both sides (measured 1.00003x).
     assert!((matte - 1.0).abs() < 0.02, "the ground changed {matte}x");
 }
 
@@ -845,7 +847,7 @@ fn the_glossy_light_toggles_to_sh_transfer_and_its_highlight_follows_the_camera(
     if common::gpu_or_skip("the_glossy_light_toggles_to_sh_transfer").is_none() {
         return;
     }
-    let mut w = GlossyWindow::open("viewer-sh-transfer", true);
+    let mut w = GlossyWindow::open("viewer-sh-transfer");
     assert_eq!(w.h.state().state.display.sh_transfer, None);
     let (camera, lobe) = w.shown();
     w.h.get_by_label("Glossy light by SH transfer").click();

@@ -118,8 +118,7 @@ fn bake(
     let scene = py.detach(|| api::load_scene(&scene, &framing)).py()?;
     if per_vertex {
         settings.domain = api::vertices(&scene, edge_length);
-        settings.visibility =
-            visibility.unwrap_or_else(|| api::glossy_visibility(&scene, settings.brdf_terms));
+        settings.visibility = visibility.unwrap_or_else(|| api::glossy_visibility(&scene));
     }
     let (done, total) = (AtomicUsize::new(0), AtomicUsize::new(0));
     let cancel = Cancel::new();

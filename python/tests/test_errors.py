@@ -57,7 +57,7 @@ def test_a_misspelt_keyword_or_a_per_vertex_flag_alone_is_refused(tmp_path, scen
     with pytest.raises(TypeError):
         wp.bake(scene, tmp_path / "x.prt", cubes=8)
     with pytest.raises(ValueError, match="per_vertex"):
-        wp.bake(scene, tmp_path / "x.prt", brdf_terms=4)
+        wp.bake(scene, tmp_path / "x.prt", refine_shadows=True)
     with pytest.raises(ValueError, match="lossless"):
         wp.bake(scene, tmp_path / "x.prt", lossless=True, threshold=0.01)
 

@@ -191,8 +191,6 @@ def bake(
     quantization: str = "q8",
     shard: Union[None, str, Sequence[int]] = None,
     per_vertex: bool = False,
-    brdf_terms: int = 1,
-    brdf_error: float = 0.0,
     edge_length: Optional[float] = None,
     refine_shadows: bool = False,
     visibility: Optional[bool] = None,
@@ -216,10 +214,9 @@ def bake(
     one band of a bake, joined by :func:`merge`).
 
     Per vertex: ``per_vertex`` (one row per mesh vertex, so the camera can move),
-    ``brdf_terms``, ``brdf_error``, ``edge_length`` (default: the scene's, else 1/160 of its
-    diagonal), ``refine_shadows``, ``visibility`` (keep each glossy vertex's visibility, its GGX
-    lobe drawn per pixel; default, as the command line: for a scene with glossy materials unless
-    ``brdf_terms`` asks for in-out terms).
+    ``edge_length`` (default: the scene's, else 1/160 of its diagonal), ``refine_shadows``,
+    ``visibility`` (keep each glossy vertex's visibility, its GGX lobe drawn per pixel; default,
+    as the command line: for a scene with glossy materials).
 
     ``progress``: see :data:`ProgressLike`.
     """
@@ -232,7 +229,7 @@ def _bake_file(a: Dict[str, Any]) -> None:
     """Bakes with the arguments of :func:`bake` (all of them, as a dict)."""
     default = {name: p.default for name, p in inspect.signature(bake).parameters.items()}
     if not a["per_vertex"]:
-        for name in ("brdf_terms", "brdf_error", "edge_length", "refine_shadows", "visibility"):
+        for name in ("edge_length", "refine_shadows", "visibility"):
             if a[name] != default[name]:
                 raise ValueError(f"{name} applies to per-vertex bakes: pass per_vertex=True")
     if a["lossless"]:
@@ -241,8 +238,7 @@ def _bake_file(a: Dict[str, Any]) -> None:
                 raise ValueError(f"{name} cannot be used with lossless: it keeps every coefficient")
     stored = ("sh_order", "spp", "edge_spp", "texel_samples", "edge_texel_samples", "threshold",
               "budget", "quantization", "lossless", "unshadowed", "seed", "bounces", "paths",
-              "bounce_visibility", "cache_spacing", "light_samples", "brdf_terms", "brdf_error",
-              "refine_shadows")
+              "bounce_visibility", "cache_spacing", "light_samples", "refine_shadows")
     settings = {name: a[name] for name in stored}
     settings["cube_n"] = a["cube"]
     settings["shard"] = _shard(a["shard"])

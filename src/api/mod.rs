@@ -76,7 +76,7 @@ pub use crate::store::transport::{BakeDomain, Transport, TransportMeta};
 
 use crate::draw::background::{composite, environment_behind, environment_behind_camera};
 use crate::draw::raster::DRAW_SAMPLES;
-use crate::draw::vertex::{self, GlossEval};
+use crate::draw::vertex;
 pub use crate::env::select::SparseLight;
 use crate::error::{PrtError, Result};
 use crate::math::cube_pyramid::CubePyramid;
@@ -152,10 +152,9 @@ pub fn vertices(scene: &Scene, edge_length: Option<f32>) -> BakeDomain {
 }
 
 /// Whether a per-vertex bake of `scene` keeps its glossy vertices' visibility unless told: when
-/// it has a glossy material and no in-out terms are asked for (`brdf_terms` ≤ 1), as
-/// `prt bake --per-vertex` does.
-pub fn glossy_visibility(scene: &Scene, brdf_terms: u32) -> bool {
-    brdf_terms <= 1 && scene.materials.iter().any(|m| m.glossy_lobe().is_some())
+/// it has a glossy material, as `prt bake --per-vertex` does.
+pub fn glossy_visibility(scene: &Scene) -> bool {
+    scene.materials.iter().any(|m| m.glossy_lobe().is_some())
 }
 
 /// The metadata of the transport file at `path` when it already holds this bake (or shard) of
@@ -358,15 +357,7 @@ impl Relighter {
         let t = &self.transport;
         let (image, coverage) = match &camera {
             Some(camera) => {
-                let r = vertex::draw_relit(
-                    t,
-                    &image,
-                    lobe.as_ref(),
-                    camera,
-                    None,
-                    samples,
-                    GlossEval::default(),
-                )?;
+                let r = vertex::draw_relit(t, &image, lobe.as_ref(), camera, None, samples)?;
                 (r.image, r.coverage)
             }
             None => (image, t.coverage.clone()),
@@ -489,13 +480,12 @@ impl Relighter {
             camera,
             behind,
             DRAW_SAMPLES,
-            GlossEval::default(),
         )?;
         Ok(raster.image)
     }
 
-    /// The pixel whose rows are vertex `vertex`'s diffuse light in a per-vertex bake (its
-    /// in-out BRDF terms follow it); an error for a per-pixel bake or a vertex out of range.
+    /// The pixel whose rows are vertex `vertex`'s diffuse light in a per-vertex bake; an error
+    /// for a per-pixel bake or a vertex out of range.
     pub fn vertex_pixel(&self, vertex: usize) -> Result<usize> {
         let mesh = vertex::mesh_of(&self.transport)?;
         if vertex >= mesh.vertex_count() {
@@ -507,7 +497,7 @@ impl Relighter {
                 ),
             ));
         }
-        Ok(vertex * mesh.stride())
+        Ok(vertex)
     }
 
     /// Pixel `pixel`'s transport row as the relight takes it, dense: for each of the 6 N² Haar

@@ -8,7 +8,6 @@
 
 pub mod bounce;
 mod direct;
-mod gloss;
 mod in_order;
 pub mod lights;
 pub mod medium_light;
@@ -208,35 +207,26 @@ pub fn bake_to_file_with(
 type TileStats = [f64; 3];
 
 /// The mesh a per-vertex bake's rows belong to (refined at shadow edges where the settings say
-/// so, [`BakeSettings::refines_shadows`]), with its in-out BRDF terms; `None` for a view. The
+/// so, [`BakeSettings::refines_shadows`]); `None` for a view. The
 /// settings are checked against the scene first, so what a scene cannot be baked with is said
 /// before any work.
 pub fn bake_mesh(scene: &Scene, settings: &BakeSettings) -> Result<Option<VertexMesh>> {
     settings.validate_for(scene)?;
     Ok(match settings.domain {
-        BakeDomain::Vertices { edge_length } => {
-            let mut m = if settings.refines_shadows() {
-                VertexMesh::tessellate_refined(scene, edge_length)?
-            } else {
-                VertexMesh::tessellate(scene, edge_length)?
-            };
-            m.factors = crate::scene::brdf_factor::BrdfFactors::for_materials(
-                &scene.materials,
-                settings.brdf_terms as usize,
-                settings.brdf_error as f64,
-            )
-            .map(Box::new);
-            Some(m)
-        }
+        BakeDomain::Vertices { edge_length } => Some(if settings.refines_shadows() {
+            VertexMesh::tessellate_refined(scene, edge_length)?
+        } else {
+            VertexMesh::tessellate(scene, edge_length)?
+        }),
         BakeDomain::View => None,
     })
 }
 
-/// The size of the image the rows belong to: the view's, or for a mesh one tile wide, vertex
-/// v's terms pixels v · stride + k.
+/// The size of the image the rows belong to: the view's, or for a mesh one tile wide, vertex v
+/// pixel v.
 fn image_size(scene: &Scene, mesh: Option<&VertexMesh>) -> (usize, usize) {
     match mesh {
-        Some(m) => (TILE, m.pixel_count().div_ceil(TILE)),
+        Some(m) => (TILE, m.vertex_count().div_ceil(TILE)),
         None => (scene.camera.width as usize, scene.camera.height as usize),
     }
 }
@@ -439,8 +429,6 @@ fn meta_of(
             image: [cam.width, cam.height],
             materials: scene.materials.len() as u32,
             albedo_maps: m.albedo_maps.len() as u32,
-            brdf_stride: m.stride() as u32,
-            brdf_map: m.factors.as_ref().map_or(0, |f| f.map.res as u32),
         }),
         stats: BakeStats::default(),
         lights: scene.lights.clone(),
@@ -507,12 +495,11 @@ impl PixelTables {
     }
 }
 
-/// The pixels of tile `t` of a `w` x `h` image `tx` tiles wide (those of vertices and their terms
-/// for a mesh).
+/// The pixels of tile `t` of a `w` x `h` image `tx` tiles wide (its vertices for a mesh).
 fn tile_pixels(w: usize, h: usize, mesh: Option<&VertexMesh>, [tx, t]: [usize; 2]) -> usize {
     match mesh {
         Some(m) => m
-            .pixel_count()
+            .vertex_count()
             .saturating_sub(t * TILE * TILE)
             .min(TILE * TILE),
         None => {

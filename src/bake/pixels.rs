@@ -251,10 +251,8 @@ pub(super) struct Visit {
 pub(super) fn visits(ctx: &TileContext, x: usize, y: usize) -> Vec<Visit> {
     let (tracer, medium) = (ctx.tracer, ctx.medium);
     if let Some(mesh) = ctx.mesh {
-        // Vertex v's first pixel; the others hold its in-out terms.
-        let p = y * ctx.width + x;
-        let v = p / mesh.stride();
-        if !p.is_multiple_of(mesh.stride()) || v >= mesh.vertex_count() {
+        let v = y * ctx.width + x;
+        if v >= mesh.vertex_count() {
             return Vec::new();
         }
         let normal = mesh.normals[v];

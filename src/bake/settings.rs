@@ -70,12 +70,6 @@ pub struct BakeSettings {
     /// Samples per shading point of each sized local light (a quad, a sun disc), rounded up to a
     /// square: a stratified grid over the light.
     pub light_samples: u32,
-    /// The most in-out BRDF terms K_b a glossy material of a per-vertex bake takes
-    /// ([`crate::scene::brdf_factor::BrdfFactors`]); 1 bakes its diffuse base alone.
-    pub brdf_terms: u32,
-    /// The factor error that picks a glossy material's K_b, at most `brdf_terms` (0: every
-    /// glossy material takes `brdf_terms`).
-    pub brdf_error: f32,
     /// Whether a per-vertex bake spends its vertices where shadows fall
     /// ([`crate::scene::tessellate::VertexMesh::tessellate_refined`]): as many as the uniform
     /// tessellation at the edge length makes (which `false` keeps), more of them across shadow
@@ -112,8 +106,6 @@ impl Default for BakeSettings {
             cache_spacing: 4.0,
             domain: BakeDomain::View,
             light_samples: 64,
-            brdf_terms: 1,
-            brdf_error: 0.0,
             refine_shadows: false,
             visibility: false,
         }
@@ -173,29 +165,6 @@ impl BakeSettings {
                 return Err(PrtError::invalid(
                     "edge length",
                     format!("{e}; it must be a finite length > 0 (scene units)"),
-                ));
-            }
-            within(
-                "BRDF terms",
-                self.brdf_terms as usize,
-                1..=crate::scene::brdf_factor::MAX_TERMS,
-                "",
-            )?;
-            if !(0.0..1.0).contains(&self.brdf_error) {
-                return Err(PrtError::invalid(
-                    "BRDF error",
-                    format!(
-                        "{}; it must be in [0, 1) (0 takes --brdf-terms for every glossy \
-                         material)",
-                        self.brdf_error
-                    ),
-                ));
-            }
-            if self.visibility && self.brdf_terms > 1 {
-                return Err(PrtError::invalid(
-                    "per-vertex bake",
-                    "a glossy lobe is drawn either from in-out terms or from visibility: bake \
-                     with --brdf-terms 1 to store visibility",
                 ));
             }
             if self.bounces > 0 {
@@ -317,14 +286,6 @@ impl BakeSettings {
             } else {
                 0
             },
-            brdf_terms: match self.domain {
-                BakeDomain::View => 1,
-                BakeDomain::Vertices { .. } => self.brdf_terms,
-            },
-            brdf_error: match self.domain {
-                BakeDomain::Vertices { .. } if self.brdf_terms > 1 => self.brdf_error,
-                _ => 0.0,
-            },
             refine_shadows: self.refines_shadows(),
             visibility: self.visibility && matches!(self.domain, BakeDomain::Vertices { .. }),
         })
@@ -375,8 +336,6 @@ impl BakeSettings {
             } else {
                 defaults.light_samples
             },
-            brdf_terms: id.brdf_terms,
-            brdf_error: id.brdf_error,
             refine_shadows: match id.domain {
                 BakeDomain::View => defaults.refine_shadows,
                 BakeDomain::Vertices { .. } => id.refine_shadows,

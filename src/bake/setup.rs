@@ -87,7 +87,7 @@ pub(super) fn with_tile_context<R>(
             stage([0, 0], [0, 0], [done, total])
         })?;
     let light_sampler = LightSampler::new(scene, settings);
-    let (reference_energy, term_budgets, thresholder) = budgets(p.identity, &samples, p.mesh);
+    let (reference_energy, thresholder) = budgets(p.identity, &samples);
     f(&TileContext {
         scene,
         width: w,
@@ -97,7 +97,6 @@ pub(super) fn with_tile_context<R>(
         edges: &edges,
         settings,
         reference_energy,
-        term_budgets,
         thresholder,
         samples: &samples,
         packets: packets.as_ref(),
@@ -143,33 +142,22 @@ fn medium_stages(
     Ok((Some(light), Some(rows)))
 }
 
-/// The thresholding budgets: the energy of an unshadowed row (the scale of every row's budget),
-/// the scale of each glossy term's rows' budget (material-major, as the factors), and the
-/// thresholder.
+/// The thresholding budget: the energy of an unshadowed row (the scale of every row's budget),
+/// and the thresholder.
 fn budgets(
     identity: &crate::store::transport::BakeIdentity,
     samples: &TexelSamples,
-    mesh: Option<&VertexMesh>,
-) -> (f64, Vec<f64>, Thresholder) {
+) -> (f64, Thresholder) {
     let mut reference_haar = unoccluded_row(samples);
     let reference_energy: f64 = reference_haar.iter().map(|&v| (v as f64).powi(2)).sum();
     haar::forward_face_all(&mut reference_haar, samples.n, &mut Vec::new());
-    // A term's budget is the diffuse row's, divided by the square of the largest g_k the term's
-    // response is multiplied by, so that its error once drawn is at most the diffuse row's.
-    let term_budgets: Vec<f64> = match mesh.and_then(|m| m.factors.as_deref()) {
-        Some(f) => (0..f.terms.len() as u32)
-            .flat_map(|m| (1..f.stride).map(move |k| (m, k)))
-            .map(|(m, k)| reference_energy / (f.view_peak(m, k).max(1e-6) as f64).powi(2))
-            .collect(),
-        None => Vec::new(),
-    };
     let thresholder = Thresholder::new(
         identity.budget,
         identity.threshold,
         samples.n,
         &reference_haar,
     );
-    (reference_energy, term_budgets, thresholder)
+    (reference_energy, thresholder)
 }
 
 /// The row of an unshadowed surface facing +Y with unit albedo, in texel order: the row the

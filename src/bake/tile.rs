@@ -1,6 +1,6 @@
 //! One tile of the bake: for each of its pixels, every camera sub-sample's sources added to the
 //! pixel's dense rows (the paths through a medium from the camera, the light columns, the direct
-//! rows or a glossy vertex's BRDF terms, the interreflections), then each row projected on SH,
+//! rows, the interreflections), then each row projected on SH,
 //! Haar-transformed and thresholded, and the tile's rows laid out kind by kind.
 
 use glam::Vec3;
@@ -9,7 +9,7 @@ use super::lights::LightSampler;
 use super::pixels::{EdgeMap, Visit, visits};
 use super::slot::Slot;
 use super::{
-    BakeSettings, CentrePackets, ShadingPoint, Shadows, accumulate_direct_rows, bounce, gloss,
+    BakeSettings, CentrePackets, ShadingPoint, Shadows, accumulate_direct_rows, bounce,
     path_stream, sample_stride,
 };
 use crate::bake::medium_rows::MediumRows;
@@ -42,7 +42,7 @@ pub(super) struct TileContext<'a> {
     /// Size of the image the rows belong to: the view's, or one tile wide for a mesh.
     pub(super) width: usize,
     pub(super) height: usize,
-    /// The mesh of a per-vertex bake: pixel `v · stride` is vertex v (its terms after it).
+    /// The mesh of a per-vertex bake: pixel v is vertex v.
     pub(super) mesh: Option<&'a VertexMesh>,
     pub(super) tracer: &'a Tracer,
     /// The pixels that take `edge_spp` sub-samples.
@@ -54,8 +54,6 @@ pub(super) struct TileContext<'a> {
     pub(super) basis: &'a TexelShBasis,
     /// Energy of an unshadowed row, the scale of the thresholding budget.
     pub(super) reference_energy: f64,
-    /// The scale of each glossy term's thresholding budget, `[m · (stride − 1) + k − 1]`.
-    pub(super) term_budgets: Vec<f64>,
     /// The thresholding budget.
     pub(super) thresholder: Thresholder,
     /// The scene's medium and its rows, if it has one.
@@ -88,8 +86,7 @@ impl TileContext<'_> {
 /// strips of 8 rows, kept whole when one of them has an entry, so rows that keep the same
 /// coefficients belong side by side: the first lobe of every pixel, then the second, and so on;
 /// then each pixel's three interreflection rows together (their paths are the same, and so are
-/// the coefficients they keep); then the medium's rows; then a per-vertex bake's BRDF terms,
-/// term by term. Laid out pixel by pixel, the sparse interreflection rows shared strips with the
+/// the coefficients they keep); then the medium's rows. Laid out pixel by pixel, the sparse interreflection rows shared strips with the
 /// dense direct rows: on a 128² one-bounce demo bake 29% of strip values were entries, and 76%
 /// this way.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -100,8 +97,6 @@ enum RowKind {
     Channels,
     /// A pixel's single-scattering row through the medium.
     Medium,
-    /// A vertex's i-th in-out BRDF term.
-    Term(usize),
 }
 
 /// What a tile reuses from one pixel to the next.
@@ -175,8 +170,6 @@ struct PixelSums {
     light_columns: Vec<Vec3>,
     /// A textured vertex, whose rows are a white surface's.
     white: bool,
-    /// A glossy vertex's in-out BRDF terms 1.., and the material they belong to.
-    terms: Option<(u32, Vec<Vec<f32>>)>,
 }
 
 impl PixelSums {
@@ -190,7 +183,6 @@ impl PixelSums {
             albedo_sum: Vec3::ZERO,
             light_columns: vec![Vec3::ZERO; ctx.lights.columns()],
             white: false,
-            terms: None,
         }
     }
 
@@ -224,8 +216,8 @@ impl PixelSums {
         rays
     }
 
-    /// A surface hit's own light, `scale` times: its light columns, and its direct rows or a
-    /// glossy vertex's BRDF terms. Returns the rays traced.
+    /// A surface hit's own light, `scale` times: its light columns and its direct rows. Returns
+    /// the rays traced.
     fn surface(
         &mut self,
         ctx: &TileContext,
@@ -284,24 +276,14 @@ impl PixelSums {
         }
         let slot = &mut self.dense[slot];
         let (diffuse, glossy_row) = slot.rows_for_sample(&mut scratch.rows);
-        let factors = gloss::factors_of(mesh.and_then(|m| m.factors.as_deref()), sp);
-        rays += match factors {
-            Some(f) => {
-                let count = f.terms_of(sp.material) - 1;
-                let (_, rows) = self
-                    .terms
-                    .get_or_insert_with(|| (sp.material, vec![vec![0.0; c]; count]));
-                gloss::accumulate_term_rows(&shadows, ctx.samples, sp, f, scale, diffuse, rows)
-            }
-            None => accumulate_direct_rows(
-                &shadows,
-                ctx.samples,
-                sp,
-                scale,
-                diffuse,
-                glossy_row.map(|row| (here.alpha, row)),
-            ),
-        };
+        rays += accumulate_direct_rows(
+            &shadows,
+            ctx.samples,
+            sp,
+            scale,
+            diffuse,
+            glossy_row.map(|row| (here.alpha, row)),
+        );
         slot.fold_sample(&here, &scratch.rows);
         rays
     }
@@ -316,7 +298,7 @@ impl PixelSums {
         out: &mut TileOutput,
         rows: &mut Vec<(RowKind, RowData)>,
     ) {
-        let (scene, mesh) = (ctx.scene, ctx.mesh);
+        let scene = ctx.scene;
         let inv_spp = self.inv_spp;
         let mean_albedo = if self.hits > 0 {
             (self.albedo_sum / self.hits as f32).to_array()
@@ -325,11 +307,6 @@ impl PixelSums {
         };
         out.pixels
             .push((pixel, mean_albedo, self.covered * inv_spp));
-        // A vertex's term pixels are its own: covered as it is, so that masks keep them.
-        for k in 1..mesh.map_or(1, VertexMesh::stride) as u32 {
-            out.pixels
-                .push((pixel + k, [0.0; 3], self.covered * inv_spp));
-        }
         if !self.light_columns.is_empty() {
             out.lights.push((pixel, self.light_columns));
         }
@@ -368,27 +345,8 @@ impl PixelSums {
                 rows.reference_energy(p),
             ))
         });
-        // A glossy vertex's terms, each with its budget.
-        let per = mesh.map_or(1, VertexMesh::stride) - 1;
-        let term_budgets = &ctx.term_budgets;
-        let terms = self.terms.into_iter().flat_map(|(m, rows)| {
-            let specular = scene.materials[m as usize]
-                .glossy_lobe()
-                .map_or([0.0; 3], |(s, _)| s.to_array());
-            let first = m as usize * per;
-            rows.into_iter().enumerate().map(move |(i, row)| {
-                let budget = term_budgets[first + i];
-                (
-                    RowKind::Term(i),
-                    pixel + i as u32 + 1,
-                    specular,
-                    row,
-                    budget,
-                )
-            })
-        });
         let (n, shc) = (ctx.settings.cube_n, ctx.settings.sh_order.pow(2));
-        for (kind, pixel, weight, mut row, budget_scale) in lobes.chain(scattered).chain(terms) {
+        for (kind, pixel, weight, mut row, budget_scale) in lobes.chain(scattered) {
             let mut sh = vec![0.0f32; shc];
             ctx.basis.project_row(&row, &mut sh);
             haar::forward_face_all(&mut row, n, &mut scratch.haar);

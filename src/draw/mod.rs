@@ -4,7 +4,6 @@
 //! geometry is seen ([`background`]).
 
 pub mod background;
-pub mod gloss;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod lobe;

@@ -400,7 +400,7 @@ fn draw_band(
                 if let Some(g) = gloss {
                     let dir = view.right * fx + view.up * fy + view.forward;
                     let b = w.map(|x| x / sum);
-                    // A truncated factorisation can undershoot: radiance stays non-negative.
+                    // SH transfer's truncated series can undershoot: radiance stays non-negative.
                     colour = (colour + g.shade(tri, b, -dir.normalize()).as_vec3()).max(Vec3::ZERO);
                 }
                 pixels[i] = colour.to_array();

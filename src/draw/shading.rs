@@ -88,8 +88,9 @@ pub fn interpolated_normal(normals: &[Vec3], tri: [u32; 3], b: [f64; 3]) -> Opti
 
 /// What a per-vertex bake stores for view-dependent shading, as the raster asks for it: the
 /// light a point adds, seen from a direction, on top of its interpolated vertex colour. A new
-/// representation of glossy light is an impl of this ([`crate::draw::gloss::Gloss`], the in-out
-/// BRDF terms, is one).
+/// representation of glossy light is an impl of this: [`crate::draw::lobe::Lobe`] (the GGX lobe
+/// per pixel against the light, through the vertices' visibility) and
+/// [`crate::draw::sh_gloss::ShGloss`] (SH glossy transfer) are two.
 pub trait ViewDependent: Sync {
     /// Checks the tables against a mesh of `vertices` vertices.
     fn check(&self, vertices: usize) -> Result<()>;

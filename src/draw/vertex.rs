@@ -1,7 +1,7 @@
 //! A per-vertex bake seen from any camera: the relit image of such a bake holds one colour per
-//! vertex (vertex `v` is pixel `v`; with in-out BRDF terms, `v · stride` and its terms after it),
-//! which [`crate::draw::raster`] draws with Gouraud shading and a depth test, the glossy
-//! terms weighed per pixel by the direction to the eye, over the environment behind. The orbit
+//! vertex (vertex `v` is pixel `v`), which [`crate::draw::raster`] draws with Gouraud shading and
+//! a depth test, a glossy bake's lobe evaluated per pixel for the direction to the eye, over the
+//! environment behind. The orbit
 //! camera turns the bake's own camera about its target; every camera a user moves is made upright
 //! by [`moved_camera`].
 
@@ -11,9 +11,7 @@ use crate::draw::background::{composite, environment_behind_camera};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
 use crate::output::film::Image;
-use std::borrow::Cow;
 
-use crate::draw::gloss::Gloss;
 use crate::draw::lobe::{Lobe, lobe_samples};
 use crate::draw::raster::{Raster, rasterize_glossy};
 use crate::draw::sh_gloss::ShGloss;
@@ -219,69 +217,23 @@ impl std::str::FromStr for Orbit {
     }
 }
 
-/// A per-vertex bake's mesh, and the pixels of `relit` its vertices take (`stride` each).
-fn vertex_pixels<'t, 'r>(
-    t: &'t Transport,
-    relit: &'r Image,
-) -> Result<(&'t VertexMesh, &'r [[f32; 3]])> {
-    let mesh = mesh_of(t)?;
-    let (v, stride) = (mesh.vertex_count(), mesh.stride());
-    let pixels = relit.pixels.get(..v * stride).ok_or_else(|| {
+/// The vertex colours in a per-vertex bake's relit image: each vertex's pixel, its diffuse
+/// light.
+pub fn vertex_colours<'a>(t: &Transport, relit: &'a Image) -> Result<&'a [[f32; 3]]> {
+    let v = mesh_of(t)?.vertex_count();
+    relit.pixels.get(..v).ok_or_else(|| {
         PrtError::invalid(
             "relit image",
-            format!(
-                "{} pixels for {v} vertices of {stride} pixels each",
-                relit.pixels.len()
-            ),
+            format!("{} pixels for {v} vertices", relit.pixels.len()),
         )
-    })?;
-    Ok((mesh, pixels))
-}
-
-/// The vertex colours in a per-vertex bake's relit image: each vertex's first pixel, its diffuse
-/// light (the whole of it unless the bake keeps in-out BRDF terms).
-pub fn vertex_colours<'a>(t: &Transport, relit: &'a Image) -> Result<Cow<'a, [[f32; 3]]>> {
-    let (mesh, pixels) = vertex_pixels(t, relit)?;
-    Ok(match mesh.stride() {
-        1 => Cow::Borrowed(pixels),
-        stride => Cow::Owned(pixels.iter().step_by(stride).copied().collect()),
     })
 }
 
-/// A glossy per-vertex bake's term responses in its relit image, vertex `v`'s term k at
-/// `[v · (stride − 1) + k − 1]` (see [`Gloss`]); `None` for the diffuse base.
-pub fn vertex_terms(t: &Transport, relit: &Image) -> Result<Option<Vec<[f32; 3]>>> {
-    let (mesh, pixels) = vertex_pixels(t, relit)?;
-    if mesh.factors.is_none() {
-        return Ok(None);
-    }
-    Ok(Some(
-        pixels
-            .chunks_exact(mesh.stride())
-            .flat_map(|v| v[1..].iter().copied())
-            .collect(),
-    ))
-}
-
-/// How the glossy light of a per-vertex bake is evaluated when drawn.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[derive(strum::IntoStaticStr, strum::Display, strum::VariantArray)]
-#[strum(serialize_all = "kebab-case")]
-pub enum GlossEval {
-    /// `g_k` of the direction to the eye at every sample, the responses interpolated.
-    #[default]
-    PerPixel,
-    /// `g_k` at each vertex, the colours interpolated (Gouraud).
-    PerVertex,
-}
-
-crate::named!(GlossEval, "gloss evaluation");
-
 /// Draws a per-vertex bake relit to `relit` as `camera` sees it, on the CPU: its vertex colours
 /// (its diffuse light; see [`vertex_colours`]), its textured materials multiplied by their
-/// albedo maps per pixel, the glossy light of a bake with in-out terms added as `eval` says, or
-/// that of a bake with visibility drawn per pixel from `light` (the pyramid of the light the
-/// relight used, [`crate::relight::Terms::cube`]; an error without it), with `behind` (the
+/// albedo maps per pixel, the glossy light of a bake with visibility drawn per pixel from `light`
+/// (the pyramid of the light the relight used, [`crate::relight::Terms::cube`]; an error without
+/// it), with `behind` (the
 /// environment and its turn) where no surface is drawn, with `samples` samples a pixel (see
 /// [`crate::draw::raster::rasterize_multisampled`]). Also gives the coverage, for masks and tone
 /// mapping.
@@ -292,7 +244,6 @@ pub fn draw_relit(
     camera: &Camera,
     behind: Option<(&EnvMap, EnvRotation)>,
     samples: u32,
-    eval: GlossEval,
 ) -> Result<Raster> {
     let mesh = mesh_of(t)?;
     let colours = vertex_colours(t, relit)?;
@@ -311,31 +262,9 @@ pub fn draw_relit(
             light,
             lobe_samples(vis),
         );
-        return draw_mesh(mesh, &colours, Some(&lobe), camera, behind, samples);
+        return draw_mesh(mesh, colours, Some(&lobe), camera, behind, samples);
     }
-    let terms = vertex_terms(t, relit)?;
-    let gloss = mesh
-        .factors
-        .as_ref()
-        .zip(terms.as_deref())
-        .map(|(f, terms)| Gloss {
-            normals: &mesh.normals,
-            materials: &mesh.materials,
-            factors: f,
-            terms,
-        });
-    let per_vertex;
-    let (colours, gloss) = match (eval, &gloss) {
-        (GlossEval::PerVertex, Some(g)) => {
-            per_vertex = g.per_vertex(&mesh.positions, &colours, camera.eye)?;
-            (&per_vertex[..], None)
-        }
-        _ => (
-            &colours[..],
-            gloss.as_ref().map(|g| g as &dyn ViewDependent),
-        ),
-    };
-    draw_mesh(mesh, colours, gloss, camera, behind, samples)
+    draw_mesh(mesh, colours, None, camera, behind, samples)
 }
 
 /// Draws a per-vertex bake with visibility relit to `relit` as [`draw_relit`] does, its glossy
@@ -362,7 +291,7 @@ pub fn draw_sh_glossy(
     })?;
     let colours = vertex_colours(t, relit)?;
     let gloss = ShGloss::new(&mesh.normals, &mesh.materials, vis, transfer, light);
-    draw_mesh(mesh, &colours, Some(&gloss), camera, behind, samples)
+    draw_mesh(mesh, colours, Some(&gloss), camera, behind, samples)
 }
 
 /// Draws a per-vertex bake with the given vertex `colours` (one per vertex, its glossy terms

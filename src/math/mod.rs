@@ -1,6 +1,6 @@
 //! The mathematics every stage shares: real spherical harmonics (and their table at a cube's
-//! texels), the per-face Haar transform, cube map texels and their solid angles (and the quadrature over a texel), seeded sampling,
-//! the magnitude that ranks an RGB coefficient, and the leading singular triplets of a matrix.
+//! texels), the per-face Haar transform, cube map texels and their solid angles (and the
+//! quadrature over a texel), seeded sampling, and the magnitude that ranks an RGB coefficient.
 //! Nothing here knows of scenes or files.
 
 pub mod cube_pyramid;
@@ -8,7 +8,6 @@ pub mod cubemap;
 pub mod haar;
 pub mod sampling;
 pub mod sh;
-pub mod svd;
 pub mod texel_quadrature;
 pub mod texel_sh;
 pub mod zonal;

@@ -573,7 +573,6 @@ pub fn is_gltf(path: &Path) -> bool {
 
 pub mod albedo_map;
 pub mod brdf;
-pub mod brdf_factor;
 mod diagnostics;
 mod file;
 pub mod gltf;

@@ -19,7 +19,6 @@ use std::collections::HashMap;
 use glam::{Vec2, Vec3};
 
 use super::albedo_map::AlbedoMap;
-use super::brdf_factor::BrdfFactors;
 use super::visibility::Visibility;
 use super::{Scene, Triangle};
 use crate::error::{PrtError, Result};
@@ -56,9 +55,6 @@ pub struct VertexMesh {
     /// The albedo map of every textured material the vertices use, by material index: those
     /// vertices' light is baked for a white surface, and the raster multiplies it by the map.
     pub albedo_maps: Vec<AlbedoMap>,
-    /// The in-out factors of its glossy materials when they are baked with more than their
-    /// diffuse term (see [`BrdfFactors`]): vertex `v`'s terms are pixels `v · stride + k`.
-    pub factors: Option<Box<BrdfFactors>>,
     /// Which cube texels each glossy vertex sees, when its glossy light is drawn per pixel from
     /// the light itself ([`Visibility`]); the bake makes it once the vertex order is final.
     pub visibility: Option<Box<Visibility>>,
@@ -91,16 +87,6 @@ impl VertexMesh {
     /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
         self.positions.len()
-    }
-
-    /// Pixels each vertex takes in a relit image: its K_b terms' stride (1 for the diffuse base).
-    pub fn stride(&self) -> usize {
-        self.factors.as_ref().map_or(1, |f| f.stride)
-    }
-
-    /// Pixels of the relit image the vertices take: `vertex_count · stride`.
-    pub fn pixel_count(&self) -> usize {
-        self.vertex_count() * self.stride()
     }
 
     /// Welds, refines and orders the surfaces of `scene` so that no edge is longer than
@@ -172,17 +158,6 @@ impl VertexMesh {
             .find(|t| t.iter().any(|&i| i as usize >= v))
         {
             return Some(format!("triangle {t:?} indexes past the {v} vertices"));
-        }
-        if let Some(f) = &self.factors {
-            if f.terms.len() > materials {
-                return Some(format!(
-                    "BRDF terms of {} materials, of {materials}",
-                    f.terms.len()
-                ));
-            }
-            if let Some(p) = f.problem(f.terms.len()) {
-                return Some(p);
-            }
         }
         if let Some(m) = self.materials.iter().find(|&&m| m as usize >= materials) {
             return Some(format!("material {m} of {materials}"));
@@ -334,7 +309,6 @@ impl VertexMesh {
                 .map(|t| t.map(|i| new_index[i as usize]))
                 .collect(),
             albedo_maps: self.albedo_maps,
-            factors: self.factors,
             // Rows of the old order; none yet while the mesh is being made.
             visibility: None,
         }

@@ -446,8 +446,6 @@ fn random_rows_of_density(
             indirect: None,
             domain: BakeDomain::View,
             light_samples: 0,
-            brdf_terms: 1,
-            brdf_error: 0.0,
             refine_shadows: false,
             visibility: false,
         },

@@ -40,21 +40,10 @@ pub struct BakeArgs {
     #[arg(long, value_name = "I/COUNT")]
     pub shard: Option<String>,
     /// Bake one row per mesh vertex instead of one per pixel, so that the camera can move
-    /// (`prt relight --eye`, the viewer's orbit). Glossy materials keep their diffuse base
-    /// unless --brdf-terms gives them in-out terms.
+    /// (`prt relight --eye`, the viewer's orbit). Glossy materials keep their visibility, and
+    /// their lobe is drawn per pixel (see --visibility).
     #[arg(long)]
     pub per_vertex: bool,
-    /// Per-vertex bakes: the most in-out BRDF terms K_b of a glossy material (1 to 16): its
-    /// diffuse term and K_b − 1 terms of its GGX lobe factorised as Σ g_k(view) h_k(light),
-    /// each a row per vertex, the g_k weighed per pixel by the direction to the camera. 1 keeps
-    /// the diffuse base alone. See `prt brdf` for the factor error of each K_b.
-    #[arg(long, default_value_t = BakeSettings::default().brdf_terms, requires = "per_vertex")]
-    pub brdf_terms: u32,
-    /// Per-vertex bakes: give each glossy material the fewest terms, up to --brdf-terms, whose
-    /// factor error (relative L2 of its lobe) is at most this; 0 gives every glossy material
-    /// --brdf-terms.
-    #[arg(long, default_value_t = BakeSettings::default().brdf_error, requires = "per_vertex")]
-    pub brdf_error: f32,
     /// Longest triangle edge of a per-vertex bake, in scene units: longer edges of quads,
     /// spheres and meshes are split. Default: the scene's `edge_length`, else 1/160 of the
     /// diagonal of its bounds.
@@ -68,9 +57,7 @@ pub struct BakeArgs {
     /// Per-vertex bakes: store which cube texels each glossy vertex sees (a bit a texel, 6N²/8
     /// bytes a glossy vertex), so that its GGX lobe is drawn per pixel from the light itself,
     /// for the pixel's own direction to the camera, however sharp the lobe. Default: true for a
-    /// scene with glossy materials unless --brdf-terms gives them in-out terms (the lobe per
-    /// pixel is the closer of the two to the path tracer on the glossy sphere and the demo's
-    /// teapot); false keeps their diffuse base alone.
+    /// scene with glossy materials; false keeps their diffuse base alone.
     #[arg(long, action = clap::ArgAction::Set, requires = "per_vertex")]
     pub visibility: Option<bool>,
 }
@@ -99,14 +86,12 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
             .edge_length
             .unwrap_or_else(|| crate::scene::tessellate::VertexMesh::default_edge_length(&scene));
         settings.domain = BakeDomain::Vertices { edge_length: edge };
-        settings.brdf_terms = a.brdf_terms;
-        settings.brdf_error = a.brdf_error;
         settings.refine_shadows = a.refine_shadows;
         settings.visibility = a
             .visibility
-            .unwrap_or_else(|| crate::api::glossy_visibility(&scene, a.brdf_terms));
+            .unwrap_or_else(|| crate::api::glossy_visibility(&scene));
         settings.validate()?;
-        say_glossy_choice(&scene, &settings, a.brdf_terms);
+        say_glossy_choice(&scene, &settings);
         for name in crate::scene::tessellate::inward_surfaces(&scene) {
             eprintln!(
                 "warning: {}: its normals point into the closed mesh (faces wound inward); the \
@@ -133,10 +118,7 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
         return Ok(());
     }
     let (w, h) = match &mesh {
-        Some(m) => (
-            m.vertex_count() * (a.brdf_terms as usize).next_power_of_two(),
-            1,
-        ),
+        Some(m) => (m.vertex_count(), 1),
         None => (scene.camera.width as usize, scene.camera.height as usize),
     };
     let worst = worst_case_bytes(w, h, &settings);
@@ -194,9 +176,9 @@ pub(super) fn bake_cmd(a: BakeArgs) -> Result<()> {
 }
 
 /// Says what a per-vertex bake with `settings` keeps of `scene`'s glossy materials: their
-/// visibility, their in-out terms (`brdf_terms`, and what those leave out), or their diffuse base
-/// alone (and which materials lose a highlight or light by it).
-fn say_glossy_choice(scene: &crate::scene::Scene, settings: &BakeSettings, brdf_terms: u32) {
+/// visibility (and what it leaves out), or their diffuse base alone (and which materials lose a
+/// highlight or light by it).
+fn say_glossy_choice(scene: &crate::scene::Scene, settings: &BakeSettings) {
     let named = |keep: fn(&crate::scene::Material) -> bool| -> Vec<&str> {
         scene
             .materials
@@ -219,31 +201,10 @@ fn say_glossy_choice(scene: &crate::scene::Scene, settings: &BakeSettings, brdf_
             glossy.join(", "),
             4 * crate::scene::visibility::Visibility::words(settings.cube_n)
         );
-    } else if !glossy.is_empty() && brdf_terms > 1 {
-        eprintln!(
-            "the glossy material(s) {} take up to {} in-out BRDF terms a vertex",
-            glossy.join(", "),
-            brdf_terms
-        );
-        let textured: Vec<&str> = scene
-            .materials
-            .iter()
-            .zip(&scene.material_names)
-            .zip(&scene.material_maps)
-            .filter(|((m, _), maps)| m.glossy_lobe().is_some() && maps.is_some())
-            .map(|((_, n), _)| n.as_str())
-            .collect();
-        if !textured.is_empty() {
-            eprintln!(
-                "warning: the textured glossy material(s) {} keep their diffuse base: their \
-                 vertices are baked white for their albedo maps",
-                textured.join(", ")
-            );
-        }
         if !scene.lights.is_empty() {
             eprintln!(
-                "warning: the local lights' columns are diffuse at every vertex; only the \
-                 environment's light takes the in-out terms"
+                "warning: the local lights' columns are diffuse at every vertex; the lobe per \
+                 pixel takes the environment's light alone"
             );
         }
     } else {

@@ -205,8 +205,7 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
 /// The brute-force references of bake `t` of `scene` (with its own `settings`) under each of
 /// `envs`, and their coverage. A per-vertex bake holds the diffuse light at its vertices: its
 /// reference is the per-pixel brute force of the same scene, seen from `still` where given,
-/// with glossy materials at their diffuse base, unless the bake keeps in-out BRDF terms, whose
-/// reference keeps the glossy lobes.
+/// with glossy materials at their diffuse base.
 fn brute_force_references(
     t: &Transport,
     scene: &Scene,
@@ -216,11 +215,8 @@ fn brute_force_references(
 ) -> Result<(Vec<crate::output::film::Image>, Vec<f32>)> {
     let diffuse;
     let (scene, settings) = match &t.domain {
-        Domain::Mesh(mesh) => {
-            let mut d = match mesh.factors {
-                Some(_) => scene.clone(),
-                None => scene.with_diffuse_materials(),
-            };
+        Domain::Mesh(_) => {
+            let mut d = scene.with_diffuse_materials();
             if let Some(c) = still {
                 d.camera = c.clone();
             }

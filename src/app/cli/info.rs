@@ -29,19 +29,6 @@ pub(super) fn print_info(path: &std::path::Path, m: &crate::store::transport::Tr
             },
             edge_length
         );
-        if pv.brdf_stride > 1 {
-            println!(
-                "gloss         in-out BRDF terms: up to {} a glossy material{}, {} pixels a \
-                 vertex, factors on {}² hemi-octahedral maps",
-                id.brdf_terms,
-                match id.brdf_error {
-                    0.0 => String::new(),
-                    e => format!(", chosen for a factor error of {e}"),
-                },
-                pv.brdf_stride,
-                pv.brdf_map
-            );
-        }
         if pv.albedo_maps > 0 {
             println!(
                 "textures      {} albedo map(s): the textured vertices hold a white surface's \

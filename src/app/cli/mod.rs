@@ -26,8 +26,8 @@ use crate::volume::VolumeView;
 mod bake;
 mod bench;
 mod bounces;
-mod brdf;
 mod env;
+mod gloss;
 mod info;
 mod relight;
 mod relight_flags;
@@ -41,10 +41,10 @@ use bench::bench_cmd;
 pub use bounces::BouncesArgs;
 pub use bounces::LightsArgs;
 use bounces::{bounces_cmd, lights_cmd};
-pub use brdf::{BrdfArgs, GlossArgs};
-use brdf::{brdf_cmd, gloss_cmd};
 pub use env::EnvArgs;
 use env::env_cmd;
+pub use gloss::GlossArgs;
+use gloss::gloss_cmd;
 use info::{info, print_info};
 pub use relight::{ReferenceArgs, RelightArgs};
 use relight::{compare_cmd, reference_cmd, relight_cmd};
@@ -108,12 +108,10 @@ pub enum Command {
     /// Bake a scene with 0 to B interreflection bounces and compare each with the path tracer:
     /// a contact sheet and a table of time, size and error.
     Bounces(BouncesArgs),
-    /// Factorise GGX lobes into in-out terms (the separable BRDF a glossy per-vertex bake
-    /// needs): the error against the number of terms per roughness, as a table and a plot.
-    Brdf(BrdfArgs),
-    /// Glossy per-vertex bakes against the path tracer: each count of in-out terms and
-    /// tessellation drawn from cameras the bake never saw, with the interpolation and the
-    /// light's terms apart, the bytes a vertex, the bake and frame times.
+    /// Glossy per-vertex bakes against the path tracer: the diffuse base, the lobe per pixel
+    /// and SH glossy transfer at each tessellation, drawn from cameras the bake never saw, with
+    /// the interpolation and the light's terms apart, the bytes a vertex, the bake and frame
+    /// times.
     Gloss(GlossArgs),
     /// The local lights' figures: each kind against the path tracer and its bake cost, a
     /// moving light's error against the spacing of its positions, and many lights timed.
@@ -319,7 +317,6 @@ fn run(command: Command) -> Result<()> {
         Command::Bench(a) => bench_cmd(a),
         Command::Bounces(a) => bounces_cmd(a),
         Command::Lights(a) => lights_cmd(a),
-        Command::Brdf(a) => brdf_cmd(a),
         Command::Gloss(a) => gloss_cmd(a),
         Command::View(a) => view_cmd(a),
         Command::Volume(VolumeCommand::Bake(a)) => volume_bake_cmd(a),

@@ -62,11 +62,6 @@ pub struct RelightArgs {
     /// each drawn and depth-tested on its own and the pixel their mean.
     #[arg(long, default_value_t = crate::draw::raster::DRAW_SAMPLES)]
     pub samples: u32,
-    /// Per-vertex bakes with in-out BRDF terms: where the view factors g_k are evaluated,
-    /// per-pixel (the direction to the eye at every sample) or per-vertex (at the vertices,
-    /// the colours interpolated).
-    #[arg(long = "gloss", default_value = "per-pixel", value_parser = crate::draw::vertex::GlossEval::from_str)]
-    pub gloss_eval: crate::draw::vertex::GlossEval,
     /// Per-vertex bakes with visibility: draw the glossy light by SH glossy transfer at this SH
     /// order (1 to 8; Sloan, Kautz & Snyder 2002) instead of the lobe per pixel: the light's
     /// low orders, shadowed per vertex, reflected about the view per pixel.
@@ -559,26 +554,16 @@ fn draw_still(
             crate::draw::vertex::draw_sh_glossy(t, img, light, &transfer, camera, None, a.samples)?;
         return Ok((r, format!(", glossy light by SH transfer at order {order}")));
     }
-    let glossy = mesh.factors.is_some();
-    let what = match (glossy, &mesh.visibility) {
-        (true, _) => format!(", glossy terms {}", a.gloss_eval),
-        (false, Some(_)) => ", the glossy lobe per pixel".to_string(),
-        (false, None) => String::new(),
+    let what = match &mesh.visibility {
+        Some(_) => ", the glossy lobe per pixel".to_string(),
+        None => String::new(),
     };
-    // The GPU raster weighs glossy terms per pixel only.
-    let on_cpu = glossy && a.gloss_eval == crate::draw::vertex::GlossEval::PerVertex;
-    if on_cpu && gpu.is_some() {
-        eprintln!("the GPU raster weighs glossy terms per pixel: drawn on the CPU");
-    }
-    let r = match gpu.filter(|_| !on_cpu) {
-        None => {
-            crate::draw::vertex::draw_relit(t, img, light, camera, None, a.samples, a.gloss_eval)?
-        }
+    let r = match gpu {
+        None => crate::draw::vertex::draw_relit(t, img, light, camera, None, a.samples)?,
         Some(gpu) => {
             use crate::draw::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
-            // A vertex's colours are its pixels of the relit image (its terms after its diffuse
-            // colour in a glossy bake).
-            let pixels = &img.pixels[..mesh.pixel_count().min(img.pixels.len())];
+            // A vertex's colour is its pixel of the relit image.
+            let pixels = &img.pixels[..mesh.vertex_count().min(img.pixels.len())];
             let m = GpuMesh::of_bake(gpu, mesh)?;
             let c = upload_colours(gpu, pixels)?;
             let mut raster = GpuRaster::multisampled(gpu, a.samples)?;

@@ -105,8 +105,8 @@ pub struct DemoReport {
     pub volume_rows: Vec<(String, f64)>,
     /// The per-vertex bake drawn from four angles, and its error against the per-pixel bake.
     pub orbit: crate::app::studies::orbit::OrbitReport,
-    /// The per-vertex bake with in-out BRDF terms, drawn from four angles and held to the path
-    /// tracer from one.
+    /// The glossy per-vertex bake (its lobe drawn per pixel), drawn from four angles and held to
+    /// the path tracer from one.
     pub gloss: crate::app::studies::gloss_orbit::GlossReport,
     /// The dusk scene with its local lights.
     pub dusk: crate::app::studies::dusk::DuskReport,

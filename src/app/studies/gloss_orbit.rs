@@ -12,7 +12,7 @@ use crate::bake::BakeSettings;
 use crate::bake::path_tracer::path_trace_from;
 use crate::draw::background::{composite, environment_behind_camera};
 use crate::draw::raster::DRAW_SAMPLES;
-use crate::draw::vertex::{GlossEval, bake_camera, compose, draw, draw_relit, orbit};
+use crate::draw::vertex::{bake_camera, compose, draw, draw_relit, orbit};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::env::importance::MapLight;
 use crate::error::{PrtError, Result};
@@ -93,15 +93,7 @@ pub fn run_gloss_orbit(
     let mut glossy = None;
     for az in ORBIT_AZIMUTHS {
         let cam = orbit(&camera, az, 0.0);
-        let drawn = draw_relit(
-            &t,
-            &full,
-            lobe.as_ref(),
-            &cam,
-            None,
-            DRAW_SAMPLES,
-            GlossEval::PerPixel,
-        )?;
+        let drawn = draw_relit(&t, &full, lobe.as_ref(), &cam, None, DRAW_SAMPLES)?;
         if az == GLOSS_REFERENCE_AZIMUTH {
             glossy = Some(drawn.clone());
         }
@@ -123,7 +115,7 @@ pub fn run_gloss_orbit(
     // One angle against the path tracer, the background black in all three.
     let cam = orbit(&camera, GLOSS_REFERENCE_AZIMUTH, 0.0);
     let colours = crate::draw::vertex::vertex_colours(&t, &full)?;
-    let diffuse = draw(&t, &colours, &cam, None, DRAW_SAMPLES)?;
+    let diffuse = draw(&t, colours, &cam, None, DRAW_SAMPLES)?;
     let (reference, reference_noise) = path_traced_reference(study, scene, env, &cam, reused_bake)?;
     let glossy_error = relative_l2(&glossy.image, &reference, None)?;
     let diffuse_error = relative_l2(&diffuse.image, &reference, None)?;

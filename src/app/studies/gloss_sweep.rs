@@ -2,8 +2,7 @@
 //! material of the scene takes each roughness in turn and `prt gloss` runs on it
 //! ([`super::gloss_bench::run`], its files in `roughness_R/`); the sweep then sets each method's
 //! error against the path tracer (the mean and the worst over the cameras) against roughness:
-//! the diffuse base, each count of in-out terms, the lobe per pixel from visibility and SH
-//! glossy transfer at each order, in `roughness.md`, `roughness.csv` and `roughness.png`.
+//! the diffuse base, the lobe per pixel from visibility and SH glossy transfer at each order, in `roughness.md`, `roughness.csv` and `roughness.png`.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -22,7 +21,7 @@ const ROUGHNESS: std::ops::RangeInclusive<f32> = 0.02..=1.0;
 /// One method's errors across the sweep.
 #[derive(Clone, Debug)]
 pub struct SweepCurve {
-    /// The method: `diffuse base`, `K_b = k`, `visibility` (the lobe) or `SH order n`.
+    /// The method: `diffuse base`, `visibility (the lobe per pixel)` or `SH transfer, order n`.
     pub method: String,
     /// Per roughness: the mean and the worst error over the cameras (of the first tessellation).
     pub errors: Vec<[f64; 2]>,
@@ -79,14 +78,7 @@ fn methods(r: &GlossBenchReport) -> Vec<(String, [f64; 2])> {
         .bakes
         .iter()
         .filter(|b| b.edge_factor == first)
-        .map(|b| {
-            let name = match b.brdf_terms {
-                0 => "visibility (the lobe per pixel)".to_string(),
-                1 => "diffuse base".to_string(),
-                k => format!("in-out, K_b = {k}"),
-            };
-            (name, mean_worst(&b.error))
-        })
+        .map(|b| (b.method.label().to_string(), mean_worst(&b.error)))
         .collect();
     out.extend(r.sh.iter().filter(|s| s.edge_factor == first).map(|s| {
         (

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use crate::bake::BakeSettings;
-use crate::draw::vertex::{GlossEval, bake_camera, compose, orbit};
+use crate::draw::vertex::{bake_camera, compose, orbit};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
 use crate::output::film::{Image, ToneMap};
@@ -135,15 +135,7 @@ pub fn run_orbit(
         let (full, _) = relight(&t, &ctx, &light, &full_req)?;
         let (k_img, _) = relight(&t, &ctx, &light, &k_req)?;
         let camera = bake_camera(&t)?;
-        let drawn = crate::draw::vertex::draw_relit(
-            &t,
-            &full,
-            None,
-            &camera,
-            None,
-            1,
-            GlossEval::PerPixel,
-        )?;
+        let drawn = crate::draw::vertex::draw_relit(&t, &full, None, &camera, None, 1)?;
         let both: Vec<f32> = drawn
             .coverage
             .iter()
@@ -185,7 +177,7 @@ pub fn run_orbit(
     } = measure("demo_vertices_coarse.prt", edge * COARSE_EDGE_FACTOR)?;
     let camera = bake_camera(&t)?;
     let draw = |relit: &Image, camera: &crate::scene::Camera, samples: u32| {
-        crate::draw::vertex::draw_relit(&t, relit, None, camera, None, samples, GlossEval::PerPixel)
+        crate::draw::vertex::draw_relit(&t, relit, None, camera, None, samples)
     };
     let (ms, k_img) = timed_frames(&t, (&ctx, &light), &k_req, &camera, k_img)?;
     let tone = ToneMap::auto(&pixel_full, Some(&per_pixel.coverage));
@@ -264,8 +256,7 @@ fn timed_frames(
         let t0 = Instant::now();
         let (img, _) = relight(t, ctx, light, k_req)?;
         let t1 = Instant::now();
-        let raster =
-            crate::draw::vertex::draw_relit(t, &img, None, camera, None, 1, GlossEval::PerPixel)?;
+        let raster = crate::draw::vertex::draw_relit(t, &img, None, camera, None, 1)?;
         let t2 = Instant::now();
         for (v, d) in times.iter_mut().zip([t1 - t0, t2 - t1, t2 - t0]) {
             v.push(d.as_secs_f64() * 1e3);

@@ -378,7 +378,7 @@ impl Engine {
             (Some((_, transfer)), Some(light)) => {
                 vertex::draw_sh_glossy(t, relit, light, transfer, camera, None, samples)
             }
-            _ => vertex::draw_relit(t, relit, lobe, camera, None, samples, Default::default()),
+            _ => vertex::draw_relit(t, relit, lobe, camera, None, samples),
         }
     }
 

@@ -10,7 +10,6 @@ use crate::draw::shading::Texturing;
 use crate::error::{PrtError, Result};
 use crate::gpu::GpuDevice as Gpu;
 use crate::scene::albedo_map::wrap_code;
-use crate::scene::brdf_factor::BrdfFactors;
 use crate::scene::tessellate::VertexMesh;
 use crate::scene::texture::Filter;
 use crate::scene::visibility::{NO_ROW, Visibility};
@@ -27,40 +26,25 @@ const NO_MAP: u32 = u32::MAX;
 const VERTEX_WORDS: usize = 10;
 
 /// What a glossy per-vertex bake adds to its mesh on the GPU: each vertex's shading normal and
-/// material, and what it keeps for view-dependent light.
+/// material, and the glossy vertices' visibility bits with the materials' lobes, drawn per pixel
+/// against the light's pyramid ([`super::GpuRaster::set_light`]).
 #[derive(Clone, Copy, Debug)]
 pub struct GlossMesh<'a> {
     /// Unit shading normal of each vertex.
     pub normals: &'a [Vec3],
     /// Material of each vertex.
     pub materials: &'a [u32],
-    /// The in-out factors or the visibility.
-    pub tables: GlossTables<'a>,
-}
-
-/// The view-dependent tables of a glossy per-vertex bake, as the raster draws them.
-#[derive(Clone, Copy, Debug)]
-pub enum GlossTables<'a> {
-    /// The in-out factors: each material's K_b and view factors `g_k`, the vertices' responses
-    /// in the colour buffer.
-    Factors(&'a BrdfFactors),
-    /// The glossy vertices' visibility bits and the materials' lobes, drawn per pixel against
-    /// the light's pyramid ([`super::GpuRaster::set_light`]).
-    Visibility(&'a Visibility),
+    /// The visibility.
+    pub visibility: &'a Visibility,
 }
 
 impl<'a> GlossMesh<'a> {
     /// The gloss of a per-vertex bake's mesh, `None` for its diffuse base.
     pub fn of(mesh: &'a VertexMesh) -> Option<GlossMesh<'a>> {
-        let tables = match (&mesh.factors, &mesh.visibility) {
-            (Some(f), _) => GlossTables::Factors(f),
-            (None, Some(v)) => GlossTables::Visibility(v),
-            (None, None) => return None,
-        };
         Some(GlossMesh {
             normals: &mesh.normals,
             materials: &mesh.materials,
-            tables,
+            visibility: mesh.visibility.as_deref()?,
         })
     }
 }
@@ -71,21 +55,11 @@ impl<'a> GlossMesh<'a> {
 /// without visibility.
 pub(super) type LobeShape = [u32; 8];
 
-/// The gloss buffer's words and shapes of `gloss`: the in-out factors' K_b and view factors,
-/// or the visibility's vertex rows, lobe taps, lobes and bits.
-fn gloss_tables(gloss: Option<&GlossMesh>, vertices: usize) -> (Vec<u32>, [u32; 3], LobeShape) {
-    match gloss.map(|g| g.tables) {
-        Some(GlossTables::Factors(f)) => {
-            let words = f
-                .terms
-                .iter()
-                .copied()
-                .chain(f.view.iter().map(|v| v.to_bits()))
-                .collect();
-            let shape = [f.stride as u32, f.map.res as u32, f.terms.len() as u32];
-            (words, shape, [0; 8])
-        }
-        Some(GlossTables::Visibility(vis)) => {
+/// The gloss buffer's words and their shape for `gloss`: the visibility's vertex rows, lobe
+/// taps, lobes and bits.
+fn gloss_tables(gloss: Option<&GlossMesh>, vertices: usize) -> (Vec<u32>, LobeShape) {
+    match gloss.map(|g| g.visibility) {
+        Some(vis) => {
             let mut words: Vec<u32> = (0..vertices)
                 .map(|v| vis.row_index(v).unwrap_or(NO_ROW))
                 .collect();
@@ -112,9 +86,9 @@ fn gloss_tables(gloss: Option<&GlossMesh>, vertices: usize) -> (Vec<u32>, [u32; 
                 bits_at,
                 0,
             ];
-            (words, [1, 0, 0], shape)
+            (words, shape)
         }
-        None => (vec![0], [1, 0, 0], [0; 8]),
+        None => (vec![0], [0; 8]),
     }
 }
 
@@ -129,10 +103,8 @@ pub struct GpuMesh {
     pub(super) texels: wgpu::Buffer,
     pub(super) vertices: u32,
     pub(super) index_count: u32,
-    /// Each material's K_b, then the view factors (one word without gloss).
+    /// The visibility's tables (one word without gloss).
     pub(super) gloss: wgpu::Buffer,
-    /// `[stride, map cells a side, materials]` of a glossy bake; `[1, 0, 0]` without gloss.
-    pub(super) gloss_shape: [u32; 3],
     /// The lobe's tables in `gloss` where the bake keeps visibility.
     pub(super) lobe_shape: LobeShape,
 }
@@ -191,8 +163,7 @@ impl GpuMesh {
     }
 
     /// Uploads a mesh with its texturing and its gloss, if any: each drawn pixel of a glossy
-    /// vertex's triangles adds its terms weighed by the view factors, as the CPU twin does; the
-    /// colour buffer then holds `stride` colours a vertex.
+    /// vertex's triangles adds its lobe against the light, as the CPU twin does.
     pub fn glossy(
         gpu: &Gpu,
         positions: &[Vec3],
@@ -205,14 +176,9 @@ impl GpuMesh {
             t.check(positions.len())?;
         }
         if let Some(g) = &gloss {
-            if let GlossTables::Factors(f) = g.tables
-                && let Some(p) = f.problem(f.terms.len())
-            {
-                return Err(PrtError::invalid("BRDF factors", p));
-            }
-            if let GlossTables::Visibility(v) = g.tables
-                && (v.vertex_count() != positions.len()
-                    || g.materials.iter().any(|&m| m as usize >= v.lobes.len()))
+            let v = g.visibility;
+            if v.vertex_count() != positions.len()
+                || g.materials.iter().any(|&m| m as usize >= v.lobes.len())
             {
                 return Err(PrtError::invalid(
                     "visibility",
@@ -264,12 +230,12 @@ impl GpuMesh {
                 ),
             ));
         }
-        let (gloss_words, gloss_shape, lobe_shape) = gloss_tables(gloss.as_ref(), positions.len());
+        let (gloss_words, lobe_shape) = gloss_tables(gloss.as_ref(), positions.len());
         if gloss_words.len() as u64 * 4 > gpu.max_binding_bytes() {
             return Err(PrtError::invalid(
                 "gloss",
                 format!(
-                    "{} words of BRDF factors or visibility; too many for one binding",
+                    "{} words of visibility; too many for one binding",
                     gloss_words.len()
                 ),
             ));
@@ -310,7 +276,6 @@ impl GpuMesh {
             vertices: positions.len() as u32,
             index_count,
             gloss: buffer("raster gloss", bytemuck::cast_slice(&gloss_words)),
-            gloss_shape,
             lobe_shape,
         })
     }
@@ -323,11 +288,6 @@ impl GpuMesh {
     /// Whether the mesh's gloss is visibility, whose lobe the raster draws from a light.
     pub fn has_lobe(&self) -> bool {
         self.lobe_shape[1] > 0
-    }
-
-    /// Colours a vertex takes in the colour buffer: its stride (1 without gloss).
-    pub fn stride(&self) -> usize {
-        self.gloss_shape[0] as usize
     }
 
     /// Triangles of the mesh.

@@ -7,10 +7,8 @@
 //!
 //! The colours come from a storage buffer of `vec4<f32>` per vertex (vertex `i` at index `i`, the
 //! layout of the relight's output image buffer when vertex `i` is its pixel `i`), so relit
-//! colours need not leave the GPU. A glossy per-vertex bake's mesh ([`super::GlossMesh`]) reads
-//! `stride` of them a vertex, its diffuse colour and its in-out terms' responses, and weighs the
-//! terms per pixel by the view factors as the CPU's [`crate::draw::gloss::Gloss`] does. One with
-//! visibility evaluates each pixel's GGX lobe against the light's pyramid
+//! colours need not leave the GPU. A glossy per-vertex bake's mesh ([`super::GlossMesh`], with
+//! visibility) evaluates each pixel's GGX lobe against the light's pyramid
 //! ([`GpuRaster::set_light`]) and the vertices' visibility bits, as the CPU's
 //! [`crate::draw::lobe::Lobe`] does. [`GpuRaster::draw`] renders offscreen and reads the image
 //! and coverage back; [`GpuRaster::render`] draws into a caller's texture for display.
@@ -36,7 +34,7 @@ pub const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 /// Bytes of the view uniform: the clip transform, then eight 16-byte rows (the camera's frame,
-/// the image size, the in-out factors' shape, the lobe's shape and its tables' offsets).
+/// the image size, the light pyramid's size, the lobe's shape and its tables' offsets).
 const VIEW_BYTES: u64 = 64 + 8 * 16;
 
 /// The textures of one image size: the offscreen colour target, the depth buffer and the buffer
@@ -365,7 +363,7 @@ impl GpuRaster {
                 ),
             ));
         }
-        let need = mesh.vertices as u64 * mesh.stride() as u64 * TEXEL_BYTES as u64;
+        let need = mesh.vertices as u64 * TEXEL_BYTES as u64;
         if colours.size() < need
             || need > gpu.max_binding_bytes()
             || !colours.usage().contains(wgpu::BufferUsages::STORAGE)
@@ -426,8 +424,7 @@ impl GpuRaster {
                 offset[0],
                 offset[1],
             ]);
-            let [stride, res, materials] = mesh.gloss_shape;
-            uniform.extend([stride, res, materials, self.light.0].map(f32::from_bits));
+            uniform.extend([self.light.0, 0, 0, 0].map(f32::from_bits));
             uniform.extend(mesh.lobe_shape.map(f32::from_bits));
             debug_assert_eq!(uniform.len() as u64 * 4, VIEW_BYTES);
             gpu.queue
@@ -487,10 +484,7 @@ impl GpuRaster {
                         buffer: colours,
                         offset: 0,
                         size: wgpu::BufferSize::new(
-                            (mesh.vertices.max(1) as u64
-                                * mesh.stride() as u64
-                                * TEXEL_BYTES as u64)
-                                .min(colours.size()),
+                            (mesh.vertices.max(1) as u64 * TEXEL_BYTES as u64).min(colours.size()),
                         ),
                     }),
                 },

@@ -12,9 +12,7 @@ use serde::{Deserialize, Serialize};
 use super::legacy::{Columns, strips_of_columns};
 use super::reader::TensorReader;
 use super::strips::{Layout, STRIP_ROWS};
-use super::tensors::{
-    BrdfTensors, FileTensors, MapTensors, MeshTensors, Tensor, VisibilityTensors, read_all,
-};
+use super::tensors::{FileTensors, MapTensors, MeshTensors, Tensor, VisibilityTensors, read_all};
 use super::*;
 use crate::error::{PrtError, Result};
 use crate::scene::albedo_map::from_table;
@@ -49,7 +47,6 @@ impl Transport {
         let FileTensors {
             albedo: (albedo_shape, albedo),
             map_tables,
-            brdf,
             col_count,
             col_scale: (scale_shape, col_scale),
             coverage: (coverage_shape, coverage),
@@ -139,7 +136,6 @@ impl Transport {
                     tables,
                     uv: mesh_uv,
                     maps: map_tables,
-                    brdf,
                 }
                 .into_mesh(pv, map_count, &expect, &bad)?,
             ),
@@ -416,8 +412,7 @@ pub(super) struct FileHeader {
 fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
     // A per-vertex bake's image is one tile wide and as tall as its vertices need.
     let tallest = match m.per_vertex {
-        Some(_) => (crate::scene::tessellate::MAX_VERTICES * crate::scene::brdf_factor::MAX_TERMS)
-            .div_ceil(TILE) as u32,
+        Some(_) => crate::scene::tessellate::MAX_VERTICES.div_ceil(TILE) as u32,
         None => 16384,
     };
     if m.width == 0 || m.height == 0 || m.width > 16384 || m.height > tallest {
@@ -476,13 +471,12 @@ fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
 }
 
 /// Names of the tensors in a file of `version` with `meta`, in the order the checksum covers
-/// them: those of every file, a per-vertex bake's mesh, its albedo maps, BRDF terms and
-/// visibility, and the local lights' columns.
+/// them: those of every file, a per-vertex bake's mesh, its albedo maps and visibility, and the
+/// local lights' columns.
 pub(super) fn tensor_names(version: u32, meta: &TransportMeta) -> Vec<&'static str> {
     let pv = meta.per_vertex.as_ref();
     let per_vertex = pv.is_some();
     let albedo_maps = pv.is_some_and(|p| p.albedo_maps > 0);
-    let brdf = pv.is_some_and(|p| p.brdf_stride > 1);
     let lights = meta.light_columns() > 0;
     let mut names: Vec<&str> = TENSOR_NAMES.to_vec();
     if version < 7 {
@@ -492,9 +486,6 @@ pub(super) fn tensor_names(version: u32, meta: &TransportMeta) -> Vec<&'static s
     }
     if per_vertex {
         names.extend(MESH_TENSOR_NAMES);
-    }
-    if brdf {
-        names.extend(["brdf_light", "brdf_terms", "brdf_view"]);
     }
     if albedo_maps {
         names.extend([
@@ -609,8 +600,6 @@ struct MeshTables {
     uv: Option<Tensor<glam::Vec2>>,
     /// The albedo maps' table, their materials and their texels.
     maps: Option<MapTensors>,
-    /// The in-out BRDF factors.
-    brdf: Option<BrdfTensors>,
 }
 
 impl MeshTables {
@@ -641,23 +630,6 @@ impl MeshTables {
             }
             _ => (vec![glam::Vec2::ZERO; v], Vec::new()),
         };
-        let factors = match self.brdf {
-            Some(((stride, res), ((ls, light), (ks, terms), (vs, view)))) => {
-                let m = ks.first().copied().unwrap_or(0);
-                expect("brdf_terms", &ks, &[m])?;
-                let shape = [m, stride.saturating_sub(1), res * res];
-                expect("brdf_light", &ls, &shape)?;
-                expect("brdf_view", &vs, &shape)?;
-                Some(Box::new(crate::scene::brdf_factor::BrdfFactors {
-                    map: crate::scene::brdf_factor::HemiOct { res },
-                    stride,
-                    terms,
-                    view,
-                    light,
-                }))
-            }
-            None => None,
-        };
         Ok(VertexMesh {
             positions,
             normals,
@@ -665,7 +637,6 @@ impl MeshTables {
             uvs,
             triangles,
             albedo_maps,
-            factors,
             visibility: None,
         })
     }

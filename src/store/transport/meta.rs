@@ -150,12 +150,6 @@ pub struct BakeIdentity {
     /// Samples per point of each sized light (quad, sun disc), a square; 0 without sized
     /// lights.
     pub light_samples: u32,
-    /// The most in-out BRDF terms K_b a glossy material of a per-vertex bake takes (1: the
-    /// diffuse base alone, and always 1 for a view).
-    pub brdf_terms: u32,
-    /// The factor error a glossy material's K_b is chosen for (0: every glossy material takes
-    /// `brdf_terms`; always 0 for a view).
-    pub brdf_error: f32,
     /// Whether a per-vertex bake's tessellation was refined at shadow edges within the uniform
     /// one's vertex count (false: uniform, as in every file before it; always false for a view).
     pub refine_shadows: bool,
@@ -181,11 +175,6 @@ pub struct PerVertexMeta {
     pub materials: u32,
     /// Albedo maps of the mesh's textured materials (format version 5; 0 before).
     pub albedo_maps: u32,
-    /// Pixels a vertex takes in the relit image, its in-out BRDF terms (format version 6; 1
-    /// before, and for the diffuse base).
-    pub brdf_stride: u32,
-    /// Cells a side of the factor maps (0 for the diffuse base).
-    pub brdf_map: u32,
 }
 
 /// Everything about a transport file but its arrays.
@@ -381,14 +370,10 @@ struct PerVertexFile {
     materials: u32,
     #[serde(default, skip_serializing_if = "is_zero")]
     albedo_maps: u32,
-    #[serde(default = "one", skip_serializing_if = "is_one")]
-    brdf_terms: u32,
-    #[serde(default, skip_serializing_if = "is_zero_f32")]
-    brdf_error: f32,
-    #[serde(default = "one", skip_serializing_if = "is_one")]
+    /// Pixels a vertex took in files of versions 6 to 9 baked with in-out BRDF terms: read to
+    /// refuse them, never written.
+    #[serde(default = "one", skip_serializing)]
     brdf_stride: u32,
-    #[serde(default, skip_serializing_if = "is_zero")]
-    brdf_map: u32,
     #[serde(default, skip_serializing_if = "is_false")]
     refine_shadows: bool,
     #[serde(default, skip_serializing_if = "is_false")]
@@ -403,22 +388,22 @@ fn is_false(v: &bool) -> bool {
     !*v
 }
 
-fn is_one(v: &u32) -> bool {
-    *v == 1
-}
-
 fn one() -> u32 {
     1
-}
-
-fn is_zero_f32(v: &f32) -> bool {
-    *v == 0.0
 }
 
 impl TryFrom<MetaFile> for TransportMeta {
     type Error = String;
 
     fn try_from(f: MetaFile) -> Result<Self, String> {
+        if let Some(p) = f.per_vertex.as_ref().filter(|p| p.brdf_stride > 1) {
+            return Err(format!(
+                "per_vertex.brdf_stride {}: the file keeps in-out BRDF terms, which this build \
+                 no longer draws (the GGX lobe is drawn per pixel from the glossy vertices' \
+                 visibility); bake the scene again with `prt bake SCENE -o FILE --per-vertex`",
+                p.brdf_stride
+            ));
+        }
         let lights = f
             .lights
             .iter()
@@ -467,8 +452,6 @@ impl TryFrom<MetaFile> for TransportMeta {
                     None => BakeDomain::View,
                 },
                 light_samples: f.light_samples,
-                brdf_terms: f.per_vertex.as_ref().map_or(1, |p| p.brdf_terms),
-                brdf_error: f.per_vertex.as_ref().map_or(0.0, |p| p.brdf_error),
                 refine_shadows: f.per_vertex.as_ref().is_some_and(|p| p.refine_shadows),
                 visibility: f.per_vertex.as_ref().is_some_and(|p| p.visibility),
             },
@@ -479,8 +462,6 @@ impl TryFrom<MetaFile> for TransportMeta {
                 image: p.image,
                 materials: p.materials,
                 albedo_maps: p.albedo_maps,
-                brdf_stride: p.brdf_stride,
-                brdf_map: p.brdf_map,
             }),
             stats: f.stats,
             lights,
@@ -526,10 +507,7 @@ impl From<TransportMeta> for MetaFile {
                     image: p.image,
                     materials: p.materials,
                     albedo_maps: p.albedo_maps,
-                    brdf_terms: id.brdf_terms,
-                    brdf_error: id.brdf_error,
-                    brdf_stride: p.brdf_stride,
-                    brdf_map: p.brdf_map,
+                    brdf_stride: 1,
                     refine_shadows: id.refine_shadows,
                     visibility: id.visibility,
                 }),

@@ -49,17 +49,16 @@
 //! | `tile_stats` | f64 [T, 3] | per tile: energy dropped by thresholding and quantisation, total energy, shadow rays |
 //! | `mesh_position`, `mesh_normal`, `mesh_material`, `mesh_triangle` | f32 [V, 3], f32 [V, 3], u32 \[V\], u32 [F, 3] | only per vertex: the mesh ([`VertexMesh`]) |
 //! | `mesh_uv`, `albedo_map`, `albedo_map_material`, `albedo_texel` | f32 [V, 2], u32 [M, 5], u32 [K, 2], u16 [X, 3] | only per vertex with textured materials: each vertex's texture coordinate; per albedo map its width, height, wrap along u and v (0 repeat, 1 mirrored repeat, 2 clamp) and filter (0 linear, 1 nearest); per textured material, the material and its map (materials with the same map share it); the maps' level-0 texels in turn, linear albedo as `q / 65535` ([`crate::scene::albedo_map`]) |
-//! | `brdf_terms`, `brdf_view`, `brdf_light` | u32 \[M\], f32 [M, S−1, r²], f32 [M, S−1, r²] | only per vertex with glossy materials baked with in-out terms: K_b of each material, and `g_k` and `h_k` of its terms 1..K_b on `r × r` hemi-octahedral maps (zero past its K_b), S the pixels a vertex takes (`per_vertex.brdf_stride`; r is `per_vertex.brdf_map`) ([`crate::scene::brdf_factor::BrdfFactors`]) |
 //! | `visibility_bits`, `visibility_lobe`, `visibility_vertex` | u32 [G, ⌈6N²/32⌉], f32 [M, 4], u32 \[G\] | only per vertex with `per_vertex.visibility`: per glossy vertex (listed, ascending), a bit a cube texel in Morton order, set where the texel is open; each material's GGX lobe (specular RGB, α; zero for a diffuse one) ([`crate::scene::visibility::Visibility`]) |
 //! | `light_value`, `light_scale` | u16 [L, 3, H, W], f32 [L, H] | only with local lights: each light column's RGB response per pixel, as fractions `q / 65535` of a scale per (column, pixel row) ([`LightColumns`]) |
 //!
 //! Version 4 added the local lights (the two `light_` tensors and the metadata's `lights` and
 //! `light_samples`); a version 3 file, which has none, is read as before. Version 5 added the
 //! texture coordinates and albedo maps of a textured per-vertex bake (and `per_vertex.albedo_maps`
-//! in the metadata); older files have none and are read as before. Version 6 added the in-out
-//! BRDF terms of a glossy per-vertex bake (the `brdf_` tensors and `per_vertex.brdf_terms`,
-//! `brdf_error`, `brdf_stride` and `brdf_map`): vertex v's terms are pixels `v · S + k`; older
-//! files have one pixel a vertex and are read as before. Version 7 stores the Haar matrix as
+//! in the metadata); older files have none and are read as before. Versions 6 to 9
+//! could keep a glossy per-vertex bake's in-out BRDF terms (the `brdf_` tensors and
+//! `per_vertex.brdf_stride`, the pixels a vertex took); this build refuses such a file with a
+//! message that says how to bake it again, and reads the others. Version 7 stores the Haar matrix as
 //! strips; version 8 stores a slot whole when at least half its block's strips hold entries, its
 //! other strips as zeros (version 7 kept only the strips that hold an entry, and still loads:
 //! a reused bake of it is written again in this version, its strips made anew); version 9 added
@@ -69,9 +68,8 @@
 //! order: `col_count` (u16 [B, C], each column's entries), `col_scale` (u8 [B, C]), `entry_row`
 //! (u8, each entry's row in its block, increasing within a column) and `entry_value`. They are
 //! read into strips. The metadata's `per_vertex.materials` (the scene's material count, which
-//! `mesh_material` and `albedo_map_material` index) is absent from files written before it; their
-//! indices are checked against the BRDF terms where there are some, and a map's materials against
-//! the vertices'.
+//! `mesh_material` and `albedo_map_material` index) is absent from files written before it; a map's
+//! materials are checked against the vertices'.
 //!
 //! The `checksum` covers the tensors' bytes in name order and `meta_checksum` the metadata's
 //! fields (the JSON of `meta` without `meta_checksum`, as this build writes it), so a flipped bit
@@ -121,7 +119,7 @@ pub const FORMAT_NAME: &str = container::TRANSPORT.name;
 pub const FORMAT_VERSION: u32 = 9;
 /// The oldest version this build reads: versions 3 to 6 store the Haar matrix as columns, which
 /// are made into strips as they load; version 3 has no local lights, versions 3 and 4 no albedo
-/// maps, and versions 3 to 5 no in-out BRDF terms.
+/// maps, and versions 3 to 8 no visibility.
 pub const OLDEST_VERSION: u32 = 3;
 /// Largest safetensors header accepted (JSON text), checked before it is read.
 const MAX_HEADER_BYTES: u64 = 1 << 24;
@@ -234,9 +232,8 @@ pub enum Domain {
     /// and the camera cannot move.
     #[default]
     View,
-    /// The vertices of this mesh, vertex `v` as pixel `v · stride` of an image [`TILE`] wide
-    /// (its in-out BRDF terms after it): the relit values are vertex colours, drawn from any
-    /// camera.
+    /// The vertices of this mesh, vertex `v` as pixel `v` of an image [`TILE`] wide: the relit
+    /// values are vertex colours, drawn from any camera.
     Mesh(VertexMesh),
 }
 
@@ -428,21 +425,11 @@ impl Transport {
             (None, Some(_)) => return Err("a mesh without the per-vertex header".into()),
         };
         let v = pv.vertices as usize;
-        let stride = mesh.stride();
-        if pv.brdf_stride as usize != stride
-            || pv.brdf_map as usize != mesh.factors.as_ref().map_or(0, |f| f.map.res)
-        {
-            return Err(format!(
-                "the header's BRDF stride {} and map {} do not match the factors' tables",
-                pv.brdf_stride, pv.brdf_map
-            ));
-        }
         let pixels = (self.meta.width * self.meta.height) as usize;
-        let used = v * stride;
-        if self.meta.width as usize != TILE || used > pixels || used + TILE <= pixels {
+        if self.meta.width as usize != TILE || v > pixels || v + TILE <= pixels {
             return Err(format!(
-                "{v} vertices of {stride} pixels each do not fill an image {} x {} (it must be \
-                 {TILE} wide, with only its last row part empty)",
+                "{v} vertices do not fill an image {} x {} (it must be {TILE} wide, with only its \
+                 last row part empty)",
                 self.meta.width, self.meta.height
             ));
         }
@@ -472,19 +459,17 @@ impl Transport {
                 pv.albedo_maps
             ));
         }
-        if let Some(r) = self.row_pixel.iter().find(|&&p| p as usize >= used) {
-            return Err(format!(
-                "a row of pixel {r}, past the {v} vertices' {used} pixels"
-            ));
+        if let Some(r) = self.row_pixel.iter().find(|&&p| p as usize >= v) {
+            return Err(format!("a row of pixel {r}, past the {v} vertices"));
         }
         Ok(())
     }
 }
 
 /// Checks a per-vertex mesh's stored values, each error naming its tensor: finite positions,
-/// texture coordinates and BRDF factors, finite unit normals, and material indices below the
-/// material count (the header's, else the BRDF terms'), a map's materials also used by a
-/// vertex. Returns the material count when the file gives one.
+/// texture coordinates, finite unit normals, and material indices below the header's material
+/// count, a map's materials also used by a vertex. Returns the material count when the file
+/// gives one.
 fn mesh_values_problem(
     pv: &PerVertexMeta,
     mesh: &VertexMesh,
@@ -508,29 +493,9 @@ fn mesh_values_problem(
             mesh.uvs[i]
         ));
     }
-    let factors = mesh.factors.as_deref();
-    if let Some(f) = factors {
-        for (name, what, table) in [
-            ("brdf_view", "view", &f.view),
-            ("brdf_light", "light", &f.light),
-        ] {
-            if let Some(i) = table.iter().position(|v| !v.is_finite()) {
-                return Err(format!(
-                    "tensor `{name}`: {what} factor {i} is {}",
-                    table[i]
-                ));
-            }
-        }
-    }
-    let count = match (pv.materials as usize, factors) {
-        (0, f) => f.map(|f| f.terms.len()),
-        (n, Some(f)) if f.terms.len() != n => {
-            return Err(format!(
-                "tensor `brdf_terms`: terms of {} materials, but the bake has {n} materials",
-                f.terms.len()
-            ));
-        }
-        (n, _) => Some(n),
+    let count = match pv.materials as usize {
+        0 => None,
+        n => Some(n),
     };
     if let Some(n) = count
         && let Some(i) = mesh.materials.iter().position(|&m| m as usize >= n)

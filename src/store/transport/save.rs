@@ -135,20 +135,6 @@ pub(super) fn save_file<'a>(
             ),
         ]);
     }
-    if let Some(f) = tables.mesh.and_then(|m| m.factors.as_ref()) {
-        let shape = vec![f.terms.len(), f.stride - 1, f.map.cells()];
-        tensors.extend([
-            (
-                "brdf_light",
-                Tensor::new(Dtype::F32, shape.clone(), &f.light),
-            ),
-            (
-                "brdf_terms",
-                Tensor::new(Dtype::U32, vec![f.terms.len()], &f.terms),
-            ),
-            ("brdf_view", Tensor::new(Dtype::F32, shape, &f.view)),
-        ]);
-    }
     if let Some(vis) = tables.mesh.and_then(|m| m.visibility.as_ref()) {
         tensors.extend(visibility_tensors(vis));
     }

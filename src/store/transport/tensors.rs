@@ -21,8 +21,6 @@ pub(super) type MeshTensors = (
 );
 /// The albedo maps' table, their materials and their texels, as read.
 pub(super) type MapTensors = (Tensor<[u32; 5]>, Tensor<[u32; 2]>, Tensor<[u16; 3]>);
-/// The in-out BRDF factors' stride and map size, with their light, terms and view tables.
-pub(super) type BrdfTensors = ((usize, usize), (Tensor<f32>, Tensor<u32>, Tensor<f32>));
 
 /// Stored values as read: their shape and values.
 pub(super) type ValueTensor = (Vec<usize>, Values);
@@ -31,7 +29,6 @@ pub(super) type ValueTensor = (Vec<usize>, Values);
 pub(super) struct FileTensors {
     pub(super) albedo: Tensor<[f32; 3]>,
     pub(super) map_tables: Option<MapTensors>,
-    pub(super) brdf: Option<BrdfTensors>,
     /// Versions 3 to 6: the columns' entry counts.
     pub(super) col_count: Option<Tensor<u16>>,
     pub(super) col_scale: Tensor<u8>,
@@ -72,19 +69,6 @@ pub(super) fn read_all(
         ))
     } else {
         None
-    };
-    let brdf = meta
-        .per_vertex
-        .as_ref()
-        .filter(|p| p.brdf_stride > 1)
-        .map(|p| (p.brdf_stride as usize, p.brdf_map as usize));
-    let brdf_tables = match brdf {
-        Some(_) => Some((
-            reader.read::<f32>("brdf_light", Dtype::F32)?,
-            reader.read::<u32>("brdf_terms", Dtype::U32)?,
-            reader.read::<f32>("brdf_view", Dtype::F32)?,
-        )),
-        None => None,
     };
     // Versions 3 to 6 store columns (`col_count`, `entry_row`, `entry_value`), versions 7 to 9
     // strips; `col_scale` is in both.
@@ -155,7 +139,6 @@ pub(super) fn read_all(
     Ok(FileTensors {
         albedo,
         map_tables,
-        brdf: brdf.zip(brdf_tables),
         col_count,
         col_scale,
         coverage,

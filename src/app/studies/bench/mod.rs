@@ -184,7 +184,8 @@ pub struct BenchExtras<'a> {
 }
 
 /// Relative L2 of a relit image against a brute-force reference. A per-vertex bake's image
-/// (one colour per vertex) is drawn first from `camera` (the bake's when `None`), and compared
+/// (one colour per vertex, its diffuse base) is drawn first from `camera` (the bake's when
+/// `None`), and compared
 /// over the pixels both cover fully: so the error holds the interpolation between vertices.
 fn reference_error(
     t: &Transport,
@@ -200,8 +201,9 @@ fn reference_error(
         Some(c) => c.clone(),
         None => crate::draw::vertex::bake_camera(t)?,
     };
-    let drawn =
-        crate::draw::vertex::draw_relit(t, img, None, &camera, None, 1, Default::default())?;
+    // The reference is the scene made diffuse: the bake's diffuse base is what it holds to it.
+    let colours = crate::draw::vertex::vertex_colours(t, img)?;
+    let drawn = crate::draw::vertex::draw(t, colours, &camera, None, 1)?;
     let both: Vec<f32> = match reference_coverage {
         Some(c) if c.len() == drawn.coverage.len() => drawn
             .coverage

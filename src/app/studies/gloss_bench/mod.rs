@@ -1,10 +1,10 @@
-//! The glossy per-vertex figures (`prt gloss`): a scene baked per vertex at each count of in-out
-//! BRDF terms K_b and each tessellation, drawn from cameras the bake never saw and held to the
-//! independent path tracer, with the two other errors apart: the interpolation between vertices
-//! (the diffuse base drawn against the brute force of the scene made diffuse, which no
-//! factorisation touches) and the light's K terms (against every term, per vertex). With them,
-//! the file's bytes a vertex, the bake's time, and a frame's time at each K on the CPU and, when
-//! given one, the GPU.
+//! The glossy per-vertex figures (`prt gloss`): a scene baked per vertex by each way of drawing
+//! its glossy light ([`GlossMethod`], and SH glossy transfer beside the lobe) at each
+//! tessellation, drawn from cameras the bake never saw and held to the independent path tracer,
+//! with the two other errors apart: the interpolation between vertices (the diffuse base drawn
+//! against the brute force of the scene made diffuse, which no glossy method touches) and the
+//! light's K terms (against every term, per vertex). With them, the file's bytes a vertex, the
+//! bake's time, and a frame's time at each K on the CPU and, when given one, the GPU.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -14,7 +14,7 @@ use super::median;
 use crate::bake::path_tracer::path_trace_from;
 use crate::bake::reference::{Reference, render_reference_with};
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
-use crate::draw::vertex::{GlossEval, draw, draw_relit, vertex_colours};
+use crate::draw::vertex::{draw, draw_relit, vertex_colours};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::env::importance::MapLight;
 use crate::env::select::Weighting;
@@ -34,11 +34,35 @@ mod report;
 use report::error_series;
 pub use report::{csv, markdown};
 
+/// A way of drawing a glossy per-vertex bake's highlights, each a bake of its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(strum::IntoStaticStr, strum::Display, strum::VariantArray)]
+#[strum(serialize_all = "kebab-case")]
+pub enum GlossMethod {
+    /// The diffuse base alone: the glossy lobes left out (`prt bake --visibility false`).
+    Base,
+    /// The glossy vertices' visibility, the lobe drawn per pixel from the light (`prt bake
+    /// --per-vertex`'s default); SH glossy transfer draws the same bake.
+    Lobe,
+}
+
+crate::named!(GlossMethod, "gloss method");
+
+impl GlossMethod {
+    /// Its name in the reports.
+    pub fn label(self) -> &'static str {
+        match self {
+            GlossMethod::Base => "diffuse base",
+            GlossMethod::Lobe => "visibility (the lobe per pixel)",
+        }
+    }
+}
+
 /// What to measure.
 #[derive(Clone, Debug)]
 pub struct GlossBenchOptions {
-    /// Counts of in-out terms K_b (1: the diffuse base; 0: visibility, the lobe per pixel).
-    pub brdf_terms: Vec<u32>,
+    /// The methods, each baked at each tessellation.
+    pub methods: Vec<GlossMethod>,
     /// Tessellations, as multiples of the scene's default edge length.
     pub edge_factors: Vec<f32>,
     /// The cameras the bakes are drawn from (none of them the bake's: a per-vertex bake has no
@@ -54,11 +78,11 @@ pub struct GlossBenchOptions {
     pub frame_side: u32,
     /// Frames timed per point; the median is reported.
     pub runs: usize,
-    /// The bakes' settings but for their tessellation and K_b (`prt bake`'s defaults from the
-    /// command line); the references take their cube and camera sub-samples.
+    /// The bakes' settings but for their tessellation and visibility (`prt bake`'s defaults from
+    /// the command line); the references take their cube and camera sub-samples.
     pub bake: BakeSettings,
-    /// SH orders at which each bake with visibility (K_b = 0) is also drawn by SH glossy
-    /// transfer ([`super::gloss_sh`]).
+    /// SH orders at which each bake with visibility ([`GlossMethod::Lobe`]) is also drawn by SH
+    /// glossy transfer ([`super::gloss_sh`]).
     pub sh_orders: Vec<usize>,
 }
 
@@ -72,15 +96,15 @@ pub struct FrameTime {
     pub draw_ms: f64,
 }
 
-/// One bake: its tessellation and K_b, its cost, and its errors.
+/// One bake: its tessellation and method, its cost, and its errors.
 #[derive(Clone, Debug)]
 pub struct GlossBakeRow {
     /// Edge length as a multiple of the default.
     pub edge_factor: f32,
     /// Longest edge, scene units.
     pub edge_length: f32,
-    /// In-out terms of the glossy materials.
-    pub brdf_terms: u32,
+    /// How its glossy light is drawn.
+    pub method: GlossMethod,
     /// Vertices.
     pub vertices: usize,
     /// The file's bytes.
@@ -89,11 +113,8 @@ pub struct GlossBakeRow {
     pub bake_seconds: f64,
     /// Whether the bake was kept from an earlier run.
     pub reused: bool,
-    /// Per camera: every term, `g_k` per pixel, against the path tracer (relative L2 over the
-    /// image).
+    /// Per camera: every light term, against the path tracer (relative L2 over the image).
     pub error: Vec<f64>,
-    /// Per camera: the same with `g_k` at the vertices.
-    pub error_per_vertex: Vec<f64>,
     /// Per K of [`GlossBenchOptions::light_terms`]: K terms against every term, per vertex.
     pub light_error: Vec<f64>,
     /// Per K: a CPU frame.
@@ -103,18 +124,18 @@ pub struct GlossBakeRow {
 }
 
 impl GlossBakeRow {
-    /// The row of bake `t` at edge factor and K_b `[factor, k_b]`, its file of `bytes`, baked in
+    /// The row of bake `t` at edge factor `factor` by `method`, its file of `bytes`, baked in
     /// `seconds` or `reused`, nothing measured yet.
     fn new(
         t: &Transport,
-        [factor, k_b]: [f32; 2],
+        (factor, method): (f32, GlossMethod),
         bytes: u64,
         (bake_seconds, reused): (f64, bool),
     ) -> GlossBakeRow {
         GlossBakeRow {
             edge_factor: factor,
             edge_length: t.meta.identity.domain.edge_length().unwrap_or_default(),
-            brdf_terms: k_b as u32,
+            method,
             vertices: t
                 .meta
                 .per_vertex
@@ -124,7 +145,6 @@ impl GlossBakeRow {
             bake_seconds,
             reused,
             error: Vec::new(),
-            error_per_vertex: Vec::new(),
             light_error: Vec::new(),
             cpu: Vec::new(),
             gpu: None,
@@ -153,7 +173,7 @@ pub struct GlossBenchReport {
     pub glossy: Vec<(String, f32)>,
     /// The environment's name.
     pub env: String,
-    /// Every bake, tessellation by tessellation, K_b in the order given.
+    /// Every bake, tessellation by tessellation, the methods in the order given.
     pub bakes: Vec<GlossBakeRow>,
     /// Every camera.
     pub cameras: Vec<GlossCameraRow>,
@@ -180,13 +200,12 @@ impl GlossBenchOptions {
     /// Checks the lists.
     pub fn validate(&self) -> Result<()> {
         let bad = |what: &str, why: String| Err(PrtError::invalid(what, why));
-        if self.brdf_terms.is_empty() || self.brdf_terms.iter().any(|k| *k > 16) {
+        let mut methods = self.methods.clone();
+        methods.dedup();
+        if self.methods.is_empty() || methods.len() != self.methods.len() {
             return bad(
-                "--brdf-terms",
-                format!(
-                    "{:?}; each must be from 0 (visibility) to 16",
-                    self.brdf_terms
-                ),
+                "--methods",
+                format!("{:?}; give each method once", self.methods),
             );
         }
         let mut seen = self.edge_factors.clone();
@@ -241,10 +260,11 @@ impl GlossBenchOptions {
                 format!("order {o}; each must be from 1 to {MAX_TRANSFER_ORDER}"),
             );
         }
-        if !self.sh_orders.is_empty() && !self.brdf_terms.contains(&0) {
+        if !self.sh_orders.is_empty() && !self.methods.contains(&GlossMethod::Lobe) {
             return bad(
                 "--sh-transfer",
-                "SH glossy transfer draws the bakes with visibility: add 0 to --brdf-terms".into(),
+                "SH glossy transfer draws the bakes with visibility: add `lobe` to --methods"
+                    .into(),
             );
         }
         crate::draw::raster::sample_offsets(self.samples)?;
@@ -255,7 +275,7 @@ impl GlossBenchOptions {
 }
 
 /// The name and roughness of each of `scene`'s glossy materials; an error when it has none
-/// (its per-vertex bake would keep one term whatever K_b).
+/// (every method would draw its diffuse base).
 pub fn glossy_materials(scene: &Scene) -> Result<Vec<(String, f32)>> {
     let glossy: Vec<(String, f32)> = scene
         .materials
@@ -267,7 +287,7 @@ pub fn glossy_materials(scene: &Scene) -> Result<Vec<(String, f32)>> {
         return Err(PrtError::invalid(
             "scene",
             format!(
-                "{} has no glossy material: its per-vertex bake keeps one term whatever K_b",
+                "{} has no glossy material: every method draws its diffuse base",
                 scene.source_path.display()
             ),
         ));
@@ -339,18 +359,16 @@ pub fn run(
             .collect(),
     };
     for &factor in &opts.edge_factors {
-        for (b, &k_b) in opts.brdf_terms.iter().enumerate() {
+        for (b, &method) in opts.methods.iter().enumerate() {
             let settings = BakeSettings {
                 domain: BakeDomain::Vertices {
                     edge_length: default_edge * factor,
                 },
-                // K_b = 0 stands for visibility with the lobe per pixel, on the diffuse base.
-                brdf_terms: k_b.max(1),
-                visibility: k_b == 0,
+                visibility: method == GlossMethod::Lobe,
                 ..base.clone()
             };
-            let path = bakes_dir.join(format!("edges{factor}_kb{k_b}.prt"));
-            let what = format!("baking with edges of {factor}x the default, K_b = {k_b} ...");
+            let path = bakes_dir.join(format!("edges{factor}_{method}.prt"));
+            let what = format!("baking with edges of {factor}x the default, {method} ...");
             let (t, reused, bake_seconds) =
                 load_or_bake_logged(&path, scene, &settings, &what, log, progress)?;
             let ctx = LightContext::new(&t)?;
@@ -358,39 +376,23 @@ pub fn run(
             let (full, _) = relight(&t, &ctx, &light, &RelightRequest::Full)?;
             let full_light = lobe_light(&t, &ctx, Some(&light), &RelightRequest::Full)?;
             let bytes = std::fs::metadata(&path).map_or(0, |m| m.len());
-            let mut row =
-                GlossBakeRow::new(&t, [factor, k_b as f32], bytes, (bake_seconds, reused));
+            let mut row = GlossBakeRow::new(&t, (factor, method), bytes, (bake_seconds, reused));
             for (i, (cam, (traced, brute, tone))) in
                 opts.cameras.iter().zip(&references).enumerate()
             {
-                for (eval, errors) in [
-                    (GlossEval::PerPixel, &mut row.error),
-                    (GlossEval::PerVertex, &mut row.error_per_vertex),
-                ] {
-                    let drawn = draw_relit(
-                        &t,
-                        &full,
-                        full_light.as_ref(),
-                        cam,
-                        None,
-                        opts.samples,
-                        eval,
-                    )?;
-                    errors.push(reportable(
-                        relative_l2(&drawn.image, traced, None)?,
-                        || format!("camera {}", i + 1),
-                    )?);
-                    if eval == GlossEval::PerPixel {
-                        drawn.image.save(
-                            &images.join(format!("camera{}_edges{factor}_kb{k_b}.exr", i + 1)),
-                            *tone,
-                        )?;
-                    }
-                }
-                // The interpolation: once per tessellation (term 0 is the same diffuse base at
-                // every K_b).
+                let drawn = draw_relit(&t, &full, full_light.as_ref(), cam, None, opts.samples)?;
+                row.error.push(reportable(
+                    relative_l2(&drawn.image, traced, None)?,
+                    || format!("camera {}", i + 1),
+                )?);
+                drawn.image.save(
+                    &images.join(format!("camera{}_edges{factor}_{method}.exr", i + 1)),
+                    *tone,
+                )?;
+                // The interpolation: once per tessellation (every method's bake has the same
+                // diffuse base).
                 if b == 0 {
-                    let base = draw(&t, &vertex_colours(&t, &full)?, cam, None, opts.samples)?;
+                    let base = draw(&t, vertex_colours(&t, &full)?, cam, None, opts.samples)?;
                     let both: Vec<f32> = base
                         .coverage
                         .iter()
@@ -403,7 +405,7 @@ pub fn run(
                     )?);
                 }
             }
-            if let Some(full_light) = full_light.as_ref().filter(|_| k_b == 0) {
+            if let Some(full_light) = full_light.as_ref().filter(|_| method == GlossMethod::Lobe) {
                 let inputs = ShInputs {
                     t: &t,
                     ctx: &ctx,
@@ -425,7 +427,7 @@ pub fn run(
             }
             frames(&t, (&ctx, &light, &full), &k_reqs, (opts, gpu), &mut row)?;
             log(&format!(
-                "edges {factor}x, K_b = {k_b}: {} vertices, {:.1} KB a vertex; against the path \
+                "edges {factor}x, {method}: {} vertices, {:.1} KB a vertex; against the path \
                  tracer {}",
                 row.vertices,
                 row.bytes as f64 / row.vertices.max(1) as f64 / 1e3,
@@ -515,14 +517,14 @@ fn write_report(
                 "Glossy per-vertex bakes under {}: error against the path tracer",
                 report.env
             ),
-            x_label: "in-out BRDF terms K_b (1: the diffuse base)".into(),
-            y_label: "relative L2 against the path tracer".into(),
+            x_label: "vertices".into(),
+            y_label: "relative L2 against the path tracer, mean over the cameras".into(),
             log_x: true,
             log_y: false,
             width: 720,
             height: 440,
         },
-        &error_series(report, opts),
+        &error_series(report),
     )?;
     Ok(files)
 }
@@ -555,15 +557,7 @@ fn frames(
             let (img, _) = Cpu(t).relight_terms(&terms)?;
             let lobe = lobe_light(t, ctx, Some(light), req)?;
             let t1 = Instant::now();
-            draw_relit(
-                t,
-                &img,
-                lobe.as_ref(),
-                &frame_cam,
-                None,
-                1,
-                GlossEval::PerPixel,
-            )?;
+            draw_relit(t, &img, lobe.as_ref(), &frame_cam, None, 1)?;
             times.push([t0, t1, Instant::now()]);
         }
         row.cpu.push(FrameTime {
@@ -607,7 +601,7 @@ fn gpu_frames(
             for run in 0..=opts.runs {
                 let (img, stats) = backend.relight_terms(&terms)?;
                 let t0 = Instant::now();
-                let pixels = &img.pixels[..mesh.pixel_count().min(img.pixels.len())];
+                let pixels = &img.pixels[..mesh.vertex_count().min(img.pixels.len())];
                 let c = upload_colours(gpu, pixels)?;
                 // A bake with visibility draws its lobe from the request's light, built on the
                 // CPU and uploaded with the colours.

@@ -2,61 +2,58 @@
 
 use std::fmt::Write as _;
 
-use super::{FrameTime, GlossBenchOptions, GlossBenchReport};
+use super::{FrameTime, GlossBenchOptions, GlossBenchReport, GlossMethod};
 use crate::output::plot::{PALETTE, Series};
 
-/// The plot's curves: per tessellation and camera, the error against K_b, and the visibility
-/// bake's error (K_b = 0) as a level across the K_b axis.
-pub(super) fn error_series(r: &GlossBenchReport, opts: &GlossBenchOptions) -> Vec<Series> {
-    let mut out = Vec::new();
-    let terms = || {
-        opts.brdf_terms
-            .iter()
-            .filter(|&&k| k > 0)
-            .map(|&k| k as f64)
-    };
-    // Without in-out bakes, the visibility's level spans every K_b the bench takes.
-    let span = match terms().next() {
-        Some(_) => [
-            terms().fold(f64::INFINITY, f64::min),
-            terms().fold(f64::NEG_INFINITY, f64::max),
-        ],
-        None => [1.0, 16.0],
-    };
-    for (f, &factor) in opts.edge_factors.iter().enumerate() {
-        for (c, _) in r.cameras.iter().enumerate() {
-            let color = PALETTE[(f * r.cameras.len() + c) % PALETTE.len()];
-            let of = || r.bakes.iter().filter(|b| b.edge_factor == factor);
-            out.push(Series {
-                label: format!("camera {}, edges {factor}x", c + 1),
-                points: of()
-                    .filter(|b| b.brdf_terms > 0)
-                    .map(|b| (b.brdf_terms as f64, b.error[c]))
-                    .collect(),
-                color,
-                dashed: f % 2 == 1,
-            });
-            if let Some(v) = of().find(|b| b.brdf_terms == 0)
-                && span[0] <= span[1]
-            {
-                out.push(Series {
-                    label: format!("visibility, camera {}, edges {factor}x", c + 1),
-                    points: span.iter().map(|&x| (x, v.error[c])).collect(),
-                    color,
-                    dashed: true,
-                });
-            }
-        }
-    }
-    out
+/// The mean of `errors` (one per camera).
+fn mean(errors: &[f64]) -> f64 {
+    errors.iter().sum::<f64>() / errors.len().max(1) as f64
 }
 
-/// The K_b column of a bake: its count, or `visibility`.
-fn method(k_b: u32) -> String {
-    match k_b {
-        0 => "visibility".into(),
-        k => k.to_string(),
+/// The plot's curves: per method, then per SH order, the error (mean over the cameras) against
+/// the vertex count of each tessellation.
+pub(super) fn error_series(r: &GlossBenchReport) -> Vec<Series> {
+    let mut out: Vec<Series> = Vec::new();
+    let mut curve = |label: String, mut points: Vec<(f64, f64)>, dashed: bool| {
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let color = PALETTE[out.len() % PALETTE.len()];
+        out.push(Series {
+            label,
+            points,
+            color,
+            dashed,
+        });
+    };
+    let mut methods: Vec<GlossMethod> = r.bakes.iter().map(|b| b.method).collect();
+    methods.sort_by_key(|&m| m as u8);
+    methods.dedup();
+    for m in methods {
+        let points = r
+            .bakes
+            .iter()
+            .filter(|b| b.method == m)
+            .map(|b| (b.vertices as f64, mean(&b.error)))
+            .collect();
+        curve(m.label().to_string(), points, false);
     }
+    let mut orders: Vec<usize> = r.sh.iter().map(|s| s.order).collect();
+    orders.sort_unstable();
+    orders.dedup();
+    for o in orders {
+        // An SH row draws the lobe's bake at its tessellation: its vertices are that bake's.
+        let points =
+            r.sh.iter()
+                .filter(|s| s.order == o)
+                .filter_map(|s| {
+                    let bake = r.bakes.iter().find(|b| {
+                        b.edge_factor == s.edge_factor && b.method == GlossMethod::Lobe
+                    })?;
+                    Some((bake.vertices as f64, mean(&s.error)))
+                })
+                .collect();
+        curve(format!("SH transfer, order {o}"), points, true);
+    }
+    out
 }
 
 /// The report as markdown.
@@ -70,8 +67,8 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
     let _ = writeln!(
         s,
         "# Glossy per-vertex bakes against the path tracer\n\nUnder `{}`; glossy materials {}. \
-         Relative L2 over the whole image (the background black), every stored term, `g_k` per \
-         pixel ({} samples a pixel); the path tracer at {} paths a pixel, lit by the map's own \
+         Relative L2 over the whole image (the background black), every light term ({} samples \
+         a pixel); the path tracer at {} paths a pixel, lit by the map's own \
          pixels.\n",
         r.env,
         glossy.join(", "),
@@ -107,7 +104,7 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
         s,
         "\nThe interpolation is the diffuse base drawn against the brute force of the scene made \
          diffuse, over the pixels both cover whole: what drawing between vertices costs, apart \
-         from the factorisation.\n"
+         from the glossy methods.\n"
     );
     let cams = (1..=r.cameras.len())
         .map(|i| format!(" camera {i} |"))
@@ -119,9 +116,9 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
         .collect::<String>();
     let _ = writeln!(
         s,
-        "## Error against the path tracer\n\n| edges | vertices | K_b |{cams} `g_k` per vertex, \
-         camera 1 |{ks} file | bytes a vertex | bake (s) |\n|---|---:|---:|{}{}---:|---:|---:|",
-        "---:|".repeat(r.cameras.len() + 1),
+        "## Error against the path tracer\n\n| edges | vertices | method |{cams}{ks} file | bytes a \
+         vertex | bake (s) |\n|---|---:|---|{}{}---:|---:|---:|",
+        "---:|".repeat(r.cameras.len()),
         "---:|".repeat(opts.light_terms.len())
     );
     for b in &r.bakes {
@@ -137,12 +134,11 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
             .collect();
         let _ = writeln!(
             s,
-            "| {}x ({:.3}) | {} | {} |{errors} {:.2}% |{light} {:.1} MiB | {:.0} | {:.1}{} |",
+            "| {}x ({:.3}) | {} | {} |{errors}{light} {:.1} MiB | {:.0} | {:.1}{} |",
             b.edge_factor,
             b.edge_length,
             b.vertices,
-            method(b.brdf_terms),
-            100.0 * b.error_per_vertex.first().copied().unwrap_or(0.0),
+            b.method.label(),
             b.bytes as f64 / (1u64 << 20) as f64,
             b.bytes as f64 / b.vertices.max(1) as f64,
             b.bake_seconds,
@@ -177,7 +173,7 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
     let cols = opts.light_terms.len() * (1 + r.gpu.is_some() as usize);
     let _ = writeln!(
         s,
-        "| edges | K_b |{heads}\n|---|---:|{}",
+        "| edges | method |{heads}\n|---|---|{}",
         "---:|".repeat(cols)
     );
     let cell = |f: &FrameTime| {
@@ -189,7 +185,7 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
         )
     };
     for b in &r.bakes {
-        let mut line = format!("| {}x | {} |", b.edge_factor, method(b.brdf_terms));
+        let mut line = format!("| {}x | {} |", b.edge_factor, b.method.label());
         for (i, c) in b.cpu.iter().enumerate() {
             line.push_str(&cell(c));
             if let Some(g) = b.gpu.as_ref().and_then(|g| g.get(i)) {
@@ -209,7 +205,7 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
 /// The report as CSV: one line per bake and camera.
 pub fn csv(r: &GlossBenchReport) -> String {
     let mut s = String::from(
-        "edge_factor,edge_length,vertices,brdf_terms,bytes,bake_seconds,reused,camera,rel_l2,rel_l2_per_vertex_gloss,interpolation,path_tracer_noise\n",
+        "edge_factor,edge_length,vertices,method,bytes,bake_seconds,reused,camera,rel_l2,interpolation,path_tracer_noise\n",
     );
     let factors: Vec<f32> = {
         let mut f: Vec<f32> = r.bakes.iter().map(|b| b.edge_factor).collect();
@@ -224,17 +220,16 @@ pub fn csv(r: &GlossBenchReport) -> String {
         for (c, cam) in r.cameras.iter().enumerate() {
             let _ = writeln!(
                 s,
-                "{},{},{},{},{},{:.3},{},{},{:.6},{:.6},{:.6},{:.6}",
+                "{},{},{},{},{},{:.3},{},{},{:.6},{:.6},{:.6}",
                 b.edge_factor,
                 b.edge_length,
                 b.vertices,
-                b.brdf_terms,
+                b.method,
                 b.bytes,
                 b.bake_seconds,
                 b.reused,
                 c + 1,
                 b.error[c],
-                b.error_per_vertex[c],
                 cam.interpolation.get(t).copied().unwrap_or_default(),
                 cam.noise
             );
