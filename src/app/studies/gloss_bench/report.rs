@@ -11,7 +11,7 @@ fn mean(errors: &[f64]) -> f64 {
 }
 
 /// The plot's curves: per method, then per SH order, the error (mean over the cameras) against
-/// the vertex count of each tessellation.
+/// the CPU frame's time at the first K (the relight and the draw), a point per tessellation.
 pub(super) fn error_series(r: &GlossBenchReport) -> Vec<Series> {
     let mut out: Vec<Series> = Vec::new();
     let mut curve = |label: String, mut points: Vec<(f64, f64)>, dashed: bool| {
@@ -32,7 +32,10 @@ pub(super) fn error_series(r: &GlossBenchReport) -> Vec<Series> {
             .bakes
             .iter()
             .filter(|b| b.method == m)
-            .map(|b| (b.vertices as f64, mean(&b.error)))
+            .filter_map(|b| {
+                let f = b.cpu.first()?;
+                Some((f.relight_ms + f.draw_ms, mean(&b.error)))
+            })
             .collect();
         curve(m.label().to_string(), points, false);
     }
@@ -40,16 +43,10 @@ pub(super) fn error_series(r: &GlossBenchReport) -> Vec<Series> {
     orders.sort_unstable();
     orders.dedup();
     for o in orders {
-        // An SH row draws the lobe's bake at its tessellation: its vertices are that bake's.
         let points =
             r.sh.iter()
                 .filter(|s| s.order == o)
-                .filter_map(|s| {
-                    let bake = r.bakes.iter().find(|b| {
-                        b.edge_factor == s.edge_factor && b.method == GlossMethod::Lobe
-                    })?;
-                    Some((bake.vertices as f64, mean(&s.error)))
-                })
+                .map(|s| (s.cpu_ms[0] + s.cpu_ms[1], mean(&s.error)))
                 .collect();
         curve(format!("SH transfer, order {o}"), points, true);
     }
