@@ -22,7 +22,8 @@
 // the coordinate at the other pixels of the 2 x 2 quad, on the same triangle (extrapolated past
 // its edges), rather than whatever the quad's neighbours hold.
 
-// A glossy per-vertex bake with visibility (view.lobe.y, its taps a material, above 0) keeps which
+// A glossy per-vertex bake with visibility (view.lobe.y, the most taps a material takes, above 0)
+// keeps which
 // cube texels each glossy vertex sees, one bit a texel in Morton order. A fragment evaluates the
 // material's GGX lobe for its interpolated normal and its own direction to the eye by filtered
 // importance sampling against the light's pyramid (binding 8) and the three vertices' visible
@@ -45,9 +46,10 @@ struct View {
     size: vec4<f32>,
     // The face size of the light's pyramid (0 without a light), then padding.
     pyramid: vec4<u32>,
-    // A bake with visibility: its cube's face size, the lobe's taps a material, the materials and
-    // the words of a vertex's bits; then where in `gloss` the taps, the lobes and the bits start
-    // (each vertex's row, or NO_ROW, is at its index). All zero without visibility.
+    // A bake with visibility: its cube's face size, the most taps a material takes, the materials
+    // and the words of a vertex's bits; then where in `gloss` the lobes, the bits and each
+    // material's [first tap word, taps] start (each vertex's row, or NO_ROW, is at its index, the
+    // taps after the rows). All zero without visibility.
     lobe: vec4<u32>,
     lobe_at: vec4<u32>,
 };
@@ -155,7 +157,7 @@ fn open_share(row: u32, m: u32, level: u32) -> f32 {
     if row == NO_ROW {
         return 1.0;
     }
-    let base = view.lobe_at.z + row * view.lobe.w;
+    let base = view.lobe_at.y + row * view.lobe.w;
     let len = 1u << (2u * level);
     let start = (m >> (2u * level)) << (2u * level);
     var ones = 0u;
@@ -221,7 +223,7 @@ fn lobe_light(corners: vec3<u32>, bary: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
     if m >= view.lobe.z {
         return vec3<f32>(0.0);
     }
-    let at = view.lobe_at.y + m * 4u;
+    let at = view.lobe_at.x + m * 4u;
     let specular = gloss_vec3(at);
     let alpha = bitcast<f32>(gloss[at + 3u]);
     if !(specular.x > 0.0 || specular.y > 0.0 || specular.z > 0.0) {
@@ -246,13 +248,15 @@ fn lobe_light(corners: vec3<u32>, bary: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
     let kb = n.x * n.y * ka;
     let t = vec3<f32>(1.0 + sign * n.x * n.x * ka, sign * kb, -sign * n.x);
     let s = vec3<f32>(kb, sign + n.y * n.y * ka, -n.y);
-    let taps = view.lobe.y;
+    // The material's own taps: as many as its lobe's width asks for.
+    let first = gloss[view.lobe_at.z + m * 2u];
+    let taps = gloss[view.lobe_at.z + m * 2u + 1u];
     let count = f32(taps);
     let side = f32(view.pyramid.x);
     let texel = 4.0 * PI / (6.0 * side * side);
     var total = vec3<f32>(0.0);
     for (var k = 0u; k < taps; k++) {
-        let o = view.lobe_at.x + (m * taps + k) * 4u;
+        let o = first + k * 4u;
         let th = gloss_vec3(o);
         let d_nh = bitcast<f32>(gloss[o + 3u]);
         let h = t * th.x + s * th.y + n * th.z;

@@ -38,6 +38,18 @@ fn rough_sphere(roughness: &str) -> wavelet_prt::scene::Scene {
     scene_from(&text, &format!("vertex-visibility-{roughness}"))
 }
 
+/// The glossy sphere at roughness 0.2 on a broad glossy ground (roughness 0.6).
+fn sphere_on_glossy_ground() -> wavelet_prt::scene::Scene {
+    let matte = "[material.ground]\ntype = \"diffuse\"\nalbedo = [0.8, 0.8, 0.8]";
+    let text = std::fs::read_to_string(assets().join("scenes/glossy_sphere.toml"))
+        .unwrap()
+        .replace("width = 256\nheight = 256", "width = 64\nheight = 64");
+    assert!(text.contains(matte));
+    let glossy = "[material.ground]\ntype = \"glossy\"\nalbedo = [0.5, 0.5, 0.5]\n\
+                  specular = [0.3, 0.3, 0.3]\nroughness = 0.6";
+    scene_from(&text.replace(matte, glossy), "vertex-visibility-mixed")
+}
+
 fn settings(n: usize, edge: f32) -> BakeSettings {
     BakeSettings {
         cube_n: n,
@@ -384,9 +396,13 @@ fn the_gpu_draws_the_lobe_as_the_cpu_does() {
     };
     let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
     let rotation = EnvRotation::default();
-    // A sharp lobe (64 directions a pixel) and a broad one (256).
-    for (roughness, directions) in [("0.2", 64), ("0.6", 256)] {
-        let scene = rough_sphere(roughness);
+    // A sharp lobe (64 directions a pixel, the ground matte), a broad one (256), and the sharp
+    // sphere on a broad glossy ground, each material with its own count.
+    for (scene, directions) in [
+        (rough_sphere("0.2"), vec![64, 0]),
+        (rough_sphere("0.6"), vec![256, 0]),
+        (sphere_on_glossy_ground(), vec![64, 256]),
+    ] {
         let t = bake(&scene, &settings(8, 0.3), &|_| {}).unwrap();
         let mesh = t.domain.mesh().unwrap();
         assert_eq!(lobe_samples(mesh.visibility.as_ref().unwrap()), directions);
@@ -439,14 +455,15 @@ fn the_gpu_draws_the_lobe_as_the_cpu_does() {
                         }
                     }
                     eprintln!(
-                        "roughness {roughness}, light N = {}, {samples} sample(s), turned {az}°: \
+                        "directions {directions:?}, light N = {}, {samples} sample(s), turned {az}°: \
                      {apart} pixels apart, the rest within {worst:.2e} of the brightest, the \
                      lobe adding {gloss:.3}",
                         lobe.n
                     );
                     assert!(
                         apart * 100_000 <= GPU_LOBE_PIXELS_APART * cpu.coverage.len(),
-                        "{samples} sample(s), turned {az}°: {apart} pixels apart"
+                        "directions {directions:?}, {samples} sample(s), turned {az}°: {apart} pixels \
+                         apart"
                     );
                 }
             }

@@ -41,14 +41,17 @@ pub fn lobe_samples_for(alpha: f32) -> usize {
     }
 }
 
-/// Lobe directions a pixel takes for a bake with visibility: as its broadest glossy material
-/// asks ([`lobe_samples_for`]); one count for every material, as the GPU raster reads them.
-pub fn lobe_samples(visibility: &Visibility) -> usize {
-    let widest = (0..visibility.lobes.len() as u32)
-        .filter_map(|m| visibility.lobe(m))
-        .map(|(_, alpha)| alpha)
-        .fold(0.0f32, f32::max);
-    lobe_samples_for(widest)
+/// Lobe directions a pixel takes for each material of a bake with visibility, as its lobe's
+/// width asks ([`lobe_samples_for`]); 0 for a diffuse material. A sharp material keeps its few
+/// directions beside a broad one, on the CPU and the GPU alike.
+pub fn lobe_samples(visibility: &Visibility) -> Vec<usize> {
+    (0..visibility.lobes.len() as u32)
+        .map(|m| {
+            visibility
+                .lobe(m)
+                .map_or(0, |(_, alpha)| lobe_samples_for(alpha))
+        })
+        .collect()
 }
 
 /// The fixed pattern of `m` points in the unit square: rows stratified in `u1`, the base-2
@@ -74,9 +77,8 @@ pub struct Lobe<'a> {
     pub visibility: &'a Visibility,
     /// The light, as the relight used it.
     pub light: &'a CubePyramid,
-    /// The lobe's directions in the unit square ([`lobe_pattern`]).
-    pub pattern: Vec<[f32; 2]>,
-    /// Per material, the pattern's half vectors for its α (`None` for a diffuse material).
+    /// Per material, the half vectors of its pattern ([`lobe_pattern`]) for its α (`None` for a
+    /// diffuse material).
     taps: Vec<Option<Vec<Tap>>>,
 }
 
@@ -114,7 +116,8 @@ pub fn lobe_taps(alpha: f32, samples: usize) -> Vec<[f32; 4]> {
 }
 
 impl<'a> Lobe<'a> {
-    /// The lobe of a mesh's vertices under `light`, with `samples` directions a pixel.
+    /// The lobe of a mesh's vertices under `light`, with `samples` directions a pixel for every
+    /// material.
     pub fn new(
         normals: &'a [Vec3],
         materials: &'a [u32],
@@ -122,16 +125,43 @@ impl<'a> Lobe<'a> {
         light: &'a CubePyramid,
         samples: usize,
     ) -> Lobe<'a> {
-        let pattern = lobe_pattern(samples);
+        let counts = vec![samples; visibility.lobes.len()];
+        Lobe::with_counts(normals, materials, visibility, light, &counts)
+    }
+
+    /// The lobe of a mesh's vertices under `light`, each material with the directions its
+    /// width asks for ([`lobe_samples`]): what a draw takes.
+    pub fn of_widths(
+        normals: &'a [Vec3],
+        materials: &'a [u32],
+        visibility: &'a Visibility,
+        light: &'a CubePyramid,
+    ) -> Lobe<'a> {
+        let counts = lobe_samples(visibility);
+        Lobe::with_counts(normals, materials, visibility, light, &counts)
+    }
+
+    /// The lobe with `counts[m]` directions a pixel for material m.
+    fn with_counts(
+        normals: &'a [Vec3],
+        materials: &'a [u32],
+        visibility: &'a Visibility,
+        light: &'a CubePyramid,
+        counts: &[usize],
+    ) -> Lobe<'a> {
         let taps = (0..visibility.lobes.len() as u32)
-            .map(|m| visibility.lobe(m).map(|(_, alpha)| taps(alpha, &pattern)))
+            .zip(counts)
+            .map(|(m, &k)| {
+                visibility
+                    .lobe(m)
+                    .map(|(_, alpha)| taps(alpha, &lobe_pattern(k)))
+            })
             .collect();
         Lobe {
             normals,
             materials,
             visibility,
             light,
-            pattern,
             taps,
         }
     }
@@ -172,8 +202,11 @@ impl ViewDependent for Lobe<'_> {
     fn check(&self, vertices: usize) -> Result<()> {
         self.visibility
             .check_draw(self.normals.len(), self.materials, vertices)?;
-        if self.pattern.is_empty() {
-            return Err(PrtError::invalid("gloss", "no lobe directions"));
+        if self.taps.iter().flatten().any(Vec::is_empty) {
+            return Err(PrtError::invalid(
+                "gloss",
+                "a glossy material without lobe directions",
+            ));
         }
         Ok(())
     }

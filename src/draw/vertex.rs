@@ -12,7 +12,7 @@ use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
 use crate::output::film::Image;
 
-use crate::draw::lobe::{Lobe, lobe_samples};
+use crate::draw::lobe::Lobe;
 use crate::draw::raster::{Raster, rasterize_glossy};
 use crate::draw::sh_gloss::ShGloss;
 use crate::draw::shading::{Texturing, ViewDependent};
@@ -255,13 +255,7 @@ pub fn draw_relit(
                  the light the relight used",
             )
         })?;
-        let lobe = Lobe::new(
-            &mesh.normals,
-            &mesh.materials,
-            vis,
-            light,
-            lobe_samples(vis),
-        );
+        let lobe = Lobe::of_widths(&mesh.normals, &mesh.materials, vis, light);
         return draw_mesh(mesh, colours, Some(&lobe), camera, behind, samples);
     }
     draw_mesh(mesh, colours, None, camera, behind, samples)

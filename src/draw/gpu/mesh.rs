@@ -50,9 +50,9 @@ impl<'a> GlossMesh<'a> {
 }
 
 /// Where the lobe's tables sit in the gloss buffer and their shape, as the shader's view
-/// uniform takes them: `[visibility N, taps a material, materials, words a row]`, then the
-/// offsets of the taps, the lobes and the bits (the vertices' rows start at 0). All zero
-/// without visibility.
+/// uniform takes them: `[visibility N, the most taps a material takes, materials, words a
+/// row]`, then the offsets of the lobes, the bits and each material's `[first tap word, taps]`
+/// (the vertices' rows start at 0, the taps follow them), and 0. All zero without visibility.
 pub(super) type LobeShape = [u32; 8];
 
 /// The gloss buffer's words and their shape for `gloss`: the visibility's vertex rows, lobe
@@ -63,27 +63,32 @@ fn gloss_tables(gloss: Option<&GlossMesh>, vertices: usize) -> (Vec<u32>, LobeSh
             let mut words: Vec<u32> = (0..vertices)
                 .map(|v| vis.row_index(v).unwrap_or(NO_ROW))
                 .collect();
-            let taps_at = words.len() as u32;
-            let samples = lobe_samples(vis);
-            for m in 0..vis.lobes.len() as u32 {
-                let taps = match vis.lobe(m) {
-                    Some((_, alpha)) => lobe_taps(alpha, samples),
-                    None => vec![[0.0; 4]; samples],
-                };
-                words.extend(taps.iter().flatten().map(|x| x.to_bits()));
+            // Each material's taps, as many as its width asks for (none for a diffuse one).
+            let counts = lobe_samples(vis);
+            let mut first = Vec::with_capacity(counts.len());
+            for (m, &count) in counts.iter().enumerate() {
+                first.push(words.len() as u32);
+                if let Some((_, alpha)) = vis.lobe(m as u32) {
+                    let taps = lobe_taps(alpha, count);
+                    words.extend(taps.iter().flatten().map(|x| x.to_bits()));
+                }
             }
             let lobes_at = words.len() as u32;
             words.extend(vis.lobes.iter().flatten().map(|x| x.to_bits()));
             let bits_at = words.len() as u32;
             words.extend(&vis.bits);
+            let taps_at = words.len() as u32;
+            for (f, &count) in first.iter().zip(&counts) {
+                words.extend([*f, count as u32]);
+            }
             let shape = [
                 vis.n as u32,
-                samples as u32,
+                counts.iter().copied().max().unwrap_or(0) as u32,
                 vis.lobes.len() as u32,
                 Visibility::words(vis.n) as u32,
-                taps_at,
                 lobes_at,
                 bits_at,
+                taps_at,
                 0,
             ];
             (words, shape)

@@ -269,3 +269,36 @@ fn shut_texels_darken_the_lobe_and_a_diffuse_material_has_none() {
     );
     assert!(lobe.check(4).is_err());
 }
+
+/// Each material takes the directions its own width asks for: a sharp one beside a broad one
+/// keeps its few, and is drawn to the bit as with that count alone.
+#[test]
+fn each_material_takes_the_directions_its_width_asks_for() {
+    let normals = [
+        Vec3::new(0.1, 1.0, 0.0).normalize(),
+        Vec3::new(-0.1, 1.0, 0.05).normalize(),
+        Vec3::new(0.0, 1.0, -0.1).normalize(),
+    ];
+    // A sharp lobe (α = 0.04), a broad one (α = 0.36) and a diffuse material.
+    let sharp = [1.0, 1.0, 1.0, 0.04];
+    let broad = [0.5, 0.5, 0.5, 0.36];
+    let vis = Visibility::new(N, 3, vec![], vec![], vec![sharp, broad, [0.0; 4]]).unwrap();
+    assert_eq!(
+        lobe_samples(&vis),
+        [DEFAULT_LOBE_SAMPLES, 4 * DEFAULT_LOBE_SAMPLES, 0]
+    );
+    let pyramid = CubePyramid::new(&light(true)).unwrap();
+    let v = DVec3::new(0.3, 0.9, 0.1).normalize();
+    let b = [0.2, 0.3, 0.5];
+    for m in 0..2 {
+        let materials = [m as u32; 3];
+        let lobe = Lobe::of_widths(&normals, &materials, &vis, &pyramid);
+        lobe.check(3).unwrap();
+        let count = lobe_samples(&vis)[m];
+        let alone = Lobe::new(&normals, &materials, &vis, &pyramid, count);
+        assert_eq!(lobe.shade([0, 1, 2], b, v), alone.shade([0, 1, 2], b, v));
+        // Another count gives another value: the counts are not all the same.
+        let other = Lobe::new(&normals, &materials, &vis, &pyramid, 128);
+        assert_ne!(lobe.shade([0, 1, 2], b, v), other.shade([0, 1, 2], b, v));
+    }
+}
