@@ -9,14 +9,13 @@ use std::path::Path;
 use safetensors::tensor::Dtype;
 use serde::{Deserialize, Serialize};
 
-use super::legacy::{Columns, strips_of_columns};
+use super::groups::{
+    FileTensors, MatrixTensors, PixelTensors, RowTensors, ShTensor, read_all, taken, tensor_names,
+};
 use super::reader::TensorReader;
-use super::strips::{Layout, STRIP_ROWS};
-use super::tensors::{FileTensors, MapTensors, MeshTensors, Tensor, VisibilityTensors, read_all};
+use super::strips::Layout;
 use super::*;
 use crate::error::{PrtError, Result};
-use crate::scene::albedo_map::from_table;
-use crate::scene::visibility::Visibility;
 use crate::store::container::{self, check_meta_seal};
 
 impl Transport {
@@ -45,24 +44,14 @@ impl Transport {
         let tiles = tx * ty;
         let c = 6 * (meta.identity.cube_n as usize).pow(2);
         let FileTensors {
-            albedo: (albedo_shape, albedo),
-            map_tables,
-            col_count,
-            col_scale: (scale_shape, col_scale),
-            coverage: (coverage_shape, coverage),
-            entries,
-            light_tables,
+            pixels,
+            rows,
+            sh,
+            matrix,
             mesh,
-            mesh_uv,
-            row_pixel: (pixel_shape, row_pixel),
-            row_scale: (row_scale_shape, row_scale),
-            row_weight: (weight_shape, row_weight),
-            sh: (sh_shape, sh),
-            strip_tables,
-            tile_row_start: (start_shape, tile_row_start),
-            tile_stats: (stats_shape, tile_stats),
-            transport_magnitude: (magnitude_shape, transport_magnitude),
+            maps,
             visibility,
+            lights,
         } = read_all(&mut reader, &meta, version)?;
         let map_count = meta
             .per_vertex
@@ -80,68 +69,42 @@ impl Transport {
             Ok(())
         };
         let bad = |m: String| PrtError::file(path, m);
-        expect("tile_row_start", &start_shape, &[tiles + 1])?;
+        let (start_shape, tile_row_start) = taken(rows.tile_start, RowTensors::TILE_START)?;
+        expect(RowTensors::TILE_START, &start_shape, &[tiles + 1])?;
+        let (pixel_shape, row_pixel) = taken(rows.pixel, RowTensors::PIXEL)?;
         let r = pixel_shape.first().copied().unwrap_or(0);
-        expect("row_pixel", &pixel_shape, &[r])?;
+        expect(RowTensors::PIXEL, &pixel_shape, &[r])?;
         // The block tables follow from the tiles' row counts, checked before anything is sized
         // by them.
         let (tile_block_start, block_row_start) = block_tables(&tile_row_start, r).map_err(bad)?;
-        let blocks = block_row_start.len() - 1;
-        expect("row_weight", &weight_shape, &[r, 3])?;
-        expect("row_scale", &row_scale_shape, &[r])?;
-        expect("col_scale", &scale_shape, &[blocks, c])?;
-        let (tx, _) = tile_grid(w, h);
+        let (weight_shape, row_weight) = taken(rows.weight, RowTensors::WEIGHT)?;
+        expect(RowTensors::WEIGHT, &weight_shape, &[r, 3])?;
+        let (row_scale_shape, row_scale) = taken(rows.scale, RowTensors::SCALE)?;
+        expect(RowTensors::SCALE, &row_scale_shape, &[r])?;
         let layout = Layout::of(&tile_block_start, tx);
-        let strips = match (entries, col_count, strip_tables) {
-            (
-                Some(((entry_shape, entry_row), (value_shape, values))),
-                Some((count_shape, counts)),
-                _,
-            ) => {
-                expect("col_count", &count_shape, &[blocks, c])?;
-                let nnz = entry_shape.first().copied().unwrap_or(0);
-                expect("entry_row", &entry_shape, &[nnz])?;
-                expect("entry_value", &value_shape, &[nnz])?;
-                let columns = Columns {
-                    block_row_start: &block_row_start,
-                    c,
-                    counts: &counts,
-                    codes: &col_scale,
-                    rows: &entry_row,
-                };
-                strips_of_columns(layout, columns, &values).map_err(bad)?
-            }
-            (_, _, Some(((count_shape, counts), (place_shape, place), (value_shape, values)))) => {
-                expect("strip_count", &count_shape, &[blocks, c])?;
-                let strips = place_shape.first().copied().unwrap_or(0);
-                expect("strip_place", &place_shape, &[strips])?;
-                expect("strip_value", &value_shape, &[strips, STRIP_ROWS])?;
-                Strips::from_tables(layout, &counts, &col_scale, place, values).map_err(bad)?
-            }
-            _ => return Err(bad("neither columns nor strips were read".into())),
-        };
+        let strips = matrix.into_strips(layout, (&block_row_start, c), &expect, &bad)?;
+        let (sh_shape, sh) = taken(sh.sh, ShTensor::NAME)?;
         expect(
-            "sh",
+            ShTensor::NAME,
             &sh_shape,
             &[r, (meta.identity.sh_order as usize).pow(2)],
         )?;
-        expect("albedo", &albedo_shape, &[h, w, 3])?;
-        expect("coverage", &coverage_shape, &[h, w])?;
-        expect("transport_magnitude", &magnitude_shape, &[c])?;
-        expect("tile_stats", &stats_shape, &[tiles, 3])?;
-        let lights = light_columns(light_tables, (columns, w, h), &expect)?;
-        let mesh = match (&meta.per_vertex, mesh) {
-            (Some(pv), Some(tables)) => Some(
-                MeshTables {
-                    tables,
-                    uv: mesh_uv,
-                    maps: map_tables,
-                }
-                .into_mesh(pv, map_count, &expect, &bad)?,
-            ),
-            _ => None,
+        let (albedo_shape, albedo) = taken(pixels.albedo, PixelTensors::ALBEDO)?;
+        expect(PixelTensors::ALBEDO, &albedo_shape, &[h, w, 3])?;
+        let (coverage_shape, coverage) = taken(pixels.coverage, PixelTensors::COVERAGE)?;
+        expect(PixelTensors::COVERAGE, &coverage_shape, &[h, w])?;
+        let (magnitude_shape, transport_magnitude) =
+            taken(pixels.magnitude, PixelTensors::MAGNITUDE)?;
+        expect(PixelTensors::MAGNITUDE, &magnitude_shape, &[c])?;
+        let (stats_shape, tile_stats) = taken(rows.tile_stats, RowTensors::TILE_STATS)?;
+        expect(RowTensors::TILE_STATS, &stats_shape, &[tiles, 3])?;
+        let lights = lights.into_columns((columns, w, h), &expect)?;
+        let mesh = match &meta.per_vertex {
+            Some(pv) => mesh.into_mesh(maps, (pv, map_count), &expect, &bad)?,
+            None => None,
         };
-        let mesh = with_visibility(mesh, visibility, meta.identity.cube_n as usize, &expect)
+        let mesh = visibility
+            .attach(mesh, meta.identity.cube_n as usize, &expect)
             .map_err(|e| bad(e.to_string()))?;
         let t = Transport {
             meta,
@@ -196,16 +159,16 @@ pub fn read_summary(path: &Path) -> Result<TransportMeta> {
     // Read in name order: `col_count` (versions 3 to 6) before `strip_count` before
     // `tile_row_start`.
     let col_counts: Option<(_, Vec<u16>)> = if legacy {
-        Some(reader.read("col_count", Dtype::U16)?)
+        Some(reader.read(MatrixTensors::COL_COUNT, Dtype::U16)?)
     } else {
         None
     };
     let strip_counts: Option<(_, Vec<u8>)> = if legacy {
         None
     } else {
-        Some(reader.read("strip_count", Dtype::U8)?)
+        Some(reader.read(MatrixTensors::STRIP_COUNT, Dtype::U8)?)
     };
-    let (_, starts): (_, Vec<u32>) = reader.read("tile_row_start", Dtype::U32)?;
+    let (_, starts): (_, Vec<u32>) = reader.read(RowTensors::TILE_START, Dtype::U32)?;
     // The large tensors are only counted; their bytes need the whole file's checksum.
     let count = |name: &str, bytes_each: u64| -> Result<usize> {
         let (_, shape, start, end) = reader.locate(name)?;
@@ -220,7 +183,7 @@ pub fn read_summary(path: &Path) -> Result<TransportMeta> {
             )),
         }
     };
-    let rows = count("row_pixel", 4)?;
+    let rows = count(RowTensors::PIXEL, 4)?;
     let (tx, ty) = tile_grid(meta.width as usize, meta.height as usize);
     if starts.len() != tx * ty + 1 {
         return Err(PrtError::file(
@@ -233,7 +196,7 @@ pub fn read_summary(path: &Path) -> Result<TransportMeta> {
     let blocks = block_rows.len() - 1;
     match (col_counts, strip_counts) {
         (Some((_, counts)), _) => {
-            let nnz = count("entry_row", 1)?;
+            let nnz = count(MatrixTensors::ENTRY_ROW, 1)?;
             if counts.len() != blocks * c {
                 return Err(PrtError::file(
                     path,
@@ -243,7 +206,7 @@ pub fn read_summary(path: &Path) -> Result<TransportMeta> {
             column_pointers(&counts, &block_rows, c, nnz).map_err(|m| PrtError::file(path, m))?;
         }
         (_, Some((_, counts))) => {
-            let strips = count("strip_place", 1)?;
+            let strips = count(MatrixTensors::STRIP_PLACE, 1)?;
             let counted: u64 = counts.iter().map(|&n| n as u64).sum();
             if counts.len() != blocks * c {
                 return Err(PrtError::file(
@@ -470,64 +433,6 @@ fn check_meta(m: &TransportMeta) -> std::result::Result<(), String> {
     Ok(())
 }
 
-/// Names of the tensors in a file of `version` with `meta`, in the order the checksum covers
-/// them: those of every file, a per-vertex bake's mesh, its albedo maps and visibility, and the
-/// local lights' columns.
-pub(super) fn tensor_names(version: u32, meta: &TransportMeta) -> Vec<&'static str> {
-    let pv = meta.per_vertex.as_ref();
-    let per_vertex = pv.is_some();
-    let albedo_maps = pv.is_some_and(|p| p.albedo_maps > 0);
-    let lights = meta.light_columns() > 0;
-    let mut names: Vec<&str> = TENSOR_NAMES.to_vec();
-    if version < 7 {
-        names.extend(["col_count", "entry_row", "entry_value"]);
-    } else {
-        names.extend(["strip_count", "strip_place", "strip_value"]);
-    }
-    if per_vertex {
-        names.extend(MESH_TENSOR_NAMES);
-    }
-    if albedo_maps {
-        names.extend([
-            "albedo_map",
-            "albedo_map_material",
-            "albedo_texel",
-            "mesh_uv",
-        ]);
-    }
-    if lights {
-        names.extend(["light_scale", "light_value"]);
-    }
-    if per_vertex && meta.identity.visibility {
-        names.extend(["visibility_bits", "visibility_lobe", "visibility_vertex"]);
-    }
-    names.sort();
-    names
-}
-
-/// The tensors of a per-vertex bake's mesh.
-const MESH_TENSOR_NAMES: [&str; 4] = [
-    "mesh_material",
-    "mesh_normal",
-    "mesh_position",
-    "mesh_triangle",
-];
-
-/// The tensors of every file, besides its Haar matrix's (strips from version 7, columns
-/// before).
-const TENSOR_NAMES: [&str; 10] = [
-    "albedo",
-    "col_scale",
-    "coverage",
-    "row_pixel",
-    "row_scale",
-    "row_weight",
-    "sh",
-    "tile_row_start",
-    "tile_stats",
-    "transport_magnitude",
-];
-
 /// An error unless the checksum computed over the tensors, `computed`, is the one stored.
 fn check_checksum(path: &Path, stored: &str, computed: u64) -> Result<()> {
     let sum = format!("{computed:016x}");
@@ -538,106 +443,4 @@ fn check_checksum(path: &Path, stored: &str, computed: u64) -> Result<()> {
         ));
     }
     Ok(())
-}
-
-/// The light columns of `columns` lights over a `w` x `h` image from their tables as read
-/// (their shapes checked by `expect`); none without tables.
-fn light_columns(
-    tables: Option<(Tensor<f32>, Tensor<u16>)>,
-    (columns, w, h): (usize, usize, usize),
-    expect: ShapeCheck,
-) -> Result<LightColumns> {
-    let Some(((ss, scale), (vs, values))) = tables else {
-        return Ok(LightColumns::empty(w, h));
-    };
-    expect("light_scale", &ss, &[columns, h])?;
-    expect("light_value", &vs, &[columns, 3, h, w])?;
-    Ok(LightColumns {
-        width: w,
-        height: h,
-        scale,
-        values,
-    })
-}
-
-/// `mesh` with the visibility tables read (their shapes checked by `expect`), if any: an
-/// error for tables without a per-vertex mesh.
-fn with_visibility(
-    mesh: Option<VertexMesh>,
-    tables: Option<VisibilityTensors>,
-    n: usize,
-    expect: ShapeCheck,
-) -> Result<Option<VertexMesh>> {
-    let Some(((bs, bits), (ls, lobes), (vs, vertices))) = tables else {
-        return Ok(mesh);
-    };
-    let mut mesh = mesh.ok_or_else(|| {
-        PrtError::invalid("visibility", "stored for a bake that is not per vertex")
-    })?;
-    let g = vs.first().copied().unwrap_or(0);
-    expect("visibility_vertex", &vs, &[g])?;
-    expect("visibility_bits", &bs, &[g, Visibility::words(n)])?;
-    let m = ls.first().copied().unwrap_or(0);
-    expect("visibility_lobe", &ls, &[m, 4])?;
-    mesh.visibility = Some(Box::new(Visibility::new(
-        n,
-        mesh.vertex_count(),
-        vertices,
-        bits,
-        lobes,
-    )?));
-    Ok(Some(mesh))
-}
-
-/// Checks a tensor's shape against what it must be: (name, shape, expected).
-type ShapeCheck<'a> = &'a dyn Fn(&str, &[usize], &[usize]) -> Result<()>;
-
-/// The tensors of a per-vertex bake's mesh as read, before their shapes are checked.
-struct MeshTables {
-    /// The vertices' materials, normals and positions, and the triangles.
-    tables: MeshTensors,
-    /// The vertices' texture coordinates, with albedo maps.
-    uv: Option<Tensor<glam::Vec2>>,
-    /// The albedo maps' table, their materials and their texels.
-    maps: Option<MapTensors>,
-}
-
-impl MeshTables {
-    /// The mesh of `pv`'s vertices and triangles (with `map_count` albedo maps), every tensor's
-    /// shape checked by `expect` and the albedo maps' tables by their reader (errors by `bad`).
-    fn into_mesh(
-        self,
-        pv: &PerVertexMeta,
-        map_count: usize,
-        expect: ShapeCheck,
-        bad: &dyn Fn(String) -> PrtError,
-    ) -> Result<VertexMesh> {
-        let ((ms, materials), (ns, normals), (ps, positions), (ts, triangles)) = self.tables;
-        let (v, t) = (pv.vertices as usize, pv.triangles as usize);
-        expect("mesh_position", &ps, &[v, 3])?;
-        expect("mesh_normal", &ns, &[v, 3])?;
-        expect("mesh_material", &ms, &[v])?;
-        expect("mesh_triangle", &ts, &[t, 3])?;
-        let (uvs, albedo_maps) = match (self.uv, self.maps) {
-            (Some((us, uvs)), Some(((ms, table), (os, owners), (xs, texels)))) => {
-                expect("mesh_uv", &us, &[v, 2])?;
-                expect("albedo_map", &ms, &[map_count, 5])?;
-                let n = os.first().copied().unwrap_or(0);
-                expect("albedo_map_material", &os, &[n, 2])?;
-                let n = xs.first().copied().unwrap_or(0);
-                expect("albedo_texel", &xs, &[n, 3])?;
-                (uvs, from_table(&table, &owners, texels).map_err(bad)?)
-            }
-            _ => (vec![glam::Vec2::ZERO; v], Vec::new()),
-        };
-        Ok(VertexMesh {
-            positions,
-            normals,
-            materials,
-            uvs,
-            triangles,
-            albedo_maps,
-            visibility: None,
-        })
-    }
 }

@@ -154,8 +154,9 @@ impl LightColumns {
             .find(|&&s| !(s == 0.0 || (s.is_finite() && s >= SMALLEST_SCALE)))
         {
             return Some(format!(
-                "tensor `light_scale` holds {s}: every scale must be 0, or finite and at least \
-                 {SMALLEST_SCALE:e}"
+                "tensor `{}` holds {s}: every scale must be 0, or finite and at least \
+                 {SMALLEST_SCALE:e}",
+                super::groups::LightTensors::SCALE
             ));
         }
         None

@@ -83,6 +83,7 @@
 
 mod assemble;
 mod file;
+mod groups;
 mod legacy;
 mod lights;
 mod merge;
@@ -91,7 +92,6 @@ mod reader;
 mod save;
 mod stream;
 pub mod strips;
-mod tensors;
 
 use std::ops::Range;
 
@@ -99,6 +99,7 @@ use crate::scene::tessellate::VertexMesh;
 use crate::store::container;
 use crate::store::quant::scale_of;
 pub use crate::store::quant::{BLOCK_ROWS, Quantization};
+use groups::{PixelTensors, RowTensors, ShTensor};
 
 pub use assemble::{EncodedTile, KeptTiles, RowData, Untiled};
 pub use file::{read_format_version, read_header_meta, read_summary};
@@ -223,6 +224,11 @@ pub struct Transport {
     /// The local lights' dense columns (none without local lights; `meta.lights` says which
     /// light each column is).
     pub lights: LightColumns,
+}
+
+/// The error of a tensor holding a value that is not finite.
+fn non_finite(name: &str) -> String {
+    format!("tensor `{name}` holds NaN or infinite values")
 }
 
 /// What a transport's rows belong to, and so what can draw it.
@@ -372,13 +378,16 @@ impl Transport {
             }
         }
         if !self.sh.iter().all(|x| x.is_finite()) {
-            return Err("tensor `sh` holds NaN or infinite values".into());
+            return Err(non_finite(ShTensor::NAME));
         }
         if !self.row_weight.iter().flatten().all(|x| x.is_finite()) {
-            return Err("tensor `row_weight` holds NaN or infinite values".into());
+            return Err(non_finite(RowTensors::WEIGHT));
         }
         if !self.row_scale.iter().all(|x| x.is_finite() && *x > 0.0) {
-            return Err("tensor `row_scale`: every row scale must be finite and positive".into());
+            return Err(format!(
+                "tensor `{}`: every row scale must be finite and positive",
+                RowTensors::SCALE
+            ));
         }
         if self.albedo.len() != w * h
             || self.coverage.len() != w * h
@@ -389,21 +398,24 @@ impl Transport {
         }
         for (name, finite) in [
             (
-                "albedo",
+                PixelTensors::ALBEDO,
                 self.albedo.iter().flatten().all(|x| x.is_finite()),
             ),
-            ("coverage", self.coverage.iter().all(|x| x.is_finite())),
             (
-                "transport_magnitude",
+                PixelTensors::COVERAGE,
+                self.coverage.iter().all(|x| x.is_finite()),
+            ),
+            (
+                PixelTensors::MAGNITUDE,
                 self.transport_magnitude.iter().all(|x| x.is_finite()),
             ),
             (
-                "tile_stats",
+                RowTensors::TILE_STATS,
                 self.tile_stats.iter().flatten().all(|x| x.is_finite()),
             ),
         ] {
             if !finite {
-                return Err(format!("tensor `{name}` holds NaN or infinite values"));
+                return Err(non_finite(name));
             }
         }
         if (self.lights.width, self.lights.height) != (w, h) {
@@ -448,7 +460,7 @@ impl Transport {
         if pv.image.iter().any(|&s| s == 0 || s > 16384) {
             return Err(format!("image size {:?}", pv.image));
         }
-        let materials = mesh_values_problem(pv, mesh)?;
+        let materials = groups::mesh_values_problem(pv, mesh)?;
         if let Some(p) = mesh.problem(materials.unwrap_or(u32::MAX as usize)) {
             return Err(format!("mesh: {p}"));
         }
@@ -464,68 +476,6 @@ impl Transport {
         }
         Ok(())
     }
-}
-
-/// Checks a per-vertex mesh's stored values, each error naming its tensor: finite positions,
-/// texture coordinates, finite unit normals, and material indices below the header's material
-/// count, a map's materials also used by a vertex. Returns the material count when the file
-/// gives one.
-fn mesh_values_problem(
-    pv: &PerVertexMeta,
-    mesh: &VertexMesh,
-) -> std::result::Result<Option<usize>, String> {
-    if let Some(i) = mesh.positions.iter().position(|p| !p.is_finite()) {
-        return Err(format!(
-            "tensor `mesh_position`: vertex {i} is at {}",
-            mesh.positions[i]
-        ));
-    }
-    let unit = |n: &glam::Vec3| n.is_finite() && (n.length() - 1.0).abs() <= 1e-3;
-    if let Some(i) = mesh.normals.iter().position(|n| !unit(n)) {
-        return Err(format!(
-            "tensor `mesh_normal`: vertex {i} has normal {}, not a finite unit vector",
-            mesh.normals[i]
-        ));
-    }
-    if let Some(i) = mesh.uvs.iter().position(|t| !t.is_finite()) {
-        return Err(format!(
-            "tensor `mesh_uv`: vertex {i} has texture coordinate {}",
-            mesh.uvs[i]
-        ));
-    }
-    let count = match pv.materials as usize {
-        0 => None,
-        n => Some(n),
-    };
-    if let Some(n) = count
-        && let Some(i) = mesh.materials.iter().position(|&m| m as usize >= n)
-    {
-        return Err(format!(
-            "tensor `mesh_material`: vertex {i} has material {}, but the bake has {n} materials",
-            mesh.materials[i]
-        ));
-    }
-    if !mesh.albedo_maps.is_empty() {
-        let used: std::collections::HashSet<u32> = mesh.materials.iter().copied().collect();
-        let maps = mesh.albedo_maps.iter().flat_map(|a| &a.materials);
-        for &m in maps {
-            match count {
-                Some(n) if m as usize >= n => {
-                    return Err(format!(
-                        "tensor `albedo_map_material`: a map of material {m}, but the bake has \
-                         {n} materials"
-                    ));
-                }
-                _ if !used.contains(&m) => {
-                    return Err(format!(
-                        "tensor `albedo_map_material`: a map of material {m}, which no vertex has"
-                    ));
-                }
-                _ => {}
-            }
-        }
-    }
-    Ok(count)
 }
 
 /// The blocks of every tile and the rows of every block, from the tiles' row starts; checks that

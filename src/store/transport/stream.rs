@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use safetensors::tensor::Dtype;
 
 use super::assemble::{self, add_magnitudes, bake_stats, mean_magnitudes};
+use super::groups::{MatrixTensors, RowTensors, ShTensor};
 use super::save::{FileTables, save_file};
 use super::*;
 use crate::error::{PrtError, Result};
@@ -72,14 +73,14 @@ impl TransportWriter {
             strips: 0,
             group: Vec::new(),
             group_blocks: 0,
-            row_pixel: spill("row_pixel")?,
-            row_weight: spill("row_weight")?,
-            row_scale: spill("row_scale")?,
-            sh: spill("sh")?,
-            strip_count: spill("strip_count")?,
-            col_scale: spill("col_scale")?,
-            strip_place: spill("strip_place")?,
-            strip_value: spill("strip_value")?,
+            row_pixel: spill(RowTensors::PIXEL)?,
+            row_weight: spill(RowTensors::WEIGHT)?,
+            row_scale: spill(RowTensors::SCALE)?,
+            sh: spill(ShTensor::NAME)?,
+            strip_count: spill(MatrixTensors::STRIP_COUNT)?,
+            col_scale: spill(MatrixTensors::COL_SCALE)?,
+            strip_place: spill(MatrixTensors::STRIP_PLACE)?,
+            strip_value: spill(MatrixTensors::STRIP_VALUE)?,
         })
     }
 
@@ -217,35 +218,35 @@ impl TransportWriter {
         };
         let grown = vec![
             (
-                "row_pixel",
+                RowTensors::PIXEL,
                 Tensor::spilled(Dtype::U32, vec![rows], &self.row_pixel)?,
             ),
             (
-                "row_weight",
+                RowTensors::WEIGHT,
                 Tensor::spilled(Dtype::F32, vec![rows, 3], &self.row_weight)?,
             ),
             (
-                "row_scale",
+                RowTensors::SCALE,
                 Tensor::spilled(Dtype::F32, vec![rows], &self.row_scale)?,
             ),
             (
-                "sh",
+                ShTensor::NAME,
                 Tensor::spilled(Dtype::F32, vec![rows, self.shc], &self.sh)?,
             ),
             (
-                "strip_count",
+                MatrixTensors::STRIP_COUNT,
                 Tensor::spilled(Dtype::U8, vec![b, c], &self.strip_count)?,
             ),
             (
-                "col_scale",
+                MatrixTensors::COL_SCALE,
                 Tensor::spilled(Dtype::U8, vec![b, c], &self.col_scale)?,
             ),
             (
-                "strip_place",
+                MatrixTensors::STRIP_PLACE,
                 Tensor::spilled(Dtype::U8, vec![s], &self.strip_place)?,
             ),
             (
-                "strip_value",
+                MatrixTensors::STRIP_VALUE,
                 Tensor::spilled(value_type, vec![s, strips::STRIP_ROWS], &self.strip_value)?,
             ),
         ];
