@@ -116,39 +116,56 @@ fn spread(v: u32) -> u32 {
     return (x | (x << 1u)) & 0x55555555u;
 }
 
-// The Morton index of the texel of an n-cube that holds direction d (any length).
-fn dir_to_morton(n: u32, d: vec3<f32>) -> u32 {
-    let a = abs(d);
-    // The face, and the position on it from -1 to 1, as src/math/cubemap.rs (dir_to_face_st).
-    var face: u32;
-    var s: f32;
-    var t: f32;
-    if a.x >= a.y && a.x >= a.z {
-        face = select(1u, 0u, d.x >= 0.0);
-        s = select(d.z, -d.z, d.x >= 0.0) / a.x;
-        t = -d.y / a.x;
-    } else if a.y >= a.z {
-        face = select(3u, 2u, d.y >= 0.0);
-        s = d.x / a.y;
-        t = select(-d.z, d.z, d.y >= 0.0) / a.y;
-    } else {
-        face = select(5u, 4u, d.z >= 0.0);
-        s = select(-d.x, d.x, d.z >= 0.0) / a.z;
-        t = -d.y / a.z;
-    }
-    let col = min(u32((s + 1.0) * 0.5 * f32(n)), n - 1u);
-    let row = min(u32((t + 1.0) * 0.5 * f32(n)), n - 1u);
-    return face * n * n + (spread(col) | (spread(row) << 1u));
+// A direction's face and its position on it from -1 to 1, as src/math/cubemap.rs
+// (dir_to_face_st).
+struct FacePoint {
+    face: u32,
+    s: f32,
+    t: f32,
 }
 
-// The light's mean radiance over the level-`level` node that holds Morton index m.
-fn light_mean(m: u32, level: u32) -> vec3<f32> {
+fn face_point(d: vec3<f32>) -> FacePoint {
+    let a = abs(d);
+    if a.x >= a.y && a.x >= a.z {
+        return FacePoint(select(1u, 0u, d.x >= 0.0), select(d.z, -d.z, d.x >= 0.0) / a.x, -d.y / a.x);
+    } else if a.y >= a.z {
+        return FacePoint(select(3u, 2u, d.y >= 0.0), d.x / a.y, select(-d.z, d.z, d.y >= 0.0) / a.y);
+    }
+    return FacePoint(select(5u, 4u, d.z >= 0.0), select(-d.x, d.x, d.z >= 0.0) / a.z, -d.y / a.z);
+}
+
+// The Morton index of the texel of an n-cube that holds direction d (any length).
+fn dir_to_morton(n: u32, d: vec3<f32>) -> u32 {
+    let p = face_point(d);
+    let col = min(u32((p.s + 1.0) * 0.5 * f32(n)), n - 1u);
+    let row = min(u32((p.t + 1.0) * 0.5 * f32(n)), n - 1u);
+    return p.face * n * n + (spread(col) | (spread(row) << 1u));
+}
+
+// The light's mean radiance about face point p at level `level`: bilinear between the centres of
+// the four nodes of its face nearest it, held at the face's edge, as src/math/cube_pyramid.rs
+// (CubePyramid::bilinear).
+fn light_bilinear(p: FacePoint, level: u32) -> vec3<f32> {
     var at = 0u;
     for (var k = 0u; k < level; k++) {
         let side = view.pyramid.x >> k;
         at += 6u * side * side;
     }
-    return light[at + (m >> (2u * level))].rgb;
+    let side = view.pyramid.x >> level;
+    let last = f32(side - 1u);
+    let x = clamp((p.s + 1.0) * 0.5 * f32(side) - 0.5, 0.0, last);
+    let y = clamp((p.t + 1.0) * 0.5 * f32(side) - 0.5, 0.0, last);
+    let c0 = u32(x);
+    let r0 = u32(y);
+    let c = vec2<u32>(spread(c0), spread(min(c0 + 1u, side - 1u)));
+    let r = vec2<u32>(spread(r0), spread(min(r0 + 1u, side - 1u))) << vec2<u32>(1u);
+    let fc = x - f32(c0);
+    let fr = y - f32(r0);
+    let base = at + p.face * side * side;
+    return light[base + (c.x | r.x)].rgb * ((1.0 - fr) * (1.0 - fc))
+        + light[base + (c.y | r.x)].rgb * ((1.0 - fr) * fc)
+        + light[base + (c.x | r.y)].rgb * (fr * (1.0 - fc))
+        + light[base + (c.y | r.y)].rgb * (fr * fc);
 }
 
 // The open share of the level-`level` node holding Morton index m in visibility row `row` (1 for a
@@ -171,20 +188,27 @@ fn open_share(row: u32, m: u32, level: u32) -> f32 {
     return f32(ones) / f32(len);
 }
 
-// The light times the interpolated open share over lobe direction l's node at pyramid level
-// `level`, the visibility read at the level of the same texel size.
-fn lobe_at_level(ml: u32, mv: u32, level: u32, rows: vec3<u32>, b: vec3<f32>) -> vec3<f32> {
+// The light about lobe direction l (face point p, Morton index ml) times the interpolated open
+// share of its node at pyramid level `level`, the visibility read at the level of the same texel
+// size. The texels are the light itself, constant over each; a coarser level is read bilinearly
+// about l.
+fn lobe_at_level(p: FacePoint, ml: u32, mv: u32, level: u32, rows: vec3<u32>, b: vec3<f32>)
+    -> vec3<f32> {
     let tl = countTrailingZeros(view.pyramid.x);
     let tv = countTrailingZeros(view.lobe.x);
     let vl = min(max(level + tv, tl) - tl, tv);
     let open = b.x * open_share(rows.x, mv, vl) + b.y * open_share(rows.y, mv, vl)
         + b.z * open_share(rows.z, mv, vl);
-    return light_mean(ml, level) * open;
+    if level == 0u {
+        return light[ml].rgb * open;
+    }
+    return light_bilinear(p, level) * open;
 }
 
-// The mean of light times open share over direction l's node at fractional level x (clamped to
-// the pyramid's levels), between the two levels about it.
+// The mean of light times open share about direction l at fractional level x (clamped to the
+// pyramid's levels), between the two levels about it.
 fn lobe_read(l: vec3<f32>, x: f32, rows: vec3<u32>, b: vec3<f32>) -> vec3<f32> {
+    let p = face_point(l);
     let ml = dir_to_morton(view.pyramid.x, l);
     var mv = ml;
     if view.lobe.x != view.pyramid.x {
@@ -194,9 +218,9 @@ fn lobe_read(l: vec3<f32>, x: f32, rows: vec3<u32>, b: vec3<f32>) -> vec3<f32> {
     let xc = clamp(x, 0.0, f32(top));
     let lo = u32(floor(xc));
     let f = xc - floor(xc);
-    let below = lobe_at_level(ml, mv, lo, rows, b);
+    let below = lobe_at_level(p, ml, mv, lo, rows, b);
     if f > 0.0 && lo < top {
-        return below * (1.0 - f) + lobe_at_level(ml, mv, lo + 1u, rows, b) * f;
+        return below * (1.0 - f) + lobe_at_level(p, ml, mv, lo + 1u, rows, b) * f;
     }
     return below;
 }

@@ -8,23 +8,26 @@
 //! `M` stratified directions drawn from the lobe, each reading the light and the visible share at
 //! the pyramid level whose node is about its footprint `1 / (M · pdf)`, between two levels
 //! linearly. A sharp lobe reads single texels (the light is a cube of constant texels, so it is
-//! then the integral itself, sampled); a broad one reads coarse nodes, which carry its tail. The
-//! pattern is the same at every pixel, so a highlight is smooth, not noisy.
+//! then the integral itself, sampled); a broad one reads coarse nodes, which carry its tail,
+//! bilinearly between the nodes about the direction ([`CubePyramid::bilinear`]) so that a bright
+//! light's coarse nodes spread as tents about it, not as squares. The pattern is the same at
+//! every pixel, so a highlight is smooth, not noisy.
 
 use glam::{DVec3, Vec3};
 
 use crate::draw::shading::{ViewDependent, interpolated_normal};
 use crate::error::{PrtError, Result};
-use crate::math::cube_pyramid::{CubePyramid, dir_to_morton};
+use crate::math::cube_pyramid::{CubePyramid, FacePoint, dir_to_morton};
 use crate::math::cubemap::texel_count;
 use crate::scene::brdf::ggx_half_vector;
 use crate::scene::visibility::Visibility;
 
 /// Lobe directions a pixel takes unless asked otherwise. Against the brute-force integral over
 /// the same texels of a smooth light with half the sky shut (the tests), 32 directions are
-/// within 3%, 5% and 7% at α = 0.04, 0.2 and 0.5, 64 within 1.2%, 2.7% and 6.1%, 128 within
-/// 0.7%, 1.1% and 2.4%; a light of one texel 40 times the rest is sampled worse (10–15% at 64
-/// to 128 directions for the broad lobes), as the lobe alone steers the directions.
+/// within 3.1%, 2.5% and 5.5% at α = 0.04, 0.2 and 0.5, 64 within 1.2%, 2.7% and 2.5%, 128
+/// within 0.6%, 1.4% and 1.3%; a light of one texel 40 times the rest is sampled worse (5–16%
+/// at 128 directions for the broad lobes, 56% at 64 for α = 0.5), as the lobe alone steers the
+/// directions.
 pub const DEFAULT_LOBE_SAMPLES: usize = 64;
 
 /// Lobe directions a pixel takes for a GGX lobe of width `alpha`: [`DEFAULT_LOBE_SAMPLES`] below
@@ -166,18 +169,27 @@ impl<'a> Lobe<'a> {
         }
     }
 
-    /// The mean of `light · open share` over the lobe direction `l`'s node at fractional level
-    /// `x` (clamped to the pyramids' levels), between the two levels about it.
+    /// `light · open share` about the lobe direction `l` at fractional level `x` (clamped to the
+    /// pyramids' levels), between the two levels about it: the light of the texel that holds
+    /// `l`, or above the texels bilinear within a level; the open share of the node that holds
+    /// `l`.
     #[inline]
     fn read(&self, l: DVec3, x: f64, rows: &[Option<&[u32]>; 3], b: [f64; 3]) -> DVec3 {
         let (nl, nv) = (self.light.n, self.visibility.n);
         let ml = dir_to_morton(nl, l);
         let mv = if nv == nl { ml } else { dir_to_morton(nv, l) };
+        let at_l = FacePoint::of(l);
         let top = self.light.levels.len() - 1;
         let x = x.clamp(0.0, top as f64);
         let lo = x.floor();
         let at = |level: usize| {
-            let light = DVec3::from(self.light.mean(ml, level).map(f64::from));
+            // The texels are the light itself, constant over each; a coarser node's mean is
+            // the light filtered by the node, read about `l` itself.
+            let light = match level {
+                0 => self.light.mean(ml, 0),
+                _ => self.light.bilinear(at_l, level),
+            };
+            let light = DVec3::from(light.map(f64::from));
             // The visibility cube may be coarser or finer than the light's: its level is the
             // one of the same texel size.
             let vl = (level + nv.trailing_zeros() as usize)

@@ -10,7 +10,9 @@
 use glam::DVec3;
 
 use crate::error::Result;
-use crate::math::cubemap::{CubeMap, dir_to_cell, solid_angles, texel_count, validate_n};
+use crate::math::cubemap::{
+    CubeMap, dir_to_cell, dir_to_face_st, solid_angles, texel_count, validate_n,
+};
 
 /// Bits of `x` spread to the even bit positions (up to 16 bits in).
 #[inline]
@@ -116,6 +118,56 @@ impl CubePyramid {
             [0.0; 3]
         }
     }
+
+    /// Mean radiance about direction `d` at level `level` (clamped to the coarsest): bilinear
+    /// between the centres of the four nodes of `d`'s face nearest it, held at the face's edge.
+    /// A lobe's tap read so is a tent about its own direction, where [`CubePyramid::mean`] is
+    /// the box that happens to hold it, whose edges show as squares about a bright light.
+    #[inline]
+    pub fn bilinear(&self, at: FacePoint, level: usize) -> [f32; 3] {
+        let level = level.min(self.levels.len() - 1);
+        let side = self.n >> level;
+        let nodes = &self.levels[level][at.face * side * side..(at.face + 1) * side * side];
+        let axis = |x: f64| {
+            let x = ((x + 1.0) * 0.5 * side as f64 - 0.5).clamp(0.0, (side - 1) as f64);
+            let lo = x as usize;
+            (lo, (lo + 1).min(side - 1), (x - lo as f64) as f32)
+        };
+        let ((c0, c1, fc), (r0, r1, fr)) = (axis(at.s), axis(at.t));
+        let mut out = [0.0f32; 3];
+        for (row, col, w) in [
+            (r0, c0, (1.0 - fr) * (1.0 - fc)),
+            (r0, c1, (1.0 - fr) * fc),
+            (r1, c0, fr * (1.0 - fc)),
+            (r1, c1, fr * fc),
+        ] {
+            let s = nodes[(spread(col as u32) | (spread(row as u32) << 1)) as usize];
+            if s[3] > 0.0 && w > 0.0 {
+                for (o, v) in out.iter_mut().zip(&s[..3]) {
+                    *o += w * (v / s[3]);
+                }
+            }
+        }
+        out
+    }
+}
+
+/// A direction's face and its position on it, each from -1 to 1 ([`dir_to_face_st`]): where
+/// [`CubePyramid::bilinear`] reads, at every level.
+#[derive(Clone, Copy, Debug)]
+pub struct FacePoint {
+    face: usize,
+    s: f64,
+    t: f64,
+}
+
+impl FacePoint {
+    /// The face point of direction `d` (any length).
+    #[inline]
+    pub fn of(d: DVec3) -> FacePoint {
+        let (face, s, t) = dir_to_face_st(d);
+        FacePoint { face, s, t }
+    }
 }
 
 #[cfg(test)]
@@ -181,5 +233,44 @@ mod tests {
         let i = crate::math::cubemap::texel_index(n, 5, 2, 3);
         let m = morton_index(n, 5, 2, 3);
         assert!((p.mean(m, 0)[0] - cube.texels[i][0]).abs() < 1e-4);
+    }
+
+    #[test]
+    fn bilinear_reads_rise_linearly_between_node_centres_and_hold_at_the_edges() {
+        // Face 0's texels rise with the column, 10 · col, every other face dark.
+        let n = 8;
+        let mut cube = CubeMap::constant(n, [0.0; 3]).unwrap();
+        for row in 0..n {
+            for col in 0..n {
+                cube.texels[row * n + col] = [10.0 * col as f32, 1.0, 2.0];
+            }
+        }
+        let p = CubePyramid::new(&cube).unwrap();
+        // Face 0 is +X; its s runs along -Z (dir_to_face_st).
+        let at = |s: f64, t: f64| FacePoint::of(DVec3::new(1.0, -t, -s));
+        let centre = |col: usize| (2 * col + 1) as f64 / n as f64 - 1.0;
+        for col in 0..n {
+            let v = p.bilinear(at(centre(col), 0.1), 0);
+            assert!((v[0] - 10.0 * col as f32).abs() < 1e-4, "{col}: {v:?}");
+            assert!((v[1] - 1.0).abs() < 1e-6 && (v[2] - 2.0).abs() < 1e-6);
+        }
+        // A quarter of the way from column 2's centre to column 3's.
+        let v = p.bilinear(at(0.75 * centre(2) + 0.25 * centre(3), -0.3), 0);
+        assert!((v[0] - 22.5).abs() < 1e-4, "{v:?}");
+        // Past the first and last centres the edge node holds.
+        assert!(p.bilinear(at(-0.99, 0.0), 0)[0].abs() < 1e-6);
+        assert!((p.bilinear(at(0.99, 0.0), 0)[0] - 70.0).abs() < 1e-4);
+        // Level 1 (side 4, centres at ±0.25 and ±0.75): (0, 0.5) is midway between the nodes
+        // of rows 2 and 3 and columns 1 and 2.
+        let node = |r: usize, c: usize| p.mean(morton_index(n, 0, 2 * r, 2 * c), 1)[0];
+        let want = 0.25 * (node(2, 1) + node(2, 2) + node(3, 1) + node(3, 2));
+        let mid = p.bilinear(at(0.0, 0.5), 1)[0];
+        assert!(
+            (mid - want).abs() < 1e-4 && (want - 35.0).abs() < 1.0,
+            "{mid} {want}"
+        );
+        // The coarsest level is one node a face: the face's mean wherever it is read.
+        let top = p.levels.len() - 1;
+        assert_eq!(p.bilinear(at(0.9, -0.9), top), p.mean(0, top));
     }
 }

@@ -163,7 +163,7 @@ fn a_light_finer_than_the_visibility_reaches_the_brute_force_integral() {
     }
 }
 
-/// The default directions stay near it on a smooth light (within 1.2%, 2.7% and 6.1%, measured).
+/// The default directions stay near it on a smooth light (within 1.2%, 2.7% and 2.5%, measured).
 #[test]
 fn the_default_directions_stay_near_the_brute_force_integral() {
     for (alpha, within) in [(0.04, 0.02), (0.2, 0.04), (0.5, 0.08)] {
@@ -174,18 +174,20 @@ fn the_default_directions_stay_near_the_brute_force_integral() {
 
 /// The directions a lobe's width asks for ([`lobe_samples_for`]): the default for a sharp lobe,
 /// more for a broad one, which then comes nearer the brute force than the default does. Measured
-/// with 256 directions at α = 0.2 and 0.5: 0.83% and 1.24% on a smooth light (the default's
-/// 2.7% and 3.4%), 10.0% and 16.7% under a bright texel (the default's 10.4% and 63%).
+/// with 256 directions at α = 0.2 and 0.5: 0.87% and 1.25% on a smooth light (the default's
+/// 2.7% and 2.5%), 15.2% at α = 0.5 under a bright texel (the default's 56%). At α = 0.2 the
+/// bright texel is within 12% either way (11.7% at 256, 6.5% at the default's 64, 5.3% at 128):
+/// which of a texel's few directions land on it is luck there, not the count.
 #[test]
 fn a_broad_lobe_takes_more_directions_and_comes_nearer_the_brute_force() {
     assert_eq!(lobe_samples_for(0.04), DEFAULT_LOBE_SAMPLES);
     assert_eq!(lobe_samples_for(0.0625), DEFAULT_LOBE_SAMPLES);
     assert_eq!(lobe_samples_for(0.15), 2 * DEFAULT_LOBE_SAMPLES);
-    for (alpha, spot, within) in [
-        (0.2, false, 0.015),
-        (0.2, true, 0.12),
-        (0.5, false, 0.02),
-        (0.5, true, 0.2),
+    for (alpha, spot, within, nearer) in [
+        (0.2, false, 0.015, true),
+        (0.2, true, 0.12, false),
+        (0.5, false, 0.02, true),
+        (0.5, true, 0.2, true),
     ] {
         let more = lobe_samples_for(alpha);
         assert!(more > DEFAULT_LOBE_SAMPLES, "α = {alpha}: {more}");
@@ -194,7 +196,7 @@ fn a_broad_lobe_takes_more_directions_and_comes_nearer_the_brute_force() {
             worst_against_brute_force(alpha, more, spot),
         );
         assert!(
-            own < default && own < within,
+            own < within && (own < default || !nearer),
             "α = {alpha}, bright texel {spot}: {own} against the default's {default}"
         );
     }
