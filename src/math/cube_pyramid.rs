@@ -68,6 +68,9 @@ pub struct CubePyramid {
     /// Level by level, from the texels (level 0, Morton order) to one node a face: `[Σ L Ω, Σ Ω]`
     /// of each node, RGB then the solid angle.
     pub levels: Vec<Vec<[f32; 4]>>,
+    /// The same nodes' mean radiance, `Σ L Ω / Σ Ω` (0 where `Σ Ω` is), worked out once for
+    /// the reads.
+    means: Vec<Vec<[f32; 3]>>,
 }
 
 impl CubePyramid {
@@ -103,7 +106,26 @@ impl CubePyramid {
                 .collect();
             all.push(up);
         }
-        Ok(CubePyramid { n, levels: all })
+        let means = all
+            .iter()
+            .map(|level| {
+                level
+                    .iter()
+                    .map(|s| {
+                        if s[3] > 0.0 {
+                            [s[0] / s[3], s[1] / s[3], s[2] / s[3]]
+                        } else {
+                            [0.0; 3]
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        Ok(CubePyramid {
+            n,
+            levels: all,
+            means,
+        })
     }
 
     /// Mean radiance of the level-`level` node holding Morton index `m` (level clamped to the
@@ -111,12 +133,7 @@ impl CubePyramid {
     #[inline]
     pub fn mean(&self, m: usize, level: usize) -> [f32; 3] {
         let level = level.min(self.levels.len() - 1);
-        let s = self.levels[level][m >> (2 * level)];
-        if s[3] > 0.0 {
-            [s[0] / s[3], s[1] / s[3], s[2] / s[3]]
-        } else {
-            [0.0; 3]
-        }
+        self.means[level][m >> (2 * level)]
     }
 
     /// Mean radiance about direction `d` at level `level` (clamped to the coarsest): bilinear
@@ -127,7 +144,7 @@ impl CubePyramid {
     pub fn bilinear(&self, at: FacePoint, level: usize) -> [f32; 3] {
         let level = level.min(self.levels.len() - 1);
         let side = self.n >> level;
-        let nodes = &self.levels[level][at.face * side * side..(at.face + 1) * side * side];
+        let nodes = &self.means[level][at.face * side * side..(at.face + 1) * side * side];
         let axis = |x: f64| {
             let x = ((x + 1.0) * 0.5 * side as f64 - 0.5).clamp(0.0, (side - 1) as f64);
             let lo = x as usize;
@@ -141,11 +158,9 @@ impl CubePyramid {
             (r1, c0, fr * (1.0 - fc)),
             (r1, c1, fr * fc),
         ] {
-            let s = nodes[(spread(col as u32) | (spread(row as u32) << 1)) as usize];
-            if s[3] > 0.0 && w > 0.0 {
-                for (o, v) in out.iter_mut().zip(&s[..3]) {
-                    *o += w * (v / s[3]);
-                }
+            let mean = nodes[(spread(col as u32) | (spread(row as u32) << 1)) as usize];
+            for (o, v) in out.iter_mut().zip(mean) {
+                *o += w * v;
             }
         }
         out
