@@ -135,6 +135,12 @@ fn the_gloss_bench_holds_each_method_to_the_path_tracer_with_the_interpolation_a
             g < d / BENCH_GAIN_OVER_DIFFUSE,
             "camera {c}: {g} with the lobe, {d} without"
         );
+        // Within the outline too, where the mesh's edge and the traced sphere's do not part.
+        let (d, g) = (diffuse.inside[c], glossy.inside[c]);
+        assert!(
+            g > 0.0 && g < d / BENCH_GAIN_OVER_DIFFUSE,
+            "camera {c}, within the outline: {g} with the lobe, {d} without"
+        );
         let i = r.cameras[c].interpolation[0];
         assert!(i > 0.0 && i < 0.1, "camera {c}: interpolation {i}");
         assert!(r.cameras[c].noise < 0.1, "{}", r.cameras[c].noise);
@@ -144,7 +150,16 @@ fn the_gloss_bench_holds_each_method_to_the_path_tracer_with_the_interpolation_a
         assert!(b.cpu[0].relight_ms > 0.0 && b.cpu[0].draw_ms > 0.0);
         assert!(b.gpu.is_none());
     }
-    assert_eq!(csv(&r).lines().count(), 1 + 2 * 2);
+    let table = csv(&r);
+    assert_eq!(table.lines().count(), 1 + 2 * 2);
+    assert!(table.starts_with("edge_factor,"));
+    assert!(
+        table
+            .lines()
+            .next()
+            .unwrap()
+            .contains(",rel_l2,rel_l2_inside,")
+    );
     for f in &r.files {
         assert!(std::fs::metadata(f).unwrap().len() > 0, "{}", f.display());
     }

@@ -115,6 +115,10 @@ pub struct GlossBakeRow {
     pub reused: bool,
     /// Per camera: every light term, against the path tracer (relative L2 over the image).
     pub error: Vec<f64>,
+    /// Per camera: the same over the pixels that the drawing and the scene both cover whole,
+    /// the outline left out (where a mesh's edge and the scene's own surfaces, an analytic
+    /// sphere's for one, part by up to a pixel).
+    pub inside: Vec<f64>,
     /// Per K of [`GlossBenchOptions::light_terms`]: K terms against every term, per vertex.
     pub light_error: Vec<f64>,
     /// Per K: a CPU frame.
@@ -145,6 +149,7 @@ impl GlossBakeRow {
             bake_seconds,
             reused,
             error: Vec::new(),
+            inside: Vec::new(),
             light_error: Vec::new(),
             cpu: Vec::new(),
             gpu: None,
@@ -385,6 +390,14 @@ pub fn run(
                     relative_l2(&drawn.image, traced, None)?,
                     || format!("camera {}", i + 1),
                 )?);
+                row.inside.push(reportable(
+                    relative_l2(
+                        &drawn.image,
+                        traced,
+                        Some(&whole_in_both(&drawn.coverage, &brute.coverage)),
+                    )?,
+                    || format!("camera {}, within the outline", i + 1),
+                )?);
                 drawn.image.save(
                     &images.join(format!("camera{}_edges{factor}_{method}.exr", i + 1)),
                     *tone,
@@ -393,12 +406,7 @@ pub fn run(
                 // diffuse base).
                 if b == 0 {
                     let base = draw(&t, vertex_colours(&t, &full)?, cam, None, opts.samples)?;
-                    let both: Vec<f32> = base
-                        .coverage
-                        .iter()
-                        .zip(&brute.coverage)
-                        .map(|(a, b)| (*a == 1.0 && *b == 1.0) as u8 as f32)
-                        .collect();
+                    let both = whole_in_both(&base.coverage, &brute.coverage);
                     cameras[i].interpolation.push(reportable(
                         relative_l2(&base.image, &brute.image, Some(&both))?,
                         || format!("camera {}: the diffuse brute force", i + 1),
@@ -447,6 +455,14 @@ pub fn run(
     };
     report.files = write_report(dir, &report, opts)?;
     Ok(report)
+}
+
+/// A mask of the pixels that coverages `a` and `b` both cover whole.
+fn whole_in_both(a: &[f32], b: &[f32]) -> Vec<f32> {
+    a.iter()
+        .zip(b)
+        .map(|(a, b)| (*a == 1.0 && *b == 1.0) as u8 as f32)
+        .collect()
 }
 
 /// Per camera, the path tracer's image, the diffuse brute force and the tone; and the cameras'
