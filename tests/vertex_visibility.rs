@@ -175,8 +175,16 @@ fn the_sphere_from_a_new_camera_is_near_the_path_tracer_under_the_same_cube() {
     .unwrap();
     let e = relative_l2(&drawn.image, &traced.image, None).unwrap();
     let d = relative_l2(&base.image, &traced.image, None).unwrap();
+    // Within the outline: the pixels that the drawing and the traced sphere both cover whole.
+    let whole: Vec<f32> = drawn
+        .coverage
+        .iter()
+        .zip(&traced.coverage)
+        .map(|(a, b)| (*a == 1.0 && *b == 1.0) as u8 as f32)
+        .collect();
+    let inside = relative_l2(&drawn.image, &traced.image, Some(&whole)).unwrap();
     eprintln!(
-        "visibility {e}, diffuse base {d}, noise {}",
+        "visibility {e} ({inside} within the outline), diffuse base {d}, noise {}",
         traced.relative_noise(None)
     );
     let sum = |i: &wavelet_prt::output::film::Image| {

@@ -106,6 +106,8 @@ impl Transport {
         let mesh = visibility
             .attach(mesh, meta.identity.cube_n as usize, &expect)
             .map_err(|e| bad(e.to_string()))?;
+        // A twin by design of the merge's literal (`assemble.rs`): the struct built whole,
+        // where a load and a merge of shards each make one.
         let t = Transport {
             meta,
             tile_row_start,
