@@ -99,13 +99,16 @@ def test_progress_reaches_the_end_and_an_exception_from_it_cancels_the_bake(tmp_
 
 def test_ctrl_c_cancels_a_bake_and_leaves_nothing(tmp_path):
     # Ctrl-C as a terminal sends it: SIGINT from outside the process, a second after the bake
-    # began (the bake takes half a minute).
+    # began (the bake takes half a minute). The child handles SIGINT as an interactive Python
+    # does even where it was started with SIGINT ignored (a background job of a script), which
+    # Python would otherwise keep.
     big = tmp_path / "big.toml"
     big.write_text(SCENE.replace("width = 24", "width = 320").replace("height = 16", "height = 240"))
     script = textwrap.dedent(
         f"""
-        import time
+        import signal, time
         import wavelet_prt as wp
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         print("baking", flush=True)
         start = time.time()
         try:
