@@ -134,9 +134,8 @@ fn face_point(d: vec3<f32>) -> FacePoint {
     return FacePoint(select(5u, 4u, d.z >= 0.0), select(-d.x, d.x, d.z >= 0.0) / a.z, -d.y / a.z);
 }
 
-// The Morton index of the texel of an n-cube that holds direction d (any length).
-fn dir_to_morton(n: u32, d: vec3<f32>) -> u32 {
-    let p = face_point(d);
+// The Morton index of the texel of an n-cube that holds face point p.
+fn point_to_morton(n: u32, p: FacePoint) -> u32 {
     let col = min(u32((p.s + 1.0) * 0.5 * f32(n)), n - 1u);
     let row = min(u32((p.t + 1.0) * 0.5 * f32(n)), n - 1u);
     return p.face * n * n + (spread(col) | (spread(row) << 1u));
@@ -209,10 +208,10 @@ fn lobe_at_level(p: FacePoint, ml: u32, mv: u32, level: u32, rows: vec3<u32>, b:
 // pyramid's levels), between the two levels about it.
 fn lobe_read(l: vec3<f32>, x: f32, rows: vec3<u32>, b: vec3<f32>) -> vec3<f32> {
     let p = face_point(l);
-    let ml = dir_to_morton(view.pyramid.x, l);
+    let ml = point_to_morton(view.pyramid.x, p);
     var mv = ml;
     if view.lobe.x != view.pyramid.x {
-        mv = dir_to_morton(view.lobe.x, l);
+        mv = point_to_morton(view.lobe.x, p);
     }
     let top = countTrailingZeros(view.pyramid.x);
     let xc = clamp(x, 0.0, f32(top));

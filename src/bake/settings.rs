@@ -5,6 +5,10 @@ use super::*;
 use crate::flags::within;
 use crate::store::transport::{BakeDomain, BakeIdentity, IndirectSettings};
 
+/// The most camera sub-samples a pixel may take ([`BakeSettings::spp`] and
+/// [`BakeSettings::edge_spp`]).
+pub const MAX_SPP: u32 = 4096;
+
 /// Settings of a bake; the defaults are the command line's.
 ///
 /// They read from and write to TOML or JSON (serde): a key left out takes its default, an
@@ -126,11 +130,11 @@ impl BakeSettings {
             ));
         }
         within("SH order", self.sh_order, 1..=10, "")?;
-        within("spp", self.spp, 1..=4096, "")?;
-        if self.edge_spp > 4096 {
+        within("spp", self.spp, 1..=MAX_SPP, "")?;
+        if self.edge_spp > MAX_SPP {
             return Err(PrtError::invalid(
                 "edge spp",
-                format!("{}; it must be from 0 (off) to 4096", self.edge_spp),
+                format!("{}; it must be from 0 (off) to {MAX_SPP}", self.edge_spp),
             ));
         }
         within("texel samples", self.texel_samples, 1..=256, "")?;

@@ -17,7 +17,7 @@ use glam::{DVec3, Vec3};
 
 use crate::draw::shading::{ViewDependent, interpolated_normal};
 use crate::error::{PrtError, Result};
-use crate::math::cube_pyramid::{CubePyramid, FacePoint, dir_to_morton};
+use crate::math::cube_pyramid::{CubePyramid, FacePoint};
 use crate::math::cubemap::texel_count;
 use crate::scene::brdf::ggx_half_vector;
 use crate::scene::visibility::Visibility;
@@ -176,9 +176,9 @@ impl<'a> Lobe<'a> {
     #[inline]
     fn read(&self, l: DVec3, x: f64, rows: &[Option<&[u32]>; 3], b: [f64; 3]) -> DVec3 {
         let (nl, nv) = (self.light.n, self.visibility.n);
-        let ml = dir_to_morton(nl, l);
-        let mv = if nv == nl { ml } else { dir_to_morton(nv, l) };
         let at_l = FacePoint::of(l);
+        let ml = at_l.morton(nl);
+        let mv = if nv == nl { ml } else { at_l.morton(nv) };
         let top = self.light.levels.len() - 1;
         let x = x.clamp(0.0, top as f64);
         let lo = x.floor();

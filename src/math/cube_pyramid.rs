@@ -11,7 +11,7 @@ use glam::DVec3;
 
 use crate::error::Result;
 use crate::math::cubemap::{
-    CubeMap, dir_to_cell, dir_to_face_st, solid_angles, texel_count, validate_n,
+    CubeMap, dir_to_face_st, face_st_to_cell, solid_angles, texel_count, validate_n,
 };
 
 /// Bits of `x` spread to the even bit positions (up to 16 bits in).
@@ -34,8 +34,7 @@ pub fn morton_index(n: usize, face: usize, row: usize, col: usize) -> usize {
 /// [`crate::math::cubemap::dir_to_texel`] picks it.
 #[inline]
 pub fn dir_to_morton(n: usize, d: DVec3) -> usize {
-    let (face, row, col) = dir_to_cell(n, d);
-    morton_index(n, face, row, col)
+    FacePoint::of(d).morton(n)
 }
 
 /// For each texel in the cube's linear order, its Morton index.
@@ -182,6 +181,14 @@ impl FacePoint {
     pub fn of(d: DVec3) -> FacePoint {
         let (face, s, t) = dir_to_face_st(d);
         FacePoint { face, s, t }
+    }
+
+    /// Morton index of the texel of an N-cube that holds the point, as [`dir_to_morton`] picks
+    /// it for the point's direction: one projection serves the reads of every cube size.
+    #[inline]
+    pub fn morton(&self, n: usize) -> usize {
+        let (face, row, col) = face_st_to_cell(n, self.face, self.s, self.t);
+        morton_index(n, face, row, col)
     }
 }
 

@@ -80,6 +80,13 @@ pub fn texel_dir(n: usize, face: usize, row: usize, col: usize) -> DVec3 {
 #[inline]
 pub fn dir_to_cell(n: usize, d: DVec3) -> (usize, usize, usize) {
     let (face, s, t) = dir_to_face_st(d);
+    face_st_to_cell(n, face, s, t)
+}
+
+/// The (face, row, col) of the texel of an N-cube that holds face position (`s`, `t`) of
+/// `face`, each from -1 to 1 ([`dir_to_face_st`]); the last row or column holds 1.
+#[inline]
+pub fn face_st_to_cell(n: usize, face: usize, s: f64, t: f64) -> (usize, usize, usize) {
     let to_cell = |x: f64| (((x + 1.0) * 0.5 * n as f64) as usize).min(n - 1);
     (face, to_cell(t), to_cell(s))
 }

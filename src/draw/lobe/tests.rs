@@ -1,5 +1,5 @@
 use super::*;
-use crate::math::cube_pyramid::morton_index;
+use crate::math::cube_pyramid::{dir_to_morton, morton_index};
 use crate::math::cubemap::{CubeMap, face_st_to_dir, patch_solid_angle, texel_index};
 use crate::scene::brdf::ggx_cosine;
 
