@@ -141,6 +141,14 @@ fn the_gloss_bench_holds_each_method_to_the_path_tracer_with_the_interpolation_a
             g > 0.0 && g < d / BENCH_GAIN_OVER_DIFFUSE,
             "camera {c}, within the outline: {g} with the lobe, {d} without"
         );
+        // On the sphere's own pixels, where the two methods part.
+        let (Some(d), Some(g)) = (diffuse.glossy[c], glossy.glossy[c]) else {
+            panic!("camera {c} sees no glossy pixel")
+        };
+        assert!(
+            g > 0.0 && g < d / BENCH_GAIN_OVER_DIFFUSE && d > diffuse.inside[c],
+            "camera {c}, on glossy pixels: {g} with the lobe, {d} without"
+        );
         let i = r.cameras[c].interpolation[0];
         assert!(i > 0.0 && i < 0.1, "camera {c}: interpolation {i}");
         assert!(r.cameras[c].noise < 0.1, "{}", r.cameras[c].noise);
@@ -158,7 +166,7 @@ fn the_gloss_bench_holds_each_method_to_the_path_tracer_with_the_interpolation_a
             .lines()
             .next()
             .unwrap()
-            .contains(",rel_l2,rel_l2_inside,")
+            .contains(",rel_l2,rel_l2_inside,rel_l2_glossy,")
     );
     for f in &r.files {
         assert!(std::fs::metadata(f).unwrap().len() > 0, "{}", f.display());

@@ -14,6 +14,7 @@ use super::median;
 use crate::bake::path_tracer::path_trace_from;
 use crate::bake::reference::{Reference, render_reference_with};
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
+use crate::draw::raster::rasterize_multisampled;
 use crate::draw::vertex::{draw, draw_relit, vertex_colours};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::env::importance::MapLight;
@@ -119,6 +120,10 @@ pub struct GlossBakeRow {
     /// the outline left out (where a mesh's edge and the scene's own surfaces, an analytic
     /// sphere's for one, part by up to a pixel).
     pub inside: Vec<f64>,
+    /// Per camera: the same over the pixels that the glossy materials alone cover whole (a
+    /// glossy teapot's, without the ground it stands on), where the methods part; `None` where
+    /// the camera sees no such pixel.
+    pub glossy: Vec<Option<f64>>,
     /// Per K of [`GlossBenchOptions::light_terms`]: K terms against every term, per vertex.
     pub light_error: Vec<f64>,
     /// Per K: a CPU frame.
@@ -150,6 +155,7 @@ impl GlossBakeRow {
             reused,
             error: Vec::new(),
             inside: Vec::new(),
+            glossy: Vec::new(),
             light_error: Vec::new(),
             cpu: Vec::new(),
             gpu: None,
@@ -398,6 +404,14 @@ pub fn run(
                     )?,
                     || format!("camera {}, within the outline", i + 1),
                 )?);
+                let glossy = glossy_pixels(&t, scene, cam, opts.samples, &brute.coverage)?;
+                row.glossy.push(match glossy.contains(&1.0) {
+                    true => Some(reportable(
+                        relative_l2(&drawn.image, traced, Some(&glossy))?,
+                        || format!("camera {}, on the glossy pixels", i + 1),
+                    )?),
+                    false => None,
+                });
                 drawn.image.save(
                     &images.join(format!("camera{}_edges{factor}_{method}.exr", i + 1)),
                     *tone,
@@ -455,6 +469,44 @@ pub fn run(
     };
     report.files = write_report(dir, &report, opts)?;
     Ok(report)
+}
+
+/// A mask of the pixels whose samples all fall on triangles of glossy materials when the bake
+/// `t` of `scene` is drawn from `cam` with `samples` a pixel, and that `reference` (a coverage)
+/// covers whole.
+fn glossy_pixels(
+    t: &Transport,
+    scene: &Scene,
+    cam: &Camera,
+    samples: u32,
+    reference: &[f32],
+) -> Result<Vec<f32>> {
+    let mesh = t
+        .domain
+        .mesh()
+        .ok_or_else(|| PrtError::invalid("gloss", "a bake without vertices"))?;
+    let flags: Vec<[f32; 3]> = mesh
+        .materials
+        .iter()
+        .map(|&m| {
+            let glossy = scene
+                .materials
+                .get(m as usize)
+                .is_some_and(|m| m.glossy_lobe().is_some());
+            [glossy as u8 as f32; 3]
+        })
+        .collect();
+    let share =
+        rasterize_multisampled(cam, &mesh.positions, &mesh.triangles, &flags, None, samples)?;
+    // A triangle's three vertices share its material, so its share is 1 up to rounding.
+    Ok(share
+        .image
+        .pixels
+        .iter()
+        .zip(&share.coverage)
+        .zip(reference)
+        .map(|((p, c), r)| (p[0] > 0.999 && *c == 1.0 && *r == 1.0) as u8 as f32)
+        .collect())
 }
 
 /// A mask of the pixels that coverages `a` and `b` both cover whole.

@@ -114,8 +114,9 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
     let _ = writeln!(
         s,
         "## Error against the path tracer\n\n| edges | vertices | method |{cams} within the \
-         outline |{ks} file | bytes a vertex | bake (s) |\n|---|---:|---|{}{}---:|---:|---:|",
-        "---:|".repeat(r.cameras.len() + 1),
+         outline | on glossy pixels |{ks} file | bytes a vertex | bake (s) |\n|---|---:|---|{}{}\
+         ---:|---:|---:|",
+        "---:|".repeat(r.cameras.len() + 2),
         "---:|".repeat(opts.light_terms.len())
     );
     for b in &r.bakes {
@@ -130,6 +131,12 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
             .map(|e| format!("{:.2}", 100.0 * e))
             .collect::<Vec<_>>()
             .join(" / ");
+        let glossy = b
+            .glossy
+            .iter()
+            .map(|e| e.map_or("–".to_string(), |e| format!("{:.2}", 100.0 * e)))
+            .collect::<Vec<_>>()
+            .join(" / ");
         let light: String = b
             .light_error
             .iter()
@@ -137,7 +144,8 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
             .collect();
         let _ = writeln!(
             s,
-            "| {}x ({:.3}) | {} | {} |{errors} {inside}% |{light} {:.1} MiB | {:.0} | {:.1}{} |",
+            "| {}x ({:.3}) | {} | {} |{errors} {inside}% | {glossy}% |{light} {:.1} MiB | {:.0} | \
+             {:.1}{} |",
             b.edge_factor,
             b.edge_length,
             b.vertices,
@@ -153,7 +161,10 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
         "\nWithin the outline: the same error over the pixels that the drawing and the scene both \
          cover whole, camera by camera. The outline is left out: there a mesh's edge and the \
          scene's own surfaces (a sphere's, traced as a sphere) part by up to a pixel, and a \
-         grazing highlight on it can outweigh the rest of the image."
+         grazing highlight on it can outweigh the rest of the image. On glossy pixels: the same \
+         over the pixels that the glossy materials alone cover whole (a glossy object without \
+         the diffuse ground it stands on, where every method draws the same), – where a camera \
+         sees none."
     );
     let _ = writeln!(
         s,
@@ -215,7 +226,7 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
 /// The report as CSV: one line per bake and camera.
 pub fn csv(r: &GlossBenchReport) -> String {
     let mut s = String::from(
-        "edge_factor,edge_length,vertices,method,bytes,bake_seconds,reused,camera,rel_l2,rel_l2_inside,interpolation,path_tracer_noise\n",
+        "edge_factor,edge_length,vertices,method,bytes,bake_seconds,reused,camera,rel_l2,rel_l2_inside,rel_l2_glossy,interpolation,path_tracer_noise\n",
     );
     let factors: Vec<f32> = {
         let mut f: Vec<f32> = r.bakes.iter().map(|b| b.edge_factor).collect();
@@ -230,7 +241,7 @@ pub fn csv(r: &GlossBenchReport) -> String {
         for (c, cam) in r.cameras.iter().enumerate() {
             let _ = writeln!(
                 s,
-                "{},{},{},{},{},{:.3},{},{},{:.6},{:.6},{:.6},{:.6}",
+                "{},{},{},{},{},{:.3},{},{},{:.6},{:.6},{},{:.6},{:.6}",
                 b.edge_factor,
                 b.edge_length,
                 b.vertices,
@@ -241,6 +252,11 @@ pub fn csv(r: &GlossBenchReport) -> String {
                 c + 1,
                 b.error[c],
                 b.inside.get(c).copied().unwrap_or_default(),
+                b.glossy
+                    .get(c)
+                    .copied()
+                    .flatten()
+                    .map_or(String::new(), |e| format!("{e:.6}")),
                 cam.interpolation.get(t).copied().unwrap_or_default(),
                 cam.noise
             );
