@@ -33,7 +33,7 @@
 
 struct View {
     clip_from_world: mat4x4<f32>,
-    // The camera's frame (src/relight/raster.rs, Frame): the eye, then the film's right and up
+    // The camera's frame (src/draw/raster.rs, Frame): the eye, then the film's right and up
     // axes with half the film's width and height at unit distance in their w, and the view
     // direction.
     eye: vec4<f32>,

@@ -283,41 +283,57 @@ fn gpu_draws_what_the_cpu_draws_with_unrelated_vertex_colours() {
 }
 
 #[test]
-fn gpu_draws_four_samples_as_the_cpu_does() {
-    let Some(gpu) = gpu_or_skip("gpu_draws_four_samples_as_the_cpu_does") else {
+fn gpu_draws_several_samples_as_the_cpu_does() {
+    let Some(gpu) = gpu_or_skip("gpu_draws_several_samples_as_the_cpu_does") else {
         return;
     };
     // Each sample is drawn as a pixel centre is, so a sample differs only where one pixel of the
     // plain draw would: at an exact edge, or by the f32 barycentrics of steep gradients (the
-    // unrelated colours' bound, 0.2% of the pixels). The coverage is a fraction of 4 samples.
+    // unrelated colours' bound, 0.2% of the pixels). The coverage is a fraction of the samples.
     let mesh = scene();
     let colours = colours(mesh.positions.len(), 11);
     let m = GpuMesh::new(&gpu, &mesh.positions, &mesh.triangles).unwrap();
     let buffer = upload_colours(&gpu, &colours).unwrap();
-    let mut raster = GpuRaster::multisampled(&gpu, 4).unwrap();
-    let mut partly = 0;
-    for (k, cam) in cameras().iter().enumerate() {
-        let cpu = rasterize_multisampled(cam, &mesh.positions, &mesh.triangles, &colours, None, 4)
+    for samples in [4, 16] {
+        let mut raster = GpuRaster::multisampled(&gpu, samples).unwrap();
+        let mut partly = 0;
+        for (k, cam) in cameras().iter().enumerate() {
+            let cpu = rasterize_multisampled(
+                cam,
+                &mesh.positions,
+                &mesh.triangles,
+                &colours,
+                None,
+                samples,
+            )
             .unwrap();
-        let dev = raster.draw(&gpu, cam, &m, &buffer).unwrap();
-        let pixels = cpu.coverage.len();
-        let partial = cpu.coverage.iter().filter(|&&c| c > 0.0 && c < 1.0).count();
-        let differ = (0..pixels)
-            .filter(|&i| {
-                let (a, b) = (dev.image.pixels[i], cpu.image.pixels[i]);
-                dev.coverage[i] != cpu.coverage[i]
-                    || (0..3).any(|c| (a[c] - b[c]).abs() > GPU_COLOUR_REL * b[c].abs().max(0.2))
-            })
-            .count();
-        eprintln!("camera {k}: {partial} pixels partly covered, {differ} of {pixels} differ");
-        partly += partial;
+            let dev = raster.draw(&gpu, cam, &m, &buffer).unwrap();
+            let pixels = cpu.coverage.len();
+            let partial = cpu.coverage.iter().filter(|&&c| c > 0.0 && c < 1.0).count();
+            let differ = (0..pixels)
+                .filter(|&i| {
+                    let (a, b) = (dev.image.pixels[i], cpu.image.pixels[i]);
+                    dev.coverage[i] != cpu.coverage[i]
+                        || (0..3)
+                            .any(|c| (a[c] - b[c]).abs() > GPU_COLOUR_REL * b[c].abs().max(0.2))
+                })
+                .count();
+            eprintln!(
+                "{samples} samples, camera {k}: {partial} pixels partly covered, {differ} of \
+                 {pixels} differ"
+            );
+            partly += partial;
+            assert!(
+                differ * 1000 <= 2 * pixels,
+                "{samples} samples, camera {k}: {differ} pixels differ"
+            );
+        }
+        // The silhouettes are antialiased.
         assert!(
-            differ * 1000 <= 2 * pixels,
-            "camera {k}: {differ} pixels differ"
+            partly > 150,
+            "{samples} samples: {partly} pixels partly covered"
         );
     }
-    // The silhouettes are antialiased.
-    assert!(partly > 150, "{partly} pixels partly covered");
 }
 
 #[test]

@@ -436,7 +436,7 @@ fn the_gpu_draws_the_lobe_as_the_cpu_does() {
                 .unwrap()
                 .unwrap();
             let colours = upload_colours(&gpu, &relit.pixels[..mesh.vertex_count()]).unwrap();
-            for samples in [1, 4] {
+            for samples in [1, 4, 16] {
                 let mut raster = GpuRaster::multisampled(&gpu, samples).unwrap();
                 // Without the light the lobe is drawn from, the draw says so.
                 let e = raster.draw(&gpu, &scene.camera, &m, &colours).unwrap_err();

@@ -408,8 +408,8 @@ class Transport:
         ``["lamp=0.5"]``; lights not named shine as the scene says.
         ``background``: "env" (the environment behind the scene) or "black".
         Per-vertex bakes: the camera ``eye``, ``target``, ``up`` (default: the scene's camera;
-        a moved camera stays upright), image ``width``, ``height`` and ``samples`` a pixel (1
-        or 4).
+        a moved camera stays upright), image ``width``, ``height`` and ``samples`` a pixel (1,
+        4 or 16).
         """
         return self._t.relight(
             _environment(env), method, terms, weighting, sh_order, float(yaw), float(pitch),

@@ -332,7 +332,7 @@ impl Relighter {
 
     /// The image `prt relight --device cpu` writes: `request` under `env` turned by
     /// `rotation` (none: the local lights alone), plus the local `lights`, and for a per-vertex
-    /// bake drawn from `still`'s camera with `samples` samples a pixel (1 or 4). Pixels that see
+    /// bake drawn from `still`'s camera with `samples` samples a pixel (1, 4 or 16). Pixels that see
     /// no geometry show what the background says.
     pub fn render(
         &mut self,

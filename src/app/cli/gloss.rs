@@ -44,7 +44,8 @@ pub struct GlossArgs {
     /// Paths a pixel of the path tracer.
     #[arg(long, default_value_t = 1024)]
     pub paths: u32,
-    /// Samples a pixel of the drawings compared with it.
+    /// Samples a pixel of the drawings compared with it: 1, 4 (as the viewer draws) or 16 (a
+    /// still's; a highlight or an edge smaller than a pixel then reaches the pixel's mean).
     #[arg(long, default_value_t = 4)]
     pub samples: u32,
     /// Light terms K, comma-separated: each one's error against every term, and a frame's time.

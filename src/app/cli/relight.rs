@@ -58,8 +58,9 @@ pub struct RelightArgs {
     /// The camera of a per-vertex bake's still.
     #[command(flatten)]
     pub view: StillArgs,
-    /// Per-vertex bakes: samples a pixel, 1 (its centre) or 4 (the standard 4x rotated grid),
-    /// each drawn and depth-tested on its own and the pixel their mean.
+    /// Per-vertex bakes: samples a pixel, 1 (its centre), 4 (the standard 4x rotated grid) or 16
+    /// (a 4 × 4 grid, each sample in a column and a row of its own, for stills), each drawn and
+    /// depth-tested on its own and the pixel their mean.
     #[arg(long, default_value_t = crate::draw::raster::DRAW_SAMPLES)]
     pub samples: u32,
     /// Per-vertex bakes with visibility: draw the glossy light by SH glossy transfer at this SH

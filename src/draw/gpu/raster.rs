@@ -136,7 +136,7 @@ impl GpuRaster {
         GpuRaster::multisampled(gpu, 1)
     }
 
-    /// Builds the pipeline on `gpu`'s device, drawing `samples` samples a pixel (1 or 4, at the
+    /// Builds the pipeline on `gpu`'s device, drawing `samples` samples a pixel (1, 4 or 16, at the
     /// positions of [`sample_offsets`]), as [`crate::draw::raster::rasterize_multisampled`]
     /// draws them: each sample in a pass of its own, then each pixel the mean of its samples.
     pub fn multisampled(gpu: &Gpu, samples: u32) -> Result<GpuRaster> {
