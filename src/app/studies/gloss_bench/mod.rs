@@ -117,8 +117,8 @@ pub struct GlossBakeRow {
     /// Per camera: every light term, against the path tracer (relative L2 over the image).
     pub error: Vec<f64>,
     /// Per camera: the same over the pixels that the drawing and the scene both cover whole,
-    /// the outline left out (where a mesh's edge and the scene's own surfaces, an analytic
-    /// sphere's for one, part by up to a pixel).
+    /// the outline left out (where a pixel is partly covered, and a grazing highlight in it is
+    /// caught or missed by the drawing's few samples).
     pub inside: Vec<f64>,
     /// Per camera: the same over the pixels that the glossy materials alone cover whole (a
     /// glossy teapot's, without the ground it stands on), where the methods part; `None` where

@@ -159,9 +159,10 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
     let _ = writeln!(
         s,
         "\nWithin the outline: the same error over the pixels that the drawing and the scene both \
-         cover whole, camera by camera. The outline is left out: there a mesh's edge and the \
-         scene's own surfaces (a sphere's, traced as a sphere) part by up to a pixel, and a \
-         grazing highlight on it can outweigh the rest of the image. On glossy pixels: the same \
+         cover whole, camera by camera. The outline is left out: a pixel there is partly \
+         covered, and a grazing highlight in it, which the drawing's few samples a pixel catch \
+         or miss, can outweigh the rest of the image (`--samples 16` draws nearer the pixel's \
+         mean). On glossy pixels: the same \
          over the pixels that the glossy materials alone cover whole (a glossy object without \
          the diffuse ground it stands on, where every method draws the same), – where a camera \
          sees none."
