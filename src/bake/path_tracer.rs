@@ -116,8 +116,9 @@ pub fn path_trace_lit(
 /// an error.
 ///
 /// A drawn pixel is the mean over its area (its samples spread over it), so each path here
-/// passes through a point of its own, stratified over the pixel (the first 4,096 paths; then
-/// again), whatever `settings` asks of a baked pixel (its centre, and more only on edges). A
+/// passes through a point of its own in the pixel (the first 4,096 paths; then again):
+/// stratified on a grid when `samples` is a square such as 1,024, uniform otherwise, whatever
+/// `settings` asks of a baked pixel (its centre, and more only on edges). A
 /// highlight smaller than a pixel is far from its pixel's mean at the pixel's centre: the glossy
 /// sphere at 64² was 35% apart in the two (measured).
 pub fn path_trace_from(
