@@ -143,7 +143,6 @@ impl CubePyramid {
     pub fn bilinear(&self, at: FacePoint, level: usize) -> [f32; 3] {
         let level = level.min(self.levels.len() - 1);
         let side = self.n >> level;
-        let nodes = &self.means[level][at.face * side * side..(at.face + 1) * side * side];
         let axis = |x: f64| {
             let x = ((x + 1.0) * 0.5 * side as f64 - 0.5).clamp(0.0, (side - 1) as f64);
             let lo = x as usize;
@@ -157,7 +156,7 @@ impl CubePyramid {
             (r1, c0, fr * (1.0 - fc)),
             (r1, c1, fr * fc),
         ] {
-            let mean = nodes[(spread(col as u32) | (spread(row as u32) << 1)) as usize];
+            let mean = self.means[level][morton_index(side, at.face, row, col)];
             for (o, v) in out.iter_mut().zip(mean) {
                 *o += w * v;
             }

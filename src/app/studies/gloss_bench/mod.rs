@@ -499,14 +499,11 @@ fn glossy_pixels(
     let share =
         rasterize_multisampled(cam, &mesh.positions, &mesh.triangles, &flags, None, samples)?;
     // A triangle's three vertices share its material, so its share is 1 up to rounding.
-    Ok(share
-        .image
-        .pixels
-        .iter()
-        .zip(&share.coverage)
-        .zip(reference)
-        .map(|((p, c), r)| (p[0] > 0.999 && *c == 1.0 && *r == 1.0) as u8 as f32)
-        .collect())
+    let mut mask = whole_in_both(&share.coverage, reference);
+    for (m, p) in mask.iter_mut().zip(&share.image.pixels) {
+        *m *= (p[0] > 0.999) as u8 as f32;
+    }
+    Ok(mask)
 }
 
 /// A mask of the pixels that coverages `a` and `b` both cover whole.

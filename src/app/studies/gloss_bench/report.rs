@@ -162,10 +162,9 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
          cover whole, camera by camera. The outline is left out: a pixel there is partly \
          covered, and a grazing highlight in it, which the drawing's few samples a pixel catch \
          or miss, can outweigh the rest of the image (`--samples 16` draws nearer the pixel's \
-         mean). On glossy pixels: the same \
-         over the pixels that the glossy materials alone cover whole (a glossy object without \
-         the diffuse ground it stands on, where every method draws the same), – where a camera \
-         sees none."
+         mean). On glossy pixels: the same over the pixels that the glossy materials alone \
+         cover whole (a glossy object without the diffuse ground it stands on, where every \
+         method draws the same), – where a camera sees none."
     );
     let _ = writeln!(
         s,
