@@ -103,6 +103,18 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
          diffuse, over the pixels both cover whole: what drawing between vertices costs, apart \
          from the glossy methods.\n"
     );
+    error_table(&mut s, r, opts);
+    frame_table(&mut s, r, opts);
+    s.push_str(&crate::app::studies::gloss_sh::markdown(
+        &r.sh,
+        opts.cameras.len(),
+        [opts.frame_side as usize, opts.runs, opts.light_terms[0]],
+    ));
+    s
+}
+
+/// The report's table of each bake's error against the path tracer, and what its columns mean.
+fn error_table(s: &mut String, r: &GlossBenchReport, opts: &GlossBenchOptions) {
     let cams = (1..=r.cameras.len())
         .map(|i| format!(" camera {i} |"))
         .collect::<String>();
@@ -166,6 +178,10 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
          cover whole (a glossy object without the diffuse ground it stands on, where every \
          method draws the same), – where a camera sees none."
     );
+}
+
+/// The report's table of each bake's frame time.
+fn frame_table(s: &mut String, r: &GlossBenchReport, opts: &GlossBenchOptions) {
     let _ = writeln!(
         s,
         "\n## Frame time\n\nRelight at K terms, then draw {0}x{0} at one sample a pixel from \
@@ -215,12 +231,6 @@ pub fn markdown(r: &GlossBenchReport, opts: &GlossBenchOptions) -> String {
         }
         let _ = writeln!(s, "{line}");
     }
-    s.push_str(&crate::app::studies::gloss_sh::markdown(
-        &r.sh,
-        opts.cameras.len(),
-        [opts.frame_side as usize, opts.runs, opts.light_terms[0]],
-    ));
-    s
 }
 
 /// The report as CSV: one line per bake and camera.
