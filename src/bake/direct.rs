@@ -51,17 +51,6 @@ enum Centre {
     Horizon,
 }
 
-impl Centre {
-    /// Whether the centre was traced, and then whether it is open.
-    fn traced(self) -> Option<bool> {
-        match self {
-            Centre::Open => Some(true),
-            Centre::Blocked => Some(false),
-            _ => None,
-        }
-    }
-}
-
 /// For every texel j with light on it, calls `visit(j, diffuse, ggx)` with the texel's integral
 /// of visibility x lobe x cosine: the Lambertian lobe ([`brdf::diffuse_cosine`]) and, with
 /// `alpha`, the GGX lobe of that width ([`brdf::ggx_cosine`]); a medium's transmittance is in
@@ -136,18 +125,16 @@ fn integrated_texels(
         _ => 1.0,
     };
     let ggx = |d: Vec3| lobe.as_ref().map_or(0.0, |(g, ..)| g.cosine(d));
+    let borders = borders(q, &centres);
     for (j, &centre) in centres.iter().enumerate() {
         if centre == Centre::Below {
             continue;
         }
         let (subs, weights) = q.subs(j);
         let c = q.centres[j];
-        // The sides (−s, +s, −t, +t) across which the centre's visibility changes.
-        let differs = centre.traced().map(|open| {
-            q.neighbours[j].map(|k| centres[k as usize].traced().is_some_and(|o| o != open))
-        });
         let horizon = n.dot(c).abs() < q.sin_radius[j];
-        if let Some(differs) = differs.filter(|d| d.contains(&true)) {
+        if borders[j] != 0 {
+            let differs: [bool; 4] = std::array::from_fn(|k| borders[j] >> k & 1 == 1);
             // The sub-texels in the half of the texel towards a side whose neighbour differs
             // trace their own rays; the others, between the centre and neighbours that agree
             // with it, take the centre's visibility (see the module notes).
@@ -256,6 +243,32 @@ fn classify_centres(
         }
     }
     centres
+}
+
+/// For each texel, the sides (bit k for side k: −s, +s, −t, +t) across which its centre's
+/// traced visibility differs from its neighbour's: an open centre's sides towards blocked
+/// neighbours and a blocked centre's towards open ones. Found from the blocked centres, which
+/// are fewer than the texels.
+fn borders(q: &TexelQuadrature, centres: &[Centre]) -> Vec<u8> {
+    let mut sides = vec![0u8; centres.len()];
+    for (j, _) in centres
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| **c == Centre::Blocked)
+    {
+        for (k, &across) in q.neighbours[j].iter().enumerate() {
+            let across = across as usize;
+            if centres[across] != Centre::Open {
+                continue;
+            }
+            sides[j] |= 1 << k;
+            // The neighbour's side that faces back (neighbours are mutual).
+            if let Some(back) = q.neighbours[across].iter().position(|&b| b as usize == j) {
+                sides[across] |= 1 << back;
+            }
+        }
+    }
+    sides
 }
 
 /// Σ f(ω) Ω over a texel's sub-texels.

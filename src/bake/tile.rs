@@ -345,10 +345,11 @@ impl PixelSums {
                 rows.reference_energy(p),
             ))
         });
-        let (n, shc) = (ctx.settings.cube_n, ctx.settings.sh_order.pow(2));
-        for (kind, pixel, weight, mut row, budget_scale) in lobes.chain(scattered) {
-            let mut sh = vec![0.0f32; shc];
-            ctx.basis.project_row(&row, &mut sh);
+        let n = ctx.settings.cube_n;
+        let pixel_rows: Vec<_> = lobes.chain(scattered).collect();
+        let dense: Vec<&[f32]> = pixel_rows.iter().map(|r| &r.3[..]).collect();
+        let sh = ctx.basis.project_rows(&dense);
+        for ((kind, pixel, weight, mut row, budget_scale), sh) in pixel_rows.into_iter().zip(sh) {
             haar::forward_face_all(&mut row, n, &mut scratch.haar);
             let (entries, dropped, total) =
                 ctx.thresholder

@@ -89,26 +89,62 @@ impl TexelShBasis {
             .collect())
     }
 
-    /// SH transport of one row of texel transport `t` (already containing solid angles):
-    /// `t_i = Σ_j t_j Y_i(d_j)`, accumulated into `out` (n² values).
-    pub fn project_row(&self, row: &[f32], out: &mut [f32]) {
+    /// SH transport of rows of texel transport (already containing solid angles):
+    /// `out[r]_i = Σ_j rows[r]_j Y_i(d_j)`, n² values a row. The rows go through the table
+    /// together, so a pixel's rows read it once; each sum still runs over the texels in order,
+    /// so a row's values are the same to the bit as when it is projected alone.
+    pub fn project_rows(&self, rows: &[&[f32]]) -> Vec<Vec<f32>> {
         let count = self.order * self.order;
-        debug_assert_eq!(row.len() * count, self.values.len());
-        out.fill(0.0);
-        for (j, &t) in row.iter().enumerate() {
-            if t == 0.0 {
-                continue;
-            }
-            for (o, y) in out.iter_mut().zip(&self.values[j * count..(j + 1) * count]) {
-                *o += t * y;
+        let mut out = vec![vec![0.0f32; count]; rows.len()];
+        for (j, y) in self.values.chunks_exact(count).enumerate() {
+            for (row, sums) in rows.iter().zip(out.iter_mut()) {
+                // A row shorter than the table has nothing further; a zero (a texel below the
+                // surface) adds nothing.
+                let t = row.get(j).copied().unwrap_or(0.0);
+                if t == 0.0 {
+                    continue;
+                }
+                for (o, y) in sums.iter_mut().zip(y) {
+                    *o += t * y;
+                }
             }
         }
+        out
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Projecting several rows together gives each row the values of a plain loop over that row alone, to the bit.
+    #[test]
+    fn rows_projected_together_are_each_row_alone() {
+        let (n, order) = (8, 6);
+        let basis = TexelShBasis::new(n, order).unwrap();
+        let rows: Vec<Vec<f32>> = (0..5)
+            .map(|r| {
+                (0..texel_count(n))
+                    .map(|j| match (j * 31 + r * 17) % 7 {
+                        0 => 0.0,
+                        k => (k as f32 - 3.3) * 1e-3 * (1.0 + r as f32),
+                    })
+                    .collect()
+            })
+            .collect();
+        let refs: Vec<&[f32]> = rows.iter().map(|r| &r[..]).collect();
+        let together = basis.project_rows(&refs);
+        let count = order * order;
+        for (row, got) in rows.iter().zip(&together) {
+            let mut alone = vec![0.0f32; count];
+            for (j, &t) in row.iter().enumerate() {
+                for (i, o) in alone.iter_mut().enumerate() {
+                    *o += t * basis.values[j * count + i];
+                }
+            }
+            assert_eq!(got, &alone);
+        }
+    }
 
     #[test]
     fn light_projection_is_the_plain_sum() {
