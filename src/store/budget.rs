@@ -107,7 +107,7 @@ impl Thresholder {
         reference_energy: f64,
         order: &mut Vec<u64>,
     ) -> (Vec<(u32, f32)>, f64, f64) {
-        let total: f64 = row.iter().map(|&v| (v as f64) * (v as f64)).sum();
+        let total = sum_squares(row, |v| v as f64);
         let weight = |j: u32| self.weights.as_ref().map_or(1.0, |w| w[j as usize]);
         order.clear();
         order.extend(
@@ -135,10 +135,7 @@ impl Thresholder {
         } else {
             let budget = (self.threshold as f64).powi(2) * reference_energy * self.weighted_ratio;
             let n = smallest_within(order, budget);
-            dropped = order[..n]
-                .iter()
-                .map(|&k| (row[k as u32 as usize] as f64).powi(2))
-                .sum();
+            dropped = sum_squares(&order[..n], |k| row[k as u32 as usize] as f64);
             n
         };
         // Every other non-zero coefficient is kept, in coefficient order.
@@ -168,6 +165,23 @@ fn magnitude(key: u64) -> f32 {
     f32::from_bits((key >> 32) as u32)
 }
 
+/// Σ f(x)² over `items`, in four sums that run side by side and meet at the end: one f64 sum
+/// of a row's squares, each addition waiting for the last, took most of a row's thresholding.
+fn sum_squares<T: Copy>(items: &[T], f: impl Fn(T) -> f64) -> f64 {
+    let mut lanes = [0.0f64; 4];
+    let chunks = items.chunks_exact(4);
+    let tail = chunks.remainder();
+    for chunk in chunks {
+        for (lane, &x) in lanes.iter_mut().zip(chunk) {
+            *lane += f(x) * f(x);
+        }
+    }
+    for (lane, &x) in lanes.iter_mut().zip(tail) {
+        *lane += f(x) * f(x);
+    }
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3])
+}
+
 /// Reorders `items` so that its first `n` are its `n` smallest by (magnitude, coefficient), and
 /// returns the largest `n` whose magnitudes' squares sum to at most `budget`: the prefix that
 /// sorting and summing from the smallest would drop, found by selection in expected linear time
@@ -181,10 +195,7 @@ fn smallest_within(items: &mut [u64], budget: f64) -> usize {
         let part = &mut items[lo..hi];
         let mid = part.len() / 2;
         part.select_nth_unstable(mid);
-        let smaller: f64 = part[..=mid]
-            .iter()
-            .map(|&k| (magnitude(k) as f64).powi(2))
-            .sum();
+        let smaller = sum_squares(&part[..=mid], |k| magnitude(k) as f64);
         if spent + smaller <= budget {
             spent += smaller;
             lo += mid + 1;
