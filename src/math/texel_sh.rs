@@ -90,26 +90,61 @@ impl TexelShBasis {
     }
 
     /// SH transport of rows of texel transport (already containing solid angles):
-    /// `out[r]_i = Σ_j rows[r]_j Y_i(d_j)`, n² values a row. The rows go through the table
-    /// together, so a pixel's rows read it once; each sum still runs over the texels in order,
-    /// so a row's values are the same to the bit as when it is projected alone.
+    /// `out[r]_i = Σ_j rows[r]_j Y_i(d_j)`, n² values a row. The table is read in blocks of
+    /// texels that every row goes through in turn, so a pixel's rows read it from memory once;
+    /// each sum still runs over the texels in order, so a row's values are the same to the bit
+    /// as when it is projected alone.
     pub fn project_rows(&self, rows: &[&[f32]]) -> Vec<Vec<f32>> {
-        let count = self.order * self.order;
-        let mut out = vec![vec![0.0f32; count]; rows.len()];
-        for (j, y) in self.values.chunks_exact(count).enumerate() {
-            for (row, sums) in rows.iter().zip(out.iter_mut()) {
-                // A row shorter than the table has nothing further; a zero (a texel below the
-                // surface) adds nothing.
-                let t = row.get(j).copied().unwrap_or(0.0);
-                if t == 0.0 {
-                    continue;
+        match self.order * self.order {
+            // The orders a bake takes most: the sums of a row held in registers.
+            16 => project_blocks::<16>(&self.values, rows),
+            25 => project_blocks::<25>(&self.values, rows),
+            36 => project_blocks::<36>(&self.values, rows),
+            49 => project_blocks::<49>(&self.values, rows),
+            count => {
+                let mut out = vec![vec![0.0f32; count]; rows.len()];
+                for (j, y) in self.values.chunks_exact(count).enumerate() {
+                    for (row, sums) in rows.iter().zip(out.iter_mut()) {
+                        let t = row.get(j).copied().unwrap_or(0.0);
+                        add_scaled(sums, t, y);
+                    }
                 }
-                for (o, y) in sums.iter_mut().zip(y) {
-                    *o += t * y;
-                }
+                out
             }
         }
-        out
+    }
+}
+
+/// Texels of the table a block holds: 256 texels of 36 values, 36 KiB, stay in the first cache
+/// while each row goes through them.
+const PROJECT_BLOCK: usize = 256;
+
+/// [`TexelShBasis::project_rows`] for `C` values a texel.
+fn project_blocks<const C: usize>(values: &[f32], rows: &[&[f32]]) -> Vec<Vec<f32>> {
+    let mut out = vec![[0.0f32; C]; rows.len()];
+    for (b, block) in values.chunks(PROJECT_BLOCK * C).enumerate() {
+        let j0 = b * PROJECT_BLOCK;
+        for (row, sums) in rows.iter().zip(out.iter_mut()) {
+            let mut acc = *sums;
+            let ts = row.get(j0..).unwrap_or(&[]);
+            for (y, &t) in block.chunks_exact(C).zip(ts) {
+                add_scaled(&mut acc, t, y);
+            }
+            *sums = acc;
+        }
+    }
+    out.into_iter().map(|sums| sums.to_vec()).collect()
+}
+
+/// `sums += t · y`, value by value; nothing for `t = 0` (a texel below the surface, or past the
+/// end of a short row).
+#[inline(always)]
+fn add_scaled(sums: &mut [f32], t: f32, y: &[f32]) {
+    if t == 0.0 {
+        return;
+    }
+    for (o, y) in sums.iter_mut().zip(y) {
+        *o += t * y;
     }
 }
 
