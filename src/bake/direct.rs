@@ -126,13 +126,23 @@ fn integrated_texels(
     };
     let ggx = |d: Vec3| lobe.as_ref().map_or(0.0, |(g, ..)| g.cosine(d));
     let borders = borders(q, &centres);
+    // Without a lobe or a medium, an open texel on no border and wholly above the horizon
+    // takes its exact cosine alone: the value the general path below gives it, found sooner.
+    let plain = lobe.is_none() && (medium.is_none() || unshadowed);
     for (j, &centre) in centres.iter().enumerate() {
         if centre == Centre::Below {
             continue;
         }
-        let (subs, weights) = q.subs(j);
         let c = q.centres[j];
         let horizon = n.dot(c).abs() < q.sin_radius[j];
+        if plain && centre == Centre::Open && borders[j] == 0 && !horizon {
+            let diffuse = n.dot(q.moments[j]).max(0.0) * std::f32::consts::FRAC_1_PI;
+            if diffuse != 0.0 {
+                visit(j, diffuse, 0.0);
+            }
+            continue;
+        }
+        let (subs, weights) = q.subs(j);
         if borders[j] != 0 {
             let differs: [bool; 4] = std::array::from_fn(|k| borders[j] >> k & 1 == 1);
             // The sub-texels in the half of the texel towards a side whose neighbour differs
