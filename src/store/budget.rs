@@ -143,13 +143,12 @@ impl Thresholder {
         for &k in &order[..drop_count] {
             gone[k as u32 as usize] = true;
         }
-        let kept = row
-            .iter()
-            .zip(&gone)
-            .enumerate()
-            .filter(|(_, (v, gone))| **v != 0.0 && !**gone)
-            .map(|(j, (v, _))| (j as u32, *v))
-            .collect();
+        let mut kept = Vec::with_capacity(order.len() - drop_count);
+        for (j, (&v, &gone)) in row.iter().zip(&gone).enumerate() {
+            if v != 0.0 && !gone {
+                kept.push((j as u32, v));
+            }
+        }
         (kept, dropped, total)
     }
 }

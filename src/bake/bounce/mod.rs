@@ -280,10 +280,10 @@ impl<'a> Bounces<'a> {
             } else {
                 diffuse * cos
             };
-            let through = transmittance
-                .as_ref()
-                .map_or(1.0, |t| t[s / m] as f32 / 255.0);
-            out(s / m, value * (weights[s] * through));
+            // The sample's texel, without a division where a texel has one sample.
+            let j = if m == 1 { s } else { s / m };
+            let through = transmittance.as_ref().map_or(1.0, |t| t[j] as f32 / 255.0);
+            out(j, value * (weights[s] * through));
         };
         let mut rays = 0;
         let mut traced: Vec<u64>;
