@@ -69,10 +69,7 @@ fn accuracy(env: &EnvMap) {
         for k in 0..24 {
             let yaw = k as f64 * 15.0 + 0.37;
             for (pitch, errors) in [(-20.0, &mut pitched), (0.0, &mut yawed)] {
-                let r = EnvRotation {
-                    yaw_deg: yaw,
-                    pitch_deg: pitch,
-                };
+                let r = EnvRotation::new(yaw, pitch);
                 let exact = env.to_cube_exact(n, r).unwrap();
                 errors.push(env.to_cube(n, r).unwrap().relative_l2(&exact));
             }
@@ -150,10 +147,7 @@ fn prepare(c: &mut Criterion) {
         g.bench_with_input(BenchmarkId::new("pitch_drag", n), &n, |b, _| {
             b.iter(|| {
                 pitch += 0.73;
-                let rotation = EnvRotation {
-                    yaw_deg: YAW,
-                    pitch_deg: pitch,
-                };
+                let rotation = EnvRotation::new(YAW, pitch);
                 ctx.prepare_turned(black_box(&sunrise), &unturned_sh, rotation)
                     .unwrap()
             })
@@ -162,10 +156,7 @@ fn prepare(c: &mut Criterion) {
         g.bench_with_input(BenchmarkId::new("pitched_yaw_drag", n), &n, |b, _| {
             b.iter(|| {
                 yaw += 1.37;
-                let rotation = EnvRotation {
-                    yaw_deg: yaw,
-                    pitch_deg: 30.0,
-                };
+                let rotation = EnvRotation::new(yaw, 30.0);
                 ctx.prepare_turned(black_box(&sunrise), &unturned_sh, rotation)
                     .unwrap()
             })
@@ -174,10 +165,7 @@ fn prepare(c: &mut Criterion) {
         g.bench_with_input(BenchmarkId::new("pitch_drag_recorded", n), &n, |b, &n| {
             b.iter(|| {
                 pitch += 0.73;
-                let rotation = EnvRotation {
-                    yaw_deg: YAW,
-                    pitch_deg: pitch,
-                };
+                let rotation = EnvRotation::new(YAW, pitch);
                 let cube = resample::resample_latlong_recorded(
                     sunrise.width,
                     sunrise.height,

@@ -236,10 +236,7 @@ fn lossless_relight_equals_the_brute_force_reference() {
     let t = bake(&scene, &settings, &|_| {}).unwrap();
     let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
     let ctx = LightContext::new(&t).unwrap();
-    let rotation = EnvRotation {
-        yaw_deg: 75.0,
-        pitch_deg: 0.0,
-    };
+    let rotation = EnvRotation::new(75.0, 0.0);
     let light = ctx.prepare(&env, rotation).unwrap();
     let req = RelightRequest::Full;
     let (full, _) = relight(&t, &ctx, &light, &req).unwrap();
@@ -341,10 +338,7 @@ fn rotations_full_turn_and_sh_rotation() {
     // The SH light of a turned environment comes from rotating the coefficient vector; it must
     // match projecting the turned map itself (same order), up to the cube-map discretisation of
     // the turned map.
-    let rotation = EnvRotation {
-        yaw_deg: 50.0,
-        pitch_deg: 30.0,
-    };
+    let rotation = EnvRotation::new(50.0, 30.0);
     let turned = ctx.prepare(&env, rotation).unwrap();
     let projected = ctx
         .basis

@@ -716,13 +716,7 @@ fn resampling_keeps_total_power() {
     let mut rng = Rng::new(0x5eed_0003);
     let env = random_map(&mut rng, 128, 64);
     let want = env.power();
-    let rotations = [
-        EnvRotation::default(),
-        EnvRotation {
-            yaw_deg: 37.0,
-            pitch_deg: -20.0,
-        },
-    ];
+    let rotations = [EnvRotation::default(), EnvRotation::new(37.0, -20.0)];
     for rotation in rotations {
         for n in [2, 16, 64] {
             let got = env.to_cube(n, rotation).unwrap().power();
@@ -813,10 +807,7 @@ fn small_sun_stays_sharp_and_turns_right() {
     check_sun_in_cube(&cube, power, turned, "yaw 90");
 
     // Pitch is applied after the yaw: world = R_x(pitch)·R_y(yaw)·map.
-    let rotation = EnvRotation {
-        yaw_deg: 90.0,
-        pitch_deg: 30.0,
-    };
+    let rotation = EnvRotation::new(90.0, 30.0);
     let cube = env.to_cube(n, rotation).unwrap();
     check_sun_in_cube(
         &cube,
@@ -847,10 +838,7 @@ fn fast_resampling_of_a_bundled_map_matches_the_exact_splat() {
     // recorded for the pitch: the fast path renumbers cells, the exact splat turns every corner;
     // they must agree to rounding.
     let whole = 37.0 * 360.0 / env.width as f64;
-    let pitched = EnvRotation {
-        yaw_deg: whole,
-        pitch_deg: -20.0,
-    };
+    let pitched = EnvRotation::new(whole, -20.0);
     for (rotation, fast) in [
         (
             EnvRotation::default(),
@@ -932,15 +920,7 @@ fn sh_projection_of_a_constant_map() {
         }
     }
     // A rotation does not change the projection of a constant.
-    let turned = env
-        .project_sh(
-            4,
-            EnvRotation {
-                yaw_deg: 37.0,
-                pitch_deg: -20.0,
-            },
-        )
-        .unwrap();
+    let turned = env.project_sh(4, EnvRotation::new(37.0, -20.0)).unwrap();
     for c in 0..3 {
         let want = value[c] * 2.0 * PI.sqrt();
         assert_close(
@@ -1052,14 +1032,8 @@ fn check_rotation_commutes(env: &EnvMap, what: &str) {
     let order = 4;
     let base = env.project_sh(order, EnvRotation::default()).unwrap();
     let rotations = [
-        EnvRotation {
-            yaw_deg: 37.0,
-            pitch_deg: -20.0,
-        },
-        EnvRotation {
-            yaw_deg: 200.0,
-            pitch_deg: 75.0,
-        },
+        EnvRotation::new(37.0, -20.0),
+        EnvRotation::new(200.0, 75.0),
         EnvRotation::yaw(90.0),
     ];
     for rotation in rotations {

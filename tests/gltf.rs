@@ -75,10 +75,7 @@ fn a_written_gltf_bakes_and_matches_the_reference() {
         .count();
     assert!(residual > 0, "no residual rows");
     let env = EnvMap::load(&assets().join("envmaps/blender_sunrise.exr")).unwrap();
-    let rotation = EnvRotation {
-        yaw_deg: 75.0,
-        pitch_deg: 0.0,
-    };
+    let rotation = EnvRotation::new(75.0, 0.0);
     let cube = env.to_cube(8, rotation).unwrap();
     let (img, _) = relight_wavelet(&t, &full_light(&cube)).unwrap();
     let brute = render_reference(&scene, &cube, &settings).unwrap();

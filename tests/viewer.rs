@@ -486,10 +486,7 @@ fn a_drag_gives_the_light_that_a_fresh_prepare_gives() {
         (0, -40.0, 30.0),
     ] {
         s.light.env = env;
-        s.light.rotation = EnvRotation {
-            yaw_deg: yaw,
-            pitch_deg: pitch,
-        };
+        s.light.rotation = EnvRotation::new(yaw, pitch);
         e.render(&s).unwrap();
         let shown = e.current_light().unwrap();
         let fresh = e.ctx.prepare(&shown.map, s.light.rotation).unwrap();

@@ -318,10 +318,7 @@ mod tests {
             lowest_negative: 0.0,
             negative_power: 0.0,
         };
-        let rotation = EnvRotation {
-            yaw_deg: 40.0,
-            pitch_deg: -25.0,
-        };
+        let rotation = EnvRotation::new(40.0, -25.0);
         assert_unbiased(&MapLight::new(&map, rotation), map.power(), 11);
         let black = EnvMap {
             pixels: vec![[0.0; 3]; w * h],

@@ -16,12 +16,14 @@ pub struct EnvRotation {
 }
 
 impl EnvRotation {
+    /// A rotation by `yaw_deg` about +Y, then `pitch_deg` about +X.
+    pub const fn new(yaw_deg: f64, pitch_deg: f64) -> Self {
+        EnvRotation { yaw_deg, pitch_deg }
+    }
+
     /// A rotation by `yaw_deg` about +Y only.
     pub fn yaw(yaw_deg: f64) -> Self {
-        EnvRotation {
-            yaw_deg,
-            pitch_deg: 0.0,
-        }
+        EnvRotation::new(yaw_deg, 0.0)
     }
 
     /// The matrix taking map directions to world directions.

@@ -585,10 +585,7 @@ pub struct TurnArgs {
 impl TurnArgs {
     /// The environment rotation these flags give (yaw, then pitch, degrees).
     pub fn rotation(&self) -> EnvRotation {
-        EnvRotation {
-            yaw_deg: self.yaw,
-            pitch_deg: self.pitch,
-        }
+        EnvRotation::new(self.yaw, self.pitch)
     }
 }
 

@@ -166,11 +166,7 @@ impl LatLongWeights {
         }
         let rec = Recorder {
             n,
-            world_from_map: EnvRotation {
-                yaw_deg: 0.0,
-                pitch_deg,
-            }
-            .world_from_map(),
+            world_from_map: EnvRotation::new(0.0, pitch_deg).world_from_map(),
             finest,
             texel_min,
         };
@@ -663,10 +659,7 @@ mod tests {
             let px = test_map(w, h, true);
             for n in [1, 8, 16, 64] {
                 for pitch in [0.0, 20.0, -73.0] {
-                    let r = EnvRotation {
-                        yaw_deg: 0.0,
-                        pitch_deg: pitch,
-                    };
+                    let r = EnvRotation::new(0.0, pitch);
                     let e = worst_rel(&recorded(w, h, &px, n, r), &exact(w, h, &px, n, r));
                     assert!(
                         e <= ROUNDING_REL,
@@ -686,10 +679,7 @@ mod tests {
         let px = test_map(w, h, true);
         for k in [1i32, 37, -5, 50, 199] {
             for pitch in [0.0, 20.0] {
-                let r = EnvRotation {
-                    yaw_deg: k as f64 * 360.0 / w as f64,
-                    pitch_deg: pitch,
-                };
+                let r = EnvRotation::new(k as f64 * 360.0 / w as f64, pitch);
                 let e = worst_rel(&recorded(w, h, &px, 16, r), &exact(w, h, &px, 16, r));
                 assert!(e <= ROUNDING_REL, "{k} pixels, pitch {pitch}: {e:e}");
             }
@@ -711,10 +701,7 @@ mod tests {
         let smooth = smooth_map(w, h);
         for n in [16, 32, 64] {
             for (yaw, pitch) in [(37.3, 0.0), (100.71, 0.0), (12.345, 0.0), (-61.17, 25.0)] {
-                let r = EnvRotation {
-                    yaw_deg: yaw,
-                    pitch_deg: pitch,
-                };
+                let r = EnvRotation::new(yaw, pitch);
                 let e = recorded(w, h, &sun, n, r).relative_l2(&exact(w, h, &sun, n, r));
                 assert!(e <= FRACTIONAL_SUN_L2, "sun, N = {n}, {r:?}: {e:e}");
                 let e = recorded(w, h, &smooth, n, r).relative_l2(&exact(w, h, &smooth, n, r));
@@ -736,10 +723,7 @@ mod tests {
                 PITCH_SUN_L2_64
             };
             for (yaw, pitch) in [(0.0, 20.0), (12.345, -73.0), (200.0, 45.5)] {
-                let r = EnvRotation {
-                    yaw_deg: yaw,
-                    pitch_deg: pitch,
-                };
+                let r = EnvRotation::new(yaw, pitch);
                 let unpitched = EnvRotation {
                     pitch_deg: 0.0,
                     ..r
@@ -769,10 +753,7 @@ mod tests {
         for (px, name) in [(test_map(w, h, true), "sun"), (smooth_map(w, h), "smooth")] {
             for n in [8, 32, 64] {
                 for (yaw, pitch) in [(0.0, 20.0), (12.345, -73.0), (200.0, 45.5)] {
-                    let r = EnvRotation {
-                        yaw_deg: yaw,
-                        pitch_deg: pitch,
-                    };
+                    let r = EnvRotation::new(yaw, pitch);
                     let paired = pitch::splat_rows(w, h, &px, n, r, true).unwrap().unwrap();
                     let each = pitch::splat_rows(w, h, &px, n, r, false).unwrap().unwrap();
                     // Only a sub-cell centre within f32 rounding of a texel border may land on
@@ -799,10 +780,7 @@ mod tests {
         let smooth = smooth_map(w, h);
         for n in [32, 64] {
             for yaw in [0.1, 12.345, -61.17] {
-                let r = EnvRotation {
-                    yaw_deg: yaw,
-                    pitch_deg: 360.0,
-                };
+                let r = EnvRotation::new(yaw, 360.0);
                 let got = pitch::splat(w, h, &smooth, n, r).unwrap().unwrap();
                 let want = recorded(w, h, &smooth, n, EnvRotation::yaw(yaw));
                 let e = got.relative_l2(&want);
@@ -818,10 +796,7 @@ mod tests {
             let px = vec![value; w * h];
             for n in [1, 4, 32, 256] {
                 for (yaw, pitch) in [(0.0, 0.0), (37.3, 0.0), (-112.9, -20.0)] {
-                    let r = EnvRotation {
-                        yaw_deg: yaw,
-                        pitch_deg: pitch,
-                    };
+                    let r = EnvRotation::new(yaw, pitch);
                     let cube = fast(w, h, &px, n, r);
                     for (j, t) in cube.texels.iter().enumerate() {
                         for c in 0..3 {
@@ -845,10 +820,7 @@ mod tests {
         let want = env.power();
         for n in [2, 16, 64] {
             for (yaw, pitch) in [(0.0, 0.0), (37.3, 0.0), (37.3, -20.0)] {
-                let r = EnvRotation {
-                    yaw_deg: yaw,
-                    pitch_deg: pitch,
-                };
+                let r = EnvRotation::new(yaw, pitch);
                 let got = fast(w, h, &px, n, r).power();
                 for c in 0..3 {
                     let e = (got[c] / want[c] - 1.0).abs();
@@ -892,13 +864,7 @@ mod tests {
         for (w, h) in [(1, 512), (2, 512), (1024, 1), (1, 1)] {
             let (px, wide) = (grid(w, h), twin(w, h));
             for n in [32, 64] {
-                for r in [
-                    EnvRotation::default(),
-                    EnvRotation {
-                        yaw_deg: 37.3,
-                        pitch_deg: -20.0,
-                    },
-                ] {
+                for r in [EnvRotation::default(), EnvRotation::new(37.3, -20.0)] {
                     let got = fast(w, h, &px, n, r);
                     let e = got.relative_l2(&recorded(1024, 512, &wide, n, r));
                     assert!(
