@@ -68,6 +68,25 @@ pub fn direct_texels(
     let (unshadowed, medium) = (shadows.unshadowed, shadows.medium);
     let m = samples.per_texel;
     let mut shadow = SampleRays::new(shadows, samples, sp);
+    // One direction a texel traced in blocks, without a lobe or a medium: the open texels alone
+    // (each above the surface), their cosine as the loop below sums it from zero.
+    let open = shadow
+        .open_bits()
+        .filter(|_| m == 1 && alpha.is_none() && medium.is_none());
+    if let Some(open) = open {
+        for (w, &word) in open.iter().enumerate() {
+            let mut word = word;
+            while word != 0 {
+                let j = w * 64 + word.trailing_zeros() as usize;
+                word &= word - 1;
+                let acc = brdf::diffuse_cosine(sp.normal, samples.dirs[j]) * samples.weights[j];
+                if acc != 0.0 {
+                    visit(j, acc, 0.0);
+                }
+            }
+        }
+        return shadow.rays;
+    }
     let ggx = alpha.map(|a| brdf::GgxAt::new(sp.normal, sp.view, a));
     for j in 0..samples.dirs.len() / m {
         let dirs = &samples.dirs[j * m..(j + 1) * m];

@@ -109,6 +109,12 @@ impl<'a> SampleRays<'a> {
         }
     }
 
+    /// The samples found open in blocks, a bit each, where they were traced so
+    /// ([`SampleRays::new`]); `None` where each is traced when asked, or none is.
+    pub fn open_bits(&self) -> Option<&[u64]> {
+        (!self.open.is_empty() && !self.unshadowed).then_some(&self.open[..])
+    }
+
     /// Whether every direction is open (no ray is traced).
     pub fn unshadowed(&self) -> bool {
         self.unshadowed

@@ -152,32 +152,36 @@ fn add_scaled(sums: &mut [f32], t: f32, y: &[f32]) {
 mod tests {
     use super::*;
 
-    /// Projecting several rows together gives each row the values of a plain loop over that row alone, to the bit.
+    /// Projecting several rows together gives each row the values of a plain loop over that
+    /// row alone, to the bit: at order 6 (the blocked loop, over more than one block of texels)
+    /// and order 3 (the plain one).
     #[test]
     fn rows_projected_together_are_each_row_alone() {
-        let (n, order) = (8, 6);
-        let basis = TexelShBasis::new(n, order).unwrap();
-        let rows: Vec<Vec<f32>> = (0..5)
-            .map(|r| {
-                (0..texel_count(n))
-                    .map(|j| match (j * 31 + r * 17) % 7 {
-                        0 => 0.0,
-                        k => (k as f32 - 3.3) * 1e-3 * (1.0 + r as f32),
-                    })
-                    .collect()
-            })
-            .collect();
-        let refs: Vec<&[f32]> = rows.iter().map(|r| &r[..]).collect();
-        let together = basis.project_rows(&refs);
-        let count = order * order;
-        for (row, got) in rows.iter().zip(&together) {
-            let mut alone = vec![0.0f32; count];
-            for (j, &t) in row.iter().enumerate() {
-                for (i, o) in alone.iter_mut().enumerate() {
-                    *o += t * basis.values[j * count + i];
+        let n = 8;
+        for order in [6, 3] {
+            let basis = TexelShBasis::new(n, order).unwrap();
+            let rows: Vec<Vec<f32>> = (0..5)
+                .map(|r| {
+                    (0..texel_count(n))
+                        .map(|j| match (j * 31 + r * 17) % 7 {
+                            0 => 0.0,
+                            k => (k as f32 - 3.3) * 1e-3 * (1.0 + r as f32),
+                        })
+                        .collect()
+                })
+                .collect();
+            let refs: Vec<&[f32]> = rows.iter().map(|r| &r[..]).collect();
+            let together = basis.project_rows(&refs);
+            let count = order * order;
+            for (row, got) in rows.iter().zip(&together) {
+                let mut alone = vec![0.0f32; count];
+                for (j, &t) in row.iter().enumerate() {
+                    for (i, o) in alone.iter_mut().enumerate() {
+                        *o += t * basis.values[j * count + i];
+                    }
                 }
+                assert_eq!(got, &alone, "order {order}");
             }
-            assert_eq!(got, &alone);
         }
     }
 

@@ -164,8 +164,9 @@ fn magnitude(key: u64) -> f32 {
     f32::from_bits((key >> 32) as u32)
 }
 
-/// Σ f(x)² over `items`, in four sums that run side by side and meet at the end: one f64 sum
-/// of a row's squares, each addition waiting for the last, took most of a row's thresholding.
+/// Σ f(x)² over `items`, in four sums that run side by side and meet at the end: as one f64
+/// sum, each addition waited for the last, and the row's three such sums were a large part of
+/// its thresholding.
 fn sum_squares<T: Copy>(items: &[T], f: impl Fn(T) -> f64) -> f64 {
     let mut lanes = [0.0f64; 4];
     let chunks = items.chunks_exact(4);
