@@ -20,7 +20,8 @@
 //! With several samples a pixel ([`rasterize_multisampled`], at the standard rotated-grid
 //! positions of [`FOUR_SAMPLES`], or [`SIXTEEN_SAMPLES`] for stills) each sample is drawn as a
 //! pixel centre is, shifted by its offset, and a pixel is the mean of its samples: RGB
-//! premultiplied by the coverage, the share of its samples drawn. The GPU twin draws the same samples in passes of their own.
+//! premultiplied by the coverage, the share of its samples drawn. The GPU twin draws the same
+//! samples in passes of their own.
 //!
 //! The work is split in bands of rows run in parallel; each band draws the triangles whose boxes
 //! reach it, in index order, so the first of two hits at exactly the same depth wins, as with the
