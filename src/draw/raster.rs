@@ -25,7 +25,9 @@
 //!
 //! The work is split in bands of rows run in parallel; each band draws the triangles whose boxes
 //! reach it, in index order, so the first of two hits at exactly the same depth wins, as with the
-//! GPU's strict depth test.
+//! GPU's strict depth test. A band finds each pixel's nearest hit first and shades it after, so
+//! a glossy light ([`ViewDependent`]) is asked once a drawn pixel, never for a hit that a nearer
+//! one hides later.
 
 use glam::{DMat4, DVec2, DVec3, DVec4, Mat4, Vec3};
 use rayon::prelude::*;
@@ -329,7 +331,9 @@ struct Shading<'a> {
 }
 
 /// Draws the triangles `bin` (indices into `setups`) into one band of pixels starting at row
-/// `y0`, its colours and coverage, with a depth buffer of the band's size.
+/// `y0`, its colours and coverage, with a depth buffer of the band's size. The nearest triangle
+/// of each pixel is found first and shaded after ([`shade_band`]), so a pixel hidden later by a
+/// nearer triangle costs no shading: a glossy lobe's is most of a frame's time.
 fn draw_band(
     view: &View,
     film_x: &[f64],
@@ -339,25 +343,14 @@ fn draw_band(
     y0: usize,
     (pixels, coverage): (&mut [[f32; 3]], &mut [f32]),
 ) {
-    let Shading {
-        triangles,
-        colours,
-        texturing,
-        gloss,
-    } = shading;
     let rows = pixels.len() / view.width;
     let mut depth = vec![f64::INFINITY; pixels.len()];
+    // Per pixel, the nearest triangle's setup and its edge functions there.
+    let mut nearest: Vec<Option<(u32, [f64; 3])>> = vec![None; pixels.len()];
     let near = NEAR as f64;
-    for &s in bin {
-        let s = &setups[s as usize];
+    for &si in bin {
+        let s = &setups[si as usize];
         let [e0, e1, e2] = s.edges;
-        let tri = triangles[s.triangle as usize];
-        let cs = tri.map(|v| DVec3::from(colours[v as usize].map(f64::from)));
-        // The triangle's map and corner coordinates, if textured.
-        let mapped = texturing.and_then(|t| {
-            let map = &t.maps[t.slot(tri[0] as usize)? as usize];
-            Some((map, tri.map(|v| t.uvs[v as usize].as_dvec2())))
-        });
         let first_row = (s.y[0] as usize).max(y0);
         let last_row = (s.y[1] as usize).min(y0 + rows - 1);
         for y in first_row..=last_row {
@@ -377,37 +370,83 @@ fn draw_band(
                     continue;
                 }
                 depth[i] = z;
-                let c = (cs[0] * w[0] + cs[1] * w[1] + cs[2] * w[2]) / sum;
-                let albedo = match mapped {
-                    Some((map, uvs)) => {
-                        // The coordinate at a film position, interpolated on this triangle.
-                        let uv_at = |fx: f64, fy: f64| {
-                            let d = DVec3::new(fx, fy, 1.0);
-                            let w = [e0.dot(d), e1.dot(d), e2.dot(d)];
-                            ((uvs[0] * w[0] + uvs[1] * w[1] + uvs[2] * w[2]) / (w[0] + w[1] + w[2]))
-                                .as_vec2()
-                        };
-                        let uv = ((uvs[0] * w[0] + uvs[1] * w[1] + uvs[2] * w[2]) / sum).as_vec2();
-                        // Fine derivatives: the odd pixel of the quad's pair minus the even one.
-                        let (across, down) =
-                            (uv_at(view.film_x(x ^ 1), fy), uv_at(fx, view.film_y(y ^ 1)));
-                        let dx = if x % 2 == 0 { across - uv } else { uv - across };
-                        let dy = if y % 2 == 0 { down - uv } else { uv - down };
-                        map.sample(uv, map.lod(dx, dy))
-                    }
-                    None => Vec3::ONE,
-                };
-                let mut colour = c.as_vec3() * albedo;
-                if let Some(g) = gloss {
-                    let dir = view.right * fx + view.up * fy + view.forward;
-                    let b = w.map(|x| x / sum);
-                    // SH transfer's truncated series can undershoot: radiance stays non-negative.
-                    colour = (colour + g.shade(tri, b, -dir.normalize()).as_vec3()).max(Vec3::ZERO);
-                }
-                pixels[i] = colour.to_array();
-                coverage[i] = 1.0;
+                nearest[i] = Some((si, w));
             }
         }
+    }
+    shade_band(
+        view,
+        film_x,
+        setups,
+        &nearest,
+        shading,
+        y0,
+        (pixels, coverage),
+    );
+}
+
+/// Shades each pixel of a band whose nearest triangle `nearest` holds (its setup and the edge
+/// functions `w` at the pixel): the vertex colours interpolated by `w`, times the albedo map's
+/// texel for a textured triangle, plus a glossy bake's light.
+fn shade_band(
+    view: &View,
+    film_x: &[f64],
+    setups: &[Setup],
+    nearest: &[Option<(u32, [f64; 3])>],
+    shading: Shading,
+    y0: usize,
+    (pixels, coverage): (&mut [[f32; 3]], &mut [f32]),
+) {
+    let Shading {
+        triangles,
+        colours,
+        texturing,
+        gloss,
+    } = shading;
+    for (i, hit) in nearest.iter().enumerate() {
+        let Some((si, w)) = *hit else {
+            continue;
+        };
+        let (x, y) = (i % view.width, y0 + i / view.width);
+        let (fx, fy) = (film_x[x], view.film_y(y));
+        let s = &setups[si as usize];
+        let [e0, e1, e2] = s.edges;
+        let sum = w[0] + w[1] + w[2];
+        let tri = triangles[s.triangle as usize];
+        let cs = tri.map(|v| DVec3::from(colours[v as usize].map(f64::from)));
+        let c = (cs[0] * w[0] + cs[1] * w[1] + cs[2] * w[2]) / sum;
+        // The triangle's map and corner coordinates, if textured.
+        let mapped = texturing.and_then(|t| {
+            let map = &t.maps[t.slot(tri[0] as usize)? as usize];
+            Some((map, tri.map(|v| t.uvs[v as usize].as_dvec2())))
+        });
+        let albedo = match mapped {
+            Some((map, uvs)) => {
+                // The coordinate at a film position, interpolated on this triangle.
+                let uv_at = |fx: f64, fy: f64| {
+                    let d = DVec3::new(fx, fy, 1.0);
+                    let w = [e0.dot(d), e1.dot(d), e2.dot(d)];
+                    ((uvs[0] * w[0] + uvs[1] * w[1] + uvs[2] * w[2]) / (w[0] + w[1] + w[2]))
+                        .as_vec2()
+                };
+                let uv = ((uvs[0] * w[0] + uvs[1] * w[1] + uvs[2] * w[2]) / sum).as_vec2();
+                // Fine derivatives: the odd pixel of the quad's pair minus the even one.
+                let (across, down) = (uv_at(view.film_x(x ^ 1), fy), uv_at(fx, view.film_y(y ^ 1)));
+                let dx = if x % 2 == 0 { across - uv } else { uv - across };
+                let dy = if y % 2 == 0 { down - uv } else { uv - down };
+                map.sample(uv, map.lod(dx, dy))
+            }
+            None => Vec3::ONE,
+        };
+        let mut colour = c.as_vec3() * albedo;
+        if let Some(g) = gloss {
+            let dir = view.right * fx + view.up * fy + view.forward;
+            let b = w.map(|x| x / sum);
+            // SH transfer's truncated series can undershoot: radiance stays non-negative.
+            colour = (colour + g.shade(tri, b, -dir.normalize()).as_vec3()).max(Vec3::ZERO);
+        }
+        pixels[i] = colour.to_array();
+        coverage[i] = 1.0;
     }
 }
 
@@ -964,15 +1003,25 @@ mod tests {
         }
     }
 
-    #[test]
-    fn the_nearest_hit_wins_whatever_the_order() {
+    /// A 24² camera looking down −z at two square quads, a large one at z = 0 (vertices 0–3)
+    /// and a small one in front of it at z = 0.5 (vertices 4–7), each as two triangles.
+    fn two_quads() -> (Camera, Vec<Vec3>, [[u32; 3]; 2], [[u32; 3]; 2]) {
         let cam = camera(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 24, 24);
         let quad =
             |z: f32, s: f32| [(-s, -s), (s, -s), (s, s), (-s, s)].map(|(x, y)| Vec3::new(x, y, z));
         let positions: Vec<Vec3> = quad(0.0, 1.0).into_iter().chain(quad(0.5, 0.5)).collect();
+        (
+            cam,
+            positions,
+            [[0, 1, 2], [0, 2, 3]],
+            [[4, 5, 6], [4, 6, 7]],
+        )
+    }
+
+    #[test]
+    fn the_nearest_hit_wins_whatever_the_order() {
+        let (cam, positions, far, near) = two_quads();
         let colours: Vec<[f32; 3]> = (0..8).map(|i| [(i / 4) as f32 + 1.0; 3]).collect();
-        let far = [[0, 1, 2], [0, 2, 3]];
-        let near = [[4, 5, 6], [4, 6, 7]];
         let a = rasterize(&cam, &positions, &[far, near].concat(), &colours).unwrap();
         let b = rasterize(&cam, &positions, &[near, far].concat(), &colours).unwrap();
         assert_eq!(a, b);
@@ -980,6 +1029,37 @@ mod tests {
         assert_eq!(a.image.pixels[12 * 24 + 12], [2.0; 3]);
         assert_eq!(a.image.pixels[5 * 24 + 5], [1.0; 3]);
         assert!(a.image.pixels.iter().filter(|p| p[0] == 2.0).count() > 16);
+    }
+
+    /// A view-dependent light that counts the points it shades and adds the triangle's first
+    /// vertex index.
+    struct Counting(std::sync::atomic::AtomicUsize);
+
+    impl ViewDependent for Counting {
+        fn check(&self, _: usize) -> Result<()> {
+            Ok(())
+        }
+
+        fn shade(&self, tri: [u32; 3], _: [f64; 3], _: DVec3) -> DVec3 {
+            self.0.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            DVec3::splat(tri[0] as f64)
+        }
+    }
+
+    #[test]
+    fn a_pixel_is_shaded_once_by_its_nearest_triangle_whatever_the_order() {
+        let (cam, positions, far, near) = two_quads();
+        let colours = vec![[0.0f32; 3]; 8];
+        for order in [[far, near].concat(), [near, far].concat()] {
+            let gloss = Counting(0.into());
+            let r = rasterize_glossy(&cam, &positions, &order, &colours, None, Some(&gloss), 1)
+                .unwrap();
+            let covered = r.coverage.iter().filter(|&&c| c == 1.0).count();
+            // The far quad drawn first is hidden in the centre: its shading there is not asked.
+            assert_eq!(gloss.0.into_inner(), covered);
+            assert_eq!(r.image.pixels[12 * 24 + 12], [4.0; 3]);
+            assert_eq!(r.image.pixels[5 * 24 + 5], [0.0; 3]);
+        }
     }
 
     #[test]
