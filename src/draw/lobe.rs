@@ -20,7 +20,7 @@ use crate::error::{PrtError, Result};
 use crate::math::cube_pyramid::{CubePyramid, FacePoint};
 use crate::math::cubemap::texel_count;
 use crate::scene::brdf::ggx_half_vector;
-use crate::scene::visibility::Visibility;
+use crate::scene::visibility::{Visibility, open_shares};
 
 /// Lobe directions a pixel takes unless asked otherwise. Against the brute-force integral over
 /// the same texels of a smooth light with half the sky shut (the tests), 32 directions are
@@ -195,9 +195,8 @@ impl<'a> Lobe<'a> {
             let vl = (level + nv.trailing_zeros() as usize)
                 .saturating_sub(nl.trailing_zeros() as usize)
                 .min(nv.trailing_zeros() as usize);
-            let open: f64 = (0..3)
-                .map(|i| b[i] * Visibility::open_share(rows[i], mv, vl) as f64)
-                .sum();
+            let shares = open_shares(rows, mv, vl);
+            let open: f64 = (0..3).map(|i| b[i] * shares[i] as f64).sum();
             light * open
         };
         let (f, lo) = (x - lo, lo as usize);

@@ -70,6 +70,10 @@ pub struct CubePyramid {
     /// The same nodes' mean radiance, `Σ L Ω / Σ Ω` (0 where `Σ Ω` is), worked out once for
     /// the reads.
     means: Vec<Vec<[f32; 3]>>,
+    /// The means again, each level's nodes face by face in rows (`face · side² + row · side +
+    /// col`), where a node's neighbours along a row and a column are a fixed step away: the
+    /// layout [`CubePyramid::bilinear`] reads.
+    grid: Vec<Vec<[f32; 3]>>,
 }
 
 impl CubePyramid {
@@ -105,7 +109,7 @@ impl CubePyramid {
                 .collect();
             all.push(up);
         }
-        let means = all
+        let means: Vec<Vec<[f32; 3]>> = all
             .iter()
             .map(|level| {
                 level
@@ -120,10 +124,22 @@ impl CubePyramid {
                     .collect()
             })
             .collect();
+        let grid = (0..means.len())
+            .map(|level| {
+                let side = n >> level;
+                (0..texel_count(side))
+                    .map(|i| {
+                        let (face, row, col) = (i / (side * side), (i / side) % side, i % side);
+                        means[level][morton_index(side, face, row, col)]
+                    })
+                    .collect()
+            })
+            .collect();
         Ok(CubePyramid {
             n,
             levels: all,
             means,
+            grid,
         })
     }
 
@@ -145,10 +161,12 @@ impl CubePyramid {
         let side = self.n >> level;
         let axis = |x: f64| {
             let x = ((x + 1.0) * 0.5 * side as f64 - 0.5).clamp(0.0, (side - 1) as f64);
-            let lo = x as usize;
+            let lo = x as i32 as usize;
             (lo, (lo + 1).min(side - 1), (x - lo as f64) as f32)
         };
         let ((c0, c1, fc), (r0, r1, fr)) = (axis(at.s), axis(at.t));
+        let face = &self.grid[level][at.face * side * side..(at.face + 1) * side * side];
+        let (r0, r1) = (r0 * side, r1 * side);
         let mut out = [0.0f32; 3];
         for (row, col, w) in [
             (r0, c0, (1.0 - fr) * (1.0 - fc)),
@@ -156,7 +174,7 @@ impl CubePyramid {
             (r1, c0, fr * (1.0 - fc)),
             (r1, c1, fr * fc),
         ] {
-            let mean = self.means[level][morton_index(side, at.face, row, col)];
+            let mean = face[row + col];
             for (o, v) in out.iter_mut().zip(mean) {
                 *o += w * v;
             }

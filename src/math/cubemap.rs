@@ -87,7 +87,9 @@ pub fn dir_to_cell(n: usize, d: DVec3) -> (usize, usize, usize) {
 /// `face`, each from -1 to 1 ([`dir_to_face_st`]); the last row or column holds 1.
 #[inline]
 pub fn face_st_to_cell(n: usize, face: usize, s: f64, t: f64) -> (usize, usize, usize) {
-    let to_cell = |x: f64| (((x + 1.0) * 0.5 * n as f64) as usize).min(n - 1);
+    // Through i32, whose conversion is one instruction where usize's takes several; the clamp
+    // gives what usize's saturation and the `min` gave, for any x (NaN to 0).
+    let to_cell = |x: f64| (((x + 1.0) * 0.5 * n as f64) as i32).clamp(0, n as i32 - 1) as usize;
     (face, to_cell(t), to_cell(s))
 }
 
@@ -500,6 +502,15 @@ mod tests {
                 assert_eq!(dir_to_texel(n, d), i, "n = {n}, texel {i}");
             }
         }
+    }
+
+    #[test]
+    fn face_positions_past_the_face_or_not_a_number_land_in_its_edge_cells() {
+        assert_eq!(face_st_to_cell(4, 2, -1.0, 1.0), (2, 3, 0));
+        assert_eq!(face_st_to_cell(4, 2, -0.5001, -0.4999), (2, 1, 0));
+        assert_eq!(face_st_to_cell(4, 2, -1.5, 1e12), (2, 3, 0));
+        assert_eq!(face_st_to_cell(4, 2, f64::NAN, f64::INFINITY), (2, 3, 0));
+        assert_eq!(face_st_to_cell(4, 2, f64::NEG_INFINITY, f64::NAN), (2, 0, 0));
     }
 
     #[test]

@@ -165,6 +165,31 @@ impl Visibility {
     }
 }
 
+/// The open shares of the level-`level` node holding Morton index `m` in each of `rows` (1 for
+/// a vertex without bits), as [`Visibility::open_share`] gives each: the node's run and mask
+/// are worked out once for the rows.
+#[inline]
+pub fn open_shares<const K: usize>(rows: &[Option<&[u32]>; K], m: usize, level: usize) -> [f32; K] {
+    let (start, end) = node_run(m, level);
+    let len = end - start;
+    // A power of two, so the product is the exact quotient.
+    let scale = 1.0 / len as f32;
+    if len <= 32 {
+        // Every node of up to 32 bits lies in one word, its run starting at a multiple of its
+        // length.
+        let (word, shift, mask) = (start / 32, start % 32, u32::MAX >> (32 - len));
+        rows.map(|r| r.map_or(1.0, |r| ((r[word] >> shift) & mask).count_ones() as f32 * scale))
+    } else {
+        // A larger node is whole words.
+        rows.map(|r| {
+            r.map_or(1.0, |r| {
+                let ones: u32 = r[start / 32..end / 32].iter().map(|w| w.count_ones()).sum();
+                ones as f32 * scale
+            })
+        })
+    }
+}
+
 /// Set bits of `words` at bit positions `[start, end)`.
 #[inline]
 fn count_ones(words: &[u32], start: usize, end: usize) -> u32 {
@@ -204,6 +229,28 @@ mod tests {
                 assert_eq!(count_ones(&words, a, b) as usize, brute(a, b), "[{a}, {b})");
             }
         }
+    }
+
+    #[test]
+    fn shares_of_several_rows_are_each_rows_share_at_every_level() {
+        // An 8-cube: 384 bits, 12 words a row, levels 0 (one bit) to 3 (64 bits).
+        let n = 8;
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut word = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state as u32
+        };
+        let rows: Vec<Vec<u32>> = (0..2).map(|_| (0..12).map(|_| word()).collect()).collect();
+        let set = [Some(&rows[0][..]), None, Some(&rows[1][..])];
+        for level in 0..4 {
+            for m in 0..texel_count(n) {
+                let each = set.map(|r| Visibility::open_share(r, m, level));
+                assert_eq!(open_shares(&set, m, level), each, "level {level}, texel {m}");
+            }
+        }
+        assert_eq!(open_shares(&[None::<&[u32]>], 0, 3), [1.0]);
     }
 
     #[test]
