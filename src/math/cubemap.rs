@@ -510,7 +510,10 @@ mod tests {
         assert_eq!(face_st_to_cell(4, 2, -0.5001, -0.4999), (2, 1, 0));
         assert_eq!(face_st_to_cell(4, 2, -1.5, 1e12), (2, 3, 0));
         assert_eq!(face_st_to_cell(4, 2, f64::NAN, f64::INFINITY), (2, 3, 0));
-        assert_eq!(face_st_to_cell(4, 2, f64::NEG_INFINITY, f64::NAN), (2, 0, 0));
+        assert_eq!(
+            face_st_to_cell(4, 2, f64::NEG_INFINITY, f64::NAN),
+            (2, 0, 0)
+        );
     }
 
     #[test]

@@ -178,7 +178,11 @@ pub fn open_shares<const K: usize>(rows: &[Option<&[u32]>; K], m: usize, level: 
         // Every node of up to 32 bits lies in one word, its run starting at a multiple of its
         // length.
         let (word, shift, mask) = (start / 32, start % 32, u32::MAX >> (32 - len));
-        rows.map(|r| r.map_or(1.0, |r| ((r[word] >> shift) & mask).count_ones() as f32 * scale))
+        rows.map(|r| {
+            r.map_or(1.0, |r| {
+                ((r[word] >> shift) & mask).count_ones() as f32 * scale
+            })
+        })
     } else {
         // A larger node is whole words.
         rows.map(|r| {
@@ -247,7 +251,11 @@ mod tests {
         for level in 0..4 {
             for m in 0..texel_count(n) {
                 let each = set.map(|r| Visibility::open_share(r, m, level));
-                assert_eq!(open_shares(&set, m, level), each, "level {level}, texel {m}");
+                assert_eq!(
+                    open_shares(&set, m, level),
+                    each,
+                    "level {level}, texel {m}"
+                );
             }
         }
         assert_eq!(open_shares(&[None::<&[u32]>], 0, 3), [1.0]);
