@@ -1003,9 +1003,12 @@ mod tests {
         }
     }
 
+    /// A quad's two triangles.
+    type Quad = [[u32; 3]; 2];
+
     /// A 24² camera looking down −z at two square quads, a large one at z = 0 (vertices 0–3)
     /// and a small one in front of it at z = 0.5 (vertices 4–7), each as two triangles.
-    fn two_quads() -> (Camera, Vec<Vec3>, [[u32; 3]; 2], [[u32; 3]; 2]) {
+    fn two_quads() -> (Camera, Vec<Vec3>, Quad, Quad) {
         let cam = camera(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 24, 24);
         let quad =
             |z: f32, s: f32| [(-s, -s), (s, -s), (s, s), (-s, s)].map(|(x, y)| Vec3::new(x, y, z));
