@@ -82,8 +82,35 @@ pub struct Lobe<'a> {
     pub light: &'a CubePyramid,
     /// Per material, the half vectors of its pattern ([`lobe_pattern`]) for its α (`None` for a
     /// diffuse material).
-    taps: Vec<Option<Vec<Tap>>>,
+    taps: Vec<Option<TapTable>>,
 }
+
+/// The taps of one GGX width, a table a component, so that a pixel's first pass over them (the
+/// half vector turned into the pixel's frame, the direction it reflects the eye to, its weight)
+/// runs several side by side.
+#[derive(Clone, Debug, Default)]
+struct TapTable {
+    /// The half vectors' x, y and z in the frame of the normal.
+    h: [Vec<f32>; 3],
+    /// `D(h) (n·h)` of each.
+    d_nh: Vec<f64>,
+}
+
+impl TapTable {
+    fn of(taps: &[Tap]) -> TapTable {
+        TapTable {
+            h: [0, 1, 2].map(|k| taps.iter().map(|t| t.h[k]).collect()),
+            d_nh: taps.iter().map(|t| t.d_nh).collect(),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.d_nh.len()
+    }
+}
+
+/// Taps a pixel turns at once, in its first pass ([`TapTable`]).
+const TAP_BLOCK: usize = 64;
 
 /// One direction of the pattern for one GGX width: the half vector in the frame of the normal
 /// (x and y along [`Vec3::any_orthonormal_pair`], z the normal), as
@@ -157,7 +184,7 @@ impl<'a> Lobe<'a> {
             .map(|(m, &k)| {
                 visibility
                     .lobe(m)
-                    .map(|(_, alpha)| taps(alpha, &lobe_pattern(k)))
+                    .map(|(_, alpha)| TapTable::of(&taps(alpha, &lobe_pattern(k))))
             })
             .collect();
         Lobe {
@@ -181,7 +208,8 @@ impl<'a> Lobe<'a> {
         let mv = if nv == nl { ml } else { at_l.morton(nv) };
         let top = self.light.levels.len() - 1;
         let x = x.clamp(0.0, top as f64);
-        let lo = x.floor();
+        // x is not negative, so truncation is its floor (without a call to the C library's).
+        let lo = x as usize;
         let at = |level: usize| {
             // The texels are the light itself, constant over each; a coarser node's mean is
             // the light filtered by the node, read about `l` itself.
@@ -199,7 +227,7 @@ impl<'a> Lobe<'a> {
             let open: f64 = (0..3).map(|i| b[i] * shares[i] as f64).sum();
             light * open
         };
-        let (f, lo) = (x - lo, lo as usize);
+        let f = x - lo as f64;
         if f > 0.0 && lo < top {
             at(lo) * (1.0 - f) + at(lo + 1) * f
         } else {
@@ -213,7 +241,7 @@ impl ViewDependent for Lobe<'_> {
     fn check(&self, vertices: usize) -> Result<()> {
         self.visibility
             .check_draw(self.normals.len(), self.materials, vertices)?;
-        if self.taps.iter().flatten().any(Vec::is_empty) {
+        if self.taps.iter().flatten().any(|t| t.len() == 0) {
             return Err(PrtError::invalid(
                 "gloss",
                 "a glossy material without lobe directions",
@@ -249,22 +277,31 @@ impl ViewDependent for Lobe<'_> {
         // A level-0 node's mean solid angle; a level-k node is 4^k of them.
         let texel = 4.0 * std::f64::consts::PI / texel_count(self.light.n) as f64;
         let mut sum = DVec3::ZERO;
-        for tap in taps {
-            let h = t * tap.h.x + s * tap.h.y + n * tap.h.z;
-            let vh = v.dot(h);
-            if vh <= 0.0 {
-                continue;
+        let mut l = [Vec3::ZERO; TAP_BLOCK];
+        let (mut weight, mut vh) = ([0.0f32; TAP_BLOCK], [0.0f32; TAP_BLOCK]);
+        for start in (0..taps.len()).step_by(TAP_BLOCK) {
+            let end = (start + TAP_BLOCK).min(taps.len());
+            let [hx, hy, hz] = [0, 1, 2].map(|k| &taps.h[k][start..end]);
+            // The block's directions side by side; a tap whose half vector faces away from the
+            // eye, or whose direction lies below the surface, weighs nothing.
+            for i in 0..end - start {
+                let h = t * hx[i] + s * hy[i] + n * hz[i];
+                let d = v.dot(h);
+                let li = h * (2.0 * d) - v;
+                let nl = n.dot(li);
+                let w = g1(nl) * g1v * d / (nv * hz[i]);
+                (l[i], vh[i]) = (li, d);
+                weight[i] = if d > 0.0 && nl > 0.0 { w } else { 0.0 };
             }
-            let l = h * (2.0 * vh) - v;
-            let nl = n.dot(l);
-            if nl <= 0.0 {
-                continue;
+            for i in 0..end - start {
+                if weight[i] == 0.0 {
+                    continue;
+                }
+                // The footprint 1 / (M · pdf), pdf = D (n·h) / (4 v·h).
+                let footprint = 4.0 * vh[i] as f64 / (count * taps.d_nh[start + i]);
+                let x = 0.5 * (footprint / texel).log2();
+                sum += self.read(l[i].as_dvec3(), x, &rows, b) * weight[i] as f64;
             }
-            let weight = (g1(nl) * g1v * vh / (nv * tap.h.z)) as f64;
-            // The footprint 1 / (M · pdf), pdf = D (n·h) / (4 v·h).
-            let footprint = 4.0 * vh as f64 / (count * tap.d_nh);
-            let x = 0.5 * (footprint / texel).log2();
-            sum += self.read(l.as_dvec3(), x, &rows, b) * weight;
         }
         specular.as_dvec3() * sum / count
     }
