@@ -157,17 +157,13 @@ impl Visibility {
     /// vertex without bits).
     #[inline]
     pub fn open_share(row: Option<&[u32]>, m: usize, level: usize) -> f32 {
-        let Some(row) = row else {
-            return 1.0;
-        };
-        let (start, end) = node_run(m, level);
-        count_ones(row, start, end) as f32 / (end - start) as f32
+        open_shares(&[row], m, level)[0]
     }
 }
 
 /// The open shares of the level-`level` node holding Morton index `m` in each of `rows` (1 for
-/// a vertex without bits), as [`Visibility::open_share`] gives each: the node's run and mask
-/// are worked out once for the rows.
+/// a vertex without bits; [`Visibility::open_share`] for one row): the node's run and mask are
+/// worked out once for the rows.
 #[inline]
 pub fn open_shares<const K: usize>(rows: &[Option<&[u32]>; K], m: usize, level: usize) -> [f32; K] {
     let (start, end) = node_run(m, level);
@@ -184,13 +180,7 @@ pub fn open_shares<const K: usize>(rows: &[Option<&[u32]>; K], m: usize, level: 
             })
         })
     } else {
-        // A larger node is whole words.
-        rows.map(|r| {
-            r.map_or(1.0, |r| {
-                let ones: u32 = r[start / 32..end / 32].iter().map(|w| w.count_ones()).sum();
-                ones as f32 * scale
-            })
-        })
+        rows.map(|r| r.map_or(1.0, |r| count_ones(r, start, end) as f32 * scale))
     }
 }
 
@@ -236,21 +226,25 @@ mod tests {
     }
 
     #[test]
-    fn shares_of_several_rows_are_each_rows_share_at_every_level() {
+    fn shares_of_one_row_or_several_are_their_bits_counted_at_every_level() {
         // An 8-cube: 384 bits, 12 words a row, levels 0 (one bit) to 3 (64 bits).
         let n = 8;
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut word = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state as u32
-        };
-        let rows: Vec<Vec<u32>> = (0..2).map(|_| (0..12).map(|_| word()).collect()).collect();
+        let mut rng = crate::test_support::Rng::new(7);
+        let rows: Vec<Vec<u32>> = (0..2)
+            .map(|_| (0..12).map(|_| rng.next_u64() as u32).collect())
+            .collect();
         let set = [Some(&rows[0][..]), None, Some(&rows[1][..])];
         for level in 0..4 {
             for m in 0..texel_count(n) {
-                let each = set.map(|r| Visibility::open_share(r, m, level));
+                // Each row's share counted bit by bit.
+                let (start, end) = node_run(m, level);
+                let each = set.map(|r| {
+                    r.map_or(1.0, |r| {
+                        let ones = (start..end).filter(|i| r[i / 32] >> (i % 32) & 1 == 1);
+                        ones.count() as f32 / (end - start) as f32
+                    })
+                });
+                assert_eq!(Visibility::open_share(set[0], m, level), each[0]);
                 assert_eq!(
                     open_shares(&set, m, level),
                     each,
