@@ -170,19 +170,38 @@ pub fn open_shares<const K: usize>(rows: &[Option<&[u32]>; K], m: usize, level: 
     let len = end - start;
     // A power of two, so the product is the exact quotient.
     let scale = 1.0 / len as f32;
+    // A plain loop over the rows: `array::map` goes through a fallible map that the optimiser
+    // does not flatten, and it cost more than the counts themselves.
+    let mut shares = [1.0f32; K];
     if len <= 32 {
         // Every node of up to 32 bits lies in one word, its run starting at a multiple of its
         // length.
         let (word, shift, mask) = (start / 32, start % 32, u32::MAX >> (32 - len));
-        rows.map(|r| {
-            r.map_or(1.0, |r| {
-                ((r[word] >> shift) & mask).count_ones() as f32 * scale
-            })
-        })
+        // Without a bit-count instruction in the portable build, `count_ones` is a dozen
+        // operations: a texel's bit is read as it is, and a node of four by a table of the
+        // sixteen nibbles' counts packed in one word.
+        let count = |bits: u32| match len {
+            1 => bits,
+            4 => (NIBBLE_COUNTS >> (4 * bits)) as u32 & 0xf,
+            _ => bits.count_ones(),
+        };
+        for (share, row) in shares.iter_mut().zip(rows) {
+            if let Some(r) = row {
+                *share = count((r[word] >> shift) & mask) as f32 * scale;
+            }
+        }
     } else {
-        rows.map(|r| r.map_or(1.0, |r| count_ones(r, start, end) as f32 * scale))
+        for (share, row) in shares.iter_mut().zip(rows) {
+            if let Some(r) = row {
+                *share = count_ones(r, start, end) as f32 * scale;
+            }
+        }
     }
+    shares
 }
+
+/// The set bits of each nibble 0 to 15, four bits each from the lowest.
+const NIBBLE_COUNTS: u64 = 0x4332_3221_3221_2110;
 
 /// Set bits of `words` at bit positions `[start, end)`.
 #[inline]
