@@ -30,6 +30,14 @@
 // shares at the matching level, interpolated with the barycentrics, as src/draw/lobe.rs does: the
 // taps, the level choice, the weights and the Morton walk are those of src/draw/lobe.rs and
 // src/math/cube_pyramid.rs, written again here.
+//
+// The local lights the relight lit add their highlights to the lobe, as src/draw/lobe/lights.rs
+// draws them: each lit column's emitter (packed after the pyramid's nodes in binding 8) sampled
+// once for a delta light, or on a 4 x 4 grid with the lobe's own taps that reach it under the
+// power heuristic for a sized one, times the column's weight and the share of the light the
+// triangle's vertices see (stored after the taps in `gloss`), interpolated. The emitters'
+// sampling and hits are those of src/scene/light.rs, the GGX terms those of src/scene/brdf.rs,
+// written again here in f32.
 
 struct View {
     clip_from_world: mat4x4<f32>,
@@ -44,12 +52,13 @@ struct View {
     // its centre, in pixels (y down): the film is shifted by as much, so the hardware's pixel
     // centre is the sample.
     size: vec4<f32>,
-    // The face size of the light's pyramid (0 without a light), then padding.
+    // The face size of the light's pyramid (0 without a light), the lit light columns, where
+    // in `light` their emitters start, and the light columns a vertex keeps a share of.
     pyramid: vec4<u32>,
     // A bake with visibility: its cube's face size, the most taps a material takes, the materials
     // and the words of a vertex's bits; then where in `gloss` the lobes, the bits and each
-    // material's [first tap word, taps] start (each vertex's row, or NO_ROW, is at its index, the
-    // taps after the rows). All zero without visibility.
+    // material's [first tap word, taps] start, and the light shares (each vertex's row, or
+    // NO_ROW, is at its index, the taps after the rows). All zero without visibility.
     lobe: vec4<u32>,
     lobe_at: vec4<u32>,
 };
@@ -73,7 +82,9 @@ struct View {
 // normal's frame and D(h) (n.h), f32 bits), the materials' lobes (specular colour and alpha), and
 // the rows' bits.
 @group(0) @binding(7) var<storage, read> gloss: array<u32>;
-// The light's pyramid: each node's mean radiance, level 0 (the texels, Morton order) first.
+// The light's pyramid: each node's mean radiance, level 0 (the texels, Morton order) first;
+// then LIGHT_VEC4S a lit light column: its weight and kind, then its emitter's fields (see
+// src/draw/gpu/raster.rs, `pack_light`).
 @group(0) @binding(8) var<storage, read> light: array<vec4<f32>>;
 
 const NO_MAP: u32 = 0xffffffffu;
@@ -83,6 +94,10 @@ const VERTEX_WORDS: u32 = 10u;
 const UNORM: f32 = 1.0 / 65535.0;
 // Largest texel coordinate read: past it f32 holds no fraction, and the index must fit an i32.
 const COORD_LIMIT: f32 = 1073741824.0;
+// A lit light column's vec4s in `light`, and the side of a sized light's grid of samples.
+const LIGHT_VEC4S: u32 = 6u;
+const LIGHT_GRID: u32 = 4u;
+const TAU: f32 = 6.283185307179586;
 
 struct Varyings {
     @builtin(position) position: vec4<f32>,
@@ -265,12 +280,9 @@ fn lobe_light(corners: vec3<u32>, bary: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
     let rows = vec3<u32>(gloss[corners.x], gloss[corners.y], gloss[corners.z]);
     let a2 = alpha * alpha;
     let g1v = smith_g1(nv, a2);
-    // The normal's frame as glam's Vec3::any_orthonormal_pair builds it (Duff et al. 2017).
-    let sign = select(1.0, -1.0, (bitcast<u32>(n.z) & 0x80000000u) != 0u);
-    let ka = -1.0 / (sign + n.z);
-    let kb = n.x * n.y * ka;
-    let t = vec3<f32>(1.0 + sign * n.x * n.x * ka, sign * kb, -sign * n.x);
-    let s = vec3<f32>(kb, sign + n.y * n.y * ka, -n.y);
+    let frame = orthonormal_pair(n);
+    let t = frame[0];
+    let s = frame[1];
     // The material's own taps: as many as its lobe's width asks for.
     let first = gloss[view.lobe_at.z + m * 2u];
     let taps = gloss[view.lobe_at.z + m * 2u + 1u];
@@ -298,7 +310,311 @@ fn lobe_light(corners: vec3<u32>, bary: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
         let x = 0.5 * log2(footprint / texel);
         total += lobe_read(l, x, rows, bary) * weight;
     }
-    return specular * total / count;
+    let env = specular * total / count;
+    if view.pyramid.y == 0u {
+        return env;
+    }
+    let p = position_of(corners.x) * bary.x + position_of(corners.y) * bary.y
+        + position_of(corners.z) * bary.z;
+    let here = Surface(p, n, v, a2, nv, g1v, t, s);
+    return env + specular * local_lights(corners, bary, here, first, taps);
+}
+
+// Two unit vectors that make an orthonormal frame with unit n, as glam's
+// Vec3::any_orthonormal_pair builds them (Duff et al. 2017).
+fn orthonormal_pair(n: vec3<f32>) -> array<vec3<f32>, 2> {
+    let sign = select(1.0, -1.0, (bitcast<u32>(n.z) & 0x80000000u) != 0u);
+    let ka = -1.0 / (sign + n.z);
+    let kb = n.x * n.y * ka;
+    return array<vec3<f32>, 2>(
+        vec3<f32>(1.0 + sign * n.x * n.x * ka, sign * kb, -sign * n.x),
+        vec3<f32>(kb, sign + n.y * n.y * ka, -n.y),
+    );
+}
+
+// A point of a glossy triangle seen from the eye: where it is, its unit normal, its unit
+// direction to the eye, alpha squared, n.v, G1(v), and the normal's frame.
+struct Surface {
+    p: vec3<f32>,
+    n: vec3<f32>,
+    v: vec3<f32>,
+    a2: f32,
+    nv: f32,
+    g1v: f32,
+    t: vec3<f32>,
+    s: vec3<f32>,
+};
+
+// A direction towards a light, the light it brings over its density (irradiance at normal
+// incidence for a delta light), its density in solid angle (0 for a delta light), and whether
+// any light comes (src/scene/light.rs, LightSample).
+struct LightSample {
+    dir: vec3<f32>,
+    weight: f32,
+    pdf: f32,
+    ok: bool,
+};
+
+// Vec4 k of lit light column i.
+fn light_vec4(i: u32, k: u32) -> vec4<f32> {
+    return light[view.pyramid.z + i * LIGHT_VEC4S + k];
+}
+
+// pbrt-v4's smoothstep, 0 at a, 1 at b.
+fn smooth_step(a: f32, b: f32, x: f32) -> f32 {
+    if a == b {
+        return select(1.0, 0.0, x < a);
+    }
+    let t = clamp((x - a) / (b - a), 0.0, 1.0);
+    return t * t * (3.0 - 2.0 * t);
+}
+
+// Column i's kind: 0 a point, 1 a spot, 2 a distant light, 3 a quad.
+fn light_kind(i: u32) -> u32 {
+    return bitcast<u32>(light_vec4(i, 0u).w);
+}
+
+// Whether column i is a delta light: a point, a spot or a sun without a disc.
+fn light_is_delta(i: u32) -> bool {
+    let kind = light_kind(i);
+    return kind < 2u || (kind == 2u && light_vec4(i, 3u).w <= 0.0);
+}
+
+// Emitter::sample of column i from p with the uniform numbers u.
+fn light_sample(i: u32, p: vec3<f32>, u: vec2<f32>) -> LightSample {
+    let kind = light_kind(i);
+    let a = light_vec4(i, 1u);
+    let b = light_vec4(i, 2u);
+    let c = light_vec4(i, 3u);
+    let d = light_vec4(i, 4u);
+    let none = LightSample(vec3<f32>(0.0), 0.0, 0.0, false);
+    if kind == 2u {
+        let solid_angle = c.w;
+        if solid_angle <= 0.0 {
+            return LightSample(a.xyz, d.w, 0.0, true);
+        }
+        // Uniform over the disc's cone: 1 - cos uniform in [0, 1 - cos alpha].
+        let w = clamp(u.x, 0.0, 1.0) * (solid_angle / TAU);
+        let cos_t = 1.0 - w;
+        let sin_t = sqrt(max(w * (2.0 - w), 0.0));
+        let phi = TAU * u.y;
+        let frame = orthonormal_pair(a.xyz);
+        let dir = normalize(frame[0] * (sin_t * cos(phi)) + frame[1] * (sin_t * sin(phi))
+            + a.xyz * cos_t);
+        return LightSample(dir, d.w * solid_angle, 1.0 / solid_angle, true);
+    }
+    var q = a.xyz;
+    if kind == 3u {
+        let e0 = light_vec4(i, 3u).xyz;
+        let e1 = light_vec4(i, 4u).xyz;
+        let e2 = light_vec4(i, 5u).xyz;
+        let total = c.w + d.w;
+        if b.w > 0.5 {
+            q = a.xyz + e0 * u.x + e2 * u.y;
+        } else {
+            let split = c.w / total;
+            var ea = e1;
+            var eb = e2;
+            var x = (u.x - split) / (1.0 - split);
+            if u.x < split {
+                ea = e0;
+                eb = e1;
+                x = u.x / split;
+            }
+            let r = sqrt(min(x, 1.0));
+            q = a.xyz + ea * (r * (1.0 - u.y)) + eb * (r * u.y);
+        }
+    }
+    let to = q - p;
+    let r2 = dot(to, to);
+    if r2 <= 0.0 {
+        return none;
+    }
+    let dir = to / sqrt(r2);
+    if kind == 0u {
+        return LightSample(dir, 1.0 / r2, 0.0, true);
+    }
+    if kind == 1u {
+        let fall = smooth_step(b.w, c.w, dot(b.xyz, -dir));
+        return LightSample(dir, fall / r2, 0.0, fall > 0.0);
+    }
+    let cos_light = dot(b.xyz, -dir);
+    if cos_light <= 0.0 {
+        return none;
+    }
+    let pdf = r2 / ((c.w + d.w) * cos_light);
+    return LightSample(dir, 1.0 / pdf, pdf, true);
+}
+
+// Emitter::hit of column i from p along unit dir: (1 where it meets the light, the radiance,
+// the density light_sample would have drawn dir with), zero for a miss or a delta light.
+fn light_hit(i: u32, p: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
+    let kind = light_kind(i);
+    let a = light_vec4(i, 1u);
+    let b = light_vec4(i, 2u);
+    let c = light_vec4(i, 3u);
+    let d = light_vec4(i, 4u);
+    if kind == 2u {
+        let x = cross(dir, a.xyz);
+        let inside = dot(dir, a.xyz) > 0.0 && dot(x, x) <= b.w * b.w;
+        if c.w > 0.0 && inside {
+            return vec3<f32>(1.0, d.w, 1.0 / c.w);
+        }
+        return vec3<f32>(0.0);
+    }
+    if kind != 3u {
+        return vec3<f32>(0.0);
+    }
+    let cos_light = -dot(b.xyz, dir);
+    if cos_light <= 0.0 {
+        return vec3<f32>(0.0);
+    }
+    let t = dot(b.xyz, a.xyz - p) / dot(b.xyz, dir);
+    if !(t > 0.0 && t < 3.0e38) {
+        return vec3<f32>(0.0);
+    }
+    let q = p + dir * t - a.xyz;
+    let e0 = c.xyz;
+    let e1 = d.xyz;
+    let e2 = light_vec4(i, 5u).xyz;
+    if in_triangle(q, e0, e1) || in_triangle(q, e1, e2) {
+        return vec3<f32>(1.0, 1.0, t * t / ((c.w + d.w) * cos_light));
+    }
+    return vec3<f32>(0.0);
+}
+
+// Whether q lies in the triangle (0, a, b) of its plane (barycentric test).
+fn in_triangle(q: vec3<f32>, a: vec3<f32>, b: vec3<f32>) -> bool {
+    let aa = dot(a, a);
+    let ab = dot(a, b);
+    let bb = dot(b, b);
+    let qa = dot(q, a);
+    let qb = dot(q, b);
+    let det = aa * bb - ab * ab;
+    let s = (bb * qa - ab * qb) / det;
+    let r = (aa * qb - ab * qa) / det;
+    return s >= 0.0 && r >= 0.0 && s + r <= 1.0;
+}
+
+// GGX's distribution for a half vector h of any length about unit n (src/scene/brdf.rs): the
+// sine from |n x h|, not 1 - cos^2.
+fn ggx_d(n: vec3<f32>, h: vec3<f32>, a2: f32) -> f32 {
+    let c = dot(n, h);
+    if c <= 0.0 {
+        return 0.0;
+    }
+    let x = cross(n, h);
+    let den = (a2 * c * c + dot(x, x)) / dot(h, h);
+    if den > 0.0 {
+        return a2 / (PI * den * den);
+    }
+    return 0.0;
+}
+
+// f cos of GGX towards unit l at the surface, per unit of specular colour.
+fn ggx_cosine(at: Surface, l: vec3<f32>) -> f32 {
+    let nl = dot(at.n, l);
+    if nl <= 0.0 || at.nv <= 0.0 {
+        return 0.0;
+    }
+    return ggx_d(at.n, l + at.v, at.a2) * smith_g1(nl, at.a2) * at.g1v / (4.0 * at.nv);
+}
+
+// The density of GGX's sampling of unit l at the surface: D (n.h) / (4 v.h).
+fn ggx_pdf(at: Surface, l: vec3<f32>) -> f32 {
+    let h = l + at.v;
+    let len = length(h);
+    if len <= 0.0 || dot(at.n, l) <= 0.0 {
+        return 0.0;
+    }
+    let vh = abs(dot(at.v, h)) / len;
+    let nh = dot(at.n, h) / len;
+    if vh <= 0.0 || nh <= 0.0 {
+        return 0.0;
+    }
+    return ggx_d(at.n, h, at.a2) * nh / (4.0 * vh);
+}
+
+// The power heuristic's weight of a density against another, each times its sample count.
+fn mis(own: f32, other: f32) -> f32 {
+    let a = own * own;
+    let b = other * other;
+    return select(0.0, a / (a + b), a + b > 0.0);
+}
+
+// Vertex v's share of light column col: 1 without a row or a share kept.
+fn light_share(v: u32, col: u32) -> f32 {
+    let row = gloss[v];
+    if row == NO_ROW || col >= view.pyramid.w {
+        return 1.0;
+    }
+    return bitcast<f32>(gloss[view.lobe_at.w + row * view.pyramid.w + col]);
+}
+
+// The lit columns' highlights at the surface point, per unit of specular colour, with the
+// material's taps (from word `first`, `taps` of them).
+fn local_lights(corners: vec3<u32>, bary: vec3<f32>, at: Surface, first: u32, taps: u32)
+    -> vec3<f32> {
+    var sum = vec3<f32>(0.0);
+    for (var i = 0u; i < view.pyramid.y; i++) {
+        let col = bitcast<u32>(light_vec4(i, 1u).w);
+        let share = bary.x * light_share(corners.x, col) + bary.y * light_share(corners.y, col)
+            + bary.z * light_share(corners.z, col);
+        if share <= 0.0 {
+            continue;
+        }
+        var h = 0.0;
+        if light_is_delta(i) {
+            let sample = light_sample(i, at.p, vec2<f32>(0.5));
+            if sample.ok && dot(at.n, sample.dir) > 0.0 {
+                h = ggx_cosine(at, sample.dir) * sample.weight;
+            }
+        } else {
+            h = sized_light(i, at, first, taps);
+        }
+        sum += light_vec4(i, 0u).xyz * (h * share);
+    }
+    return sum;
+}
+
+// The integral of f cos L over sized column i: its grid of samples and the lobe's taps that
+// reach it, under the power heuristic.
+fn sized_light(i: u32, at: Surface, first: u32, taps: u32) -> f32 {
+    let lights = f32(LIGHT_GRID * LIGHT_GRID);
+    let own = f32(taps);
+    var acc = 0.0;
+    for (var k = 0u; k < LIGHT_GRID * LIGHT_GRID; k++) {
+        let u = (vec2<f32>(f32(k % LIGHT_GRID), f32(k / LIGHT_GRID)) + 0.5) / f32(LIGHT_GRID);
+        let sample = light_sample(i, at.p, u);
+        if !sample.ok || dot(at.n, sample.dir) <= 0.0 {
+            continue;
+        }
+        let f = ggx_cosine(at, sample.dir);
+        if f > 0.0 {
+            let brdf = ggx_pdf(at, sample.dir);
+            acc += f * sample.weight * mis(lights * sample.pdf, own * brdf) / lights;
+        }
+    }
+    for (var k = 0u; k < taps; k++) {
+        let o = first + k * 4u;
+        let th = gloss_vec3(o);
+        let d_nh = bitcast<f32>(gloss[o + 3u]);
+        let h = at.t * th.x + at.s * th.y + at.n * th.z;
+        let vh = dot(at.v, h);
+        let l = h * (2.0 * vh) - at.v;
+        let nl = dot(at.n, l);
+        if vh <= 0.0 || nl <= 0.0 {
+            continue;
+        }
+        let hit = light_hit(i, at.p, l);
+        if hit.x == 0.0 {
+            continue;
+        }
+        let weight = smith_g1(nl, at.a2) * at.g1v * vh / (at.nv * th.z);
+        let brdf = d_nh / (4.0 * vh);
+        acc += weight * hit.y * mis(own * brdf, lights * hit.z) / own;
+    }
+    return acc;
 }
 
 fn uv_of(v: u32) -> vec2<f32> {

@@ -174,7 +174,14 @@ fn old_format_files_are_refused_with_a_clear_message() {
         .windows(key.len())
         .position(|w| w == key)
         .expect("the header names its version");
+    // The version's digits become version 2, padded with spaces before it (JSON whitespace) so
+    // that the header keeps its length.
     let mut old = bytes.clone();
+    let digits = wavelet_prt::store::transport::FORMAT_VERSION
+        .to_string()
+        .len();
+    let start = at + key.len() - digits;
+    old[start..at + key.len()].fill(b' ');
     old[at + key.len() - 1] = b'2';
     let q = dir.join("old.prt");
     std::fs::write(&q, &old).unwrap();

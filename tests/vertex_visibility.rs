@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{assets, prt, scene_from, temp_dir};
+use common::{assets, prt, scene_from, temp_dir, visibility_settings as settings};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::draw::vertex::{draw_relit, orbit};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
@@ -14,7 +14,7 @@ use wavelet_prt::math::cubemap::texel_dir;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::{Backend, Cpu, LightContext, RelightRequest, Terms, lobe_light};
 use wavelet_prt::scene::trace::Tracer;
-use wavelet_prt::store::transport::{BakeDomain, Transport};
+use wavelet_prt::store::transport::Transport;
 
 /// The sphere drawn per vertex with its lobe per pixel from a new camera against the path tracer
 /// under the same N = 16 cube light, 64² pixels, each pixel the mean over its area in both:
@@ -51,16 +51,6 @@ fn sphere_on_glossy_ground() -> wavelet_prt::scene::Scene {
     let glossy = "[material.ground]\ntype = \"glossy\"\nalbedo = [0.5, 0.5, 0.5]\n\
                   specular = [0.3, 0.3, 0.3]\nroughness = 0.6";
     scene_from(&text.replace(matte, glossy), "vertex-visibility-mixed")
-}
-
-fn settings(n: usize, edge: f32) -> BakeSettings {
-    BakeSettings {
-        cube_n: n,
-        sh_order: 2,
-        domain: BakeDomain::Vertices { edge_length: edge },
-        visibility: true,
-        ..BakeSettings::default()
-    }
 }
 
 #[test]
@@ -462,19 +452,7 @@ fn the_gpu_draws_the_lobe_as_the_cpu_does() {
                     .unwrap();
                     let gloss = relative_l2(&base.image, &cpu.image, None).unwrap();
                     assert!(gloss > 0.2, "the lobe adds {gloss}");
-                    let brightest = common::brightest(&cpu.image);
-                    let (mut apart, mut worst) = (0, 0.0f32);
-                    for i in 0..cpu.coverage.len() {
-                        let (a, b) = (dev.image.pixels[i], cpu.image.pixels[i]);
-                        let d = (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f32::max);
-                        if dev.coverage[i] != cpu.coverage[i]
-                            || d > GPU_LOBE_OF_BRIGHTEST * brightest
-                        {
-                            apart += 1;
-                        } else {
-                            worst = worst.max(d / brightest);
-                        }
-                    }
+                    let (apart, worst) = common::pixels_apart(&dev, &cpu, GPU_LOBE_OF_BRIGHTEST);
                     eprintln!(
                         "directions {directions:?}, light N = {}, {samples} sample(s), turned {az}°: \
                      {apart} pixels apart, the rest within {worst:.2e} of the brightest, the \

@@ -357,7 +357,8 @@ impl Relighter {
         let t = &self.transport;
         let (image, coverage) = match &camera {
             Some(camera) => {
-                let r = vertex::draw_relit(t, &image, lobe.as_ref(), camera, None, samples)?;
+                let light = (lobe.as_ref(), &lights.weights[..]);
+                let r = vertex::draw_relit_lit(t, &image, light, camera, None, samples)?;
                 (r.image, r.coverage)
             }
             None => (image, t.coverage.clone()),
@@ -473,10 +474,10 @@ impl Relighter {
         let relit = self.relight(env, request, rotation, lights)?;
         let light = self.lobe(Some(env), request, rotation)?;
         let behind = (self.background == Background::Environment).then_some((env.map(), rotation));
-        let raster = vertex::draw_relit(
+        let raster = vertex::draw_relit_lit(
             &self.transport,
             &relit,
-            light.as_ref(),
+            (light.as_ref(), &lights.weights),
             camera,
             behind,
             DRAW_SAMPLES,

@@ -245,13 +245,7 @@ impl Prepared {
         let identity = settings.identity(scene)?;
         let tracer = Tracer::new(scene);
         if let Some(m) = mesh.as_mut().filter(|_| identity.visibility) {
-            let bits = visibility::glossy_vertices(
-                scene,
-                &tracer,
-                m,
-                settings.cube_n,
-                settings.unshadowed,
-            )?;
+            let bits = visibility::glossy_vertices(scene, &tracer, m, settings)?;
             m.visibility = Some(Box::new(bits));
         }
         let (w, h) = image_size(scene, mesh.as_ref());

@@ -128,6 +128,18 @@ pub fn path_trace_from(
     settings: &BakeSettings,
     samples: u32,
 ) -> Result<PathTraced> {
+    path_trace_from_lit(scene, camera, (env, &LightMix::none()), settings, samples)
+}
+
+/// [`path_trace_from`] with the scene's local lights too, each column weighted by `lights`:
+/// the reference of a drawing of a bake relit with them.
+pub fn path_trace_from_lit(
+    scene: &Scene,
+    camera: &crate::scene::Camera,
+    (env, lights): (&dyn EnvLight, &LightMix),
+    settings: &BakeSettings,
+    samples: u32,
+) -> Result<PathTraced> {
     let mut seen = scene.clone();
     seen.camera = camera.clone();
     let spread = samples.clamp(1, MAX_SPP);
@@ -136,14 +148,7 @@ pub fn path_trace_from(
         edge_spp: spread,
         ..settings.clone()
     };
-    let traced = path_trace_env(
-        &seen,
-        env,
-        &LightMix::none(),
-        &settings,
-        samples,
-        &|_, _| {},
-    )?;
+    let traced = path_trace_env(&seen, env, lights, &settings, samples, &|_, _| {})?;
     traced.image.check_finite("path-traced image")?;
     Ok(traced)
 }

@@ -361,7 +361,14 @@ pub fn load_if_baked_with(
     if meta.identity != settings.identity(scene).ok()? {
         return None;
     }
-    Transport::load(path).ok()
+    let t = Transport::load(path).ok()?;
+    // A glossy bake with lights from before the vertices' light shares were kept draws no
+    // highlight of its lights: it is made again.
+    let vis = t.domain.mesh().and_then(|m| m.visibility.as_deref());
+    if vis.is_some_and(|v| v.columns < t.meta.light_columns()) {
+        return None;
+    }
+    Some(t)
 }
 
 /// The transport at `path` when it holds this bake ([`load_if_baked_with`]); otherwise, after

@@ -1,27 +1,35 @@
 //! The visibility bits of a per-vertex bake's glossy vertices ([`Visibility`]): from each such
 //! vertex (its shadow-ray origin, as its rows take it), one ray through the centre of every
 //! texel above its horizon; a bit is set where the ray escapes. Texels below the horizon stay
-//! shut.
+//! shut. Beside the bits, each vertex's visible share of every local light column: one shadow
+//! ray for a delta light, the light's own stratified samples for a sized one, each weighed by
+//! the light it brings.
 
 use rayon::prelude::*;
 
-use super::CentrePackets;
+use super::{BakeSettings, CentrePackets};
 use crate::math::cube_pyramid::morton_of_linear;
 use crate::math::cubemap::texel_dirs;
+use crate::math::sampling::Rng;
 use crate::scene::Scene;
+use crate::scene::light::{Emitter, emitters, stratified};
 use crate::scene::tessellate::VertexMesh;
 use crate::scene::trace::Tracer;
 use crate::scene::visibility::Visibility;
 
-/// The bits of every vertex of `mesh` whose material has a glossy lobe, over an N-cube (every
-/// texel above the horizon open when `unshadowed`, no ray traced).
+/// Salt of the light shares' random streams, apart from every other stream of the bake.
+const SHARE_STREAM: u64 = 0x5a4e_11d7_0b1e_0002;
+
+/// The bits of every vertex of `mesh` whose material has a glossy lobe, over the settings'
+/// N-cube, and its share of each light column (every texel above the horizon open and every
+/// light whole when the settings are unshadowed, no ray traced).
 pub fn glossy_vertices(
     scene: &Scene,
     tracer: &Tracer,
     mesh: &VertexMesh,
-    n: usize,
-    unshadowed: bool,
+    settings: &BakeSettings,
 ) -> crate::error::Result<Visibility> {
+    let (n, unshadowed) = (settings.cube_n, settings.unshadowed);
     let vertices: Vec<u32> = (0..mesh.vertex_count() as u32)
         .filter(|&v| {
             scene
@@ -59,11 +67,64 @@ pub fn glossy_vertices(
         })
         .collect();
     let bits = rows.into_iter().flatten().collect();
+    let lights = emitters(&scene.lights);
+    let shares: Vec<f32> = vertices
+        .par_iter()
+        .flat_map_iter(|&v| {
+            let normal = mesh.normals[v as usize];
+            let origin = mesh.positions[v as usize] + normal * tracer.spawn_offset();
+            let mut rng = Rng::new(settings.seed ^ SHARE_STREAM, v as u64);
+            let samples = settings.light_samples as usize;
+            let shares: Vec<f32> = lights
+                .iter()
+                .map(|e| match unshadowed {
+                    true => 1.0,
+                    false => light_share(tracer, e, origin, samples, &mut rng),
+                })
+                .collect();
+            shares
+        })
+        .collect();
     Visibility::new(
         n,
         mesh.vertex_count(),
         vertices,
         bits,
         Visibility::lobes_of(&scene.materials),
-    )
+    )?
+    .with_light_shares(lights.len(), shares)
+}
+
+/// The share of emitter `e`'s light that reaches `origin`: its samples (one for a delta light,
+/// `samples` stratified for a sized one) weighed by the light each brings, over those not
+/// blocked. 1 where no sample reaches the point (outside a spot's cone, behind a quad): a
+/// highlight is then dark for want of light, not of sight.
+fn light_share(
+    tracer: &Tracer,
+    e: &Emitter,
+    origin: glam::Vec3,
+    samples: usize,
+    rng: &mut Rng,
+) -> f32 {
+    let (mut open, mut all) = (0.0f64, 0.0f64);
+    let mut add = |u: [f32; 2]| {
+        if let Some(s) = e.sample(origin, u) {
+            all += s.weight as f64;
+            if !tracer.occluded(origin, s.dir, s.dist) {
+                open += s.weight as f64;
+            }
+        }
+    };
+    if e.is_delta() {
+        add([0.5, 0.5]);
+    } else {
+        for u in stratified(samples, || rng.next_f32()) {
+            add(u);
+        }
+    }
+    if all > 0.0 {
+        (open / all).clamp(0.0, 1.0) as f32
+    } else {
+        1.0
+    }
 }

@@ -22,6 +22,9 @@ use crate::math::cubemap::texel_count;
 use crate::scene::brdf::ggx_half_vector;
 use crate::scene::visibility::{Visibility, open_shares};
 
+pub mod lights;
+pub use lights::{LitColumn, lit_columns};
+
 /// Lobe directions a pixel takes unless asked otherwise. Against the brute-force integral over
 /// the same texels of a smooth light with half the sky shut (the tests), 32 directions are
 /// within 3.1%, 2.5% and 5.5% at α = 0.04, 0.2 and 0.5, 64 within 1.2%, 2.7% and 2.5%, 128
@@ -83,6 +86,10 @@ pub struct Lobe<'a> {
     /// Per material, the half vectors of its pattern ([`lobe_pattern`]) for its α (`None` for a
     /// diffuse material).
     taps: Vec<Option<TapTable>>,
+    /// Each vertex's position, where local lights are drawn (empty without them).
+    positions: &'a [Vec3],
+    /// The local light columns whose highlights are drawn ([`Lobe::with_lights`]).
+    lights: Vec<LitColumn>,
 }
 
 /// The taps of one GGX width, a table a component, so that a pixel's first pass over them (the
@@ -193,6 +200,18 @@ impl<'a> Lobe<'a> {
             visibility,
             light,
             taps,
+            positions: &[],
+            lights: Vec::new(),
+        }
+    }
+
+    /// The lobe with the highlights of local light columns `lights` too, at the mesh's vertex
+    /// `positions` ([`lights`]).
+    pub fn with_lights(self, positions: &'a [Vec3], lights: Vec<LitColumn>) -> Lobe<'a> {
+        Lobe {
+            positions,
+            lights,
+            ..self
         }
     }
 
@@ -241,6 +260,15 @@ impl ViewDependent for Lobe<'_> {
     fn check(&self, vertices: usize) -> Result<()> {
         self.visibility
             .check_draw(self.normals.len(), self.materials, vertices)?;
+        if !self.lights.is_empty() && self.positions.len() != vertices {
+            return Err(PrtError::invalid(
+                "gloss",
+                format!(
+                    "{} positions for the local lights of {vertices} vertices",
+                    self.positions.len()
+                ),
+            ));
+        }
         if self.taps.iter().flatten().any(|t| t.len() == 0) {
             return Err(PrtError::invalid(
                 "gloss",
@@ -303,7 +331,16 @@ impl ViewDependent for Lobe<'_> {
                 sum += self.read(l[i].as_dvec3(), x, &rows, b) * weight[i] as f64;
             }
         }
-        specular.as_dvec3() * sum / count
+        let env = specular.as_dvec3() * sum / count;
+        if self.lights.is_empty() {
+            return env;
+        }
+        let p = (0..3)
+            .map(|i| self.positions[tri[i] as usize].as_dvec3() * b[i])
+            .sum::<DVec3>()
+            .as_vec3();
+        let at = lights::Surface { p, n, v, alpha };
+        env + specular.as_dvec3() * self.local_lights(tri, b, at, taps)
     }
 }
 

@@ -12,13 +12,14 @@ use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
 use crate::output::film::Image;
 
-use crate::draw::lobe::Lobe;
+use crate::draw::lobe::{Lobe, lit_columns};
 use crate::draw::raster::{Raster, rasterize_glossy};
 use crate::draw::sh_gloss::ShGloss;
 use crate::draw::shading::{Texturing, ViewDependent};
 use crate::math::cube_pyramid::CubePyramid;
 use crate::relight::sh_transfer::ShTransfer;
 use crate::scene::Camera;
+use crate::scene::light::emitters;
 use crate::scene::tessellate::VertexMesh;
 use crate::store::transport::Transport;
 
@@ -245,6 +246,22 @@ pub fn draw_relit(
     behind: Option<(&EnvMap, EnvRotation)>,
     samples: u32,
 ) -> Result<Raster> {
+    draw_relit_lit(t, relit, (light, &[]), camera, behind, samples)
+}
+
+/// [`draw_relit`] with the local lights the relight lit: `lights` is the pyramid of the
+/// environment's light and the weight of each light column
+/// ([`crate::scene::light_mix::LightMix::weights`], empty without local lights). A glossy bake
+/// with visibility draws each lit column's highlight per pixel ([`crate::draw::lobe::lights`]);
+/// the columns' diffuse light is in `relit` already.
+pub fn draw_relit_lit(
+    t: &Transport,
+    relit: &Image,
+    (light, weights): (Option<&CubePyramid>, &[[f32; 3]]),
+    camera: &Camera,
+    behind: Option<(&EnvMap, EnvRotation)>,
+    samples: u32,
+) -> Result<Raster> {
     let mesh = mesh_of(t)?;
     let colours = vertex_colours(t, relit)?;
     if let Some(vis) = &mesh.visibility {
@@ -255,7 +272,9 @@ pub fn draw_relit(
                  the light the relight used",
             )
         })?;
-        let lobe = Lobe::of_widths(&mesh.normals, &mesh.materials, vis, light);
+        let lit = lit_columns(&emitters(&t.meta.lights), weights);
+        let lobe = Lobe::of_widths(&mesh.normals, &mesh.materials, vis, light)
+            .with_lights(&mesh.positions, lit);
         return draw_mesh(mesh, colours, Some(&lobe), camera, behind, samples);
     }
     draw_mesh(mesh, colours, None, camera, behind, samples)

@@ -23,6 +23,12 @@ pub struct Visibility {
     /// Each material's GGX lobe as `[specular r, g, b, α]`, all zero for a diffuse material:
     /// what the raster draws the bits with.
     pub lobes: Vec<[f32; 4]>,
+    /// Light columns each row has a visible share of (0 for a bake without local lights, or
+    /// one written before the shares were kept).
+    pub columns: usize,
+    /// Row `r`'s visible share of light column `c`, from 0 to 1, at `r · columns + c`: the part
+    /// of the light a glossy vertex sees, which weighs the light's highlight there.
+    pub light_shares: Vec<f32>,
     /// Each vertex's row, or [`NO_ROW`] (built from `vertices`).
     rows: Vec<u32>,
 }
@@ -106,8 +112,46 @@ impl Visibility {
             vertices,
             bits,
             lobes,
+            columns: 0,
+            light_shares: Vec::new(),
             rows,
         })
+    }
+
+    /// These bits with each row's visible share of each of `columns` light columns
+    /// ([`Visibility::light_shares`]), checked: as many as rows times columns, each in [0, 1].
+    pub fn with_light_shares(mut self, columns: usize, shares: Vec<f32>) -> Result<Visibility> {
+        if self.vertices.len().checked_mul(columns) != Some(shares.len()) {
+            return Err(PrtError::invalid(
+                "visibility light shares",
+                format!(
+                    "{} shares for {} vertices of {columns} light columns each",
+                    shares.len(),
+                    self.vertices.len()
+                ),
+            ));
+        }
+        if let Some(i) = shares.iter().position(|v| !(0.0..=1.0).contains(v)) {
+            return Err(PrtError::invalid(
+                format!("visibility light share {i}"),
+                format!("{}: a share of a light from 0 to 1", shares[i]),
+            ));
+        }
+        self.columns = columns;
+        self.light_shares = shares;
+        Ok(self)
+    }
+
+    /// The visible share of light column `column` from vertex `v`: 1 for a vertex without a
+    /// row, or for bits without the shares.
+    #[inline]
+    pub fn light_share(&self, v: usize, column: usize) -> f32 {
+        match self.row_index(v) {
+            Some(r) if column < self.columns => {
+                self.light_shares[r as usize * self.columns + column]
+            }
+            _ => 1.0,
+        }
     }
 
     /// Vertices of the mesh these were made for.

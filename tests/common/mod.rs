@@ -274,9 +274,42 @@ pub fn per_vertex_transport_path() -> PathBuf {
     .clone()
 }
 
+/// A per-vertex bake with visibility over an N-cube, triangles of about `edge` a side.
+pub fn visibility_settings(n: usize, edge: f32) -> wavelet_prt::bake::BakeSettings {
+    wavelet_prt::bake::BakeSettings {
+        cube_n: n,
+        sh_order: 2,
+        domain: wavelet_prt::store::transport::BakeDomain::Vertices { edge_length: edge },
+        visibility: true,
+        ..wavelet_prt::bake::BakeSettings::default()
+    }
+}
+
 /// The brightest channel of any pixel of `image`.
 pub fn brightest(image: &wavelet_prt::output::film::Image) -> f32 {
     image.pixels.iter().flatten().fold(0.0f32, |a, b| a.max(*b))
+}
+
+/// The pixels of a GPU drawing `dev` that differ from the CPU's `cpu` in coverage or by more
+/// than `of_brightest` of the CPU's brightest value in a channel, and the largest difference of
+/// the rest as a share of the brightest.
+pub fn pixels_apart(
+    dev: &wavelet_prt::draw::raster::Raster,
+    cpu: &wavelet_prt::draw::raster::Raster,
+    of_brightest: f32,
+) -> (usize, f32) {
+    let brightest = brightest(&cpu.image);
+    let (mut apart, mut worst) = (0, 0.0f32);
+    for i in 0..cpu.coverage.len() {
+        let (a, b) = (dev.image.pixels[i], cpu.image.pixels[i]);
+        let d = (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f32::max);
+        if dev.coverage[i] != cpu.coverage[i] || d > of_brightest * brightest {
+            apart += 1;
+        } else {
+            worst = worst.max(d / brightest);
+        }
+    }
+    (apart, worst)
 }
 
 /// A GPU for the tests: `None` (after printing why) when no adapter exists, unless

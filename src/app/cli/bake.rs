@@ -203,8 +203,10 @@ fn say_glossy_choice(scene: &crate::scene::Scene, settings: &BakeSettings) {
         );
         if !scene.lights.is_empty() {
             eprintln!(
-                "warning: the local lights' columns are diffuse at every vertex; the lobe per \
-                 pixel takes the environment's light alone"
+                "the local lights' columns are diffuse at every vertex; each glossy vertex \
+                 keeps the share of each light it sees ({} bytes a vertex), and their \
+                 highlights are drawn per pixel",
+                4 * crate::scene::light::emitters(&scene.lights).len()
             );
         }
     } else {

@@ -265,7 +265,8 @@ pub(super) fn relight_cmd(a: RelightArgs) -> Result<()> {
     let (img, coverage) = match &still {
         Some(camera) => {
             let light = crate::relight::lobe_light(&t, &ctx, prepared.as_ref(), &req)?;
-            let r = draw_still(&t, &img, light.as_ref(), camera, gpu.as_ref(), &a)?;
+            let light = (light.as_ref(), &mix.weights[..]);
+            let r = draw_still(&t, &img, light, camera, gpu.as_ref(), &a)?;
             drawn = format!(
                 ", drawn {}x{} ({} sample(s) a pixel{}) in {:.1} ms",
                 camera.width,
@@ -530,12 +531,12 @@ fn relight_on_gpu(
 }
 
 /// Draws a per-vertex bake's relit image `img` from `camera`, with `light` (the pyramid a bake
-/// with visibility draws its glossy light from), on `gpu` where it can: with what was drawn
-/// beyond the diffuse base, for the command's line.
+/// with visibility draws its glossy light from, and the local light columns' weights), on `gpu`
+/// where it can: with what was drawn beyond the diffuse base, for the command's line.
 fn draw_still(
     t: &crate::store::transport::Transport,
     img: &crate::output::film::Image,
-    light: Option<&crate::math::cube_pyramid::CubePyramid>,
+    (light, weights): (Option<&crate::math::cube_pyramid::CubePyramid>, &[[f32; 3]]),
     camera: &crate::scene::Camera,
     gpu: Option<&crate::relight::gpu::Gpu>,
     a: &RelightArgs,
@@ -560,7 +561,10 @@ fn draw_still(
         None => String::new(),
     };
     let r = match gpu {
-        None => crate::draw::vertex::draw_relit(t, img, light, camera, None, a.samples)?,
+        None => {
+            let lights = (light, weights);
+            crate::draw::vertex::draw_relit_lit(t, img, lights, camera, None, a.samples)?
+        }
         Some(gpu) => {
             use crate::draw::gpu::raster::{GpuMesh, GpuRaster, upload_colours};
             // A vertex's colour is its pixel of the relit image.
@@ -569,6 +573,8 @@ fn draw_still(
             let c = upload_colours(gpu, pixels)?;
             let mut raster = GpuRaster::multisampled(gpu, a.samples)?;
             raster.set_light(gpu, light)?;
+            let emitters = crate::scene::light::emitters(&t.meta.lights);
+            raster.set_lights(gpu, &crate::draw::lobe::lit_columns(&emitters, weights))?;
             raster.draw(gpu, camera, &m, &c)?
         }
     };

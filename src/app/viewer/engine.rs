@@ -378,7 +378,10 @@ impl Engine {
             (Some((_, transfer)), Some(light)) => {
                 vertex::draw_sh_glossy(t, relit, light, transfer, camera, None, samples)
             }
-            _ => vertex::draw_relit(t, relit, lobe, camera, None, samples),
+            _ => {
+                let mix = state.lights.mix(&t.meta.lights)?;
+                vertex::draw_relit_lit(t, relit, (lobe, &mix.weights), camera, None, samples)
+            }
         }
     }
 

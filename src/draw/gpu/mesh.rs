@@ -51,8 +51,9 @@ impl<'a> GlossMesh<'a> {
 
 /// Where the lobe's tables sit in the gloss buffer and their shape, as the shader's view
 /// uniform takes them: `[visibility N, the most taps a material takes, materials, words a
-/// row]`, then the offsets of the lobes, the bits and each material's `[first tap word, taps]`
-/// (the vertices' rows start at 0, the taps follow them), and 0. All zero without visibility.
+/// row]`, then the offsets of the lobes, the bits, each material's `[first tap word, taps]` and
+/// the rows' light shares (the vertices' rows start at 0, the taps follow them). All zero
+/// without visibility.
 pub(super) type LobeShape = [u32; 8];
 
 /// The gloss buffer's words and their shape for `gloss`: the visibility's vertex rows, lobe
@@ -81,6 +82,8 @@ fn gloss_tables(gloss: Option<&GlossMesh>, vertices: usize) -> (Vec<u32>, LobeSh
             for (f, &count) in first.iter().zip(&counts) {
                 words.extend([*f, count as u32]);
             }
+            let shares_at = words.len() as u32;
+            words.extend(vis.light_shares.iter().map(|x| x.to_bits()));
             let shape = [
                 vis.n as u32,
                 counts.iter().copied().max().unwrap_or(0) as u32,
@@ -89,7 +92,7 @@ fn gloss_tables(gloss: Option<&GlossMesh>, vertices: usize) -> (Vec<u32>, LobeSh
                 lobes_at,
                 bits_at,
                 taps_at,
-                0,
+                shares_at,
             ];
             (words, shape)
         }
@@ -112,6 +115,8 @@ pub struct GpuMesh {
     pub(super) gloss: wgpu::Buffer,
     /// The lobe's tables in `gloss` where the bake keeps visibility.
     pub(super) lobe_shape: LobeShape,
+    /// Light columns a glossy vertex keeps a share of (0 without).
+    pub(super) light_columns: u32,
 }
 
 /// The shader's map, level and texel tables.
@@ -282,6 +287,7 @@ impl GpuMesh {
             index_count,
             gloss: buffer("raster gloss", bytemuck::cast_slice(&gloss_words)),
             lobe_shape,
+            light_columns: gloss.map_or(0, |g| g.visibility.columns as u32),
         })
     }
 

@@ -19,8 +19,10 @@
 //! CPU) and triangles counter-clockwise in NDC are front faces, which is the CPU's rule that the
 //! right-handed winding normal points at the eye.
 
+use super::lights::{LIGHT_VEC4S, pack_light};
 use super::mesh::TEXEL_BYTES;
 pub use super::mesh::{GpuMesh, upload_colours};
+use crate::draw::lobe::LitColumn;
 use crate::draw::raster::{Frame, Raster, clip_from_world, sample_offsets};
 use crate::error::{PrtError, Result};
 use crate::gpu::GpuDevice as Gpu;
@@ -126,8 +128,13 @@ pub struct GpuRaster {
     resolve: Option<(wgpu::RenderPipeline, wgpu::BindGroupLayout)>,
     targets: Option<Targets>,
     /// The light a lobe is drawn from: its pyramid's face size and each node's mean radiance,
-    /// level after level (one zero entry before [`GpuRaster::set_light`]).
+    /// level after level (one zero entry before [`GpuRaster::set_light`]), then the lit light
+    /// columns ([`GpuRaster::set_lights`]), all in one buffer.
     light: (u32, wgpu::Buffer),
+    /// The pyramid's node means, and the lit columns packed ([`pack_light`]), as the buffer
+    /// holds them.
+    means: Vec<[f32; 4]>,
+    lights: Vec<[f32; 4]>,
 }
 
 impl GpuRaster {
@@ -189,16 +196,52 @@ impl GpuRaster {
             resolve,
             targets: None,
             light,
+            means: vec![[0.0; 4]],
+            lights: Vec::new(),
         })
+    }
+
+    /// Sets the local light columns whose highlights a glossy bake with visibility draws, as
+    /// the relight lit them ([`crate::draw::lobe::lit_columns`]), or none: the GPU twin of
+    /// [`crate::draw::lobe::Lobe::with_lights`].
+    pub fn set_lights(&mut self, gpu: &Gpu, lights: &[LitColumn]) -> Result<()> {
+        let packed: Vec<[f32; 4]> = lights.iter().flat_map(pack_light).collect();
+        let (n, means) = (self.light.0, std::mem::take(&mut self.means));
+        self.fill_light(gpu, n, means, packed)
+    }
+
+    /// The light buffer made of a pyramid of face size `n` (0 for none) with node `means`, then
+    /// the lit columns `lights`: an error where they outgrow one binding.
+    fn fill_light(
+        &mut self,
+        gpu: &Gpu,
+        n: u32,
+        means: Vec<[f32; 4]>,
+        lights: Vec<[f32; 4]>,
+    ) -> Result<()> {
+        let bytes = (means.len() + lights.len()) as u64 * TEXEL_BYTES as u64;
+        if bytes > gpu.max_binding_bytes() {
+            return Err(PrtError::invalid(
+                "light",
+                format!(
+                    "a pyramid and lights of {bytes} bytes; the device binds at most {}",
+                    gpu.max_binding_bytes()
+                ),
+            ));
+        }
+        let all: Vec<[f32; 4]> = means.iter().chain(&lights).copied().collect();
+        self.light = (n, light_buffer(&gpu.device, &all));
+        (self.means, self.lights) = (means, lights);
+        Ok(())
     }
 
     /// Sets the light that the lobes of a bake with visibility are drawn from, as the relight
     /// used it (what [`crate::relight::lobe_light()`] gives), or none. Errors where its nodes
     /// outgrow one binding.
     pub fn set_light(&mut self, gpu: &Gpu, light: Option<&CubePyramid>) -> Result<()> {
+        let lights = std::mem::take(&mut self.lights);
         let Some(p) = light else {
-            self.light = (0, light_buffer(&gpu.device, &[[0.0; 4]]));
-            return Ok(());
+            return self.fill_light(gpu, 0, vec![[0.0; 4]], lights);
         };
         let means: Vec<[f32; 4]> = (0..p.levels.len())
             .flat_map(|level| {
@@ -208,18 +251,7 @@ impl GpuRaster {
                 })
             })
             .collect();
-        let bytes = means.len() as u64 * TEXEL_BYTES as u64;
-        if bytes > gpu.max_binding_bytes() {
-            return Err(PrtError::invalid(
-                "light",
-                format!(
-                    "a pyramid of {bytes} bytes; the device binds at most {}",
-                    gpu.max_binding_bytes()
-                ),
-            ));
-        }
-        self.light = (p.n as u32, light_buffer(&gpu.device, &means));
-        Ok(())
+        self.fill_light(gpu, p.n as u32, means, lights)
     }
 
     /// Draws `mesh` with per-vertex colours read from `colours` (a storage buffer of
@@ -424,7 +456,14 @@ impl GpuRaster {
                 offset[0],
                 offset[1],
             ]);
-            uniform.extend([self.light.0, 0, 0, 0].map(f32::from_bits));
+            let lit = (self.lights.len() / LIGHT_VEC4S) as u32;
+            let pyramid = [
+                self.light.0,
+                lit,
+                self.means.len() as u32,
+                mesh.light_columns,
+            ];
+            uniform.extend(pyramid.map(f32::from_bits));
             uniform.extend(mesh.lobe_shape.map(f32::from_bits));
             debug_assert_eq!(uniform.len() as u64 * 4, VIEW_BYTES);
             gpu.queue

@@ -50,6 +50,7 @@
 //! | `mesh_position`, `mesh_normal`, `mesh_material`, `mesh_triangle` | f32 [V, 3], f32 [V, 3], u32 \[V\], u32 [F, 3] | only per vertex: the mesh ([`VertexMesh`]) |
 //! | `mesh_uv`, `albedo_map`, `albedo_map_material`, `albedo_texel` | f32 [V, 2], u32 [M, 5], u32 [K, 2], u16 [X, 3] | only per vertex with textured materials: each vertex's texture coordinate; per albedo map its width, height, wrap along u and v (0 repeat, 1 mirrored repeat, 2 clamp) and filter (0 linear, 1 nearest); per textured material, the material and its map (materials with the same map share it); the maps' level-0 texels in turn, linear albedo as `q / 65535` ([`crate::scene::albedo_map`]) |
 //! | `visibility_bits`, `visibility_lobe`, `visibility_vertex` | u32 [G, ⌈6N²/32⌉], f32 [M, 4], u32 \[G\] | only per vertex with `per_vertex.visibility`: per glossy vertex (listed, ascending), a bit a cube texel in Morton order, set where the texel is open; each material's GGX lobe (specular RGB, α; zero for a diffuse one) ([`crate::scene::visibility::Visibility`]) |
+//! | `visibility_light` | f32 [G, L] | only per vertex with `per_vertex.visibility` and local lights: per glossy vertex, its visible share of each light column, from 0 to 1, which weighs the light's highlight drawn per pixel |
 //! | `light_value`, `light_scale` | u16 [L, 3, H, W], f32 [L, H] | only with local lights: each light column's RGB response per pixel, as fractions `q / 65535` of a scale per (column, pixel row) ([`LightColumns`]) |
 //!
 //! Version 4 added the local lights (the two `light_` tensors and the metadata's `lights` and
@@ -63,7 +64,9 @@
 //! other strips as zeros (version 7 kept only the strips that hold an entry, and still loads:
 //! a reused bake of it is written again in this version, its strips made anew); version 9 added
 //! the glossy vertices' visibility (the `visibility_` tensors and `per_vertex.visibility`); older
-//! files have none and are read as before; versions 3 to 6
+//! files have none and are read as before; version 10 added `visibility_light`, a version 9
+//! file with lights is drawn without the lights' highlights, and a reused bake of it is made
+//! again; versions 3 to 6
 //! stored it as columns, in (block, coefficient) order, blocks in tile
 //! order: `col_count` (u16 [B, C], each column's entries), `col_scale` (u8 [B, C]), `entry_row`
 //! (u8, each entry's row in its block, increasing within a column) and `entry_value`. They are
@@ -117,10 +120,11 @@ pub const TILE: usize = 16;
 /// Name written in every transport file.
 pub const FORMAT_NAME: &str = container::TRANSPORT.name;
 /// Version of the layout described in this module.
-pub const FORMAT_VERSION: u32 = 9;
+pub const FORMAT_VERSION: u32 = 10;
 /// The oldest version this build reads: versions 3 to 6 store the Haar matrix as columns, which
 /// are made into strips as they load; version 3 has no local lights, versions 3 and 4 no albedo
-/// maps, and versions 3 to 8 no visibility.
+/// maps, versions 3 to 8 no visibility, and versions 3 to 9 no glossy vertex's share of a
+/// local light (drawn without the light's highlight).
 pub const OLDEST_VERSION: u32 = 3;
 /// Largest safetensors header accepted (JSON text), checked before it is read.
 const MAX_HEADER_BYTES: u64 = 1 << 24;

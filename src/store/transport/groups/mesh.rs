@@ -175,19 +175,23 @@ impl ReadGroup for MapTensors {
     }
 }
 
-/// The glossy vertices' visibility: their bits, the materials' lobes and the vertices.
+/// The glossy vertices' visibility: their bits, the materials' lobes and the vertices, and with
+/// local lights (from version 10) each vertex's share of each light column.
 #[derive(Default)]
 pub(in crate::store::transport) struct VisibilityTensors {
     bits: Option<Tensor<u32>>,
     lobe: Option<Tensor<[f32; 4]>>,
     vertex: Option<Tensor<u32>>,
+    light: Option<Tensor<f32>>,
 }
 
 impl VisibilityTensors {
     const BITS: &str = "visibility_bits";
+    const LIGHT: &str = "visibility_light";
     const LOBE: &str = "visibility_lobe";
     const VERTEX: &str = "visibility_vertex";
     pub(super) const NAMES: [&str; 3] = [Self::BITS, Self::LOBE, Self::VERTEX];
+    pub(super) const LIT_NAMES: [&str; 4] = [Self::BITS, Self::LIGHT, Self::LOBE, Self::VERTEX];
 
     /// `mesh` with the visibility read over an `n`-cube (its shapes checked by `expect`), if
     /// any: an error for a visibility without a per-vertex mesh.
@@ -202,6 +206,7 @@ impl VisibilityTensors {
         else {
             return Ok(mesh);
         };
+        let light = self.light;
         let mut mesh = mesh.ok_or_else(|| {
             PrtError::invalid("visibility", "stored for a bake that is not per vertex")
         })?;
@@ -210,19 +215,26 @@ impl VisibilityTensors {
         expect(Self::BITS, &bs, &[g, Visibility::words(n)])?;
         let m = ls.first().copied().unwrap_or(0);
         expect(Self::LOBE, &ls, &[m, 4])?;
-        mesh.visibility = Some(Box::new(Visibility::new(
-            n,
-            mesh.vertex_count(),
-            vertices,
-            bits,
-            lobes,
-        )?));
+        let mut vis = Visibility::new(n, mesh.vertex_count(), vertices, bits, lobes)?;
+        if let Some((shape, shares)) = light {
+            let columns = shape.get(1).copied().unwrap_or(0);
+            expect(Self::LIGHT, &shape, &[g, columns])?;
+            vis = vis.with_light_shares(columns, shares)?;
+        }
+        mesh.visibility = Some(Box::new(vis));
         Ok(Some(mesh))
     }
 
-    /// The tensors of a glossy mesh's visibility, to write.
-    pub(in crate::store::transport) fn write(vis: &Visibility) -> [(&'static str, Out<'_>); 3] {
+    /// The tensors of a glossy mesh's visibility, to write: the light shares where it has light
+    /// columns.
+    pub(in crate::store::transport) fn write(vis: &Visibility) -> Vec<(&'static str, Out<'_>)> {
         let rows = vis.vertices.len();
+        let shares = (vis.columns > 0).then(|| {
+            (
+                Self::LIGHT,
+                Out::new(Dtype::F32, vec![rows, vis.columns], &vis.light_shares),
+            )
+        });
         [
             (
                 Self::BITS,
@@ -237,6 +249,9 @@ impl VisibilityTensors {
                 Out::new(Dtype::U32, vec![rows], &vis.vertices),
             ),
         ]
+        .into_iter()
+        .chain(shares)
+        .collect()
     }
 }
 
@@ -244,6 +259,7 @@ impl ReadGroup for VisibilityTensors {
     fn read(&mut self, name: &str, reader: &mut TensorReader, _: &TransportMeta) -> Result<()> {
         match name {
             Self::BITS => self.bits = Some(reader.read(name, Dtype::U32)?),
+            Self::LIGHT => self.light = Some(reader.read(name, Dtype::F32)?),
             Self::LOBE => self.lobe = Some(reader.read(name, Dtype::F32)?),
             Self::VERTEX => self.vertex = Some(reader.read(name, Dtype::U32)?),
             _ => return Err(not_mine(name)),

@@ -70,6 +70,9 @@ impl Group {
             (_, Group::Matrix) => &MatrixTensors::STRIP_NAMES,
             (_, Group::Mesh) => &MeshTensors::NAMES,
             (_, Group::Maps) => &MapTensors::NAMES,
+            (_, Group::Visibility) if version >= 10 && meta.light_columns() > 0 => {
+                &VisibilityTensors::LIT_NAMES
+            }
             (_, Group::Visibility) => &VisibilityTensors::NAMES,
             (_, Group::Lights) => &LightTensors::NAMES,
         }
