@@ -236,3 +236,27 @@ intensity = 20.0
         }
     }
 }
+
+#[test]
+fn sh_glossy_transfer_keeps_the_lights_highlights() {
+    use wavelet_prt::draw::vertex::draw_sh_glossy;
+    use wavelet_prt::relight::sh_transfer::ShTransfer;
+    let scene = lit_sphere();
+    let n = 8;
+    let t = bake(&scene, &settings(n, 0.3), &|_| {}).unwrap();
+    let mix = LightMix::new(&t.meta.lights, &LightSetting::defaults(&t.meta.lights)).unwrap();
+    let (relit, _) = Cpu(&t).relight_lit(&Terms::dark(), &mix).unwrap();
+    let vis = t.domain.mesh().unwrap().visibility.as_deref().unwrap();
+    let transfer = ShTransfer::new(vis, 4).unwrap();
+    let camera = orbit(&scene.camera, 60.0, 10.0);
+    let light = dark(n);
+    let lit = (&light, &mix.weights[..]);
+    let sh = draw_sh_glossy(&t, &relit, lit, &transfer, &camera, None, 1).unwrap();
+    let lobe = draw_relit_lit(&t, &relit, (Some(&light), &mix.weights), &camera, None, 1).unwrap();
+    let bare = draw_sh_glossy(&t, &relit, (&light, &[]), &transfer, &camera, None, 1).unwrap();
+    // In the dark, SH transfer's glossy light is nothing: what is left is the lights'
+    // highlights, the lobe's own to the bit.
+    assert_eq!(sh.image.pixels, lobe.image.pixels);
+    let added = relative_l2(&bare.image, &sh.image, None).unwrap();
+    assert!(added > 0.5, "the highlights add {added}");
+}

@@ -212,7 +212,7 @@ fn the_sphere_from_a_new_camera_is_near_the_path_tracer_under_the_same_cube() {
         let sh = wavelet_prt::draw::vertex::draw_sh_glossy(
             &t,
             &relit,
-            lobe.as_ref().unwrap(),
+            (lobe.as_ref().unwrap(), &[]),
             &transfer,
             &camera,
             None,

@@ -261,13 +261,9 @@ impl ViewDependent for Lobe<'_> {
         self.visibility
             .check_draw(self.normals.len(), self.materials, vertices)?;
         if !self.lights.is_empty() && self.positions.len() != vertices {
-            return Err(PrtError::invalid(
-                "gloss",
-                format!(
-                    "{} positions for the local lights of {vertices} vertices",
-                    self.positions.len()
-                ),
-            ));
+            let positions = self.positions.len();
+            let why = format!("{positions} positions for the local lights of {vertices} vertices");
+            return Err(PrtError::invalid("gloss", why));
         }
         if self.taps.iter().flatten().any(|t| t.len() == 0) {
             return Err(PrtError::invalid(
@@ -282,20 +278,17 @@ impl ViewDependent for Lobe<'_> {
     /// each tap's direction `l = 2 (v·h) h − v` weighed by `f cos / pdf`, which for GGX is
     /// `G1(l) G1(v) (v·h) / ((n·v) (n·h))`.
     fn shade(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> DVec3 {
-        let m = self.materials[tri[0] as usize];
-        let (Some((specular, alpha)), Some(Some(taps))) =
-            (self.visibility.lobe(m), self.taps.get(m as usize))
+        let Some(Point {
+            specular,
+            alpha,
+            taps,
+            n,
+            v,
+            nv,
+        }) = self.point(tri, b, to_eye)
         else {
             return DVec3::ZERO;
         };
-        let Some(n) = interpolated_normal(self.normals, tri, b) else {
-            return DVec3::ZERO;
-        };
-        let (n, v) = (n.as_vec3(), to_eye.as_vec3());
-        let nv = n.dot(v);
-        if nv <= 0.0 {
-            return DVec3::ZERO;
-        }
         let rows = tri.map(|v| self.visibility.row(v as usize));
         let a2 = alpha * alpha;
         let g1 = |c: f32| 2.0 * c / (c + (a2 + (1.0 - a2) * c * c).sqrt());
@@ -335,12 +328,66 @@ impl ViewDependent for Lobe<'_> {
         if self.lights.is_empty() {
             return env;
         }
-        let p = (0..3)
-            .map(|i| self.positions[tri[i] as usize].as_dvec3() * b[i])
-            .sum::<DVec3>()
-            .as_vec3();
-        let at = lights::Surface { p, n, v, alpha };
-        env + specular.as_dvec3() * self.local_lights(tri, b, at, taps)
+        env + self.shade_lights(tri, b, to_eye)
+    }
+}
+
+/// What the lobe's light at a point of a triangle starts from ([`Lobe::point`]).
+struct Point<'t> {
+    /// The material's specular colour and GGX width, and its taps.
+    specular: Vec3,
+    alpha: f32,
+    taps: &'t TapTable,
+    /// The unit interpolated normal, the unit direction to the eye, and their cosine.
+    n: Vec3,
+    v: Vec3,
+    nv: f32,
+}
+
+impl Lobe<'_> {
+    /// The lobe at a point of triangle `tri` at barycentrics `b` seen along `to_eye`: `None`
+    /// where it has no glossy light (a diffuse material, a normal that vanishes, the eye below
+    /// the surface).
+    #[inline(always)]
+    fn point(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> Option<Point<'_>> {
+        let m = self.materials[tri[0] as usize];
+        let (specular, alpha) = self.visibility.lobe(m)?;
+        let taps = self.taps.get(m as usize)?.as_ref()?;
+        let n = interpolated_normal(self.normals, tri, b)?.as_vec3();
+        let v = to_eye.as_vec3();
+        let nv = n.dot(v);
+        (nv > 0.0).then_some(Point {
+            specular,
+            alpha,
+            taps,
+            n,
+            v,
+            nv,
+        })
+    }
+
+    /// The local lights' highlights alone at a point of triangle `tri` at barycentrics `b`
+    /// seen along `to_eye`, without the environment's lobe: what another glossy method (SH
+    /// glossy transfer) adds them with ([`lights::WithLights`]).
+    pub fn shade_lights(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> DVec3 {
+        match self.point(tri, b, to_eye) {
+            Some(Point {
+                specular,
+                alpha,
+                taps,
+                n,
+                v,
+                ..
+            }) if !self.lights.is_empty() => {
+                let p = (0..3)
+                    .map(|i| self.positions[tri[i] as usize].as_dvec3() * b[i])
+                    .sum::<DVec3>()
+                    .as_vec3();
+                let at = lights::Surface { p, n, v, alpha };
+                specular.as_dvec3() * self.local_lights(tri, b, at, taps)
+            }
+            _ => DVec3::ZERO,
+        }
     }
 }
 

@@ -12,6 +12,7 @@ use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::error::{PrtError, Result};
 use crate::output::film::Image;
 
+use crate::draw::lobe::lights::WithLights;
 use crate::draw::lobe::{Lobe, lit_columns};
 use crate::draw::raster::{Raster, rasterize_glossy};
 use crate::draw::sh_gloss::ShGloss;
@@ -284,11 +285,12 @@ pub fn draw_relit_lit(
 /// light by SH glossy transfer instead of the lobe per pixel: `transfer` (made from the bake's
 /// visibility) takes `light` (the pyramid of the light the relight used), projected on SH, to each
 /// glossy vertex's transferred radiance, which each pixel reflects through its material's lobe
-/// ([`crate::draw::sh_gloss`]). An error for a bake without visibility.
+/// ([`crate::draw::sh_gloss`]); the local light columns of `weights` add their highlights per
+/// pixel as [`draw_relit_lit`] draws them. An error for a bake without visibility.
 pub fn draw_sh_glossy(
     t: &Transport,
     relit: &Image,
-    light: &CubePyramid,
+    (light, weights): (&CubePyramid, &[[f32; 3]]),
     transfer: &ShTransfer,
     camera: &Camera,
     behind: Option<(&EnvMap, EnvRotation)>,
@@ -304,7 +306,17 @@ pub fn draw_sh_glossy(
     })?;
     let colours = vertex_colours(t, relit)?;
     let gloss = ShGloss::new(&mesh.normals, &mesh.materials, vis, transfer, light);
-    draw_mesh(mesh, colours, Some(&gloss), camera, behind, samples)
+    let lit = lit_columns(&emitters(&t.meta.lights), weights);
+    if lit.is_empty() {
+        return draw_mesh(mesh, colours, Some(&gloss), camera, behind, samples);
+    }
+    let lights = Lobe::of_widths(&mesh.normals, &mesh.materials, vis, light)
+        .with_lights(&mesh.positions, lit);
+    let both = WithLights {
+        base: gloss,
+        lights,
+    };
+    draw_mesh(mesh, colours, Some(&both), camera, behind, samples)
 }
 
 /// Draws a per-vertex bake with the given vertex `colours` (one per vertex, its glossy terms

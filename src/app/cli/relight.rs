@@ -552,8 +552,10 @@ fn draw_still(
             );
         }
         let transfer = crate::relight::sh_transfer::ShTransfer::new(vis, order)?;
-        let r =
-            crate::draw::vertex::draw_sh_glossy(t, img, light, &transfer, camera, None, a.samples)?;
+        let lights = (light, weights);
+        let r = crate::draw::vertex::draw_sh_glossy(
+            t, img, lights, &transfer, camera, None, a.samples,
+        )?;
         return Ok((r, format!(", glossy light by SH transfer at order {order}")));
     }
     let what = match &mesh.visibility {

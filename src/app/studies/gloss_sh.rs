@@ -81,7 +81,15 @@ pub fn measure(i: &ShInputs, order: usize, images: &Path) -> Result<ShTransferRo
     let build_seconds = start.elapsed().as_secs_f64();
     let mut error = Vec::new();
     for (c, (cam, (traced, tone))) in i.cameras.iter().zip(i.references).enumerate() {
-        let drawn = draw_sh_glossy(i.t, i.full, i.full_light, &transfer, cam, None, i.samples)?;
+        let drawn = draw_sh_glossy(
+            i.t,
+            i.full,
+            (i.full_light, &[]),
+            &transfer,
+            cam,
+            None,
+            i.samples,
+        )?;
         error.push(relative_l2(&drawn.image, traced, None)?);
         drawn.image.save(
             &images.join(format!(
@@ -109,7 +117,7 @@ pub fn measure(i: &ShInputs, order: usize, images: &Path) -> Result<ShTransferRo
         let (img, _) = Cpu(i.t).relight_terms(&terms)?;
         let pyramid = lobe_light(i.t, i.ctx, Some(i.light), &req)?.expect("visibility");
         let t1 = Instant::now();
-        draw_sh_glossy(i.t, &img, &pyramid, &transfer, &frame_cam, None, 1)?;
+        draw_sh_glossy(i.t, &img, (&pyramid, &[]), &transfer, &frame_cam, None, 1)?;
         relight_ms.push((t1 - t0).as_secs_f64() * 1e3);
         draw_ms.push(t1.elapsed().as_secs_f64() * 1e3);
     }

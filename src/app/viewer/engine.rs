@@ -370,18 +370,17 @@ impl Engine {
         state: &ViewState,
     ) -> Result<Raster> {
         let (t, samples) = (&self.transport, state.draw_samples());
+        let mix = state.lights.mix(&t.meta.lights)?;
         let transfer = self
             .transfer
             .as_ref()
             .filter(|(order, _)| state.display.sh_transfer == Some(*order));
         match (transfer, lobe) {
             (Some((_, transfer)), Some(light)) => {
-                vertex::draw_sh_glossy(t, relit, light, transfer, camera, None, samples)
+                let lights = (light, &mix.weights[..]);
+                vertex::draw_sh_glossy(t, relit, lights, transfer, camera, None, samples)
             }
-            _ => {
-                let mix = state.lights.mix(&t.meta.lights)?;
-                vertex::draw_relit_lit(t, relit, (lobe, &mix.weights), camera, None, samples)
-            }
+            _ => vertex::draw_relit_lit(t, relit, (lobe, &mix.weights), camera, None, samples),
         }
     }
 

@@ -16,6 +16,7 @@
 use glam::{DVec3, Vec3};
 
 use super::{Lobe, TapTable};
+use crate::draw::shading::ViewDependent;
 use crate::scene::brdf::{GgxAt, ggx_pdf};
 use crate::scene::light::Emitter;
 
@@ -47,6 +48,28 @@ pub fn lit_columns(emitters: &[Emitter], weights: &[[f32; 3]]) -> Vec<LitColumn>
             column,
         })
         .collect()
+}
+
+/// Another view-dependent light (SH glossy transfer's) with the local lights' highlights of
+/// `lights` added, so that a glossy method toggled against the lobe keeps the lamps' highlights.
+pub struct WithLights<'a, G> {
+    /// The glossy light of the environment.
+    pub base: G,
+    /// The lobe whose local lights are added ([`Lobe::shade_lights`]).
+    pub lights: Lobe<'a>,
+}
+
+impl<G: ViewDependent> ViewDependent for WithLights<'_, G> {
+    /// Checks both.
+    fn check(&self, vertices: usize) -> crate::error::Result<()> {
+        self.base.check(vertices)?;
+        self.lights.check(vertices)
+    }
+
+    /// The base's light and the local lights' highlights.
+    fn shade(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> DVec3 {
+        self.base.shade(tri, b, to_eye) + self.lights.shade_lights(tri, b, to_eye)
+    }
 }
 
 /// A point of a triangle seen from the eye, as the lobe shades it: where it is, its unit
@@ -146,7 +169,6 @@ fn sized(e: &Emitter, at: Surface, ggx: &GgxAt, taps: &TapTable) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::draw::shading::ViewDependent;
     use crate::math::cube_pyramid::CubePyramid;
     use crate::math::cubemap::CubeMap;
     use crate::scene::brdf::ggx_cosine;
