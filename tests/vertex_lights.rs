@@ -96,6 +96,27 @@ fn each_glossy_vertex_sees_its_share_of_each_light_as_its_shadow_rays_say() {
     let again = back.domain.mesh().unwrap().visibility.as_deref().unwrap();
     assert_eq!(again.columns, vis.columns);
     assert_eq!(again.light_shares, vis.light_shares);
+    // `prt info` says what the glossy vertices keep.
+    let (code, said) = common::prt(&["info", path.to_str().unwrap()]);
+    assert_eq!(code, 0, "{said}");
+    assert!(
+        said.contains("its share of each of the 2 light column(s) (8 bytes)"),
+        "{said}"
+    );
+    // Without the shares (as a file of format version 9 with lights loads), the bake draws but
+    // is not written: its lights' highlights would be lost.
+    let mut old = back;
+    if let wavelet_prt::store::transport::Domain::Mesh(m) = &mut old.domain {
+        let v = m.visibility.as_mut().unwrap();
+        v.columns = 0;
+        v.light_shares.clear();
+    }
+    let e = old.save(&dir.join("old.prt")).unwrap_err().to_string();
+    assert!(
+        e.contains("old.prt") && e.contains("format version 10"),
+        "{e}"
+    );
+    assert!(!dir.join("old.prt").exists());
 }
 
 /// The path tracer of `scene` from `camera` under the local lights of `mix` alone, 1,024 paths a

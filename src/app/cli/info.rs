@@ -36,6 +36,9 @@ pub(super) fn print_info(path: &std::path::Path, m: &crate::store::transport::Tr
                 pv.albedo_maps
             );
         }
+        if id.visibility {
+            print_gloss(path, m);
+        }
     }
     // A per-vertex bake's rows are stored as an image of vertices: its size says nothing a user
     // asks for, and the camera's image size is the still's.
@@ -248,4 +251,26 @@ fn describe_light(l: &crate::scene::Light, samples: u32) -> String {
         l.color.z,
         l.columns()
     )
+}
+
+/// The line of a glossy per-vertex bake with visibility: what its glossy vertices keep, and
+/// whether its local lights' highlights are drawn.
+fn print_gloss(path: &std::path::Path, m: &crate::store::transport::TransportMeta) {
+    let bits = 4 * crate::scene::visibility::Visibility::words(m.identity.cube_n as usize);
+    let columns = m.light_columns();
+    let version = crate::store::transport::read_format_version(path).unwrap_or(0);
+    let kept = format!("each glossy vertex keeps the cube texels it sees ({bits} bytes)");
+    let line = match columns {
+        0 => format!("{kept}: its lobe is drawn per pixel"),
+        _ if version < 10 => format!(
+            "{kept}: its lobe is drawn per pixel; no share of its {columns} light column(s) \
+             (format version {version}): their highlights are not drawn until it is baked again"
+        ),
+        _ => format!(
+            "{kept} and its share of each of the {columns} light column(s) ({} bytes): its lobe \
+             and the lights' highlights are drawn per pixel",
+            4 * columns
+        ),
+    };
+    println!("gloss         {line}");
 }

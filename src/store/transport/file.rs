@@ -104,7 +104,7 @@ impl Transport {
             None => None,
         };
         let mesh = visibility
-            .attach(mesh, meta.identity.cube_n as usize, &expect)
+            .attach(mesh, (meta.identity.cube_n as usize, columns), &expect)
             .map_err(|e| bad(e.to_string()))?;
         // A twin by design of the merge's literal (`assemble.rs`): the struct built whole,
         // where a load and a merge of shards each make one.

@@ -106,6 +106,18 @@ pub(super) fn save_file<'a>(
         tensors.extend(MapTensors::write(mesh, maps));
     }
     if let Some(vis) = tables.mesh.and_then(|m| m.visibility.as_ref()) {
+        if vis.columns != meta.light_columns() {
+            return Err(PrtError::file(
+                path,
+                format!(
+                    "the glossy vertices keep shares of {} light columns, the header has {}: a \
+                     glossy bake with lights from before format version 10 is drawn as it \
+                     loads, but is written only when baked again",
+                    vis.columns,
+                    meta.light_columns()
+                ),
+            ));
+        }
         tensors.extend(VisibilityTensors::write(vis));
     }
     if let Some(mesh) = tables.mesh {

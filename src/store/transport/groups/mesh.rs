@@ -193,12 +193,13 @@ impl VisibilityTensors {
     pub(super) const NAMES: [&str; 3] = [Self::BITS, Self::LOBE, Self::VERTEX];
     pub(super) const LIT_NAMES: [&str; 4] = [Self::BITS, Self::LIGHT, Self::LOBE, Self::VERTEX];
 
-    /// `mesh` with the visibility read over an `n`-cube (its shapes checked by `expect`), if
-    /// any: an error for a visibility without a per-vertex mesh.
+    /// `mesh` with the visibility read over an `n`-cube, with its share of each of the header's
+    /// `columns` light columns where stored (its shapes checked by `expect`), if any: an error
+    /// for a visibility without a per-vertex mesh.
     pub(in crate::store::transport) fn attach(
         self,
         mesh: Option<VertexMesh>,
-        n: usize,
+        (n, columns): (usize, usize),
         expect: ShapeCheck,
     ) -> Result<Option<VertexMesh>> {
         let (Some((bs, bits)), Some((ls, lobes)), Some((vs, vertices))) =
@@ -217,7 +218,6 @@ impl VisibilityTensors {
         expect(Self::LOBE, &ls, &[m, 4])?;
         let mut vis = Visibility::new(n, mesh.vertex_count(), vertices, bits, lobes)?;
         if let Some((shape, shares)) = light {
-            let columns = shape.get(1).copied().unwrap_or(0);
             expect(Self::LIGHT, &shape, &[g, columns])?;
             vis = vis.with_light_shares(columns, shares)?;
         }
