@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import wavelet_prt as wp
-from conftest import run, sky
+from conftest import SCENE, run, sky
 
 
 @pytest.fixture
@@ -99,6 +99,31 @@ def test_a_per_vertex_still_is_the_command_lines_image_bit_for_bit(prt, tmp_path
         "-o", tmp_path / "cli.exr", "--device", "cpu")
     assert img.shape == (30, 40, 3)
     assert np.array_equal(img, wp.read_image(tmp_path / "cli.exr"))
+
+
+def test_a_glossy_per_vertex_still_draws_the_lights_highlights_as_the_command_line(
+        prt, tmp_path):
+    # The sphere made glossy: its vertices keep their visibility and their share of the bulb,
+    # whose highlight each pixel draws.
+    text = SCENE.replace('type = "diffuse"\nalbedo = [0.8, 0.3, 0.2]',
+                         'type = "glossy"\nalbedo = [0.4, 0.15, 0.1]\n'
+                         'specular = [0.5, 0.5, 0.5]\nroughness = 0.2')
+    assert text != SCENE
+    scene = tmp_path / "glossy.toml"
+    scene.write_text(text)
+    t = wp.bake(scene, tmp_path / "g.prt", cube=4, per_vertex=True, edge_length=0.3)
+    view = dict(eye=[2.0, 1.2, 3.0], target=[0, 0.4, 0], width=40, height=30)
+    lit = t.relight("sun:35,60", terms=30, **view)
+    run(prt, "relight", t.path, "--env", "sun:35,60", "--terms", "30", "--eye", "2,1.2,3",
+        "--target", "0,0.4,0", "--width", "40", "--height", "30", "-o", tmp_path / "cli.exr",
+        "--device", "cpu")
+    assert np.array_equal(lit, wp.read_image(tmp_path / "cli.exr"))
+    # The bulb's weight scales its diffuse light and its highlight alike: each step of it adds
+    # as much, and its highlight is part of that.
+    off = t.relight("sun:35,60", terms=30, lights={"bulb": 0}, **view)
+    twice = t.relight("sun:35,60", terms=30, lights={"bulb": 2.0}, **view)
+    assert np.abs(lit - off).max() > 0.0
+    assert np.allclose(twice - lit, lit - off, rtol=1e-4, atol=1e-6)
 
 
 def test_an_array_environment_is_the_same_map_read_from_exr(baked, sky_file):
