@@ -230,7 +230,7 @@ intensity = 20.0
     let light = dark(n);
     let m = GpuMesh::of_bake(&gpu, mesh).unwrap();
     let colours = upload_colours(&gpu, &relit.pixels[..mesh.vertex_count()]).unwrap();
-    let lit = lit_columns(&emitters(&t.meta.lights), &mix.weights);
+    let lit = lit_columns(&t.meta.lights, &mix.weights);
     assert_eq!(lit.len(), 4);
     for samples in [1, 4] {
         let mut raster = GpuRaster::multisampled(&gpu, samples).unwrap();

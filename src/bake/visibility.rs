@@ -75,14 +75,13 @@ pub fn glossy_vertices(
             let origin = mesh.positions[v as usize] + normal * tracer.spawn_offset();
             let mut rng = Rng::new(settings.seed ^ SHARE_STREAM, v as u64);
             let samples = settings.light_samples as usize;
-            let shares: Vec<f32> = lights
+            lights
                 .iter()
                 .map(|e| match unshadowed {
                     true => 1.0,
                     false => light_share(tracer, e, origin, samples, &mut rng),
                 })
-                .collect();
-            shares
+                .collect::<Vec<f32>>()
         })
         .collect();
     Visibility::new(

@@ -215,6 +215,11 @@ impl<'a> Lobe<'a> {
         }
     }
 
+    /// Whether no local light's highlight is drawn.
+    pub fn is_unlit(&self) -> bool {
+        self.lights.is_empty()
+    }
+
     /// `light · open share` about the lobe direction `l` at fractional level `x` (clamped to the
     /// pyramids' levels), between the two levels about it: the light of the texel that holds
     /// `l`, or above the texels bilinear within a level; the open share of the node that holds
@@ -278,17 +283,17 @@ impl ViewDependent for Lobe<'_> {
     /// each tap's direction `l = 2 (v·h) h − v` weighed by `f cos / pdf`, which for GGX is
     /// `G1(l) G1(v) (v·h) / ((n·v) (n·h))`.
     fn shade(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> DVec3 {
-        let Some(Point {
+        let Some(at) = self.point(tri, b, to_eye) else {
+            return DVec3::ZERO;
+        };
+        let Point {
             specular,
             alpha,
             taps,
             n,
             v,
             nv,
-        }) = self.point(tri, b, to_eye)
-        else {
-            return DVec3::ZERO;
-        };
+        } = at;
         let rows = tri.map(|v| self.visibility.row(v as usize));
         let a2 = alpha * alpha;
         let g1 = |c: f32| 2.0 * c / (c + (a2 + (1.0 - a2) * c * c).sqrt());
@@ -328,11 +333,12 @@ impl ViewDependent for Lobe<'_> {
         if self.lights.is_empty() {
             return env;
         }
-        env + self.shade_lights(tri, b, to_eye)
+        env + self.lights_at(&at, tri, b)
     }
 }
 
 /// What the lobe's light at a point of a triangle starts from ([`Lobe::point`]).
+#[derive(Clone, Copy)]
 struct Point<'t> {
     /// The material's specular colour and GGX width, and its taps.
     specular: Vec3,
@@ -371,23 +377,24 @@ impl Lobe<'_> {
     /// glossy transfer) adds them with ([`lights::WithLights`]).
     pub fn shade_lights(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> DVec3 {
         match self.point(tri, b, to_eye) {
-            Some(Point {
-                specular,
-                alpha,
-                taps,
-                n,
-                v,
-                ..
-            }) if !self.lights.is_empty() => {
-                let p = (0..3)
-                    .map(|i| self.positions[tri[i] as usize].as_dvec3() * b[i])
-                    .sum::<DVec3>()
-                    .as_vec3();
-                let at = lights::Surface { p, n, v, alpha };
-                specular.as_dvec3() * self.local_lights(tri, b, at, taps)
-            }
+            Some(at) if !self.lights.is_empty() => self.lights_at(&at, tri, b),
             _ => DVec3::ZERO,
         }
+    }
+
+    /// The local lights' highlights at point `at` of triangle `tri` (barycentrics `b`).
+    fn lights_at(&self, at: &Point, tri: [u32; 3], b: [f64; 3]) -> DVec3 {
+        let p = (0..3)
+            .map(|i| self.positions[tri[i] as usize].as_dvec3() * b[i])
+            .sum::<DVec3>()
+            .as_vec3();
+        let surface = lights::Surface {
+            p,
+            n: at.n,
+            v: at.v,
+            alpha: at.alpha,
+        };
+        at.specular.as_dvec3() * self.local_lights(tri, b, surface, at.taps)
     }
 }
 

@@ -20,8 +20,8 @@ use crate::draw::shading::{Texturing, ViewDependent};
 use crate::math::cube_pyramid::CubePyramid;
 use crate::relight::sh_transfer::ShTransfer;
 use crate::scene::Camera;
-use crate::scene::light::emitters;
 use crate::scene::tessellate::VertexMesh;
+use crate::scene::visibility::Visibility;
 use crate::store::transport::Transport;
 
 /// The mesh of a per-vertex bake, or an error saying that the file is a fixed view.
@@ -273,9 +273,7 @@ pub fn draw_relit_lit(
                  the light the relight used",
             )
         })?;
-        let lit = lit_columns(&emitters(&t.meta.lights), weights);
-        let lobe = Lobe::of_widths(&mesh.normals, &mesh.materials, vis, light)
-            .with_lights(&mesh.positions, lit);
+        let lobe = lit_lobe(t, mesh, (vis, light), weights);
         return draw_mesh(mesh, colours, Some(&lobe), camera, behind, samples);
     }
     draw_mesh(mesh, colours, None, camera, behind, samples)
@@ -306,17 +304,27 @@ pub fn draw_sh_glossy(
     })?;
     let colours = vertex_colours(t, relit)?;
     let gloss = ShGloss::new(&mesh.normals, &mesh.materials, vis, transfer, light);
-    let lit = lit_columns(&emitters(&t.meta.lights), weights);
-    if lit.is_empty() {
+    let lights = lit_lobe(t, mesh, (vis, light), weights);
+    if lights.is_unlit() {
         return draw_mesh(mesh, colours, Some(&gloss), camera, behind, samples);
     }
-    let lights = Lobe::of_widths(&mesh.normals, &mesh.materials, vis, light)
-        .with_lights(&mesh.positions, lit);
     let both = WithLights {
         base: gloss,
         lights,
     };
     draw_mesh(mesh, colours, Some(&both), camera, behind, samples)
+}
+
+/// The lobe of `mesh`'s glossy vertices (`vis`) under `light`, with the highlights of the light
+/// columns of `t` that `weights` lights.
+fn lit_lobe<'a>(
+    t: &Transport,
+    mesh: &'a VertexMesh,
+    (vis, light): (&'a Visibility, &'a CubePyramid),
+    weights: &[[f32; 3]],
+) -> Lobe<'a> {
+    let lit = lit_columns(&t.meta.lights, weights);
+    Lobe::of_widths(&mesh.normals, &mesh.materials, vis, light).with_lights(&mesh.positions, lit)
 }
 
 /// Draws a per-vertex bake with the given vertex `colours` (one per vertex, its glossy terms

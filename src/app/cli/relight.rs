@@ -575,8 +575,10 @@ fn draw_still(
             let c = upload_colours(gpu, pixels)?;
             let mut raster = GpuRaster::multisampled(gpu, a.samples)?;
             raster.set_light(gpu, light)?;
-            let emitters = crate::scene::light::emitters(&t.meta.lights);
-            raster.set_lights(gpu, &crate::draw::lobe::lit_columns(&emitters, weights))?;
+            raster.set_lights(
+                gpu,
+                &crate::draw::lobe::lit_columns(&t.meta.lights, weights),
+            )?;
             raster.draw(gpu, camera, &m, &c)?
         }
     };

@@ -181,8 +181,7 @@ impl DisplayPath {
                     let env = environment.then_some(&*lit.light);
                     let lobe = crate::relight::lobe_light(t, ctx, env, request)?;
                     mesh.raster.set_light(gpu, lobe.as_ref())?;
-                    let emitters = crate::scene::light::emitters(&t.meta.lights);
-                    let lit = crate::draw::lobe::lit_columns(&emitters, &lights.weights);
+                    let lit = crate::draw::lobe::lit_columns(&t.meta.lights, &lights.weights);
                     mesh.raster.set_lights(gpu, &lit)?;
                 }
                 gt.relight_terms_in_place(gpu, &terms, lights)?;

@@ -17,8 +17,9 @@ use glam::{DVec3, Vec3};
 
 use super::{Lobe, TapTable};
 use crate::draw::shading::ViewDependent;
+use crate::scene::Light;
 use crate::scene::brdf::{GgxAt, ggx_pdf};
-use crate::scene::light::Emitter;
+use crate::scene::light::{Emitter, emitters};
 
 /// Samples of a sized light along each side of its grid.
 pub const LIGHT_GRID: usize = 4;
@@ -35,14 +36,15 @@ pub struct LitColumn {
     pub column: usize,
 }
 
-/// The columns of `emitters` whose `weights` (one per column; fewer are zero) are not zero.
-pub fn lit_columns(emitters: &[Emitter], weights: &[[f32; 3]]) -> Vec<LitColumn> {
-    emitters
-        .iter()
+/// The light columns of `lights` (a bake's, in column order) whose `weights` (one per column;
+/// fewer are zero) are not zero.
+pub fn lit_columns(lights: &[Light], weights: &[[f32; 3]]) -> Vec<LitColumn> {
+    emitters(lights)
+        .into_iter()
         .zip(weights)
         .enumerate()
         .filter(|(_, (_, w))| w.iter().any(|v| *v != 0.0))
-        .map(|(column, (&emitter, &w))| LitColumn {
+        .map(|(column, (emitter, &w))| LitColumn {
             emitter,
             weight: Vec3::from(w),
             column,
@@ -203,7 +205,11 @@ mod tests {
         let vis = open(alpha, share);
         let dark = CubePyramid::new(&CubeMap::constant(N, [0.0; 3]).unwrap()).unwrap();
         let normals = [Vec3::Y; 3];
-        let lit = lit_columns(&[emitter], &[[1.0, 1.0, 1.0]]);
+        let lit = vec![LitColumn {
+            emitter,
+            weight: Vec3::ONE,
+            column: 0,
+        }];
         let lobe = Lobe::of_widths(&normals, &[0, 0, 0], &vis, &dark).with_lights(&POSITIONS, lit);
         lobe.check(3).unwrap();
         lobe.shade([0, 1, 2], CENTRE, to_eye)
