@@ -95,12 +95,15 @@ impl TexelShBasis {
     /// each sum still runs over the texels in order, so a row's values are the same to the bit
     /// as when it is projected alone.
     pub fn project_rows(&self, rows: &[&[f32]]) -> Vec<Vec<f32>> {
+        let arch = pulp::Arch::new();
+        let values = &self.values;
         match self.order * self.order {
-            // The orders a bake takes most: the sums of a row held in registers.
-            16 => project_blocks::<16>(&self.values, rows),
-            25 => project_blocks::<25>(&self.values, rows),
-            36 => project_blocks::<36>(&self.values, rows),
-            49 => project_blocks::<49>(&self.values, rows),
+            // The orders a bake takes most: the sums of a row held in registers, in the widest
+            // vector instructions the machine has.
+            16 => arch.dispatch(ProjectBlocks::<16> { values, rows }),
+            25 => arch.dispatch(ProjectBlocks::<25> { values, rows }),
+            36 => arch.dispatch(ProjectBlocks::<36> { values, rows }),
+            49 => arch.dispatch(ProjectBlocks::<49> { values, rows }),
             count => {
                 let mut out = vec![vec![0.0f32; count]; rows.len()];
                 for (j, y) in self.values.chunks_exact(count).enumerate() {
@@ -119,7 +122,24 @@ impl TexelShBasis {
 /// while each row goes through them.
 const PROJECT_BLOCK: usize = 256;
 
+/// [`TexelShBasis::project_rows`] for `C` values a texel, as a [`pulp::WithSimd`] so that its
+/// loops are compiled for every vector instruction set `pulp` dispatches to.
+struct ProjectBlocks<'a, const C: usize> {
+    values: &'a [f32],
+    rows: &'a [&'a [f32]],
+}
+
+impl<const C: usize> pulp::WithSimd for ProjectBlocks<'_, C> {
+    type Output = Vec<Vec<f32>>;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> Vec<Vec<f32>> {
+        project_blocks::<C>(self.values, self.rows)
+    }
+}
+
 /// [`TexelShBasis::project_rows`] for `C` values a texel.
+#[inline(always)]
 fn project_blocks<const C: usize>(values: &[f32], rows: &[&[f32]]) -> Vec<Vec<f32>> {
     let mut out = vec![[0.0f32; C]; rows.len()];
     for (b, block) in values.chunks(PROJECT_BLOCK * C).enumerate() {

@@ -1,0 +1,102 @@
+//! The vertex rows' fast cases against the general row they stand for.
+
+use std::path::Path;
+
+use super::*;
+use crate::bake::{EdgeMap, medium_light::MediumLight};
+
+/// The Lambertian fast case sums `n·(ω Ω)` where the row sums `(n·ω) Ω`: a few f32 ulps of a
+/// row's largest value.
+const LAMBERT_REASSOCIATED: f32 = 1e-5;
+
+/// The glossy sphere on its matte ground (the scene in the assets) at 32 x 32 pixels, under a
+/// cloud when `cloud`.
+fn scene(cloud: bool) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/glossy_sphere.toml");
+    let mut text = std::fs::read_to_string(&path).unwrap();
+    if cloud {
+        text += "[medium]\ntype = \"cloud\"\nbounds = [[-1.0, 0.8, -1.0], [1.0, 1.6, 1.0]]\n\
+                 resolution = 8\nextinction = 3.0\nalbedo = [0.9, 0.9, 0.9]\ng = 0.3\n\
+                 center = [0.0, 1.2, 0.0]\nradii = [0.9, 0.3, 0.9]\n";
+    }
+    let mut scene = Scene::from_toml_str(&text, &path).unwrap();
+    (scene.camera.width, scene.camera.height) = (32, 32);
+    scene
+}
+
+/// At every surface vertex of two-bounce paths from every pixel, with visibility from the
+/// cache, the rows as `vertex_rows` adds them (the glossy and the Lambertian fast cases) and as
+/// the general `vertex_row` does: the glossy rows equal to the bit, with and without the
+/// transmittance through a medium.
+#[test]
+fn fast_vertex_rows_equal_the_general_row() {
+    for cloud in [false, true] {
+        let scene = scene(cloud);
+        let tracer = Tracer::new(&scene);
+        let settings = BakeSettings {
+            cube_n: 8,
+            bounces: 2,
+            paths: 8,
+            ..BakeSettings::default()
+        };
+        let samples = TexelSamples::new(settings.cube_n, 1, settings.seed);
+        let medium = scene.medium.as_ref().map(|m| m.build(None).unwrap());
+        let light = medium
+            .as_ref()
+            .map(|m| MediumLight::build(m, &tracer, settings.cube_n, true, &|_, _| {}).unwrap());
+        let edges = EdgeMap::new(&scene, &tracer, &settings);
+        let bounces = Bounces::new(&scene, &tracer, &settings, &samples)
+            .with_medium(medium.as_ref().zip(light.as_ref()))
+            .with_cache(&edges, &|_| true, &|_, _| {})
+            .unwrap();
+        let texels = samples.dirs.len();
+        let (mut glossy, mut lambertian) = (0, 0);
+        let cam = &scene.camera;
+        for y in 0..cam.height {
+            for x in 0..cam.width {
+                let ray = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+                let Some(hit) = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY) else {
+                    continue;
+                };
+                let start = shading_point(&tracer, &hit, ray.dir);
+                let stream = (y * cam.width + x) as u64;
+                bounces.walk(&start, stream, &mut |_, _, vertex, throughput| {
+                    let Vertex::Surface(at) = vertex else {
+                        return;
+                    };
+                    let visibility = bounces.visibility(at);
+                    if !matches!(visibility, Visibility::Bits(_)) {
+                        return;
+                    }
+                    let mut fast = [vec![0.0f32; texels], vec![0.0; texels], vec![0.0; texels]];
+                    assert_eq!(bounces.vertex_rows(vertex, throughput, &mut fast), 0);
+                    let mut general = [vec![0.0f32; texels], vec![0.0; texels], vec![0.0; texels]];
+                    let mut add = |j: usize, v: Vec3| {
+                        for (row, v) in general.iter_mut().zip(v.to_array()) {
+                            row[j] += v;
+                        }
+                    };
+                    bounces.vertex_row(at, visibility, throughput, &mut add);
+                    let lit = fast.iter().flatten().any(|&v| v > 0.0);
+                    if at.lobes(&scene).specular != Vec3::ZERO {
+                        glossy += lit as usize;
+                        assert!(fast == general, "cloud {cloud}: a glossy row differs");
+                    } else {
+                        lambertian += lit as usize;
+                        for (f, g) in fast.iter().zip(&general) {
+                            let top = g.iter().fold(0.0f32, |m, &v| m.max(v));
+                            for (a, b) in f.iter().zip(g) {
+                                assert!((a - b).abs() <= LAMBERT_REASSOCIATED * top, "{a} {b}");
+                            }
+                        }
+                    }
+                });
+            }
+        }
+        // Enough lit vertices of both kinds that the comparison means something.
+        assert!(
+            glossy > 20 && lambertian > 20,
+            "{glossy} glossy, {lambertian} matte"
+        );
+    }
+}
