@@ -105,18 +105,12 @@ impl MeshTensors {
     }
 }
 
-impl ReadGroup for MeshTensors {
-    fn read(&mut self, name: &str, reader: &mut TensorReader, _: &TransportMeta) -> Result<()> {
-        match name {
-            Self::MATERIAL => self.material = Some(reader.read(name, Dtype::U32)?),
-            Self::NORMAL => self.normal = Some(reader.read(name, Dtype::F32)?),
-            Self::POSITION => self.position = Some(reader.read(name, Dtype::F32)?),
-            Self::TRIANGLE => self.triangle = Some(reader.read(name, Dtype::U32)?),
-            _ => return Err(not_mine(name)),
-        }
-        Ok(())
-    }
-}
+read_group!(MeshTensors {
+    MATERIAL => material: U32,
+    NORMAL => normal: F32,
+    POSITION => position: F32,
+    TRIANGLE => triangle: U32,
+});
 
 /// A textured mesh's albedo maps: their table, their materials, their texels, and each vertex's
 /// texture coordinate.
@@ -162,18 +156,12 @@ impl MapTensors {
     }
 }
 
-impl ReadGroup for MapTensors {
-    fn read(&mut self, name: &str, reader: &mut TensorReader, _: &TransportMeta) -> Result<()> {
-        match name {
-            Self::TABLE => self.table = Some(reader.read(name, Dtype::U32)?),
-            Self::OWNERS => self.owners = Some(reader.read(name, Dtype::U32)?),
-            Self::TEXELS => self.texels = Some(reader.read(name, Dtype::U16)?),
-            Self::UV => self.uv = Some(reader.read(name, Dtype::F32)?),
-            _ => return Err(not_mine(name)),
-        }
-        Ok(())
-    }
-}
+read_group!(MapTensors {
+    TABLE => table: U32,
+    OWNERS => owners: U32,
+    TEXELS => texels: U16,
+    UV => uv: F32,
+});
 
 /// The glossy vertices' visibility: their bits, the materials' lobes and the vertices, and with
 /// local lights (from version 10) each vertex's share of each light column.
@@ -255,18 +243,12 @@ impl VisibilityTensors {
     }
 }
 
-impl ReadGroup for VisibilityTensors {
-    fn read(&mut self, name: &str, reader: &mut TensorReader, _: &TransportMeta) -> Result<()> {
-        match name {
-            Self::BITS => self.bits = Some(reader.read(name, Dtype::U32)?),
-            Self::LIGHT => self.light = Some(reader.read(name, Dtype::F32)?),
-            Self::LOBE => self.lobe = Some(reader.read(name, Dtype::F32)?),
-            Self::VERTEX => self.vertex = Some(reader.read(name, Dtype::U32)?),
-            _ => return Err(not_mine(name)),
-        }
-        Ok(())
-    }
-}
+read_group!(VisibilityTensors {
+    BITS => bits: U32,
+    LIGHT => light: F32,
+    LOBE => lobe: F32,
+    VERTEX => vertex: U32,
+});
 
 /// Checks a per-vertex mesh's stored values, each error naming its tensor: finite positions,
 /// texture coordinates, finite unit normals, and material indices below the header's material

@@ -7,6 +7,27 @@
 
 use safetensors::tensor::Dtype;
 
+/// A group's [`ReadGroup`] that reads each of its tensors, by name, into its own field, as
+/// stored: `read_group!(Group { NAME => field: Dtype, ... })`.
+macro_rules! read_group {
+    ($group:ty { $($name:ident => $field:ident: $dtype:ident),+ $(,)? }) => {
+        impl ReadGroup for $group {
+            fn read(
+                &mut self,
+                name: &str,
+                reader: &mut TensorReader,
+                _: &TransportMeta,
+            ) -> Result<()> {
+                match name {
+                    $(Self::$name => self.$field = Some(reader.read(name, Dtype::$dtype)?),)+
+                    _ => return Err(not_mine(name)),
+                }
+                Ok(())
+            }
+        }
+    };
+}
+
 mod matrix;
 mod mesh;
 
@@ -182,17 +203,11 @@ impl PixelTensors {
     }
 }
 
-impl ReadGroup for PixelTensors {
-    fn read(&mut self, name: &str, reader: &mut TensorReader, _: &TransportMeta) -> Result<()> {
-        match name {
-            Self::ALBEDO => self.albedo = Some(reader.read(name, Dtype::F32)?),
-            Self::COVERAGE => self.coverage = Some(reader.read(name, Dtype::F32)?),
-            Self::MAGNITUDE => self.magnitude = Some(reader.read(name, Dtype::F32)?),
-            _ => return Err(not_mine(name)),
-        }
-        Ok(())
-    }
-}
+read_group!(PixelTensors {
+    ALBEDO => albedo: F32,
+    COVERAGE => coverage: F32,
+    MAGNITUDE => magnitude: F32,
+});
 
 /// The rows: each row's pixel, weight and scale, where each tile's rows start, and each tile's
 /// statistics.
@@ -238,19 +253,13 @@ impl RowTensors {
     }
 }
 
-impl ReadGroup for RowTensors {
-    fn read(&mut self, name: &str, reader: &mut TensorReader, _: &TransportMeta) -> Result<()> {
-        match name {
-            Self::PIXEL => self.pixel = Some(reader.read(name, Dtype::U32)?),
-            Self::SCALE => self.scale = Some(reader.read(name, Dtype::F32)?),
-            Self::WEIGHT => self.weight = Some(reader.read(name, Dtype::F32)?),
-            Self::TILE_START => self.tile_start = Some(reader.read(name, Dtype::U32)?),
-            Self::TILE_STATS => self.tile_stats = Some(reader.read(name, Dtype::F64)?),
-            _ => return Err(not_mine(name)),
-        }
-        Ok(())
-    }
-}
+read_group!(RowTensors {
+    PIXEL => pixel: U32,
+    SCALE => scale: F32,
+    WEIGHT => weight: F32,
+    TILE_START => tile_start: U32,
+    TILE_STATS => tile_stats: F64,
+});
 
 /// Each row's SH transport.
 #[derive(Default)]
@@ -262,15 +271,9 @@ impl ShTensor {
     pub(super) const NAME: &str = "sh";
 }
 
-impl ReadGroup for ShTensor {
-    fn read(&mut self, name: &str, reader: &mut TensorReader, _: &TransportMeta) -> Result<()> {
-        match name {
-            Self::NAME => self.sh = Some(reader.read(name, Dtype::F32)?),
-            _ => return Err(not_mine(name)),
-        }
-        Ok(())
-    }
-}
+read_group!(ShTensor {
+    NAME => sh: F32,
+});
 
 /// The local lights' columns: a scale per (column, pixel row) and each column's RGB response.
 #[derive(Default)]
@@ -322,13 +325,7 @@ impl LightTensors {
     }
 }
 
-impl ReadGroup for LightTensors {
-    fn read(&mut self, name: &str, reader: &mut TensorReader, _: &TransportMeta) -> Result<()> {
-        match name {
-            Self::SCALE => self.scale = Some(reader.read(name, Dtype::F32)?),
-            Self::VALUE => self.value = Some(reader.read(name, Dtype::U16)?),
-            _ => return Err(not_mine(name)),
-        }
-        Ok(())
-    }
-}
+read_group!(LightTensors {
+    SCALE => scale: F32,
+    VALUE => value: U16,
+});
