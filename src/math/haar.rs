@@ -129,22 +129,25 @@ pub fn forward_face_all<T: HaarValue>(cube: &mut [T], n: usize, scratch: &mut Ve
 
 /// Forward transform of all six faces of a cube (6 N² values in texel order) in place.
 pub fn forward_cube<T: HaarValue>(cube: &mut [T], n: usize) -> Result<()> {
-    validate_n(n)?;
-    check_len(cube.len(), n)?;
-    let mut scratch = Vec::new();
-    for face in cube.chunks_exact_mut(n * n) {
-        forward_face(face, n, &mut scratch);
-    }
-    Ok(())
+    each_face(cube, n, forward_face)
 }
 
 /// Inverse of [`forward_cube`], in place.
 pub fn inverse_cube<T: HaarValue>(cube: &mut [T], n: usize) -> Result<()> {
+    each_face(cube, n, inverse_face)
+}
+
+/// `transform` of each face of a cube of face size `n`, once its size and length are checked.
+fn each_face<T: HaarValue>(
+    cube: &mut [T],
+    n: usize,
+    transform: fn(&mut [T], usize, &mut Vec<T>),
+) -> Result<()> {
     validate_n(n)?;
     check_len(cube.len(), n)?;
     let mut scratch = Vec::new();
     for face in cube.chunks_exact_mut(n * n) {
-        inverse_face(face, n, &mut scratch);
+        transform(face, n, &mut scratch);
     }
     Ok(())
 }

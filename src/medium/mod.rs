@@ -334,20 +334,27 @@ impl Medium {
 
     /// Optical depth along `o + t d` for `t` in `[0, t_max]` (midpoint rule, one-voxel steps).
     pub fn optical_depth(&self, o: Vec3, d: Vec3, t_max: f32) -> f32 {
-        let (lo, hi) = self.grid.support();
-        let Some((t0, t1)) = ray_box(o, d, lo, hi) else {
+        let Some((t0, steps, dt)) = self.steps_along(o, d, t_max, self.shadow_step()) else {
             return 0.0;
         };
-        let t1 = t1.min(t_max);
-        if t1 <= t0 {
-            return 0.0;
-        }
-        let steps = ((t1 - t0) / self.shadow_step()).ceil().max(1.0) as usize;
-        let dt = (t1 - t0) / steps as f32;
         (0..steps)
             .map(|i| self.sigma_t(o + d * (t0 + (i as f32 + 0.5) * dt)))
             .sum::<f32>()
             * dt
+    }
+
+    /// The part of the ray `o + t d`, `t` in `[0, t_max]`, inside the grid's support, cut into
+    /// equal steps no longer than `step`: where it starts, the steps and their length. `None`
+    /// where the ray misses it.
+    fn steps_along(&self, o: Vec3, d: Vec3, t_max: f32, step: f32) -> Option<(f32, usize, f32)> {
+        let (lo, hi) = self.grid.support();
+        let (t0, t1) = ray_box(o, d, lo, hi)?;
+        let t1 = t1.min(t_max);
+        if t1 <= t0 {
+            return None;
+        }
+        let steps = ((t1 - t0) / step).ceil().max(1.0) as usize;
+        Some((t0, steps, (t1 - t0) / steps as f32))
     }
 
     /// Transmittance along `o + t d` for `t` in `[0, t_max]`.
@@ -373,16 +380,9 @@ impl Medium {
         out: &mut Vec<MarchSample>,
     ) -> f32 {
         out.clear();
-        let (lo, hi) = self.grid.support();
-        let Some((t0, t1)) = ray_box(o, d, lo, hi) else {
+        let Some((t0, steps, dt)) = self.steps_along(o, d, t_max, self.camera_step()) else {
             return 1.0;
         };
-        let t1 = t1.min(t_max);
-        if t1 <= t0 {
-            return 1.0;
-        }
-        let steps = ((t1 - t0) / self.camera_step()).ceil().max(1.0) as usize;
-        let dt = (t1 - t0) / steps as f32;
         let mut transmittance = 1.0f32;
         for i in 0..steps {
             let pos = o + d * (t0 + (i as f32 + 0.5) * dt);

@@ -362,6 +362,18 @@ pub struct LightSample {
     pub pdf: f32,
 }
 
+/// The unit direction from `p` to `q`, their distance and its square; `None` where they meet or
+/// their distance is not a number.
+#[inline]
+fn towards(p: Vec3, q: Vec3) -> Option<(Vec3, f32, f32)> {
+    let d = q - p;
+    let r2 = d.length_squared();
+    (r2 > 0.0).then(|| {
+        let dist = r2.sqrt();
+        (d / dist, dist, r2)
+    })
+}
+
 /// pbrt-v4's smoothstep, 0 at `a`, 1 at `b`.
 fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
     if a == b {
@@ -427,16 +439,12 @@ impl Emitter {
     pub fn sample(&self, p: Vec3, u: [f32; 2]) -> Option<LightSample> {
         match *self {
             Emitter::Point { position } => {
-                let d = position - p;
-                let r2 = d.length_squared();
-                (r2 > 0.0).then(|| {
-                    let dist = r2.sqrt();
-                    LightSample {
-                        dir: d / dist,
-                        dist,
-                        weight: 1.0 / r2,
-                        pdf: 0.0,
-                    }
+                let (dir, dist, r2) = towards(p, position)?;
+                Some(LightSample {
+                    dir,
+                    dist,
+                    weight: 1.0 / r2,
+                    pdf: 0.0,
                 })
             }
             Emitter::Spot {
@@ -445,13 +453,7 @@ impl Emitter {
                 cos_outer,
                 cos_inner,
             } => {
-                let d = position - p;
-                let r2 = d.length_squared();
-                if r2 <= 0.0 {
-                    return None;
-                }
-                let dist = r2.sqrt();
-                let dir = d / dist;
+                let (dir, dist, r2) = towards(p, position)?;
                 let fall = smoothstep(cos_outer, cos_inner, axis.dot(-dir));
                 (fall > 0.0).then_some(LightSample {
                     dir,
@@ -511,13 +513,7 @@ impl Emitter {
                     let s = x.min(1.0).sqrt();
                     origin + a * (s * (1.0 - u[1])) + b * (s * u[1])
                 };
-                let d = q - p;
-                let r2 = d.length_squared();
-                if r2 <= 0.0 {
-                    return None;
-                }
-                let dist = r2.sqrt();
-                let dir = d / dist;
+                let (dir, dist, r2) = towards(p, q)?;
                 let cos_light = normal.dot(-dir);
                 if cos_light <= 0.0 {
                     return None;
