@@ -20,12 +20,27 @@ fn load_err(text: &str) -> String {
     err.to_string()
 }
 
+/// [`load_err`] for a scene read from `dir`, whose files it names.
+fn load_err_in(dir: &Path, text: &str) -> String {
+    Scene::from_toml_str(text, &dir.join("scene.toml"))
+        .expect_err("the scene should be rejected")
+        .to_string()
+}
+
 /// The 1-based line of the first line of `text` that contains `needle`.
 fn line_of(text: &str, needle: &str) -> usize {
     text.lines()
         .position(|l| l.contains(needle))
         .unwrap_or_else(|| panic!("`{needle}` not in text"))
         + 1
+}
+
+/// Loading `text` fails with an error that mentions each of `parts` and the line of the first
+/// line of `text` that contains `at`.
+#[track_caller]
+fn assert_rejected_at(text: &str, parts: &[&str], at: &str) {
+    let line = format!(":{}:", line_of(text, at));
+    assert_mentions(&load_err(text), &[parts, &[line.as_str()]].concat());
 }
 
 #[track_caller]
@@ -267,24 +282,19 @@ fn content_hash_tracks_scene_and_obj_bytes() {
 #[test]
 fn malformed_obj_names_file_and_line() {
     let dir = temp_dir("bad-obj");
-    std::fs::write(dir.join("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n").unwrap();
     let text = mesh_scene("m.obj", "");
-    let err = Scene::from_toml_str(&text, &dir.join("scene.toml"))
-        .unwrap_err()
-        .to_string();
-    assert_mentions(&err, &["m.obj", "line 4", "out of range"]);
-
-    std::fs::write(dir.join("m.obj"), "v 0 0 0\nv 1 zero 0\n").unwrap();
-    let err = Scene::from_toml_str(&text, &dir.join("scene.toml"))
-        .unwrap_err()
-        .to_string();
-    assert_mentions(&err, &["m.obj", "line 2", "`zero`"]);
-
-    std::fs::write(dir.join("m.obj"), "v 0 0 0\nv 1 0 0\nf 1 2\n").unwrap();
-    let err = Scene::from_toml_str(&text, &dir.join("scene.toml"))
-        .unwrap_err()
-        .to_string();
-    assert_mentions(&err, &["m.obj", "line 3", "3 corners"]);
+    for (obj, line, problem) in [
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n",
+            "line 4",
+            "out of range",
+        ),
+        ("v 0 0 0\nv 1 zero 0\n", "line 2", "`zero`"),
+        ("v 0 0 0\nv 1 0 0\nf 1 2\n", "line 3", "3 corners"),
+    ] {
+        std::fs::write(dir.join("m.obj"), obj).unwrap();
+        assert_mentions(&load_err_in(&dir, &text), &["m.obj", line, problem]);
+    }
 }
 
 #[test]
@@ -293,9 +303,7 @@ fn mesh_without_triangles_is_rejected() {
     // Only a degenerate face: no triangle with area.
     std::fs::write(dir.join("m.obj"), "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n").unwrap();
     let text = mesh_scene("m.obj", "");
-    let err = Scene::from_toml_str(&text, &dir.join("scene.toml"))
-        .unwrap_err()
-        .to_string();
+    let err = load_err_in(&dir, &text);
     assert_mentions(
         &err,
         &[
@@ -329,25 +337,10 @@ fn unknown_material_names_the_shape_field() {
 #[test]
 fn degenerate_cameras_are_rejected() {
     let eye_is_target = CANONICAL.replace("target = [0.0, 0.5, 0.0]", "target = [0.0, 1.5, 4.0]");
-    let err = load_err(&eye_is_target);
-    assert_mentions(
-        &err,
-        &[
-            "camera.target",
-            &format!(":{}:", line_of(&eye_is_target, "target =")),
-        ],
-    );
+    assert_rejected_at(&eye_is_target, &["camera.target"], "target =");
 
     let up_parallel = CANONICAL.replace("up = [0.0, 1.0, 0.0]", "up = [0.0, -1.0, -4.0]");
-    let err = load_err(&up_parallel);
-    assert_mentions(
-        &err,
-        &[
-            "camera.up",
-            "parallel",
-            &format!(":{}:", line_of(&up_parallel, "up =")),
-        ],
-    );
+    assert_rejected_at(&up_parallel, &["camera.up", "parallel"], "up =");
 
     for fov in ["0.0", "180.0", "-5.0", "nan"] {
         let text = CANONICAL.replace("fov_y_deg = 40.0", &format!("fov_y_deg = {fov}"));
@@ -372,47 +365,20 @@ fn image_size_is_bounded() {
 #[test]
 fn unknown_fields_are_typos() {
     let text = CANONICAL.replace("albedo = [0.8, 0.3, 0.2]", "albdo = [0.8, 0.3, 0.2]");
-    let err = load_err(&text);
-    assert_mentions(
-        &err,
-        &[
-            "material.clay.albdo",
-            &format!(":{}:", line_of(&text, "albdo")),
-        ],
-    );
+    assert_rejected_at(&text, &["material.clay.albdo"], "albdo");
 
     let text = CANONICAL.replace("radius = 0.6", "radius = 0.6\nradus = 0.6");
-    let err = load_err(&text);
-    assert_mentions(
-        &err,
-        &["shape[1].radus", &format!(":{}:", line_of(&text, "radus"))],
-    );
+    assert_rejected_at(&text, &["shape[1].radus"], "radus");
 
     let text = format!("{CANONICAL}\n[fog]\ndensity = 1.0\n");
-    let err = load_err(&text);
-    assert_mentions(&err, &["`fog`", &format!(":{}:", line_of(&text, "[fog]"))]);
+    assert_rejected_at(&text, &["`fog`"], "[fog]");
 
     let text = format!("{CANONICAL}\n[medium]\ndensity = 1.0\n");
-    let err = load_err(&text);
-    assert_mentions(
-        &err,
-        &[
-            "medium.density",
-            &format!(":{}:", line_of(&text, "density")),
-        ],
-    );
+    assert_rejected_at(&text, &["medium.density"], "density");
 
     // A key that exists, but for another shape type.
     let text = CANONICAL.replace("radius = 0.6", "radius = 0.6\nscale = 2.0");
-    let err = load_err(&text);
-    assert_mentions(
-        &err,
-        &[
-            "shape[1].scale",
-            "sphere",
-            &format!(":{}:", line_of(&text, "scale")),
-        ],
-    );
+    assert_rejected_at(&text, &["shape[1].scale", "sphere"], "scale");
 }
 
 #[test]
@@ -461,13 +427,7 @@ fn schema_errors_name_field_and_line() {
 #[test]
 fn bad_numbers_are_rejected() {
     let text = CANONICAL.replace("radius = 0.6", "radius = -0.6");
-    assert_mentions(
-        &load_err(&text),
-        &[
-            "shape[1].radius",
-            &format!(":{}:", line_of(&text, "radius")),
-        ],
-    );
+    assert_rejected_at(&text, &["shape[1].radius"], "radius");
     let text = CANONICAL.replace("radius = 0.6", "radius = 0.0");
     assert_mentions(&load_err(&text), &["shape[1].radius"]);
     let text = CANONICAL.replace("center = [0.0, 0.6, 0.0]", "center = [0.0, inf, 0.0]");
