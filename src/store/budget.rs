@@ -124,17 +124,15 @@ impl Thresholder {
         let kept: Vec<(u32, f32)> = if self.threshold <= 0.0 {
             order.iter().map(|&k| entry(k)).collect()
         } else if self.budget == Budget::Absolute {
-            // Everything below eps goes; the keys are still in coefficient order.
+            // Everything below eps goes; the keys are still in coefficient order, and the kept
+            // list is sized to what stays, as the tile holds it until it is written.
             let eps = self.threshold as f64 * reference_energy.sqrt();
-            let mut kept = Vec::with_capacity(order.len());
-            for &k in order.iter() {
-                let m = magnitude(k) as f64;
-                if m < eps {
-                    dropped += m.powi(2);
-                } else {
-                    kept.push(entry(k));
-                }
+            let stays = |k: u64| magnitude(k) as f64 >= eps;
+            for &k in order.iter().filter(|&&k| !stays(k)) {
+                dropped += (magnitude(k) as f64).powi(2);
             }
+            let mut kept = Vec::with_capacity(order.iter().filter(|&&k| stays(k)).count());
+            kept.extend(order.iter().filter(|&&k| stays(k)).map(|&k| entry(k)));
             kept
         } else {
             let budget = (self.threshold as f64).powi(2) * reference_energy * self.weighted_ratio;

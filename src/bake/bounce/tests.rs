@@ -68,9 +68,10 @@ fn fast_vertex_rows_equal_the_general_row() {
                     if !matches!(visibility, Visibility::Bits(_)) {
                         return;
                     }
-                    let mut fast = [vec![0.0f32; texels], vec![0.0; texels], vec![0.0; texels]];
+                    let zero = || -> [Vec<f32>; 3] { std::array::from_fn(|_| vec![0.0; texels]) };
+                    let mut fast = zero();
                     assert_eq!(bounces.vertex_rows(vertex, throughput, &mut fast), 0);
-                    let mut general = [vec![0.0f32; texels], vec![0.0; texels], vec![0.0; texels]];
+                    let mut general = zero();
                     let mut add = |j: usize, v: Vec3| {
                         for (row, v) in general.iter_mut().zip(v.to_array()) {
                             row[j] += v;
