@@ -619,12 +619,7 @@ material = "wall"
     let scene = scene_from(scene_text, "wall");
     let n = 16;
     let c = 1.0f32;
-    let mut sky = CubeMap::constant(n, [0.0; 3]).unwrap();
-    for (t, d) in sky.texels.iter_mut().zip(texel_dirs(n)) {
-        if d.y > 0.0 {
-            *t = [c; 3];
-        }
-    }
+    let sky = CubeMap::from_fn(n, |d| [c * (d.y > 0.0) as u8 as f32; 3]).unwrap();
     let settings = |bounces| BakeSettings {
         texel_samples: 16,
         bounces,

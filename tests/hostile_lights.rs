@@ -13,7 +13,7 @@ use wavelet_prt::bake::path_tracer::{path_trace, path_trace_lit};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::draw::vertex::vertex_colours;
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::math::cubemap::{CubeMap, texel_count};
+use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::film::Image;
 use wavelet_prt::relight::{
     Backend, Cpu, LightMix, LightSetting, RelightRequest, Terms, relight_wavelet,
@@ -45,10 +45,7 @@ const TRACER_ROUNDING: f64 = 1e-3;
 const TRACER_PATHS: u32 = 256;
 
 fn black(n: usize) -> CubeMap {
-    CubeMap {
-        n,
-        texels: vec![[0.0; 3]; texel_count(n)],
-    }
+    CubeMap::constant(n, [0.0; 3]).unwrap()
 }
 
 /// A plane of albedo [`ALBEDO`] seen from above, lit by a sun of angular diameter `deg` degrees

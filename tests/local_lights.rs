@@ -7,7 +7,7 @@ use common::*;
 use glam::Vec3;
 use wavelet_prt::bake::path_tracer::path_trace_lit;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::math::cubemap::{CubeMap, texel_count};
+use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::{Backend, Cpu, LightMix, LightSetting, Terms};
@@ -27,10 +27,7 @@ const PATH_MARGIN: f64 = 0.01;
 const FORM_FACTOR: f64 = 0.005;
 
 fn black(n: usize) -> CubeMap {
-    CubeMap {
-        n,
-        texels: vec![[0.0; 3]; texel_count(n)],
-    }
+    CubeMap::constant(n, [0.0; 3]).unwrap()
 }
 
 /// The lights of `t` alone, relit as the scene file says (the environment off).

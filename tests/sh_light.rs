@@ -7,7 +7,7 @@ mod common;
 use common::{SAME_SUM, SPHERE_ON_PLANE, scene_from};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::math::cubemap::{CubeMap, solid_angles, texel_count, texel_dirs};
+use wavelet_prt::math::cubemap::{CubeMap, solid_angles, texel_count};
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::sh_light::ShThroughLight;
@@ -37,13 +37,6 @@ fn relight(
     Cpu(t).relight_terms(&Terms::sh_through_light(t, projected, order)?)
 }
 
-fn cube_of(n: usize, f: impl Fn(glam::DVec3) -> [f32; 3]) -> CubeMap {
-    CubeMap {
-        n,
-        texels: texel_dirs(n).into_iter().map(f).collect(),
-    }
-}
-
 /// Relative L2 between two cubes, weighted by texel solid angle.
 fn cube_error(a: &CubeMap, b: &CubeMap) -> f64 {
     let w = solid_angles(a.n);
@@ -59,7 +52,7 @@ fn cube_error(a: &CubeMap, b: &CubeMap) -> f64 {
 
 #[test]
 fn a_constant_light_is_its_own_first_term() {
-    let cube = cube_of(8, |_| [1.0, 2.0, 0.5]);
+    let cube = CubeMap::from_fn(8, |_| [1.0, 2.0, 0.5]).unwrap();
     let sh = ShThroughLight::new(&cube, 6).unwrap();
     // L_00 = c · ∫ Y_00 = c · sqrt(4π), the texels' solid angles summing to 4π exactly. Bands 1
     // to 3 hold no function the cube's symmetries leave alone, so the texel sums cancel them
@@ -109,13 +102,14 @@ fn the_reconstruction_converges_to_a_sharp_light() {
     // A small bright disc: the SH error falls with the order, slowly, as it should for a sharp
     // light, and reaches a few percent at order 64 on an N = 16 cube.
     let sun = glam::DVec3::new(0.3, 0.8, -0.5).normalize();
-    let cube = cube_of(16, |d| {
+    let cube = CubeMap::from_fn(16, |d| {
         if d.dot(sun) > 0.95 {
             [20.0, 18.0, 15.0]
         } else {
             [0.2, 0.3, 0.5]
         }
-    });
+    })
+    .unwrap();
     let sh = ShThroughLight::new(&cube, 64).unwrap();
     let errors: Vec<f64> = [1, 2, 4, 8, 16, 32, 64]
         .iter()
@@ -169,14 +163,7 @@ fn through_the_light_agrees_with_the_baked_sh_path() {
     let e1 = relative_l2(&relight(&t, &sh, 1).unwrap().0, &exact, mask).unwrap();
     assert!(e4 < e1, "order 4 {e4} vs order 1 {e1}");
     // A transport of another N is refused.
-    let other = ShThroughLight::new(
-        &CubeMap {
-            n: 8,
-            texels: vec![[1.0; 3]; texel_count(8)],
-        },
-        2,
-    )
-    .unwrap();
+    let other = ShThroughLight::new(&CubeMap::constant(8, [1.0; 3]).unwrap(), 2).unwrap();
     let e = relight(&t, &other, 1).unwrap_err().to_string();
     assert!(
         e.contains("projected from an N = 8 cube, the transport has N = 16"),

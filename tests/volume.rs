@@ -9,7 +9,7 @@ use glam::Vec3;
 use wavelet_prt::bake::reference::render_reference;
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
-use wavelet_prt::math::cubemap::{CubeMap, texel_dirs};
+use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::RelightRequest;
@@ -197,12 +197,11 @@ fn a_cloud_shadows_the_ground_in_the_bake_and_the_reference() {
 
 /// A smooth sky: brighter overhead, no sun.
 fn sky_cube(n: usize) -> CubeMap {
-    let mut cube = CubeMap::constant(n, [0.0; 3]).unwrap();
-    for (t, d) in cube.texels.iter_mut().zip(texel_dirs(n)) {
+    CubeMap::from_fn(n, |d| {
         let v = 1.0 + 0.6 * d.y as f32 + 0.2 * d.x as f32;
-        *t = [v, 0.9 * v, 0.8 * v];
-    }
-    cube
+        [v, 0.9 * v, 0.8 * v]
+    })
+    .unwrap()
 }
 
 #[test]

@@ -187,6 +187,16 @@ impl CubeMap {
         })
     }
 
+    /// A cube map whose every texel holds `radiance` of its centre's unit direction: an
+    /// analytic sky, a test light, a basis function drawn on the cube.
+    pub fn from_fn(n: usize, radiance: impl FnMut(DVec3) -> [f32; 3]) -> Result<Self> {
+        validate_n(n)?;
+        Ok(CubeMap {
+            n,
+            texels: texel_dirs(n).into_iter().map(radiance).collect(),
+        })
+    }
+
     /// Radiance of the texel containing `d` (nearest texel: the map is piecewise constant).
     pub fn lookup(&self, d: DVec3) -> [f32; 3] {
         self.texels[dir_to_texel(self.n, d)]
@@ -521,6 +531,22 @@ mod tests {
         for n in [0, 3, 12, 512] {
             let e = validate_n(n).unwrap_err().to_string();
             assert!(e.contains("power of two"), "{e}");
+            assert!(CubeMap::from_fn(n, |_| [0.0; 3]).is_err());
+        }
+    }
+
+    #[test]
+    fn a_cube_from_a_function_holds_it_at_each_texel_centre() {
+        let n = 4;
+        let cube = CubeMap::from_fn(n, |d| [d.x as f32, d.y as f32, d.z as f32]).unwrap();
+        assert_eq!(cube.texels.len(), texel_count(n));
+        for face in 0..6 {
+            for (row, col) in [(0, 0), (1, 2), (3, 3)] {
+                let d = texel_dir(n, face, row, col);
+                let want = [d.x as f32, d.y as f32, d.z as f32];
+                assert_eq!(cube.texels[texel_index(n, face, row, col)], want);
+                assert_eq!(cube.lookup(d), want);
+            }
         }
     }
 }

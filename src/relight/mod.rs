@@ -222,20 +222,16 @@ impl Terms {
             Terms::Sh(sh) => {
                 let order = crate::math::sh::order_from_len(sh.len())?;
                 let mut basis = vec![0.0; sh.len()];
-                let texels = crate::math::cubemap::texel_dirs(n)
-                    .iter()
-                    .map(|&d| {
-                        crate::math::sh::eval(order, d, &mut basis);
-                        let mut c = [0.0f64; 3];
-                        for (y, s) in basis.iter().zip(sh) {
-                            for k in 0..3 {
-                                c[k] += y * s[k];
-                            }
+                CubeMap::from_fn(n, |d| {
+                    crate::math::sh::eval(order, d, &mut basis);
+                    let mut c = [0.0f64; 3];
+                    for (y, s) in basis.iter().zip(sh) {
+                        for k in 0..3 {
+                            c[k] += y * s[k];
                         }
-                        c.map(|v| v as f32)
-                    })
-                    .collect();
-                Ok(CubeMap { n, texels })
+                    }
+                    c.map(|v| v as f32)
+                })
             }
         }
     }

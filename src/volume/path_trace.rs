@@ -292,22 +292,13 @@ mod tests {
         };
         let m = medium([16; 3], |p| src.density(p), 0.1, 0.8);
         let n = 8;
-        let dirs = crate::math::cubemap::texel_dirs(n);
-        let cube = CubeMap {
-            n,
-            texels: dirs
-                .iter()
-                .map(|d| {
-                    let sun = if d.dot(glam::DVec3::new(0.5, 0.7, 0.5).normalize()) > 0.9 {
-                        20.0
-                    } else {
-                        0.0
-                    };
-                    let sky = 0.5 + 0.4 * d.y as f32;
-                    [sky + sun, sky + 0.5 * sun, sky]
-                })
-                .collect(),
-        };
+        let patch = glam::DVec3::new(0.5, 0.7, 0.5).normalize();
+        let cube = CubeMap::from_fn(n, |d| {
+            let sun = 20.0 * (d.dot(patch) > 0.9) as u8 as f32;
+            let sky = 0.5 + 0.4 * d.y as f32;
+            [sky + sun, sky + 0.5 * sun, sky]
+        })
+        .unwrap();
         let cam = camera(12);
         let single = VolumeTraceSettings {
             samples: 256,

@@ -550,21 +550,13 @@ mod tests {
         // sends the camera has scattered more than once.
         let m = medium(20, 5.0, 0.9, 0.3);
         let n = 8;
-        let cube = CubeMap {
-            n,
-            texels: texel_dirs(n)
-                .iter()
-                .map(|d| {
-                    let sun = if d.dot(glam::DVec3::new(0.6, 0.6, 0.5).normalize()) > 0.85 {
-                        12.0
-                    } else {
-                        0.0
-                    };
-                    let sky = 0.4 + 0.3 * d.y as f32;
-                    [sky + sun, sky + 0.8 * sun, sky + 0.6 * sun]
-                })
-                .collect(),
-        };
+        let patch = glam::DVec3::new(0.6, 0.6, 0.5).normalize();
+        let cube = CubeMap::from_fn(n, |d| {
+            let sun = 12.0 * (d.dot(patch) > 0.85) as u8 as f32;
+            let sky = 0.4 + 0.3 * d.y as f32;
+            [sky + sun, sky + 0.8 * sun, sky + 0.6 * sun]
+        })
+        .unwrap();
         let settings = TransferSettings {
             scatter: ScatterSettings {
                 directions: 128,

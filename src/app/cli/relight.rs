@@ -354,10 +354,7 @@ pub(super) fn reference_cmd(a: ReferenceArgs) -> Result<()> {
     let rotation = a.turn.rotation();
     let cube = match &env {
         Some(env) => env.to_cube(settings.cube_n, rotation)?,
-        None => crate::math::cubemap::CubeMap {
-            n: settings.cube_n,
-            texels: vec![[0.0; 3]; crate::math::cubemap::texel_count(settings.cube_n)],
-        },
+        None => crate::math::cubemap::CubeMap::constant(settings.cube_n, [0.0; 3])?,
     };
     let start = Instant::now();
     let rows = bar(scene.camera.height as u64, "rows");

@@ -10,7 +10,7 @@ use std::time::Instant;
 use crate::bake::path_tracer::path_trace_lit;
 use crate::bake::{BakeSettings, bake};
 use crate::error::{PrtError, Result};
-use crate::math::cubemap::{CubeMap, texel_count};
+use crate::math::cubemap::CubeMap;
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::plot::{self, PlotSpec, Series};
@@ -122,13 +122,6 @@ fn scene_at(assets: &Path, name: &str, text: &str) -> Result<Scene> {
     Scene::load(&path)
 }
 
-fn black(n: usize) -> CubeMap {
-    CubeMap {
-        n,
-        texels: vec![[0.0; 3]; texel_count(n)],
-    }
-}
-
 fn timed_bake(scene: &Scene, settings: &BakeSettings) -> Result<(Transport, f64)> {
     let start = Instant::now();
     let t = bake(scene, settings, &|_| {})?;
@@ -199,7 +192,14 @@ pub fn run(
         let defaults = LightSetting::defaults(&scene.lights);
         let mix = LightMix::new(&scene.lights, &defaults)?;
         let (img, _) = Cpu(&t).relight_lit(&Terms::dark(), &mix)?;
-        let traced = path_trace_lit(&scene, &black(8), &mix, &settings, opts.paths, &|_, _| {})?;
+        let traced = path_trace_lit(
+            &scene,
+            &CubeMap::constant(8, [0.0; 3])?,
+            &mix,
+            &settings,
+            opts.paths,
+            &|_, _| {},
+        )?;
         let pixels = t.pixel_count() as f64;
         kinds.push(KindRow {
             kind: kind.to_string(),

@@ -17,14 +17,11 @@ fn one_vertex(n: usize, r: f32, open: impl Fn(DVec3) -> bool) -> Visibility {
 
 /// A smooth light on an N-cube: brighter towards +y and +x, coloured.
 fn smooth_light(n: usize) -> CubeMap {
-    let data = texel_dirs(n)
-        .iter()
-        .map(|d| {
-            let v = (1.0 + 0.8 * d.y + 0.4 * d.x + 0.3 * d.x * d.z) as f32;
-            [v, 0.8 * v, 0.6 * v + 0.1]
-        })
-        .collect();
-    CubeMap { n, texels: data }
+    CubeMap::from_fn(n, |d| {
+        let v = (1.0 + 0.8 * d.y + 0.4 * d.x + 0.3 * d.x * d.z) as f32;
+        [v, 0.8 * v, 0.6 * v + 0.1]
+    })
+    .unwrap()
 }
 
 #[test]
