@@ -83,6 +83,7 @@ pub(super) fn with_tile_context<R>(
     let through = medium.as_ref().zip(medium_light.as_ref());
     let bounces = bounce::Bounces::new(scene, tracer, settings, &samples)
         .with_medium(through.filter(|_| settings.bounces > 0))
+        .keeping_walks(bounce::KEPT_BYTES)
         .with_cache(&edges, mine_pixel, &|done, total| {
             stage([0, 0], [0, 0], [done, total])
         })?;

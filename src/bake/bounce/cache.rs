@@ -9,6 +9,7 @@ use rayon::prelude::*;
 
 use super::Bounces;
 use super::Vertex;
+use super::kept::{KeptWalks, Start, Visit};
 use crate::bake::{
     EdgeMap, ShadingPoint, path_stream, pixel_subsamples, sample_stride, shading_point,
 };
@@ -46,7 +47,8 @@ fn normal_bin(n: Vec3) -> u8 {
 /// paths are seeded per pixel, so the walk is the bake's own), and each occupied cell keeps the
 /// first vertex that fell in it, first in (pixel, sub-sample, path, bounce) order. The choice is
 /// therefore the same for a whole bake and for each of its shards, which keeps shards identical to
-/// the whole; a shard traces the bits of the cells its own pixels reach.
+/// the whole; a shard traces the bits of the cells its own pixels reach. The bake keeps the paths
+/// this walk finds ([`KeptWalks`]), so that its tiles replay them rather than walk them again.
 pub struct VisibilityCache {
     cell: f32,
     index: HashMap<CellKey, u32>,
@@ -61,6 +63,9 @@ pub struct VisibilityCache {
     pub traced: usize,
     /// Shadow rays the cache traced.
     pub rays: u64,
+    /// The paths of the bake's camera sub-samples as the cache's walk found them, for the tiles
+    /// to replay, where the bake keeps them and they fit ([`Bounces::keeping_walks`]).
+    pub walks: Option<KeptWalks>,
 }
 
 /// First vertex found in a cell.
@@ -141,76 +146,27 @@ impl VisibilityCache {
             points: 0,
             traced: 0,
             rays: 0,
+            walks: None,
         };
-        let cam = &scene.camera;
-        let (w, h) = (cam.width as usize, cam.height as usize);
-        let stride = sample_stride(settings);
-        let found: HashMap<CellKey, Candidate> = (0..h)
+        let walker = Walker {
+            bounces,
+            edges,
+            mine,
+            cache: &cache,
+            limit: bounces.keep_walks,
+            kept_bytes: AtomicUsize::new(0),
+        };
+        let found = (0..scene.camera.height as usize)
             .into_par_iter()
-            .fold(HashMap::new, |mut map, y| {
-                for x in 0..w {
-                    let pixel = y * w + x;
-                    let is_mine = mine(pixel);
-                    let subs = pixel_subsamples(edges, cam, settings, x as u32, y as u32);
-                    for (sub, (fx, fy)) in subs.into_iter().enumerate() {
-                        let ray = cam.ray(fx, fy);
-                        let found = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
-                        let stream = path_stream(pixel as u64, sub, stride);
-                        let from_medium = std::cell::Cell::new(false);
-                        let mut visit = |path: u32, bounce: u32, at: &Vertex, _| {
-                            let Vertex::Surface(at) = at else {
-                                return;
-                            };
-                            // The paths from camera-ray collisions after those from the hit.
-                            let from_medium = u128::from(from_medium.get()) << 63;
-                            let order = ((pixel as u128) << 64)
-                                | from_medium
-                                | ((sub as u128) << 40)
-                                | ((path as u128) << 8)
-                                | bounce as u128;
-                            let candidate = Candidate {
-                                order,
-                                origin: at.origin,
-                                normal: at.normal,
-                                mine: is_mine,
-                            };
-                            map.entry(cache.key(at))
-                                .and_modify(|c: &mut Candidate| {
-                                    c.mine |= is_mine;
-                                    if order < c.order {
-                                        *c = Candidate {
-                                            mine: c.mine,
-                                            ..candidate
-                                        };
-                                    }
-                                })
-                                .or_insert(candidate);
-                        };
-                        if let Some(hit) = found {
-                            let start = shading_point(tracer, &hit, ray.dir);
-                            bounces.walk(&start, stream, &mut visit);
-                        }
-                        let t_hit = found.map_or(f32::INFINITY, |h| h.t);
-                        from_medium.set(true);
-                        bounces.walk_camera(ray.origin, ray.dir, t_hit, stream, &mut visit);
-                    }
-                }
-                map
+            .fold(Found::default, |mut found, y| {
+                walker.row(y, &mut found);
+                found
             })
-            .reduce(HashMap::new, |mut a, b| {
-                for (k, c) in b {
-                    a.entry(k)
-                        .and_modify(|e| {
-                            let mine = e.mine | c.mine;
-                            if c.order < e.order {
-                                *e = c;
-                            }
-                            e.mine = mine;
-                        })
-                        .or_insert(c);
-                }
-                a
-            });
+            .reduce(Found::default, Found::merge);
+        // Kept whole or not at all: past the limit, the tiles walk every path again.
+        let kept = walker.kept_bytes.into_inner();
+        cache.walks = walker.limit.filter(|&l| kept <= l).map(|_| found.walks);
+        let found = found.cells;
         cache.points = found.len();
         let mut chosen: Vec<(CellKey, Candidate)> =
             found.into_iter().filter(|(_, c)| c.mine).collect();
@@ -283,5 +239,139 @@ impl VisibilityCache {
         self.bits.len() * 8
             + self.transmittance.len()
             + self.index.len() * (std::mem::size_of::<CellKey>() + 8)
+    }
+}
+
+/// What the walk over part of the image found: the first vertex in each cell, and the walks it
+/// keeps.
+#[derive(Default)]
+struct Found {
+    cells: HashMap<CellKey, Candidate>,
+    walks: KeptWalks,
+}
+
+impl Found {
+    /// Takes `c` as the cell's candidate if it comes first; the cell is `mine` if either is.
+    fn offer(&mut self, key: CellKey, c: Candidate) {
+        self.cells
+            .entry(key)
+            .and_modify(|e| {
+                let mine = e.mine | c.mine;
+                if c.order < e.order {
+                    *e = c;
+                }
+                e.mine = mine;
+            })
+            .or_insert(c);
+    }
+
+    /// What both parts found.
+    fn merge(mut self, other: Found) -> Found {
+        for (key, c) in other.cells {
+            self.offer(key, c);
+        }
+        self.walks = self.walks.merge(other.walks);
+        self
+    }
+}
+
+/// The cache's walk over the image: every path of every camera sub-sample, as the tiles will
+/// walk it.
+struct Walker<'c, 'a> {
+    bounces: &'c Bounces<'a>,
+    edges: &'c EdgeMap,
+    mine: &'c (dyn Fn(usize) -> bool + Sync),
+    /// The cache being built, for its cells.
+    cache: &'c VisibilityCache,
+    /// The most bytes of walks kept (see [`Bounces::keeping_walks`]); `None` keeps none.
+    limit: Option<usize>,
+    /// The bytes of the walks kept so far, by every part.
+    kept_bytes: AtomicUsize,
+}
+
+impl Walker<'_, '_> {
+    /// Walks the paths of the pixels of image row `y` into `found`.
+    fn row(&self, y: usize, found: &mut Found) {
+        let Bounces {
+            scene,
+            tracer,
+            settings,
+            ..
+        } = *self.bounces;
+        let cam = &scene.camera;
+        let w = cam.width as usize;
+        let stride = sample_stride(settings);
+        let limit = self.limit.unwrap_or(0);
+        for x in 0..w {
+            let pixel = y * w + x;
+            let is_mine = (self.mine)(pixel);
+            // The pixel's walks are kept until the kept walks outgrow their limit.
+            let keeping =
+                self.limit.is_some() && is_mine && self.kept_bytes.load(Ordering::Relaxed) <= limit;
+            let subs = pixel_subsamples(self.edges, cam, settings, x as u32, y as u32);
+            for (sub, (fx, fy)) in subs.into_iter().enumerate() {
+                let ray = cam.ray(fx, fy);
+                let hit = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
+                let stream = path_stream(pixel as u64, sub, stride);
+                let from_medium = std::cell::Cell::new(false);
+                let visits = std::cell::RefCell::new(Vec::new());
+                let cells = std::cell::RefCell::new(&mut *found);
+                let mut visit = |path: u32, bounce: u32, at: &Vertex, throughput| {
+                    if keeping {
+                        let vertex = *at;
+                        let step = [path, bounce];
+                        let v = Visit {
+                            step,
+                            vertex,
+                            throughput,
+                        };
+                        visits.borrow_mut().push(v);
+                    }
+                    let Vertex::Surface(at) = at else {
+                        return;
+                    };
+                    // The paths from camera-ray collisions after those from the hit.
+                    let order = ((pixel as u128) << 64)
+                        | (u128::from(from_medium.get()) << 63)
+                        | ((sub as u128) << 40)
+                        | ((path as u128) << 8)
+                        | bounce as u128;
+                    let candidate = Candidate {
+                        order,
+                        origin: at.origin,
+                        normal: at.normal,
+                        mine: is_mine,
+                    };
+                    cells.borrow_mut().offer(self.cache.key(at), candidate);
+                };
+                let keep = |start, rays| {
+                    let mut visits = visits.borrow_mut();
+                    if keeping {
+                        let bytes = KeptWalks::bytes_of(visits.len());
+                        let before = self.kept_bytes.fetch_add(bytes, Ordering::Relaxed);
+                        if before + bytes <= limit {
+                            let walks = &mut cells.borrow_mut().walks;
+                            walks.keep((stream, start), rays, &mut visits);
+                        }
+                    }
+                    visits.clear();
+                };
+                if let Some(hit) = hit {
+                    let start = shading_point(tracer, &hit, ray.dir);
+                    keep(
+                        Start::Surface,
+                        self.bounces.walk(&start, stream, &mut visit),
+                    );
+                }
+                let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
+                from_medium.set(true);
+                let rays = self
+                    .bounces
+                    .walk_camera(ray.origin, ray.dir, t_hit, stream, &mut visit);
+                if self.bounces.medium.is_some() {
+                    keep(Start::Camera, rays);
+                }
+            }
+        }
     }
 }

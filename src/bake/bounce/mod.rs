@@ -28,6 +28,7 @@ use std::borrow::Cow;
 use glam::Vec3;
 
 mod cache;
+mod kept;
 mod rows;
 
 use crate::bake::{BakeSettings, CentrePackets, EdgeMap, ShadingPoint, Shadows, shading_point};
@@ -40,6 +41,8 @@ use crate::scene::Scene;
 use crate::scene::trace::Tracer;
 pub use crate::store::transport::BounceVisibility;
 pub use cache::VisibilityCache;
+use kept::Start;
+pub use kept::{KEPT_BYTES, KeptWalks};
 
 use super::lights::{Draw, LightSampler};
 use super::medium_light::MediumLight;
@@ -78,6 +81,9 @@ pub struct Bounces<'a> {
     /// With one sample a texel, its centres in blocks traced together.
     packets: Option<CentrePackets>,
     cache: Option<VisibilityCache>,
+    /// The most bytes of paths the cache's walk keeps for the tiles to replay; `None` keeps
+    /// none.
+    keep_walks: Option<usize>,
     /// The medium's trackers and what its points see, with a medium.
     medium: Option<(Tracker<'a>, &'a MediumLight)>,
     /// The texel sample directions times their solid angles, by coordinate: `max(0, n·ω) Ω` is
@@ -115,6 +121,7 @@ impl<'a> Bounces<'a> {
             samples,
             packets,
             cache: None,
+            keep_walks: None,
             medium: None,
             weighted,
             dirs,
@@ -127,6 +134,15 @@ impl<'a> Bounces<'a> {
     /// transmittance.
     pub fn with_medium(mut self, medium: Option<(&'a Medium, &'a MediumLight)>) -> Self {
         self.medium = medium.map(|(m, light)| (Tracker::new(m), light));
+        self
+    }
+
+    /// Has the surface cache keep the paths its walk finds, if they take at most `limit` bytes
+    /// (the bake's is [`KEPT_BYTES`]), so that [`Bounces::walk`] and [`Bounces::walk_camera`]
+    /// replay them rather than walk them again. Before [`Bounces::with_cache`]; the reference
+    /// walks its paths anew.
+    pub fn keeping_walks(mut self, limit: usize) -> Self {
+        self.keep_walks = Some(limit);
         self
     }
 
@@ -161,6 +177,9 @@ impl<'a> Bounces<'a> {
         stream: u64,
         visit: &mut dyn FnMut(u32, u32, &Vertex, Vec3),
     ) -> u64 {
+        if let Some(rays) = self.replay((stream, Start::Surface), visit) {
+            return rays;
+        }
         let mut rng = Rng::new(self.settings.seed ^ 0x5eed_ba11, stream);
         (0..self.settings.paths)
             .map(|path| self.follow(Vertex::Surface(*start), Vec3::ONE, path, &mut rng, visit))
@@ -183,6 +202,9 @@ impl<'a> Bounces<'a> {
         let Some((tracker, _)) = &self.medium else {
             return 0;
         };
+        if let Some(rays) = self.replay((stream, Start::Camera), visit) {
+            return rays;
+        }
         let mut rng = Rng::new(self.settings.seed ^ 0xc10d_5eed, stream);
         let albedo = tracker.medium().albedo;
         let mut rays = 0;
@@ -196,6 +218,16 @@ impl<'a> Bounces<'a> {
             }
         }
         rays
+    }
+
+    /// The kept walk `key` visited again, if the cache kept it: its rays.
+    fn replay(
+        &self,
+        key: (u64, Start),
+        visit: &mut dyn FnMut(u32, u32, &Vertex, Vec3),
+    ) -> Option<u64> {
+        let walks = self.cache.as_ref()?.walks.as_ref()?;
+        walks.replay(key, visit)
     }
 
     /// One path from `first` with `throughput` (see [`Bounces::walk`]).
