@@ -165,7 +165,10 @@ impl VisibilityCache {
             .reduce(Found::default, Found::merge);
         // Kept whole or not at all: past the limit, the tiles walk every path again.
         let kept = walker.kept_bytes.into_inner();
-        cache.walks = walker.limit.filter(|&l| kept <= l).map(|_| found.walks);
+        cache.walks = walker
+            .limit
+            .filter(|&l| kept <= l)
+            .map(|_| found.walks.shrink());
         let found = found.cells;
         cache.points = found.len();
         let mut chosen: Vec<(CellKey, Candidate)> =

@@ -78,6 +78,13 @@ impl KeptWalks {
         self
     }
 
+    /// Gives back the room the vectors grew beyond what they hold.
+    pub(super) fn shrink(mut self) -> KeptWalks {
+        self.visits.shrink_to_fit();
+        self.walks.shrink_to_fit();
+        self
+    }
+
     /// Bytes the vertices take.
     pub fn bytes(&self) -> usize {
         self.visits.len() * std::mem::size_of::<Visit>()
