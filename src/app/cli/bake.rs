@@ -426,19 +426,25 @@ fn bar_per_bake(bar: &Mutex<Option<ProgressBar>>) -> impl Fn(BakeProgress) + Syn
     }
 }
 
-pub(super) fn paper(out: PathBuf) -> Result<()> {
-    crate::files::check_output_folder(&out)?;
+/// Runs a study that bakes into the folder `out` (checked first), its log on stderr and a bar
+/// per bake; returns its report and the seconds it took.
+fn study<R>(
+    out: &Path,
+    run: impl FnOnce(&Path, &mut dyn FnMut(&str), &(dyn Fn(BakeProgress) + Sync)) -> Result<R>,
+) -> Result<(R, f64)> {
+    crate::files::check_output_folder(out)?;
     let start = Instant::now();
     let bar = Mutex::new(None);
-    let report = crate::app::studies::paper::run_paper(
-        &out,
-        &Default::default(),
-        &mut |line| eprintln!("{line}"),
-        &bar_per_bake(&bar),
-    )?;
+    let report = run(out, &mut |line| eprintln!("{line}"), &bar_per_bake(&bar))?;
+    Ok((report, start.elapsed().as_secs_f64()))
+}
+
+pub(super) fn paper(out: PathBuf) -> Result<()> {
+    let (report, seconds) = study(&out, |out, log, progress| {
+        crate::app::studies::paper::run_paper(out, &Default::default(), log, progress)
+    })?;
     println!(
-        "everything in {:.1} s\nreport   {}\npicture  {}",
-        start.elapsed().as_secs_f64(),
+        "everything in {seconds:.1} s\nreport   {}\npicture  {}",
         report.markdown.display(),
         report.picture.display()
     );
@@ -446,14 +452,7 @@ pub(super) fn paper(out: PathBuf) -> Result<()> {
 }
 
 pub(super) fn demo(out: PathBuf) -> Result<()> {
-    crate::files::check_output_folder(&out)?;
-    let start = Instant::now();
-    let bar = Mutex::new(None);
-    let report = crate::app::studies::demo::run_demo(
-        &out,
-        &mut |line| eprintln!("{line}"),
-        &bar_per_bake(&bar),
-    )?;
+    let (report, seconds) = study(&out, crate::app::studies::demo::run_demo)?;
     println!(
         "{}",
         crate::app::studies::demo::markdown_table(&report.rows)
@@ -462,7 +461,7 @@ pub(super) fn demo(out: PathBuf) -> Result<()> {
         "bake {} ({:.1} s); everything in {:.1} s",
         if report.reused_bake { "reused" } else { "done" },
         report.bake_seconds,
-        start.elapsed().as_secs_f64()
+        seconds
     );
     println!("contact sheet  {}", report.sheet_path.display());
     println!("table          {}", report.table_path.display());
