@@ -132,10 +132,17 @@ impl GpuDevice {
                 compilation_options: Default::default(),
                 cache: None,
             });
-        match pollster::block_on(scope.pop()) {
-            Some(e) => Err(PrtError::Gpu(format!("building the {label} pipeline: {e}"))),
-            None => Ok(pipeline),
-        }
+        end_scope(scope, &format!("building the {label} pipeline"))?;
+        Ok(pipeline)
+    }
+}
+
+/// Ends an error scope: the first error raised inside it (a validation error, say) as a GPU error
+/// that names `what` was being done, or nothing.
+pub fn end_scope(scope: wgpu::ErrorScopeGuard, what: &str) -> Result<()> {
+    match pollster::block_on(scope.pop()) {
+        Some(e) => Err(PrtError::Gpu(format!("{what}: {e}"))),
+        None => Ok(()),
     }
 }
 
@@ -165,6 +172,24 @@ impl Workgroup2 {
     pub fn dispatch(self, pass: &mut wgpu::ComputePass<'_>, width: u32, height: u32) {
         let [x, y] = self.groups(width, height);
         pass.dispatch_workgroups(x, y, 1);
+    }
+
+    /// Records a pass of `pipeline` with its bind group 0 `group` over a `width` x `height`
+    /// image, named `label`.
+    pub fn pass(
+        self,
+        encoder: &mut wgpu::CommandEncoder,
+        label: &str,
+        (pipeline, group): (&wgpu::ComputePipeline, &wgpu::BindGroup),
+        [width, height]: [u32; 2],
+    ) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(label),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[]);
+        self.dispatch(&mut pass, width, height);
     }
 }
 

@@ -93,9 +93,7 @@ impl GpuVolume {
             std::mem::size_of::<Params>() as u64,
             wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         );
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(PrtError::Gpu(format!("uploading the volume: {e}")));
-        }
+        crate::gpu::end_scope(scope, "uploading the volume")?;
         let medium = vt.medium();
         let cell = medium.grid.cell();
         let base = Params {
@@ -229,22 +227,17 @@ impl GpuVolume {
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("volume march"),
         });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("volume march"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &group, &[]);
-            MARCH_WORKGROUP.dispatch(&mut pass, w, h);
-        }
+        MARCH_WORKGROUP.pass(
+            &mut encoder,
+            "volume march",
+            (&self.pipeline, &group),
+            [w, h],
+        );
         encoder.copy_buffer_to_buffer(&image, 0, &readback, 0, image_bytes);
         let start = std::time::Instant::now();
         gpu.queue.submit([encoder.finish()]);
         let (pixels, seconds) = wait_and_read(device, &readback, start, "the volume march")?;
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(PrtError::Gpu(format!("volume march: {e}")));
-        }
+        crate::gpu::end_scope(scope, "volume march")?;
         Ok((
             Image {
                 width: w as usize,

@@ -219,15 +219,8 @@ impl GpuView {
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("tone map"),
         });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("tone map"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &self.group, &[]);
-            TONE_WORKGROUP.dispatch(&mut pass, self.width, self.height);
-        }
+        let (pipeline, dims) = ((&self.pipeline, &self.group), [self.width, self.height]);
+        TONE_WORKGROUP.pass(&mut encoder, "tone map", pipeline, dims);
         queue.submit([encoder.finish()]);
     }
 

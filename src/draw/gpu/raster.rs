@@ -185,9 +185,7 @@ impl GpuRaster {
             })
             .collect();
         let resolve = (offsets.len() > 1).then(|| resolve_pipeline(device));
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(PrtError::Gpu(format!("building the raster pipeline: {e}")));
-        }
+        crate::gpu::end_scope(scope, "building the raster pipeline")?;
         let light = (0, light_buffer(device, &[[0.0; 4]]));
         Ok(GpuRaster {
             pipeline,
@@ -302,9 +300,7 @@ impl GpuRaster {
             }
             (pixels, coverage)
         })?;
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(PrtError::Gpu(format!("raster: {e}")));
-        }
+        crate::gpu::end_scope(scope, "raster")?;
         let image = Image {
             width: w,
             height: h,
@@ -357,9 +353,7 @@ impl GpuRaster {
         let view = target.create_view(&Default::default());
         self.encode(gpu, camera, mesh, colours, &view, &mut encoder);
         gpu.queue.submit([encoder.finish()]);
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(PrtError::Gpu(format!("raster to texture: {e}")));
-        }
+        crate::gpu::end_scope(scope, "raster to texture")?;
         Ok(())
     }
 

@@ -122,13 +122,8 @@ impl GpuLights {
             offset_of!(Params, count) as u64,
             bytemuck::bytes_of(&(on.len() as u32)),
         );
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("lights"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&gpu.lights);
-        pass.set_bind_group(0, &self.group, &[]);
-        LIGHTS_WORKGROUP.dispatch(&mut pass, self.width, self.height);
+        let (pipeline, dims) = ((&gpu.lights, &self.group), [self.width, self.height]);
+        LIGHTS_WORKGROUP.pass(encoder, "lights", pipeline, dims);
     }
 
     /// Light columns on the device.

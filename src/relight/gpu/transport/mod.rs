@@ -277,9 +277,7 @@ impl GpuTransport {
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let (encoder, _) = self.encode(gpu, &terms, wavelet, lights, "relight in place");
         gpu.queue.submit([encoder.finish()]);
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(PrtError::Gpu(format!("relight in place: {e}")));
-        }
+        crate::gpu::end_scope(scope, "relight in place")?;
         Ok(())
     }
 
@@ -424,19 +422,9 @@ impl GpuTransport {
                 },
             ],
         });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("to texture"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&gpu.to_texture);
-            pass.set_bind_group(0, &group, &[]);
-            TO_TEXTURE_WORKGROUP.dispatch(&mut pass, dims[0], dims[1]);
-        }
+        TO_TEXTURE_WORKGROUP.pass(&mut encoder, "to texture", (&gpu.to_texture, &group), dims);
         gpu.queue.submit([encoder.finish()]);
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(PrtError::Gpu(format!("relight to texture: {e}")));
-        }
+        crate::gpu::end_scope(scope, "relight to texture")?;
         Ok(())
     }
 
@@ -455,9 +443,7 @@ impl GpuTransport {
         encoder.copy_buffer_to_buffer(&self.image, 0, &self.readback, 0, self.image.size());
         gpu.queue.submit([encoder.finish()]);
         let (pixels, wall) = wait_and_read(&gpu.device, &self.readback, start, "the relight")?;
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(PrtError::Gpu(format!("relight: {e}")));
-        }
+        crate::gpu::end_scope(scope, "relight")?;
         let seconds = gpu.last_kernel_seconds().unwrap_or(wall);
         Ok((
             Image {

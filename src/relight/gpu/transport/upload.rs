@@ -264,9 +264,7 @@ impl GpuTransport {
             ],
         );
         let sh_group = group(&gpu.sh, &[(2, rows), (5, &sh_buf), (7, light)]);
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(PrtError::Gpu(format!("binding the transport: {e}")));
-        }
+        crate::gpu::end_scope(scope, "binding the transport")?;
         Ok(Chunk {
             tiles,
             params,
