@@ -34,7 +34,7 @@ use crate::bake::{BakeSettings, EdgeMap, pixel_subsamples, shading_point};
 use crate::env::importance::{CubeLight, EnvLight};
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
-use crate::math::sampling::Rng;
+use crate::math::sampling::{Estimate, Rng};
 use crate::medium::henyey_greenstein;
 use crate::medium::tracking::{Tracker, sample_hg};
 use crate::output::film::Image;
@@ -211,7 +211,7 @@ pub fn path_trace_env(
                 let subs = pixel_subsamples(&edges, cam, settings, x as u32, y as u32);
                 let count = samples.div_ceil(subs.len() as u32) as usize * subs.len();
                 let mut rng = Rng::new(settings.seed ^ 0x9a7b_7ace, (y * w + x) as u64);
-                let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
+                let mut estimate = Estimate::default();
                 let mut hits = 0usize;
                 for i in 0..count {
                     let (fx, fy) = subs[i % subs.len()];
@@ -258,19 +258,11 @@ pub fn path_trace_env(
                             continue;
                         }
                     };
-                    for k in 0..3 {
-                        sum[k] += l[k] as f64;
-                        sum_sq[k] += (l[k] as f64).powi(2);
-                    }
+                    estimate.add(l);
                 }
-                let c = count as f64;
-                line[x] = sum.map(|s| (s / c) as f32);
-                line_coverage[x] = hits as f32 / c as f32;
-                line_error[x] = std::array::from_fn(|k| {
-                    let mean = sum[k] / c;
-                    let var = (sum_sq[k] / c - mean * mean).max(0.0) * c / (c - 1.0).max(1.0);
-                    (var / c).sqrt() as f32
-                });
+                line[x] = estimate.mean(count);
+                line_coverage[x] = hits as f32 / count as f32;
+                line_error[x] = estimate.std_error(count);
             }
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1, h);
         });

@@ -15,6 +15,46 @@ pub fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// A pixel's Monte Carlo estimate, as its samples come in: their sums and the sums of their
+/// squares per colour channel, in f64. What the path tracers report for a pixel, its mean and
+/// the standard error of that mean, is worked out here once.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Estimate {
+    sum: [f64; 3],
+    squares: [f64; 3],
+}
+
+impl Estimate {
+    /// Adds a sample.
+    pub fn add(&mut self, l: Vec3) {
+        for k in 0..3 {
+            let v = l[k] as f64;
+            self.sum[k] += v;
+            self.squares[k] += v * v;
+        }
+    }
+
+    /// The mean of `n` samples, those not added being zero.
+    pub fn mean(&self, n: usize) -> [f32; 3] {
+        self.sum.map(|s| (s / n as f64) as f32)
+    }
+
+    /// The standard error of [`Estimate::mean`]: the samples' unbiased standard deviation over
+    /// √n, which is √(σ² / (n − 1)) for their variance σ² about the mean; 0 for one sample.
+    pub fn std_error(&self, n: usize) -> [f32; 3] {
+        let n = n as f64;
+        std::array::from_fn(|k| {
+            let mean = self.sum[k] / n;
+            let var = (self.squares[k] / n - mean * mean).max(0.0);
+            if n > 1.0 {
+                (var / (n - 1.0)).sqrt() as f32
+            } else {
+                0.0
+            }
+        })
+    }
+}
+
 /// A tiny generator for one stream: (seed, stream id) fully determine the sequence.
 #[derive(Clone, Debug)]
 pub struct Rng {
@@ -165,6 +205,36 @@ mod tests {
     /// A texel's sample weights, each an exact f64 sub-area stored as f32, summed against the
     /// texel's f64 solid angle: at most 9 roundings of 2^-24 relative on values below 0.4.
     const F32_WEIGHT_SUM: f64 = 1e-6;
+
+    #[test]
+    fn an_estimate_gives_the_mean_and_its_standard_error() {
+        // Samples 1, 2, 3 and 4 (in the red channel; twice that in green), then four more that
+        // are zero and not added: over 4 the mean is 2.5 and the unbiased variance 5/3, so the
+        // standard error is √(5/12); over 8, the mean is 1.25, the variance (30 − 8 · 1.25²) / 7
+        // = 5/2, and the error √(5/16).
+        let mut e = Estimate::default();
+        for v in [1.0f32, 2.0, 3.0, 4.0] {
+            e.add(Vec3::new(v, 2.0 * v, 0.0));
+        }
+        let close = |a: f32, b: f64| (a as f64 - b).abs() <= 1e-6 * b.max(1.0);
+        let (mean, error) = (e.mean(4), e.std_error(4));
+        assert!(
+            close(mean[0], 2.5) && close(mean[1], 5.0) && mean[2] == 0.0,
+            "{mean:?}"
+        );
+        let want = (5.0f64 / 12.0).sqrt();
+        assert!(
+            close(error[0], want) && close(error[1], 2.0 * want),
+            "{error:?}"
+        );
+        assert_eq!(error[2], 0.0);
+        assert!(close(e.mean(8)[0], 1.25), "{:?}", e.mean(8));
+        assert!(close(e.std_error(8)[0], (5.0f64 / 16.0).sqrt()));
+        // One sample has no spread to measure.
+        let mut one = Estimate::default();
+        one.add(Vec3::splat(3.0));
+        assert_eq!((one.mean(1), one.std_error(1)), ([3.0; 3], [0.0; 3]));
+    }
 
     #[test]
     fn texel_sample_weights_sum_to_the_texel_solid_angle() {

@@ -26,7 +26,7 @@ use crate::bake::path_tracer::PathTraced;
 use crate::env::importance::CubeSampler;
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
-use crate::math::sampling::{Rng, power_heuristic};
+use crate::math::sampling::{Estimate, Rng, power_heuristic};
 use crate::medium::tracking::{Tracker, sample_hg};
 use crate::medium::{Medium, henyey_greenstein};
 use crate::output::film::Image;
@@ -168,7 +168,7 @@ pub fn path_trace_volume(
     };
     let tracker = Tracker::new(medium);
     let rows_done = AtomicUsize::new(0);
-    let n = settings.samples as f64;
+    let n = settings.samples as usize;
     image
         .pixels
         .par_chunks_mut(w)
@@ -179,7 +179,7 @@ pub fn path_trace_volume(
             for x in 0..w {
                 let ray = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
                 let mut rng = Rng::new(settings.seed, (y * w + x) as u64);
-                let (mut sum, mut sq) = ([0.0f64; 3], [0.0f64; 3]);
+                let mut estimate = Estimate::default();
                 let mut scattered = 0u32;
                 for _ in 0..settings.samples {
                     let l = trace_path(
@@ -188,21 +188,10 @@ pub fn path_trace_volume(
                     if l != Vec3::ZERO {
                         scattered += 1;
                     }
-                    for c in 0..3 {
-                        sum[c] += l[c] as f64;
-                        sq[c] += (l[c] as f64).powi(2);
-                    }
+                    estimate.add(l);
                 }
-                line[x] = sum.map(|s| (s / n) as f32);
-                errors[x] = std::array::from_fn(|c| {
-                    let mean = sum[c] / n;
-                    let var = (sq[c] / n - mean * mean).max(0.0);
-                    if n > 1.0 {
-                        (var / (n - 1.0)).sqrt() as f32
-                    } else {
-                        0.0
-                    }
-                });
+                line[x] = estimate.mean(n);
+                errors[x] = estimate.std_error(n);
                 cover[x] = scattered as f32 / settings.samples as f32;
             }
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1, h);
