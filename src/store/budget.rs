@@ -128,10 +128,14 @@ impl Thresholder {
             // list is sized to what stays, as the tile holds it until it is written.
             let eps = self.threshold as f64 * reference_energy.sqrt();
             let stays = |k: u64| magnitude(k) as f64 >= eps;
-            for &k in order.iter().filter(|&&k| !stays(k)) {
-                dropped += (magnitude(k) as f64).powi(2);
+            let mut count = 0;
+            for &k in order.iter() {
+                match stays(k) {
+                    true => count += 1,
+                    false => dropped += (magnitude(k) as f64).powi(2),
+                }
             }
-            let mut kept = Vec::with_capacity(order.iter().filter(|&&k| stays(k)).count());
+            let mut kept = Vec::with_capacity(count);
             kept.extend(order.iter().filter(|&&k| stays(k)).map(|&k| entry(k)));
             kept
         } else {

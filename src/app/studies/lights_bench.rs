@@ -192,14 +192,8 @@ pub fn run(
         let defaults = LightSetting::defaults(&scene.lights);
         let mix = LightMix::new(&scene.lights, &defaults)?;
         let (img, _) = Cpu(&t).relight_lit(&Terms::dark(), &mix)?;
-        let traced = path_trace_lit(
-            &scene,
-            &CubeMap::constant(8, [0.0; 3])?,
-            &mix,
-            &settings,
-            opts.paths,
-            &|_, _| {},
-        )?;
+        let black = CubeMap::constant(8, [0.0; 3])?;
+        let traced = path_trace_lit(&scene, &black, &mix, &settings, opts.paths, &|_, _| {})?;
         let pixels = t.pixel_count() as f64;
         kinds.push(KindRow {
             kind: kind.to_string(),

@@ -254,9 +254,10 @@ struct Found {
 }
 
 impl Found {
-    /// Takes `c` as the cell's candidate if it comes first; the cell is `mine` if either is.
-    fn offer(&mut self, key: CellKey, c: Candidate) {
-        self.cells
+    /// Takes `c` as the candidate of `cells`' cell `key` if it comes first; the cell is `mine`
+    /// if either is.
+    fn offer(cells: &mut HashMap<CellKey, Candidate>, key: CellKey, c: Candidate) {
+        cells
             .entry(key)
             .and_modify(|e| {
                 let mine = e.mine | c.mine;
@@ -271,7 +272,7 @@ impl Found {
     /// What both parts found.
     fn merge(mut self, other: Found) -> Found {
         for (key, c) in other.cells {
-            self.offer(key, c);
+            Found::offer(&mut self.cells, key, c);
         }
         self.walks = self.walks.merge(other.walks);
         self
@@ -305,6 +306,8 @@ impl Walker<'_, '_> {
         let w = cam.width as usize;
         let stride = sample_stride(settings);
         let limit = self.limit.unwrap_or(0);
+        // A walk's vertices, until they are kept.
+        let mut visits = Vec::new();
         for x in 0..w {
             let pixel = y * w + x;
             let is_mine = (self.mine)(pixel);
@@ -316,63 +319,57 @@ impl Walker<'_, '_> {
                 let ray = cam.ray(fx, fy);
                 let hit = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
                 let stream = path_stream(pixel as u64, sub, stride);
-                let from_medium = std::cell::Cell::new(false);
-                let visits = std::cell::RefCell::new(Vec::new());
-                let cells = std::cell::RefCell::new(&mut *found);
-                let mut visit = |path: u32, bounce: u32, at: &Vertex, throughput| {
-                    if keeping {
-                        let vertex = *at;
-                        let step = [path, bounce];
-                        let v = Visit {
-                            step,
-                            vertex,
-                            throughput,
+                // The paths from the hit, then those from collisions along the camera ray.
+                for start in [Start::Surface, Start::Camera] {
+                    visits.clear();
+                    let cells = &mut found.cells;
+                    let mut visit = |path: u32, bounce: u32, at: &Vertex, throughput: Vec3| {
+                        if keeping {
+                            let step = [path, bounce];
+                            let vertex = *at;
+                            visits.push(Visit {
+                                step,
+                                vertex,
+                                throughput,
+                            });
+                        }
+                        let Vertex::Surface(at) = at else {
+                            return;
                         };
-                        visits.borrow_mut().push(v);
-                    }
-                    let Vertex::Surface(at) = at else {
-                        return;
+                        let order = ((pixel as u128) << 64)
+                            | (u128::from(start == Start::Camera) << 63)
+                            | ((sub as u128) << 40)
+                            | ((path as u128) << 8)
+                            | bounce as u128;
+                        let candidate = Candidate {
+                            order,
+                            origin: at.origin,
+                            normal: at.normal,
+                            mine: is_mine,
+                        };
+                        Found::offer(cells, self.cache.key(at), candidate);
                     };
-                    // The paths from camera-ray collisions after those from the hit.
-                    let order = ((pixel as u128) << 64)
-                        | (u128::from(from_medium.get()) << 63)
-                        | ((sub as u128) << 40)
-                        | ((path as u128) << 8)
-                        | bounce as u128;
-                    let candidate = Candidate {
-                        order,
-                        origin: at.origin,
-                        normal: at.normal,
-                        mine: is_mine,
+                    // The rays of a walk there is to keep: none from a missed hit, nor along
+                    // the camera ray without a medium.
+                    let rays = match start {
+                        Start::Surface => hit.map(|hit| {
+                            let from = shading_point(tracer, &hit, ray.dir);
+                            self.bounces.walk(&from, stream, &mut visit)
+                        }),
+                        Start::Camera => {
+                            let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
+                            let b = self.bounces;
+                            let rays =
+                                b.walk_camera(ray.origin, ray.dir, t_hit, stream, &mut visit);
+                            b.medium.is_some().then_some(rays)
+                        }
                     };
-                    cells.borrow_mut().offer(self.cache.key(at), candidate);
-                };
-                let keep = |start, rays| {
-                    let mut visits = visits.borrow_mut();
-                    if keeping {
+                    if let (Some(rays), true) = (rays, keeping) {
                         let bytes = KeptWalks::bytes_of(visits.len());
-                        let before = self.kept_bytes.fetch_add(bytes, Ordering::Relaxed);
-                        if before + bytes <= limit {
-                            let walks = &mut cells.borrow_mut().walks;
-                            walks.keep((stream, start), rays, &mut visits);
+                        if self.kept_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes <= limit {
+                            found.walks.keep((stream, start), rays, &mut visits);
                         }
                     }
-                    visits.clear();
-                };
-                if let Some(hit) = hit {
-                    let start = shading_point(tracer, &hit, ray.dir);
-                    keep(
-                        Start::Surface,
-                        self.bounces.walk(&start, stream, &mut visit),
-                    );
-                }
-                let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
-                from_medium.set(true);
-                let rays = self
-                    .bounces
-                    .walk_camera(ray.origin, ray.dir, t_hit, stream, &mut visit);
-                if self.bounces.medium.is_some() {
-                    keep(Start::Camera, rays);
                 }
             }
         }
