@@ -15,8 +15,8 @@ use std::path::Path;
 use criterion::{Criterion, criterion_group, criterion_main};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::draw::lobe::{Lobe, lobe_samples};
-use wavelet_prt::draw::raster::{Raster, rasterize_glossy};
-use wavelet_prt::draw::shading::ViewDependent;
+use wavelet_prt::draw::raster::{DrawOptions, Raster, rasterize_with};
+use wavelet_prt::draw::shading::{GlossMesh, ViewDependent};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::relight::{LightContext, RelightRequest, lobe_light, relight};
 use wavelet_prt::scene::Scene;
@@ -43,16 +43,11 @@ fn frame(t: &Transport, colours: &[[f32; 3]], lobe: &Lobe) -> Raster {
     let mesh = t.domain.mesh().expect("per vertex");
     let base = wavelet_prt::draw::vertex::bake_camera(t).expect("camera");
     let camera = wavelet_prt::draw::vertex::orbit(&base, 40.0, 10.0);
-    rasterize_glossy(
-        &camera,
-        &mesh.positions,
-        &mesh.triangles,
-        colours,
-        None,
-        Some(lobe as &dyn ViewDependent),
-        1,
-    )
-    .expect("drawn")
+    let options = DrawOptions {
+        gloss: Some(lobe as &dyn ViewDependent),
+        ..DrawOptions::samples(1)
+    };
+    rasterize_with(&camera, &mesh.positions, &mesh.triangles, colours, options).expect("drawn")
 }
 
 fn bench(c: &mut Criterion) {
@@ -81,8 +76,9 @@ fn bench(c: &mut Criterion) {
     let counts = lobe_samples(vis);
     let broadest = counts.iter().copied().max().unwrap_or(0);
     println!("directions a material: {counts:?}; broadest {broadest}");
-    let own = Lobe::of_widths(&mesh.normals, &mesh.materials, vis, &pyramid);
-    let one = Lobe::new(&mesh.normals, &mesh.materials, vis, &pyramid, broadest);
+    let gloss = GlossMesh::of(mesh).expect("visibility");
+    let own = Lobe::of_widths(gloss, &pyramid);
+    let one = Lobe::new(gloss, &pyramid, broadest);
     let (a, b) = (frame(&t, colours, &own), frame(&t, colours, &one));
     let apart = a
         .image

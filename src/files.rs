@@ -193,6 +193,13 @@ pub fn check_output_folder(dir: &Path) -> Result<()> {
     })
 }
 
+/// The size of the file at `path` in bytes, or an error naming it.
+pub fn file_len(path: &Path) -> Result<u64> {
+    Ok(std::fs::metadata(path)
+        .map_err(|e| PrtError::io(path, e))?
+        .len())
+}
+
 /// `text` with its control characters escaped (`\u{1b}`), so a string read from a file can be
 /// printed without driving the terminal.
 pub fn printable(text: &str) -> String {

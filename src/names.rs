@@ -42,6 +42,17 @@ pub fn listed<T: Named>() -> String {
     }
 }
 
+/// What a lookup by name could have found, for its error: `none` where there is nothing, else
+/// `some` followed by the names, comma-separated ("it has a, b").
+pub fn known<'a>(names: impl IntoIterator<Item = &'a str>, none: &str, some: &str) -> String {
+    let names: Vec<&str> = names.into_iter().collect();
+    if names.is_empty() {
+        none.to_string()
+    } else {
+        format!("{some} {}", names.join(", "))
+    }
+}
+
 /// Makes an enum [`Named`] under `what` (with optional aliases) and parses it from a string
 /// through [`parse`]: `named!(Method, "method");`, `named!(Weighting, "weighting",
 /// ["unweighted" => Weighting::Unweighted]);`.

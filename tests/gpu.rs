@@ -14,7 +14,9 @@ use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::env::select::Weighting;
 use wavelet_prt::output::metrics::relative_l2;
 use wavelet_prt::relight::gpu::{Gpu, GpuTransport};
-use wavelet_prt::relight::{LightContext, light_sh_order, relight_sh, relight_wavelet};
+use wavelet_prt::relight::{
+    LightContext, LightMix, Terms, light_sh_order, relight_sh, relight_wavelet,
+};
 use wavelet_prt::store::transport::Transport;
 
 /// A GPU pixel against the CPU's, relative to the CPU's value: the same products summed in
@@ -225,7 +227,8 @@ fn relight_into_a_texture_equals_the_read_back_image() {
         .unwrap();
     let texture = relight_texture(&gpu, t);
     let (buffered, _) = g.relight_wavelet(&gpu, &sparse).unwrap();
-    g.relight_wavelet_to_texture(&gpu, &sparse, &texture)
+    let wavelet = Terms::Wavelet(sparse.clone());
+    g.relight_terms_to_texture(&gpu, &wavelet, &LightMix::none(), &texture)
         .unwrap();
     let texels = read_texture(&gpu, &texture);
     assert_eq!(texels.len(), buffered.pixels.len());
@@ -235,7 +238,9 @@ fn relight_into_a_texture_equals_the_read_back_image() {
     assert!(buffered.pixels.iter().any(|p| p[0] > 0.0));
     let sh = light_sh_order(&light.sh, 2, 3).unwrap();
     let (buffered, _) = g.relight_sh(&gpu, &sh).unwrap();
-    g.relight_sh_to_texture(&gpu, &sh, &texture).unwrap();
+    let terms = Terms::Sh(sh.clone());
+    g.relight_terms_to_texture(&gpu, &terms, &LightMix::none(), &texture)
+        .unwrap();
     let texels = read_texture(&gpu, &texture);
     for (a, b) in texels.iter().zip(&buffered.pixels) {
         assert_eq!([a[0], a[1], a[2]], *b);
@@ -332,8 +337,8 @@ fn many_terms_are_relit_in_batches_that_add_up_to_the_cpu_image() {
     // At 6x64² every term is 24,576 of them: six batches of TERMS_PER_DISPATCH. One batch past
     // 10,900 terms gave a nearly black image on lavapipe; the batches must also add up right in
     // the texture path and the per-vertex (in place) path, which share the encoding.
+    use wavelet_prt::relight::RelightRequest;
     use wavelet_prt::relight::gpu::TERMS_PER_DISPATCH;
-    use wavelet_prt::relight::{RelightRequest, Terms};
     let Some(gpu) = common::gpu_or_skip("many_terms") else {
         return;
     };
@@ -367,7 +372,8 @@ fn many_terms_are_relit_in_batches_that_add_up_to_the_cpu_image() {
         let e = relative_l2(&dev, &cpu, mask).unwrap();
         assert!(e < GPU_MATCH, "K = {k}: {e}");
         let texture = relight_texture(&gpu, &t);
-        g.relight_wavelet_to_texture(&gpu, &sparse, &texture)
+        let wavelet = Terms::Wavelet(sparse.clone());
+        g.relight_terms_to_texture(&gpu, &wavelet, &LightMix::none(), &texture)
             .unwrap();
         let texels = read_texture(&gpu, &texture);
         for (p, (a, b)) in texels.iter().zip(&dev.pixels).enumerate() {

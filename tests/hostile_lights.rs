@@ -9,10 +9,11 @@ use common::gltf::test_scene;
 use common::{SPHERE_ON_PLANE, full_light, plane_from_above, relit, scene_from, temp_dir};
 use glam::{Vec2, Vec3};
 use serde_json::json;
-use wavelet_prt::bake::path_tracer::{path_trace, path_trace_lit};
+use wavelet_prt::bake::path_tracer::{path_trace, path_trace_env};
 use wavelet_prt::bake::{BakeSettings, bake};
 use wavelet_prt::draw::vertex::vertex_colours;
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
+use wavelet_prt::env::importance::CubeLight;
 use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::film::Image;
 use wavelet_prt::relight::{
@@ -119,9 +120,9 @@ fn a_path_traced_sun_disc_of_any_size_gives_its_irradiance() {
     for deg in DISC_DEGREES {
         let scene = sunlit_plane(deg);
         let mix = LightMix::new(&scene.lights, &LightSetting::defaults(&scene.lights)).unwrap();
-        let traced = path_trace_lit(
+        let traced = path_trace_env(
             &scene,
-            &black(8),
+            &CubeLight::new(&black(8)),
             &mix,
             &disc_settings(),
             TRACER_PATHS,
@@ -201,8 +202,15 @@ fn traces_and_bakes_finite(scene: &Scene, what: &str) {
     let settings = bounce_settings();
     let cube = sky(settings.cube_n);
     let mix = LightMix::new(&scene.lights, &LightSetting::defaults(&scene.lights)).unwrap();
-    let traced = path_trace_lit(scene, &cube, &mix, &settings, 8, &|_, _| {})
-        .unwrap_or_else(|e| panic!("{what}, path traced: {e}"));
+    let traced = path_trace_env(
+        scene,
+        &CubeLight::new(&cube),
+        &mix,
+        &settings,
+        8,
+        &|_, _| {},
+    )
+    .unwrap_or_else(|e| panic!("{what}, path traced: {e}"));
     assert_finite(&format!("{what}, path traced"), &traced.image);
     assert!(
         traced.image.pixels.iter().any(|p| p[0] > 0.0),

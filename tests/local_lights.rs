@@ -5,8 +5,9 @@ mod common;
 
 use common::*;
 use glam::Vec3;
-use wavelet_prt::bake::path_tracer::path_trace_lit;
+use wavelet_prt::bake::path_tracer::path_trace_env;
 use wavelet_prt::bake::{BakeSettings, bake};
+use wavelet_prt::env::importance::CubeLight;
 use wavelet_prt::math::cubemap::CubeMap;
 use wavelet_prt::output::film::Image;
 use wavelet_prt::output::metrics::relative_l2;
@@ -212,7 +213,16 @@ fn against_the_path_tracer(
     let defaults = LightSetting::defaults(&t.meta.lights);
     let img = lights_alone(&t, &defaults);
     let mix = LightMix::new(&scene.lights, &defaults).unwrap();
-    let traced = path_trace_lit(&scene, &black(8), &mix, settings, paths, &|_, _| {}).unwrap();
+    let sky = black(8);
+    let traced = path_trace_env(
+        &scene,
+        &CubeLight::new(&sky),
+        &mix,
+        settings,
+        paths,
+        &|_, _| {},
+    )
+    .unwrap();
     let err = relative_l2(&img, &traced.image, None).unwrap();
     (err, traced.relative_noise(None), scene, t)
 }

@@ -11,7 +11,7 @@ use common::{Rng, gpu_or_skip};
 use glam::Vec3;
 use wavelet_prt::draw::background::{composite, environment_behind_camera};
 use wavelet_prt::draw::gpu::{GpuMesh, GpuRaster, upload_colours};
-use wavelet_prt::draw::raster::{Raster, rasterize, rasterize_multisampled};
+use wavelet_prt::draw::raster::{DrawOptions, Raster, rasterize, rasterize_with};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::gpu::map_and_read;
 use wavelet_prt::relight::gpu::Gpu;
@@ -298,15 +298,9 @@ fn gpu_draws_several_samples_as_the_cpu_does() {
         let mut raster = GpuRaster::multisampled(&gpu, samples).unwrap();
         let mut partly = 0;
         for (k, cam) in cameras().iter().enumerate() {
-            let cpu = rasterize_multisampled(
-                cam,
-                &mesh.positions,
-                &mesh.triangles,
-                &colours,
-                None,
-                samples,
-            )
-            .unwrap();
+            let options = DrawOptions::samples(samples);
+            let cpu =
+                rasterize_with(cam, &mesh.positions, &mesh.triangles, &colours, options).unwrap();
             let dev = raster.draw(&gpu, cam, &m, &buffer).unwrap();
             let pixels = cpu.coverage.len();
             let partial = cpu.coverage.iter().filter(|&&c| c > 0.0 && c < 1.0).count();

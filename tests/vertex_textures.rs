@@ -12,7 +12,7 @@ use common::{StFile, assets, gpu_or_skip, temp_dir};
 use glam::Vec3;
 use wavelet_prt::bake::reference::render_reference_with;
 use wavelet_prt::bake::{BakeSettings, bake};
-use wavelet_prt::draw::raster::{rasterize, rasterize_multisampled, rasterize_textured};
+use wavelet_prt::draw::raster::{DrawOptions, rasterize, rasterize_with};
 use wavelet_prt::draw::shading::Texturing;
 use wavelet_prt::draw::vertex::{bake_camera, draw, orbit, vertex_colours};
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
@@ -275,7 +275,11 @@ fn mip_levels_keep_a_distant_texture_from_aliasing() {
         ..mipped.clone()
     };
     let draw_with = |t: &Texturing| {
-        rasterize_textured(&cam, &mesh.positions, &mesh.triangles, colours, Some(t)).unwrap()
+        let options = DrawOptions {
+            texturing: Some(t),
+            ..DrawOptions::samples(1)
+        };
+        rasterize_with(&cam, &mesh.positions, &mesh.triangles, colours, options).unwrap()
     };
     let with_mips =
         relative_l2(&draw_with(&mipped).image, &reference.image, Some(&inside)).unwrap();
@@ -313,15 +317,11 @@ fn the_gpu_draws_textured_vertices_as_the_cpu_does() {
     ] {
         let mut raster = GpuRaster::multisampled(&gpu, samples).unwrap();
         let cam = new_camera(&t, az, 5.0, d, w, h);
-        let cpu = rasterize_multisampled(
-            &cam,
-            &mesh.positions,
-            &mesh.triangles,
-            colours,
-            Some(&texturing),
-            samples,
-        )
-        .unwrap();
+        let options = DrawOptions {
+            texturing: Some(&texturing),
+            ..DrawOptions::samples(samples)
+        };
+        let cpu = rasterize_with(&cam, &mesh.positions, &mesh.triangles, colours, options).unwrap();
         let dev = raster.draw(&gpu, &cam, &g, &c).unwrap();
         let hi = cpu
             .image

@@ -573,7 +573,7 @@ fn per_vertex_engine() -> (Engine, ViewState) {
 #[test]
 fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
     use wavelet_prt::draw::background::environment_behind_camera;
-    use wavelet_prt::draw::raster::rasterize_multisampled;
+    use wavelet_prt::draw::raster::{DrawOptions, rasterize_with};
     use wavelet_prt::draw::vertex::{Orbit, bake_camera, vertex_colours};
     use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
     use wavelet_prt::relight::{LightContext, RelightRequest, relight};
@@ -611,15 +611,9 @@ fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
         // Drawn with the viewer's samples a pixel: covered pixels are the drawn vertex colours,
         // open pixels the environment along the camera's ray, turned with the light, and pixels
         // on a silhouette the drawn samples' mean plus the open ones' share of the environment.
-        let drawn = rasterize_multisampled(
-            &camera,
-            &mesh.positions,
-            &mesh.triangles,
-            colours,
-            None,
-            s.draw_samples(),
-        )
-        .unwrap();
+        let options = DrawOptions::samples(s.draw_samples());
+        let drawn =
+            rasterize_with(&camera, &mesh.positions, &mesh.triangles, colours, options).unwrap();
         let open = vec![0.0; drawn.coverage.len()];
         let sky = environment_behind_camera(&camera, &open, &env, EnvRotation::yaw(30.0)).unwrap();
         let shown = &r.panes[0].linear.image;

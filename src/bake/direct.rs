@@ -407,24 +407,12 @@ mod tests {
     fn a_shadow_border_gets_a_penumbra_a_texel_wide() {
         // A point under the edge of a large quad: half the sky is hidden, the border crosses
         // texels, and those texels see part of the sky.
-        let text = r#"
-[camera]
-eye = [0.0, 5.0, 5.0]
-target = [0.0, 0.0, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y_deg = 40.0
-width = 4
-height = 4
-
-[material.m]
-type = "diffuse"
-albedo = [0.5, 0.5, 0.5]
-
-[[shape]]
+        let quad = r#"[[shape]]
 type = "quad"
 corners = [[-100.0, 1.0, -100.0], [-100.0, 1.0, 100.0], [0.3, 1.0, 100.0], [0.3, 1.0, -100.0]]
 material = "m"
 "#;
+        let text = &crate::test_support::grey_scene_text([0.0, 5.0, 5.0], 40.0, 4, quad);
         let scene = Scene::from_toml_str(text, Path::new("/nonexistent/scene.toml")).unwrap();
         let tracer = Tracer::new(&scene);
         let n = 16;

@@ -9,7 +9,8 @@
 //! per-texel quadrature, its surface cache, its path noise). Each pixel's estimate comes with its
 //! standard error, so agreement can be judged against the reference's own noise.
 //!
-//! Local lights join in the same way ([`path_trace_lit`]): at every vertex each light that is on
+//! Local lights join in the same way ([`path_trace_env`], each light column weighted by a
+//! [`LightMix`]): at every vertex each light that is on
 //! is sampled once (a quad by area, converted to solid angle; a sun disc uniformly over its cone;
 //! points and spots as deltas), and a material-sampled direction that reaches a quad or a disc
 //! before any surface brings its light too, the two weighed by the power heuristic, so small
@@ -60,7 +61,54 @@ pub struct PathTraced {
     pub samples: u32,
 }
 
+/// One pixel's paths: their estimate, how many were taken (those that found nothing count as
+/// zero), and the share of them that found something to light.
+pub struct PixelPaths {
+    /// The sums of the paths' radiance.
+    pub estimate: Estimate,
+    /// Paths taken.
+    pub count: usize,
+    /// Fraction of the paths that met geometry (or the medium).
+    pub coverage: f32,
+}
+
 impl PathTraced {
+    /// Fills every pixel of `image`, `coverage` and `std_error` (sized alike, `samples` paths
+    /// asked for a pixel) by `pixel(x, y)`, rows in parallel, calling `progress(rows done,
+    /// rows)` after each. The loop both path tracers share: what a pixel's paths are is theirs.
+    pub fn fill(
+        mut image: Image,
+        mut coverage: Vec<f32>,
+        mut std_error: Vec<[f32; 3]>,
+        samples: u32,
+        progress: &(dyn Fn(usize, usize) + Sync),
+        pixel: impl Fn(usize, usize) -> PixelPaths + Sync,
+    ) -> PathTraced {
+        let (w, h) = (image.width, image.height);
+        let rows_done = AtomicUsize::new(0);
+        image
+            .pixels
+            .par_chunks_mut(w.max(1))
+            .zip(coverage.par_chunks_mut(w.max(1)))
+            .zip(std_error.par_chunks_mut(w.max(1)))
+            .enumerate()
+            .for_each(|(y, ((line, line_coverage), line_error))| {
+                for x in 0..w {
+                    let p = pixel(x, y);
+                    line[x] = p.estimate.mean(p.count);
+                    line_coverage[x] = p.coverage;
+                    line_error[x] = p.estimate.std_error(p.count);
+                }
+                progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1, h);
+            });
+        PathTraced {
+            image,
+            coverage,
+            std_error,
+            samples,
+        }
+    }
+
     /// The image's noise as a relative L2: the root sum of squared standard errors over the root
     /// sum of squared values, over the pixels `mask` keeps (all when `None`).
     pub fn relative_noise(&self, mask: Option<&[bool]>) -> f64 {
@@ -94,21 +142,14 @@ pub fn path_trace(
     samples: u32,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<PathTraced> {
-    path_trace_lit(scene, cube, &LightMix::none(), settings, samples, progress)
-}
-
-/// [`path_trace`] plus the scene's local lights, each column weighted by `lights` (one RGB
-/// weight per light column, or none).
-pub fn path_trace_lit(
-    scene: &Scene,
-    cube: &CubeMap,
-    lights: &LightMix,
-    settings: &BakeSettings,
-    samples: u32,
-    progress: &(dyn Fn(usize, usize) + Sync),
-) -> Result<PathTraced> {
-    let env = CubeLight::new(cube);
-    path_trace_env(scene, &env, lights, settings, samples, progress)
+    path_trace_env(
+        scene,
+        &CubeLight::new(cube),
+        &LightMix::none(),
+        settings,
+        samples,
+        progress,
+    )
 }
 
 /// `scene` seen from `camera`, path traced under the environment `env` alone (no local lights)
@@ -153,9 +194,10 @@ pub fn path_trace_from_lit(
     Ok(traced)
 }
 
-/// [`path_trace_lit`] under any environment light: a cube ([`CubeLight`]), or a lat-long map's
-/// own pixels ([`crate::env::importance::MapLight`]), the true lighting with no cube's
-/// resolution in between.
+/// [`path_trace`] plus the scene's local lights, each column weighted by `lights` (one RGB weight
+/// per light column, or none), under any environment light: a cube ([`CubeLight`]), or a
+/// lat-long map's own pixels ([`crate::env::importance::MapLight`]), the true lighting with no
+/// cube's resolution in between.
 pub fn path_trace_env(
     scene: &Scene,
     env: &dyn EnvLight,
@@ -194,87 +236,78 @@ pub fn path_trace_env(
     let cam = &scene.camera;
     let edges = EdgeMap::new(scene, &tracer, settings);
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let mut image = Image::new(w, h);
-    let mut coverage = vec![0.0f32; w * h];
-    let mut std_error = vec![[0.0f32; 3]; w * h];
-    let rows_done = AtomicUsize::new(0);
     // The first pixel (in reading order) whose paths met a material gone non-finite, and it.
     let blamed: Mutex<Option<(usize, usize, u32)>> = Mutex::new(None);
-    image
-        .pixels
-        .par_chunks_mut(w)
-        .zip(coverage.par_chunks_mut(w))
-        .zip(std_error.par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(y, ((line, line_coverage), line_error))| {
-            for x in 0..w {
-                let subs = pixel_subsamples(&edges, cam, settings, x as u32, y as u32);
-                let count = samples.div_ceil(subs.len() as u32) as usize * subs.len();
-                let mut rng = Rng::new(settings.seed ^ 0x9a7b_7ace, (y * w + x) as u64);
-                let mut estimate = Estimate::default();
-                let mut hits = 0usize;
-                for i in 0..count {
-                    let (fx, fy) = subs[i % subs.len()];
-                    let ray = cam.ray(fx, fy);
-                    let hit = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
-                    let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
-                    let collision = tracker
-                        .as_ref()
-                        .and_then(|t| Some((t.collide(ray.origin, ray.dir, t_hit, &mut rng)?, t)));
-                    let (first, throughput) = match (collision, hit) {
-                        (Some((t, tracker)), _) => (
-                            Vertex::Medium {
-                                pos: ray.origin + ray.dir * t,
-                                dir: ray.dir,
-                            },
-                            tracker.medium().albedo,
-                        ),
-                        (None, Some(hit)) => (
-                            Vertex::Surface(shading_point(&tracer, &hit, ray.dir)),
-                            Vec3::ONE,
-                        ),
-                        (None, None) => continue,
-                    };
-                    hits += 1;
-                    let lighting = Lighting {
-                        env,
-                        lights: &lit,
-                        tracker: tracker.as_ref(),
-                    };
-                    let l = match radiance(
-                        scene,
-                        &tracer,
-                        &lighting,
-                        settings,
-                        (first, throughput),
-                        &mut rng,
-                    ) {
-                        Ok(l) => l,
-                        Err(material) => {
-                            let mut b = blamed.lock().unwrap_or_else(PoisonError::into_inner);
-                            if b.as_ref().is_none_or(|&(bx, by, _)| (y, x) < (by, bx)) {
-                                *b = Some((x, y, material));
-                            }
-                            continue;
-                        }
-                    };
-                    estimate.add(l);
+    let pixel = |x: usize, y: usize| {
+        let subs = pixel_subsamples(&edges, cam, settings, x as u32, y as u32);
+        let count = samples.div_ceil(subs.len() as u32) as usize * subs.len();
+        let mut rng = Rng::new(settings.seed ^ 0x9a7b_7ace, (y * w + x) as u64);
+        let mut estimate = Estimate::default();
+        let mut hits = 0usize;
+        for i in 0..count {
+            let (fx, fy) = subs[i % subs.len()];
+            let ray = cam.ray(fx, fy);
+            let hit = tracer.closest_hit(ray.origin, ray.dir, f32::INFINITY);
+            let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
+            let collision = tracker
+                .as_ref()
+                .and_then(|t| Some((t.collide(ray.origin, ray.dir, t_hit, &mut rng)?, t)));
+            let (first, throughput) = match (collision, hit) {
+                (Some((t, tracker)), _) => (
+                    Vertex::Medium {
+                        pos: ray.origin + ray.dir * t,
+                        dir: ray.dir,
+                    },
+                    tracker.medium().albedo,
+                ),
+                (None, Some(hit)) => (
+                    Vertex::Surface(shading_point(&tracer, &hit, ray.dir)),
+                    Vec3::ONE,
+                ),
+                (None, None) => continue,
+            };
+            hits += 1;
+            let lighting = Lighting {
+                env,
+                lights: &lit,
+                tracker: tracker.as_ref(),
+            };
+            match radiance(
+                scene,
+                &tracer,
+                &lighting,
+                settings,
+                (first, throughput),
+                &mut rng,
+            ) {
+                Ok(l) => estimate.add(l),
+                Err(material) => {
+                    let mut b = blamed.lock().unwrap_or_else(PoisonError::into_inner);
+                    if b.as_ref().is_none_or(|&(bx, by, _)| (y, x) < (by, bx)) {
+                        *b = Some((x, y, material));
+                    }
                 }
-                line[x] = estimate.mean(count);
-                line_coverage[x] = hits as f32 / count as f32;
-                line_error[x] = estimate.std_error(count);
             }
-            progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1, h);
-        });
-    if let Some((x, y, m)) = blamed.into_inner().unwrap_or_else(PoisonError::into_inner) {
-        return Err(non_finite_material(scene, x, y, m));
-    }
-    Ok(PathTraced {
-        image,
+        }
+        PixelPaths {
+            estimate,
+            count,
+            coverage: hits as f32 / count as f32,
+        }
+    };
+    let (coverage, std_error) = (vec![0.0f32; w * h], vec![[0.0f32; 3]; w * h]);
+    let traced = PathTraced::fill(
+        Image::new(w, h),
         coverage,
         std_error,
         samples,
-    })
+        progress,
+        pixel,
+    );
+    if let Some((x, y, m)) = blamed.into_inner().unwrap_or_else(PoisonError::into_inner) {
+        return Err(non_finite_material(scene, x, y, m));
+    }
+    Ok(traced)
 }
 
 /// The error of a material whose lobe gave a NaN or infinite value on a path through pixel

@@ -17,7 +17,7 @@
 //! (`dpdxFine`, `dpdyFine`): differences across the pixel's aligned 2 × 2 quad, each pixel of it
 //! interpolated (or extrapolated) on the same triangle. So the twins read the same texels.
 //!
-//! With several samples a pixel ([`rasterize_multisampled`], at the standard rotated-grid
+//! With several samples a pixel ([`rasterize_with`], at the standard rotated-grid
 //! positions of [`FOUR_SAMPLES`], or [`SIXTEEN_SAMPLES`] for stills) each sample is drawn as a
 //! pixel centre is, shifted by its offset, and a pixel is the mean of its samples: RGB
 //! premultiplied by the coverage, the share of its samples drawn. The GPU twin draws the same
@@ -459,19 +459,13 @@ pub fn rasterize(
     triangles: &[[u32; 3]],
     colours: &[[f32; 3]],
 ) -> Result<Raster> {
-    rasterize_textured(camera, positions, triangles, colours, None)
-}
-
-/// [`rasterize`], each pixel of a textured triangle multiplied by its albedo map (see the module
-/// documentation).
-pub fn rasterize_textured(
-    camera: &Camera,
-    positions: &[Vec3],
-    triangles: &[[u32; 3]],
-    colours: &[[f32; 3]],
-    texturing: Option<&Texturing>,
-) -> Result<Raster> {
-    rasterize_multisampled(camera, positions, triangles, colours, texturing, 1)
+    rasterize_with(
+        camera,
+        positions,
+        triangles,
+        colours,
+        DrawOptions::samples(1),
+    )
 }
 
 /// Samples a pixel that `prt relight` and the viewer draw a per-vertex bake with.
@@ -520,36 +514,48 @@ pub fn sample_offsets(samples: u32) -> Result<&'static [[f32; 2]]> {
     }
 }
 
-/// Draws as [`rasterize_textured`] does, with `samples` samples a pixel ([`sample_offsets`]):
-/// each sample is drawn as a pixel centre would be (its own depth test, its colour and texture
-/// coordinate at its own ray, the texture's derivatives from the same sample of the quad's other
-/// pixels), and a pixel is the mean of its samples, black where a sample draws nothing: RGB is
-/// then premultiplied by the coverage, the fraction of the samples drawn. Errors as
-/// [`rasterize_textured`] does, and on a sample count other than 1, 4 or 16.
-pub fn rasterize_multisampled(
-    camera: &Camera,
-    positions: &[Vec3],
-    triangles: &[[u32; 3]],
-    colours: &[[f32; 3]],
-    texturing: Option<&Texturing>,
-    samples: u32,
-) -> Result<Raster> {
-    rasterize_glossy(
-        camera, positions, triangles, colours, texturing, None, samples,
-    )
+/// What a drawn pixel takes beside its interpolated vertex colour, and the samples it is drawn
+/// with ([`rasterize_with`]).
+#[derive(Clone, Copy)]
+pub struct DrawOptions<'a> {
+    /// The albedo maps each pixel of a textured triangle is multiplied by (see the module
+    /// documentation).
+    pub texturing: Option<&'a Texturing<'a>>,
+    /// A bake's view-dependent light, added per sample.
+    pub gloss: Option<&'a dyn ViewDependent>,
+    /// Samples a pixel ([`sample_offsets`]): 1, 4 or 16.
+    pub samples: u32,
 }
 
-/// [`rasterize_multisampled`] with a bake's view-dependent light added per sample
-/// ([`ViewDependent`]).
-pub fn rasterize_glossy(
+impl DrawOptions<'_> {
+    /// `samples` samples a pixel, with neither albedo maps nor view-dependent light.
+    pub fn samples(samples: u32) -> Self {
+        DrawOptions {
+            texturing: None,
+            gloss: None,
+            samples,
+        }
+    }
+}
+
+/// Draws as [`rasterize`] does, with what `options` adds: each sample is drawn as a pixel centre
+/// would be (its own depth test, its colour, texture coordinate and view-dependent light at its
+/// own ray, the texture's derivatives from the same sample of the quad's other pixels), and a
+/// pixel is the mean of its samples, black where a sample draws nothing: RGB is then
+/// premultiplied by the coverage, the fraction of the samples drawn. Errors as [`rasterize`]
+/// does, on tables that do not fit the mesh, and on a sample count other than 1, 4 or 16.
+pub fn rasterize_with(
     camera: &Camera,
     positions: &[Vec3],
     triangles: &[[u32; 3]],
     colours: &[[f32; 3]],
-    texturing: Option<&Texturing>,
-    gloss: Option<&dyn ViewDependent>,
-    samples: u32,
+    options: DrawOptions,
 ) -> Result<Raster> {
+    let DrawOptions {
+        texturing,
+        gloss,
+        samples,
+    } = options;
     let offsets = sample_offsets(samples)?;
     camera.validate()?;
     check_mesh(positions, triangles, Some(colours))?;
@@ -817,10 +823,13 @@ mod tests {
             .map(|p| colour(p.as_dvec3()).as_vec3().to_array())
             .collect();
         let w = cam.width as usize;
+        let draw = |samples| {
+            let options = DrawOptions::samples(samples);
+            rasterize_with(&cam, &positions, &triangles, &colours, options)
+        };
         for samples in [4, 16] {
             let offsets = sample_offsets(samples).unwrap();
-            let r = rasterize_multisampled(&cam, &positions, &triangles, &colours, None, samples)
-                .unwrap();
+            let r = draw(samples).unwrap();
             let mut partial = 0;
             for (i, px) in r.image.pixels.iter().enumerate() {
                 let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
@@ -848,14 +857,13 @@ mod tests {
             );
         }
         // One sample is the plain raster.
-        let one = rasterize_multisampled(&cam, &positions, &triangles, &colours, None, 1).unwrap();
+        let one = draw(1).unwrap();
         assert_eq!(
             one,
             rasterize(&cam, &positions, &triangles, &colours).unwrap()
         );
         for samples in [0, 2, 3, 8, 32] {
-            let e = rasterize_multisampled(&cam, &positions, &triangles, &colours, None, samples)
-                .unwrap_err();
+            let e = draw(samples).unwrap_err();
             assert!(e.to_string().contains("samples"), "{e}");
         }
     }
@@ -888,7 +896,14 @@ mod tests {
         let colours = vec![[1.0f32; 3]; positions.len()];
         let w = cam.width as usize;
         let draw = |samples| {
-            rasterize_multisampled(&cam, &positions, &triangles, &colours, None, samples).unwrap()
+            rasterize_with(
+                &cam,
+                &positions,
+                &triangles,
+                &colours,
+                DrawOptions::samples(samples),
+            )
+            .unwrap()
         };
         let (four, sixteen) = (draw(4), draw(16));
         let (mut e4, mut e16, mut edges) = (0.0f64, 0.0f64, 0);
@@ -1055,8 +1070,11 @@ mod tests {
         let colours = vec![[0.0f32; 3]; 8];
         for order in [[far, near].concat(), [near, far].concat()] {
             let gloss = Counting(0.into());
-            let r = rasterize_glossy(&cam, &positions, &order, &colours, None, Some(&gloss), 1)
-                .unwrap();
+            let glossy = DrawOptions {
+                gloss: Some(&gloss),
+                ..DrawOptions::samples(1)
+            };
+            let r = rasterize_with(&cam, &positions, &order, &colours, glossy).unwrap();
             let covered = r.coverage.iter().filter(|&&c| c == 1.0).count();
             // The far quad drawn first is hidden in the centre: its shading there is not asked.
             assert_eq!(gloss.0.into_inner(), covered);

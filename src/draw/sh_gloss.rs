@@ -7,14 +7,13 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::draw::shading::{ViewDependent, interpolated_normal};
+use crate::draw::shading::{GlossMesh, ViewDependent, interpolated_normal};
 use crate::error::Result;
 use crate::math::cube_pyramid::CubePyramid;
 use crate::math::sh;
 use crate::math::zonal::{ZONAL_STEPS, zonal_of};
 use crate::relight::sh_transfer::{MAX_TRANSFER_ORDER, ShTransfer, pyramid_sh};
 use crate::scene::brdf::ggx_cosine;
-use crate::scene::visibility::Visibility;
 
 /// The Funk–Hecke factor of each band to `order` of a GGX lobe of width `alpha` at normal
 /// incidence, per unit of specular colour: what a light's band is scaled by when the lobe,
@@ -33,12 +32,8 @@ pub fn ggx_bands(alpha: f32, order: usize) -> Vec<f64> {
 /// What a glossy bake with visibility draws by SH glossy transfer under one light.
 #[derive(Clone, Debug)]
 pub struct ShGloss<'a> {
-    /// Unit shading normal of each vertex.
-    pub normals: &'a [Vec3],
-    /// Material of each vertex.
-    pub materials: &'a [u32],
-    /// The glossy vertices' rows and the materials' lobes.
-    pub visibility: &'a Visibility,
+    /// The vertices' normals, materials and visibility (whose rows the transfer was made from).
+    pub vertices: GlossMesh<'a>,
     order: usize,
     /// Per material, its specular colour and its lobe's band factors (`None`: diffuse).
     bands: Vec<Option<(DVec3, Vec<f64>)>>,
@@ -51,13 +46,8 @@ pub struct ShGloss<'a> {
 impl<'a> ShGloss<'a> {
     /// The glossy light of a mesh's vertices under `light` through `transfer` (made from
     /// `visibility`).
-    pub fn new(
-        normals: &'a [Vec3],
-        materials: &'a [u32],
-        visibility: &'a Visibility,
-        transfer: &ShTransfer,
-        light: &CubePyramid,
-    ) -> ShGloss<'a> {
+    pub fn new(vertices: GlossMesh<'a>, transfer: &ShTransfer, light: &CubePyramid) -> ShGloss<'a> {
+        let visibility = vertices.visibility;
         let order = transfer.order;
         let light = pyramid_sh(light, order);
         let bands = (0..visibility.lobes.len() as u32)
@@ -68,9 +58,7 @@ impl<'a> ShGloss<'a> {
             })
             .collect();
         ShGloss {
-            normals,
-            materials,
-            visibility,
+            vertices,
             order,
             bands,
             transferred: transfer.transferred(&light),
@@ -81,7 +69,7 @@ impl<'a> ShGloss<'a> {
     /// Vertex `v`'s transferred radiance.
     fn coefficients(&self, v: u32) -> &[[f32; 3]] {
         let nn = self.order * self.order;
-        match self.visibility.row_index(v as usize) {
+        match self.vertices.visibility.row_index(v as usize) {
             Some(r) => &self.transferred[r as usize * nn..(r as usize + 1) * nn],
             None => &self.light,
         }
@@ -91,18 +79,17 @@ impl<'a> ShGloss<'a> {
 impl ViewDependent for ShGloss<'_> {
     /// Checks the mesh's tables ([`Visibility::check_draw`]).
     fn check(&self, vertices: usize) -> Result<()> {
-        self.visibility
-            .check_draw(self.normals.len(), self.materials, vertices)
+        self.vertices.check(vertices)
     }
 
     /// The lobe about the reflection of `to_eye` in the interpolated normal, convolved with the
     /// transferred radiance interpolated at `b`.
     fn shade(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> DVec3 {
-        let m = self.materials[tri[0] as usize];
+        let m = self.vertices.materials[tri[0] as usize];
         let Some(Some((specular, bands))) = self.bands.get(m as usize) else {
             return DVec3::ZERO;
         };
-        let Some(n) = interpolated_normal(self.normals, tri, b) else {
+        let Some(n) = interpolated_normal(self.vertices.normals, tri, b) else {
             return DVec3::ZERO;
         };
         let nv = n.dot(to_eye);

@@ -7,6 +7,7 @@ use glam::{DVec3, Vec2, Vec3};
 use crate::error::{PrtError, Result};
 use crate::scene::albedo_map::AlbedoMap;
 use crate::scene::tessellate::VertexMesh;
+use crate::scene::visibility::Visibility;
 
 /// What a textured mesh adds to a draw: each vertex's texture coordinate and material, and the
 /// albedo map each material's pixels are multiplied by.
@@ -86,6 +87,37 @@ pub fn interpolated_normal(normals: &[Vec3], tri: [u32; 3], b: [f64; 3]) -> Opti
         .try_normalize()
 }
 
+/// What a glossy per-vertex bake adds to its mesh, and what every representation of its glossy
+/// light draws with, on the CPU and the GPU: each vertex's shading normal and material, and the
+/// glossy vertices' visibility bits with the materials' GGX lobes.
+#[derive(Clone, Copy, Debug)]
+pub struct GlossMesh<'a> {
+    /// Unit shading normal of each vertex.
+    pub normals: &'a [Vec3],
+    /// Material of each vertex.
+    pub materials: &'a [u32],
+    /// The glossy vertices' visibility and the materials' lobes.
+    pub visibility: &'a Visibility,
+}
+
+impl<'a> GlossMesh<'a> {
+    /// The gloss of a per-vertex bake's mesh, `None` for its diffuse base (a mesh without
+    /// visibility).
+    pub fn of(mesh: &'a VertexMesh) -> Option<GlossMesh<'a>> {
+        Some(GlossMesh {
+            normals: &mesh.normals,
+            materials: &mesh.materials,
+            visibility: mesh.visibility.as_deref()?,
+        })
+    }
+
+    /// Checks the tables against a mesh of `vertices` vertices ([`Visibility::check_draw`]).
+    pub fn check(&self, vertices: usize) -> Result<()> {
+        self.visibility
+            .check_draw(self.normals.len(), self.materials, vertices)
+    }
+}
+
 /// What a per-vertex bake stores for view-dependent shading, as the raster asks for it: the
 /// light a point adds, seen from a direction, on top of its interpolated vertex colour. A new
 /// representation of glossy light is an impl of this: [`crate::draw::lobe::Lobe`] (the GGX lobe
@@ -101,7 +133,7 @@ pub trait ViewDependent: Sync {
 
     /// The vertex colours with each vertex's view-dependent light added as seen from `eye` (the
     /// direction to the eye taken at the vertex): the per-vertex evaluation that
-    /// [`crate::draw::raster::rasterize_glossy`]'s per-pixel one is compared with. Errors as
+    /// [`crate::draw::raster::rasterize_with`]'s per-pixel one is compared with. Errors as
     /// [`ViewDependent::check`] does, and unless there is one colour per position.
     fn per_vertex(
         &self,

@@ -14,14 +14,13 @@ use crate::output::film::Image;
 
 use crate::draw::lobe::lights::WithLights;
 use crate::draw::lobe::{Lobe, lit_columns};
-use crate::draw::raster::{Raster, rasterize_glossy};
+use crate::draw::raster::{DrawOptions, Raster, rasterize_with};
 use crate::draw::sh_gloss::ShGloss;
-use crate::draw::shading::{Texturing, ViewDependent};
+use crate::draw::shading::{GlossMesh, Texturing, ViewDependent};
 use crate::math::cube_pyramid::CubePyramid;
 use crate::relight::sh_transfer::ShTransfer;
 use crate::scene::Camera;
 use crate::scene::tessellate::VertexMesh;
-use crate::scene::visibility::Visibility;
 use crate::store::transport::Transport;
 
 /// The mesh of a per-vertex bake, or an error saying that the file is a fixed view.
@@ -237,7 +236,7 @@ pub fn vertex_colours<'a>(t: &Transport, relit: &'a Image) -> Result<&'a [[f32; 
 /// (the pyramid of the light the relight used, [`crate::relight::Terms::cube`]; an error without
 /// it), with `behind` (the
 /// environment and its turn) where no surface is drawn, with `samples` samples a pixel (see
-/// [`crate::draw::raster::rasterize_multisampled`]). Also gives the coverage, for masks and tone
+/// [`crate::draw::raster::rasterize_with`]). Also gives the coverage, for masks and tone
 /// mapping.
 pub fn draw_relit(
     t: &Transport,
@@ -265,7 +264,7 @@ pub fn draw_relit_lit(
 ) -> Result<Raster> {
     let mesh = mesh_of(t)?;
     let colours = vertex_colours(t, relit)?;
-    if let Some(vis) = &mesh.visibility {
+    if let Some(gloss) = GlossMesh::of(mesh) {
         let light = light.ok_or_else(|| {
             PrtError::invalid(
                 "light",
@@ -273,7 +272,7 @@ pub fn draw_relit_lit(
                  the light the relight used",
             )
         })?;
-        let lobe = lit_lobe(t, mesh, (vis, light), weights);
+        let lobe = lit_lobe(t, (gloss, &mesh.positions), light, weights);
         return draw_mesh(mesh, colours, Some(&lobe), camera, behind, samples);
     }
     draw_mesh(mesh, colours, None, camera, behind, samples)
@@ -295,7 +294,7 @@ pub fn draw_sh_glossy(
     samples: u32,
 ) -> Result<Raster> {
     let mesh = mesh_of(t)?;
-    let vis = mesh.visibility.as_deref().ok_or_else(|| {
+    let gloss = GlossMesh::of(mesh).ok_or_else(|| {
         PrtError::invalid(
             "SH transfer",
             "SH glossy transfer draws a bake with visibility: bake a glossy scene with \
@@ -303,8 +302,8 @@ pub fn draw_sh_glossy(
         )
     })?;
     let colours = vertex_colours(t, relit)?;
-    let gloss = ShGloss::new(&mesh.normals, &mesh.materials, vis, transfer, light);
-    let lights = lit_lobe(t, mesh, (vis, light), weights);
+    let lights = lit_lobe(t, (gloss, &mesh.positions), light, weights);
+    let gloss = ShGloss::new(gloss, transfer, light);
     if lights.is_unlit() {
         return draw_mesh(mesh, colours, Some(&gloss), camera, behind, samples);
     }
@@ -315,16 +314,16 @@ pub fn draw_sh_glossy(
     draw_mesh(mesh, colours, Some(&both), camera, behind, samples)
 }
 
-/// The lobe of `mesh`'s glossy vertices (`vis`) under `light`, with the highlights of the light
-/// columns of `t` that `weights` lights.
+/// The lobe of a mesh's glossy vertices under `light`, with the highlights at the vertex
+/// `positions` of the light columns of `t` that `weights` lights.
 fn lit_lobe<'a>(
     t: &Transport,
-    mesh: &'a VertexMesh,
-    (vis, light): (&'a Visibility, &'a CubePyramid),
+    (gloss, positions): (GlossMesh<'a>, &'a [Vec3]),
+    light: &'a CubePyramid,
     weights: &[[f32; 3]],
 ) -> Lobe<'a> {
     let lit = lit_columns(&t.meta.lights, weights);
-    Lobe::of_widths(&mesh.normals, &mesh.materials, vis, light).with_lights(&mesh.positions, lit)
+    Lobe::of_widths(gloss, light).with_lights(positions, lit)
 }
 
 /// Draws a per-vertex bake with the given vertex `colours` (one per vertex, its glossy terms
@@ -348,15 +347,13 @@ fn draw_mesh(
     behind: Option<(&EnvMap, EnvRotation)>,
     samples: u32,
 ) -> Result<Raster> {
-    let raster = rasterize_glossy(
-        camera,
-        &mesh.positions,
-        &mesh.triangles,
-        colours,
-        Texturing::of(mesh).as_ref(),
+    let texturing = Texturing::of(mesh);
+    let options = DrawOptions {
+        texturing: texturing.as_ref(),
         gloss,
         samples,
-    )?;
+    };
+    let raster = rasterize_with(camera, &mesh.positions, &mesh.triangles, colours, options)?;
     compose(raster, camera, behind)
 }
 

@@ -146,6 +146,18 @@ pub fn end_scope(scope: wgpu::ErrorScopeGuard, what: &str) -> Result<()> {
     }
 }
 
+/// Submits `encoder`'s commands and ends `scope` ([`end_scope`]): for work that nothing here
+/// waits on, such as a draw into a texture shown next.
+pub fn submit_in_scope(
+    queue: &wgpu::Queue,
+    encoder: wgpu::CommandEncoder,
+    scope: wgpu::ErrorScopeGuard,
+    what: &str,
+) -> Result<()> {
+    queue.submit([encoder.finish()]);
+    end_scope(scope, what)
+}
+
 /// The threads of a workgroup of a pipeline with one thread per pixel: `x` by `y`. Defined once
 /// in Rust: the shader gets it as `const WG_X` and `const WG_Y` ([`wgsl`]) for its
 /// `@workgroup_size(WG_X, WG_Y)`, and the dispatch covers an image with it.

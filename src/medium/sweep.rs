@@ -155,17 +155,8 @@ impl Sweeper {
     /// Sweeps `dir`, writing `f(tau)` per voxel into `out` (the layout of `dir`'s axis).
     pub fn sweep(&self, dir: Vec3, out: &mut [f32], f: impl Fn(f32) -> f32) {
         let (layout, st) = self.stepping(dir);
-        let Stepping {
-            n: [_, nb, nc],
-            h,
-            wb,
-            wc,
-            ib,
-            ic,
-            pad,
-            pc,
-            ..
-        } = st;
+        let [_, nb, nc] = st.n;
+        let (h, wb, wc, ib, ic, pad, pc) = (st.h, st.wb, st.wc, st.ib, st.ic, st.pad, st.pc);
         let mut up = vec![0.0f32; st.padded()];
         let mut next = vec![0.0f32; st.padded()];
         let hh = 0.5 * h;
@@ -215,17 +206,8 @@ impl Sweeper {
     /// this one `channels` values and their sources, in a loop of its own for speed.
     pub fn gather(&self, dir: Vec3, channels: usize, source: &[f32], out: &mut [f32]) {
         let (layout, st) = self.stepping(dir);
-        let Stepping {
-            n: [na, nb, nc],
-            h,
-            wb,
-            wc,
-            ib,
-            ic,
-            pad,
-            pc,
-            ..
-        } = st;
+        let [na, nb, nc] = st.n;
+        let (h, wb, wc, ib, ic, pad, pc) = (st.h, st.wb, st.wc, st.ib, st.ic, st.pad, st.pc);
         let ch = channels;
         debug_assert_eq!(source.len(), na * nb * nc * ch);
         debug_assert_eq!(out.len(), na * nb * nc * ch);

@@ -51,13 +51,12 @@ pub fn add_columns(columns: &LightColumns, weights: &[[f32; 3]], pixels: &mut [[
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::store::transport::lights::tests::two_columns;
 
     #[test]
     fn adding_columns_is_the_weighted_sum_of_their_values() {
         let (w, h) = (4, 2);
-        let mut cols = LightColumns::zeros(2, w, h);
-        let band: Vec<f32> = (0..2 * 3 * h * w).map(|i| (i % 5) as f32 * 0.25).collect();
-        cols.set_rows(0, &band);
+        let (cols, _) = two_columns(w, h, |i| (i % 5) as f32 * 0.25);
         let weights = [[1.0, 0.0, 2.0], [0.5, 0.5, 0.5]];
         let mut pixels = vec![[1.0f32; 3]; w * h];
         add_columns(&cols, &weights, &mut pixels);

@@ -44,6 +44,11 @@ pub use panels::CachedPanels;
 use panels::PANEL_TERMS;
 #[cfg(target_arch = "x86_64")]
 use panels::add_panels;
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::{
+    __m128i, _mm_loadl_epi64, _mm_loadu_si128, _mm256_cvtepi8_epi32, _mm256_cvtepi16_epi32,
+    _mm256_cvtepi32_ps,
+};
 
 use rayon::prelude::*;
 
@@ -88,9 +93,12 @@ pub enum StripPath {
     Portable,
 }
 
-/// A stored strip value: widened to f32 eight at a time.
-trait StripValue: Copy + Send + Sync + 'static {
-    fn widen(v: &[Self; STRIP_ROWS]) -> [f32; STRIP_ROWS];
+/// A stored strip value: widened to f32 eight at a time (exactly: every i8 and i16 is an f32).
+trait StripValue: Copy + Send + Sync + Into<f32> + 'static {
+    #[inline(always)]
+    fn widen(v: &[Self; STRIP_ROWS]) -> [f32; STRIP_ROWS] {
+        v.map(Into::into)
+    }
     /// # Safety
     /// `p` points at eight readable values, and the caller runs on a processor with AVX2.
     #[cfg(target_arch = "x86_64")]
@@ -98,38 +106,24 @@ trait StripValue: Copy + Send + Sync + 'static {
 }
 
 impl StripValue for i8 {
-    #[inline(always)]
-    fn widen(v: &[i8; STRIP_ROWS]) -> [f32; STRIP_ROWS] {
-        v.map(|x| x as f32)
-    }
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn widen_avx2(p: *const i8) -> std::arch::x86_64::__m256 {
-        use std::arch::x86_64::*;
         // SAFETY: the caller's contract; an unaligned 8-byte load.
         unsafe { _mm256_cvtepi32_ps(_mm256_cvtepi8_epi32(_mm_loadl_epi64(p as *const __m128i))) }
     }
 }
 
 impl StripValue for i16 {
-    #[inline(always)]
-    fn widen(v: &[i16; STRIP_ROWS]) -> [f32; STRIP_ROWS] {
-        v.map(|x| x as f32)
-    }
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn widen_avx2(p: *const i16) -> std::arch::x86_64::__m256 {
-        use std::arch::x86_64::*;
         // SAFETY: the caller's contract; an unaligned 16-byte load.
         unsafe { _mm256_cvtepi32_ps(_mm256_cvtepi16_epi32(_mm_loadu_si128(p as *const __m128i))) }
     }
 }
 
 impl StripValue for f32 {
-    #[inline(always)]
-    fn widen(v: &[f32; STRIP_ROWS]) -> [f32; STRIP_ROWS] {
-        *v
-    }
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn widen_avx2(p: *const f32) -> std::arch::x86_64::__m256 {

@@ -145,18 +145,11 @@ pub fn apply_light_arg(lights: &[Light], settings: &mut [LightSetting], arg: &st
         None => (target, None),
     };
     let Some(i) = lights.iter().position(|l| l.name == name) else {
-        let known = if lights.is_empty() {
-            "the transport has no local lights".to_string()
-        } else {
-            format!(
-                "its lights are {}",
-                lights
-                    .iter()
-                    .map(|l| l.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
-        };
+        let known = crate::names::known(
+            lights.iter().map(|l| l.name.as_str()),
+            "the transport has no local lights",
+            "its lights are",
+        );
         return Err(bad(format!("no light is called `{name}`; {known}")));
     };
     if value.is_none() && at.is_none() {

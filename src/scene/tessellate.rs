@@ -689,11 +689,7 @@ mod tests {
     const CLOSED_VECTOR_AREA: f32 = 1e-3;
 
     fn scene(shapes: &str) -> Scene {
-        let text = format!(
-            "[camera]\neye = [0.0, 2.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\n\
-             fov_y_deg = 40.0\nwidth = 8\nheight = 8\n\
-             [material.m]\ntype = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]\n{shapes}"
-        );
+        let text = crate::test_support::grey_scene_text([0.0, 2.0, 5.0], 40.0, 8, shapes);
         Scene::from_toml_str(&text, std::path::Path::new("t.toml")).unwrap()
     }
 

@@ -136,26 +136,9 @@ fn fnv1a_matches_reference_vectors() {
 }
 
 fn mesh_scene(obj_name: &str, extra: &str) -> String {
-    format!(
-        r#"[camera]
-eye = [0.0, 1.0, 5.0]
-target = [0.0, 0.0, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y_deg = 45.0
-width = 8
-height = 8
-
-[material.m]
-type = "diffuse"
-albedo = [0.5, 0.5, 0.5]
-
-[[shape]]
-type = "mesh"
-path = "{obj_name}"
-material = "m"
-{extra}
-"#
-    )
+    let shape =
+        format!("[[shape]]\ntype = \"mesh\"\npath = \"{obj_name}\"\nmaterial = \"m\"\n{extra}\n");
+    grey_scene_text([0.0, 1.0, 5.0], 45.0, 8, &shape)
 }
 
 fn load_mesh(dir: &str, obj: &str, extra: &str) -> Scene {

@@ -17,12 +17,9 @@
 //! piecewise-constant cube of texels the SH light is projected from, and pixels are sampled at
 //! their centres, as the ray march does, so that both see the same medium along the same rays.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use glam::Vec3;
-use rayon::prelude::*;
 
-use crate::bake::path_tracer::PathTraced;
+use crate::bake::path_tracer::{PathTraced, PixelPaths};
 use crate::env::importance::CubeSampler;
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
@@ -150,58 +147,47 @@ pub fn path_trace_volume(
     let what = format!("a {w} x {h} volume reference ({TRACE_BYTES_PER_PIXEL} bytes a pixel)");
     let pixels = w as u64 * h as u64;
     crate::files::check_memory(field, &what, pixels * TRACE_BYTES_PER_PIXEL)?;
-    let mut image = Image {
+    let image = Image {
         width: w,
         height: h,
         pixels: crate::files::try_filled(field, &what, w * h, [0.0f32; 3])?,
     };
-    let mut std_error = crate::files::try_filled(field, &what, w * h, [0.0f32; 3])?;
-    let mut coverage = crate::files::try_filled(field, &what, w * h, 0.0f32)?;
+    let std_error = crate::files::try_filled(field, &what, w * h, [0.0f32; 3])?;
+    let coverage = crate::files::try_filled(field, &what, w * h, 0.0f32)?;
+    let samples = settings.samples;
     let Some(sampler) = CubeSampler::new(cube) else {
         // A black map lights nothing.
         return Ok(PathTraced {
             image,
             coverage,
             std_error,
-            samples: settings.samples,
+            samples,
         });
     };
     let tracker = Tracker::new(medium);
-    let rows_done = AtomicUsize::new(0);
-    let n = settings.samples as usize;
-    image
-        .pixels
-        .par_chunks_mut(w)
-        .zip(std_error.par_chunks_mut(w))
-        .zip(coverage.par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(y, ((line, errors), cover))| {
-            for x in 0..w {
-                let ray = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
-                let mut rng = Rng::new(settings.seed, (y * w + x) as u64);
-                let mut estimate = Estimate::default();
-                let mut scattered = 0u32;
-                for _ in 0..settings.samples {
-                    let l = trace_path(
-                        &tracker, cube, &sampler, max_order, ray.origin, ray.dir, &mut rng,
-                    );
-                    if l != Vec3::ZERO {
-                        scattered += 1;
-                    }
-                    estimate.add(l);
-                }
-                line[x] = estimate.mean(n);
-                errors[x] = estimate.std_error(n);
-                cover[x] = scattered as f32 / settings.samples as f32;
+    let pixel = |x: usize, y: usize| {
+        let ray = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+        let mut rng = Rng::new(settings.seed, (y * w + x) as u64);
+        let mut estimate = Estimate::default();
+        let mut scattered = 0u32;
+        for _ in 0..samples {
+            let l = trace_path(
+                &tracker, cube, &sampler, max_order, ray.origin, ray.dir, &mut rng,
+            );
+            if l != Vec3::ZERO {
+                scattered += 1;
             }
-            progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1, h);
-        });
-    Ok(PathTraced {
-        image,
-        coverage,
-        std_error,
-        samples: settings.samples,
-    })
+            estimate.add(l);
+        }
+        PixelPaths {
+            estimate,
+            count: samples as usize,
+            coverage: scattered as f32 / samples as f32,
+        }
+    };
+    Ok(PathTraced::fill(
+        image, coverage, std_error, samples, progress, pixel,
+    ))
 }
 
 #[cfg(test)]
@@ -213,6 +199,17 @@ mod tests {
     /// Standard errors an estimate may stray: a true failure (a wrong free-path law, a lobe
     /// turned the wrong way) is off by tens of them.
     const SIGMAS: f64 = 4.5;
+
+    /// A ball of radius 0.8 at the origin whose density falls off over `falloff`, on a 16³ grid
+    /// of this extinction and albedo.
+    fn ball(falloff: f32, extinction: f32, albedo: f32) -> Medium {
+        let src = DensitySource::Ellipsoid {
+            center: Vec3::ZERO,
+            radii: Vec3::splat(0.8),
+            falloff,
+        };
+        medium([16; 3], |p| src.density(p), extinction, albedo)
+    }
 
     fn camera(size: u32) -> Camera {
         Camera {
@@ -229,12 +226,7 @@ mod tests {
     fn albedo_one_under_a_white_sky_is_the_medium_white_furnace() {
         // With no absorption and radiance 1 from every direction, radiance is 1 everywhere in the
         // medium, so what it scatters to the camera is 1 − T along the camera ray.
-        let src = DensitySource::Ellipsoid {
-            center: Vec3::ZERO,
-            radii: Vec3::splat(0.8),
-            falloff: 0.4,
-        };
-        let m = medium([16; 3], |p| src.density(p), 6.0, 1.0);
+        let m = ball(0.4, 6.0, 1.0);
         let cube = CubeMap::constant(8, [1.0; 3]).unwrap();
         let cam = camera(12);
         let settings = VolumeTraceSettings {
@@ -274,12 +266,7 @@ mod tests {
     fn order_one_is_single_scattering_and_thin_media_barely_scatter_twice() {
         use crate::volume::{TransferSettings, VolumeLight, VolumeTransfer, bake_transfer};
         // An optically thin sphere (depth about 0.15 across) lit by a sky with a bright patch.
-        let src = DensitySource::Ellipsoid {
-            center: Vec3::ZERO,
-            radii: Vec3::splat(0.8),
-            falloff: 0.3,
-        };
-        let m = medium([16; 3], |p| src.density(p), 0.1, 0.8);
+        let m = ball(0.3, 0.1, 0.8);
         let n = 8;
         let patch = glam::DVec3::new(0.5, 0.7, 0.5).normalize();
         let cube = CubeMap::from_fn(n, |d| {

@@ -106,9 +106,7 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
         let bake_seconds = start.elapsed().as_secs_f64();
         let path = dir.join(format!("bounces_{bounces}.prt"));
         t.save(&path)?;
-        let file_bytes = std::fs::metadata(&path)
-            .map_err(|e| PrtError::io(&path, e))?
-            .len();
+        let file_bytes = crate::files::file_len(&path)?;
         let img = full(&t)?;
         eprintln!("path tracing the reference with {bounces} bounces");
         let start = Instant::now();

@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::app::studies::{Study, dusk, gloss_orbit, orbit, truck};
+use crate::app::studies::{Study, dusk, gloss_orbit, orbit, percent_cells, truck};
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::draw::background::{composite, environment_behind};
 use crate::env::envmap::{BUNDLED_MAPS, BundledMap, EnvMap, EnvRotation};
@@ -580,9 +580,7 @@ fn summary_markdown(r: &DemoReport) -> String {
     for (env, row) in &r.truck.errors {
         table.push_str(&format!(
             "| {env} |{}\n",
-            row.iter()
-                .map(|(_, e)| format!(" {:.2}% |", 100.0 * e))
-                .collect::<String>()
+            percent_cells(row.iter().map(|(_, e)| *e))
         ));
     }
     table

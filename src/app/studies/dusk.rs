@@ -56,12 +56,8 @@ pub fn dusk_terms(t: &Transport, weighting: Weighting) -> Result<(EnvMap, Terms)
 pub fn run_dusk(study: &mut Study, assets: &Path, weighting: Weighting) -> Result<DuskReport> {
     let (dir, settings) = (study.dir, study.settings);
     let (scene, transport_path) = study.asset_scene(assets, "dusk")?;
-    let what = format!(
-        "baking {} with its {} local lights ...",
-        scene.source_path.display(),
-        scene.lights.len()
-    );
-    let (t, reused_bake, bake_seconds) = study.bake(&transport_path, &scene, settings, &what)?;
+    let detail = format!("with its {} local lights", scene.lights.len());
+    let (t, reused_bake, bake_seconds) = study.bake(&transport_path, &scene, settings, &detail)?;
     let (env, terms) = dusk_terms(&t, weighting)?;
     let behind = environment_behind(&t.meta, &t.coverage, &env, EnvRotation::default())?;
     let lights = &t.meta.lights;

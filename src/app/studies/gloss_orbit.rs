@@ -75,12 +75,9 @@ pub fn run_gloss_orbit(
         ..settings.clone()
     };
     let transport_path = dir.join("demo_glossy.prt");
-    let what = format!(
-        "baking {} per vertex with its glossy materials' visibility ...",
-        scene.source_path.display()
-    );
+    let detail = "per vertex with its glossy materials' visibility";
     let (t, reused_bake, bake_seconds) =
-        study.bake(&transport_path, scene, &glossy_settings, &what)?;
+        study.bake(&transport_path, scene, &glossy_settings, detail)?;
     let ctx = LightContext::new(&t)?;
     let light = ctx.prepare(env, rotation)?;
     let terms = Terms::of(&t, &ctx, &light, &RelightRequest::Full)?;

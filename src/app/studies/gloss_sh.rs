@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
-use super::median;
+use super::{median, percent_cells};
 use crate::draw::vertex::draw_sh_glossy;
 use crate::error::Result;
 use crate::math::cube_pyramid::CubePyramid;
@@ -174,11 +174,7 @@ pub fn markdown(rows: &[ShTransferRow], cameras: usize, [side, runs, k]: [usize;
         rule = "---:|".repeat(cameras)
     );
     for r in rows {
-        let errors: String = r
-            .error
-            .iter()
-            .map(|e| format!(" {:.2}% |", 100.0 * e))
-            .collect();
+        let errors = percent_cells(r.error.iter().copied());
         let _ = writeln!(
             s,
             "| {}x | {} |{errors} {} | {} | {:.2} | {:.1} + {:.1} = {:.1} |",

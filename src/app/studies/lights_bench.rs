@@ -7,8 +7,9 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::bake::path_tracer::path_trace_lit;
+use crate::bake::path_tracer::path_trace_env;
 use crate::bake::{BakeSettings, bake};
+use crate::env::importance::CubeLight;
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
 use crate::output::film::{Image, ToneMap};
@@ -193,7 +194,14 @@ pub fn run(
         let mix = LightMix::new(&scene.lights, &defaults)?;
         let (img, _) = Cpu(&t).relight_lit(&Terms::dark(), &mix)?;
         let black = CubeMap::constant(8, [0.0; 3])?;
-        let traced = path_trace_lit(&scene, &black, &mix, &settings, opts.paths, &|_, _| {})?;
+        let traced = path_trace_env(
+            &scene,
+            &CubeLight::new(&black),
+            &mix,
+            &settings,
+            opts.paths,
+            &|_, _| {},
+        )?;
         let pixels = t.pixel_count() as f64;
         kinds.push(KindRow {
             kind: kind.to_string(),

@@ -49,17 +49,18 @@ impl Study<'_> {
         Ok((scene, self.dir.join(format!("{name}.prt"))))
     }
 
-    /// Bakes `scene` with `settings` into `path`, saying `what` first, or reuses the file where it
-    /// holds that bake (and says so). Returns the transport, whether it was reused, and the
-    /// seconds taken.
+    /// Bakes `scene` with `settings` into `path`, saying first "baking SCENE `detail` ...", or
+    /// reuses the file where it holds that bake (and says so). Returns the transport, whether it
+    /// was reused, and the seconds taken.
     pub fn bake(
         &mut self,
         path: &Path,
         scene: &Scene,
         settings: &BakeSettings,
-        what: &str,
+        detail: &str,
     ) -> Result<(Transport, bool, f64)> {
-        load_or_bake_logged(path, scene, settings, what, self.log, self.progress)
+        let what = format!("baking {} {detail} ...", scene.source_path.display());
+        load_or_bake_logged(path, scene, settings, &what, self.log, self.progress)
     }
 }
 
@@ -67,6 +68,15 @@ impl Study<'_> {
 pub fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Relative errors as the cells of a Markdown table row, percentages with two decimals, each
+/// cell ` 1.23% |`.
+pub fn percent_cells(errors: impl IntoIterator<Item = f64>) -> String {
+    errors
+        .into_iter()
+        .map(|e| format!(" {:.2}% |", 100.0 * e))
+        .collect()
 }
 
 /// Relative errors as percentages, one decimal, comma-separated.

@@ -89,11 +89,8 @@ fn bake_vertices(
         domain: BakeDomain::Vertices { edge_length: edge },
         ..study.settings.clone()
     };
-    let what = format!(
-        "baking {} per vertex (edges up to {edge:.3}) ...",
-        scene.source_path.display(),
-    );
-    study.bake(&study.dir.join(name), scene, &settings, &what)
+    let detail = format!("per vertex (edges up to {edge:.3})");
+    study.bake(&study.dir.join(name), scene, &settings, &detail)
 }
 
 /// Bakes (or reuses) `scene` per vertex into `dir/demo_vertices.prt` with `settings` at the

@@ -148,9 +148,7 @@ pub fn run_paper(
             let meta = bake_to_file(scene, &settings, &path, progress)?;
             let seconds = start.elapsed().as_secs_f64();
             let peak_bytes = peak_memory();
-            let file_bytes = std::fs::metadata(&path)
-                .map_err(|e| PrtError::io(&path, e))?
-                .len();
+            let file_bytes = crate::files::file_len(&path)?;
             table.push(TableRow {
                 scene: label,
                 cube,

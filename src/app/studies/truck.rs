@@ -41,13 +41,12 @@ pub struct TruckReport {
 pub fn run_truck(study: &mut Study, assets: &Path, weighting: Weighting) -> Result<TruckReport> {
     let (dir, settings) = (study.dir, study.settings);
     let (scene, transport_path) = study.asset_scene(assets, "truck")?;
-    let what = format!(
-        "baking {} ({} triangles, {} textures) ...",
-        scene.source_path.display(),
+    let detail = format!(
+        "({} triangles, {} textures)",
         scene.triangle_count(),
         scene.textures.len()
     );
-    let (t, reused_bake, bake_seconds) = study.bake(&transport_path, &scene, settings, &what)?;
+    let (t, reused_bake, bake_seconds) = study.bake(&transport_path, &scene, settings, &detail)?;
     let ctx = LightContext::new(&t)?;
     let top = format!("SH order {}", settings.sh_order);
     let requests = [

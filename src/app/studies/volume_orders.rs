@@ -152,9 +152,7 @@ pub fn run_orders_study(
             let seconds = start.elapsed().as_secs_f64();
             let path = scratch.join(format!("orders_g{grid}_n{orders}.prtv"));
             vt.save(&path)?;
-            let bytes = std::fs::metadata(&path)
-                .map_err(|e| PrtError::io(&path, e))?
-                .len();
+            let bytes = crate::files::file_len(&path)?;
             std::fs::remove_file(&path).map_err(|e| PrtError::io(&path, e))?;
             let mut errors = Vec::new();
             for (cube, (reference, _)) in cubes.iter().zip(&refs.images) {

@@ -51,26 +51,21 @@ pub struct GpuView {
 impl GpuView {
     /// The textures and the pass for `width` x `height` images on `device`.
     pub fn new(device: &wgpu::Device, width: u32, height: u32) -> GpuView {
+        use wgpu::{TextureFormat as F, TextureUsages as U};
         let texture =
             |label, format, usage| texture_2d(device, label, [width, height], format, usage);
+        // Written by the relight and read by the pass; the display is copied out for a save.
+        let shared = U::STORAGE_BINDING | U::TEXTURE_BINDING;
         let linear = texture(
             "relit linear",
-            wgpu::TextureFormat::Rgba32Float,
-            wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::RENDER_ATTACHMENT,
+            F::Rgba32Float,
+            shared | U::RENDER_ATTACHMENT,
         );
-        let display = texture(
-            "relit display",
-            wgpu::TextureFormat::Rgba8Unorm,
-            wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
-        );
+        let display = texture("relit display", F::Rgba8Unorm, shared | U::COPY_SRC);
         let behind = texture(
             "environment behind",
-            wgpu::TextureFormat::Rgba32Float,
-            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            F::Rgba32Float,
+            U::TEXTURE_BINDING | U::COPY_DST,
         );
         let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
             binding,

@@ -6,7 +6,7 @@ use wgpu::util::DeviceExt;
 
 use crate::draw::lobe::{lobe_samples, lobe_taps};
 use crate::draw::raster::check_mesh;
-use crate::draw::shading::Texturing;
+use crate::draw::shading::{GlossMesh, Texturing};
 use crate::error::{PrtError, Result};
 use crate::gpu::GpuDevice as Gpu;
 use crate::scene::albedo_map::wrap_code;
@@ -24,30 +24,6 @@ const NO_MAP: u32 = u32::MAX;
 /// Words (`u32`) of one vertex in the shader's vertex table: position, texture coordinate, slot,
 /// shading normal, material.
 const VERTEX_WORDS: usize = 10;
-
-/// What a glossy per-vertex bake adds to its mesh on the GPU: each vertex's shading normal and
-/// material, and the glossy vertices' visibility bits with the materials' lobes, drawn per pixel
-/// against the light's pyramid ([`super::GpuRaster::set_light`]).
-#[derive(Clone, Copy, Debug)]
-pub struct GlossMesh<'a> {
-    /// Unit shading normal of each vertex.
-    pub normals: &'a [Vec3],
-    /// Material of each vertex.
-    pub materials: &'a [u32],
-    /// The visibility.
-    pub visibility: &'a Visibility,
-}
-
-impl<'a> GlossMesh<'a> {
-    /// The gloss of a per-vertex bake's mesh, `None` for its diffuse base.
-    pub fn of(mesh: &'a VertexMesh) -> Option<GlossMesh<'a>> {
-        Some(GlossMesh {
-            normals: &mesh.normals,
-            materials: &mesh.materials,
-            visibility: mesh.visibility.as_deref()?,
-        })
-    }
-}
 
 /// Where the lobe's tables sit in the gloss buffer and their shape, as the shader's view
 /// uniform takes them: `[visibility N, the most taps a material takes, materials, words a

@@ -7,5 +7,5 @@ mod lights;
 mod mesh;
 pub mod raster;
 
-pub use mesh::{GlossMesh, GpuMesh, upload_colours};
+pub use mesh::{GpuMesh, upload_colours};
 pub use raster::GpuRaster;

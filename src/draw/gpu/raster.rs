@@ -7,7 +7,7 @@
 //!
 //! The colours come from a storage buffer of `vec4<f32>` per vertex (vertex `i` at index `i`, the
 //! layout of the relight's output image buffer when vertex `i` is its pixel `i`), so relit
-//! colours need not leave the GPU. A glossy per-vertex bake's mesh ([`super::GlossMesh`], with
+//! colours need not leave the GPU. A glossy per-vertex bake's mesh ([`crate::draw::shading::GlossMesh`], with
 //! visibility) evaluates each pixel's GGX lobe against the light's pyramid
 //! ([`GpuRaster::set_light`]) and the vertices' visibility bits, as the CPU's
 //! [`crate::draw::lobe::Lobe`] does. [`GpuRaster::draw`] renders offscreen and reads the image
@@ -144,7 +144,7 @@ impl GpuRaster {
     }
 
     /// Builds the pipeline on `gpu`'s device, drawing `samples` samples a pixel (1, 4 or 16, at the
-    /// positions of [`sample_offsets`]), as [`crate::draw::raster::rasterize_multisampled`]
+    /// positions of [`sample_offsets`]), as [`crate::draw::raster::rasterize_with`]
     /// draws them: each sample in a pass of its own, then each pixel the mean of its samples.
     pub fn multisampled(gpu: &Gpu, samples: u32) -> Result<GpuRaster> {
         let offsets = sample_offsets(samples)?;
@@ -352,9 +352,7 @@ impl GpuRaster {
         self.targets_for(gpu, camera);
         let view = target.create_view(&Default::default());
         self.encode(gpu, camera, mesh, colours, &view, &mut encoder);
-        gpu.queue.submit([encoder.finish()]);
-        crate::gpu::end_scope(scope, "raster to texture")?;
-        Ok(())
+        crate::gpu::submit_in_scope(&gpu.queue, encoder, scope, "raster to texture")
     }
 
     /// What both draws check before recording anything: the camera, the device's texture size

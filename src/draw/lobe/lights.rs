@@ -106,7 +106,12 @@ impl Lobe<'_> {
         let mut sum = DVec3::ZERO;
         for lit in &self.lights {
             let share: f64 = (0..3)
-                .map(|i| b[i] * self.visibility.light_share(tri[i] as usize, lit.column) as f64)
+                .map(|i| {
+                    b[i] * self
+                        .vertices
+                        .visibility
+                        .light_share(tri[i] as usize, lit.column) as f64
+                })
                 .sum();
             if share <= 0.0 {
                 continue;
@@ -171,6 +176,7 @@ fn sized(e: &Emitter, at: Surface, ggx: &GgxAt, taps: &TapTable) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::draw::lobe::tests::glossy;
     use crate::math::cube_pyramid::CubePyramid;
     use crate::math::cubemap::CubeMap;
     use crate::scene::brdf::ggx_cosine;
@@ -210,7 +216,8 @@ mod tests {
             weight: Vec3::ONE,
             column: 0,
         }];
-        let lobe = Lobe::of_widths(&normals, &[0, 0, 0], &vis, &dark).with_lights(&POSITIONS, lit);
+        let lobe =
+            Lobe::of_widths(glossy(&normals, &[0, 0, 0], &vis), &dark).with_lights(&POSITIONS, lit);
         lobe.check(3).unwrap();
         lobe.shade([0, 1, 2], CENTRE, to_eye)
     }

@@ -3,6 +3,19 @@ use crate::math::cube_pyramid::{dir_to_morton, morton_index};
 use crate::math::cubemap::{CubeMap, face_st_to_dir, patch_solid_angle, texel_index};
 use crate::scene::brdf::ggx_cosine;
 
+/// The glossy side of a test mesh.
+pub(crate) fn glossy<'a>(
+    normals: &'a [Vec3],
+    materials: &'a [u32],
+    visibility: &'a Visibility,
+) -> GlossMesh<'a> {
+    GlossMesh {
+        normals,
+        materials,
+        visibility,
+    }
+}
+
 /// Face size of the test light and visibility.
 const N: usize = 8;
 /// Sub-patches a side of each texel in the brute-force integral.
@@ -118,7 +131,7 @@ fn worst_at(alpha: f32, samples: usize, cube: CubeMap) -> f64 {
         alpha,
     );
     let pyramid = CubePyramid::new(&cube).unwrap();
-    let lobe = Lobe::new(&normals, &[0, 0, 0], &vis, &pyramid, samples);
+    let lobe = Lobe::new(glossy(&normals, &[0, 0, 0], &vis), &pyramid, samples);
     lobe.check(3).unwrap();
     let b = [0.5, 0.3, 0.2];
     let n = (0..3)
@@ -215,7 +228,7 @@ fn under_a_constant_open_sky_the_lobe_is_its_directional_albedo() {
     .unwrap();
     let pyramid = CubePyramid::new(&CubeMap::constant(N, [2.0; 3]).unwrap()).unwrap();
     let normals = [n];
-    let lobe = Lobe::new(&normals, &[0], &vis, &pyramid, 1024);
+    let lobe = Lobe::new(glossy(&normals, &[0], &vis), &pyramid, 1024);
     let v = DVec3::new(0.6, 0.8, 0.0);
     let got = lobe.shade([0, 0, 0], [1.0, 0.0, 0.0], v);
     // The directional albedo by a fine quadrature over the hemisphere's sphere coordinates.
@@ -257,15 +270,15 @@ fn shut_texels_darken_the_lobe_and_a_diffuse_material_has_none() {
     let pyramid = CubePyramid::new(&light(true)).unwrap();
     let v = DVec3::new(0.3, 0.9, 0.1).normalize();
     let b = [0.2, 0.3, 0.5];
-    let lobe = Lobe::new(&normals, &[0, 0, 0], &shut, &pyramid, 64);
+    let lobe = Lobe::new(glossy(&normals, &[0, 0, 0], &shut), &pyramid, 64);
     assert_eq!(lobe.shade([0, 1, 2], b, v), DVec3::ZERO);
     // Vertices without bits are open.
-    let lit = Lobe::new(&normals, &[0, 0, 0], &open, &pyramid, 64).shade([0, 1, 2], b, v);
+    let lit = Lobe::new(glossy(&normals, &[0, 0, 0], &open), &pyramid, 64).shade([0, 1, 2], b, v);
     assert!(lit.min_element() > 0.0, "{lit}");
-    let matte = Lobe::new(&normals, &[1, 1, 1], &open, &pyramid, 64);
+    let matte = Lobe::new(glossy(&normals, &[1, 1, 1], &open), &pyramid, 64);
     assert_eq!(matte.shade([0, 1, 2], b, v), DVec3::ZERO);
     assert!(
-        Lobe::new(&normals, &[0, 0, 2], &shut, &pyramid, 64)
+        Lobe::new(glossy(&normals, &[0, 0, 2], &shut), &pyramid, 64)
             .check(3)
             .is_err()
     );
@@ -294,13 +307,13 @@ fn each_material_takes_the_directions_its_width_asks_for() {
     let b = [0.2, 0.3, 0.5];
     for m in 0..2 {
         let materials = [m as u32; 3];
-        let lobe = Lobe::of_widths(&normals, &materials, &vis, &pyramid);
+        let lobe = Lobe::of_widths(glossy(&normals, &materials, &vis), &pyramid);
         lobe.check(3).unwrap();
         let count = lobe_samples(&vis)[m];
-        let alone = Lobe::new(&normals, &materials, &vis, &pyramid, count);
+        let alone = Lobe::new(glossy(&normals, &materials, &vis), &pyramid, count);
         assert_eq!(lobe.shade([0, 1, 2], b, v), alone.shade([0, 1, 2], b, v));
         // Another count gives another value: the counts are not all the same.
-        let other = Lobe::new(&normals, &materials, &vis, &pyramid, 128);
+        let other = Lobe::new(glossy(&normals, &materials, &vis), &pyramid, 128);
         assert_ne!(lobe.shade([0, 1, 2], b, v), other.shade([0, 1, 2], b, v));
     }
 }

@@ -1,6 +1,8 @@
 use super::*;
+use crate::draw::lobe::tests::glossy;
 use crate::math::cube_pyramid::dir_to_morton;
 use crate::math::cubemap::{CubeMap, solid_angles, texel_dirs};
+use crate::scene::visibility::Visibility;
 
 /// Visibility of one glossy vertex (vertex 0, material 0 of roughness `r`, white) open where
 /// `open` says, at face size `n`.
@@ -113,7 +115,7 @@ fn a_pixel_is_the_transferred_light_integrated_against_the_lobe() {
     let transfer = ShTransfer::new(&vis, order).unwrap();
     let normals = [Vec3::new(0.2, 1.0, 0.1).normalize()];
     let materials = [0u32];
-    let gloss = ShGloss::new(&normals, &materials, &vis, &transfer, &pyramid);
+    let gloss = ShGloss::new(glossy(&normals, &materials, &vis), &transfer, &pyramid);
     gloss.check(1).unwrap();
     assert!(gloss.check(2).is_err());
     let coeffs = gloss.coefficients(0).to_vec();

@@ -193,10 +193,7 @@ fn matches_scipy_reference() {
         let dir = DVec3::new(d[0], d[1], d[2]);
         let expected = numbers(expected);
         assert_eq!(expected.len(), coeff_count(order));
-        let mut fast = vec![0.0; coeff_count(order)];
-        let mut slow = vec![0.0; coeff_count(order)];
-        eval(order, dir, &mut fast);
-        eval_recurrence(order, dir, &mut slow);
+        let (fast, slow) = both_forms(order, dir);
         assert_all_close(
             &format!("eval at {dir}"),
             &fast,
@@ -303,16 +300,22 @@ fn addition_theorem_up_to_max_order() {
     }
 }
 
+/// The basis at `dir` by the closed forms ([`eval`]) and by the recurrence.
+fn both_forms(order: usize, dir: DVec3) -> (Vec<f64>, Vec<f64>) {
+    let mut fast = vec![0.0; coeff_count(order)];
+    let mut slow = vec![0.0; coeff_count(order)];
+    eval(order, dir, &mut fast);
+    eval_recurrence(order, dir, &mut slow);
+    (fast, slow)
+}
+
 #[test]
 fn closed_forms_match_recurrence() {
     let mut rng = Rng(1);
     let dirs = test_directions(&mut rng, 300);
     for order in 1..=16 {
-        let mut fast = vec![0.0; coeff_count(order)];
-        let mut slow = vec![0.0; coeff_count(order)];
         for &d in &dirs {
-            eval(order, d, &mut fast);
-            eval_recurrence(order, d, &mut slow);
+            let (fast, slow) = both_forms(order, d);
             assert_all_close(
                 &format!("order {order} at {d}"),
                 &fast,

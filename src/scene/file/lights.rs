@@ -65,17 +65,9 @@ pub(super) struct GridFile {
 }
 
 impl LightFile {
+    /// The optional keys present in this table, for checking they suit its kind.
     fn present_keys(&self) -> [(&'static str, bool); 8] {
-        [
-            ("position", self.position.is_some()),
-            ("positions", self.positions.is_some()),
-            ("grid", self.grid.is_some()),
-            ("direction", self.direction.is_some()),
-            ("cone_deg", self.cone_deg.is_some()),
-            ("falloff_deg", self.falloff_deg.is_some()),
-            ("angle_deg", self.angle_deg.is_some()),
-            ("corners", self.corners.is_some()),
-        ]
+        present!(self; position positions grid direction cone_deg falloff_deg angle_deg corners)
     }
 }
 

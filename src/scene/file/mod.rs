@@ -7,6 +7,14 @@ use super::obj::{MeshTransform, ObjData, flat_triangle, mesh_triangles, parse_ob
 use super::*;
 use glam::Mat4;
 
+/// The optional keys of a table, each with whether the table has it, for checking they suit its
+/// type: `present!(self; corners radius)`. A key's name is its field's.
+macro_rules! present {
+    ($table:expr; $($key:ident)+) => {
+        [$((stringify!($key), $table.$key.is_some())),+]
+    };
+}
+
 mod lights;
 mod medium;
 mod numbers;
@@ -97,17 +105,8 @@ struct ShapeFile {
 impl ShapeFile {
     /// The optional keys present in this table, for checking they suit its type.
     fn present_keys(&self) -> [(&'static str, bool); 9] {
-        [
-            ("material", self.material.is_some()),
-            ("corners", self.corners.is_some()),
-            ("center", self.center.is_some()),
-            ("radius", self.radius.is_some()),
-            ("path", self.path.is_some()),
-            ("scale", self.scale.is_some()),
-            ("rotate_y_deg", self.rotate_y_deg.is_some()),
-            ("translate", self.translate.is_some()),
-            ("smooth_normals", self.smooth_normals.is_some()),
-        ]
+        present!(self; material corners center radius path scale rotate_y_deg translate
+            smooth_normals)
     }
 }
 
@@ -431,11 +430,11 @@ impl<'a> Loader<'a> {
             .position(|n| n == name)
             .map(|i| i as u32)
             .ok_or_else(|| {
-                let known = if names.is_empty() {
-                    "none are defined".to_string()
-                } else {
-                    format!("defined: {}", names.join(", "))
-                };
+                let known = crate::names::known(
+                    names.iter().map(String::as_str),
+                    "none are defined",
+                    "defined:",
+                );
                 self.map
                     .error(field, format!("unknown material `{name}` ({known})"))
             })

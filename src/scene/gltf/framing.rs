@@ -115,18 +115,11 @@ fn pick_camera(
 ) -> Result<Camera> {
     let chosen = match &framing.camera {
         Some(name) => Some(cameras.iter().find(|c| c.name == *name).ok_or_else(|| {
-            let known = if cameras.is_empty() {
-                "it has no perspective cameras".to_string()
-            } else {
-                format!(
-                    "it has {}",
-                    cameras
-                        .iter()
-                        .map(|c| c.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                )
-            };
+            let known = crate::names::known(
+                cameras.iter().map(|c| c.name.as_str()),
+                "it has no perspective cameras",
+                "it has",
+            );
             PrtError::file(path, format!("no camera named `{name}`: {known}"))
         })?),
         None => cameras.first(),

@@ -347,11 +347,7 @@ impl Tracer {
                 BvhBuildParams::slow_build(),
                 &mut Duration::default(),
             );
-            let packed = bvh
-                .primitive_indices
-                .iter()
-                .map(|&i| PackedTriangle::new(scene.triangles[i as usize].vertices))
-                .collect();
+            let packed = in_leaf_order(&bvh, |i| PackedTriangle::new(scene.triangles[i].vertices));
             let ids = bvh.primitive_indices.clone();
             (bvh, packed, ids)
         };
@@ -372,11 +368,7 @@ impl Tracer {
                 BvhBuildParams::medium_build(),
                 &mut Duration::default(),
             );
-            let spheres = bvh
-                .primitive_indices
-                .iter()
-                .map(|&i| scene.spheres[i as usize])
-                .collect();
+            let spheres = in_leaf_order(&bvh, |i| scene.spheres[i]);
             (bvh, spheres)
         };
 
@@ -514,6 +506,14 @@ impl Tracer {
         };
         hit.point + hit.geometric_normal * (side * self.spawn_offset)
     }
+}
+
+/// `f` of each primitive in the order `bvh`'s leaves hold them.
+fn in_leaf_order<T>(bvh: &CwBvh, f: impl Fn(usize) -> T) -> Vec<T> {
+    bvh.primitive_indices
+        .iter()
+        .map(|&i| f(i as usize))
+        .collect()
 }
 
 #[cfg(test)]

@@ -164,21 +164,30 @@ impl LightColumns {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// Two columns of `w` x `h` whose value `i` in [`LightColumns::set_rows`]' order is
+    /// `value(i)`, and those values.
+    pub(crate) fn two_columns(
+        w: usize,
+        h: usize,
+        value: impl Fn(usize) -> f32,
+    ) -> (LightColumns, Vec<f32>) {
+        let mut cols = LightColumns::zeros(2, w, h);
+        let band: Vec<f32> = (0..2 * 3 * h * w).map(value).collect();
+        cols.set_rows(0, &band);
+        (cols, band)
+    }
 
     #[test]
     fn rows_round_trip_within_half_a_step_of_their_largest_value() {
         let (w, h) = (5, 3);
-        let mut cols = LightColumns::zeros(2, w, h);
-        let band: Vec<f32> = (0..2 * 3 * h * w)
-            .map(|i| match i % 7 {
-                0 => 0.0,
-                1 => 1e-9,
-                k => 1000.0 * k as f32 / (1 + i) as f32,
-            })
-            .collect();
-        cols.set_rows(0, &band);
+        let (cols, band) = two_columns(w, h, |i| match i % 7 {
+            0 => 0.0,
+            1 => 1e-9,
+            k => 1000.0 * k as f32 / (1 + i) as f32,
+        });
         assert!(cols.problem(2).is_none());
         for col in 0..2 {
             for c in 0..3 {

@@ -88,7 +88,7 @@ mod assemble;
 mod file;
 mod groups;
 mod legacy;
-mod lights;
+pub(crate) mod lights;
 mod merge;
 mod meta;
 mod reader;

@@ -14,7 +14,7 @@ use super::median;
 use crate::bake::path_tracer::path_trace_from;
 use crate::bake::reference::{Reference, render_reference_with};
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
-use crate::draw::raster::rasterize_multisampled;
+use crate::draw::raster::{DrawOptions, rasterize_with};
 use crate::draw::vertex::{draw, draw_relit, vertex_colours};
 use crate::env::envmap::{EnvMap, EnvRotation};
 use crate::env::importance::MapLight;
@@ -496,8 +496,8 @@ fn glossy_pixels(
             [glossy as u8 as f32; 3]
         })
         .collect();
-    let share =
-        rasterize_multisampled(cam, &mesh.positions, &mesh.triangles, &flags, None, samples)?;
+    let options = DrawOptions::samples(samples);
+    let share = rasterize_with(cam, &mesh.positions, &mesh.triangles, &flags, options)?;
     // A triangle's three vertices share its material, so its share is 1 up to rounding.
     let mut mask = whole_in_both(&share.coverage, reference);
     for (m, p) in mask.iter_mut().zip(&share.image.pixels) {

@@ -3,6 +3,7 @@
 use std::fmt::Write as _;
 
 use super::{FrameTime, GlossBenchOptions, GlossBenchReport, GlossMethod};
+use crate::app::studies::percent_cells;
 use crate::output::plot::{PALETTE, Series};
 
 /// The mean of `errors` (one per camera).
@@ -132,11 +133,7 @@ fn error_table(s: &mut String, r: &GlossBenchReport, opts: &GlossBenchOptions) {
         "---:|".repeat(opts.light_terms.len())
     );
     for b in &r.bakes {
-        let errors: String = b
-            .error
-            .iter()
-            .map(|e| format!(" {:.2}% |", 100.0 * e))
-            .collect();
+        let errors = percent_cells(b.error.iter().copied());
         let inside = b
             .inside
             .iter()
@@ -149,11 +146,7 @@ fn error_table(s: &mut String, r: &GlossBenchReport, opts: &GlossBenchOptions) {
             .map(|e| e.map_or("–".to_string(), |e| format!("{:.2}", 100.0 * e)))
             .collect::<Vec<_>>()
             .join(" / ");
-        let light: String = b
-            .light_error
-            .iter()
-            .map(|e| format!(" {:.2}% |", 100.0 * e))
-            .collect();
+        let light = percent_cells(b.light_error.iter().copied());
         let _ = writeln!(
             s,
             "| {}x ({:.3}) | {} | {} |{errors} {inside}% | {glossy}% |{light} {:.1} MiB | {:.0} | \

@@ -226,31 +226,8 @@ impl GpuTransport {
         }
     }
 
-    /// Wavelet relighting into `texture` (RGBA32F, storage-binding usage, the image's size),
-    /// with no readback: for display.
-    pub fn relight_wavelet_to_texture(
-        &self,
-        gpu: &Gpu,
-        light: &SparseLight,
-        texture: &wgpu::Texture,
-    ) -> Result<()> {
-        let terms = self.wavelet_terms(light)?;
-        self.run_to_texture(gpu, &terms, true, &LightMix::none(), texture)
-    }
-
-    /// SH relighting into `texture`, as [`GpuTransport::relight_wavelet_to_texture`].
-    pub fn relight_sh_to_texture(
-        &self,
-        gpu: &Gpu,
-        sh: &[[f64; 3]],
-        texture: &wgpu::Texture,
-    ) -> Result<()> {
-        let terms = self.sh_terms(sh)?;
-        self.run_to_texture(gpu, &terms, false, &LightMix::none(), texture)
-    }
-
-    /// Relights with `terms` plus the local lights of `lights` into `texture`, as
-    /// [`GpuTransport::relight_wavelet_to_texture`].
+    /// Relights with `terms` plus the local lights of `lights` into `texture` (RGBA32F,
+    /// storage-binding usage, the image's size), with no readback: for display.
     pub fn relight_terms_to_texture(
         &self,
         gpu: &Gpu,
@@ -276,9 +253,7 @@ impl GpuTransport {
         let (terms, wavelet) = self.device_terms(terms)?;
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let (encoder, _) = self.encode(gpu, &terms, wavelet, lights, "relight in place");
-        gpu.queue.submit([encoder.finish()]);
-        crate::gpu::end_scope(scope, "relight in place")?;
-        Ok(())
+        crate::gpu::submit_in_scope(&gpu.queue, encoder, scope, "relight in place")
     }
 
     /// The relit image on the device: one `vec4<f32>` per pixel, pixel `y · width + x`, alpha 1.
@@ -423,9 +398,7 @@ impl GpuTransport {
             ],
         });
         TO_TEXTURE_WORKGROUP.pass(&mut encoder, "to texture", (&gpu.to_texture, &group), dims);
-        gpu.queue.submit([encoder.finish()]);
-        crate::gpu::end_scope(scope, "relight to texture")?;
-        Ok(())
+        crate::gpu::submit_in_scope(&gpu.queue, encoder, scope, "relight to texture")
     }
 
     /// Records the relight, reads the image back. Returns the image and the GPU time of the relight
