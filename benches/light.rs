@@ -166,14 +166,9 @@ fn prepare(c: &mut Criterion) {
             b.iter(|| {
                 pitch += 0.73;
                 let rotation = EnvRotation::new(YAW, pitch);
-                let cube = resample::resample_latlong_recorded(
-                    sunrise.width,
-                    sunrise.height,
-                    black_box(&sunrise.pixels),
-                    n,
-                    rotation,
-                )
-                .unwrap();
+                let cube =
+                    resample::resample_latlong_recorded(black_box(sunrise.latlong()), n, rotation)
+                        .unwrap();
                 PreparedLight {
                     wavelet: WaveletLight::from_cube(&cube).unwrap(),
                     sh: sh::Rotation::new(ctx.sh_order, rotation.world_from_map())

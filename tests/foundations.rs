@@ -846,14 +846,8 @@ fn fast_resampling_of_a_bundled_map_matches_the_exact_splat() {
         ),
         (
             pitched,
-            wavelet_prt::env::resample::resample_latlong_recorded(
-                env.width,
-                env.height,
-                &env.pixels,
-                n,
-                pitched,
-            )
-            .unwrap(),
+            wavelet_prt::env::resample::resample_latlong_recorded(env.latlong(), n, pitched)
+                .unwrap(),
         ),
     ] {
         let exact = env.to_cube_exact(n, rotation).unwrap();

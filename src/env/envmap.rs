@@ -12,7 +12,7 @@ use std::path::Path;
 use glam::DVec3;
 
 use crate::error::{PrtError, Result};
-use crate::math::cubemap::{CubeMap, resample_latlong_exact};
+use crate::math::cubemap::{CubeMap, LatLong, resample_latlong_exact};
 use crate::output::film::read_exr;
 
 pub use super::latlong::{EnvRotation, latlong_dir, latlong_uv, pixel_solid_angle};
@@ -376,23 +376,26 @@ impl EnvMap {
         p
     }
 
+    /// Its pixels as the resamplers take them (a map holds as many as its size asks).
+    pub fn latlong(&self) -> LatLong<'_> {
+        LatLong {
+            width: self.width,
+            height: self.height,
+            pixels: &self.pixels,
+        }
+    }
+
     /// The cube map of texel-average radiance at face size `n`, environment turned by `rotation`.
     /// Takes the fast path of [`crate::env::resample`]: the split of cells over texels is cached per
     /// (map size, N, pitch) and the yaw shifts the map, so turning and switching maps is cheap.
     pub fn to_cube(&self, n: usize, rotation: EnvRotation) -> Result<CubeMap> {
-        crate::env::resample::resample_latlong(self.width, self.height, &self.pixels, n, rotation)
+        crate::env::resample::resample_latlong(self.latlong(), n, rotation)
     }
 
     /// [`EnvMap::to_cube`] by the direct exact splat, cell by cell under the full rotation: the
     /// slow twin, for tests and comparisons.
     pub fn to_cube_exact(&self, n: usize, rotation: EnvRotation) -> Result<CubeMap> {
-        resample_latlong_exact(
-            self.width,
-            self.height,
-            &self.pixels,
-            n,
-            rotation.world_from_map(),
-        )
+        resample_latlong_exact(self.latlong(), n, rotation.world_from_map())
     }
 
     /// SH coefficients of order `order` (n² RGB triples), `L_i = Σ L(pixel) Y_i(d) Ω(pixel)` with the

@@ -345,6 +345,27 @@ pub(crate) fn widest_sin(v0: f64, v1: f64, sin0: f64, sin1: f64) -> f64 {
     }
 }
 
+/// A lat-long map's pixels as the resamplers take them: `width` x `height`, rows from the north
+/// pole, checked to fit ([`LatLong::new`]).
+#[derive(Clone, Copy, Debug)]
+pub struct LatLong<'a> {
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) pixels: &'a [[f32; 3]],
+}
+
+impl<'a> LatLong<'a> {
+    /// The map of `pixels`, an error unless they make a non-empty `width` x `height` map.
+    pub fn new(width: usize, height: usize, pixels: &'a [[f32; 3]]) -> Result<LatLong<'a>> {
+        check_latlong(width, height, pixels.len())?;
+        Ok(LatLong {
+            width,
+            height,
+            pixels,
+        })
+    }
+}
+
 /// Checks that `len` pixels make a non-empty `width` x `height` lat-long map.
 pub(crate) fn check_latlong(width: usize, height: usize, len: usize) -> Result<()> {
     if width == 0 || height == 0 || width.checked_mul(height) != Some(len) {
@@ -390,15 +411,13 @@ pub(crate) fn splat_limits(n: usize, width: usize, height: usize) -> (f64, f64) 
 /// [`crate::env::resample`], which records the same split once per (map size, N, pitch) and reuses
 /// it. [`crate::env::envmap::EnvMap::to_cube`] takes the fast path; this one stays as its reference
 /// and for rotations that are not a yaw followed by a pitch.
-pub fn resample_latlong_exact(
-    width: usize,
-    height: usize,
-    pixels: &[[f32; 3]],
-    n: usize,
-    world_from_map: DMat3,
-) -> Result<CubeMap> {
+pub fn resample_latlong_exact(map: LatLong, n: usize, world_from_map: DMat3) -> Result<CubeMap> {
     validate_n(n)?;
-    check_latlong(width, height, pixels.len())?;
+    let LatLong {
+        width,
+        height,
+        pixels,
+    } = map;
     let (texel_min, finest) = splat_limits(n, width, height);
     let splatter = Splatter {
         n,

@@ -60,7 +60,7 @@ use rayon::prelude::*;
 use crate::env::latlong::{EnvRotation, pixel_solid_angle};
 use crate::error::{PrtError, Result};
 use crate::math::cubemap::{
-    CubeMap, Cut, check_latlong, dir_to_face_st, dir_to_texel, resample_latlong_exact,
+    CubeMap, Cut, LatLong, check_latlong, dir_to_face_st, dir_to_texel, resample_latlong_exact,
     solid_angles, splat_limits, splat_radiance, texel_count, texel_dirs, texel_index, validate_n,
     widest_sin,
 };
@@ -490,54 +490,40 @@ pub fn yaw_shift(width: usize, yaw_deg: f64) -> Result<(usize, f64)> {
 /// the cached weights gathered with the yaw's shift; a pitch splatted at the cells' centres
 /// where they are no larger than the smallest texels (`pitch`), else by weights recorded for
 /// it.
-pub fn resample_latlong(
-    width: usize,
-    height: usize,
-    pixels: &[[f32; 3]],
-    n: usize,
-    rotation: EnvRotation,
-) -> Result<CubeMap> {
+pub fn resample_latlong(map: LatLong, n: usize, rotation: EnvRotation) -> Result<CubeMap> {
     validate_n(n)?;
-    check_latlong(width, height, pixels.len())?;
     check_angle("yaw", rotation.yaw_deg)?;
-    if width * height > MAX_RECORDED_PIXELS {
+    if map.width * map.height > MAX_RECORDED_PIXELS {
         // Recorded shares would take several bytes a pixel on top of the map; splat directly.
-        return resample_latlong_exact(width, height, pixels, n, rotation.world_from_map());
+        return resample_latlong_exact(map, n, rotation.world_from_map());
     }
     check_angle("pitch", rotation.pitch_deg)?;
     if rotation.pitch_deg + 0.0 != 0.0
-        && pitch::splats_at_centres(width, height, n)
-        && let Some(cube) = pitch::splat(width, height, pixels, n, rotation)?
+        && pitch::splats_at_centres(map.width, map.height, n)
+        && let Some(cube) = pitch::splat(map, n, rotation)?
     {
         // A pitch records no weights where the cells are small enough (see `pitch`).
         return Ok(cube);
     }
-    resample_latlong_recorded(width, height, pixels, n, rotation)
+    resample_latlong_recorded(map, n, rotation)
 }
 
 /// [`resample_latlong`] by weights recorded for the rotation's pitch, whatever it is: the path of
 /// an unpitched map, and of a pitched one whose cells are larger than the smallest texels.
-pub fn resample_latlong_recorded(
-    width: usize,
-    height: usize,
-    pixels: &[[f32; 3]],
-    n: usize,
-    rotation: EnvRotation,
-) -> Result<CubeMap> {
+pub fn resample_latlong_recorded(map: LatLong, n: usize, rotation: EnvRotation) -> Result<CubeMap> {
     validate_n(n)?;
-    check_latlong(width, height, pixels.len())?;
     check_angle("yaw", rotation.yaw_deg)?;
-    if width * height > MAX_RECORDED_PIXELS {
-        return resample_latlong_exact(width, height, pixels, n, rotation.world_from_map());
+    if map.width * map.height > MAX_RECORDED_PIXELS {
+        return resample_latlong_exact(map, n, rotation.world_from_map());
     }
-    let recorded = weights(width, height, n, rotation.pitch_deg)?;
-    let (_, fraction) = yaw_shift(width, rotation.yaw_deg)?;
+    let recorded = weights(map.width, map.height, n, rotation.pitch_deg)?;
+    let (_, fraction) = yaw_shift(map.width, rotation.yaw_deg)?;
     if fraction != 0.0 && !recorded.resolves_cuts {
         // Cells much wider than texels (a map a few pixels wide): the tables would interpolate
         // across many cuts, and the exact splat costs little on so few cells.
-        return resample_latlong_exact(width, height, pixels, n, rotation.world_from_map());
+        return resample_latlong_exact(map, n, rotation.world_from_map());
     }
-    recorded.cube(pixels, rotation.yaw_deg)
+    recorded.cube(map.pixels, rotation.yaw_deg)
 }
 
 #[cfg(test)]
@@ -628,16 +614,21 @@ mod tests {
     }
 
     fn exact(w: usize, h: usize, px: &[[f32; 3]], n: usize, r: EnvRotation) -> CubeMap {
-        resample_latlong_exact(w, h, px, n, r.world_from_map()).unwrap()
+        resample_latlong_exact(map(w, h, px), n, r.world_from_map()).unwrap()
     }
 
     fn fast(w: usize, h: usize, px: &[[f32; 3]], n: usize, r: EnvRotation) -> CubeMap {
-        resample_latlong(w, h, px, n, r).unwrap()
+        resample_latlong(map(w, h, px), n, r).unwrap()
+    }
+
+    /// The `w` x `h` map of `px`.
+    fn map(w: usize, h: usize, px: &[[f32; 3]]) -> LatLong<'_> {
+        LatLong::new(w, h, px).unwrap()
     }
 
     /// The weights recorded for the rotation's pitch, whatever it is.
     fn recorded(w: usize, h: usize, px: &[[f32; 3]], n: usize, r: EnvRotation) -> CubeMap {
-        resample_latlong_recorded(w, h, px, n, r).unwrap()
+        resample_latlong_recorded(map(w, h, px), n, r).unwrap()
     }
 
     /// Largest per-channel relative difference of two cubes.
@@ -729,7 +720,7 @@ mod tests {
                     ..r
                 };
                 for (px, limit) in [(&sun, sun_limit), (&smooth, PITCH_SMOOTH_L2)] {
-                    let got = pitch::splat(w, h, px, n, r)
+                    let got = pitch::splat(map(w, h, px), n, r)
                         .unwrap()
                         .expect("every texel receives a sub-cell");
                     assert_eq!(got.texels, fast(w, h, px, n, r).texels, "the light's path");
@@ -754,8 +745,12 @@ mod tests {
             for n in [8, 32, 64] {
                 for (yaw, pitch) in [(0.0, 20.0), (12.345, -73.0), (200.0, 45.5)] {
                     let r = EnvRotation::new(yaw, pitch);
-                    let paired = pitch::splat_rows(w, h, &px, n, r, true).unwrap().unwrap();
-                    let each = pitch::splat_rows(w, h, &px, n, r, false).unwrap().unwrap();
+                    let paired = pitch::splat_rows(map(w, h, &px), n, r, true)
+                        .unwrap()
+                        .unwrap();
+                    let each = pitch::splat_rows(map(w, h, &px), n, r, false)
+                        .unwrap()
+                        .unwrap();
                     // Only a sub-cell centre within f32 rounding of a texel border may land on
                     // the other side of it in one than in the other (none did below N = 64);
                     // the power kept then moves every texel by rounding.
@@ -781,7 +776,7 @@ mod tests {
         for n in [32, 64] {
             for yaw in [0.1, 12.345, -61.17] {
                 let r = EnvRotation::new(yaw, 360.0);
-                let got = pitch::splat(w, h, &smooth, n, r).unwrap().unwrap();
+                let got = pitch::splat(map(w, h, &smooth), n, r).unwrap().unwrap();
                 let want = recorded(w, h, &smooth, n, EnvRotation::yaw(yaw));
                 let e = got.relative_l2(&want);
                 assert!(e <= WHOLE_TURN_SMOOTH_L2, "N = {n}, yaw {yaw}: {e:e}");
@@ -920,11 +915,11 @@ mod tests {
     #[test]
     fn bad_inputs_are_errors() {
         let px = vec![[1.0f32; 3]; 8 * 4];
-        let e = resample_latlong(8, 4, &px, 3, EnvRotation::default()).unwrap_err();
+        let e = resample_latlong(map(8, 4, &px), 3, EnvRotation::default()).unwrap_err();
         assert!(e.to_string().contains("power of two"), "{e}");
-        let e = resample_latlong(8, 5, &px, 4, EnvRotation::default()).unwrap_err();
+        let e = LatLong::new(8, 5, &px).unwrap_err();
         assert!(e.to_string().contains("pixels"), "{e}");
-        let e = resample_latlong(8, 4, &px, 4, EnvRotation::yaw(f64::NAN)).unwrap_err();
+        let e = resample_latlong(map(8, 4, &px), 4, EnvRotation::yaw(f64::NAN)).unwrap_err();
         assert!(e.to_string().contains("yaw"), "{e}");
         let w = weights(8, 4, 4, 0.0).unwrap();
         let e = w.cube(&px[1..], 0.0).unwrap_err().to_string();

@@ -57,8 +57,8 @@ use rayon::prelude::*;
 use super::{EnvRotation, yaw_shift};
 use crate::error::Result;
 use crate::math::cubemap::{
-    CubeMap, dir_to_texel, solid_angles, splat_limits, splat_radiance, texel_count, texel_dirs,
-    texel_index,
+    CubeMap, LatLong, dir_to_texel, solid_angles, splat_limits, splat_radiance, texel_count,
+    texel_dirs, texel_index,
 };
 
 /// Whether a `width` x `height` map's cells are small enough, against a cube of face `n`, to be
@@ -385,30 +385,27 @@ fn splat_sub_row(
     });
 }
 
-/// `pixels` (a `width` x `height` lat-long map) turned by `rotation` and splatted at the centres
+/// `map` turned by `rotation` and splatted at the centres
 /// of the world cells' sub-cells into a cube of face `n`; `None` when a texel received nothing
 /// (the caller then records weights for the pitch).
-pub(super) fn splat(
-    width: usize,
-    height: usize,
-    pixels: &[[f32; 3]],
-    n: usize,
-    rotation: EnvRotation,
-) -> Result<Option<CubeMap>> {
-    splat_rows(width, height, pixels, n, rotation, true)
+pub(super) fn splat(map: LatLong, n: usize, rotation: EnvRotation) -> Result<Option<CubeMap>> {
+    splat_rows(map, n, rotation, true)
 }
 
 /// [`splat`], the texels of each southern sub-row looked up from its northern twin's (see
 /// [`turn_half`]) when `paired` and the row's sub-columns are even in number, else each looked
 /// up itself (the slow twin the tests compare with).
 pub(super) fn splat_rows(
-    width: usize,
-    height: usize,
-    pixels: &[[f32; 3]],
+    map: LatLong,
     n: usize,
     rotation: EnvRotation,
     paired: bool,
 ) -> Result<Option<CubeMap>> {
+    let LatLong {
+        width,
+        height,
+        pixels,
+    } = map;
     let (whole, f) = yaw_shift(width, rotation.yaw_deg)?;
     let q = split(width, height, n);
     // The sub-columns of the first half of a row: the second half mirrors them (see
