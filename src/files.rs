@@ -193,6 +193,36 @@ pub fn check_output_folder(dir: &Path) -> Result<()> {
     })
 }
 
+/// A file bundled into the binary: its path under the repository's `assets/`, and its bytes.
+/// The environment maps that every `--env` takes by name and the demo's scenes and meshes are
+/// bundled so, each by the crate's `bundled!` macro.
+#[derive(Clone, Copy, Debug)]
+pub struct Bundled {
+    /// Path under `assets/`, such as `scenes/demo.toml` or `envmaps/blender_sunrise.exr`.
+    pub path: &'static str,
+    /// The file's content.
+    pub bytes: &'static [u8],
+}
+
+impl Bundled {
+    /// The file's name without its folder and extension, such as `blender_sunrise`.
+    pub fn stem(&self) -> &'static str {
+        let name = self.path.rsplit('/').next().unwrap_or(self.path);
+        name.rsplit_once('.').map_or(name, |(stem, _)| stem)
+    }
+}
+
+/// The [`Bundled`] file at this path under `assets/`: `bundled!("scenes/demo.toml")`.
+macro_rules! bundled {
+    ($path:expr) => {
+        $crate::files::Bundled {
+            path: $path,
+            bytes: include_bytes!(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/", $path)),
+        }
+    };
+}
+pub(crate) use bundled;
+
 /// The size of the file at `path` in bytes, or an error naming it.
 pub fn file_len(path: &Path) -> Result<u64> {
     Ok(std::fs::metadata(path)

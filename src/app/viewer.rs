@@ -216,8 +216,8 @@ pub fn env_entries(cli: &[String]) -> (Vec<EnvEntry>, LightState) {
         // No folder of maps beside the binary: the maps built into it, by name.
         for m in crate::env::envmap::BUNDLED_MAPS {
             entries.push(EnvEntry {
-                name: m.name.to_string(),
-                source: EnvSource::File(PathBuf::from(m.name)),
+                name: m.stem().to_string(),
+                source: EnvSource::File(PathBuf::from(m.stem())),
             });
         }
     }

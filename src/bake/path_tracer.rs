@@ -10,11 +10,11 @@
 //! standard error, so agreement can be judged against the reference's own noise.
 //!
 //! Local lights join in the same way ([`path_trace_env`], each light column weighted by a
-//! [`LightMix`]): at every vertex each light that is on
-//! is sampled once (a quad by area, converted to solid angle; a sun disc uniformly over its cone;
-//! points and spots as deltas), and a material-sampled direction that reaches a quad or a disc
-//! before any surface brings its light too, the two weighed by the power heuristic, so small
-//! lights and glossy surfaces both converge. It uses none of the bake's light samples.
+//! [`LightMix`]): at every vertex each light that is on is sampled once (a quad by area,
+//! converted to solid angle; a sun disc uniformly over its cone; points and spots as deltas),
+//! and a material-sampled direction that reaches a quad or a disc before any surface brings its
+//! light too, the two weighed by the power heuristic, so small lights and glossy surfaces both
+//! converge. It uses none of the bake's light samples.
 //!
 //! A medium ([`path_trace`] of a scene with a `[medium]`) is tracked, not marched: every segment,
 //! the camera ray's included, draws its free path by delta tracking ([`Tracker`]), so it either

@@ -12,6 +12,7 @@ use std::path::Path;
 use glam::DVec3;
 
 use crate::error::{PrtError, Result};
+use crate::files::{Bundled, bundled};
 use crate::math::cubemap::{CubeMap, LatLong, resample_latlong_exact};
 use crate::output::film::read_exr;
 
@@ -89,7 +90,7 @@ impl EnvSpec {
     pub fn load(&self) -> Result<EnvMap> {
         match self {
             EnvSpec::File(path) => match bundled_map(path) {
-                Some(map) => map.load(),
+                Some(map) => EnvMap::bundled(map),
                 None => EnvMap::load(path).map_err(|e| match std::fs::symlink_metadata(path) {
                     Err(m) if m.kind() == std::io::ErrorKind::NotFound => PrtError::file(
                         path,
@@ -110,58 +111,41 @@ impl EnvSpec {
     }
 }
 
-/// An environment map bundled into the binary: every `--env` takes it by name, from any folder.
-#[derive(Clone, Copy, Debug)]
-pub struct BundledMap {
-    /// Its name, the file's stem, such as `blender_sunrise`.
-    pub name: &'static str,
-    /// The OpenEXR file.
-    pub bytes: &'static [u8],
-}
-
-macro_rules! bundled {
-    ($name:literal) => {
-        BundledMap {
-            name: $name,
-            bytes: include_bytes!(concat!("../../assets/envmaps/", $name, ".exr")),
-        }
-    };
-}
-
-/// The maps bundled into the binary (`assets/envmaps`), which the demo also writes out.
-pub const BUNDLED_MAPS: &[BundledMap] = &[
-    bundled!("blender_sunrise"),
-    bundled!("blender_city"),
-    bundled!("blender_interior"),
-    bundled!("blender_night"),
-    bundled!("blender_studio"),
-    bundled!("pmndrs_city_overcast"),
+/// The environment maps bundled into the binary (`assets/envmaps`), which every `--env` takes by
+/// name ([`crate::files::Bundled::stem`]) from any folder, and which the demo also writes out.
+pub const BUNDLED_MAPS: &[Bundled] = &[
+    bundled!("envmaps/blender_sunrise.exr"),
+    bundled!("envmaps/blender_city.exr"),
+    bundled!("envmaps/blender_interior.exr"),
+    bundled!("envmaps/blender_night.exr"),
+    bundled!("envmaps/blender_studio.exr"),
+    bundled!("envmaps/pmndrs_city_overcast.exr"),
 ];
 
 /// The names of the bundled maps, comma-separated.
 pub fn bundled_names() -> String {
-    let names: Vec<&str> = BUNDLED_MAPS.iter().map(|m| m.name).collect();
+    let names: Vec<&str> = BUNDLED_MAPS.iter().map(|m| m.stem()).collect();
     names.join(", ")
 }
 
 /// The bundled map a file spec names when no file of that name exists: a bare name, with or
 /// without `.exr` (`blender_sunrise`, `blender_sunrise.exr`). An existing file, or a path with a
 /// folder in it, is always the file.
-pub fn bundled_map(path: &Path) -> Option<&'static BundledMap> {
+pub fn bundled_map(path: &Path) -> Option<&'static Bundled> {
     if path.components().count() != 1 || std::fs::symlink_metadata(path).is_ok() {
         return None;
     }
     let name = path.to_str()?;
     let stem = name.strip_suffix(".exr").unwrap_or(name);
-    BUNDLED_MAPS.iter().find(|m| m.name == stem)
+    BUNDLED_MAPS.iter().find(|m| m.stem() == stem)
 }
 
-impl BundledMap {
-    /// The map, read from the bytes in the binary; its source names it as bundled.
-    pub fn load(&self) -> Result<EnvMap> {
-        let source = format!("{} (bundled)", self.name);
+impl EnvMap {
+    /// The bundled map `map`, read from the bytes in the binary; its source names it as bundled.
+    pub fn bundled(map: &Bundled) -> Result<EnvMap> {
+        let source = format!("{} (bundled)", map.stem());
         let (w, h, pixels) = crate::output::film::read_exr_from(
-            std::io::Cursor::new(self.bytes),
+            std::io::Cursor::new(map.bytes),
             Path::new(&source),
             check_env_size,
         )?;
@@ -616,7 +600,7 @@ mod tests {
         let from_file = EnvMap::load(&file).unwrap();
         for spec in ["blender_sunrise", "blender_sunrise.exr"] {
             let map = bundled_map(Path::new(spec)).unwrap();
-            assert_eq!(map.name, "blender_sunrise");
+            assert_eq!(map.stem(), "blender_sunrise");
             assert_eq!(map.bytes, BUNDLED_MAPS[0].bytes);
             let bundled = EnvSpec::parse(spec).unwrap().load().unwrap();
             assert_eq!(

@@ -28,7 +28,7 @@ pub(super) fn env_cmd(a: EnvArgs) -> Result<()> {
     let spec = match (&a.env, a.list) {
         (_, true) => {
             for m in crate::env::envmap::BUNDLED_MAPS {
-                println!("{}", m.name);
+                println!("{}", m.stem());
             }
             return Ok(());
         }

@@ -10,52 +10,31 @@ use std::path::{Path, PathBuf};
 use crate::app::studies::{Study, dusk, gloss_orbit, orbit, percent_cells, truck};
 use crate::bake::{BakeProgress, BakeSettings, load_or_bake_logged};
 use crate::draw::background::{composite, environment_behind};
-use crate::env::envmap::{BUNDLED_MAPS, BundledMap, EnvMap, EnvRotation};
+use crate::env::envmap::{BUNDLED_MAPS, EnvMap, EnvRotation};
 use crate::env::select::Weighting;
 use crate::error::Result;
+use crate::files::{Bundled, bundled};
 use crate::output::film::{Image, ToneMap};
 use crate::output::metrics::relative_l2;
 use crate::output::sheet::{Cell, downsample, write_sheet};
 use crate::relight::{LightContext, Method, RelightRequest, relight};
 use crate::scene::Scene;
 
-/// A file bundled into the binary: its path under the demo's `assets/` and its bytes.
-pub struct Asset {
-    /// Path under `assets/`, such as `scenes/demo.toml`.
-    pub path: &'static str,
-    /// The file's content.
-    pub bytes: &'static [u8],
-}
-
-macro_rules! asset {
-    ($p:literal) => {
-        Asset {
-            path: $p,
-            bytes: include_bytes!(concat!("../../../assets/", $p)),
-        }
-    };
-}
-
 /// Everything the demo needs besides the environment maps (`env::envmap::BUNDLED_MAPS`, which it
 /// writes to `envmaps/`), embedded so it runs from any directory.
-pub const ASSETS: &[Asset] = &[
-    asset!("scenes/demo.toml"),
-    asset!("scenes/dusk.toml"),
-    asset!("scenes/truck.toml"),
-    asset!("gltf/CesiumMilkTruck.glb"),
-    asset!("scenes/spheres.toml"),
-    asset!("scenes/teapot.toml"),
-    asset!("scenes/cloud.toml"),
-    asset!("scenes/fog.toml"),
-    asset!("meshes/bunny.obj"),
-    asset!("meshes/teapot.obj"),
-    asset!("meshes/suzanne.obj"),
+pub const ASSETS: &[Bundled] = &[
+    bundled!("scenes/demo.toml"),
+    bundled!("scenes/dusk.toml"),
+    bundled!("scenes/truck.toml"),
+    bundled!("gltf/CesiumMilkTruck.glb"),
+    bundled!("scenes/spheres.toml"),
+    bundled!("scenes/teapot.toml"),
+    bundled!("scenes/cloud.toml"),
+    bundled!("scenes/fog.toml"),
+    bundled!("meshes/bunny.obj"),
+    bundled!("meshes/teapot.obj"),
+    bundled!("meshes/suzanne.obj"),
 ];
-
-/// The path under `assets/` of a bundled environment map.
-fn map_path(map: &BundledMap) -> String {
-    format!("envmaps/{}.exr", map.name)
-}
 
 /// SH orders the demo shows.
 pub const DEMO_SH_ORDERS: [usize; 3] = [2, 4, 6];
@@ -121,10 +100,8 @@ pub struct DemoReport {
 pub fn write_assets(dir: &Path, log: &mut dyn FnMut(&str)) -> Result<PathBuf> {
     let root = dir.join("assets");
     let mut kept = Vec::new();
-    let assets = ASSETS.iter().map(|a| (a.path.to_string(), a.bytes));
-    let maps = BUNDLED_MAPS.iter().map(|m| (map_path(m), m.bytes));
-    for (path, bytes) in assets.chain(maps) {
-        let p = root.join(&path);
+    for &Bundled { path, bytes } in ASSETS.iter().chain(BUNDLED_MAPS) {
+        let p = root.join(path);
         if std::fs::symlink_metadata(&p).is_ok() {
             if !std::fs::read(&p).is_ok_and(|b| b == bytes) {
                 kept.push(path);
@@ -472,7 +449,7 @@ pub fn markdown_table(rows: &[DemoRow]) -> String {
 fn bundled_envs(assets: &Path) -> impl Iterator<Item = Result<(String, EnvMap)>> + '_ {
     BUNDLED_MAPS
         .iter()
-        .map(move |m| Ok((m.name.to_string(), EnvMap::load(&assets.join(map_path(m)))?)))
+        .map(move |m| Ok((m.stem().to_string(), EnvMap::load(&assets.join(m.path))?)))
 }
 
 /// Contact-sheet cells of images kept with their tone maps and captions.
