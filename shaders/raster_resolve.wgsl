@@ -1,6 +1,6 @@
 // Resolves a multisampled raster: shaders/raster.wgsl draws each sample of every pixel in a pass
 // of its own, into one layer of `samples`, and each pixel here is the mean of its layers, summed
-// in layer order as the CPU twin sums them (src/draw/raster.rs, rasterize_multisampled). A
+// in layer order as the CPU twin sums them (src/draw/raster.rs, rasterize_with). A
 // sample that drew nothing holds zero, so the colour comes out premultiplied by the coverage in
 // alpha. One triangle covers the target.
 

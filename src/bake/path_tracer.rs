@@ -63,20 +63,20 @@ pub struct PathTraced {
 
 /// One pixel's paths: their estimate, how many were taken (those that found nothing count as
 /// zero), and the share of them that found something to light.
-pub struct PixelPaths {
+pub(crate) struct PixelPaths {
     /// The sums of the paths' radiance.
-    pub estimate: Estimate,
-    /// Paths taken.
-    pub count: usize,
+    pub(crate) estimate: Estimate,
+    /// Paths taken (at least one).
+    pub(crate) count: usize,
     /// Fraction of the paths that met geometry (or the medium).
-    pub coverage: f32,
+    pub(crate) coverage: f32,
 }
 
 impl PathTraced {
     /// Fills every pixel of `image`, `coverage` and `std_error` (sized alike, `samples` paths
     /// asked for a pixel) by `pixel(x, y)`, rows in parallel, calling `progress(rows done,
     /// rows)` after each. The loop both path tracers share: what a pixel's paths are is theirs.
-    pub fn fill(
+    pub(crate) fn fill(
         mut image: Image,
         mut coverage: Vec<f32>,
         mut std_error: Vec<[f32; 3]>,
@@ -85,6 +85,7 @@ impl PathTraced {
         pixel: impl Fn(usize, usize) -> PixelPaths + Sync,
     ) -> PathTraced {
         let (w, h) = (image.width, image.height);
+        debug_assert!(coverage.len() == w * h && std_error.len() == w * h);
         let rows_done = AtomicUsize::new(0);
         image
             .pixels

@@ -239,7 +239,7 @@ impl<'a> Lobe<'a> {
 }
 
 impl ViewDependent for Lobe<'_> {
-    /// Checks the mesh's tables ([`Visibility::check_draw`]) and the lobe's directions.
+    /// Checks the mesh's tables ([`GlossMesh::check`]) and the lobe's directions.
     fn check(&self, vertices: usize) -> Result<()> {
         self.vertices.check(vertices)?;
         if !self.lights.is_empty() && self.positions.len() != vertices {

@@ -44,8 +44,8 @@ pub struct ShGloss<'a> {
 }
 
 impl<'a> ShGloss<'a> {
-    /// The glossy light of a mesh's vertices under `light` through `transfer` (made from
-    /// `visibility`).
+    /// The glossy light of a mesh's vertices under `light` through `transfer` (made from the
+    /// mesh's visibility).
     pub fn new(vertices: GlossMesh<'a>, transfer: &ShTransfer, light: &CubePyramid) -> ShGloss<'a> {
         let visibility = vertices.visibility;
         let order = transfer.order;
@@ -77,7 +77,7 @@ impl<'a> ShGloss<'a> {
 }
 
 impl ViewDependent for ShGloss<'_> {
-    /// Checks the mesh's tables ([`Visibility::check_draw`]).
+    /// Checks the mesh's tables ([`GlossMesh::check`]).
     fn check(&self, vertices: usize) -> Result<()> {
         self.vertices.check(vertices)
     }

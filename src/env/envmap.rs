@@ -360,7 +360,7 @@ impl EnvMap {
         p
     }
 
-    /// Its pixels as the resamplers take them (a map holds as many as its size asks).
+    /// Its pixels as the resamplers take them, which check that they fit its size.
     pub fn latlong(&self) -> LatLong<'_> {
         LatLong {
             width: self.width,

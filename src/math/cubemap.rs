@@ -346,23 +346,39 @@ pub(crate) fn widest_sin(v0: f64, v1: f64, sin0: f64, sin1: f64) -> f64 {
 }
 
 /// A lat-long map's pixels as the resamplers take them: `width` x `height`, rows from the north
-/// pole, checked to fit ([`LatLong::new`]).
-#[derive(Clone, Copy, Debug)]
+/// pole. Every resampler checks that the pixels fit ([`LatLong::check`]); [`LatLong::new`]
+/// checks them where the map is made.
+#[derive(Clone, Copy)]
 pub struct LatLong<'a> {
-    pub(crate) width: usize,
-    pub(crate) height: usize,
-    pub(crate) pixels: &'a [[f32; 3]],
+    /// Pixels a row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// The pixels, row by row from the north pole.
+    pub pixels: &'a [[f32; 3]],
 }
 
 impl<'a> LatLong<'a> {
     /// The map of `pixels`, an error unless they make a non-empty `width` x `height` map.
     pub fn new(width: usize, height: usize, pixels: &'a [[f32; 3]]) -> Result<LatLong<'a>> {
-        check_latlong(width, height, pixels.len())?;
-        Ok(LatLong {
+        let map = LatLong {
             width,
             height,
             pixels,
-        })
+        };
+        map.check()?;
+        Ok(map)
+    }
+
+    /// An error unless the pixels make a non-empty `width` x `height` map.
+    pub fn check(&self) -> Result<()> {
+        check_latlong(self.width, self.height, self.pixels.len())
+    }
+}
+
+impl std::fmt::Debug for LatLong<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "LatLong({} x {})", self.width, self.height)
     }
 }
 
@@ -413,6 +429,7 @@ pub(crate) fn splat_limits(n: usize, width: usize, height: usize) -> (f64, f64) 
 /// and for rotations that are not a yaw followed by a pitch.
 pub fn resample_latlong_exact(map: LatLong, n: usize, world_from_map: DMat3) -> Result<CubeMap> {
     validate_n(n)?;
+    map.check()?;
     let LatLong {
         width,
         height,

@@ -51,7 +51,7 @@ pub fn add_columns(columns: &LightColumns, weights: &[[f32; 3]], pixels: &mut [[
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::store::transport::lights::tests::two_columns;
+    use crate::store::transport::two_columns;
 
     #[test]
     fn adding_columns_is_the_weighted_sum_of_their_values() {

@@ -46,8 +46,8 @@ use panels::PANEL_TERMS;
 use panels::add_panels;
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::{
-    __m128i, _mm_loadl_epi64, _mm_loadu_si128, _mm256_cvtepi8_epi32, _mm256_cvtepi16_epi32,
-    _mm256_cvtepi32_ps,
+    __m128i, __m256, _mm_loadl_epi64, _mm_loadu_si128, _mm256_cvtepi8_epi32, _mm256_cvtepi16_epi32,
+    _mm256_cvtepi32_ps, _mm256_loadu_ps,
 };
 
 use rayon::prelude::*;
@@ -102,13 +102,13 @@ trait StripValue: Copy + Send + Sync + Into<f32> + 'static {
     /// # Safety
     /// `p` points at eight readable values, and the caller runs on a processor with AVX2.
     #[cfg(target_arch = "x86_64")]
-    unsafe fn widen_avx2(p: *const Self) -> std::arch::x86_64::__m256;
+    unsafe fn widen_avx2(p: *const Self) -> __m256;
 }
 
 impl StripValue for i8 {
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    unsafe fn widen_avx2(p: *const i8) -> std::arch::x86_64::__m256 {
+    unsafe fn widen_avx2(p: *const i8) -> __m256 {
         // SAFETY: the caller's contract; an unaligned 8-byte load.
         unsafe { _mm256_cvtepi32_ps(_mm256_cvtepi8_epi32(_mm_loadl_epi64(p as *const __m128i))) }
     }
@@ -117,7 +117,7 @@ impl StripValue for i8 {
 impl StripValue for i16 {
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    unsafe fn widen_avx2(p: *const i16) -> std::arch::x86_64::__m256 {
+    unsafe fn widen_avx2(p: *const i16) -> __m256 {
         // SAFETY: the caller's contract; an unaligned 16-byte load.
         unsafe { _mm256_cvtepi32_ps(_mm256_cvtepi16_epi32(_mm_loadu_si128(p as *const __m128i))) }
     }
@@ -126,9 +126,9 @@ impl StripValue for i16 {
 impl StripValue for f32 {
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    unsafe fn widen_avx2(p: *const f32) -> std::arch::x86_64::__m256 {
+    unsafe fn widen_avx2(p: *const f32) -> __m256 {
         // SAFETY: the caller's contract; an unaligned 32-byte load.
-        unsafe { std::arch::x86_64::_mm256_loadu_ps(p) }
+        unsafe { _mm256_loadu_ps(p) }
     }
 }
 
@@ -380,11 +380,7 @@ unsafe fn add_rows_avx2(
 /// The processor has AVX2.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-unsafe fn interleave(
-    r: std::arch::x86_64::__m256,
-    g: std::arch::x86_64::__m256,
-    b: std::arch::x86_64::__m256,
-) -> [std::arch::x86_64::__m256; 3] {
+unsafe fn interleave(r: __m256, g: __m256, b: __m256) -> [__m256; 3] {
     use std::arch::x86_64::*;
     // SAFETY: AVX2, the contract.
     unsafe {

@@ -486,12 +486,13 @@ pub fn yaw_shift(width: usize, yaw_deg: f64) -> Result<(usize, f64)> {
     })
 }
 
-/// Resamples a `width` x `height` lat-long map into a cube of face size `n` turned by `rotation`:
+/// Resamples the lat-long `map` into a cube of face size `n` turned by `rotation`:
 /// the cached weights gathered with the yaw's shift; a pitch splatted at the cells' centres
 /// where they are no larger than the smallest texels (`pitch`), else by weights recorded for
 /// it.
 pub fn resample_latlong(map: LatLong, n: usize, rotation: EnvRotation) -> Result<CubeMap> {
     validate_n(n)?;
+    map.check()?;
     check_angle("yaw", rotation.yaw_deg)?;
     if map.width * map.height > MAX_RECORDED_PIXELS {
         // Recorded shares would take several bytes a pixel on top of the map; splat directly.
@@ -512,6 +513,7 @@ pub fn resample_latlong(map: LatLong, n: usize, rotation: EnvRotation) -> Result
 /// an unpitched map, and of a pitched one whose cells are larger than the smallest texels.
 pub fn resample_latlong_recorded(map: LatLong, n: usize, rotation: EnvRotation) -> Result<CubeMap> {
     validate_n(n)?;
+    map.check()?;
     check_angle("yaw", rotation.yaw_deg)?;
     if map.width * map.height > MAX_RECORDED_PIXELS {
         return resample_latlong_exact(map, n, rotation.world_from_map());
@@ -919,6 +921,22 @@ mod tests {
         assert!(e.to_string().contains("power of two"), "{e}");
         let e = LatLong::new(8, 5, &px).unwrap_err();
         assert!(e.to_string().contains("pixels"), "{e}");
+        // A map built without `new` is checked by each resampler.
+        for (w, h) in [(8, 5), (0, 4)] {
+            let bad = LatLong {
+                width: w,
+                height: h,
+                pixels: &px,
+            };
+            let r = EnvRotation::new(10.0, 20.0);
+            for e in [
+                resample_latlong(bad, 4, r).unwrap_err(),
+                resample_latlong_recorded(bad, 4, r).unwrap_err(),
+                resample_latlong_exact(bad, 4, r.world_from_map()).unwrap_err(),
+            ] {
+                assert!(e.to_string().contains("pixels"), "{w} x {h}: {e}");
+            }
+        }
         let e = resample_latlong(map(8, 4, &px), 4, EnvRotation::yaw(f64::NAN)).unwrap_err();
         assert!(e.to_string().contains("yaw"), "{e}");
         let w = weights(8, 4, 4, 0.0).unwrap();

@@ -88,13 +88,16 @@ mod assemble;
 mod file;
 mod groups;
 mod legacy;
-pub(crate) mod lights;
+mod lights;
 mod merge;
 mod meta;
 mod reader;
 mod save;
 mod stream;
 pub mod strips;
+
+#[cfg(test)]
+pub(crate) use lights::tests::two_columns;
 
 use std::ops::Range;
 
