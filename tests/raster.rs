@@ -12,10 +12,12 @@ use glam::Vec3;
 use wavelet_prt::draw::background::{composite, environment_behind_camera};
 use wavelet_prt::draw::gpu::{GpuMesh, GpuRaster, upload_colours};
 use wavelet_prt::draw::raster::{DrawOptions, Raster, rasterize, rasterize_with};
+use wavelet_prt::draw::shading::GlossMesh;
 use wavelet_prt::env::envmap::{EnvMap, EnvRotation};
 use wavelet_prt::gpu::map_and_read;
 use wavelet_prt::relight::gpu::Gpu;
 use wavelet_prt::scene::Camera;
+use wavelet_prt::scene::visibility::Visibility;
 
 /// Relative colour difference beyond which a GPU pixel counts as drawn differently from the
 /// CPU's: both take the barycentrics of the pixel ray's hit on the triangle's plane from the
@@ -534,6 +536,34 @@ fn gpu_refuses_bad_meshes_and_colour_buffers() {
     let a = raster.draw(&gpu, &cameras()[0], &m, &full).unwrap();
     let b = raster.draw(&gpu, &cameras()[0], &m, &long).unwrap();
     assert_eq!(a, b);
+    // A glossy mesh whose tables do not fit it is refused, as the CPU's draws refuse it.
+    let n = mesh.positions.len();
+    let normals = vec![Vec3::Y; n];
+    let vis =
+        Visibility::new(4, n, vec![0], vec![0; Visibility::words(4)], vec![[0.5; 4]]).unwrap();
+    for (normals, materials, why) in [
+        (&normals[..n - 1], vec![0; n], "normals"),
+        (&normals[..], vec![0; n - 1], "materials"),
+        (&normals[..], vec![1; n], "material 1 of 1"),
+    ] {
+        let gloss = GlossMesh {
+            normals,
+            materials: &materials,
+            visibility: &vis,
+        };
+        let e = GpuMesh::glossy(&gpu, &mesh.positions, &mesh.triangles, None, Some(gloss))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("gloss") && e.contains(why), "{why}: {e}");
+        assert_eq!(gloss.check(n).unwrap_err().to_string(), e, "{why}");
+    }
+    let fits = GlossMesh {
+        normals: &normals,
+        materials: &vec![0; n],
+        visibility: &vis,
+    };
+    GpuMesh::glossy(&gpu, &mesh.positions, &mesh.triangles, None, Some(fits)).unwrap();
     // An empty mesh draws nothing.
     let empty = GpuMesh::new(&gpu, &[], &[]).unwrap();
     let r = raster.draw(&gpu, &cameras()[0], &empty, &full).unwrap();

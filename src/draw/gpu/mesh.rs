@@ -162,33 +162,8 @@ impl GpuMesh {
             t.check(positions.len())?;
         }
         if let Some(g) = &gloss {
-            let v = g.visibility;
-            if v.vertex_count() != positions.len()
-                || g.materials.iter().any(|&m| m as usize >= v.lobes.len())
-            {
-                return Err(PrtError::invalid(
-                    "visibility",
-                    format!(
-                        "visibility of {} vertices with {} materials' lobes for {} vertices \
-                         of materials up to {}",
-                        v.vertex_count(),
-                        v.lobes.len(),
-                        positions.len(),
-                        g.materials.iter().max().map_or(0, |m| *m)
-                    ),
-                ));
-            }
-            if g.normals.len() != positions.len() || g.materials.len() != positions.len() {
-                return Err(PrtError::invalid(
-                    "gloss",
-                    format!(
-                        "{} normals and {} materials for {} vertices",
-                        g.normals.len(),
-                        g.materials.len(),
-                        positions.len()
-                    ),
-                ));
-            }
+            // The same check as the CPU's draws make ([`GlossMesh::check`]).
+            g.check(positions.len())?;
         }
         let index_count = u32::try_from(triangles.len() * 3).map_err(|_| {
             PrtError::invalid(
