@@ -196,7 +196,7 @@ pub fn check_output_folder(dir: &Path) -> Result<()> {
 /// A file bundled into the binary: its path under the repository's `assets/`, and its bytes.
 /// The environment maps that every `--env` takes by name and the demo's scenes and meshes are
 /// bundled so, each by the crate's `bundled!` macro.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy)]
 pub struct Bundled {
     /// Path under `assets/`, such as `scenes/demo.toml` or `envmaps/blender_sunrise.exr`.
     pub path: &'static str,
@@ -207,8 +207,17 @@ pub struct Bundled {
 impl Bundled {
     /// The file's name without its folder and extension, such as `blender_sunrise`.
     pub fn stem(&self) -> &'static str {
-        let name = self.path.rsplit('/').next().unwrap_or(self.path);
-        name.rsplit_once('.').map_or(name, |(stem, _)| stem)
+        Path::new(self.path)
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or(self.path)
+    }
+}
+
+impl std::fmt::Debug for Bundled {
+    /// The path and the size, not the bytes.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Bundled({}, {} bytes)", self.path, self.bytes.len())
     }
 }
 

@@ -86,12 +86,14 @@ impl PathTraced {
     ) -> PathTraced {
         let (w, h) = (image.width, image.height);
         debug_assert!(coverage.len() == w * h && std_error.len() == w * h);
+        // Chunks of at least one (an empty image has no rows to fill).
+        let row = w.max(1);
         let rows_done = AtomicUsize::new(0);
         image
             .pixels
-            .par_chunks_mut(w.max(1))
-            .zip(coverage.par_chunks_mut(w.max(1)))
-            .zip(std_error.par_chunks_mut(w.max(1)))
+            .par_chunks_mut(row)
+            .zip(coverage.par_chunks_mut(row))
+            .zip(std_error.par_chunks_mut(row))
             .enumerate()
             .for_each(|(y, ((line, line_coverage), line_error))| {
                 for x in 0..w {

@@ -75,8 +75,8 @@ pub fn lobe_pattern(m: usize) -> Vec<[f32; 2]> {
 /// visibility with the materials' GGX lobes, and the light's pyramid.
 #[derive(Clone, Debug)]
 pub struct Lobe<'a> {
-    /// The vertices' normals, materials and visibility.
-    pub vertices: GlossMesh<'a>,
+    /// The mesh's normals, materials and visibility.
+    pub gloss: GlossMesh<'a>,
     /// The light, as the relight used it.
     pub light: &'a CubePyramid,
     /// Per material, the half vectors of its pattern ([`lobe_pattern`]) for its α (`None` for a
@@ -151,21 +151,21 @@ pub fn lobe_taps(alpha: f32, samples: usize) -> Vec<[f32; 4]> {
 impl<'a> Lobe<'a> {
     /// The lobe of a mesh's vertices under `light`, with `samples` directions a pixel for every
     /// material.
-    pub fn new(vertices: GlossMesh<'a>, light: &'a CubePyramid, samples: usize) -> Lobe<'a> {
-        let counts = vec![samples; vertices.visibility.lobes.len()];
-        Lobe::with_counts(vertices, light, &counts)
+    pub fn new(gloss: GlossMesh<'a>, light: &'a CubePyramid, samples: usize) -> Lobe<'a> {
+        let counts = vec![samples; gloss.visibility.lobes.len()];
+        Lobe::with_counts(gloss, light, &counts)
     }
 
     /// The lobe of a mesh's vertices under `light`, each material with the directions its
     /// width asks for ([`lobe_samples`]): what a draw takes.
-    pub fn of_widths(vertices: GlossMesh<'a>, light: &'a CubePyramid) -> Lobe<'a> {
-        let counts = lobe_samples(vertices.visibility);
-        Lobe::with_counts(vertices, light, &counts)
+    pub fn of_widths(gloss: GlossMesh<'a>, light: &'a CubePyramid) -> Lobe<'a> {
+        let counts = lobe_samples(gloss.visibility);
+        Lobe::with_counts(gloss, light, &counts)
     }
 
     /// The lobe with `counts[m]` directions a pixel for material m.
-    fn with_counts(vertices: GlossMesh<'a>, light: &'a CubePyramid, counts: &[usize]) -> Lobe<'a> {
-        let visibility = vertices.visibility;
+    fn with_counts(gloss: GlossMesh<'a>, light: &'a CubePyramid, counts: &[usize]) -> Lobe<'a> {
+        let visibility = gloss.visibility;
         let taps = (0..visibility.lobes.len() as u32)
             .zip(counts)
             .map(|(m, &k)| {
@@ -175,7 +175,7 @@ impl<'a> Lobe<'a> {
             })
             .collect();
         Lobe {
-            vertices,
+            gloss,
             light,
             taps,
             positions: &[],
@@ -204,7 +204,7 @@ impl<'a> Lobe<'a> {
     /// `l`.
     #[inline]
     fn read(&self, l: DVec3, x: f64, rows: &[Option<&[u32]>; 3], b: [f64; 3]) -> DVec3 {
-        let (nl, nv) = (self.light.n, self.vertices.visibility.n);
+        let (nl, nv) = (self.light.n, self.gloss.visibility.n);
         let at_l = FacePoint::of(l);
         let ml = at_l.morton(nl);
         let mv = if nv == nl { ml } else { at_l.morton(nv) };
@@ -241,7 +241,7 @@ impl<'a> Lobe<'a> {
 impl ViewDependent for Lobe<'_> {
     /// Checks the mesh's tables ([`GlossMesh::check`]) and the lobe's directions.
     fn check(&self, vertices: usize) -> Result<()> {
-        self.vertices.check(vertices)?;
+        self.gloss.check(vertices)?;
         if !self.lights.is_empty() && self.positions.len() != vertices {
             let positions = self.positions.len();
             let why = format!("{positions} positions for the local lights of {vertices} vertices");
@@ -271,7 +271,7 @@ impl ViewDependent for Lobe<'_> {
             v,
             nv,
         } = at;
-        let rows = tri.map(|v| self.vertices.visibility.row(v as usize));
+        let rows = tri.map(|v| self.gloss.visibility.row(v as usize));
         let a2 = alpha * alpha;
         let g1 = |c: f32| 2.0 * c / (c + (a2 + (1.0 - a2) * c * c).sqrt());
         let g1v = g1(nv);
@@ -333,10 +333,10 @@ impl Lobe<'_> {
     /// the surface).
     #[inline(always)]
     fn point(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> Option<Point<'_>> {
-        let m = self.vertices.materials[tri[0] as usize];
-        let (specular, alpha) = self.vertices.visibility.lobe(m)?;
+        let m = self.gloss.materials[tri[0] as usize];
+        let (specular, alpha) = self.gloss.visibility.lobe(m)?;
         let taps = self.taps.get(m as usize)?.as_ref()?;
-        let n = interpolated_normal(self.vertices.normals, tri, b)?.as_vec3();
+        let n = interpolated_normal(self.gloss.normals, tri, b)?.as_vec3();
         let v = to_eye.as_vec3();
         let nv = n.dot(v);
         (nv > 0.0).then_some(Point {

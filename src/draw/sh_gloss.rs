@@ -32,8 +32,8 @@ pub fn ggx_bands(alpha: f32, order: usize) -> Vec<f64> {
 /// What a glossy bake with visibility draws by SH glossy transfer under one light.
 #[derive(Clone, Debug)]
 pub struct ShGloss<'a> {
-    /// The vertices' normals, materials and visibility (whose rows the transfer was made from).
-    pub vertices: GlossMesh<'a>,
+    /// The mesh's normals, materials and visibility (whose rows the transfer was made from).
+    pub gloss: GlossMesh<'a>,
     order: usize,
     /// Per material, its specular colour and its lobe's band factors (`None`: diffuse).
     bands: Vec<Option<(DVec3, Vec<f64>)>>,
@@ -46,8 +46,8 @@ pub struct ShGloss<'a> {
 impl<'a> ShGloss<'a> {
     /// The glossy light of a mesh's vertices under `light` through `transfer` (made from the
     /// mesh's visibility).
-    pub fn new(vertices: GlossMesh<'a>, transfer: &ShTransfer, light: &CubePyramid) -> ShGloss<'a> {
-        let visibility = vertices.visibility;
+    pub fn new(gloss: GlossMesh<'a>, transfer: &ShTransfer, light: &CubePyramid) -> ShGloss<'a> {
+        let visibility = gloss.visibility;
         let order = transfer.order;
         let light = pyramid_sh(light, order);
         let bands = (0..visibility.lobes.len() as u32)
@@ -58,7 +58,7 @@ impl<'a> ShGloss<'a> {
             })
             .collect();
         ShGloss {
-            vertices,
+            gloss,
             order,
             bands,
             transferred: transfer.transferred(&light),
@@ -69,7 +69,7 @@ impl<'a> ShGloss<'a> {
     /// Vertex `v`'s transferred radiance.
     fn coefficients(&self, v: u32) -> &[[f32; 3]] {
         let nn = self.order * self.order;
-        match self.vertices.visibility.row_index(v as usize) {
+        match self.gloss.visibility.row_index(v as usize) {
             Some(r) => &self.transferred[r as usize * nn..(r as usize + 1) * nn],
             None => &self.light,
         }
@@ -79,17 +79,17 @@ impl<'a> ShGloss<'a> {
 impl ViewDependent for ShGloss<'_> {
     /// Checks the mesh's tables ([`GlossMesh::check`]).
     fn check(&self, vertices: usize) -> Result<()> {
-        self.vertices.check(vertices)
+        self.gloss.check(vertices)
     }
 
     /// The lobe about the reflection of `to_eye` in the interpolated normal, convolved with the
     /// transferred radiance interpolated at `b`.
     fn shade(&self, tri: [u32; 3], b: [f64; 3], to_eye: DVec3) -> DVec3 {
-        let m = self.vertices.materials[tri[0] as usize];
+        let m = self.gloss.materials[tri[0] as usize];
         let Some(Some((specular, bands))) = self.bands.get(m as usize) else {
             return DVec3::ZERO;
         };
-        let Some(n) = interpolated_normal(self.vertices.normals, tri, b) else {
+        let Some(n) = interpolated_normal(self.gloss.normals, tri, b) else {
             return DVec3::ZERO;
         };
         let nv = n.dot(to_eye);

@@ -9,9 +9,8 @@
 //! layout of the relight's output image buffer when vertex `i` is its pixel `i`), so relit
 //! colours need not leave the GPU. A glossy per-vertex bake's mesh
 //! ([`crate::draw::shading::GlossMesh`], with visibility) evaluates each pixel's GGX lobe against
-//! the light's pyramid
-//! ([`GpuRaster::set_light`]) and the vertices' visibility bits, as the CPU's
-//! [`crate::draw::lobe::Lobe`] does. [`GpuRaster::draw`] renders offscreen and reads the image
+//! the light's pyramid ([`GpuRaster::set_light`]) and the vertices' visibility bits, as the
+//! CPU's [`crate::draw::lobe::Lobe`] does. [`GpuRaster::draw`] renders offscreen and reads the image
 //! and coverage back; [`GpuRaster::render`] draws into a caller's texture for display.
 //!
 //! Conventions: clip space comes from [`clip_from_world`] (NDC y up is the film's top row, as

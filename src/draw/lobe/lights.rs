@@ -108,7 +108,7 @@ impl Lobe<'_> {
             let share: f64 = (0..3)
                 .map(|i| {
                     b[i] * self
-                        .vertices
+                        .gloss
                         .visibility
                         .light_share(tri[i] as usize, lit.column) as f64
                 })
