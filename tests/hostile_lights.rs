@@ -261,7 +261,6 @@ fn the_lowest_roughness_bakes_and_draws_a_finite_lobe_per_vertex() {
     };
     let t = bake(&scene, &settings, &|_| {}).unwrap();
     let vis = t
-        .domain
         .mesh()
         .and_then(|m| m.visibility.as_ref())
         .expect("the glossy material keeps its visibility");

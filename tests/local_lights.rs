@@ -416,7 +416,7 @@ fn lights_add_linearly_to_the_environment_and_each_other() {
         let rgb = defaults[1].color * defaults[1].intensity;
         for (p, (a, b)) in twice.pixels.iter().zip(&both.pixels).enumerate() {
             for k in 0..3 {
-                let col = rgb[k] * t.lights.value(1, k, p);
+                let col = rgb[k] * t.attached.lights.value(1, k, p);
                 assert_close(
                     format!("pixel {p}"),
                     (a[k] - b[k]) as f64,
@@ -437,7 +437,10 @@ fn lights_add_linearly_to_the_environment_and_each_other() {
         let rgb = moved[2].color * moved[2].intensity;
         for p in 0..t.pixel_count() {
             for k in 0..3 {
-                let (c1, c2) = (t.lights.value(3, k, p), t.lights.value(4, k, p));
+                let (c1, c2) = (
+                    t.attached.lights.value(3, k, p),
+                    t.attached.lights.value(4, k, p),
+                );
                 let want = rgb[k] * c1;
                 assert!(
                     (at_one.pixels[p][k] - want).abs() <= 1e-6 * (1.0 + want),
@@ -756,7 +759,7 @@ fn a_moving_light_between_baked_positions_is_close_to_the_light_there() {
             let mut blended = there.clone();
             for (p, px) in blended.pixels.iter_mut().enumerate() {
                 *px = std::array::from_fn(|k| {
-                    0.5 * (t.lights.value(0, k, p) + t.lights.value(2, k, p))
+                    0.5 * (t.attached.lights.value(0, k, p) + t.attached.lights.value(2, k, p))
                 });
             }
             relative_l2(&blended, &there, None).unwrap()
@@ -829,8 +832,10 @@ fn a_light_on_a_grid_blends_the_corners_of_its_cell() {
     s[0].at = [0.5, 0.0, 0.25];
     let img = lights_alone(&t, &s);
     for (p, px) in img.pixels.iter().enumerate() {
-        let want = 0.75 * (0.5 * t.lights.value(0, 0, p) + 0.5 * t.lights.value(1, 0, p))
-            + 0.25 * (0.5 * t.lights.value(3, 0, p) + 0.5 * t.lights.value(4, 0, p));
+        let want = 0.75
+            * (0.5 * t.attached.lights.value(0, 0, p) + 0.5 * t.attached.lights.value(1, 0, p))
+            + 0.25
+                * (0.5 * t.attached.lights.value(3, 0, p) + 0.5 * t.attached.lights.value(4, 0, p));
         assert!((px[0] - want).abs() <= 1e-6 * (1.0 + want), "pixel {p}");
     }
     let mut by_arg = LightSetting::defaults(&t.meta.lights);

@@ -503,7 +503,7 @@ fn exercise_transport(
 /// saw, and checks the pictures.
 fn draw_per_vertex(t: &Transport, relit: &wavelet_prt::output::film::Image) -> Result<(), String> {
     use wavelet_prt::draw::vertex::{bake_camera, draw_relit, orbit};
-    if t.domain.mesh().is_none() {
+    if t.mesh().is_none() {
         return Ok(());
     }
     let Ok(camera) = bake_camera(t) else {

@@ -52,7 +52,7 @@ fn per_vertex(edge: f32) -> BakeSettings {
 fn per_vertex_rows_equal_the_light_integrated_at_each_vertex() {
     let scene = scene_from(SPHERE_ON_PLANE, "per-vertex-reference");
     let t = bake(&scene, &per_vertex(0.5), &|_| {}).unwrap();
-    let mesh = t.domain.mesh().expect("a per-vertex bake keeps its mesh");
+    let mesh = t.mesh().expect("a per-vertex bake keeps its mesh");
     let v = mesh.vertex_count();
     // Both sides of the ground quad and the sphere.
     assert!(v > 200, "{v} vertices");
@@ -223,7 +223,7 @@ fn prt_bake_per_vertex_reports_its_vertices_and_info_reads_them() {
     assert_eq!(t.meta.identity.domain.edge_length(), Some(0.6));
     let (code, text) = prt(&["info", out.to_str().unwrap()]);
     assert_eq!(code, 0, "{text}");
-    let v = t.domain.mesh().unwrap().vertex_count();
+    let v = t.mesh().unwrap().vertex_count();
     assert!(text.contains(&format!("{v} vertices")), "{text}");
     // The bench holds the bake to the brute force from the scene's camera and from another.
     let mut errors = Vec::new();
@@ -347,7 +347,7 @@ fn a_flat_lit_per_vertex_bake_draws_its_one_colour_everywhere_it_covers() {
     let drawn = wavelet_prt::draw::vertex::draw(&t, colours, &camera, None, 1).unwrap();
     // albedo x L, within the cosine's discretisation over the texels of a 6x8² cube (0.52%).
     let want = [1.0f32, 0.5, 0.25];
-    let mesh = t.domain.mesh().unwrap();
+    let mesh = t.mesh().unwrap();
     for (c, n) in colours.iter().zip(&mesh.normals) {
         if n.y > 0.0 {
             for k in 0..3 {
@@ -381,7 +381,7 @@ fn the_gpu_draws_a_per_vertex_bake_as_the_cpu_does() {
         return;
     };
     let (t, colours) = relit_sphere("per-vertex-gpu", 0.3);
-    let mesh = t.domain.mesh().unwrap();
+    let mesh = t.mesh().unwrap();
     let g = GpuMesh::new(&gpu, &mesh.positions, &mesh.triangles).unwrap();
     let c = upload_colours(&gpu, &colours).unwrap();
     let mut raster = GpuRaster::new(&gpu).unwrap();

@@ -189,7 +189,7 @@ fn the_refined_mesh_is_the_same_whatever_the_threads_and_the_file_says_how_it_wa
         ..per_vertex(refine)
     };
     let t = bake(&scene, &coarse(true), &|_| {}).unwrap();
-    let mesh = t.domain.mesh().unwrap();
+    let mesh = t.mesh().unwrap();
     let want = VertexMesh::tessellate_refined(&scene, 0.3).unwrap();
     assert_eq!(
         (&mesh.positions, &mesh.triangles),
@@ -197,7 +197,7 @@ fn the_refined_mesh_is_the_same_whatever_the_threads_and_the_file_says_how_it_wa
     );
     let uniform = bake(&scene, &coarse(false), &|_| {}).unwrap();
     let want = VertexMesh::tessellate(&scene, 0.3).unwrap();
-    let mesh = uniform.domain.mesh().unwrap();
+    let mesh = uniform.mesh().unwrap();
     assert_eq!(
         (&mesh.positions, &mesh.triangles),
         (&want.positions, &want.triangles)

@@ -89,7 +89,7 @@ fn shards_vertices_and_interreflections_stream_to_the_same_bytes() {
         ..settings()
     };
     let t = streamed_equals_kept(&scene, &vertices, "streamed-vertices");
-    assert!(t.domain.mesh().is_some());
+    assert!(t.mesh().is_some());
     let bounces = BakeSettings {
         spp: 1,
         bounces: 1,
@@ -172,8 +172,7 @@ fn untiled(t: &Transport) -> Untiled {
         },
         albedo: t.albedo.clone(),
         coverage: t.coverage.clone(),
-        mesh: t.domain.mesh().cloned(),
-        lights: t.lights.clone(),
+        attached: t.attached.clone(),
     }
 }
 

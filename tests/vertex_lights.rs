@@ -66,7 +66,7 @@ fn dark(n: usize) -> CubePyramid {
 fn each_glossy_vertex_sees_its_share_of_each_light_as_its_shadow_rays_say() {
     let scene = lit_sphere();
     let t = bake(&scene, &settings(8, 0.3), &|_| {}).unwrap();
-    let mesh = t.domain.mesh().unwrap();
+    let mesh = t.mesh().unwrap();
     let vis = mesh.visibility.as_deref().unwrap();
     let lights = emitters(&scene.lights);
     assert_eq!(vis.columns, lights.len());
@@ -93,7 +93,7 @@ fn each_glossy_vertex_sees_its_share_of_each_light_as_its_shadow_rays_say() {
     let path = dir.join("lit.prt");
     t.save(&path).unwrap();
     let back = Transport::load(&path).unwrap();
-    let again = back.domain.mesh().unwrap().visibility.as_deref().unwrap();
+    let again = back.mesh().unwrap().visibility.as_deref().unwrap();
     assert_eq!(again.columns, vis.columns);
     assert_eq!(again.light_shares, vis.light_shares);
     // `prt info` says what the glossy vertices keep.
@@ -106,7 +106,7 @@ fn each_glossy_vertex_sees_its_share_of_each_light_as_its_shadow_rays_say() {
     // Without the shares (as a file of format version 9 with lights loads), the bake draws but
     // is not written: its lights' highlights would be lost.
     let mut old = back;
-    if let wavelet_prt::store::transport::Domain::Mesh(m) = &mut old.domain {
+    if let wavelet_prt::store::transport::Domain::Mesh(m) = &mut old.attached.domain {
         let v = m.visibility.as_mut().unwrap();
         v.columns = 0;
         v.light_shares.clear();
@@ -223,7 +223,7 @@ intensity = 20.0
     let scene = scene_from(&format!("{text}\n{lit}\n{extra}"), "vertex-lights-gpu");
     let n = 8;
     let t = bake(&scene, &settings(n, 0.3), &|_| {}).unwrap();
-    let mesh = t.domain.mesh().unwrap();
+    let mesh = t.mesh().unwrap();
     assert_eq!(mesh.visibility.as_ref().unwrap().columns, 4);
     let mix = LightMix::new(&t.meta.lights, &LightSetting::defaults(&t.meta.lights)).unwrap();
     let (relit, _) = Cpu(&t).relight_lit(&Terms::dark(), &mix).unwrap();
@@ -267,7 +267,7 @@ fn sh_glossy_transfer_keeps_the_lights_highlights() {
     let t = bake(&scene, &settings(n, 0.3), &|_| {}).unwrap();
     let mix = LightMix::new(&t.meta.lights, &LightSetting::defaults(&t.meta.lights)).unwrap();
     let (relit, _) = Cpu(&t).relight_lit(&Terms::dark(), &mix).unwrap();
-    let vis = t.domain.mesh().unwrap().visibility.as_deref().unwrap();
+    let vis = t.mesh().unwrap().visibility.as_deref().unwrap();
     let transfer = ShTransfer::new(vis, 4).unwrap();
     let camera = orbit(&scene.camera, 60.0, 10.0);
     let light = dark(n);

@@ -125,7 +125,7 @@ fn a_coarse_per_vertex_bake_shows_the_checker_where_a_new_camera_sees_it() {
     // Edges up to 2: the 4 x 4 ground is a few triangles, each over many of the 0.5-wide
     // texels.
     let t = bake(&scene, &per_vertex(2.0, true), &|_| {}).unwrap();
-    let mesh = t.domain.mesh().unwrap();
+    let mesh = t.mesh().unwrap();
     assert_eq!(
         mesh.albedo_maps.len(),
         1,
@@ -235,7 +235,7 @@ fn a_per_vertex_bake_drawn_from_a_new_camera_matches_the_per_pixel_reference() {
         assert!(err < bound, "{err} from ({az}, {el}, {d})");
         worst = worst.max(err);
         // Without the maps the same vertices draw far off.
-        let mesh = t.domain.mesh().unwrap();
+        let mesh = t.mesh().unwrap();
         let white = rasterize(&cam, &mesh.positions, &mesh.triangles, colours).unwrap();
         let off = relative_l2(&white.image, &reference.image, Some(&both)).unwrap();
         assert!(off > UNTEXTURED_OFF, "untextured only {off} off");
@@ -253,7 +253,7 @@ fn mip_levels_keep_a_distant_texture_from_aliasing() {
     let cube = CubeMap::constant(8, [1.0; 3]).unwrap();
     let (img, _) = relight_wavelet(&t, &common::full_light(&cube)).unwrap();
     let colours = vertex_colours(&t, &img).unwrap();
-    let mesh = t.domain.mesh().unwrap();
+    let mesh = t.mesh().unwrap();
     let cam = new_camera(&t, 10.0, 30.0, 2.5, 40, 30);
     let mut seen = scene.with_diffuse_materials();
     seen.camera = cam.clone();
@@ -300,7 +300,7 @@ fn the_gpu_draws_textured_vertices_as_the_cpu_does() {
     // 64 texels over the ground: magnified near, minified (levels 1 to 4) far and small.
     let scene = checker_scene("vertex-texture-gpu", 64, false);
     let t = bake(&scene, &per_vertex(0.5, false), &|_| {}).unwrap();
-    let mesh = t.domain.mesh().unwrap();
+    let mesh = t.mesh().unwrap();
     let cube = CubeMap::constant(8, [1.0; 3]).unwrap();
     let (img, _) = relight_wavelet(&t, &common::full_light(&cube)).unwrap();
     let colours = vertex_colours(&t, &img).unwrap();
@@ -379,9 +379,9 @@ fn albedo_maps_survive_the_file_and_bad_ones_are_refused() {
     let path = dir.join("v.prt");
     t.save(&path).unwrap();
     let back = Transport::load(&path).unwrap();
-    assert_eq!(back.domain, t.domain);
+    assert_eq!(back.attached.domain, t.attached.domain);
     assert_eq!(back.meta.per_vertex.as_ref().unwrap().albedo_maps, 1);
-    let mesh = back.domain.mesh().unwrap();
+    let mesh = back.mesh().unwrap();
     assert_eq!(
         mesh.albedo_maps[0].levels.len(),
         4,

@@ -58,7 +58,7 @@ fn each_glossy_vertex_keeps_the_texels_its_rays_escape_to() {
     let scene = sphere();
     let n = 8;
     let t = bake(&scene, &settings(n, 0.3), &|_| {}).unwrap();
-    let mesh = t.domain.mesh().unwrap();
+    let mesh = t.mesh().unwrap();
     let vis = mesh.visibility.as_ref().expect("kept");
     let glossy: Vec<u32> = (0..mesh.vertex_count() as u32)
         .filter(|&v| {
@@ -108,7 +108,7 @@ fn visibility_is_written_read_back_and_an_old_file_with_in_out_terms_is_refused(
     let path = dir.join("v.prt");
     t.save(&path).unwrap();
     let back = Transport::load(&path).unwrap();
-    let (a, b) = (t.domain.mesh().unwrap(), back.domain.mesh().unwrap());
+    let (a, b) = (t.mesh().unwrap(), back.mesh().unwrap());
     assert_eq!(a.visibility, b.visibility);
     assert!(back.meta.identity.visibility);
     // A file of versions 6 to 9 baked with in-out BRDF terms says so with the pixels a vertex
@@ -205,7 +205,7 @@ fn the_sphere_from_a_new_camera_is_near_the_path_tracer_under_the_same_cube() {
     // further from the path tracer than the lobe, nearer than the diffuse base and nearer at
     // higher orders, its light all there (measured 87.1% and 70.5% at orders 4 and 8, with
     // 100.0% and 107.3% of the path tracer's light).
-    let vis = t.domain.mesh().unwrap().visibility.as_deref().unwrap();
+    let vis = t.mesh().unwrap().visibility.as_deref().unwrap();
     let mut last = d;
     for order in [4, 8] {
         let transfer = wavelet_prt::relight::sh_transfer::ShTransfer::new(vis, order).unwrap();
@@ -415,7 +415,7 @@ fn the_gpu_draws_the_lobe_as_the_cpu_does() {
         (sphere_on_glossy_ground(), vec![64, 256]),
     ] {
         let t = bake(&scene, &settings(8, 0.3), &|_| {}).unwrap();
-        let mesh = t.domain.mesh().unwrap();
+        let mesh = t.mesh().unwrap();
         assert_eq!(lobe_samples(mesh.visibility.as_ref().unwrap()), directions);
         let m = GpuMesh::of_bake(&gpu, mesh).unwrap();
         assert!(m.has_lobe());

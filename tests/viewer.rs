@@ -590,7 +590,7 @@ fn a_per_vertex_bake_is_drawn_from_the_orbit_camera_over_the_environment() {
     };
     let (relit, _) = relight(&t, &ctx, &light, &request).unwrap();
     let colours = vertex_colours(&t, &relit).unwrap();
-    let mesh = t.domain.mesh().unwrap();
+    let mesh = t.mesh().unwrap();
     let mut errors = Vec::new();
     let mut images = Vec::new();
     for orbit in [
@@ -842,7 +842,7 @@ fn a_local_light_adds_exactly_its_column_and_the_errors_stay_the_environments() 
     let rgb = light.color * light.intensity;
     for (p, d) in difference(&on, &off).iter().enumerate() {
         for k in 0..3 {
-            let want = rgb[k] * t.lights.value(0, k, p);
+            let want = rgb[k] * t.attached.lights.value(0, k, p);
             assert!(
                 (d[k] - want).abs() <= 1e-5 * (1.0 + want),
                 "pixel {p}: {} {want}",
@@ -855,7 +855,7 @@ fn a_local_light_adds_exactly_its_column_and_the_errors_stay_the_environments() 
     s.lights.lights[0].stops = 1.0;
     let brighter = e.render(&s).unwrap();
     for (p, d) in difference(&brighter, &on).iter().enumerate() {
-        let want = rgb[0] * t.lights.value(0, 0, p);
+        let want = rgb[0] * t.attached.lights.value(0, 0, p);
         assert!((d[0] - want).abs() <= 1e-5 * (1.0 + want), "pixel {p}");
     }
     s.lights.solo = Some(1);
@@ -865,7 +865,7 @@ fn a_local_light_adds_exactly_its_column_and_the_errors_stay_the_environments() 
     let rgb = spot.color * spot.intensity;
     for (p, px) in solo.panes[0].linear.image.pixels.iter().enumerate() {
         for k in 0..3 {
-            let want = rgb[k] * t.lights.value(2, k, p);
+            let want = rgb[k] * t.attached.lights.value(2, k, p);
             assert!((px[k] - want).abs() <= 1e-5 * (1.0 + want), "pixel {p}");
         }
     }

@@ -665,7 +665,7 @@ fn toggling_and_scaling_a_light_in_the_panel_changes_the_image_by_its_column() {
     let (a, b) = (&before.panes[0].linear.image, &after.panes[0].linear.image);
     for (p, (x, y)) in a.pixels.iter().zip(&b.pixels).enumerate() {
         for k in 0..3 {
-            let want = rgb[k] * t.lights.value(0, k, p);
+            let want = rgb[k] * t.attached.lights.value(0, k, p);
             assert!(
                 (x[k] - y[k] - want).abs() <= 1e-5 * (1.0 + want),
                 "pixel {p}: {} against {want}",
@@ -681,7 +681,7 @@ fn toggling_and_scaling_a_light_in_the_panel_changes_the_image_by_its_column() {
     assert_eq!(h.state().state.lights.lights[0].stops, 1.0);
     let twice = h.state().rendered().unwrap().panes[0].linear.image.clone();
     for (p, (x, y)) in twice.pixels.iter().zip(&b.pixels).enumerate() {
-        let want = 2.0 * rgb[0] * t.lights.value(0, 0, p);
+        let want = 2.0 * rgb[0] * t.attached.lights.value(0, 0, p);
         assert!(
             (x[0] - y[0] - want).abs() <= 1e-5 * (1.0 + want),
             "pixel {p}"
@@ -698,7 +698,7 @@ fn toggling_and_scaling_a_light_in_the_panel_changes_the_image_by_its_column() {
     let spot = &t.meta.lights[1];
     let rgb = spot.color * spot.intensity;
     for (p, x) in solo.pixels.iter().enumerate() {
-        let want = rgb[0] * t.lights.value(1, 0, p);
+        let want = rgb[0] * t.attached.lights.value(1, 0, p);
         assert!((x[0] - want).abs() <= 1e-5 * (1.0 + want), "pixel {p}");
     }
 }

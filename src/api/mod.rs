@@ -448,7 +448,7 @@ impl Relighter {
         let i = self.prepare(env, rotation)?;
         let light = &self.lights[i].1;
         let (image, _) = Cpu(&self.transport).relight_with(&self.ctx, light, request, lights)?;
-        match (self.background, &self.transport.domain) {
+        match (self.background, &self.transport.attached.domain) {
             (Background::Environment, Domain::View) => {
                 let t = &self.transport;
                 let behind = environment_behind(&t.meta, &t.coverage, env.map(), rotation)?;

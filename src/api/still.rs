@@ -38,7 +38,7 @@ impl Still {
     pub fn camera(&self, t: &Transport) -> Result<Option<Camera>> {
         let moved = self.eye.is_some() || self.target.is_some() || self.up.is_some();
         let given = moved || self.width.is_some() || self.height.is_some();
-        if t.domain == Domain::View {
+        if t.attached.domain == Domain::View {
             if given {
                 vertex::mesh_of(t)?;
             }

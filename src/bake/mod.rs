@@ -23,7 +23,7 @@ mod tile;
 mod tint;
 mod visibility;
 
-use crate::store::transport::{BakeDomain, BakeIdentity};
+use crate::store::transport::{Attached, BakeDomain, BakeIdentity, Domain};
 pub use direct::{accumulate_direct_rows, direct_texels};
 pub use in_order::Cancel;
 use in_order::in_tile_order;
@@ -359,8 +359,10 @@ fn bake_tiles(
         meta,
         albedo: tables.albedo,
         coverage: tables.coverage,
-        mesh,
-        lights: tables.light_columns,
+        attached: Attached {
+            domain: Domain::from_mesh(mesh),
+            lights: tables.light_columns,
+        },
     })
 }
 

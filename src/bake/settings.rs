@@ -364,7 +364,7 @@ pub fn load_if_baked_with(
     let t = Transport::load(path).ok()?;
     // A glossy bake with lights from before the vertices' light shares were kept draws no
     // highlight of its lights: it is made again.
-    let vis = t.domain.mesh().and_then(|m| m.visibility.as_deref());
+    let vis = t.mesh().and_then(|m| m.visibility.as_deref());
     if vis.is_some_and(|v| v.columns < t.meta.light_columns()) {
         return None;
     }

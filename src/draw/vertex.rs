@@ -25,7 +25,7 @@ use crate::store::transport::Transport;
 
 /// The mesh of a per-vertex bake, or an error saying that the file is a fixed view.
 pub fn mesh_of(t: &Transport) -> Result<&VertexMesh> {
-    t.domain.mesh().ok_or_else(|| {
+    t.mesh().ok_or_else(|| {
         PrtError::invalid(
             "camera",
             "this transport is a per-pixel bake of one fixed view: its camera cannot move (bake \

@@ -30,7 +30,11 @@ pub fn lobe_light(
     light: Option<&PreparedLight>,
     req: &RelightRequest,
 ) -> Result<Option<CubePyramid>> {
-    if t.domain.mesh().is_none_or(|m| m.visibility.is_none()) {
+    if t.attached
+        .domain
+        .mesh()
+        .is_none_or(|m| m.visibility.is_none())
+    {
         return Ok(None);
     }
     let cube = match light {

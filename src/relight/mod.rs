@@ -328,7 +328,7 @@ impl Backend for Cpu<'_> {
             Terms::Sh(sh) => relight_sh(self.0, sh)?,
         };
         let start = std::time::Instant::now();
-        columns::add_columns(&self.0.lights, &lights.weights, &mut image.pixels);
+        columns::add_columns(&self.0.attached.lights, &lights.weights, &mut image.pixels);
         Ok((
             image,
             RelightStats {

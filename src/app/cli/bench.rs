@@ -214,7 +214,7 @@ fn brute_force_references(
     envs: &[(String, crate::env::envmap::EnvMap)],
 ) -> Result<(Vec<crate::output::film::Image>, Vec<f32>)> {
     let diffuse;
-    let (scene, settings) = match &t.domain {
+    let (scene, settings) = match &t.attached.domain {
         Domain::Mesh(_) => {
             let mut d = scene.with_diffuse_materials();
             if let Some(c) = still {

@@ -139,7 +139,11 @@ pub fn run_dusk(study: &mut Study, assets: &Path, weighting: Weighting) -> Resul
     let mut times: Vec<f64> = (0..5)
         .map(|_| {
             let start = std::time::Instant::now();
-            crate::relight::columns::add_columns(&t.lights, &all.weights, &mut scratch.pixels);
+            crate::relight::columns::add_columns(
+                &t.attached.lights,
+                &all.weights,
+                &mut scratch.pixels,
+            );
             start.elapsed().as_secs_f64()
         })
         .collect();

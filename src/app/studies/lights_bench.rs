@@ -232,8 +232,10 @@ pub fn run(
         let mut blended = Image::new(t.meta.width as usize, t.meta.height as usize);
         let mut there = blended.clone();
         for (p, (b, h)) in blended.pixels.iter_mut().zip(&mut there.pixels).enumerate() {
-            *b = std::array::from_fn(|k| 0.5 * (t.lights.value(0, k, p) + t.lights.value(2, k, p)));
-            *h = std::array::from_fn(|k| t.lights.value(1, k, p));
+            *b = std::array::from_fn(|k| {
+                0.5 * (t.attached.lights.value(0, k, p) + t.attached.lights.value(2, k, p))
+            });
+            *h = std::array::from_fn(|k| t.attached.lights.value(1, k, p));
         }
         let rel_l2 = relative_l2(&blended, &there, None)?;
         log(&format!(
@@ -342,11 +344,11 @@ fn many_lights(
     let (w, h) = (t.meta.width as usize, t.meta.height as usize);
     let mut image = Image::new(w, h);
     let all_ms = median_ms(opts.runs, || {
-        crate::relight::columns::add_columns(&t.lights, &all.weights, &mut image.pixels);
+        crate::relight::columns::add_columns(&t.attached.lights, &all.weights, &mut image.pixels);
         Ok(())
     })?;
     let one_ms = median_ms(opts.runs, || {
-        crate::relight::columns::add_columns(&t.lights, &one.weights, &mut image.pixels);
+        crate::relight::columns::add_columns(&t.attached.lights, &one.weights, &mut image.pixels);
         Ok(())
     })?;
     let (_, terms) =
@@ -359,7 +361,7 @@ fn many_lights(
         height: h,
         bake_seconds: [seconds, plain],
         ms: [all_ms, one_ms, env_ms, frame_ms],
-        column_bytes: t.lights.bytes(),
+        column_bytes: t.attached.lights.bytes(),
     })
 }
 

@@ -89,7 +89,7 @@ impl Engine {
         envs: Vec<EnvEntry>,
     ) -> Result<Engine> {
         let ctx = LightContext::new(&transport)?;
-        let base_camera = match transport.domain {
+        let base_camera = match transport.attached.domain {
             Domain::Mesh(_) => Some(bake_camera(&transport)?),
             Domain::View => None,
         };
@@ -325,7 +325,7 @@ impl Engine {
         }
         let mix = s.lights.mix(&self.transport.meta.lights)?;
         crate::relight::columns::add_columns(
-            &self.transport.lights,
+            &self.transport.attached.lights,
             &mix.weights,
             &mut shown.pixels,
         );
@@ -349,7 +349,7 @@ impl Engine {
         let Some(order) = order else {
             return Ok(());
         };
-        let mesh = self.transport.domain.mesh();
+        let mesh = self.transport.mesh();
         let Some(vis) = mesh.and_then(|m| m.visibility.as_deref()) else {
             return Ok(());
         };
@@ -389,7 +389,11 @@ impl Engine {
     /// other transport.
     fn lobe_light(&self, request: &RelightRequest, shown: bool) -> Result<Option<CubePyramid>> {
         let t = &self.transport;
-        if t.domain.mesh().is_none_or(|m| m.visibility.is_none()) {
+        if t.attached
+            .domain
+            .mesh()
+            .is_none_or(|m| m.visibility.is_none())
+        {
             return Ok(None);
         }
         let light = self.light.as_ref().filter(|_| shown);
@@ -446,7 +450,7 @@ impl Engine {
                 image.pixels.fill([0.0; 3]);
             }
             crate::relight::columns::add_columns(
-                &self.transport.lights,
+                &self.transport.attached.lights,
                 &mix.weights,
                 &mut image.pixels,
             );

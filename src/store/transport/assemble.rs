@@ -266,8 +266,11 @@ impl Transport {
         for (s, e) in tile_stats.iter_mut().zip(&encoded) {
             s[0] += e.quantization_energy;
         }
-        let lights = LightColumns::empty(meta.width as usize, meta.height as usize);
-        Self::assemble_encoded(meta, &encoded, albedo, coverage, tile_stats, None, lights)
+        let attached = Attached {
+            domain: Domain::View,
+            lights: LightColumns::empty(meta.width as usize, meta.height as usize),
+        };
+        Self::assemble_encoded(meta, &encoded, albedo, coverage, tile_stats, attached)
     }
 
     /// Joins encoded tiles (row-major over the tile grid) into a transport and derives its
@@ -279,8 +282,7 @@ impl Transport {
         albedo: Vec<[f32; 3]>,
         coverage: Vec<f32>,
         tile_stats: Vec<[f64; 3]>,
-        mesh: Option<VertexMesh>,
-        lights: LightColumns,
+        attached: Attached,
     ) -> Result<Transport> {
         let c = 6 * (meta.identity.cube_n as usize).pow(2);
         let q = meta.identity.quantization;
@@ -328,8 +330,7 @@ impl Transport {
             coverage,
             transport_magnitude: mean_magnitudes(&magnitude, rows),
             tile_stats,
-            domain: Domain::from_mesh(mesh),
-            lights,
+            attached,
         };
         t.validate().map_err(invalid)?;
         Ok(t)
@@ -406,7 +407,7 @@ impl Transport {
 }
 
 /// What a transport holds besides its tiles: the header (its statistics are filled in when the
-/// tiles are joined), the per-pixel tables and a per-vertex bake's mesh. A bake and a merge make
+/// tiles are joined), the per-pixel tables and the attached parts. A bake and a merge make
 /// it while they hand their tiles on, in tile order, to [`KeptTiles`] or a
 /// [`super::TransportWriter`].
 pub struct Untiled {
@@ -416,10 +417,8 @@ pub struct Untiled {
     pub albedo: Vec<[f32; 3]>,
     /// Per pixel: the fraction of its sub-samples that hit geometry.
     pub coverage: Vec<f32>,
-    /// The mesh of a per-vertex bake; `None` for a view.
-    pub mesh: Option<VertexMesh>,
-    /// The local lights' columns.
-    pub lights: LightColumns,
+    /// What the rows belong to and the local lights' columns.
+    pub attached: Attached,
 }
 
 /// Encoded tiles kept in memory in tile order, with their statistics (energy dropped by
@@ -446,8 +445,7 @@ impl KeptTiles {
             rest.albedo,
             rest.coverage,
             self.stats,
-            rest.mesh,
-            rest.lights,
+            rest.attached,
         )
     }
 }

@@ -48,16 +48,8 @@ impl Transport {
             rows,
             sh,
             matrix,
-            mesh,
-            maps,
-            visibility,
-            lights,
+            attached,
         } = read_all(&mut reader, &meta, version)?;
-        let map_count = meta
-            .per_vertex
-            .as_ref()
-            .map_or(0, |p| p.albedo_maps as usize);
-        let columns = meta.light_columns();
         check_checksum(path, &stored, reader.checksum())?;
         let expect = |name: &str, shape: &[usize], want: &[usize]| -> Result<()> {
             if shape != want {
@@ -98,14 +90,7 @@ impl Transport {
         expect(PixelTensors::MAGNITUDE, &magnitude_shape, &[c])?;
         let (stats_shape, tile_stats) = taken(rows.tile_stats, RowTensors::TILE_STATS)?;
         expect(RowTensors::TILE_STATS, &stats_shape, &[tiles, 3])?;
-        let lights = lights.into_columns((columns, w, h), &expect)?;
-        let mesh = match &meta.per_vertex {
-            Some(pv) => mesh.into_mesh(maps, (pv, map_count), &expect, &bad)?,
-            None => None,
-        };
-        let mesh = visibility
-            .attach(mesh, (meta.identity.cube_n as usize, columns), &expect)
-            .map_err(|e| bad(e.to_string()))?;
+        let attached = attached.into_attached(&meta, &expect, &bad)?;
         // A twin by design of the merge's literal (`assemble.rs`): the struct built whole,
         // where a load and a merge of shards each make one.
         let t = Transport {
@@ -122,8 +107,7 @@ impl Transport {
             coverage,
             transport_magnitude,
             tile_stats,
-            domain: Domain::from_mesh(mesh),
-            lights,
+            attached,
         };
         t.validate().map_err(bad)?;
         Ok(t)

@@ -132,9 +132,8 @@ fn merge_tiles(
             let stats = s.tile_stats[tiles].iter().flatten().any(|v| *v != 0.0);
             let seen = s.coverage[pixels.clone()].iter().any(|v| *v != 0.0)
                 || s.albedo[pixels].iter().flatten().any(|v| *v != 0.0)
-                || !s
-                    .lights
-                    .rows_are_zero(band * TILE..((band + 1) * TILE).min(h));
+                || s.attached
+                    .holds_rows(band * TILE..((band + 1) * TILE).min(h));
             if rows > 0 || stats || seen {
                 return Err(PrtError::invalid(
                     "merge",
@@ -149,7 +148,10 @@ fn merge_tiles(
             }
         }
     }
-    if let Some(k) = shards.iter().position(|s| s.domain != first.domain) {
+    if let Some(k) = shards
+        .iter()
+        .position(|s| s.attached.domain != first.attached.domain)
+    {
         return Err(PrtError::invalid(
             "merge",
             format!("{} holds another vertex mesh than {}", name(k), name(0)),
@@ -157,7 +159,7 @@ fn merge_tiles(
     }
     let mut albedo = vec![[0.0f32; 3]; w * h];
     let mut coverage = vec![0.0f32; w * h];
-    let mut lights = LightColumns::zeros(first.meta.light_columns(), w, h);
+    let mut attached = first.attached.emptied(first.meta.light_columns());
     for band in 0..ty {
         let s = &shards[owner[shard_of_band(band, ty, count as usize)]];
         for tile in band * tx..(band + 1) * tx {
@@ -166,14 +168,13 @@ fn merge_tiles(
         let pixels = band * TILE * w..((band + 1) * TILE * w).min(w * h);
         albedo[pixels.clone()].copy_from_slice(&s.albedo[pixels.clone()]);
         coverage[pixels.clone()].copy_from_slice(&s.coverage[pixels]);
-        lights.copy_rows(&s.lights, band * TILE..((band + 1) * TILE).min(h));
+        attached.copy_rows(&s.attached, band * TILE..((band + 1) * TILE).min(h));
     }
     Ok(Untiled {
         meta: same(&first.meta),
         albedo,
         coverage,
-        mesh: first.domain.mesh().cloned(),
-        lights,
+        attached,
     })
 }
 

@@ -226,7 +226,17 @@ pub struct Transport {
     /// Per tile: energy thresholding and quantisation dropped, the rows' total energy, shadow
     /// rays traced.
     pub tile_stats: Vec<[f64; 3]>,
-    /// What the rows belong to: the pixels of the baked view, or a mesh's vertices.
+    /// What the file stores beside the rows and the per-pixel tables.
+    pub attached: Attached,
+}
+
+/// What a transport stores beside its rows and per-pixel tables, each part a file holds or not
+/// (the file's tensor groups read, check and write them all): a load, a bake and a merge hand it
+/// on whole.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Attached {
+    /// What the rows belong to: the pixels of the baked view, or a mesh's vertices (with their
+    /// albedo maps and visibility).
     pub domain: Domain,
     /// The local lights' dense columns (none without local lights; `meta.lights` says which
     /// light each column is).
@@ -265,6 +275,28 @@ impl Domain {
     }
 }
 
+impl Attached {
+    /// Whether the parts hold anything in the image's pixel rows `rows` (a shard holds nothing
+    /// outside its own bands).
+    fn holds_rows(&self, rows: std::ops::Range<usize>) -> bool {
+        !self.lights.rows_are_zero(rows)
+    }
+
+    /// What a merge of shards fills band by band ([`Attached::copy_rows`]): the domain, which
+    /// every shard shares, and `columns` light columns over the same image, all zero.
+    fn emptied(&self, columns: usize) -> Attached {
+        Attached {
+            domain: self.domain.clone(),
+            lights: LightColumns::zeros(columns, self.lights.width, self.lights.height),
+        }
+    }
+
+    /// Copies `from`'s pixel rows `rows` (a shard's band) into these parts.
+    fn copy_rows(&mut self, from: &Attached, rows: std::ops::Range<usize>) {
+        self.lights.copy_rows(&from.lights, rows);
+    }
+}
+
 /// Tiles along x and y for an image.
 pub fn tile_grid(width: usize, height: usize) -> (usize, usize) {
     (width.div_ceil(TILE), height.div_ceil(TILE))
@@ -276,6 +308,11 @@ pub fn blocks_of(rows: usize) -> usize {
 }
 
 impl Transport {
+    /// The mesh of a per-vertex bake; `None` for a view.
+    pub fn mesh(&self) -> Option<&VertexMesh> {
+        self.attached.domain.mesh()
+    }
+
     /// Haar coefficients per row, 6 N².
     pub fn coeff_count(&self) -> usize {
         6 * (self.meta.identity.cube_n as usize).pow(2)
@@ -425,10 +462,10 @@ impl Transport {
                 return Err(non_finite(name));
             }
         }
-        if (self.lights.width, self.lights.height) != (w, h) {
+        if (self.attached.lights.width, self.attached.lights.height) != (w, h) {
             return Err("the light columns are not the image's size".into());
         }
-        if let Some(p) = self.lights.problem(m.light_columns()) {
+        if let Some(p) = self.attached.lights.problem(m.light_columns()) {
             return Err(p);
         }
         self.validate_mesh()
@@ -437,7 +474,7 @@ impl Transport {
     /// A per-vertex bake's mesh against its header: one vertex per pixel up to the count, the
     /// counts the header gives, and a consistent mesh; a view has neither mesh nor its header.
     fn validate_mesh(&self) -> std::result::Result<(), String> {
-        let (pv, mesh) = match (&self.meta.per_vertex, self.domain.mesh()) {
+        let (pv, mesh) = match (&self.meta.per_vertex, self.mesh()) {
             (None, None) => return Ok(()),
             (Some(pv), Some(mesh)) => (pv, mesh),
             (Some(_), None) => return Err("a per-vertex header without its mesh".into()),

@@ -8,8 +8,7 @@ use safetensors::tensor::Dtype;
 
 use super::file::FileHeader;
 use super::groups::{
-    LightTensors, MapTensors, MatrixTensors, MeshTensors, PixelTensors, RowTensors, ShTensor,
-    VisibilityTensors, tensor_names,
+    AttachedTables, MatrixTensors, PixelTensors, RowTensors, ShTensor, tensor_names,
 };
 use super::*;
 use crate::error::{PrtError, Result};
@@ -55,8 +54,7 @@ impl Transport {
                 coverage: &self.coverage,
                 transport_magnitude: &self.transport_magnitude,
                 tile_stats: &self.tile_stats,
-                mesh: self.domain.mesh(),
-                lights: &self.lights,
+                attached: &self.attached,
             },
         )
     }
@@ -70,8 +68,7 @@ pub(super) struct FileTables<'a> {
     pub coverage: &'a [f32],
     pub transport_magnitude: &'a [f32],
     pub tile_stats: &'a [[f64; 3]],
-    pub mesh: Option<&'a VertexMesh>,
-    pub lights: &'a LightColumns,
+    pub attached: &'a Attached,
 }
 
 /// Writes a transport file atomically from `grown`, the eight tensors that grow tile by tile
@@ -97,42 +94,10 @@ pub(super) fn save_file<'a>(
         tables.coverage,
         tables.transport_magnitude,
     ));
-    // A textured mesh's maps: their table and level-0 texels.
-    let textured = tables.mesh.filter(|m| !m.albedo_maps.is_empty());
-    let maps = textured.map(|m| crate::scene::albedo_map::to_table(&m.albedo_maps));
-    // The maps' tables live in this call: the tensors borrow them for it.
+    // What the attached parts are written from lives in this call: the tensors borrow it.
+    let attached = AttachedTables::of(tables.attached);
     let mut tensors: Vec<(&str, Tensor)> = tensors;
-    if let Some((mesh, maps)) = textured.zip(maps.as_ref()) {
-        tensors.extend(MapTensors::write(mesh, maps));
-    }
-    if let Some(vis) = tables.mesh.and_then(|m| m.visibility.as_ref()) {
-        if vis.columns != meta.light_columns() {
-            return Err(PrtError::file(
-                path,
-                format!(
-                    "the glossy vertices keep shares of {} light columns, the header has {}: a \
-                     glossy bake with lights from before format version 10 is drawn as it \
-                     loads, but is written only when baked again",
-                    vis.columns,
-                    meta.light_columns()
-                ),
-            ));
-        }
-        tensors.extend(VisibilityTensors::write(vis));
-    }
-    if let Some(mesh) = tables.mesh {
-        tensors.extend(MeshTensors::write(mesh));
-    }
-    let columns = meta.light_columns();
-    if tables.lights.problem(columns).is_some() {
-        return Err(PrtError::file(
-            path,
-            "the light columns to write do not match the header's lights",
-        ));
-    }
-    if columns > 0 {
-        tensors.extend(LightTensors::write(tables.lights, (columns, w, h)));
-    }
+    tensors.extend(attached.write(tables.attached, meta, path)?);
     tensors.sort_by_key(|(name, _)| *name);
     if !tensors
         .iter()

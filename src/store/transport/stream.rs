@@ -172,8 +172,7 @@ impl TransportWriter {
             mut meta,
             albedo,
             coverage,
-            mesh,
-            lights,
+            attached,
         } = rest;
         let (w, h) = (meta.width as usize, meta.height as usize);
         let (tx, ty) = tile_grid(w, h);
@@ -260,8 +259,7 @@ impl TransportWriter {
                 coverage: &coverage,
                 transport_magnitude: &magnitude,
                 tile_stats: &self.tile_stats,
-                mesh: mesh.as_ref(),
-                lights: &lights,
+                attached: &attached,
             },
         )?;
         Ok(meta)

@@ -194,7 +194,7 @@ fn reference_error(
     reference_coverage: Option<&[f32]>,
     camera: Option<&crate::scene::Camera>,
 ) -> Result<f64> {
-    if t.domain == Domain::View {
+    if t.attached.domain == Domain::View {
         return relative_l2(img, reference, Some(&t.coverage));
     }
     let camera = match camera {

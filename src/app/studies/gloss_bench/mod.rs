@@ -482,7 +482,6 @@ fn glossy_pixels(
     reference: &[f32],
 ) -> Result<Vec<f32>> {
     let mesh = t
-        .domain
         .mesh()
         .ok_or_else(|| PrtError::invalid("gloss", "a bake without vertices"))?;
     let flags: Vec<[f32; 3]> = mesh

@@ -481,7 +481,7 @@ impl ViewerApp {
         if let Some(base) = &loaded.camera {
             ui.separator();
             camera::camera_controls(ui, &mut s.orbit, base);
-            let mesh = loaded.transport.domain.mesh();
+            let mesh = loaded.transport.mesh();
             if mesh.is_some_and(|m| m.visibility.is_some()) {
                 glossy_controls(ui, &mut s.display.sh_transfer);
             }

@@ -140,7 +140,8 @@ impl GpuTransport {
             )?);
             start = end;
         }
-        let lights = crate::relight::gpu::lights::GpuLights::upload(gpu, &t.lights, &image, limit)?;
+        let lights =
+            crate::relight::gpu::lights::GpuLights::upload(gpu, &t.attached.lights, &image, limit)?;
         Ok(GpuTransport {
             lights,
             width: w,

@@ -5,6 +5,8 @@
 //! shapes need nothing of the other groups, checks and writes them. A load reads every group's
 //! tensors interleaved, in the name order the checksum covers ([`plan`]).
 
+use std::path::Path;
+
 use safetensors::tensor::Dtype;
 
 /// A group's [`ReadGroup`] that reads each of its tensors, by name, into its own field, as
@@ -32,10 +34,11 @@ mod matrix;
 mod mesh;
 
 pub(super) use matrix::MatrixTensors;
-pub(super) use mesh::{MapTensors, MeshTensors, VisibilityTensors, mesh_values_problem};
+pub(super) use mesh::mesh_values_problem;
+use mesh::{MapTensors, MeshTensors, VisibilityTensors};
 
 use super::reader::TensorReader;
-use super::{LightColumns, TransportMeta, Values};
+use super::{Attached, Domain, LightColumns, TransportMeta, Values};
 use crate::error::{PrtError, Result};
 use crate::store::container::Tensor as Out;
 
@@ -139,24 +142,124 @@ pub(super) struct FileTensors {
     pub(super) rows: RowTensors,
     pub(super) sh: ShTensor,
     pub(super) matrix: MatrixTensors,
-    pub(super) mesh: MeshTensors,
-    pub(super) maps: MapTensors,
-    pub(super) visibility: VisibilityTensors,
-    pub(super) lights: LightTensors,
+    /// The groups of the parts stored beside the rows ([`Attached`]).
+    pub(super) attached: AttachedTensors,
 }
 
 impl FileTensors {
     fn group(&mut self, g: Group) -> &mut dyn ReadGroup {
+        let a = &mut self.attached;
         match g {
             Group::Pixels => &mut self.pixels,
             Group::Rows => &mut self.rows,
             Group::Sh => &mut self.sh,
             Group::Matrix => &mut self.matrix,
-            Group::Mesh => &mut self.mesh,
-            Group::Maps => &mut self.maps,
-            Group::Visibility => &mut self.visibility,
-            Group::Lights => &mut self.lights,
+            Group::Mesh => &mut a.mesh,
+            Group::Maps => &mut a.maps,
+            Group::Visibility => &mut a.visibility,
+            Group::Lights => &mut a.lights,
         }
+    }
+}
+
+/// The tensors of the parts a file stores beside its rows and per-pixel tables, as read.
+#[derive(Default)]
+pub(super) struct AttachedTensors {
+    mesh: MeshTensors,
+    maps: MapTensors,
+    visibility: VisibilityTensors,
+    lights: LightTensors,
+}
+
+impl AttachedTensors {
+    /// The parts these tensors hold, for a file with `meta` (each shape checked by `expect`,
+    /// other errors by `bad`).
+    pub(super) fn into_attached(
+        self,
+        meta: &TransportMeta,
+        expect: ShapeCheck,
+        bad: &dyn Fn(String) -> PrtError,
+    ) -> Result<Attached> {
+        let (w, h) = (meta.width as usize, meta.height as usize);
+        let columns = meta.light_columns();
+        let lights = self.lights.into_columns((columns, w, h), expect)?;
+        let mesh = match &meta.per_vertex {
+            Some(pv) => {
+                let maps = (pv, pv.albedo_maps as usize);
+                self.mesh.into_mesh(self.maps, maps, expect, bad)?
+            }
+            None => None,
+        };
+        let mesh = self
+            .visibility
+            .attach(mesh, (meta.identity.cube_n as usize, columns), expect)
+            .map_err(|e| bad(e.to_string()))?;
+        Ok(Attached {
+            domain: Domain::from_mesh(mesh),
+            lights,
+        })
+    }
+}
+
+/// What the attached parts' tensors are written from beyond the parts themselves: a textured
+/// mesh's maps as one table. The tensors borrow it, so it lives in the writer's call.
+pub(super) struct AttachedTables {
+    maps: Option<crate::scene::albedo_map::FileTables>,
+}
+
+impl AttachedTables {
+    /// The tables `attached` is written with.
+    pub(super) fn of(attached: &Attached) -> Self {
+        let textured = attached.domain.mesh().filter(|m| !m.albedo_maps.is_empty());
+        AttachedTables {
+            maps: textured.map(|m| crate::scene::albedo_map::to_table(&m.albedo_maps)),
+        }
+    }
+
+    /// The tensors of `attached` to write into the file `path` with header `meta` (read by
+    /// this file's reader as [`AttachedTensors::into_attached`] reads them), or an error where
+    /// the parts and the header disagree.
+    pub(super) fn write<'a>(
+        &'a self,
+        attached: &'a Attached,
+        meta: &TransportMeta,
+        path: &Path,
+    ) -> Result<Vec<(&'static str, Out<'a>)>> {
+        let mut tensors = Vec::new();
+        let mesh = attached.domain.mesh();
+        if let Some((mesh, maps)) = mesh.zip(self.maps.as_ref()) {
+            tensors.extend(MapTensors::write(mesh, maps));
+        }
+        if let Some(vis) = mesh.and_then(|m| m.visibility.as_ref()) {
+            if vis.columns != meta.light_columns() {
+                return Err(PrtError::file(
+                    path,
+                    format!(
+                        "the glossy vertices keep shares of {} light columns, the header has {}: \
+                         a glossy bake with lights from before format version 10 is drawn as it \
+                         loads, but is written only when baked again",
+                        vis.columns,
+                        meta.light_columns()
+                    ),
+                ));
+            }
+            tensors.extend(VisibilityTensors::write(vis));
+        }
+        if let Some(mesh) = mesh {
+            tensors.extend(MeshTensors::write(mesh));
+        }
+        let columns = meta.light_columns();
+        if attached.lights.problem(columns).is_some() {
+            return Err(PrtError::file(
+                path,
+                "the light columns to write do not match the header's lights",
+            ));
+        }
+        if columns > 0 {
+            let (w, h) = (meta.width as usize, meta.height as usize);
+            tensors.extend(LightTensors::write(&attached.lights, (columns, w, h)));
+        }
+        Ok(tensors)
     }
 }
 
