@@ -274,6 +274,75 @@ impl Light {
             .sum()
     }
 
+    /// One line about the light for `prt info`: its name, kind, shape, defaults, columns and
+    /// the samples a point takes of a sized light (`samples`).
+    pub fn describe(&self, samples: u32) -> String {
+        // Adding zero prints −0 (a negated axis's other components) as 0.
+        let v = |p: Vec3| format!("({:.3}, {:.3}, {:.3})", p.x + 0.0, p.y + 0.0, p.z + 0.0);
+        let at = match self.positions.as_slice() {
+            [p] => format!("at {}", v(*p)),
+            path => format!(
+                "along {} positions from {} to {}",
+                path.len(),
+                v(path[0]),
+                v(path[path.len() - 1])
+            ),
+        };
+        let shape = match &self.shape {
+            LightShape::Point => format!("point {at}, {} W/sr", self.intensity),
+            LightShape::Spot {
+                direction,
+                cone,
+                falloff,
+            } => format!(
+                "spot {at} towards {}, cone {:.1}° ({:.1}° falloff), {} W/sr",
+                v(*direction),
+                cone.to_degrees(),
+                falloff.to_degrees(),
+                self.intensity
+            ),
+            LightShape::Directional { direction, angle } => format!(
+                "directional towards {}{}, {} W/m²",
+                v(*direction),
+                if self.shape.is_sized() {
+                    format!(
+                        ", a disc {:.2}° wide ({samples} samples)",
+                        angle.to_degrees()
+                    )
+                } else if *angle > 0.0 {
+                    format!(
+                        ", a disc {:.4}° wide, drawn as a delta at its irradiance",
+                        angle.to_degrees()
+                    )
+                } else {
+                    String::new()
+                },
+                self.intensity
+            ),
+            LightShape::Quad { corners } => {
+                let area = 0.5
+                    * ((corners[1] - corners[0])
+                        .cross(corners[2] - corners[0])
+                        .length()
+                        + (corners[2] - corners[0])
+                            .cross(corners[3] - corners[0])
+                            .length());
+                format!(
+                    "quad {at}, {area:.3} units², {} W/(m² sr) ({samples} samples)",
+                    self.intensity
+                )
+            }
+        };
+        format!(
+            "{}: {shape}, colour ({:.3}, {:.3}, {:.3}); {} column(s)",
+            self.name,
+            self.color.x,
+            self.color.y,
+            self.color.z,
+            self.columns()
+        )
+    }
+
     /// Columns it is baked into: one per position.
     pub fn columns(&self) -> usize {
         self.positions.len()
@@ -608,6 +677,69 @@ pub fn stratified(n: usize, mut next: impl FnMut() -> f32) -> impl Iterator<Item
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn each_kind_is_described_by_its_shape_in_its_units() {
+        let light = |shape, positions: Vec<Vec3>| Light {
+            name: "l".into(),
+            color: Vec3::new(1.0, 0.5, 0.25),
+            intensity: 20.0,
+            shape,
+            grid: [positions.len(), 1, 1],
+            positions,
+        };
+        let at = vec![Vec3::Y];
+        let point = light(LightShape::Point, at.clone()).describe(16);
+        assert_eq!(
+            point,
+            "l: point at (0.000, 1.000, 0.000), 20 W/sr, colour (1.000, 0.500, 0.250); 1 column(s)"
+        );
+        let spot = LightShape::Spot {
+            direction: -Vec3::Y,
+            cone: 30f32.to_radians(),
+            falloff: 5f32.to_radians(),
+        };
+        let path = vec![Vec3::ZERO, Vec3::X, Vec3::new(2.0, 0.0, 0.0)];
+        let spot = light(spot, path).describe(16);
+        assert!(
+            spot.contains("spot along 3 positions from (0.000"),
+            "{spot}"
+        );
+        assert!(
+            spot.contains("cone 30.0° (5.0° falloff), 20 W/sr"),
+            "{spot}"
+        );
+        assert!(spot.ends_with("; 3 column(s)"), "{spot}");
+        // A 2 x 0.5 rectangle: the two triangles' areas add to 1.
+        let corners = [
+            [-1.0, 0.0, -0.25],
+            [1.0, 0.0, -0.25],
+            [1.0, 0.0, 0.25],
+            [-1.0, 0.0, 0.25],
+        ];
+        let quad = LightShape::Quad {
+            corners: corners.map(Vec3::from_array),
+        };
+        let quad = light(quad, at.clone()).describe(16);
+        assert!(
+            quad.contains("quad at (0.000, 1.000, 0.000), 1.000 units², 20 W/(m² sr) (16 samples)"),
+            "{quad}"
+        );
+        let sun = |angle: f32| LightShape::Directional {
+            direction: -Vec3::Y,
+            angle: angle.to_radians(),
+        };
+        let wide = light(sun(0.53), at.clone()).describe(16);
+        assert!(
+            wide.contains("a disc 0.53° wide (16 samples), 20 W/m²"),
+            "{wide}"
+        );
+        let delta = light(sun(0.0), at).describe(16);
+        assert!(
+            delta.contains("directional towards (0.000, -1.000, 0.000), 20 W/m²"),
+            "{delta}"
+        );
+    }
 
     #[test]
     fn a_place_in_a_grid_blends_its_nearest_positions_multilinearly() {

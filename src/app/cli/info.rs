@@ -145,7 +145,7 @@ fn print_storage(path: &std::path::Path, m: &crate::store::transport::TransportM
     println!("shadow rays   {}", s.shadow_rays);
     for (i, l) in m.lights.iter().enumerate() {
         let label = if i == 0 { "lights" } else { "" };
-        println!("{label:<14}{}", describe_light(l, id.light_samples));
+        println!("{label:<14}{}", l.describe(id.light_samples));
     }
     if let Some([i, n]) = id.shard {
         println!("shard         {i}/{n} (join all {n} with `prt merge`)");
@@ -183,74 +183,6 @@ pub(super) fn info(file: PathBuf) -> Result<()> {
     let meta = crate::store::transport::read_summary(&file)?;
     print_info(&file, &meta);
     Ok(())
-}
-
-/// One line about a light for `prt info`: its name, kind, shape, defaults, columns and samples.
-fn describe_light(l: &crate::scene::Light, samples: u32) -> String {
-    use crate::scene::LightShape;
-    let v = |p: glam::Vec3| format!("({:.3}, {:.3}, {:.3})", p.x, p.y, p.z);
-    let at = match l.positions.as_slice() {
-        [p] => format!("at {}", v(*p)),
-        path => format!(
-            "along {} positions from {} to {}",
-            path.len(),
-            v(path[0]),
-            v(path[path.len() - 1])
-        ),
-    };
-    let shape = match &l.shape {
-        LightShape::Point => format!("point {at}, {} W/sr", l.intensity),
-        LightShape::Spot {
-            direction,
-            cone,
-            falloff,
-        } => format!(
-            "spot {at} towards {}, cone {:.1}° ({:.1}° falloff), {} W/sr",
-            v(*direction),
-            cone.to_degrees(),
-            falloff.to_degrees(),
-            l.intensity
-        ),
-        LightShape::Directional { direction, angle } => format!(
-            "directional towards {}{}, {} W/m²",
-            v(*direction),
-            if l.shape.is_sized() {
-                format!(
-                    ", a disc {:.2}° wide ({samples} samples)",
-                    angle.to_degrees()
-                )
-            } else if *angle > 0.0 {
-                format!(
-                    ", a disc {:.4}° wide, drawn as a delta at its irradiance",
-                    angle.to_degrees()
-                )
-            } else {
-                String::new()
-            },
-            l.intensity
-        ),
-        LightShape::Quad { corners } => {
-            let area = 0.5
-                * ((corners[1] - corners[0])
-                    .cross(corners[2] - corners[0])
-                    .length()
-                    + (corners[2] - corners[0])
-                        .cross(corners[3] - corners[0])
-                        .length());
-            format!(
-                "quad {at}, {area:.3} units², {} W/(m² sr) ({samples} samples)",
-                l.intensity
-            )
-        }
-    };
-    format!(
-        "{}: {shape}, colour ({:.3}, {:.3}, {:.3}); {} column(s)",
-        l.name,
-        l.color.x,
-        l.color.y,
-        l.color.z,
-        l.columns()
-    )
 }
 
 /// The line of a glossy per-vertex bake with visibility: what its glossy vertices keep, and
