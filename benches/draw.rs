@@ -40,7 +40,7 @@ fn scene() -> Scene {
 
 /// A frame of `t` relit to `colours` with `lobe`, from the scene's camera turned 40°.
 fn frame(t: &Transport, colours: &[[f32; 3]], lobe: &Lobe) -> Raster {
-    let mesh = t.attached.domain.mesh().expect("per vertex");
+    let mesh = t.mesh().expect("per vertex");
     let base = wavelet_prt::draw::vertex::bake_camera(t).expect("camera");
     let camera = wavelet_prt::draw::vertex::orbit(&base, 40.0, 10.0);
     let options = DrawOptions {
@@ -70,7 +70,7 @@ fn bench(c: &mut Criterion) {
     let pyramid = lobe_light(&t, &ctx, Some(&light), &RelightRequest::Full)
         .expect("lobe light")
         .expect("a bake with visibility");
-    let mesh = t.attached.domain.mesh().expect("per vertex");
+    let mesh = t.mesh().expect("per vertex");
     let vis = mesh.visibility.as_deref().expect("visibility");
     let colours = &relit.pixels[..mesh.vertex_count()];
     let counts = lobe_samples(vis);

@@ -300,30 +300,45 @@ fn base_colour_is_srgb_and_metallic_roughness_is_linear() {
     assert!(scene.camera.eye.z > 1.0 && scene.camera.eye.y > 0.0);
 }
 
-#[test]
-fn punctual_lights_become_local_lights() {
-    let dir = temp_dir("gltf-lights");
+/// The test scene with `lights` (KHR_lights_punctual), each placed by one of `nodes` (a node's
+/// transform and its `light` index) beside the scene's own nodes 0, 1 and 3.
+fn lit_scene(lights: serde_json::Value, nodes: &[serde_json::Value]) -> GltfBuilder {
     let mut b = test_scene(4, false);
     b.set("extensionsUsed", json!(["KHR_lights_punctual"]));
     b.set(
         "extensions",
-        json!({"KHR_lights_punctual": {"lights": [
+        json!({"KHR_lights_punctual": {"lights": lights}}),
+    );
+    let mut all = b.json["nodes"].as_array().unwrap().clone();
+    let mut shown = vec![0, 1, 3];
+    for node in nodes {
+        shown.push(all.len());
+        all.push(node.clone());
+    }
+    b.set("nodes", json!(all));
+    b.set("scenes", json!([{ "nodes": shown }]));
+    b
+}
+
+#[test]
+fn punctual_lights_become_local_lights() {
+    let dir = temp_dir("gltf-lights");
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    let light = |i: usize| json!({"KHR_lights_punctual": {"light": i}});
+    let b = lit_scene(
+        json!([
             {"name": "lamp", "type": "point", "intensity": 683.0, "color": [1.0, 0.5, 0.25]},
             {"name": "sun light", "type": "directional", "intensity": 1366.0},
             {"type": "spot", "intensity": 68.3,
              "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.5}}
-        ]}}),
+        ]),
+        &[
+            json!({"translation": [1.0, 2.0, 3.0], "extensions": light(0)}),
+            json!({"extensions": light(1)}),
+            json!({"translation": [0.0, 3.0, 0.0], "rotation": [-h, 0.0, 0.0, h],
+                   "extensions": light(2)}),
+        ],
     );
-    let h = std::f32::consts::FRAC_1_SQRT_2;
-    let mut nodes = b.json["nodes"].as_array().unwrap().clone();
-    nodes.push(json!({"translation": [1.0, 2.0, 3.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}));
-    nodes.push(json!({"extensions": {"KHR_lights_punctual": {"light": 1}}}));
-    nodes.push(
-        json!({"translation": [0.0, 3.0, 0.0], "rotation": [-h, 0.0, 0.0, h],
-                      "extensions": {"KHR_lights_punctual": {"light": 2}}}),
-    );
-    b.set("nodes", json!(nodes));
-    b.set("scenes", json!([{"nodes": [0, 1, 3, 4, 5, 6]}]));
     let path = b.write_glb(&dir, "lit");
     let scene = Scene::load(&path).unwrap();
     let names: Vec<&str> = scene.lights.iter().map(|l| l.name.as_str()).collect();
@@ -354,19 +369,11 @@ fn punctual_lights_become_local_lights() {
 fn a_punctual_light_past_the_intensity_range_is_refused() {
     let dir = temp_dir("gltf-bright");
     for (intensity, color) in [(1e20, 1.0), (683.0, -1.0)] {
-        let mut b = test_scene(4, false);
-        b.set("extensionsUsed", json!(["KHR_lights_punctual"]));
-        b.set(
-            "extensions",
-            json!({"KHR_lights_punctual": {"lights": [
-                {"name": "lamp", "type": "point", "intensity": intensity,
-                 "color": [color, 1.0, 1.0]}
-            ]}}),
+        let b = lit_scene(
+            json!([{"name": "lamp", "type": "point", "intensity": intensity,
+                    "color": [color, 1.0, 1.0]}]),
+            &[json!({"extensions": {"KHR_lights_punctual": {"light": 0}}})],
         );
-        let mut nodes = b.json["nodes"].as_array().unwrap().clone();
-        nodes.push(json!({"extensions": {"KHR_lights_punctual": {"light": 0}}}));
-        b.set("nodes", json!(nodes));
-        b.set("scenes", json!([{"nodes": [0, 1, 3, 4]}]));
         let path = b.write_glb(&dir, "bright");
         let e = Scene::load(&path).unwrap_err().to_string();
         assert!(
@@ -412,6 +419,38 @@ fn a_toml_scene_includes_a_gltf_file_beside_its_own_shapes() {
         },
     );
     assert!(e.is_err());
+}
+
+#[test]
+fn a_gltf_whose_lights_take_a_scene_past_its_light_columns_is_refused() {
+    let dir = temp_dir("gltf-columns");
+    let b = lit_scene(
+        json!([{"name": "lamp", "type": "point", "intensity": 683.0}]),
+        &[json!({"extensions": {"KHR_lights_punctual": {"light": 0}}})],
+    );
+    b.write_glb(&dir, "lit");
+    // A grid of 16³ places fills every column a scene may have; the glTF's lamp is one more.
+    let scene = |counts: u32| {
+        format!(
+            "[camera]\neye = [0, 3, 6]\ntarget = [0, 0, 0]\nup = [0, 1, 0]\nfov_y_deg = 40\n\
+             width = 16\nheight = 12\n\
+             [[light]]\nname = \"swarm\"\ntype = \"point\"\nintensity = 1.0\n\
+             grid = {{ from = [-1, 1, -1], to = [1, 2, 1], counts = [16, 16, {counts}] }}\n\
+             [[shape]]\ntype = \"gltf\"\npath = \"lit.glb\"\n"
+        )
+    };
+    let p = dir.join("scene.toml");
+    std::fs::write(&p, scene(15)).unwrap();
+    let lit = Scene::load(&p).unwrap();
+    let columns: usize = lit.lights.iter().map(|l| l.columns()).sum();
+    assert_eq!(columns, 16 * 16 * 15 + 1);
+    std::fs::write(&p, scene(16)).unwrap();
+    let e = Scene::load(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("shape[0].path")
+            && e.contains("its lights take the scene past 4096 light columns"),
+        "{e}"
+    );
 }
 
 /// A glTF of the test scene with its JSON changed by `edit`, written as `.gltf` with external

@@ -30,11 +30,7 @@ pub fn lobe_light(
     light: Option<&PreparedLight>,
     req: &RelightRequest,
 ) -> Result<Option<CubePyramid>> {
-    if t.attached
-        .domain
-        .mesh()
-        .is_none_or(|m| m.visibility.is_none())
-    {
+    if t.mesh().is_none_or(|m| m.visibility.is_none()) {
         return Ok(None);
     }
     let cube = match light {

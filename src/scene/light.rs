@@ -705,6 +705,7 @@ mod tests {
             spot.contains("spot along 3 positions from (0.000"),
             "{spot}"
         );
+        assert!(spot.contains("towards (0.000, -1.000, 0.000)"), "{spot}");
         assert!(
             spot.contains("cone 30.0° (5.0° falloff), 20 W/sr"),
             "{spot}"
@@ -733,6 +734,11 @@ mod tests {
         assert!(
             wide.contains("a disc 0.53° wide (16 samples), 20 W/m²"),
             "{wide}"
+        );
+        let narrow = light(sun(MIN_DISC_ANGLE.to_degrees() / 2.0), at.clone()).describe(16);
+        assert!(
+            narrow.contains("a disc 0.0029° wide, drawn as a delta at its irradiance"),
+            "{narrow}"
         );
         let delta = light(sun(0.0), at).describe(16);
         assert!(

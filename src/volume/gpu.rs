@@ -13,7 +13,7 @@ use crate::scene::Camera;
 const MARCH_WORKGROUP: Workgroup2 = Workgroup2 { x: 8, y: 8 };
 
 /// The layout of `Params` in `shaders/volume_march.wgsl`: a vec3 and a scalar fill each 16-byte
-/// row, as WGSL lays out a uniform block, so the rows repeat one shape by design.
+/// row but the last, as WGSL lays out a uniform block, so the rows repeat one shape by design.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 struct Params {

@@ -389,11 +389,7 @@ impl Engine {
     /// other transport.
     fn lobe_light(&self, request: &RelightRequest, shown: bool) -> Result<Option<CubePyramid>> {
         let t = &self.transport;
-        if t.attached
-            .domain
-            .mesh()
-            .is_none_or(|m| m.visibility.is_none())
-        {
+        if t.mesh().is_none_or(|m| m.visibility.is_none()) {
             return Ok(None);
         }
         let light = self.light.as_ref().filter(|_| shown);

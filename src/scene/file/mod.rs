@@ -346,7 +346,7 @@ impl<'a> Loader<'a> {
                         return Err(self.map.error(
                             &field("path"),
                             format!(
-                                "its b.lights take the scene past {} light columns",
+                                "its lights take the scene past {} light columns",
                                 crate::scene::light::MAX_LIGHT_COLUMNS
                             ),
                         ));

@@ -159,7 +159,7 @@ fn merge_tiles(
     }
     let mut albedo = vec![[0.0f32; 3]; w * h];
     let mut coverage = vec![0.0f32; w * h];
-    let mut attached = first.attached.emptied(first.meta.light_columns());
+    let mut attached = first.attached.emptied((first.meta.light_columns(), w, h));
     for band in 0..ty {
         let s = &shards[owner[shard_of_band(band, ty, count as usize)]];
         for tile in band * tx..(band + 1) * tx {

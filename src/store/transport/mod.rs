@@ -233,7 +233,7 @@ pub struct Transport {
 /// What a transport stores beside its rows and per-pixel tables, each part a file holds or not
 /// (the file's tensor groups read, check and write them all): a load, a bake and a merge hand it
 /// on whole.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Attached {
     /// What the rows belong to: the pixels of the baked view, or a mesh's vertices (with their
     /// albedo maps and visibility).
@@ -278,21 +278,22 @@ impl Domain {
 impl Attached {
     /// Whether the parts hold anything in the image's pixel rows `rows` (a shard holds nothing
     /// outside its own bands).
-    fn holds_rows(&self, rows: std::ops::Range<usize>) -> bool {
+    fn holds_rows(&self, rows: Range<usize>) -> bool {
         !self.lights.rows_are_zero(rows)
     }
 
     /// What a merge of shards fills band by band ([`Attached::copy_rows`]): the domain, which
-    /// every shard shares, and `columns` light columns over the same image, all zero.
-    fn emptied(&self, columns: usize) -> Attached {
+    /// every shard shares, and the header's `columns` light columns over its `w` x `h` image,
+    /// all zero.
+    fn emptied(&self, (columns, w, h): (usize, usize, usize)) -> Attached {
         Attached {
             domain: self.domain.clone(),
-            lights: LightColumns::zeros(columns, self.lights.width, self.lights.height),
+            lights: LightColumns::zeros(columns, w, h),
         }
     }
 
     /// Copies `from`'s pixel rows `rows` (a shard's band) into these parts.
-    fn copy_rows(&mut self, from: &Attached, rows: std::ops::Range<usize>) {
+    fn copy_rows(&mut self, from: &Attached, rows: Range<usize>) {
         self.lights.copy_rows(&from.lights, rows);
     }
 }

@@ -97,7 +97,7 @@ pub(super) fn save_file<'a>(
     // What the attached parts are written from lives in this call: the tensors borrow it.
     let attached = AttachedTables::of(tables.attached);
     let mut tensors: Vec<(&str, Tensor)> = tensors;
-    tensors.extend(attached.write(tables.attached, meta, path)?);
+    tensors.extend(attached.write(meta, path)?);
     tensors.sort_by_key(|(name, _)| *name);
     if !tensors
         .iter()

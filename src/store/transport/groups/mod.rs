@@ -201,31 +201,34 @@ impl AttachedTensors {
     }
 }
 
-/// What the attached parts' tensors are written from beyond the parts themselves: a textured
-/// mesh's maps as one table. The tensors borrow it, so it lives in the writer's call.
-pub(super) struct AttachedTables {
+/// The attached parts to write, with what their tensors are written from beyond the parts
+/// themselves: a textured mesh's maps as one table. The tensors borrow it, so it lives in the
+/// writer's call.
+pub(super) struct AttachedTables<'a> {
+    attached: &'a Attached,
     maps: Option<crate::scene::albedo_map::FileTables>,
 }
 
-impl AttachedTables {
+impl<'a> AttachedTables<'a> {
     /// The tables `attached` is written with.
-    pub(super) fn of(attached: &Attached) -> Self {
+    pub(super) fn of(attached: &'a Attached) -> Self {
         let textured = attached.domain.mesh().filter(|m| !m.albedo_maps.is_empty());
         AttachedTables {
+            attached,
             maps: textured.map(|m| crate::scene::albedo_map::to_table(&m.albedo_maps)),
         }
     }
 
-    /// The tensors of `attached` to write into the file `path` with header `meta` (read by
-    /// this file's reader as [`AttachedTensors::into_attached`] reads them), or an error where
-    /// the parts and the header disagree.
-    pub(super) fn write<'a>(
+    /// The parts' tensors to write into the file `path` with header `meta` (read by this file's
+    /// reader as [`AttachedTensors::into_attached`] reads them), or an error where the parts and
+    /// the header disagree.
+    pub(super) fn write(
         &'a self,
-        attached: &'a Attached,
         meta: &TransportMeta,
         path: &Path,
     ) -> Result<Vec<(&'static str, Out<'a>)>> {
         let mut tensors = Vec::new();
+        let attached = self.attached;
         let mesh = attached.domain.mesh();
         if let Some((mesh, maps)) = mesh.zip(self.maps.as_ref()) {
             tensors.extend(MapTensors::write(mesh, maps));
