@@ -141,6 +141,13 @@ pub fn valid_name(name: &str) -> bool {
             .all(|c| c.is_ascii_alphanumeric() || "_-.".contains(c))
 }
 
+/// A quad's two triangles (corners 0, 1, 2 and 0, 2, 3) as the cross products of their edges
+/// from corner 0: each twice its triangle's area, along the normal of its winding.
+fn quad_crosses(c: &[Vec3; 4]) -> [Vec3; 2] {
+    let (e1, e2, e3) = (c[1] - c[0], c[2] - c[0], c[3] - c[0]);
+    [e1.cross(e2), e2.cross(e3)]
+}
+
 /// What is wrong with a quad light's corners, if anything: it must have an area, lie in a plane
 /// and go round it in order (its two triangles facing the same way).
 pub fn quad_problem(c: &[Vec3; 4]) -> Option<String> {
@@ -148,8 +155,7 @@ pub fn quad_problem(c: &[Vec3; 4]) -> Option<String> {
         return Some("every corner must be finite".into());
     }
     let size = (c[2] - c[0]).length().max((c[3] - c[1]).length());
-    let a = (c[1] - c[0]).cross(c[2] - c[0]);
-    let b = (c[2] - c[0]).cross(c[3] - c[0]);
+    let [a, b] = quad_crosses(c);
     let area = 0.5 * (a.length() + b.length());
     if !(area > 1e-10 * size * size && area > 0.0 && area.is_finite()) {
         return Some("the quad has zero area".into());
@@ -320,13 +326,8 @@ impl Light {
                 self.intensity
             ),
             LightShape::Quad { corners } => {
-                let area = 0.5
-                    * ((corners[1] - corners[0])
-                        .cross(corners[2] - corners[0])
-                        .length()
-                        + (corners[2] - corners[0])
-                            .cross(corners[3] - corners[0])
-                            .length());
+                let [a, b] = quad_crosses(corners);
+                let area = 0.5 * (a.length() + b.length());
                 format!(
                     "quad {at}, {area:.3} units², {} W/(m² sr) ({samples} samples)",
                     self.intensity
@@ -334,11 +335,9 @@ impl Light {
             }
         };
         format!(
-            "{}: {shape}, colour ({:.3}, {:.3}, {:.3}); {} column(s)",
+            "{}: {shape}, colour {}; {} column(s)",
             self.name,
-            self.color.x,
-            self.color.y,
-            self.color.z,
+            v(self.color),
             self.columns()
         )
     }
@@ -457,8 +456,7 @@ impl Emitter {
     /// file checks both).
     pub fn quad(c: [Vec3; 4]) -> Emitter {
         let edges = [c[1] - c[0], c[2] - c[0], c[3] - c[0]];
-        let cross_a = edges[0].cross(edges[1]);
-        let cross_b = edges[1].cross(edges[2]);
+        let [cross_a, cross_b] = quad_crosses(&c);
         let size = edges[1].length();
         Emitter::Quad {
             origin: c[0],
