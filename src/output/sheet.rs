@@ -99,13 +99,14 @@ pub fn write_sheet(path: &Path, columns: usize, cells: &[Cell], title: &str) -> 
     write_png(path, w, h, &rgb)
 }
 
-/// Smallest size a caption shrinks to before it takes more lines, pixels per em.
+/// Smallest size a caption shrinks to before it takes more lines, in pixels (as
+/// [`CAPTION_PX`]).
 pub const MIN_CAPTION_PX: usize = 10;
 
 /// A caption set to fit a width: its size and its lines, every character of the text kept.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CaptionLayout {
-    /// Pixels per em.
+    /// Size in pixels (as [`CAPTION_PX`]).
     pub px: usize,
     /// The lines, top to bottom.
     pub lines: Vec<String>,

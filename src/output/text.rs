@@ -1,22 +1,22 @@
 //! Text in the images the engine writes (contact-sheet captions, plot labels, screenshot strips):
-//! the Hack face egui ships, rasterised with antialiasing by `ab_glyph` through `plotters`, and
-//! blended over the pixels beneath.
+//! the Hack face egui ships, rasterised with antialiasing by `ab_glyph` and blended over the
+//! pixels beneath. Captions are set here glyph by glyph; the plots' labels through `plotters`,
+//! which [`register`] hands the same face.
 
 use std::sync::OnceLock;
 
-use plotters::prelude::*;
-use plotters::style::text_anchor::{HPos, Pos, VPos};
+use ab_glyph::{Font, FontRef, GlyphId, PxScale, ScaleFont, point};
+use plotters::style::FontStyle;
 
 use crate::error::{PrtError, Result};
 
 /// The face every image's text is set in (registered under this name).
 pub const FONT: &str = "sans-serif";
-/// Caption size, pixels per em.
+/// Caption size in pixels. A size here, as everywhere text is set, is the face's height from
+/// its ascender to its descender (its em is 0.86 of that).
 pub const CAPTION_PX: usize = 14;
 /// Height in pixels of a one-line caption strip: the text and a margin above and below.
 pub const CAPTION_HEIGHT: usize = CAPTION_PX + 8;
-/// Horizontal advance of one character of the monospace face, as a fraction of its size.
-const ADVANCE: f64 = 0.602;
 
 /// Registers the face once for the process; plotters looks faces up by name.
 pub fn register() -> Result<()> {
@@ -35,19 +35,29 @@ pub fn register() -> Result<()> {
     }
 }
 
-/// Width in pixels of `text` at `px` pixels per em.
+/// Width in pixels of `text` set at size `px`: its glyphs' advances and kerning, as
+/// [`draw_text_sized`] places them (0 if the face cannot be read, when nothing is drawn).
 pub fn width(text: &str, px: usize) -> usize {
-    (text.chars().count() as f64 * ADVANCE * px as f64).ceil() as usize
+    face().map_or(0, |face| set(face, text, px).1.ceil() as usize)
 }
 
-/// `text` cut to fit `width` pixels at the caption size, with `..` where it was cut.
-pub fn fit_text(text: &str, max_width: usize) -> String {
-    if width(text, CAPTION_PX) <= max_width {
-        return text.to_string();
+/// `text` set at size `px` from a pen at 0: each glyph with the pen's position at its origin,
+/// and the pen's position after the last (its advances, with the kerning between pairs).
+fn set(face: &FontRef<'static>, text: &str, px: usize) -> (Vec<(GlyphId, f32)>, f32) {
+    let scaled = face.as_scaled(PxScale::from(px as f32));
+    let mut pen = 0.0f32;
+    let mut previous = None;
+    let mut glyphs = Vec::with_capacity(text.len());
+    for c in text.chars() {
+        let id = scaled.glyph_id(c);
+        if let Some(p) = previous {
+            pen += scaled.kern(p, id);
+        }
+        previous = Some(id);
+        glyphs.push((id, pen));
+        pen += scaled.h_advance(id);
     }
-    let fits = (max_width as f64 / (ADVANCE * CAPTION_PX as f64)).floor() as usize;
-    let kept: String = text.chars().take(fits.saturating_sub(2)).collect();
-    format!("{kept}..")
+    (glyphs, pen)
 }
 
 /// Draws `text` at the caption size into an RGB8 buffer of width `w`, its top-left corner at
@@ -56,8 +66,10 @@ pub fn draw_text(rgb: &mut [u8], w: usize, x0: usize, y0: usize, text: &str, col
     draw_text_sized(rgb, w, x0, y0, text, CAPTION_PX, color);
 }
 
-/// [`draw_text`] at `px` pixels per em. Text that cannot be drawn (no face) is left out: a
-/// caption is never worth failing an image for.
+/// [`draw_text`] at size `px`. Each glyph is placed by the face's own metrics: its
+/// origin on the pen's whole pixel, its outline at its side bearing from there, every glyph on
+/// one baseline. Text that cannot be drawn (no face) is left out: a caption is never worth
+/// failing an image for.
 pub fn draw_text_sized(
     rgb: &mut [u8],
     w: usize,
@@ -68,19 +80,46 @@ pub fn draw_text_sized(
     color: [u8; 3],
 ) {
     let h = rgb.len() / (3 * w.max(1));
-    if w == 0 || h == 0 || register().is_err() {
+    let Some(face) = face() else {
+        return;
+    };
+    if w == 0 || h == 0 {
         return;
     }
-    let root = BitMapBackend::with_buffer(rgb, (w as u32, h as u32)).into_drawing_area();
-    let [r, g, b] = color;
-    let style = (FONT, px as f64)
-        .into_font()
-        .color(&RGBColor(r, g, b))
-        .pos(Pos::new(HPos::Left, VPos::Top));
-    // The face's top anchor sits about a quarter em above its capitals: start them at y0.
-    let y = y0 as i32 + (px as i32 + 2) / 4;
-    let _ = root.draw_text(text, &style, (x0 as i32, y));
-    let _ = root.present();
+    // The baseline about three quarters of the size below y0: capitals, 0.63 of the size tall,
+    // start a pixel or two below it.
+    let baseline = (y0 + (px + 2) / 4 + px / 2) as f32;
+    let scale = PxScale::from(px as f32);
+    for (id, pen) in set(face, text, px).0 {
+        let origin = point((x0 as f32 + pen).round(), baseline);
+        if let Some(outline) = face.outline_glyph(id.with_scale_and_position(scale, origin)) {
+            // Whole pixels: the box's corner is the first pixel the outline can cover.
+            let corner = outline.px_bounds().min;
+            outline.draw(|dx, dy, coverage| {
+                let x = corner.x as i64 + i64::from(dx);
+                let y = corner.y as i64 + i64::from(dy);
+                if (0..w as i64).contains(&x) && (0..h as i64).contains(&y) {
+                    let i = (y as usize * w + x as usize) * 3;
+                    blend(&mut rgb[i..i + 3], color, coverage);
+                }
+            });
+        }
+    }
+}
+
+/// The bundled face, read once for the process; `None` if it cannot be read.
+fn face() -> Option<&'static FontRef<'static>> {
+    static FACE: OnceLock<Option<FontRef<'static>>> = OnceLock::new();
+    FACE.get_or_init(|| FontRef::try_from_slice(epaint_default_fonts::HACK_REGULAR).ok())
+        .as_ref()
+}
+
+/// `color` laid over the pixel `under` with the glyph's `coverage` of it (0 to 1).
+fn blend(under: &mut [u8], color: [u8; 3], coverage: f32) {
+    let a = coverage.clamp(0.0, 1.0);
+    for (u, c) in under.iter_mut().zip(color) {
+        *u = (f32::from(*u) + (f32::from(c) - f32::from(*u)) * a).round() as u8;
+    }
 }
 
 #[cfg(test)]
@@ -117,15 +156,67 @@ mod tests {
             xs.0 >= 9 && xs.1 <= right,
             "columns {xs:?}, text ends by {right}"
         );
+        // The width is the advances': the last glyph (`%`, as wide as its cell) ends at it.
+        assert!(
+            xs.1 + 3 >= right,
+            "columns {xs:?}, the width ends at {right}"
+        );
         assert!(ys.0 >= 4 && ys.1 < 5 + 20, "rows {ys:?}");
         assert!(lit.iter().any(|p| p.2 > 30 && p.2 < 220));
     }
 
+    /// The lit pixels of each character cell of `text` drawn at the caption size from x = 4:
+    /// (centre column from the cell's origin on its whole pixel, lowest row) of each, `None` for
+    /// a blank cell.
+    fn cells(text: &str) -> Vec<Option<(f64, usize)>> {
+        let (w, h) = (200, 30);
+        let mut rgb = vec![0u8; w * h * 3];
+        draw_text(&mut rgb, w, 4, 2, text, [255, 255, 255]);
+        let scaled = face().unwrap().as_scaled(PxScale::from(CAPTION_PX as f32));
+        let advance = scaled.h_advance(scaled.glyph_id('x'));
+        (0..text.chars().count())
+            .map(|k| {
+                let from = (4.0 + k as f32 * advance).round();
+                let lit: Vec<(usize, usize, f64)> = (0..h)
+                    .flat_map(|y| (0..w).map(move |x| (x, y)))
+                    .filter(|&(x, _)| x as f32 + 0.5 >= from && (x as f32 + 0.5) < from + advance)
+                    .map(|(x, y)| (x, y, f64::from(rgb[(y * w + x) * 3]) / 255.0))
+                    .filter(|p| p.2 > 0.0)
+                    .collect();
+                let mass: f64 = lit.iter().map(|p| p.2).sum();
+                (mass > 0.0).then(|| {
+                    let centre = lit.iter().map(|p| p.0 as f64 * p.2).sum::<f64>() / mass;
+                    let bottom = lit.iter().filter(|p| p.2 > 0.5).map(|p| p.1).max().unwrap();
+                    let origin = (4.0 + k as f64 * f64::from(advance)).round();
+                    (centre + 0.5 - origin, bottom)
+                })
+            })
+            .collect()
+    }
+
     #[test]
-    fn long_text_is_cut_to_fit() {
-        let s = fit_text("a very long caption that cannot fit", 100);
-        assert!(s.ends_with(".."));
-        assert!(width(&s, CAPTION_PX) <= 100, "{s}");
-        assert_eq!(fit_text("short", 100), "short");
+    fn each_glyph_stands_at_its_own_bearing_on_one_baseline() {
+        // Hack is monospaced: a point sits in the middle of its cell, not at its left edge
+        // (where a glyph drawn from its box's corner, without its side bearing, would stand).
+        let got = cells("8.3x");
+        let advance = {
+            let scaled = face().unwrap().as_scaled(PxScale::from(CAPTION_PX as f32));
+            f64::from(scaled.h_advance(scaled.glyph_id('x')))
+        };
+        let (point_centre, _) = got[1].unwrap();
+        assert!(
+            (point_centre - advance / 2.0).abs() < 1.0,
+            "the point's centre {point_centre:.2} px into a cell {advance:.2} wide"
+        );
+        // Every glyph without a descender ends on one row.
+        let bottoms: Vec<usize> = got.iter().map(|c| c.unwrap().1).collect();
+        assert!(bottoms.windows(2).all(|b| b[0] == b[1]), "{bottoms:?}");
+        // And the same glyph is drawn alike in every cell: whole-pixel origins.
+        let same = cells("....");
+        assert!(
+            same.windows(2)
+                .all(|c| (c[0].unwrap().0 - c[1].unwrap().0).abs() < 1e-9),
+            "{same:?}"
+        );
     }
 }

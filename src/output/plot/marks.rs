@@ -129,8 +129,8 @@ pub(super) fn draw_marker(root: &Root, c: (i32, i32), look: &Look, color: RGBCol
     Ok(())
 }
 
-/// `text` broken at spaces into lines at most `max` pixels wide at `px` pixels per em; a word
-/// wider than that has a line of its own.
+/// `text` broken at spaces into lines at most `max` pixels wide at size `px` (as
+/// [`crate::output::text::CAPTION_PX`]); a word wider than that has a line of its own.
 pub(super) fn wrap(text: &str, px: usize, max: usize) -> Vec<String> {
     let mut lines: Vec<String> = Vec::new();
     for word in text.split(' ') {
