@@ -215,6 +215,58 @@ fn help_texts_name_the_current_behaviour() {
             "{cmd:?}: {text}"
         );
     }
+    // Every command's --env goes through one loader, which takes a bundled map by name.
+    for cmd in [
+        &["relight", "--help"][..],
+        &["bench", "--help"],
+        &["bounces", "--help"],
+        &["gloss", "--help"],
+        &["volume", "render", "--help"],
+        &["volume", "reference", "--help"],
+        &["volume", "orders", "--help"],
+    ] {
+        let text = help(cmd);
+        assert!(text.contains("bundled map"), "{cmd:?}: {text}");
+    }
+}
+
+// A study given an input that is not there (or a scene without the medium it studies) made
+// its output folder before it said so, and left it behind empty. The inputs are read first.
+#[test]
+fn a_study_whose_input_is_missing_leaves_no_folder() {
+    let dir = temp_dir("first-hour-missing-input");
+    let missing = dir.join("not-there.toml");
+    let missing_prt = dir.join("not-there.prt");
+    // And a scene with no medium, for the study of a medium.
+    let no_medium = dir.join("not-there-a-medium.toml");
+    std::fs::write(&no_medium, SPHERE_ON_PLANE).unwrap();
+    let runs: [(&str, Vec<&str>); 5] = [
+        (
+            "bounces",
+            vec!["bounces", s(&missing), "--env", "sun:40,60"],
+        ),
+        ("gloss", vec!["gloss", s(&missing), "--env", "sun:40,60"]),
+        (
+            "bench",
+            vec!["bench", s(&missing_prt), "--env", "sun:40,60"],
+        ),
+        (
+            "orders",
+            vec!["volume", "orders", s(&missing), "--env", "sun:40,60"],
+        ),
+        (
+            "orders-no-medium",
+            vec!["volume", "orders", s(&no_medium), "--env", "sun:40,60"],
+        ),
+    ];
+    for (name, mut args) in runs {
+        let out = dir.join(format!("out-{name}"));
+        args.extend(["--out", s(&out)]);
+        let (code, text) = common::prt(&args);
+        assert_ne!(code, 0, "{name}: {text}");
+        assert!(text.contains("not-there"), "{name}: {text}");
+        assert!(!out.exists(), "{name} made {}", out.display());
+    }
 }
 
 // 5. Every bundled map printed its "negative samples" note on every command. Negatives that hold

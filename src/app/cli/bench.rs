@@ -8,7 +8,8 @@ use crate::store::transport::{BakeDomain, Domain};
 pub struct BenchArgs {
     /// Transport file.
     pub file: PathBuf,
-    /// Environments (.exr/.hdr files or sun:ELEV,AZIM[,RADIUS]), one or more.
+    /// Environments (.exr/.hdr files, bundled maps by name or sun:ELEV,AZIM[,RADIUS]), one or
+    /// more.
     #[arg(long, required = true, num_args = 1..)]
     pub env: Vec<String>,
     /// Output directory for bench.csv, summary.md and the plots.
@@ -52,7 +53,6 @@ pub struct BenchArgs {
 const TEXTURED_REFERENCE_SPP: u32 = 16;
 
 pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
-    crate::files::check_output_folder(&a.out)?;
     let t = Transport::load(&a.file)?;
     crate::files::guard_inputs(&[&a.file]);
     let mut opts = crate::app::studies::bench::BenchOptions::defaults_for(&t);
@@ -87,6 +87,7 @@ pub(super) fn bench_cmd(a: BenchArgs) -> Result<()> {
     for spec in &a.env {
         envs.push((env_name(spec), load_env(spec)?));
     }
+    crate::files::check_output_folder(&a.out)?;
     crate::files::check_folder_outputs(
         &a.out,
         &[

@@ -16,7 +16,8 @@ pub struct BouncesArgs {
     /// The view: a glTF camera, the image size.
     #[command(flatten)]
     pub framing: FramingArgs,
-    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    /// Environment: an .exr/.hdr lat-long map, a bundled map by name (`prt env --list`), or
+    /// sun:ELEV,AZIM[,RADIUS].
     #[arg(long)]
     pub env: String,
     /// Output directory for bounces.md, bounces_sheet.png and the images.
@@ -69,9 +70,9 @@ pub(super) fn bounces_cmd(a: BouncesArgs) -> Result<()> {
         ));
     }
     check_light_flags(a.turn.yaw, a.turn.pitch, None)?;
-    crate::files::check_output_folder(&a.out)?;
     let scene = a.framing.load(&a.scene)?;
     let env = load_env(&a.env)?;
+    crate::files::check_output_folder(&a.out)?;
     crate::files::check_folder_outputs(&a.out, &["bounces.md", "bounces_sheet.png"])?;
     let defaults = BakeSettings::default();
     let base = settings_from(&a.sampling, defaults.sh_order, defaults.threshold, false);

@@ -15,7 +15,8 @@ use crate::error::Result;
 pub struct GlossArgs {
     /// Scene file with glossy materials (TOML).
     pub scene: PathBuf,
-    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    /// Environment: an .exr/.hdr lat-long map, a bundled map by name (`prt env --list`), or
+    /// sun:ELEV,AZIM[,RADIUS].
     #[arg(long)]
     pub env: String,
     /// Output directory for gloss.md, gloss.csv, gloss_error.png, the bakes (`bakes/`, reused
@@ -73,7 +74,6 @@ pub struct GlossArgs {
 const DEFAULT_AZIMUTHS: [f32; 3] = [60.0, 180.0, 300.0];
 
 pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
-    crate::files::check_output_folder(&a.out)?;
     let scene = crate::scene::Scene::load(&a.scene)?;
     crate::files::guard_inputs(&scene.input_files);
     crate::app::studies::gloss_bench::glossy_materials(&scene)?;
@@ -106,6 +106,7 @@ pub(super) fn gloss_cmd(a: GlossArgs) -> Result<()> {
     };
     opts.validate()?;
     let env = super::load_env(&a.env)?;
+    crate::files::check_output_folder(&a.out)?;
     crate::files::check_folder_outputs(&a.out, &["gloss.md", "gloss.csv", "gloss_error.png"])?;
     for r in &a.roughness {
         crate::app::studies::gloss_sweep::with_roughness(&scene, *r)?;

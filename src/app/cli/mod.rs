@@ -76,8 +76,8 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
         /// Ng et al. 2003 at its own scale instead: 512² bakes at cubes 4 to 64, SH against
-        /// wavelets up to 20,164 terms, relight rates, pictures; writes ng2003.md (12 minutes, 2.2 GB
-        /// of memory and 5.1 GB of bakes on 2 cores).
+        /// wavelets up to 20,164 terms, relight rates, pictures; writes ng2003.md (about 14 minutes,
+        /// 2.2 GB of memory and 5.2 GB of bakes on 2 cores).
         #[arg(long)]
         paper: bool,
     },

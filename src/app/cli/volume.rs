@@ -92,7 +92,8 @@ pub(super) const VOLUME_BYTES_PER_PIXEL: u64 = 32;
 pub struct VolumeRenderArgs {
     /// Volume file (.prtv).
     pub file: PathBuf,
-    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    /// Environment: an .exr/.hdr lat-long map, a bundled map by name (`prt env --list`), or
+    /// sun:ELEV,AZIM[,RADIUS].
     #[arg(long)]
     pub env: String,
     /// Output image (.exr linear, .png tone-mapped).
@@ -141,7 +142,8 @@ pub struct VolumeReferenceArgs {
     /// Scene file (TOML) with a [medium], or a volume file (.prtv), whose density grid and
     /// default view it takes (none of its transfer).
     pub file: PathBuf,
-    /// Environment: an .exr/.hdr lat-long map, or sun:ELEV,AZIM[,RADIUS].
+    /// Environment: an .exr/.hdr lat-long map, a bundled map by name (`prt env --list`), or
+    /// sun:ELEV,AZIM[,RADIUS].
     #[arg(long)]
     pub env: String,
     /// Output image (.exr linear, .png tone-mapped).
@@ -181,8 +183,8 @@ pub struct VolumeReferenceArgs {
 pub struct VolumeOrdersArgs {
     /// Scene file (TOML) with a [medium]; its camera is the view.
     pub scene: PathBuf,
-    /// Environments (each an .exr/.hdr lat-long map or sun:ELEV,AZIM[,RADIUS]); give it once
-    /// per environment.
+    /// Environments (each an .exr/.hdr lat-long map, a bundled map by name or
+    /// sun:ELEV,AZIM[,RADIUS]); give it once per environment.
     #[arg(long, required = true)]
     pub env: Vec<String>,
     /// Output directory for volume_orders.md.
@@ -207,10 +209,9 @@ pub struct VolumeOrdersArgs {
 
 pub(super) fn volume_orders_cmd(a: VolumeOrdersArgs) -> Result<()> {
     use crate::app::studies::volume_orders::{OrdersStudy, run_orders_study};
-    crate::files::check_output_folder(&a.out)?;
-    crate::files::guard_inputs(&[&a.scene]);
-    crate::files::check_folder_outputs(&a.out, &["volume_orders.md"])?;
     crate::math::cubemap::validate_n(a.cube)?;
+    let scene = crate::scene::Scene::load(&a.scene)?;
+    crate::files::guard_inputs(&scene.input_files);
     let envs = a
         .env
         .iter()
@@ -223,9 +224,8 @@ pub(super) fn volume_orders_cmd(a: VolumeOrdersArgs) -> Result<()> {
             Ok((name, load_env(e)?))
         })
         .collect::<Result<Vec<_>>>()?;
-    crate::files::create_folder(&a.out)?;
     let study = OrdersStudy {
-        scene: a.scene.clone(),
+        scene,
         envs,
         grids: a.grids.clone(),
         orders: a.orders.clone(),
@@ -233,6 +233,9 @@ pub(super) fn volume_orders_cmd(a: VolumeOrdersArgs) -> Result<()> {
         samples: a.samples,
         cube: a.cube,
     };
+    study.validate()?;
+    crate::files::check_output_folder(&a.out)?;
+    crate::files::check_folder_outputs(&a.out, &["volume_orders.md"])?;
     let report = run_orders_study(&study, &a.out, &mut |line| println!("{line}"))?;
     let path = a.out.join("volume_orders.md");
     crate::files::write_atomically(&path, |mut f| {

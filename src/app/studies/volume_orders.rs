@@ -3,7 +3,7 @@
 //! store at several grid sizes, and how well the run-time albedo holds against a path tracer
 //! run at that albedo.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -13,7 +13,7 @@ use crate::error::{PrtError, Result};
 use crate::math::cubemap::CubeMap;
 use crate::output::film::Image;
 use crate::output::metrics::relative_l2;
-use crate::scene::{Camera, Scene};
+use crate::scene::{Camera, MediumSpec, Scene};
 use crate::volume::path_trace::{VolumeTraceSettings, path_trace_volume};
 use crate::volume::{
     MediumLook, ScatterSettings, TransferSettings, VolumeLight, VolumeTransfer, VolumeView,
@@ -23,8 +23,8 @@ use crate::volume::{
 /// What the study sweeps.
 #[derive(Clone, Debug)]
 pub struct OrdersStudy {
-    /// Scene with a `[medium]`; its camera is the view.
-    pub scene: PathBuf,
+    /// Scene with a `[medium]`, loaded; its camera is the view.
+    pub scene: Scene,
     /// Environments, each with its name (a file name or a spec) and map.
     pub envs: Vec<(String, EnvMap)>,
     /// Grid sizes (voxels along the longest side).
@@ -37,6 +37,29 @@ pub struct OrdersStudy {
     pub samples: u32,
     /// Cube face size the environments are resampled to (as `prt volume render`'s).
     pub cube: usize,
+}
+
+impl OrdersStudy {
+    /// Checks, before any work, that there is something to sweep and a medium to sweep it in.
+    pub fn validate(&self) -> Result<()> {
+        if self.envs.is_empty() || self.grids.is_empty() || self.orders.is_empty() {
+            return Err(PrtError::invalid(
+                "volume orders",
+                "it needs at least one environment, grid and order count",
+            ));
+        }
+        self.medium().map(|_| ())
+    }
+
+    /// The scene's medium, or the error that it has none.
+    fn medium(&self) -> Result<&MediumSpec> {
+        self.scene.medium.as_ref().ok_or_else(|| {
+            PrtError::file(
+                &self.scene.source_path,
+                "the scene has no [medium] to study",
+            )
+        })
+    }
 }
 
 /// One bake's figures.
@@ -115,17 +138,9 @@ pub fn run_orders_study(
     scratch: &Path,
     log: &mut dyn FnMut(&str),
 ) -> Result<String> {
-    if study.envs.is_empty() || study.grids.is_empty() || study.orders.is_empty() {
-        return Err(PrtError::invalid(
-            "volume orders",
-            "it needs at least one environment, grid and order count",
-        ));
-    }
-    let scene = Scene::load(&study.scene)?;
-    let spec = scene
-        .medium
-        .as_ref()
-        .ok_or_else(|| PrtError::file(&study.scene, "the scene has no [medium] to study"))?;
+    study.validate()?;
+    let scene = &study.scene;
+    let spec = study.medium()?;
     // Each environment resampled once, for the references and every march alike.
     let cubes = study
         .envs
@@ -148,7 +163,7 @@ pub fn run_orders_study(
                 ..TransferSettings::default()
             };
             let start = Instant::now();
-            let vt = bake_volume(&scene, Some(grid), &settings, &|_, _| {})?;
+            let vt = bake_volume(scene, Some(grid), &settings, &|_, _| {})?;
             let seconds = start.elapsed().as_secs_f64();
             let path = scratch.join(format!("orders_g{grid}_n{orders}.prtv"));
             vt.save(&path)?;
@@ -192,7 +207,7 @@ pub fn run_orders_study(
     }
     // The albedo slider, on the scene's own grid and the default bake.
     let medium = spec.build(None)?;
-    let vt = bake_volume(&scene, None, &TransferSettings::default(), &|_, _| {})?;
+    let vt = bake_volume(scene, None, &TransferSettings::default(), &|_, _| {})?;
     let mut albedos = Vec::new();
     for &a in &study.albedos {
         let albedo = Vec3::splat(a);
@@ -223,7 +238,7 @@ pub fn run_orders_study(
     }
     Ok(report(
         study,
-        &scene,
+        scene,
         &vt,
         &bakes,
         &albedos,
