@@ -16,7 +16,7 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::error::{PrtError, Result};
 use crate::output::film::write_png;
-use crate::output::text::{FONT, width as text_width};
+use crate::output::text::{FONT, GlyphBackend, width as text_width};
 
 mod marks;
 use marks::*;
@@ -195,7 +195,7 @@ const TICK: i32 = 6;
 const LABEL_SHARE: f64 = 0.7;
 
 /// The drawing area of the whole image.
-type Root<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+type Root<'a> = DrawingArea<GlyphBackend<'a>, Shift>;
 /// What a drawing step returns.
 type Drawn = std::result::Result<(), Box<dyn std::error::Error>>;
 
@@ -437,7 +437,7 @@ fn draw(spec: &PlotSpec, layers: &Layers, xa: &Axis, ya: &Axis, buffer: &mut [u8
         (spec.width * SUPERSAMPLE) as u32,
         (spec.height * SUPERSAMPLE) as u32,
     );
-    let root = BitMapBackend::with_buffer(buffer, size).into_drawing_area();
+    let root = GlyphBackend(BitMapBackend::with_buffer(buffer, size)).into_drawing_area();
     root.fill(&WHITE)?;
     let text = |pt: u32| (FONT, (pt * s) as f64).into_font().color(&TEXT);
     let mut chart = ChartBuilder::on(&root)
