@@ -261,11 +261,7 @@ mod tests {
         let (w, h) = (120, 30);
         let mut rgb = vec![0u8; w * h * 3];
         draw_text(&mut rgb, w, 10, 5, "Sunrise 5%", [255, 255, 255]);
-        let lit: Vec<(usize, usize, u8)> = (0..h)
-            .flat_map(|y| (0..w).map(move |x| (x, y)))
-            .map(|(x, y)| (x, y, rgb[(y * w + x) * 3]))
-            .filter(|p| p.2 > 0)
-            .collect();
+        let lit = lit(&rgb, w);
         assert!(lit.len() > 60, "{} lit pixels", lit.len());
         // Inside the text's box, and blended at the edges (levels between black and white).
         let right = 10 + width("Sunrise 5%", CAPTION_PX) + 2;
@@ -286,30 +282,56 @@ mod tests {
         assert!(lit.iter().any(|p| p.2 > 30 && p.2 < 220));
     }
 
+    /// The lit pixels (x, y, level) of an RGB8 buffer `w` pixels wide, by its red channel.
+    fn lit(rgb: &[u8], w: usize) -> Vec<(usize, usize, u8)> {
+        rgb.chunks_exact(3)
+            .enumerate()
+            .map(|(i, p)| (i % w, i / w, p[0]))
+            .filter(|p| p.2 > 0)
+            .collect()
+    }
+
+    /// The level-weighted mean column of `pixels`, taken at the pixels' centres.
+    fn centre(pixels: &[&(usize, usize, u8)]) -> f64 {
+        let mass: f64 = pixels.iter().map(|p| f64::from(p.2)).sum();
+        pixels
+            .iter()
+            .map(|p| p.0 as f64 * f64::from(p.2))
+            .sum::<f64>()
+            / mass
+            + 0.5
+    }
+
+    /// The advance of a glyph of the (monospaced) face at `size`.
+    fn advance(size: f32) -> f64 {
+        let scaled = face().unwrap().as_scaled(PxScale::from(size));
+        f64::from(scaled.h_advance(scaled.glyph_id('x')))
+    }
+
     /// The lit pixels of each character cell of `text` drawn at the caption size from x = 4:
     /// (centre column from the cell's origin on its whole pixel, lowest row) of each, `None` for
     /// a blank cell.
     fn cells(text: &str) -> Vec<Option<(f64, usize)>> {
-        let (w, h) = (200, 30);
-        let mut rgb = vec![0u8; w * h * 3];
+        let w = 200;
+        let mut rgb = vec![0u8; w * 30 * 3];
         draw_text(&mut rgb, w, 4, 2, text, [255, 255, 255]);
-        let scaled = face().unwrap().as_scaled(PxScale::from(CAPTION_PX as f32));
-        let advance = scaled.h_advance(scaled.glyph_id('x'));
+        let lit = lit(&rgb, w);
+        let advance = advance(CAPTION_PX as f32);
         (0..text.chars().count())
             .map(|k| {
-                let from = (4.0 + k as f32 * advance).round();
-                let lit: Vec<(usize, usize, f64)> = (0..h)
-                    .flat_map(|y| (0..w).map(move |x| (x, y)))
-                    .filter(|&(x, _)| x as f32 + 0.5 >= from && (x as f32 + 0.5) < from + advance)
-                    .map(|(x, y)| (x, y, f64::from(rgb[(y * w + x) * 3]) / 255.0))
-                    .filter(|p| p.2 > 0.0)
+                let origin = (4.0 + k as f64 * advance).round();
+                let cell: Vec<&(usize, usize, u8)> = lit
+                    .iter()
+                    .filter(|p| (origin..origin + advance).contains(&(p.0 as f64 + 0.5)))
                     .collect();
-                let mass: f64 = lit.iter().map(|p| p.2).sum();
-                (mass > 0.0).then(|| {
-                    let centre = lit.iter().map(|p| p.0 as f64 * p.2).sum::<f64>() / mass;
-                    let bottom = lit.iter().filter(|p| p.2 > 0.5).map(|p| p.1).max().unwrap();
-                    let origin = (4.0 + k as f64 * f64::from(advance)).round();
-                    (centre + 0.5 - origin, bottom)
+                (!cell.is_empty()).then(|| {
+                    let bottom = cell
+                        .iter()
+                        .filter(|p| p.2 > 127)
+                        .map(|p| p.1)
+                        .max()
+                        .unwrap();
+                    (centre(&cell) - origin, bottom)
                 })
             })
             .collect()
@@ -337,30 +359,19 @@ mod tests {
             root.draw_text("8.3", &style, at).unwrap();
             root.present().unwrap();
         }
-        (0..h)
-            .flat_map(|y| (0..w).map(move |x| (x, y)))
-            .map(|(x, y)| (x, y, buffer[(y * w + x) * 3]))
-            .filter(|p| p.2 > 0)
-            .collect()
+        lit(&buffer, w)
     }
 
     #[test]
     fn the_plots_text_stands_at_its_bearing_upright_and_turned() {
-        let scaled = face().unwrap().as_scaled(PxScale::from(28.0));
-        let advance = f64::from(scaled.h_advance(scaled.glyph_id('x')));
+        let advance = advance(28.0);
         // Upright: the point's pixels (the middle cell, below the digits' middle) centre on the
         // middle of its cell, where plotters' own text put them against the 8.
         let lit = plotted(plotters::style::FontTransform::None, (10, 10));
         let cell = |x: usize| ((x as f64 - 10.0) / advance).floor() as i64;
         let point: Vec<&(usize, usize, u8)> = lit.iter().filter(|p| cell(p.0) == 1).collect();
-        let mass: f64 = point.iter().map(|p| f64::from(p.2)).sum();
-        let centre = point
-            .iter()
-            .map(|p| p.0 as f64 * f64::from(p.2))
-            .sum::<f64>()
-            / mass
-            + 0.5;
-        let middle = 10.0 + (advance).round() + advance / 2.0;
+        let centre = centre(&point);
+        let middle = 10.0 + advance.round() + advance / 2.0;
         assert!(
             (centre - middle).abs() < 1.0,
             "the point centres at {centre:.2}, its cell's middle is {middle:.2}"
@@ -384,10 +395,7 @@ mod tests {
         // Hack is monospaced: a point sits in the middle of its cell, not at its left edge
         // (where a glyph drawn from its box's corner, without its side bearing, would stand).
         let got = cells("8.3x");
-        let advance = {
-            let scaled = face().unwrap().as_scaled(PxScale::from(CAPTION_PX as f32));
-            f64::from(scaled.h_advance(scaled.glyph_id('x')))
-        };
+        let advance = advance(CAPTION_PX as f32);
         let (point_centre, _) = got[1].unwrap();
         assert!(
             (point_centre - advance / 2.0).abs() < 1.0,
